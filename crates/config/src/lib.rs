@@ -1,0 +1,1 @@
+//! grip-config

@@ -1,0 +1,11 @@
+//! One module per subcommand.
+
+pub mod analyze;
+pub mod roads;
+pub mod sim;
+
+/// What every subcommand gets from the global options.
+pub struct Ctx {
+    /// The configuration directory (`--config-dir`, default `config`).
+    pub config_dir: std::path::PathBuf,
+}

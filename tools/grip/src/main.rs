@@ -1,0 +1,53 @@
+//! `grip`: the command line of the grip traction-control runtime.
+//!
+//! Each subcommand lives in `cmd/<name>.rs` as an `Args` struct and a `run`
+//! function; this file only dispatches.
+
+use clap::{Parser, Subcommand};
+
+mod cmd;
+mod plot;
+
+#[derive(Parser)]
+#[command(name = "grip", version, about = "Acoustic road-aware traction control for electric vehicles")]
+struct Cli {
+    /// Directory holding grip's configuration (vehicle, roads, controllers, scenarios).
+    #[arg(long, global = true, default_value = "config", env = "GRIP_CONFIG_DIR")]
+    config_dir: std::path::PathBuf,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// List the road catalogue with lambda_opt and mu_peak; --plot draws the mu-lambda curves.
+    Roads(cmd::roads::Args),
+    /// Offline closed-loop simulation of the six controller variants on a scenario.
+    Sim(cmd::sim::Args),
+    /// Linear analysis: transfer functions, the K_MFC bound and Vinnicombe nu-gaps.
+    Analyze(cmd::analyze::Args),
+}
+
+fn main() -> std::process::ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    let ctx = cmd::Ctx { config_dir: cli.config_dir };
+    let result = match cli.command {
+        Command::Roads(a) => cmd::roads::run(&ctx, a),
+        Command::Sim(a) => cmd::sim::run(&ctx, a),
+        Command::Analyze(a) => cmd::analyze::run(&ctx, a),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
