@@ -1,1 +1,15 @@
-//! grip-arte
+//! grip-arte: acoustic road-type estimation (MODELS.md §5, paper §II).
+//!
+//! Pure: no file, clock or thread I/O. Reading WAV files and writing model
+//! files happens in the callers (`grip`, the `arte` service); this crate
+//! works on sample slices and byte buffers.
+//!
+//! Layout (one owner per module while the crate is being built):
+//! - `synth`: synthetic tyre-road audio per road, rain and passing-car noise.
+//! - `features`: the paper's 20 features (LPC, power spectrum, cepstrum), the
+//!   richer set, `FeatureConfig`, and the `FeatureExtractor` (plan once, reuse).
+//! - `select`: pruning by least intra-class variance, Kullback-Leibler report.
+//! - `stream`: the streaming estimator (blocks in, a decision per hop).
+//! - `mlp`, `svm`: classifiers (Levenberg-Marquardt MLP, SMO SVM).
+//! - `model`: the versioned, checksummed model file, standardisation inside.
+//! - `eval`: cross-validation by recording, confusion matrices, macro-F1.

@@ -1,0 +1,1 @@
+//! Shared helpers for grip's end-to-end and HIL tests.
