@@ -13,3 +13,5 @@
 //! - `mlp`, `svm`: classifiers (Levenberg-Marquardt MLP, SMO SVM).
 //! - `model`: the versioned, checksummed model file, standardisation inside.
 //! - `eval`: cross-validation by recording, confusion matrices, macro-F1.
+
+pub mod mlp;
