@@ -15,3 +15,4 @@
 //! - `eval`: cross-validation by recording, confusion matrices, macro-F1.
 
 pub mod mlp;
+pub mod features;
