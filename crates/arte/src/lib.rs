@@ -16,3 +16,5 @@
 
 pub mod mlp;
 pub mod features;
+pub mod svm;
+pub mod eval;
