@@ -1,8 +1,15 @@
 //! Vehicle parameters (MODELS.md §1, paper Table IV).
 
+use crate::validate::{self, InvalidField};
+
 /// Parameters of the vehicle and its driven wheel. Defaults are the paper's
 /// Table IV plus MODELS.md §1.
-#[derive(Debug, Clone, Copy, PartialEq)]
+///
+/// Deserialises from TOML (`[vehicle]` in `config/vehicle.toml`); a missing
+/// field takes its default, an unknown one is an error. Call
+/// [`VehicleParams::validate`] after loading.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct VehicleParams {
     /// Vehicle mass M, kg.
     pub mass: f64,
@@ -12,7 +19,8 @@ pub struct VehicleParams {
     pub j_w: f64,
     /// Tyre radius r, m.
     pub r: f64,
-    /// Wheel mass m, kg.
+    /// Wheel mass m, kg. Informational: it is part of M and is not used
+    /// separately by the quarter-vehicle plant (the paper lists it in Table IV).
     pub m_wheel: f64,
     /// Motor torque lag tau_m, s (first order).
     pub tau_m: f64,
@@ -58,5 +66,69 @@ impl VehicleParams {
     /// Inertia of the vehicle share reflected to the wheel, J_w + (M/n) r^2 (paper eq. 2).
     pub fn j_model(&self) -> f64 {
         self.j_w + self.mass_share() * self.r * self.r
+    }
+
+    /// Check ranges (NaN and infinities fail everywhere): mass, j_w, r,
+    /// v_eps, torque_max > 0; n_driven >= 1; m_wheel in [0, mass); tau_m,
+    /// c_rr, rho, c_d_a >= 0.
+    pub fn validate(&self) -> Result<(), InvalidField> {
+        validate::positive("mass", self.mass)?;
+        if !(self.n_driven.is_finite() && self.n_driven >= 1.0) {
+            return Err(InvalidField::new(
+                "n_driven",
+                format!("must be >= 1 (got {})", self.n_driven),
+            ));
+        }
+        validate::positive("j_w", self.j_w)?;
+        validate::positive("r", self.r)?;
+        validate::non_negative("m_wheel", self.m_wheel)?;
+        if self.m_wheel >= self.mass {
+            return Err(InvalidField::new(
+                "m_wheel",
+                format!(
+                    "must be smaller than the vehicle mass {} (got {})",
+                    self.mass, self.m_wheel
+                ),
+            ));
+        }
+        validate::non_negative("tau_m", self.tau_m)?;
+        validate::in_range("c_rr", self.c_rr, 0.0, 1.0)?;
+        validate::non_negative("rho", self.rho)?;
+        validate::non_negative("c_d_a", self.c_d_a)?;
+        validate::positive("v_eps", self.v_eps)?;
+        validate::positive("torque_max", self.torque_max)?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid_and_match_models_md() {
+        let p = VehicleParams::default();
+        p.validate().unwrap();
+        // MODELS.md: N = M g / 4 = 3433 N; snow carries 0.19 * N * r = 183 N m.
+        assert!((p.normal_force() - 3433.5).abs() < 0.1);
+        assert!((0.19 * p.normal_force() * p.r - 182.7).abs() < 0.5);
+    }
+
+    #[test]
+    fn bad_values_fail_with_the_field_named() {
+        type Mutation = fn(&mut VehicleParams);
+        let cases: [(&str, Mutation); 6] = [
+            ("mass", |p| p.mass = -5.0),
+            ("mass", |p| p.mass = f64::NAN),
+            ("r", |p| p.r = 0.0),
+            ("n_driven", |p| p.n_driven = 0.5),
+            ("v_eps", |p| p.v_eps = 0.0),
+            ("m_wheel", |p| p.m_wheel = 2000.0),
+        ];
+        for (field, f) in cases {
+            let mut p = VehicleParams::default();
+            f(&mut p);
+            assert_eq!(p.validate().unwrap_err().field, field);
+        }
     }
 }
