@@ -3,6 +3,50 @@
 //! the linear analysis (transfer functions, K_MFC bound, Vinnicombe nu-gap).
 //! Pure: no I/O, no clock; every `step` is allocation-free.
 
+pub mod any;
+pub mod filters;
+pub mod fuzzy;
+pub mod metrics;
+pub mod mfc;
+pub mod mtte;
+pub mod observer;
+pub mod params;
+pub mod slip_control;
 pub mod types;
 
+pub use any::{AnyController, ControllerKind, UnknownController};
+pub use metrics::{Metrics, MetricsAccumulator, Sample};
+pub use mfc::Mfc;
+pub use mtte::Mtte;
+pub use params::{ArteUse, ControllersConfig, LoopParams, MfcParams, MtteParams, SrcParams};
+pub use slip_control::Src;
 pub use types::{ControlOutput, Controller, Measurement, RoadKnowledge};
+
+/// Final limit shared by all controllers: for a positive demand the command
+/// is `candidate` clamped to `[0, T_d]` (NaN → 0, the safe side); a demand
+/// `<= 0` is passed through (the controllers are traction controllers);
+/// a non-finite demand gives 0.
+#[inline]
+pub(crate) fn limit_to_demand(candidate: f64, demand: f64) -> f64 {
+    if !demand.is_finite() {
+        0.0
+    } else if demand <= 0.0 {
+        demand
+    } else if candidate.is_nan() {
+        0.0
+    } else {
+        candidate.clamp(0.0, demand)
+    }
+}
+
+/// `dt` must be finite and > 0.
+pub(crate) fn valid_dt(dt: f64) -> Result<(), grip_physics::InvalidField> {
+    if dt.is_finite() && dt > 0.0 {
+        Ok(())
+    } else {
+        Err(grip_physics::InvalidField::new(
+            "dt",
+            format!("must be a finite number > 0 s (got {dt})"),
+        ))
+    }
+}

@@ -49,6 +49,10 @@ pub struct ControlOutput {
     /// Estimated friction coefficient mu-hat from the driving-force observer
     /// (NaN when the controller has none).
     pub mu_hat: f64,
+    /// True when the controller could not run its control law this cycle and
+    /// passed the driver's demand through unchanged (SRC without a chassis
+    /// speed `Measurement::v`). False in normal operation.
+    pub passthrough: bool,
 }
 
 /// A traction controller: a plain struct with a `step` at the controller

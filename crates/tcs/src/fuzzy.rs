@@ -1,0 +1,297 @@
+//! Fuzzy optimal-slip estimator for SRC (Mamdani type).
+//!
+//! Inputs (all per cycle):
+//! - `λ`   the (low-passed) measured slip,
+//! - `μ̂`   the observed friction coefficient,
+//! - `s_n` the normalised slope of the μ-λ curve at the operating point,
+//!   `s_n = (dμ̂/dλ) · λ / μ̂` (dimensionless: 1 in the linear region where
+//!   μ ∝ λ, 0 at the peak, negative past it). The slope dμ̂/dλ itself is
+//!   estimated online by [`SlopeEstimator`].
+//!
+//! Output: a slip *correction* Δλ; the estimate is `λ* = λ + Δλ`. The rule
+//! base moves the reference up the μ-λ curve while the slope is positive,
+//! holds it where the slope vanishes and pulls it back past the peak, with
+//! step sizes graded by the friction level (small steps on low-μ roads, whose
+//! peak is narrow and close to zero slip). This is the "track the adherence
+//! gradient without knowing the road" idea of Delli Colli, Tomassi and
+//! Scarano (IEEE TPEL 21(3), 2006) expressed as the optimal-slip estimator of
+//! the Hori group's SRC (Kataoka, Sado, Sakai, Hori, IEEJ Trans. IA 2001:
+//! fuzzy inference of the optimal slip from μ, its slope and λ).
+//!
+//! Inference: AND = min, implication = min (clipping), aggregation = max,
+//! defuzzification = centroid over a fixed grid of [`GRID`] points on
+//! [−0.12, 0.12]. Membership functions and the 27-rule table are constants
+//! below and are reproduced in `crates/tcs/README.md`. Nothing allocates.
+
+/// A trapezoidal membership function (a, b, c, d): 0 below a, rising to 1 at
+/// b, 1 up to c, falling to 0 at d. `a == b` or `c == d` make shoulders.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Trapezoid {
+    /// Foot, left.
+    pub a: f64,
+    /// Shoulder, left.
+    pub b: f64,
+    /// Shoulder, right.
+    pub c: f64,
+    /// Foot, right.
+    pub d: f64,
+}
+
+impl Trapezoid {
+    const fn new(a: f64, b: f64, c: f64, d: f64) -> Self {
+        Self { a, b, c, d }
+    }
+
+    /// Degree of membership of `x`, in [0, 1]. NaN gives 0.
+    pub fn grade(&self, x: f64) -> f64 {
+        if x.is_nan() {
+            return 0.0;
+        }
+        if x < self.b {
+            if x <= self.a {
+                0.0
+            } else {
+                (x - self.a) / (self.b - self.a)
+            }
+        } else if x <= self.c {
+            1.0
+        } else if x >= self.d {
+            0.0
+        } else {
+            (self.d - x) / (self.d - self.c)
+        }
+    }
+}
+
+const NEG_INF: f64 = f64::NEG_INFINITY;
+const POS_INF: f64 = f64::INFINITY;
+
+/// Slip λ: Small, Medium, Large.
+pub const LAMBDA_SETS: [Trapezoid; 3] = [
+    Trapezoid::new(NEG_INF, NEG_INF, 0.03, 0.10),
+    Trapezoid::new(0.03, 0.10, 0.10, 0.25),
+    Trapezoid::new(0.15, 0.30, POS_INF, POS_INF),
+];
+/// Friction μ̂: Low, Medium, High.
+pub const MU_SETS: [Trapezoid; 3] = [
+    Trapezoid::new(NEG_INF, NEG_INF, 0.15, 0.40),
+    Trapezoid::new(0.15, 0.45, 0.45, 0.80),
+    Trapezoid::new(0.50, 0.80, POS_INF, POS_INF),
+];
+/// Normalised slope s_n: Negative (past the peak), Zero (at the peak), Positive (rising).
+pub const SLOPE_SETS: [Trapezoid; 3] = [
+    Trapezoid::new(NEG_INF, NEG_INF, -0.3, 0.0),
+    Trapezoid::new(-0.3, 0.0, 0.0, 0.3),
+    Trapezoid::new(0.0, 0.3, POS_INF, POS_INF),
+];
+
+/// Output sets on Δλ: NB, NS, ZE, PS, PM (triangles).
+pub const OUT_SETS: [Trapezoid; 5] = [
+    Trapezoid::new(-0.12, -0.08, -0.08, -0.04),
+    Trapezoid::new(-0.06, -0.03, -0.03, 0.0),
+    Trapezoid::new(-0.02, 0.0, 0.0, 0.02),
+    Trapezoid::new(0.0, 0.02, 0.02, 0.04),
+    Trapezoid::new(0.02, 0.05, 0.05, 0.08),
+];
+/// Names of the output sets, for the README table and tests.
+pub const OUT_NAMES: [&str; 5] = ["NB", "NS", "ZE", "PS", "PM"];
+
+const NB: usize = 0;
+const NS: usize = 1;
+const ZE: usize = 2;
+const PS: usize = 3;
+const PM: usize = 4;
+
+/// Rule table: `RULES[slope][mu][lambda]` = output set index.
+/// slope: 0 N, 1 Z, 2 P; mu: 0 L, 1 M, 2 H; lambda: 0 S, 1 M, 2 L.
+pub const RULES: [[[usize; 3]; 3]; 3] = [
+    // slope N (past the peak): back off, harder at large slip
+    [[NS, NS, NB], [NS, NS, NB], [NS, NS, NB]],
+    // slope Z (at the peak): hold
+    [[ZE, ZE, ZE], [ZE, ZE, ZE], [ZE, ZE, ZE]],
+    // slope P (rising): climb; small steps on low μ, none at large slip on low μ
+    [[PS, PS, ZE], [PM, PS, PS], [PM, PM, PS]],
+];
+
+/// Output grid resolution (points on [−0.12, 0.12]).
+pub const GRID: usize = 121;
+const OUT_LO: f64 = -0.12;
+const OUT_HI: f64 = 0.12;
+
+/// Evaluate the rule base: Δλ for (λ, μ̂, s_n). Always finite; 0 when no
+/// rule fires (cannot happen for finite inputs: the input sets cover ℝ).
+pub fn infer(lambda: f64, mu: f64, slope_n: f64) -> f64 {
+    let gl = LAMBDA_SETS.map(|s| s.grade(lambda));
+    let gm = MU_SETS.map(|s| s.grade(mu));
+    let gs = SLOPE_SETS.map(|s| s.grade(slope_n));
+    // Strength of each output set: max over the rules that conclude it.
+    let mut strength = [0.0_f64; 5];
+    for (i, &ws) in gs.iter().enumerate() {
+        for (j, &wm) in gm.iter().enumerate() {
+            for (k, &wl) in gl.iter().enumerate() {
+                let w = ws.min(wm).min(wl);
+                let o = RULES[i][j][k];
+                if w > strength[o] {
+                    strength[o] = w;
+                }
+            }
+        }
+    }
+    let mut num = 0.0;
+    let mut den = 0.0;
+    let step = (OUT_HI - OUT_LO) / (GRID - 1) as f64;
+    for g in 0..GRID {
+        let x = OUT_LO + step * g as f64;
+        let mut y: f64 = 0.0;
+        for (o, set) in OUT_SETS.iter().enumerate() {
+            if strength[o] > 0.0 {
+                y = y.max(set.grade(x).min(strength[o]));
+            }
+        }
+        num += x * y;
+        den += y;
+    }
+    if den > 0.0 { num / den } else { 0.0 }
+}
+
+/// Online estimate of the μ-λ slope dμ̂/dλ: exponentially weighted least
+/// squares on the increments of the (filtered) λ and μ̂,
+///
+/// ```text
+/// S_xy ← ρ S_xy + Δλ Δμ̂,   S_xx ← ρ S_xx + Δλ²,   ρ = exp(−dt / τ_s)
+/// a = (S_xy + ε a₀) / (S_xx + ε),    a₀ = μ̂ / max(λ, 0.01)
+/// ```
+///
+/// With little slip excitation (S_xx ≪ ε) the estimate falls back to the
+/// linear-region prior a₀ (the secant through the origin), i.e. "assume we
+/// are below the peak" — the safe direction for the estimator, because the
+/// PI output is capped at the driver's demand anyway.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SlopeEstimator {
+    rho: f64,
+    eps: f64,
+    sxy: f64,
+    sxx: f64,
+    prev: Option<(f64, f64)>,
+}
+
+impl SlopeEstimator {
+    /// Window time constant `tau` (s), excitation threshold `eps`, sample time `dt` (s).
+    pub fn new(tau: f64, eps: f64, dt: f64) -> Self {
+        Self {
+            rho: (-dt / tau).exp(),
+            eps,
+            sxy: 0.0,
+            sxx: 0.0,
+            prev: None,
+        }
+    }
+
+    /// Update with the current (λ, μ̂) and return dμ̂/dλ.
+    pub fn step(&mut self, lambda: f64, mu: f64) -> f64 {
+        if let Some((l0, m0)) = self.prev {
+            let dl = lambda - l0;
+            let dm = mu - m0;
+            let sxy = self.rho * self.sxy + dl * dm;
+            let sxx = self.rho * self.sxx + dl * dl;
+            if sxy.is_finite() && sxx.is_finite() {
+                self.sxy = sxy;
+                self.sxx = sxx;
+            } else {
+                self.sxy = 0.0;
+                self.sxx = 0.0;
+            }
+        }
+        self.prev = Some((lambda, mu));
+        let prior = mu / lambda.max(0.01);
+        let a = (self.sxy + self.eps * prior) / (self.sxx + self.eps);
+        if a.is_finite() { a } else { prior }
+    }
+
+    /// Back to the state at construction.
+    pub fn reset(&mut self) {
+        self.sxy = 0.0;
+        self.sxx = 0.0;
+        self.prev = None;
+    }
+}
+
+/// Normalised slope s_n = a λ / μ̂, with λ floored at 0 and μ̂ at 0.02,
+/// clamped to [−3, 3] (NaN → 1, the linear-region value).
+pub fn normalised_slope(slope: f64, lambda: f64, mu: f64) -> f64 {
+    let s = slope * lambda.max(0.0) / mu.max(0.02);
+    if s.is_nan() { 1.0 } else { s.clamp(-3.0, 3.0) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sets_cover_the_real_line() {
+        for x in [
+            -1e9, -1.0, -0.3, -0.1, 0.0, 0.02, 0.1, 0.2, 0.5, 0.9, 1.0, 1e9,
+        ] {
+            assert!(
+                LAMBDA_SETS.iter().map(|s| s.grade(x)).sum::<f64>() > 0.0,
+                "lambda {x}"
+            );
+            assert!(
+                MU_SETS.iter().map(|s| s.grade(x)).sum::<f64>() > 0.0,
+                "mu {x}"
+            );
+            assert!(
+                SLOPE_SETS.iter().map(|s| s.grade(x)).sum::<f64>() > 0.0,
+                "slope {x}"
+            );
+        }
+    }
+
+    #[test]
+    fn rules_climb_hold_and_back_off() {
+        // Linear region on a high-μ road at small slip: climb by about PM.
+        let d = infer(0.02, 0.9, 1.0);
+        assert!((d - 0.05).abs() < 0.005, "{d}");
+        // At the peak: hold.
+        assert!(infer(0.17, 1.17, 0.0).abs() < 1e-9);
+        // Past the peak at large slip: back off by about NB.
+        let d = infer(0.4, 0.5, -1.0);
+        assert!((d + 0.08).abs() < 0.005, "{d}");
+        // Low μ, rising: small step.
+        let d = infer(0.02, 0.1, 1.0);
+        assert!((d - 0.02).abs() < 0.003, "{d}");
+        // Output monotone in the slope for a fixed operating point.
+        let mut last = f64::NEG_INFINITY;
+        for k in -30..=30 {
+            let d = infer(0.08, 0.5, k as f64 * 0.05);
+            assert!(d >= last - 1e-12);
+            last = d;
+        }
+    }
+
+    #[test]
+    fn slope_estimator_recovers_a_linear_curve_and_falls_back_without_excitation() {
+        let dt = 1e-3;
+        let mut est = SlopeEstimator::new(0.1, 1e-6, dt);
+        // No excitation: the prior μ/λ.
+        for _ in 0..100 {
+            let a = est.step(0.1, 0.76);
+            assert!((a - 7.6).abs() < 1e-9);
+        }
+        // λ sweeps across a curve μ = 0.8 − 4 (λ − 0.2)²: slope −8 (λ − 0.2).
+        let mut a = 0.0;
+        for k in 0..400 {
+            let l = 0.1 + 0.2 * k as f64 / 400.0;
+            a = est.step(l, 0.8 - 4.0 * (l - 0.2) * (l - 0.2));
+        }
+        // At λ = 0.3 the true slope is −0.8; the window lags ~0.1 s (0.05 in λ).
+        assert!(a < -0.2 && a > -1.0, "{a}");
+    }
+
+    #[test]
+    fn normalised_slope_examples() {
+        assert_eq!(normalised_slope(10.0, 0.05, 0.5), 1.0);
+        assert_eq!(normalised_slope(f64::NAN, 0.05, 0.5), 1.0);
+        assert_eq!(normalised_slope(1e9, 0.5, 0.5), 3.0);
+    }
+}

@@ -1,0 +1,189 @@
+//! MTTE: maximum transmissible torque estimation (Yin, Oh, Hori, IEEE TIE
+//! 56(6), 2009; MODELS.md §3, paper §III-C). No chassis speed needed.
+//!
+//! ```text
+//! F̂_d    = (LPF(T) − J_w dω/dt) / r                          (observer, τ_o = tau_obs)
+//! α      = ARTE usable ? RoadKnowledge::alpha : alpha (config)
+//! T_raw  = ( J_w / (α (M/n) r) + r ) · F̂_d
+//! T_max  = max( LPF_τ₁(T_raw), T_floor ),   T_floor = mu_floor · N · r
+//! T*     = min(T_d, T_max)   (and >= 0 for T_d > 0)
+//! ```
+//!
+//! α is the relaxation factor: the chassis acceleration over the wheel's
+//! circumferential acceleration that the controller tolerates
+//! (dV/dt = α r dω/dt). At constant slip λ the true ratio is 1 − λ, so the
+//! torque limit rises while λ < 1 − α and falls once λ > 1 − α: the
+//! equilibrium slip is 1 − α, which is why ARTE's α defaults to 1 − λ_opt.
+//!
+//! **Start-up.** From standstill with T = 0 the observer sees F̂_d = 0 and
+//! the raw limit is 0; the limit can only grow by the factor
+//! (J_w/α + (M/n) r²)/(J_w/(1−λ) + (M/n) r²) (≈ 1.002 for the default
+//! vehicle) per loop time constant, so a pure MTTE would hold the car at
+//! standstill. The limit therefore never drops below T_floor, the torque the
+//! lowest-friction catalogued road (ice, mu_peak 0.05) carries, so the floor
+//! alone cannot spin the wheel on any catalogued road; the LPF state starts at
+//! T_floor and is kept >= T_floor. See README for why this is our choice and
+//! not a verified detail of the original.
+//!
+//! `internal` is T_max (N m); `mu_hat` is μ̂.
+
+use crate::filters::LowPass;
+use crate::observer::DrivingForceObserver;
+use crate::params::{ArteUse, MtteParams};
+use crate::types::{ControlOutput, Controller, Measurement, RoadKnowledge};
+use crate::{limit_to_demand, valid_dt};
+use grip_physics::{InvalidField, VehicleParams};
+
+/// Maximum transmissible torque estimation controller.
+#[derive(Debug, Clone)]
+pub struct Mtte {
+    params: MtteParams,
+    arte: ArteUse,
+    j_w: f64,
+    r: f64,
+    mass_share: f64,
+    floor: f64,
+    observer: DrivingForceObserver,
+    lpf: LowPass,
+}
+
+impl Mtte {
+    /// A controller for `vehicle` at sample time `dt` (s).
+    pub fn new(
+        params: MtteParams,
+        arte: ArteUse,
+        vehicle: &VehicleParams,
+        dt: f64,
+    ) -> Result<Self, InvalidField> {
+        params.validate()?;
+        arte.validate()?;
+        valid_dt(dt)?;
+        vehicle.validate()?;
+        let floor = params.mu_floor * vehicle.normal_force() * vehicle.r;
+        let mut lpf = LowPass::new(params.tau_lpf, dt);
+        lpf.set(floor);
+        Ok(Self {
+            params,
+            arte,
+            j_w: vehicle.j_w,
+            r: vehicle.r,
+            mass_share: vehicle.mass_share(),
+            floor,
+            observer: DrivingForceObserver::new(vehicle, params.tau_obs, dt),
+            lpf,
+        })
+    }
+
+    /// The parameters in use.
+    pub fn params(&self) -> &MtteParams {
+        &self.params
+    }
+
+    /// The start-up floor T_floor = mu_floor · N · r, N m.
+    pub fn floor(&self) -> f64 {
+        self.floor
+    }
+
+    /// The factor T_max / F̂_d = J_w / (α (M/n) r) + r, m.
+    pub fn gain(&self, alpha: f64) -> f64 {
+        self.j_w / (alpha * self.mass_share * self.r) + self.r
+    }
+}
+
+impl Controller for Mtte {
+    fn step(&mut self, m: &Measurement, road: Option<&RoadKnowledge>) -> ControlOutput {
+        let f_hat = self.observer.step(m.torque, m.omega);
+        let known = self.arte.usable(road);
+        let alpha = known.map_or(self.params.alpha, |k| k.alpha);
+        let raw = self.gain(alpha) * f_hat;
+        let filtered = self.lpf.step(raw);
+        let t_max = if filtered.is_finite() {
+            filtered.max(self.floor)
+        } else {
+            self.floor
+        };
+        self.lpf.set(t_max);
+        let torque_cmd = limit_to_demand(t_max.min(m.demand), m.demand);
+        ControlOutput {
+            torque_cmd,
+            used_arte: known.is_some(),
+            internal: t_max,
+            mu_hat: self.observer.mu(),
+            passthrough: false,
+        }
+    }
+
+    fn reset(&mut self) {
+        self.observer.reset();
+        self.lpf.reset();
+        self.lpf.set(self.floor);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn meas(omega: f64, torque: f64, demand: f64) -> Measurement {
+        Measurement {
+            t: 0.0,
+            omega,
+            v: None,
+            torque,
+            demand,
+        }
+    }
+
+    #[test]
+    fn standstill_starts_at_the_floor_not_at_zero() {
+        let v = VehicleParams::default();
+        let mut c = Mtte::new(MtteParams::default(), ArteUse::default(), &v, 1e-3).unwrap();
+        let out = c.step(&meas(0.0, 0.0, 300.0), None);
+        let floor = 0.05 * v.normal_force() * v.r;
+        assert!((c.floor() - floor).abs() < 1e-9);
+        assert!((out.torque_cmd - floor).abs() < 1e-9, "{}", out.torque_cmd);
+        assert!(out.torque_cmd > 40.0);
+    }
+
+    #[test]
+    fn steady_force_gives_the_papers_limit() {
+        let v = VehicleParams::default();
+        let p = MtteParams::default();
+        let mut c = Mtte::new(p, ArteUse::default(), &v, 1e-3).unwrap();
+        // Constant speed, constant torque: F̂_d = T / r.
+        let mut out = ControlOutput::default();
+        for _ in 0..2000 {
+            out = c.step(&meas(20.0, 200.0, 1000.0), None);
+        }
+        let expected = (v.j_w / (p.alpha * v.mass_share() * v.r) + v.r) * 200.0 / v.r;
+        assert!(
+            (out.internal - expected).abs() < 1e-6,
+            "{} vs {expected}",
+            out.internal
+        );
+        assert!((out.torque_cmd - expected).abs() < 1e-6);
+        // A smaller demand wins.
+        let out = c.step(&meas(20.0, 200.0, 100.0), None);
+        assert_eq!(out.torque_cmd, 100.0);
+    }
+
+    #[test]
+    fn arte_alpha_is_used() {
+        let v = VehicleParams::default();
+        let mut a = Mtte::new(MtteParams::default(), ArteUse::default(), &v, 1e-3).unwrap();
+        let k = RoadKnowledge {
+            lambda_opt: 0.4,
+            mu_peak: 1.0,
+            alpha: 0.6,
+            confidence: 1.0,
+            age: 0.0,
+        };
+        let mut out = ControlOutput::default();
+        for _ in 0..2000 {
+            out = a.step(&meas(20.0, 200.0, 1000.0), Some(&k));
+        }
+        assert!(out.used_arte);
+        let expected = (v.j_w / (0.6 * v.mass_share() * v.r) + v.r) * 200.0 / v.r;
+        assert!((out.internal - expected).abs() < 1e-6);
+    }
+}

@@ -1,0 +1,367 @@
+//! Controller parameters: serde structs read from `config/controllers.toml`
+//! (sections `[mfc]`, `[src]`, `[mtte]`, `[arte]`, `[loop]`), each with a
+//! `validate()` that names the field and the reason. The values and their
+//! sources are listed in `crates/tcs/README.md` ("Controllers").
+//!
+//! Every field is required in the TOML file (no silent defaults for a
+//! baseline parameter); `Default` gives the documented values for tests and
+//! tools.
+
+use crate::types::RoadKnowledge;
+use grip_physics::InvalidField;
+use serde::Deserialize;
+
+fn positive(field: &str, v: f64) -> Result<(), InvalidField> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(InvalidField::new(
+            field,
+            format!("must be a finite number > 0 (got {v})"),
+        ))
+    }
+}
+
+fn non_negative(field: &str, v: f64) -> Result<(), InvalidField> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(InvalidField::new(
+            field,
+            format!("must be a finite number >= 0 (got {v})"),
+        ))
+    }
+}
+
+fn in_range(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), InvalidField> {
+    if v.is_finite() && v >= lo && v <= hi {
+        Ok(())
+    } else {
+        Err(InvalidField::new(
+            field,
+            format!("must be in [{lo}, {hi}] (got {v})"),
+        ))
+    }
+}
+
+/// MFC (Hori's model following control).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MfcParams {
+    /// Feedback gain K_MFC on the high-passed speed error, N m s/rad.
+    pub k_mfc: f64,
+    /// High-pass time constant τ₂ (`tau_hpf`), s.
+    pub tau_hpf: f64,
+}
+
+impl Default for MfcParams {
+    fn default() -> Self {
+        Self {
+            k_mfc: 2.5,
+            tau_hpf: 1.0,
+        }
+    }
+}
+
+impl MfcParams {
+    /// k_mfc >= 0, tau_hpf > 0.
+    pub fn validate(&self) -> Result<(), InvalidField> {
+        non_negative("k_mfc", self.k_mfc)?;
+        positive("tau_hpf", self.tau_hpf)?;
+        Ok(())
+    }
+}
+
+/// SRC (slip ratio control with the fuzzy optimal-slip estimator).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SrcParams {
+    /// Driving-force observer filter time constant τ_o, s.
+    pub tau_obs: f64,
+    /// PI proportional gain per unit of wheel speed, N m s (per unit slip):
+    /// K_p = kp · max(ω, v_eps / r).
+    pub kp: f64,
+    /// PI integral time T_i, s (K_i = K_p / T_i).
+    pub ti: f64,
+    /// Time constant of the slope estimator's exponential window, s.
+    pub tau_slope: f64,
+    /// Excitation (Σ Δλ² over the window) below which the slope estimate
+    /// falls back to the linear-region prior (slope = μ̂/λ).
+    pub slope_excitation: f64,
+    /// Low-pass time constant on the fuzzy λ*, s.
+    pub tau_ref: f64,
+    /// Lower bound on λ*.
+    pub lambda_min: f64,
+    /// Upper bound on λ*.
+    pub lambda_max: f64,
+}
+
+impl Default for SrcParams {
+    fn default() -> Self {
+        Self {
+            tau_obs: 0.01,
+            kp: 6.0,
+            ti: 0.2,
+            tau_slope: 0.1,
+            slope_excitation: 1e-6,
+            tau_ref: 0.05,
+            lambda_min: 0.02,
+            lambda_max: 0.45,
+        }
+    }
+}
+
+impl SrcParams {
+    /// Ranges: time constants > 0 (tau_obs, tau_ref >= 0), gains >= 0,
+    /// 0 < lambda_min < lambda_max < 1.
+    pub fn validate(&self) -> Result<(), InvalidField> {
+        non_negative("tau_obs", self.tau_obs)?;
+        non_negative("kp", self.kp)?;
+        positive("ti", self.ti)?;
+        positive("tau_slope", self.tau_slope)?;
+        positive("slope_excitation", self.slope_excitation)?;
+        non_negative("tau_ref", self.tau_ref)?;
+        in_range("lambda_min", self.lambda_min, 1e-4, 0.99)?;
+        in_range("lambda_max", self.lambda_max, 1e-4, 0.99)?;
+        if self.lambda_max <= self.lambda_min {
+            return Err(InvalidField::new(
+                "lambda_max",
+                format!(
+                    "must be > lambda_min = {} (got {})",
+                    self.lambda_min, self.lambda_max
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// MTTE (maximum transmissible torque estimation).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MtteParams {
+    /// Driving-force observer filter time constant τ_o, s.
+    pub tau_obs: f64,
+    /// Relaxation factor α without ARTE (chassis over wheel acceleration), (0, 1].
+    pub alpha: f64,
+    /// Low-pass time constant τ₁ on T_max, s.
+    pub tau_lpf: f64,
+    /// Start-up floor for T_max as a friction coefficient: T_max >= mu_floor · N · r.
+    pub mu_floor: f64,
+}
+
+impl Default for MtteParams {
+    fn default() -> Self {
+        Self {
+            tau_obs: 0.01,
+            alpha: 0.9,
+            tau_lpf: 0.05,
+            mu_floor: 0.05,
+        }
+    }
+}
+
+impl MtteParams {
+    /// tau_obs, tau_lpf >= 0; 0 < alpha <= 1; 0 <= mu_floor <= 2.
+    pub fn validate(&self) -> Result<(), InvalidField> {
+        non_negative("tau_obs", self.tau_obs)?;
+        if !(self.alpha.is_finite() && self.alpha > 0.0 && self.alpha <= 1.0) {
+            return Err(InvalidField::new(
+                "alpha",
+                format!("must be in (0, 1] (got {})", self.alpha),
+            ));
+        }
+        non_negative("tau_lpf", self.tau_lpf)?;
+        in_range("mu_floor", self.mu_floor, 0.0, 2.0)?;
+        Ok(())
+    }
+}
+
+/// When a controller may use ARTE's road knowledge (the fallback rule).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ArteUse {
+    /// Road knowledge older than this (s) is ignored.
+    pub max_age_s: f64,
+    /// Road knowledge less confident than this is ignored, [0, 1].
+    pub min_confidence: f64,
+}
+
+impl Default for ArteUse {
+    fn default() -> Self {
+        Self {
+            max_age_s: 0.3,
+            min_confidence: 0.6,
+        }
+    }
+}
+
+impl ArteUse {
+    /// max_age_s >= 0, min_confidence in [0, 1].
+    pub fn validate(&self) -> Result<(), InvalidField> {
+        non_negative("max_age_s", self.max_age_s)?;
+        in_range("min_confidence", self.min_confidence, 0.0, 1.0)?;
+        Ok(())
+    }
+
+    /// The knowledge a controller may use this cycle, or `None` (run the
+    /// no-ARTE behaviour). Usable means: present; `age` finite, >= 0 and
+    /// <= `max_age_s`; `confidence` >= `min_confidence`; and the physical
+    /// values plausible: 0 < λ_opt < 1, 0 < α <= 1, mu_peak finite and > 0.
+    /// Anything else (NaN included) falls back.
+    pub fn usable<'a>(&self, road: Option<&'a RoadKnowledge>) -> Option<&'a RoadKnowledge> {
+        let k = road?;
+        let fresh = k.age.is_finite() && k.age >= 0.0 && k.age <= self.max_age_s;
+        let confident = k.confidence.is_finite() && k.confidence >= self.min_confidence;
+        let plausible = k.lambda_opt.is_finite()
+            && k.lambda_opt > 0.0
+            && k.lambda_opt < 1.0
+            && k.alpha.is_finite()
+            && k.alpha > 0.0
+            && k.alpha <= 1.0
+            && k.mu_peak.is_finite()
+            && k.mu_peak > 0.0;
+        (fresh && confident && plausible).then_some(k)
+    }
+}
+
+/// `[loop]`: the controller rate.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoopParams {
+    /// Controller rate, Hz (dt = 1 / rate_hz).
+    pub rate_hz: f64,
+}
+
+impl Default for LoopParams {
+    fn default() -> Self {
+        Self { rate_hz: 1000.0 }
+    }
+}
+
+impl LoopParams {
+    /// 1 Hz <= rate_hz <= 100 kHz.
+    pub fn validate(&self) -> Result<(), InvalidField> {
+        in_range("rate_hz", self.rate_hz, 1.0, 100_000.0)
+    }
+
+    /// Sample time, s.
+    pub fn dt(&self) -> f64 {
+        1.0 / self.rate_hz
+    }
+}
+
+/// Everything in `config/controllers.toml`.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControllersConfig {
+    /// `[mfc]`
+    pub mfc: MfcParams,
+    /// `[src]`
+    pub src: SrcParams,
+    /// `[mtte]`
+    pub mtte: MtteParams,
+    /// `[arte]`: the fallback rule shared by all three controllers.
+    pub arte: ArteUse,
+    /// `[loop]`
+    #[serde(rename = "loop")]
+    pub loop_: LoopParams,
+}
+
+impl ControllersConfig {
+    /// Validate every section; the field is prefixed with its section
+    /// (e.g. `mfc.tau_hpf`).
+    pub fn validate(&self) -> Result<(), InvalidField> {
+        self.mfc.validate().map_err(|e| e.prefixed("mfc"))?;
+        self.src.validate().map_err(|e| e.prefixed("src"))?;
+        self.mtte.validate().map_err(|e| e.prefixed("mtte"))?;
+        self.arte.validate().map_err(|e| e.prefixed("arte"))?;
+        self.loop_.validate().map_err(|e| e.prefixed("loop"))?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn knowledge() -> RoadKnowledge {
+        RoadKnowledge {
+            lambda_opt: 0.17,
+            mu_peak: 1.17,
+            alpha: 0.83,
+            confidence: 0.9,
+            age: 0.05,
+        }
+    }
+
+    #[test]
+    fn defaults_validate() {
+        ControllersConfig::default().validate().unwrap();
+    }
+
+    #[test]
+    fn bad_values_name_the_field() {
+        let mut c = ControllersConfig::default();
+        c.mfc.tau_hpf = f64::NAN;
+        assert_eq!(c.validate().unwrap_err().field, "mfc.tau_hpf");
+        let mut c = ControllersConfig::default();
+        c.src.lambda_max = 0.01;
+        assert_eq!(c.validate().unwrap_err().field, "src.lambda_max");
+        let mut c = ControllersConfig::default();
+        c.mtte.alpha = 1.5;
+        assert_eq!(c.validate().unwrap_err().field, "mtte.alpha");
+        let mut c = ControllersConfig::default();
+        c.arte.min_confidence = -0.1;
+        assert_eq!(c.validate().unwrap_err().field, "arte.min_confidence");
+        let mut c = ControllersConfig::default();
+        c.loop_.rate_hz = 0.0;
+        assert_eq!(c.validate().unwrap_err().field, "loop.rate_hz");
+    }
+
+    #[test]
+    fn fallback_rule() {
+        let u = ArteUse {
+            max_age_s: 0.3,
+            min_confidence: 0.6,
+        };
+        let k = knowledge();
+        assert!(u.usable(Some(&k)).is_some());
+        assert!(u.usable(None).is_none());
+        assert!(u.usable(Some(&RoadKnowledge { age: 0.31, ..k })).is_none());
+        assert!(u.usable(Some(&RoadKnowledge { age: 0.3, ..k })).is_some());
+        assert!(
+            u.usable(Some(&RoadKnowledge {
+                confidence: 0.59,
+                ..k
+            }))
+            .is_none()
+        );
+        assert!(
+            u.usable(Some(&RoadKnowledge {
+                confidence: f64::NAN,
+                ..k
+            }))
+            .is_none()
+        );
+        assert!(
+            u.usable(Some(&RoadKnowledge { age: f64::NAN, ..k }))
+                .is_none()
+        );
+        assert!(
+            u.usable(Some(&RoadKnowledge {
+                lambda_opt: 1.0,
+                ..k
+            }))
+            .is_none()
+        );
+        assert!(u.usable(Some(&RoadKnowledge { alpha: 0.0, ..k })).is_none());
+        assert!(
+            u.usable(Some(&RoadKnowledge {
+                mu_peak: f64::INFINITY,
+                ..k
+            }))
+            .is_none()
+        );
+    }
+}
