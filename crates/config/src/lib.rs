@@ -1,1 +1,18 @@
-//! grip-config
+//! grip-config: TOML (and CSV) configuration into the pure crates' types, with
+//! validation and one clear error per problem ([`ConfigError`]: file, field,
+//! reason).
+//!
+//! - [`load_vehicle`]: `config/vehicle.toml` -> ([`VehicleParams`], [`SensorParams`])
+//! - [`load_roads`]: `config/roads.toml` (+ CSV tables relative to it) -> [`RoadCatalogue`]
+//! - [`load_scenario`]: `config/scenarios/<name>.toml` -> [`Scenario`]
+//! - [`ConfigDir`]: finds the standard files under one directory.
+//! - [`parse_toml`]: the helper every loader uses (also `controllers.rs`).
+//!
+//! [`VehicleParams`]: grip_physics::VehicleParams
+//! [`SensorParams`]: grip_physics::SensorParams
+//! [`RoadCatalogue`]: grip_physics::RoadCatalogue
+//! [`Scenario`]: grip_physics::Scenario
+
+pub mod error;
+
+pub use error::{ConfigError, line_of, parse_toml, read_file};
