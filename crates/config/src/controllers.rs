@@ -1,0 +1,75 @@
+//! `config/controllers.toml` -> [`ControllersConfig`] (sections `[mfc]`,
+//! `[src]`, `[mtte]`, `[arte]`, `[loop]`; every field required, unknown
+//! fields rejected, ranges checked by `ControllersConfig::validate`).
+//!
+//! The parameter structs live in `grip-tcs` (the controllers own their
+//! parameters); this module only reads and validates the file.
+
+use std::path::Path;
+
+pub use grip_tcs::params::{
+    ArteUse, ControllersConfig, LoopParams, MfcParams, MtteParams, SrcParams,
+};
+
+use crate::{ConfigError, parse_toml, read_file};
+
+/// Read, parse and validate the controllers file at `path`.
+pub fn load_controllers(path: impl AsRef<Path>) -> Result<ControllersConfig, ConfigError> {
+    let path = path.as_ref();
+    let text = read_file(path)?;
+    parse_controllers(path, &text)
+}
+
+/// Parse and validate controllers TOML `text` (the contents of `file`).
+pub fn parse_controllers(file: &Path, text: &str) -> Result<ControllersConfig, ConfigError> {
+    let config: ControllersConfig = parse_toml(file, text)?;
+    config
+        .validate()
+        .map_err(|e| ConfigError::invalid(file, "", e))?;
+    Ok(config)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::PathBuf;
+
+    fn shipped() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/controllers.toml")
+    }
+
+    #[test]
+    fn the_shipped_file_loads_and_equals_the_documented_defaults() {
+        let c = load_controllers(shipped()).unwrap();
+        assert_eq!(c, ControllersConfig::default());
+        assert_eq!(c.loop_.rate_hz, 1000.0);
+    }
+
+    #[test]
+    fn errors_name_file_field_and_reason() {
+        let text = std::fs::read_to_string(shipped()).unwrap();
+        let f = Path::new("controllers.toml");
+
+        let bad = text.replace("tau_hpf = 1.0", "tau_hpf = -1.0");
+        let e = parse_controllers(f, &bad).unwrap_err();
+        assert_eq!(e.field, "mfc.tau_hpf", "{e}");
+        assert!(e.reason.contains("> 0"), "{e}");
+        assert_eq!(e.file, f);
+
+        let bad = text.replace("alpha = 0.9", "alpha = 0.9\nbeta = 1.0");
+        let e = parse_controllers(f, &bad).unwrap_err();
+        assert_eq!(e.field, "mtte.beta", "{e}");
+        assert!(e.reason.contains("unknown field"), "{e}");
+
+        let bad = text.replace("kp = 6.0\n", "");
+        let e = parse_controllers(f, &bad).unwrap_err();
+        assert!(e.reason.contains("missing field `kp`"), "{e}");
+
+        let bad = text.replace("rate_hz = 1000.0", "rate_hz = nan");
+        let e = parse_controllers(f, &bad).unwrap_err();
+        assert_eq!(e.field, "loop.rate_hz", "{e}");
+
+        let e = load_controllers("/nonexistent/controllers.toml").unwrap_err();
+        assert!(e.reason.contains("cannot read"), "{e}");
+    }
+}
