@@ -3,6 +3,7 @@
 //! the linear analysis (transfer functions, K_MFC bound, Vinnicombe nu-gap).
 //! Pure: no I/O, no clock; every `step` is allocation-free.
 
+pub mod analysis;
 pub mod any;
 pub mod filters;
 pub mod fuzzy;

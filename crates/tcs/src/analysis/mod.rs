@@ -1,0 +1,50 @@
+//! Linear analysis (paper §III, MODELS.md §1 and §4 item 6): polynomials and
+//! SISO transfer functions, the paper's transfer functions for the configured
+//! vehicle (with the corrections documented in `crates/tcs/README.md`,
+//! section "Analysis"), the K_MFC bound (4), the Vinnicombe ν-gap and the
+//! ν-gaps of the three controller structures with and without ARTE.
+//!
+//! Nothing here runs in a control loop; allocation is allowed.
+
+pub mod nugap;
+pub mod poly;
+pub mod tf;
+
+pub use nugap::{NuGap, nu_gap};
+pub use poly::Poly;
+pub use tf::Tf;
+
+/// Errors of the linear analysis.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum AnalysisError {
+    /// A polynomial coefficient is NaN or infinite.
+    #[error("coefficient {index} is {value}, not a finite number")]
+    NonFinite {
+        /// Position in the slice as given.
+        index: usize,
+        /// The offending value.
+        value: f64,
+    },
+    /// The zero polynomial where a nonzero one is needed (roots of 0).
+    #[error("the polynomial is identically zero")]
+    ZeroPolynomial,
+    /// A transfer function with a zero denominator.
+    #[error("the denominator is identically zero")]
+    ZeroDenominator,
+    /// The companion-matrix eigenvalue iteration did not converge.
+    #[error("root finding did not converge for a polynomial of degree {degree}")]
+    RootsFailed {
+        /// Degree of the polynomial.
+        degree: usize,
+    },
+    /// A physical parameter out of its valid range.
+    #[error("parameter `{name}` = {value}: {reason}")]
+    InvalidParameter {
+        /// Parameter name.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// Why it is rejected.
+        reason: &'static str,
+    },
+}
