@@ -13,6 +13,14 @@
 //! [`RoadCatalogue`]: grip_physics::RoadCatalogue
 //! [`Scenario`]: grip_physics::Scenario
 
+pub mod dir;
 pub mod error;
+pub mod roads;
+pub mod scenario;
+pub mod vehicle;
 
+pub use dir::ConfigDir;
 pub use error::{ConfigError, line_of, parse_toml, read_file};
+pub use roads::{load_roads, parse_roads};
+pub use scenario::{load_scenario, parse_scenario};
+pub use vehicle::{load_vehicle, parse_vehicle};

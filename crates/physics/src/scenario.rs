@@ -249,8 +249,6 @@ impl Scenario {
         if name.trim().is_empty() {
             return Err(InvalidField::new("name", "must not be empty"));
         }
-        validate::positive("duration", duration)?;
-        validate::in_range("v0", v0, 0.0, 100.0)?;
         if segments.is_empty() {
             return Err(InvalidField::new(
                 "segment",
@@ -283,6 +281,8 @@ impl Scenario {
             acc += s.span;
             ends.push(acc);
         }
+        validate::positive("duration", duration)?;
+        validate::in_range("v0", v0, 0.0, 100.0)?;
         demand.validate().map_err(|e| e.prefixed("demand"))?;
         Ok(Self {
             name,

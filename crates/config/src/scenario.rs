@@ -1,0 +1,223 @@
+//! `config/scenarios/<name>.toml`: one drive.
+//!
+//! ```toml
+//! name = "paper"
+//! description = "free text"
+//! v0_kmh = 10.0              # initial speed, km/h (the wheel starts without slip)
+//! segments_by = "time"       # "time": each segment has `duration` (s);
+//!                            # "distance": each has `length` (m)
+//! duration = 3.0             # run length, s; optional in time mode (default:
+//!                            # sum of the segment durations), required by distance
+//!
+//! [demand]                   # driver torque demand, N m (>= 0)
+//! kind = "constant"          # constant {torque} | ramp {from, to, start, duration}
+//! torque = 300.0             # | stop_and_go {torque, on, off, rise}
+//!                            # | steps {times, torques}
+//! [[segment]]
+//! road = "asphalt"           # a name from roads.toml
+//! duration = 0.5             # or length = 20.0 in distance mode
+//! grade_pct = 0.0            # optional, percent, positive uphill
+//! ```
+
+use std::path::Path;
+
+use grip_physics::{Demand, RoadCatalogue, Scenario, Segment, SegmentMode};
+
+use crate::error::{ConfigError, parse_toml, read_file};
+
+#[derive(Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SegmentSpec {
+    road: String,
+    duration: Option<f64>,
+    length: Option<f64>,
+    #[serde(default)]
+    grade_pct: f64,
+}
+
+#[derive(Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ScenarioFile {
+    name: String,
+    #[serde(default)]
+    description: String,
+    duration: Option<f64>,
+    v0_kmh: f64,
+    segments_by: SegmentMode,
+    demand: Demand,
+    #[serde(default)]
+    segment: Vec<SegmentSpec>,
+}
+
+/// Parse a scenario from `text` (the contents of `file`), resolving road
+/// names against `roads`.
+pub fn parse_scenario(
+    file: &Path,
+    text: &str,
+    roads: &RoadCatalogue,
+) -> Result<Scenario, ConfigError> {
+    let f: ScenarioFile = parse_toml(file, text)?;
+    if f.segment.is_empty() {
+        return Err(ConfigError::new(
+            file,
+            "segment",
+            "the road list is empty: give at least one [[segment]]",
+        ));
+    }
+    let (own, other) = match f.segments_by {
+        SegmentMode::Time => ("duration", "length"),
+        SegmentMode::Distance => ("length", "duration"),
+    };
+    let mut segments = Vec::with_capacity(f.segment.len());
+    for (i, s) in f.segment.into_iter().enumerate() {
+        let road = roads.index_of(&s.road).ok_or_else(|| {
+            ConfigError::new(
+                file,
+                format!("segment[{i}].road"),
+                format!("unknown road `{}` (known: {})", s.road, roads.names()),
+            )
+        })?;
+        let (mine, theirs) = match f.segments_by {
+            SegmentMode::Time => (s.duration, s.length),
+            SegmentMode::Distance => (s.length, s.duration),
+        };
+        if theirs.is_some() {
+            return Err(ConfigError::new(
+                file,
+                format!("segment[{i}].{other}"),
+                format!(
+                    "not allowed with segments_by = \"{}\" (use `{own}`)",
+                    if own == "duration" {
+                        "time"
+                    } else {
+                        "distance"
+                    }
+                ),
+            ));
+        }
+        let span =
+            mine.ok_or_else(|| ConfigError::new(file, format!("segment[{i}].{own}"), "missing"))?;
+        segments.push(Segment {
+            road_name: s.road,
+            road,
+            span,
+            grade_pct: s.grade_pct,
+        });
+    }
+    let duration = match (f.duration, f.segments_by) {
+        (Some(d), _) => d,
+        (None, SegmentMode::Time) => segments.iter().map(|s| s.span).sum(),
+        (None, SegmentMode::Distance) => {
+            return Err(ConfigError::new(
+                file,
+                "duration",
+                "missing (required when segments_by = \"distance\")",
+            ));
+        }
+    };
+    let v0 = f.v0_kmh / 3.6;
+    Scenario::new(
+        f.name,
+        f.description,
+        duration,
+        v0,
+        f.segments_by,
+        segments,
+        f.demand,
+        roads.len(),
+    )
+    .map_err(|mut e| {
+        if e.field == "v0" {
+            e = grip_physics::InvalidField::new(
+                "v0_kmh",
+                format!("must be in [0, 360] km/h (got {})", f.v0_kmh),
+            );
+        }
+        ConfigError::invalid(file, "", e)
+    })
+}
+
+/// Load a scenario file, resolving road names against `roads`.
+pub fn load_scenario(
+    path: impl AsRef<Path>,
+    roads: &RoadCatalogue,
+) -> Result<Scenario, ConfigError> {
+    let path = path.as_ref();
+    parse_scenario(path, &read_file(path)?, roads)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use grip_physics::Road;
+
+    fn roads() -> RoadCatalogue {
+        RoadCatalogue::new(vec![
+            Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap(),
+            Road::burckhardt("snow", 0.1946, 94.129, 0.0646).unwrap(),
+        ])
+        .unwrap()
+    }
+
+    fn parse(text: &str) -> Result<Scenario, ConfigError> {
+        parse_scenario(Path::new("config/scenarios/t.toml"), text, &roads())
+    }
+
+    const HEAD: &str = "name = \"t\"\nv0_kmh = 10.0\nsegments_by = \"time\"\n[demand]\nkind = \"constant\"\ntorque = 300.0\n";
+
+    #[test]
+    fn good() {
+        let s = parse(&format!("{HEAD}[[segment]]\nroad = \"asphalt\"\nduration = 0.5\n[[segment]]\nroad = \"snow\"\nduration = 1.0\ngrade_pct = 5.0\n")).unwrap();
+        assert_eq!(s.duration, 1.5);
+        assert!((s.v0 - 2.7778).abs() < 1e-4);
+        assert_eq!(s.segments[1].road, 1);
+        assert_eq!(s.road_at(0.7, 0.0), 1);
+        assert_eq!(s.demand_at(1.0), 300.0);
+    }
+
+    #[test]
+    fn empty_road_list() {
+        let e = parse(HEAD).unwrap_err();
+        assert_eq!(e.field, "segment");
+        assert!(e.reason.contains("empty"));
+    }
+
+    #[test]
+    fn unknown_road() {
+        let e = parse(&format!(
+            "{HEAD}[[segment]]\nroad = \"mud\"\nduration = 0.5\n"
+        ))
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "config/scenarios/t.toml: field `segment[0].road`: unknown road `mud` (known: asphalt, snow)"
+        );
+    }
+
+    #[test]
+    fn mode_mismatch_and_bad_values() {
+        let e = parse(&format!(
+            "{HEAD}[[segment]]\nroad = \"snow\"\nlength = 5.0\n"
+        ))
+        .unwrap_err();
+        assert_eq!(e.field, "segment[0].length", "{e}");
+        let e = parse(&format!("{HEAD}[[segment]]\nroad = \"snow\"\n")).unwrap_err();
+        assert_eq!(e.field, "segment[0].duration", "{e}");
+        let e = parse(&format!(
+            "{HEAD}[[segment]]\nroad = \"snow\"\nduration = nan\n"
+        ))
+        .unwrap_err();
+        assert_eq!(e.field, "segment[0].duration", "{e}");
+        let e = parse(&format!(
+            "{HEAD}[[segment]]\nroad = \"snow\"\nduration = 1.0\nspeed = 3\n"
+        ))
+        .unwrap_err();
+        assert_eq!(e.field, "segment[0].speed", "{e}");
+        let bad_demand = "name = \"t\"\nv0_kmh = 10.0\nsegments_by = \"time\"\n[demand]\nkind = \"constant\"\ntorque = -300.0\n[[segment]]\nroad = \"snow\"\nduration = 1.0\n";
+        assert_eq!(parse(bad_demand).unwrap_err().field, "demand.torque");
+        let bad_v0 = bad_demand
+            .replace("torque = -300.0", "torque = 300.0")
+            .replace("v0_kmh = 10.0", "v0_kmh = -1.0");
+        assert_eq!(parse(&bad_v0).unwrap_err().field, "v0_kmh");
+    }
+}
