@@ -393,3 +393,74 @@ impl fmt::Display for Metrics {
         )
     }
 }
+
+/// A labelled feature matrix: row-major `x` (`dim` columns), one class label
+/// and one recording id per row.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Samples {
+    /// Columns.
+    pub dim: usize,
+    /// Row-major features.
+    pub x: Vec<f64>,
+    /// Class index per row.
+    pub y: Vec<usize>,
+    /// Recording id per row.
+    pub group: Vec<usize>,
+}
+
+impl Samples {
+    /// Empty set with `dim` columns.
+    pub fn new(dim: usize) -> Self {
+        Self {
+            dim,
+            ..Default::default()
+        }
+    }
+    /// Rows.
+    pub fn len(&self) -> usize {
+        self.y.len()
+    }
+    /// No rows.
+    pub fn is_empty(&self) -> bool {
+        self.y.is_empty()
+    }
+    /// Row `i`.
+    pub fn row(&self, i: usize) -> &[f64] {
+        &self.x[i * self.dim..(i + 1) * self.dim]
+    }
+    /// Appends a row (`row.len()` must equal `dim`).
+    pub fn push(&mut self, row: &[f64], y: usize, group: usize) {
+        debug_assert_eq!(row.len(), self.dim);
+        self.x.extend_from_slice(row);
+        self.y.push(y);
+        self.group.push(group);
+    }
+    /// The rows at `idx`, in that order.
+    pub fn subset(&self, idx: &[usize]) -> Samples {
+        let mut s = Samples::new(self.dim);
+        s.x.reserve(idx.len() * self.dim);
+        for &i in idx {
+            s.push(self.row(i), self.y[i], self.group[i]);
+        }
+        s
+    }
+    /// Keeps only the columns `cols` (in that order).
+    pub fn select_columns(&self, cols: &[usize]) -> Samples {
+        let mut s = Samples::new(cols.len());
+        s.x.reserve(self.len() * cols.len());
+        for i in 0..self.len() {
+            let r = self.row(i);
+            s.x.extend(cols.iter().map(|&c| r[c]));
+        }
+        s.y.clone_from(&self.y);
+        s.group.clone_from(&self.group);
+        s
+    }
+    /// Number of distinct recordings.
+    pub fn n_groups(&self) -> usize {
+        self.group
+            .iter()
+            .collect::<std::collections::BTreeSet<_>>()
+            .len()
+    }
+}

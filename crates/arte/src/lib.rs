@@ -18,3 +18,4 @@ pub mod mlp;
 pub mod features;
 pub mod svm;
 pub mod eval;
+pub mod model;

@@ -1,0 +1,681 @@
+//! The ARTE model file: classes, feature config, standardiser, classifier
+//! and training metadata in one versioned, checksummed file.
+//!
+//! Format (version 1):
+//!
+//! ```text
+//! GRIP-ARTE-MODEL v1 sha256=<64 lower-case hex digits of the payload>\n
+//! <payload: compact JSON of `Model`>
+//! ```
+//!
+//! The checksum covers the payload bytes exactly as stored. Floats are
+//! written by `serde_json` in shortest round-trip form and parsed with its
+//! `float_roundtrip` feature, so `to_bytes → from_bytes → to_bytes` is
+//! byte-identical and predictions of a reloaded model are bit-identical.
+//!
+//! [`Model::from_bytes`] refuses, each with its own [`ModelError`]: a file
+//! that is not a model (bad magic), an unknown format version, a checksum
+//! mismatch (corrupt or truncated), bad JSON, and any inconsistency (class
+//! count vs classifier outputs, feature count vs feature config vs
+//! standardiser vs classifier inputs, non-finite numbers). The caller adds
+//! the path to the message.
+//!
+//! Standardisation lives in the model: `z_i = (x_i − mean_i) / std_i` with
+//! the training-set mean and standard deviation (a std below 1e-12 is stored
+//! as 1, so a constant feature maps to 0 instead of dividing by zero).
+//!
+//! Paper7's selected feature indices are `feature_config.selection` (the
+//! extractor computes exactly the selected columns), so a model needs no
+//! separate selection field.
+
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::eval::{Confusion, Metrics, Samples, holdout_groups, stratified_group_kfold};
+use crate::features::{FeatureConfig, FeatureError};
+use crate::mlp::{LmConfig, LmReport, Mlp, MlpError, MlpScratch, stratified_subsample, train_lm};
+use crate::svm::{Kernel, Svm, SvmConfig, SvmError, SvmReport, SvmScratch};
+
+/// File magic, first token of the header line.
+pub const MAGIC: &str = "GRIP-ARTE-MODEL";
+/// The format version this code writes and reads.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// Errors of model files, fitting and prediction.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelError {
+    /// No header line, or the file is empty.
+    #[error("not a grip ARTE model: {0}")]
+    NotAModel(String),
+    /// Header names a version this code does not know.
+    #[error(
+        "model format version {found} is not supported (this build reads version {FORMAT_VERSION})"
+    )]
+    UnknownVersion {
+        /// Version found.
+        found: String,
+    },
+    /// Payload checksum does not match the header.
+    #[error(
+        "checksum mismatch: header says sha256={expected}, payload hashes to {actual} (file corrupt or truncated)"
+    )]
+    Checksum {
+        /// From the header.
+        expected: String,
+        /// Computed.
+        actual: String,
+    },
+    /// Payload is not valid JSON for a model.
+    #[error("model payload is not valid: {0}")]
+    Json(String),
+    /// Payload parsed but its parts disagree.
+    #[error("model is inconsistent: field `{field}`: {reason}")]
+    Mismatch {
+        /// Offending field.
+        field: &'static str,
+        /// Why.
+        reason: String,
+    },
+    /// Feature config invalid.
+    #[error("model field `feature_config`: {0}")]
+    Features(#[from] FeatureError),
+    /// MLP problem.
+    #[error("MLP: {0}")]
+    Mlp(#[from] MlpError),
+    /// SVM problem.
+    #[error("SVM: {0}")]
+    Svm(#[from] SvmError),
+    /// Evaluation/split problem.
+    #[error("{0}")]
+    Eval(#[from] crate::eval::EvalError),
+    /// Feature vector of the wrong length given to a predictor.
+    #[error("feature vector has {got} values, the model expects {expected}")]
+    FeatureCount {
+        /// Given.
+        got: usize,
+        /// Expected.
+        expected: usize,
+    },
+    /// Output slice of the wrong length.
+    #[error("probability output has {got} slots, the model has {expected} classes")]
+    OutputCount {
+        /// Given.
+        got: usize,
+        /// Expected.
+        expected: usize,
+    },
+    /// A feature value is NaN or infinite.
+    #[error("feature {index} is not finite")]
+    NotFinite {
+        /// Feature index.
+        index: usize,
+    },
+}
+
+/// Per-feature standardisation fitted on the training set.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Standardiser {
+    /// Means.
+    pub mean: Vec<f64>,
+    /// Standard deviations (population), floored: below 1e-12 stored as 1.
+    pub std: Vec<f64>,
+}
+
+impl Standardiser {
+    /// Fits means and standard deviations of the rows of `s`.
+    pub fn fit(s: &Samples) -> Self {
+        let (d, n) = (s.dim, s.len().max(1) as f64);
+        let mut mean = vec![0.0; d];
+        for i in 0..s.len() {
+            for (m, v) in mean.iter_mut().zip(s.row(i)) {
+                *m += v;
+            }
+        }
+        mean.iter_mut().for_each(|m| *m /= n);
+        let mut var = vec![0.0; d];
+        for i in 0..s.len() {
+            for ((acc, v), m) in var.iter_mut().zip(s.row(i)).zip(&mean) {
+                *acc += (v - m) * (v - m);
+            }
+        }
+        let std = var
+            .iter()
+            .map(|v| (v / n).sqrt())
+            .map(|s| if s < 1e-12 { 1.0 } else { s })
+            .collect();
+        Self { mean, std }
+    }
+    /// `out_i = (x_i − mean_i) / std_i`.
+    pub fn apply(&self, x: &[f64], out: &mut [f64]) {
+        for i in 0..out.len() {
+            out[i] = (x[i] - self.mean[i]) / self.std[i];
+        }
+    }
+    /// Standardised copy of a sample set.
+    pub fn transform(&self, s: &Samples) -> Samples {
+        let mut t = s.clone();
+        for row in t.x.chunks_exact_mut(s.dim.max(1)) {
+            for (i, v) in row.iter_mut().enumerate() {
+                *v = (*v - self.mean[i]) / self.std[i];
+            }
+        }
+        t
+    }
+}
+
+/// The trained classifier.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Classifier {
+    /// Levenberg-Marquardt MLP.
+    Mlp(Mlp),
+    /// One-vs-one RBF SVM.
+    Svm(Svm),
+}
+
+impl Classifier {
+    fn dims(&self) -> (usize, usize) {
+        match self {
+            Classifier::Mlp(m) => (m.n_in(), m.n_out()),
+            Classifier::Svm(s) => (s.dim(), s.n_classes()),
+        }
+    }
+    /// Short description, e.g. `MLP [7, 4, 3, 2, 4]` or `SVM RBF γ=0.1, 812 SVs`.
+    pub fn describe(&self) -> String {
+        match self {
+            Classifier::Mlp(m) => format!(
+                "MLP {:?} ({:?} outputs, {} weights)",
+                m.sizes(),
+                m.output_kind(),
+                m.n_weights()
+            ),
+            Classifier::Svm(s) => match s.kernel() {
+                Kernel::Rbf { gamma } => format!(
+                    "SVM one-vs-one, RBF gamma={gamma}, {} support vectors",
+                    s.n_sv()
+                ),
+                Kernel::Linear => format!("SVM one-vs-one, linear, {} support vectors", s.n_sv()),
+            },
+        }
+    }
+}
+
+/// Cross-validation summary stored with a model.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EvalSummary {
+    /// What was evaluated (e.g. "5-fold CV by recording", "held-out data/test").
+    pub what: String,
+    /// Scores.
+    pub metrics: Metrics,
+    /// Confusion matrix (rows predicted, columns actual).
+    pub confusion: Confusion,
+}
+
+/// Where a model came from. Not used for prediction.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TrainingMeta {
+    /// Training seed.
+    pub seed: u64,
+    /// SHA-256 over the training dataset (definition: the trainer's docs).
+    pub dataset_hash: String,
+    /// Training date, `YYYY-MM-DD` (UTC).
+    pub date: String,
+    /// Profile/name, e.g. "paper" or "default".
+    pub profile: String,
+    /// The command that produced the model.
+    pub command: String,
+    /// Training frames and recordings.
+    pub n_frames: usize,
+    /// Recordings.
+    pub n_recordings: usize,
+    /// Free-form facts (chosen hyper-parameters, stop reason, ...).
+    pub notes: Vec<String>,
+    /// Cross-validation result.
+    pub cv: Option<EvalSummary>,
+}
+
+/// A trained road-type classifier, everything needed to go from a frame's
+/// feature vector to class probabilities.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Model {
+    version: u32,
+    classes: Vec<String>,
+    feature_config: FeatureConfig,
+    standardiser: Standardiser,
+    classifier: Classifier,
+    /// Training metadata.
+    pub meta: TrainingMeta,
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Lower-case hex SHA-256 of `bytes`.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    hex(&Sha256::digest(bytes))
+}
+
+impl Model {
+    /// Assembles and validates a model.
+    pub fn new(
+        classes: Vec<String>,
+        feature_config: FeatureConfig,
+        standardiser: Standardiser,
+        classifier: Classifier,
+        meta: TrainingMeta,
+    ) -> Result<Self, ModelError> {
+        let m = Self {
+            version: FORMAT_VERSION,
+            classes,
+            feature_config,
+            standardiser,
+            classifier,
+            meta,
+        };
+        m.validate()?;
+        Ok(m)
+    }
+
+    /// Class names, index = class id.
+    pub fn classes(&self) -> &[String] {
+        &self.classes
+    }
+    /// The features this model was trained on.
+    pub fn feature_config(&self) -> &FeatureConfig {
+        &self.feature_config
+    }
+    /// The standardiser.
+    pub fn standardiser(&self) -> &Standardiser {
+        &self.standardiser
+    }
+    /// The classifier.
+    pub fn classifier(&self) -> &Classifier {
+        &self.classifier
+    }
+    /// Feature-vector length.
+    pub fn dim(&self) -> usize {
+        self.standardiser.mean.len()
+    }
+
+    /// Checks every cross-field invariant.
+    pub fn validate(&self) -> Result<(), ModelError> {
+        let mm = |field, reason: String| Err(ModelError::Mismatch { field, reason });
+        if self.version != FORMAT_VERSION {
+            return Err(ModelError::UnknownVersion {
+                found: self.version.to_string(),
+            });
+        }
+        if self.classes.len() < 2 {
+            return mm(
+                "classes",
+                format!(
+                    "{} class(es); a classifier needs at least 2",
+                    self.classes.len()
+                ),
+            );
+        }
+        for (i, c) in self.classes.iter().enumerate() {
+            if c.trim().is_empty() {
+                return mm("classes", format!("class {i} has an empty name"));
+            }
+            if self.classes[..i].contains(c) {
+                return mm("classes", format!("class `{c}` appears twice"));
+            }
+        }
+        self.feature_config.validate()?;
+        let dim = self.feature_config.dim();
+        let st = &self.standardiser;
+        if st.mean.len() != dim || st.std.len() != dim {
+            return mm(
+                "standardiser",
+                format!(
+                    "{} means and {} stds, but the feature config gives {dim} features",
+                    st.mean.len(),
+                    st.std.len()
+                ),
+            );
+        }
+        if let Some(i) = st.mean.iter().position(|v| !v.is_finite()) {
+            return mm("standardiser.mean", format!("entry {i} is not finite"));
+        }
+        if let Some(i) = st.std.iter().position(|v| !(v.is_finite() && *v > 0.0)) {
+            return mm(
+                "standardiser.std",
+                format!("entry {i} = {} is not finite and positive", st.std[i]),
+            );
+        }
+        match &self.classifier {
+            Classifier::Mlp(m) => {
+                Mlp::from_weights(m.sizes().to_vec(), m.output_kind(), m.weights().to_vec())?;
+            }
+            Classifier::Svm(s) => s.validate()?,
+        }
+        let (n_in, n_out) = self.classifier.dims();
+        if n_in != dim {
+            return mm(
+                "classifier",
+                format!("takes {n_in} inputs, the feature config gives {dim} features"),
+            );
+        }
+        if n_out != self.classes.len() {
+            return mm(
+                "classifier",
+                format!("has {n_out} outputs for {} classes", self.classes.len()),
+            );
+        }
+        Ok(())
+    }
+
+    /// Serialises to the versioned, checksummed file format.
+    pub fn to_bytes(&self) -> Result<Vec<u8>, ModelError> {
+        let payload = serde_json::to_vec(self).map_err(|e| ModelError::Json(e.to_string()))?;
+        let mut out = format!(
+            "{MAGIC} v{FORMAT_VERSION} sha256={}\n",
+            sha256_hex(&payload)
+        )
+        .into_bytes();
+        out.extend_from_slice(&payload);
+        Ok(out)
+    }
+
+    /// Parses and validates a model file (see the module docs for what is refused).
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self, ModelError> {
+        let nl = bytes.iter().position(|&b| b == b'\n').ok_or_else(|| {
+            ModelError::NotAModel(if bytes.is_empty() {
+                "file is empty".into()
+            } else {
+                "no header line (truncated, or not a model file)".into()
+            })
+        })?;
+        let header = std::str::from_utf8(&bytes[..nl])
+            .map_err(|_| ModelError::NotAModel("header line is not UTF-8".into()))?;
+        let mut tok = header.split_whitespace();
+        if tok.next() != Some(MAGIC) {
+            let shown: String = header.chars().take(40).collect();
+            return Err(ModelError::NotAModel(format!(
+                "header must start with `{MAGIC}`, found `{shown}`"
+            )));
+        }
+        let ver = tok.next().unwrap_or("");
+        if ver != format!("v{FORMAT_VERSION}") {
+            return Err(ModelError::UnknownVersion {
+                found: ver.trim_start_matches('v').to_string(),
+            });
+        }
+        let expected = tok
+            .next()
+            .and_then(|t| t.strip_prefix("sha256="))
+            .ok_or_else(|| ModelError::NotAModel("header has no `sha256=` checksum".into()))?;
+        let payload = &bytes[nl + 1..];
+        let actual = sha256_hex(payload);
+        if !expected.eq_ignore_ascii_case(&actual) {
+            return Err(ModelError::Checksum {
+                expected: expected.to_string(),
+                actual,
+            });
+        }
+        let m: Model =
+            serde_json::from_slice(payload).map_err(|e| ModelError::Json(e.to_string()))?;
+        m.validate()?;
+        Ok(m)
+    }
+
+    /// A predictor owning a copy of this model and pre-sized scratch.
+    pub fn predictor(&self) -> Predictor {
+        Predictor::new(self.clone())
+    }
+
+    /// Confusion matrix of this model on `data` (features in this model's layout).
+    pub fn evaluate(&self, data: &Samples) -> Result<Confusion, ModelError> {
+        let mut p = self.predictor();
+        let mut probs = vec![0.0; self.classes.len()];
+        let mut conf = Confusion::new(self.classes.clone());
+        for i in 0..data.len() {
+            let c = p.predict_proba(data.row(i), &mut probs)?;
+            conf.add(c, data.y[i]);
+        }
+        Ok(conf)
+    }
+}
+
+/// Allocation-free prediction: the model plus scratch buffers.
+#[derive(Clone, Debug)]
+pub struct Predictor {
+    model: Model,
+    z: Vec<f64>,
+    mlp: Option<MlpScratch>,
+    svm: Option<SvmScratch>,
+}
+
+impl Predictor {
+    /// Sizes all buffers for `model`.
+    pub fn new(model: Model) -> Self {
+        let (mlp, svm) = match &model.classifier {
+            Classifier::Mlp(m) => (Some(m.scratch()), None),
+            Classifier::Svm(s) => (None, Some(s.scratch())),
+        };
+        let z = vec![0.0; model.dim()];
+        Self { model, z, mlp, svm }
+    }
+
+    /// The model.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// Class probabilities of one feature vector into `out` (one per class,
+    /// summing to 1); returns the most probable class (ties: lower index).
+    /// Allocates nothing.
+    pub fn predict_proba(
+        &mut self,
+        features: &[f64],
+        out: &mut [f64],
+    ) -> Result<usize, ModelError> {
+        let dim = self.z.len();
+        if features.len() != dim {
+            return Err(ModelError::FeatureCount {
+                got: features.len(),
+                expected: dim,
+            });
+        }
+        let k = self.model.classes.len();
+        if out.len() != k {
+            return Err(ModelError::OutputCount {
+                got: out.len(),
+                expected: k,
+            });
+        }
+        if let Some(index) = features.iter().position(|v| !v.is_finite()) {
+            return Err(ModelError::NotFinite { index });
+        }
+        self.model.standardiser.apply(features, &mut self.z);
+        match (&self.model.classifier, &mut self.mlp, &mut self.svm) {
+            (Classifier::Mlp(m), Some(s), _) => m.predict_proba(&self.z, s, out),
+            (Classifier::Svm(m), _, Some(s)) => m.predict_proba(&self.z, s, out),
+            _ => unreachable!("scratch built for the classifier kind"),
+        }
+        let mut best = 0;
+        for (i, &p) in out.iter().enumerate() {
+            if p > out[best] {
+                best = i;
+            }
+        }
+        Ok(best)
+    }
+}
+
+/// How to train the classifier of a model.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClassifierSpec {
+    /// Levenberg-Marquardt MLP; `val_fraction` of each class's recordings is
+    /// held out for early stopping (none if a class has a single recording).
+    Mlp {
+        /// LM settings (architecture, trainlm defaults, seed).
+        lm: LmConfig,
+        /// Fraction of recordings per class for validation (MATLAB's default split is 0.15).
+        val_fraction: f64,
+    },
+    /// One-vs-one SVM on at most `max_per_class` frames per class (seeded
+    /// stratified subsample; SMO is `O(n²)` in memory per pair).
+    Svm {
+        /// C, kernel, tolerances.
+        cfg: SvmConfig,
+        /// Frame cap per class.
+        max_per_class: usize,
+    },
+}
+
+/// What fitting did.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FitReport {
+    /// LM report.
+    Mlp(LmReport),
+    /// SVM report.
+    Svm(SvmReport),
+}
+
+/// Fits standardiser and classifier on `train` (features already in
+/// `feature_config`'s layout, labels index `classes`). Deterministic.
+pub fn fit(
+    classes: &[String],
+    feature_config: &FeatureConfig,
+    spec: &ClassifierSpec,
+    train: &Samples,
+) -> Result<(Model, FitReport), ModelError> {
+    feature_config.validate()?;
+    if train.dim != feature_config.dim() {
+        return Err(ModelError::Mismatch {
+            field: "feature_config",
+            reason: format!(
+                "training rows have {} features, the config gives {}",
+                train.dim,
+                feature_config.dim()
+            ),
+        });
+    }
+    let k = classes.len();
+    let st = Standardiser::fit(train);
+    let z = st.transform(train);
+    let (classifier, report) = match spec {
+        ClassifierSpec::Mlp { lm, val_fraction } => {
+            let (tr, va) = if *val_fraction > 0.0 {
+                holdout_groups(&z.y, &z.group, k, *val_fraction, lm.seed)?
+            } else {
+                ((0..z.len()).collect(), Vec::new())
+            };
+            let t = z.subset(&tr);
+            let v = z.subset(&va);
+            let val = if v.is_empty() {
+                None
+            } else {
+                Some((v.x.as_slice(), v.y.as_slice()))
+            };
+            let (net, rep) = train_lm(lm, k, z.dim, &t.x, &t.y, val)?;
+            (Classifier::Mlp(net), FitReport::Mlp(rep))
+        }
+        ClassifierSpec::Svm { cfg, max_per_class } => {
+            let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(
+                cfg.seed ^ 0x5356_4D00,
+            );
+            let cap = max_per_class.saturating_mul(k);
+            let rows = stratified_subsample(&z.y, k, cap, &mut rng);
+            let t = z.subset(&rows);
+            let (svm, rep) = Svm::train(cfg, k, z.dim, &t.x, &t.y)?;
+            (Classifier::Svm(svm), FitReport::Svm(rep))
+        }
+    };
+    let meta = TrainingMeta {
+        n_frames: train.len(),
+        n_recordings: train.n_groups(),
+        ..Default::default()
+    };
+    let model = Model::new(
+        classes.to_vec(),
+        feature_config.clone(),
+        st,
+        classifier,
+        meta,
+    )?;
+    Ok((model, report))
+}
+
+/// k-fold cross-validation split by recording: fits on each training side,
+/// scores the held-out recordings, and sums the confusion matrices.
+pub fn cross_validate(
+    classes: &[String],
+    feature_config: &FeatureConfig,
+    spec: &ClassifierSpec,
+    data: &Samples,
+    folds: usize,
+    seed: u64,
+) -> Result<Confusion, ModelError> {
+    let split = stratified_group_kfold(&data.y, &data.group, classes.len(), folds, seed)?;
+    let mut total = Confusion::new(classes.to_vec());
+    for f in &split {
+        let (model, _) = fit(classes, feature_config, spec, &data.subset(&f.train))?;
+        total.merge(&model.evaluate(&data.subset(&f.test))?);
+    }
+    Ok(total)
+}
+
+/// One point of an SVM grid search.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GridPoint {
+    /// C.
+    pub c: f64,
+    /// γ.
+    pub gamma: f64,
+    /// CV scores.
+    pub metrics: Metrics,
+}
+
+/// Grid search of the SVM's C and γ by cross-validation split by recording;
+/// the best macro-F1 wins (ties: the earlier grid point, i.e. smaller C,
+/// then smaller γ when the grids are ascending). Returns the winning config
+/// and every point.
+pub fn grid_search_svm(
+    classes: &[String],
+    feature_config: &FeatureConfig,
+    base: &SvmConfig,
+    max_per_class: usize,
+    cs: &[f64],
+    gammas: &[f64],
+    data: &Samples,
+    folds: usize,
+    seed: u64,
+    mut progress: impl FnMut(&GridPoint),
+) -> Result<(SvmConfig, Vec<GridPoint>), ModelError> {
+    let mut points = Vec::new();
+    let mut best: Option<(f64, SvmConfig)> = None;
+    for &c in cs {
+        for &gamma in gammas {
+            let cfg = SvmConfig {
+                c,
+                kernel: Kernel::Rbf { gamma },
+                ..base.clone()
+            };
+            let spec = ClassifierSpec::Svm {
+                cfg: cfg.clone(),
+                max_per_class,
+            };
+            let conf = cross_validate(classes, feature_config, &spec, data, folds, seed)?;
+            let metrics = conf.metrics();
+            let score = metrics.macro_f1;
+            let p = GridPoint { c, gamma, metrics };
+            progress(&p);
+            points.push(p);
+            if best.as_ref().is_none_or(|(s, _)| score > *s) {
+                best = Some((score, cfg));
+            }
+        }
+    }
+    let (_, cfg) = best.ok_or(ModelError::Mismatch {
+        field: "grid",
+        reason: "empty C or gamma grid".into(),
+    })?;
+    Ok((cfg, points))
+}

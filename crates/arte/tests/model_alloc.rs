@@ -1,0 +1,83 @@
+//! `Predictor::predict_proba` allocates nothing (counting global allocator).
+
+use grip_arte::eval::Samples;
+use grip_arte::features::{FeatureConfig, FeatureSet};
+use grip_arte::mlp::LmConfig;
+use grip_arte::model::{ClassifierSpec, fit};
+use grip_arte::svm::{Kernel, SvmConfig};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+struct Counting;
+static ALLOCS: AtomicUsize = AtomicUsize::new(0);
+
+// SAFETY: forwards to the system allocator, only counting calls.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::SeqCst);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::SeqCst);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(p, l, n) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn predict_proba_allocates_nothing() {
+    let classes: Vec<String> = ["a", "b", "c"].map(String::from).to_vec();
+    let mut s = Samples::new(7);
+    for i in 0..90 {
+        let c = i % 3;
+        let row: Vec<f64> = (0..7)
+            .map(|d| if d == c { 2.0 } else { 0.0 } + ((i * 31 + d * 7) % 11) as f64 * 0.1)
+            .collect();
+        s.push(&row, c, i % 15);
+    }
+    let cfg = FeatureConfig::new(44_100, FeatureSet::Paper7);
+    let specs = [
+        ClassifierSpec::Mlp {
+            lm: LmConfig {
+                epochs: 20,
+                ..Default::default()
+            },
+            val_fraction: 0.0,
+        },
+        ClassifierSpec::Svm {
+            cfg: SvmConfig {
+                kernel: Kernel::Rbf { gamma: 0.2 },
+                prob_folds: 0,
+                ..Default::default()
+            },
+            max_per_class: 100,
+        },
+    ];
+    for spec in specs {
+        let (model, _) = fit(&classes, &cfg, &spec, &s).unwrap();
+        let mut p = model.predictor();
+        let mut out = [0.0; 3];
+        let before = ALLOCS.load(Ordering::SeqCst);
+        let mut sum = 0;
+        for i in 0..s.len() {
+            sum += p.predict_proba(s.row(i), &mut out).unwrap();
+        }
+        let after = ALLOCS.load(Ordering::SeqCst);
+        assert_eq!(
+            after - before,
+            0,
+            "{} allocations in {} predictions",
+            after - before,
+            s.len()
+        );
+        assert!(sum > 0);
+    }
+}
