@@ -275,10 +275,9 @@ fn can_utils_interoperate_with_socketcan() -> anyhow::Result<()> {
 // --- ALSA loopback ------------------------------------------------------------
 
 const RATE: u32 = 48_000;
-const PERIOD: usize = 480; // 10 ms
-const PERIODS: usize = 4;
 
-fn open_pcm(name: &str, dir: Direction) -> anyhow::Result<PCM> {
+/// Opens an ALSA PCM as 48 kHz mono S16 with `periods` periods of `period` frames.
+fn open_pcm(name: &str, dir: Direction, period: usize, periods: usize) -> anyhow::Result<PCM> {
     hil::require_alsa_loopback()?;
     let pcm = PCM::new(name, dir, false).with_context(|| format!("opening ALSA PCM {name}"))?;
     {
@@ -287,9 +286,9 @@ fn open_pcm(name: &str, dir: Direction) -> anyhow::Result<PCM> {
         hwp.set_rate(RATE, ValueOr::Nearest).context("rate")?;
         hwp.set_format(Format::s16()).context("format S16")?;
         hwp.set_access(Access::RWInterleaved).context("access")?;
-        hwp.set_period_size(PERIOD as alsa::pcm::Frames, ValueOr::Nearest)
+        hwp.set_period_size(period as alsa::pcm::Frames, ValueOr::Nearest)
             .context("period size")?;
-        hwp.set_buffer_size((PERIOD * PERIODS) as alsa::pcm::Frames)
+        hwp.set_buffer_size((period * periods) as alsa::pcm::Frames)
             .context("buffer size")?;
         pcm.hw_params(&hwp)
             .with_context(|| format!("{name}: hw_params"))?;
@@ -302,19 +301,97 @@ fn open_pcm(name: &str, dir: Direction) -> anyhow::Result<PCM> {
             hwp.get_rate()?
         );
         ensure!(
-            hwp.get_period_size()? == PERIOD as alsa::pcm::Frames,
+            hwp.get_period_size()? == period as alsa::pcm::Frames,
             "{name}: period size"
+        );
+        ensure!(
+            hwp.get_buffer_size()? == (period * periods) as alsa::pcm::Frames,
+            "{name}: buffer size"
         );
     }
     Ok(pcm)
 }
 
+/// What one play-and-capture attempt saw.
+struct ToneCapture {
+    samples: Vec<i16>,
+    /// Index of the first sample of the tone in `samples`.
+    start: usize,
+    capture_xruns: u32,
+    playback_xruns: u32,
+}
+
+/// Plays `tone` into `hw:Loopback,0,0` while capturing `hw:Loopback,1,0`
+/// until 1.2 s after the tone has started (at most 6 s).
+fn play_and_capture(tone: Vec<i16>) -> anyhow::Result<ToneCapture> {
+    // Large buffers (1024 x 16 frames, 341 ms): the VM's scheduling stalls
+    // must not turn a data-path test into a timing test.
+    const PERIOD: usize = 1024;
+    const PERIODS: usize = 16;
+    let capture = open_pcm("hw:Loopback,1,0", Direction::Capture, PERIOD, PERIODS)?;
+    let io = capture.io_i16()?;
+    capture.start().context("capture start")?;
+    let player = std::thread::spawn(move || -> anyhow::Result<u32> {
+        let pcm = open_pcm("hw:Loopback,0,0", Direction::Playback, PERIOD, PERIODS)?;
+        let io = pcm.io_i16()?;
+        let mut xruns = 0;
+        let mut off = 0;
+        while off < tone.len() {
+            match io.writei(&tone[off..(off + PERIOD).min(tone.len())]) {
+                Ok(n) => off += n,
+                Err(e) => {
+                    xruns += 1;
+                    pcm.try_recover(e, true).context("playback recover")?;
+                }
+            }
+        }
+        pcm.drain().context("playback drain")?;
+        Ok(xruns)
+    });
+
+    let mut samples = vec![0i16; RATE as usize * 6];
+    let (mut filled, mut capture_xruns, mut start) = (0, 0, None);
+    while filled < samples.len() {
+        let end = (filled + PERIOD).min(samples.len());
+        match io.readi(&mut samples[filled..end]) {
+            Ok(n) => {
+                // capture runs before playback and delivers silence first
+                if start.is_none() {
+                    start = samples[filled..filled + n]
+                        .iter()
+                        .position(|&s| s.unsigned_abs() > 1000)
+                        .map(|i| filled + i);
+                }
+                filled += n;
+                if start.is_some_and(|s| filled >= s + RATE as usize * 6 / 5) {
+                    break;
+                }
+            }
+            Err(e) => {
+                capture_xruns += 1;
+                capture.try_recover(e, true).context("capture recover")?;
+                capture.start()?;
+            }
+        }
+    }
+    let playback_xruns = player
+        .join()
+        .map_err(|_| anyhow::anyhow!("playback thread panicked"))??;
+    samples.truncate(filled);
+    Ok(ToneCapture {
+        samples,
+        start: start.context("the captured stream holds no tone at all")?,
+        capture_xruns,
+        playback_xruns,
+    })
+}
+
 /// Plays 1.5 s of a 1 kHz tone at -6 dBFS peak into `hw:Loopback,0,0` and
-/// captures it from `hw:Loopback,1,0`.
+/// captures it from `hw:Loopback,1,0`: the frequency, the level and every
+/// sample must come through unchanged.
 #[test]
 fn alsa_loopback_carries_a_1khz_tone_unchanged() -> anyhow::Result<()> {
     const AMP: f64 = 0.5;
-    let capture = open_pcm("hw:Loopback,1,0", Direction::Capture)?;
     // 48 samples are exactly one period at 48 kHz: repeat one cycle, so the
     // played stream is exactly periodic and can be compared sample by sample.
     let cycle = hil::sine_i16(1000.0, RATE, AMP, 48);
@@ -324,51 +401,30 @@ fn alsa_loopback_carries_a_1khz_tone_unchanged() -> anyhow::Result<()> {
         .cycle()
         .take(RATE as usize * 3 / 2)
         .collect();
-    let player = std::thread::spawn(move || -> anyhow::Result<()> {
-        let pcm = open_pcm("hw:Loopback,0,0", Direction::Playback)?;
-        let io = pcm.io_i16()?;
-        for chunk in tone.chunks(PERIOD) {
-            let mut off = 0;
-            while off < chunk.len() {
-                match io.writei(&chunk[off..]) {
-                    Ok(n) => off += n,
-                    Err(e) => pcm.try_recover(e, false).context("playback recover")?,
-                }
-            }
-        }
-        pcm.drain().context("playback drain")?;
-        Ok(())
-    });
 
-    let io = capture.io_i16()?;
-    capture.start().context("capture start")?;
-    let mut got = vec![0i16; RATE as usize * 2];
-    let mut filled = 0;
-    let mut xruns = 0;
-    while filled < got.len() {
-        let end = (filled + PERIOD).min(got.len());
-        match io.readi(&mut got[filled..end]) {
-            Ok(n) => filled += n,
-            Err(e) => {
-                xruns += 1;
-                capture.try_recover(e, false).context("capture recover")?;
-            }
+    // An xrun on either side (a scheduling stall, likely under emulation)
+    // leaves a gap in the stream, which is not what this test is about (the
+    // next test is): try again, up to three times.
+    let mut attempts = Vec::new();
+    let cap = loop {
+        let c = play_and_capture(tone.clone())?;
+        if c.capture_xruns == 0 && c.playback_xruns == 0 {
+            break c;
         }
+        attempts.push((c.capture_xruns, c.playback_xruns));
+        ensure!(
+            attempts.len() < 3,
+            "every attempt had xruns (capture, playback): {attempts:?}"
+        );
+    };
+    if !attempts.is_empty() {
+        println!("attempts with xruns (capture, playback), retried: {attempts:?}");
     }
-    player
-        .join()
-        .map_err(|_| anyhow::anyhow!("playback thread panicked"))??;
-    assert_eq!(xruns, 0, "capture overran while reading continuously");
 
-    // Where the tone starts: capture begins before playback and delivers silence first.
-    let start = got
-        .iter()
-        .position(|&s| s.unsigned_abs() > 1000)
-        .context("the captured stream holds no tone at all")?;
-    let window = got
-        .get(start + PERIOD..start + PERIOD + RATE as usize)
+    let window = cap
+        .samples
+        .get(cap.start + 1024..cap.start + 1024 + RATE as usize)
         .context("less than 1 s of tone captured")?;
-
     let f = hil::zero_crossing_frequency(window, RATE).context("no zero crossings")?;
     assert!(
         (f - 1000.0).abs() < 0.5,
@@ -381,7 +437,7 @@ fn alsa_loopback_carries_a_1khz_tone_unchanged() -> anyhow::Result<()> {
     );
 
     // The loopback copies samples unchanged: the window must equal the played
-    // tone (48 samples per period) at some phase.
+    // cycle at some phase, sample for sample.
     let phase = (0..48)
         .find(|&p| {
             window
@@ -407,14 +463,17 @@ fn alsa_loopback_carries_a_1khz_tone_unchanged() -> anyhow::Result<()> {
 /// overrun is reported (EPIPE, state XRun), recovers, and reads on.
 #[test]
 fn alsa_capture_overrun_is_detected_and_recovered() -> anyhow::Result<()> {
+    // Small buffers (480 x 4 frames, 40 ms), so starving capture overruns fast.
+    const PERIOD: usize = 480;
+    const PERIODS: usize = 4;
     // Subdevice 1, so that this runs beside the tone test on subdevice 0.
     // Playback is kept fed from a thread, so the cable keeps running while
     // the capture side is starved.
-    let capture = open_pcm("hw:Loopback,1,1", Direction::Capture)?;
+    let capture = open_pcm("hw:Loopback,1,1", Direction::Capture, PERIOD, PERIODS)?;
     let stop = Arc::new(AtomicBool::new(false));
     let stop2 = stop.clone();
     let feeder = std::thread::spawn(move || -> anyhow::Result<()> {
-        let playback = open_pcm("hw:Loopback,0,1", Direction::Playback)?;
+        let playback = open_pcm("hw:Loopback,0,1", Direction::Playback, PERIOD, PERIODS)?;
         let io = playback.io_i16()?;
         let chunk = hil::sine_i16(1000.0, RATE, 0.25, PERIOD);
         while !stop2.load(Ordering::Relaxed) {
@@ -427,7 +486,17 @@ fn alsa_capture_overrun_is_detected_and_recovered() -> anyhow::Result<()> {
     let cio = capture.io_i16()?;
     capture.start()?;
     let mut buf = vec![0i16; PERIOD];
-    cio.readi(&mut buf).context("first capture read")?;
+    // One good read first (a stall right after start could already overrun).
+    let mut early_xruns = 0;
+    while let Err(e) = cio.readi(&mut buf) {
+        early_xruns += 1;
+        ensure!(
+            early_xruns < 5,
+            "capture keeps failing before the test starts: {e}"
+        );
+        capture.try_recover(e, true)?;
+        capture.start()?;
+    }
     let buffer_time = Duration::from_millis((PERIOD * PERIODS * 1000 / RATE as usize) as u64);
     std::thread::sleep(buffer_time * 5);
 
@@ -457,22 +526,41 @@ fn alsa_capture_overrun_is_detected_and_recovered() -> anyhow::Result<()> {
     );
     capture.start()?;
     // Read 0.5 s after recovery; the stream must still carry the tone that
-    // playback feeds (most periods; the feeder may underrun under emulation).
-    let mut periods = 0;
-    let mut with_tone = 0;
+    // playback feeds (most periods: under emulation the feeder may underrun,
+    // and a stall of more than 40 ms overruns capture again, which is
+    // recovered the same way and counted).
+    let (mut periods, mut with_tone, mut later_xruns) = (0, 0, 0);
     while periods < 50 {
-        let n = cio.readi(&mut buf).context("capture read after recovery")?;
-        ensure!(n == PERIOD, "short read {n}");
-        periods += 1;
-        if hil::zero_crossing_frequency(&buf, RATE).is_some_and(|f| (f - 1000.0).abs() < 20.0) {
-            with_tone += 1;
+        match cio.readi(&mut buf) {
+            Ok(n) => {
+                ensure!(n == PERIOD, "short read {n}");
+                periods += 1;
+                if hil::zero_crossing_frequency(&buf, RATE)
+                    .is_some_and(|f| (f - 1000.0).abs() < 20.0)
+                {
+                    with_tone += 1;
+                }
+            }
+            Err(e) => {
+                later_xruns += 1;
+                ensure!(
+                    later_xruns <= 10,
+                    "capture does not stay up after recovery: {e}"
+                );
+                capture
+                    .try_recover(e, true)
+                    .context("recovering a later overrun")?;
+                capture.start()?;
+            }
         }
     }
-    assert_eq!(capture.state(), State::Running);
     assert!(
         with_tone >= periods / 2,
         "only {with_tone}/{periods} periods carry the tone after recovery"
     );
+    if later_xruns > 0 {
+        println!("{later_xruns} more overrun(s) after the provoked one, recovered");
+    }
 
     stop.store(true, Ordering::Relaxed);
     feeder
