@@ -32,8 +32,9 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use crate::eval::{Confusion, Metrics, Samples, holdout_groups, stratified_group_kfold};
-use crate::features::{FeatureConfig, FeatureError};
+use crate::features::{FeatureConfig, FeatureError, FeatureSet, N_PAPER20};
 use crate::mlp::{LmConfig, LmReport, Mlp, MlpError, MlpScratch, stratified_subsample, train_lm};
+use crate::select::{paper7_config, select_paper7};
 use crate::svm::{Kernel, Svm, SvmConfig, SvmError, SvmReport, SvmScratch};
 
 /// File magic, first token of the header line.
@@ -428,8 +429,20 @@ impl Model {
         Predictor::new(self.clone())
     }
 
-    /// Confusion matrix of this model on `data` (features in this model's layout).
+    /// Confusion matrix of this model on `data` (features in this model's
+    /// layout; for a Paper7 model, Paper20 rows are accepted and the
+    /// model's selection is applied).
     pub fn evaluate(&self, data: &Samples) -> Result<Confusion, ModelError> {
+        let picked;
+        let data = if self.feature_config.set == FeatureSet::Paper7
+            && data.dim == N_PAPER20
+            && self.dim() != N_PAPER20
+        {
+            picked = data.select_columns(&self.feature_config.selection);
+            &picked
+        } else {
+            data
+        };
         let mut p = self.predictor();
         let mut probs = vec![0.0; self.classes.len()];
         let mut conf = Confusion::new(self.classes.clone());
@@ -538,8 +551,12 @@ pub enum FitReport {
     Svm(SvmReport),
 }
 
-/// Fits standardiser and classifier on `train` (features already in
+/// Fits standardiser and classifier on `train` (features in
 /// `feature_config`'s layout, labels index `classes`). Deterministic.
+///
+/// For a Paper7 config, `train` may hold Paper20 rows: the paper's pruning
+/// ([`select_paper7`]) then runs on `train` and the model stores the chosen
+/// indices in its `feature_config.selection`.
 pub fn fit(
     classes: &[String],
     feature_config: &FeatureConfig,
@@ -547,6 +564,25 @@ pub fn fit(
     train: &Samples,
 ) -> Result<(Model, FitReport), ModelError> {
     feature_config.validate()?;
+    // Paper7 from Paper20 rows: prune on this training set (so that in
+    // cross-validation the selection never sees the test fold).
+    let selected;
+    let (feature_config, train) = if feature_config.set == FeatureSet::Paper7
+        && train.dim == N_PAPER20
+    {
+        let sel =
+            select_paper7(&train.x, &train.y, classes.len()).map_err(|e| ModelError::Mismatch {
+                field: "feature_config.selection",
+                reason: e.to_string(),
+            })?;
+        selected = (
+            paper7_config(feature_config, sel.clone()),
+            train.select_columns(&sel),
+        );
+        (&selected.0, &selected.1)
+    } else {
+        (feature_config, train)
+    };
     if train.dim != feature_config.dim() {
         return Err(ModelError::Mismatch {
             field: "feature_config",

@@ -285,3 +285,38 @@ fn predictor_refuses_bad_vectors() {
         Err(ModelError::NotFinite { index: 4 })
     ));
 }
+
+#[test]
+fn paper7_fit_prunes_paper20_rows_on_the_training_set() {
+    // 20 columns: only columns 1 (LPC), 12 (PS) and 17 (cepstrum) carry the class.
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    let nd = Normal::new(0.0, 1.0).unwrap();
+    let mut s = Samples::new(20);
+    for g in 0..24 {
+        let c = g % 4;
+        for _ in 0..10 {
+            let row: Vec<f64> = (0..20)
+                .map(|d| {
+                    nd.sample(&mut rng)
+                        + if [1, 12, 17].contains(&d) {
+                            4.0 * c as f64
+                        } else {
+                            0.0
+                        }
+                })
+                .collect();
+            s.push(&row, c, g);
+        }
+    }
+    let (m, _) = fit(&classes(), &paper7(), &mlp_spec(), &s).unwrap();
+    let sel = &m.feature_config().selection;
+    assert_eq!(sel.len(), 7);
+    assert_eq!(m.dim(), 7);
+    for want in [1, 12, 17] {
+        assert!(
+            sel.contains(&want),
+            "selection {sel:?} misses informative column {want}"
+        );
+    }
+    assert!(m.evaluate(&s).unwrap().metrics().accuracy > 0.95);
+}
