@@ -13,6 +13,7 @@
 //! [`RoadCatalogue`]: grip_physics::RoadCatalogue
 //! [`Scenario`]: grip_physics::Scenario
 
+pub mod controllers;
 pub mod dir;
 pub mod error;
 pub mod roads;
@@ -24,3 +25,4 @@ pub use error::{ConfigError, line_of, parse_toml, read_file};
 pub use roads::{load_roads, parse_roads};
 pub use scenario::{load_scenario, parse_scenario};
 pub use vehicle::{load_vehicle, parse_vehicle};
+pub use controllers::load_controllers;
