@@ -107,10 +107,13 @@ const PM: usize = 4;
 pub const RULES: [[[usize; 3]; 3]; 3] = [
     // slope N (past the peak): back off, harder at large slip
     [[NS, NS, NB], [NS, NS, NB], [NS, NS, NB]],
-    // slope Z (at the peak): hold
-    [[ZE, ZE, ZE], [ZE, ZE, ZE], [ZE, ZE, ZE]],
-    // slope P (rising): climb; small steps on low μ, none at large slip on low μ
-    [[PS, PS, ZE], [PM, PS, PS], [PM, PM, PS]],
+    // slope Z (at or near the peak): hold; on a plateau at large slip (or at
+    // medium slip on a low-μ road, whose peak is near zero slip) back off:
+    // little traction is lost and the slip shrinks
+    [[ZE, NS, NS], [ZE, ZE, NS], [ZE, ZE, NS]],
+    // slope P (rising): climb; small steps on low μ; at large slip only on a
+    // high-μ road (cobblestone-like peaks near 0.4), back off on a low-μ one
+    [[PS, PS, NS], [PM, PS, ZE], [PM, PM, PS]],
 ];
 
 /// Output grid resolution (points on [−0.12, 0.12]).
@@ -159,13 +162,16 @@ pub fn infer(lambda: f64, mu: f64, slope_n: f64) -> f64 {
 ///
 /// ```text
 /// S_xy ← ρ S_xy + Δλ Δμ̂,   S_xx ← ρ S_xx + Δλ²,   ρ = exp(−dt / τ_s)
-/// a = (S_xy + ε a₀) / (S_xx + ε),    a₀ = μ̂ / max(λ, 0.01)
+/// a    = S_xy / S_xx                          (least-squares slope over the window)
+/// w    = S_xx / (S_xx + ε)                    (confidence: slip excitation vs threshold ε)
+/// s_n  = w · clamp(a λ / max(μ̂, 0.02), −3, 3) + (1 − w) · 1
 /// ```
 ///
-/// With little slip excitation (S_xx ≪ ε) the estimate falls back to the
-/// linear-region prior a₀ (the secant through the origin), i.e. "assume we
-/// are below the peak" — the safe direction for the estimator, because the
-/// PI output is capped at the driver's demand anyway.
+/// With little slip excitation (S_xx ≪ ε) the normalised slope falls back to
+/// 1, the linear-region value ("assume we are below the peak"): the safe
+/// direction for the estimator, because the PI output is capped at the
+/// driver's demand anyway, and the one that lets λ* rise above a small
+/// operating slip so that SRC does not cut a demand the road carries.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SlopeEstimator {
     rho: f64,
@@ -187,7 +193,7 @@ impl SlopeEstimator {
         }
     }
 
-    /// Update with the current (λ, μ̂) and return dμ̂/dλ.
+    /// Update with the current (λ, μ̂); returns the normalised slope s_n.
     pub fn step(&mut self, lambda: f64, mu: f64) -> f64 {
         if let Some((l0, m0)) = self.prev {
             let dl = lambda - l0;
@@ -203,9 +209,31 @@ impl SlopeEstimator {
             }
         }
         self.prev = Some((lambda, mu));
-        let prior = mu / lambda.max(0.01);
-        let a = (self.sxy + self.eps * prior) / (self.sxx + self.eps);
-        if a.is_finite() { a } else { prior }
+        self.normalised(lambda, mu)
+    }
+
+    /// Least-squares slope dμ̂/dλ over the window (NaN before any excitation).
+    pub fn slope(&self) -> f64 {
+        if self.sxx > 0.0 {
+            self.sxy / self.sxx
+        } else {
+            f64::NAN
+        }
+    }
+
+    /// Confidence weight w = S_xx / (S_xx + ε) in [0, 1).
+    pub fn weight(&self) -> f64 {
+        self.sxx / (self.sxx + self.eps)
+    }
+
+    /// s_n for the operating point (λ, μ̂) with the current window.
+    pub fn normalised(&self, lambda: f64, mu: f64) -> f64 {
+        let w = self.weight();
+        if w.is_nan() || w <= 0.0 {
+            return 1.0;
+        }
+        let s = normalised_slope(self.slope(), lambda, mu);
+        w * s + (1.0 - w)
     }
 
     /// Back to the state at construction.
@@ -253,7 +281,9 @@ mod tests {
         let d = infer(0.02, 0.9, 1.0);
         assert!((d - 0.05).abs() < 0.005, "{d}");
         // At the peak: hold.
-        assert!(infer(0.17, 1.17, 0.0).abs() < 1e-9);
+        assert!(infer(0.12, 1.17, 0.0).abs() < 1e-9);
+        // On a plateau at large slip: back off.
+        assert!(infer(0.35, 1.0, 0.0) < -0.02);
         // Past the peak at large slip: back off by about NB.
         let d = infer(0.4, 0.5, -1.0);
         assert!((d + 0.08).abs() < 0.005, "{d}");
@@ -270,22 +300,33 @@ mod tests {
     }
 
     #[test]
-    fn slope_estimator_recovers_a_linear_curve_and_falls_back_without_excitation() {
+    fn slope_estimator_recovers_a_curve_and_falls_back_without_excitation() {
         let dt = 1e-3;
         let mut est = SlopeEstimator::new(0.1, 1e-6, dt);
-        // No excitation: the prior μ/λ.
+        // No excitation: the linear-region value 1.
         for _ in 0..100 {
-            let a = est.step(0.1, 0.76);
-            assert!((a - 7.6).abs() < 1e-9);
+            assert_eq!(est.step(0.1, 0.76), 1.0);
         }
-        // λ sweeps across a curve μ = 0.8 − 4 (λ − 0.2)²: slope −8 (λ − 0.2).
-        let mut a = 0.0;
-        for k in 0..400 {
+        assert!(est.slope().is_nan());
+        // λ sweeps across μ = 0.8 − 4 (λ − 0.2)²: slope −8 (λ − 0.2).
+        let mut sn = 0.0;
+        for k in 0..=400 {
             let l = 0.1 + 0.2 * k as f64 / 400.0;
-            a = est.step(l, 0.8 - 4.0 * (l - 0.2) * (l - 0.2));
+            sn = est.step(l, 0.8 - 4.0 * (l - 0.2) * (l - 0.2));
         }
-        // At λ = 0.3 the true slope is −0.8; the window lags ~0.1 s (0.05 in λ).
-        assert!(a < -0.2 && a > -1.0, "{a}");
+        // The window (τ = 0.1 s ≙ 0.05 in λ) centres near λ = 0.25: slope ≈ −0.4.
+        let a = est.slope();
+        assert!(a < -0.2 && a > -0.8, "{a}");
+        assert!(est.weight() > 0.9);
+        assert!(sn < 0.0, "{sn}");
+        // Linear curve μ = 8 λ: s_n = 1 exactly, slope 8.
+        let mut est = SlopeEstimator::new(0.1, 1e-6, dt);
+        for k in 0..=400 {
+            let l = 0.01 + 0.05 * k as f64 / 400.0;
+            sn = est.step(l, 8.0 * l);
+        }
+        assert!((est.slope() - 8.0).abs() < 1e-9);
+        assert!((sn - 1.0).abs() < 1e-9);
     }
 
     #[test]

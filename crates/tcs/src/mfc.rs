@@ -110,32 +110,6 @@ impl Controller for Mfc {
     }
 }
 
-/// The paper's bound (4) on K_MFC for no overshoot of the linear MFC loop
-/// (real roots of the characteristic polynomial of eq. (3)):
-///
-/// ```text
-/// K_MFC <= J_m (τ₂ − τ₁)² / (4 τ₂² τ₁ K Δ),     J_real = J_m / (1 + Δ)
-/// ```
-///
-/// `j_model` J_m (kg m²), `tau_1` motor lag (s), `tau_2` HPF time constant
-/// (s), `k_motor` motor gain K (N m per unit command; 1 when the command is a
-/// torque), `delta` Δ > 0. Returns +∞ for Δ <= 0 (model lighter than or
-/// equal to the real wheel: no bound from (4)).
-///
-/// This is the MFC-specific form the README reports for the configured
-/// gains; the general transfer-function analysis lives in `tcs::analysis`.
-pub fn paper_k_mfc_bound(j_model: f64, tau_1: f64, tau_2: f64, k_motor: f64, delta: f64) -> f64 {
-    if delta <= 0.0 {
-        return f64::INFINITY;
-    }
-    j_model * (tau_2 - tau_1).powi(2) / (4.0 * tau_2 * tau_2 * tau_1 * k_motor * delta)
-}
-
-/// Δ of the paper's eq. (5) for a real inertia `j_real`: Δ = J_m / J_real − 1.
-pub fn inertia_uncertainty(j_model: f64, j_real: f64) -> f64 {
-    j_model / j_real - 1.0
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -198,21 +172,5 @@ mod tests {
         let out = c.step(&meas(0.0, 100.0, 100.0), Some(&k));
         let expected = dt * 100.0 / (v.j_w + v.mass_share() * v.r * v.r * 0.8);
         assert!((out.internal - expected).abs() < 1e-12);
-    }
-
-    #[test]
-    fn bound_matches_the_formula_and_the_discriminant() {
-        let jm = 28.04;
-        let (t1, t2) = (0.05, 1.0);
-        let delta = 45.7;
-        let k = paper_k_mfc_bound(jm, t1, t2, 1.0, delta);
-        // At the bound the characteristic polynomial of eq. (3) has a double root.
-        let jr = jm / (1.0 + delta);
-        let a = t1 * t2 * jm * jr;
-        let b = jm * jr * (t1 + t2);
-        let c = jm * jr + k * t2 * (jm - jr);
-        assert!((b * b - 4.0 * a * c).abs() < 1e-9 * b * b);
-        assert_eq!(paper_k_mfc_bound(jm, t1, t2, 1.0, 0.0), f64::INFINITY);
-        assert!((inertia_uncertainty(jm, jr) - delta).abs() < 1e-12);
     }
 }

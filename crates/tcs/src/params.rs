@@ -103,7 +103,7 @@ impl Default for SrcParams {
             kp: 6.0,
             ti: 0.2,
             tau_slope: 0.1,
-            slope_excitation: 1e-6,
+            slope_excitation: 1e-7,
             tau_ref: 0.05,
             lambda_min: 0.02,
             lambda_max: 0.45,

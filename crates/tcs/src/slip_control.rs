@@ -8,8 +8,8 @@
 //! λ*     = ARTE usable ? λ_opt(road)
 //!                      : LPF_τref( clamp( λ_f + fuzzy(λ_f, μ̂, a λ_f/μ̂), λ_min, λ_max ) )
 //! K_p    = kp · max(|ω|, v_eps / r),   K_i = K_p / T_i
-//! I     ← clamp( I + K_i (λ* − λ) dt, 0, T_d )                 (anti-windup: clamping)
-//! T_PI   = clamp( K_p (λ* − λ) + I, 0, T_d )
+//! u      = K_p e + I + K_i e dt,   e = λ* − λ
+//! T_PI   = clamp(u, 0, T_d);   I ← T_PI − K_p e                 (tracking anti-windup)
 //! T*     = min(T_d, T_PI)
 //! ```
 //!
@@ -20,12 +20,15 @@
 //! - No chassis speed (`v == None`, or non-finite): the control law cannot run;
 //!   T* = T_d is passed through, `ControlOutput::passthrough` is true and the
 //!   integrator is set to T_d so that the PI resumes bumplessly.
+//! - The integrator starts at T_d on the first positive demand (start of the
+//!   drive or after coasting), so SRC applies the demand until the slip
+//!   exceeds λ*.
 //! - `T_d <= 0`: passed through (SRC is a traction controller); the
 //!   integrator is reset to 0.
 //! - `internal` is λ* (the slip reference in use).
 
 use crate::filters::LowPass;
-use crate::fuzzy::{SlopeEstimator, infer, normalised_slope};
+use crate::fuzzy::{SlopeEstimator, infer};
 use crate::observer::DrivingForceObserver;
 use crate::params::{ArteUse, SrcParams};
 use crate::types::{ControlOutput, Controller, Measurement, RoadKnowledge};
@@ -45,6 +48,7 @@ pub struct Src {
     slope: SlopeEstimator,
     reference: LowPass,
     integral: f64,
+    pi_active: bool,
 }
 
 impl Src {
@@ -72,6 +76,7 @@ impl Src {
             slope: SlopeEstimator::new(params.tau_slope, params.slope_excitation, dt),
             reference,
             integral: 0.0,
+            pi_active: false,
         })
     }
 
@@ -97,6 +102,7 @@ impl Controller for Src {
         let Some(v) = m.v.filter(|v| v.is_finite()) else {
             let torque_cmd = limit_to_demand(m.demand, m.demand);
             self.integral = torque_cmd.max(0.0);
+            self.pi_active = torque_cmd > 0.0;
             return ControlOutput {
                 torque_cmd,
                 used_arte: false,
@@ -108,10 +114,10 @@ impl Controller for Src {
 
         let lambda = self.slip(m.omega, v);
         let lambda_f = self.lambda_lp.step(lambda);
-        let a = self.slope.step(lambda_f, mu_hat);
+        let slope_n = self.slope.step(lambda_f, mu_hat);
 
         // Fuzzy estimate runs every cycle (so it is warm when ARTE drops out).
-        let delta = infer(lambda_f, mu_hat, normalised_slope(a, lambda_f, mu_hat));
+        let delta = infer(lambda_f, mu_hat, slope_n);
         let fuzzy_target = (lambda_f + delta).clamp(self.params.lambda_min, self.params.lambda_max);
         let fuzzy_ref = self.reference.step(fuzzy_target);
         let lambda_ref = match known {
@@ -120,18 +126,29 @@ impl Controller for Src {
         };
 
         let torque_cmd = if m.demand > 0.0 && m.demand.is_finite() {
+            if !self.pi_active {
+                // First positive demand (start, or after coasting): start from it.
+                self.integral = m.demand;
+                self.pi_active = true;
+            }
             let e = lambda_ref - lambda;
             let kp = self.params.kp * m.omega.abs().max(self.v_eps / self.r);
             let ki = kp / self.params.ti;
-            let i = self.integral + ki * e * self.dt;
-            self.integral = if i.is_finite() {
-                i.clamp(0.0, m.demand)
+            let unsat = kp * e + self.integral + ki * e * self.dt;
+            let t_pi = if unsat.is_finite() {
+                unsat.clamp(0.0, m.demand)
             } else {
                 m.demand
             };
-            let t_pi = kp * e + self.integral;
-            limit_to_demand(t_pi.min(m.demand), m.demand)
+            // Tracking anti-windup: when the output is limited (by the demand
+            // or by 0) the integrator takes the value that reproduces the
+            // limited output, so the PI leaves the limit at once when the
+            // slip error changes sign.
+            let i = t_pi - kp * e;
+            self.integral = if i.is_finite() { i } else { t_pi };
+            limit_to_demand(t_pi, m.demand)
         } else {
+            self.pi_active = false;
             self.integral = 0.0;
             limit_to_demand(m.demand, m.demand)
         };
@@ -152,6 +169,7 @@ impl Controller for Src {
         self.reference.reset();
         self.reference.set(self.params.lambda_min);
         self.integral = 0.0;
+        self.pi_active = false;
     }
 }
 
