@@ -6,9 +6,11 @@
 //!
 //! Nothing here runs in a control loop; allocation is allowed.
 
+pub mod gaps;
 pub mod nugap;
 pub mod poly;
 pub mod tf;
+pub mod vehicle_tf;
 
 pub use nugap::{NuGap, nu_gap};
 pub use poly::Poly;
@@ -36,6 +38,17 @@ pub enum AnalysisError {
     RootsFailed {
         /// Degree of the polynomial.
         degree: usize,
+    },
+    /// The vehicle parameters are invalid.
+    #[error("vehicle parameters: {0}")]
+    Vehicle(grip_physics::InvalidField),
+    /// A road the analysis needs is not in the catalogue.
+    #[error("road `{name}` is not in the catalogue (have: {available})")]
+    MissingRoad {
+        /// The missing road.
+        name: String,
+        /// The catalogue's road names.
+        available: String,
     },
     /// A physical parameter out of its valid range.
     #[error("parameter `{name}` = {value}: {reason}")]
