@@ -1,1 +1,19 @@
-//! grip-io
+//! grip-io: every adapter between the pure grip crates and the outside
+//! world. This is the only crate that touches SocketCAN, iceoryx2 ports,
+//! MCAP files or the OS scheduler.
+//!
+//! - [`can`]: the inverter protocol (`config/inverter.dbc`) with E2E
+//!   protection, and the CAN transports (SocketCAN, simulated bus over iceoryx2).
+//! - [`ipc`]: iceoryx2 nodes, typed publishers/subscribers, dead-node cleanup.
+//! - [`mcaplog`]: MCAP writer and reader for the grip payloads.
+//! - [`rt`]: SCHED_FIFO, mlockall, affinity, cpu_dma_latency, periodic
+//!   timer with latency statistics.
+//! - [`clock`]: injected monotonic time (real and manual).
+//!
+//! See `crates/io/README.md` for the protocol tables and measured figures.
+
+pub mod can;
+pub mod clock;
+pub mod ipc;
+pub mod mcaplog;
+pub mod rt;

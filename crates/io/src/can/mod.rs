@@ -1,0 +1,214 @@
+//! CAN: the inverter protocol ([`protocol`]) and the transports behind one
+//! trait ([`CanBus`]): Linux SocketCAN ([`SocketCanBus`]) and a simulated
+//! bus over iceoryx2 ([`SimBus`]) that carries the very same 8-byte frames.
+//! [`open_bus`] picks one per [`CanBusConfig`]; `auto` takes SocketCAN when
+//! the interface exists and the kernel has AF_CAN, else the simulated bus,
+//! and logs which and why.
+
+pub mod protocol;
+mod sim;
+mod socket;
+
+use core::time::Duration;
+
+pub use grip_msgs::CanFrame;
+pub use sim::SimBus;
+pub use socket::{SocketCanBus, af_can_available, interface_exists};
+
+use crate::ipc::{IpcError, IpcNode};
+
+/// Errors of CAN transports.
+#[derive(Debug, thiserror::Error)]
+pub enum CanError {
+    /// The kernel has no CAN support.
+    #[error(
+        "the kernel has no SocketCAN support (socket(AF_CAN) failed: {0}); use transport = \"sim\" or \"auto\", or a kernel with CONFIG_CAN (modprobe can-raw)"
+    )]
+    NoAfCan(std::io::Error),
+    /// The interface does not exist.
+    #[error(
+        "CAN interface {iface:?} does not exist; create it with `ip link add dev {iface} type vcan && ip link set {iface} up` (virtual) or bring up the real one (`ip link set {iface} up type can bitrate 1000000`), or set transport = \"sim\""
+    )]
+    NoInterface {
+        /// Interface name.
+        iface: String,
+    },
+    /// Other I/O error of the socket.
+    #[error("CAN interface {iface:?}: {source}")]
+    Io {
+        /// Interface name.
+        iface: String,
+        /// The error.
+        source: std::io::Error,
+    },
+    /// Socket send/receive error on the hot path (no allocation).
+    #[error("CAN {op} failed: {kind:?}")]
+    Transfer {
+        /// "send" or "receive".
+        op: &'static str,
+        /// The OS error kind.
+        kind: std::io::ErrorKind,
+    },
+    /// Frame not sendable (DLC > 8, id out of range).
+    #[error("invalid CAN frame id 0x{id:X} dlc {dlc}")]
+    InvalidFrame {
+        /// Id.
+        id: u32,
+        /// DLC.
+        dlc: u8,
+    },
+    /// Simulated bus (iceoryx2) error.
+    #[error(transparent)]
+    Ipc(#[from] IpcError),
+}
+
+/// A CAN transport. Implementations allocate nothing in `send`, `try_recv`
+/// and `recv_timeout`. Received frames are stamped with CLOCK_MONOTONIC at
+/// reception and marked `direction = RX`; a participant never receives its
+/// own frames.
+pub trait CanBus {
+    /// Sends one frame (non-blocking where the transport allows).
+    fn send(&mut self, frame: &CanFrame) -> Result<(), CanError>;
+    /// Returns a received frame if one is waiting.
+    fn try_recv(&mut self) -> Result<Option<CanFrame>, CanError>;
+    /// Waits at most `timeout` for a frame.
+    fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<CanFrame>, CanError>;
+    /// Which transport this is.
+    fn kind(&self) -> BusKind;
+}
+
+/// Transport kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BusKind {
+    /// Linux SocketCAN.
+    SocketCan,
+    /// iceoryx2 simulated bus.
+    Sim,
+}
+
+/// Which transport to use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Transport {
+    /// SocketCAN if available, else simulated (logged loudly).
+    #[default]
+    Auto,
+    /// SocketCAN only (error if unavailable).
+    Socketcan,
+    /// Simulated bus only.
+    Sim,
+}
+
+/// CAN bus configuration (`config/can.toml`).
+#[derive(Debug, Clone, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CanBusConfig {
+    /// Transport choice.
+    #[serde(default)]
+    pub transport: Transport,
+    /// SocketCAN interface (`can0` on the car, `vcan0` in tests).
+    pub interface: String,
+    /// Name of the simulated bus (iceoryx2 service `grip/canbus/<name>`);
+    /// defaults to the interface name.
+    #[serde(default)]
+    pub sim_bus: Option<String>,
+    /// Bus number written into logged frames.
+    #[serde(default)]
+    pub bus_id: u8,
+}
+
+impl Default for CanBusConfig {
+    fn default() -> Self {
+        Self {
+            transport: Transport::Auto,
+            interface: "vcan0".into(),
+            sim_bus: None,
+            bus_id: 0,
+        }
+    }
+}
+
+impl CanBusConfig {
+    /// Name of the simulated bus.
+    pub fn sim_bus_name(&self) -> &str {
+        self.sim_bus.as_deref().unwrap_or(&self.interface)
+    }
+}
+
+/// Either transport, without dynamic dispatch. (The size difference is a
+/// one-off at start-up; boxing would add an indirection per frame.)
+#[derive(Debug)]
+#[allow(clippy::large_enum_variant)]
+pub enum AnyBus {
+    /// SocketCAN.
+    SocketCan(SocketCanBus),
+    /// Simulated.
+    Sim(SimBus),
+}
+
+impl CanBus for AnyBus {
+    fn send(&mut self, f: &CanFrame) -> Result<(), CanError> {
+        match self {
+            Self::SocketCan(b) => b.send(f),
+            Self::Sim(b) => b.send(f),
+        }
+    }
+    fn try_recv(&mut self) -> Result<Option<CanFrame>, CanError> {
+        match self {
+            Self::SocketCan(b) => b.try_recv(),
+            Self::Sim(b) => b.try_recv(),
+        }
+    }
+    fn recv_timeout(&mut self, t: Duration) -> Result<Option<CanFrame>, CanError> {
+        match self {
+            Self::SocketCan(b) => b.recv_timeout(t),
+            Self::Sim(b) => b.recv_timeout(t),
+        }
+    }
+    fn kind(&self) -> BusKind {
+        match self {
+            Self::SocketCan(_) => BusKind::SocketCan,
+            Self::Sim(_) => BusKind::Sim,
+        }
+    }
+}
+
+/// Opens the bus `cfg` asks for. `auto`: SocketCAN when AF_CAN works and
+/// the interface exists, else the simulated bus, with a loud warning saying
+/// which and why.
+pub fn open_bus(cfg: &CanBusConfig, node: &IpcNode) -> Result<AnyBus, CanError> {
+    match cfg.transport {
+        Transport::Socketcan => {
+            let b = SocketCanBus::open(&cfg.interface, cfg.bus_id)?;
+            tracing::info!(iface = %cfg.interface, "CAN transport: SocketCAN");
+            Ok(AnyBus::SocketCan(b))
+        }
+        Transport::Sim => {
+            let b = SimBus::open(node, cfg.sim_bus_name(), cfg.bus_id)?;
+            tracing::warn!(bus = %cfg.sim_bus_name(), "CAN transport: SIMULATED bus over iceoryx2 (configured transport = \"sim\")");
+            Ok(AnyBus::Sim(b))
+        }
+        Transport::Auto => {
+            let why = match af_can_available() {
+                Err(e) => format!("kernel has no AF_CAN ({e})"),
+                Ok(()) if !interface_exists(&cfg.interface) => {
+                    format!("interface {:?} does not exist", cfg.interface)
+                }
+                Ok(()) => match SocketCanBus::open(&cfg.interface, cfg.bus_id) {
+                    Ok(b) => {
+                        tracing::info!(iface = %cfg.interface, "CAN transport: SocketCAN (auto)");
+                        return Ok(AnyBus::SocketCan(b));
+                    }
+                    Err(e) => format!("opening {:?} failed: {e}", cfg.interface),
+                },
+            };
+            let b = SimBus::open(node, cfg.sim_bus_name(), cfg.bus_id)?;
+            tracing::warn!(
+                bus = %cfg.sim_bus_name(),
+                reason = %why,
+                "CAN transport: SIMULATED bus over iceoryx2 instead of SocketCAN; frames never reach a real inverter"
+            );
+            Ok(AnyBus::Sim(b))
+        }
+    }
+}

@@ -1,0 +1,173 @@
+//! SocketCAN transport (the `socketcan` crate).
+
+use core::time::Duration;
+use std::io::ErrorKind;
+
+use socketcan::{CanDataFrame, CanFrame as SockFrame, CanSocket, Socket};
+use socketcan::{EmbeddedFrame as _, ExtendedId, Id, StandardId};
+
+use super::{BusKind, CanBus, CanError, CanFrame};
+use crate::clock::monotonic_now_ns;
+use grip_msgs::{can_dir, can_flags};
+
+/// Checks that the kernel supports AF_CAN raw sockets.
+pub fn af_can_available() -> Result<(), std::io::Error> {
+    // SAFETY: plain socket(2) call; the descriptor is closed right away.
+    let fd = unsafe { libc::socket(libc::AF_CAN, libc::SOCK_RAW, libc::CAN_RAW) };
+    if fd < 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    // SAFETY: fd is a descriptor we own.
+    unsafe { libc::close(fd) };
+    Ok(())
+}
+
+/// True if a network interface of this name exists.
+pub fn interface_exists(iface: &str) -> bool {
+    let Ok(c) = std::ffi::CString::new(iface) else {
+        return false;
+    };
+    // SAFETY: valid NUL-terminated string.
+    unsafe { libc::if_nametoindex(c.as_ptr()) != 0 }
+}
+
+/// A raw CAN socket on one interface, non-blocking; receive waits use poll(2).
+#[derive(Debug)]
+pub struct SocketCanBus {
+    sock: CanSocket,
+    iface: String,
+    bus_id: u8,
+}
+
+impl SocketCanBus {
+    /// Opens `iface`. Errors name the interface and say how to create it.
+    pub fn open(iface: &str, bus_id: u8) -> Result<Self, CanError> {
+        af_can_available().map_err(CanError::NoAfCan)?;
+        if !interface_exists(iface) {
+            return Err(CanError::NoInterface {
+                iface: iface.into(),
+            });
+        }
+        let sock = CanSocket::open(iface).map_err(|e| CanError::Io {
+            iface: iface.into(),
+            source: e,
+        })?;
+        sock.set_nonblocking(true).map_err(|e| CanError::Io {
+            iface: iface.into(),
+            source: e,
+        })?;
+        Ok(Self {
+            sock,
+            iface: iface.into(),
+            bus_id,
+        })
+    }
+
+    /// Interface name.
+    pub fn iface(&self) -> &str {
+        &self.iface
+    }
+
+    fn convert(&self, f: SockFrame) -> Option<CanFrame> {
+        match f {
+            SockFrame::Data(d) => {
+                let mut out = CanFrame::new(0, d.data());
+                let (id, ext) = match d.id() {
+                    Id::Standard(s) => (u32::from(s.as_raw()), 0),
+                    Id::Extended(e) => (e.as_raw(), can_flags::EXTENDED),
+                };
+                out.id = id;
+                out.flags = ext;
+                out.stamp_ns = monotonic_now_ns();
+                out.direction = can_dir::RX;
+                out.bus = self.bus_id;
+                Some(out)
+            }
+            // remote and error frames are not part of the protocol
+            _ => None,
+        }
+    }
+}
+
+impl CanBus for SocketCanBus {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), CanError> {
+        let bad = CanError::InvalidFrame {
+            id: frame.id,
+            dlc: frame.dlc,
+        };
+        if frame.dlc > 8 {
+            return Err(bad);
+        }
+        let id: Id = if frame.flags & can_flags::EXTENDED != 0 {
+            match ExtendedId::new(frame.id) {
+                Some(e) => e.into(),
+                None => return Err(bad),
+            }
+        } else {
+            match u16::try_from(frame.id).ok().and_then(StandardId::new) {
+                Some(s) => s.into(),
+                None => return Err(bad),
+            }
+        };
+        let Some(f) = CanDataFrame::new(id, frame.payload()) else {
+            return Err(bad);
+        };
+        self.sock.write_frame(&f).map_err(|e| CanError::Transfer {
+            op: "send",
+            kind: e.kind(),
+        })
+    }
+
+    fn try_recv(&mut self) -> Result<Option<CanFrame>, CanError> {
+        loop {
+            match self.sock.read_frame() {
+                Ok(f) => {
+                    if let Some(c) = self.convert(f) {
+                        return Ok(Some(c));
+                    }
+                }
+                Err(e) if e.kind() == ErrorKind::WouldBlock => return Ok(None),
+                Err(e) => {
+                    return Err(CanError::Transfer {
+                        op: "receive",
+                        kind: e.kind(),
+                    });
+                }
+            }
+        }
+    }
+
+    fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<CanFrame>, CanError> {
+        let deadline = monotonic_now_ns().saturating_add(timeout.as_nanos() as u64);
+        loop {
+            if let Some(f) = self.try_recv()? {
+                return Ok(Some(f));
+            }
+            let now = monotonic_now_ns();
+            if now >= deadline {
+                return Ok(None);
+            }
+            match self
+                .sock
+                .read_frame_timeout(Duration::from_nanos(deadline - now))
+            {
+                Ok(f) => {
+                    if let Some(c) = self.convert(f) {
+                        return Ok(Some(c));
+                    }
+                }
+                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
+                Err(e) => {
+                    return Err(CanError::Transfer {
+                        op: "receive",
+                        kind: e.kind(),
+                    });
+                }
+            }
+        }
+    }
+
+    fn kind(&self) -> BusKind {
+        BusKind::SocketCan
+    }
+}

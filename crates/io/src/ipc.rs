@@ -1,0 +1,480 @@
+//! iceoryx2 ports: node creation with stale-resource cleanup, typed
+//! publishers and subscribers, dead-peer detection. Timed waits only.
+//!
+//! All iceoryx2 quality-of-service choices live in [`qos`].
+
+use core::fmt::Debug;
+use core::marker::PhantomData;
+
+use iceoryx2::node::NodeView;
+use iceoryx2::port::publisher::Publisher as IoxPublisher;
+use iceoryx2::port::subscriber::Subscriber as IoxSubscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
+
+/// The iceoryx2 service flavour grip uses: inter-process, shared memory.
+pub type Svc = ipc::Service;
+
+/// Service and port limits, in one place. Every process opens a topic with
+/// the same values (iceoryx2 refuses an open that asks for more than the
+/// creator configured).
+pub mod qos {
+    /// Limits of one publish-subscribe topic.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub struct TopicQos {
+        /// Publishers the service admits.
+        pub max_publishers: usize,
+        /// Subscribers the service admits.
+        pub max_subscribers: usize,
+        /// Nodes that may open the service.
+        pub max_nodes: usize,
+        /// Largest subscriber buffer (the recorder's depth).
+        pub max_buffer: usize,
+        /// Samples a late subscriber gets on connecting.
+        pub history: usize,
+    }
+
+    /// Default: a 1 kHz topic; 1024 samples = 1 s of slack for the recorder.
+    pub const DEFAULT: TopicQos = TopicQos {
+        max_publishers: 4,
+        max_subscribers: 8,
+        max_nodes: 16,
+        max_buffer: 1024,
+        history: 1,
+    };
+    /// Audio blocks are 8 KiB; 64 blocks ≈ 6 s at 4096 samples / 44.1 kHz.
+    pub const AUDIO: TopicQos = TopicQos {
+        max_buffer: 64,
+        ..DEFAULT
+    };
+    /// Simulated CAN bus: every participant publishes and subscribes; 3
+    /// messages per ms plus slow ones, 1024 frames ≈ 300 ms of slack.
+    pub const SIM_BUS: TopicQos = TopicQos {
+        max_publishers: 8,
+        max_subscribers: 8,
+        max_nodes: 16,
+        max_buffer: 1024,
+        history: 0,
+    };
+    /// Subscriber buffer of a "latest value wins" subscriber.
+    pub const LATEST_BUFFER: usize = 1;
+    /// Listeners/notifiers of the sim-bus wake-up event.
+    pub const SIM_BUS_EVENT_PORTS: usize = 8;
+
+    /// QoS for a topic name (see `grip_msgs::topics`).
+    pub fn for_topic(topic: &str) -> TopicQos {
+        if topic == grip_msgs::topics::AUDIO {
+            AUDIO
+        } else if topic.starts_with(grip_msgs::topics::SIM_BUS_PREFIX) {
+            SIM_BUS
+        } else {
+            DEFAULT
+        }
+    }
+}
+
+/// Errors of the iceoryx2 adapters.
+#[derive(Debug, thiserror::Error)]
+pub enum IpcError {
+    /// Invalid node or service name.
+    #[error("invalid iceoryx2 name {name:?}: {reason}")]
+    Name {
+        /// The name.
+        name: String,
+        /// Why.
+        reason: String,
+    },
+    /// Node creation failed.
+    #[error("cannot create iceoryx2 node {name:?}: {reason}")]
+    Node {
+        /// Node name.
+        name: String,
+        /// iceoryx2's error.
+        reason: String,
+    },
+    /// Opening or creating a service failed (e.g. type or QoS mismatch with
+    /// the process that created it).
+    #[error("cannot open iceoryx2 service {topic:?} for {type_name}: {reason}")]
+    Service {
+        /// Topic.
+        topic: String,
+        /// Payload type.
+        type_name: &'static str,
+        /// iceoryx2's error.
+        reason: String,
+    },
+    /// Creating a port failed.
+    #[error("cannot create {kind} on {topic:?}: {reason}")]
+    Port {
+        /// "publisher", "subscriber", ...
+        kind: &'static str,
+        /// Topic.
+        topic: String,
+        /// iceoryx2's error.
+        reason: String,
+    },
+    /// Sending failed.
+    #[error("send on {topic:?} failed: {reason}")]
+    Send {
+        /// Topic.
+        topic: &'static str,
+        /// iceoryx2's error (static to stay allocation-free).
+        reason: &'static str,
+    },
+    /// Receiving failed.
+    #[error("receive on {topic:?} failed: {reason}")]
+    Receive {
+        /// Topic.
+        topic: &'static str,
+        /// Why.
+        reason: &'static str,
+    },
+}
+
+fn leak_topic(topic: &str) -> &'static str {
+    // topics are a handful of start-up constants; leaking keeps the hot-path
+    // errors allocation-free without lifetimes on every port.
+    Box::leak(topic.to_owned().into_boxed_str())
+}
+
+/// Result of cleaning up the resources of dead nodes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CleanupReport {
+    /// Dead nodes found.
+    pub dead_found: u64,
+    /// Dead nodes whose resources were removed.
+    pub cleaned: u64,
+    /// Dead nodes that could not be cleaned (permissions, another cleaner).
+    pub failed: u64,
+}
+
+/// Finds nodes whose process died (e.g. `kill -9`) and removes their
+/// stale shared memory and registrations (`NodeState::Dead` →
+/// `DeadNodeView::try_remove_stale_resources`).
+pub fn cleanup_dead_nodes() -> CleanupReport {
+    let mut rep = CleanupReport::default();
+    let res = Node::<Svc>::list(Config::global_config(), |state| {
+        if let NodeState::<Svc>::Dead(view) = state {
+            rep.dead_found += 1;
+            let pid = view.details().as_ref().map(|d| d.executable().to_string());
+            match view.try_remove_stale_resources() {
+                Ok(()) => {
+                    rep.cleaned += 1;
+                    tracing::warn!(executable = ?pid, "removed stale iceoryx2 resources of a dead node");
+                }
+                Err(e) => {
+                    rep.failed += 1;
+                    tracing::warn!(executable = ?pid, error = ?e, "could not remove resources of a dead node");
+                }
+            }
+        }
+        CallbackProgression::Continue
+    });
+    if let Err(e) = res {
+        tracing::warn!(error = ?e, "could not list iceoryx2 nodes");
+    }
+    rep
+}
+
+/// Peers of a topic, by the liveness of their nodes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct PeerReport {
+    /// Nodes attached to the service whose process is alive (includes us).
+    pub alive: usize,
+    /// Nodes attached to the service whose process died.
+    pub dead: usize,
+    /// Publishers currently registered (dead ones count until cleaned up).
+    pub publishers: usize,
+    /// Subscribers currently registered.
+    pub subscribers: usize,
+}
+
+/// A grip process's iceoryx2 node. Creating it first removes the resources
+/// that dead nodes (crashed processes) left behind.
+pub struct IpcNode {
+    node: Node<Svc>,
+    name: String,
+}
+
+impl Debug for IpcNode {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("IpcNode").field("name", &self.name).finish()
+    }
+}
+
+impl IpcNode {
+    /// Creates a node named `name` (see `grip_msgs::topics::node`). Sets
+    /// iceoryx2's own log level to Warn unless `IOX2_LOG_LEVEL` is set, and
+    /// cleans up dead nodes first.
+    pub fn create(name: &str) -> Result<Self, IpcError> {
+        set_log_level_from_env_or(LogLevel::Warn);
+        let rep = cleanup_dead_nodes();
+        if rep.dead_found > 0 {
+            tracing::warn!(?rep, "dead iceoryx2 nodes found at start-up");
+        }
+        let node_name: NodeName = name.try_into().map_err(|e| IpcError::Name {
+            name: name.into(),
+            reason: format!("{e:?}"),
+        })?;
+        let node = NodeBuilder::new()
+            .name(&node_name)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<Svc>()
+            .map_err(|e| IpcError::Node {
+                name: name.into(),
+                reason: format!("{e:?}"),
+            })?;
+        Ok(Self {
+            node,
+            name: name.into(),
+        })
+    }
+
+    /// The node's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The underlying iceoryx2 node (for services grip does not wrap).
+    pub fn raw(&self) -> &Node<Svc> {
+        &self.node
+    }
+
+    /// Removes resources of dead nodes (see [`cleanup_dead_nodes`]).
+    pub fn cleanup_dead_nodes(&self) -> CleanupReport {
+        cleanup_dead_nodes()
+    }
+
+    fn service<T: ZeroCopySend + Debug + Copy + 'static>(
+        &self,
+        topic: &str,
+    ) -> Result<PubSubFactory<Svc, T, ()>, IpcError> {
+        let q = qos::for_topic(topic);
+        let name: ServiceName = topic.try_into().map_err(|e| IpcError::Name {
+            name: topic.into(),
+            reason: format!("{e:?}"),
+        })?;
+        self.node
+            .service_builder(&name)
+            .publish_subscribe::<T>()
+            .max_publishers(q.max_publishers)
+            .max_subscribers(q.max_subscribers)
+            .max_nodes(q.max_nodes)
+            .subscriber_max_buffer_size(q.max_buffer)
+            .history_size(q.history)
+            .enable_safe_overflow(true)
+            .open_or_create()
+            .map_err(|e| IpcError::Service {
+                topic: topic.into(),
+                // SAFETY: reading a type name has no preconditions beyond
+                // the trait's layout contract, which the derive upholds.
+                type_name: unsafe { <T as ZeroCopySend>::type_name() },
+                reason: format!("{e:?}"),
+            })
+    }
+
+    /// A publisher of `T` on `topic`.
+    pub fn publisher<T: ZeroCopySend + Debug + Copy + 'static>(
+        &self,
+        topic: &str,
+    ) -> Result<Publisher<T>, IpcError> {
+        let service = self.service::<T>(topic)?;
+        let port = service
+            .publisher_builder()
+            .create()
+            .map_err(|e| IpcError::Port {
+                kind: "publisher",
+                topic: topic.into(),
+                reason: format!("{e:?}"),
+            })?;
+        Ok(Publisher {
+            port,
+            service,
+            topic: leak_topic(topic),
+        })
+    }
+
+    /// A subscriber of `T` on `topic`. [`SubscriberMode::Latest`] keeps only
+    /// the newest sample (control inputs); [`SubscriberMode::Deep`] keeps
+    /// the topic's full buffer and asks for its history (the recorder).
+    pub fn subscriber<T: ZeroCopySend + Debug + Copy + 'static>(
+        &self,
+        topic: &str,
+        mode: SubscriberMode,
+    ) -> Result<Subscriber<T>, IpcError> {
+        let service = self.service::<T>(topic)?;
+        let q = qos::for_topic(topic);
+        let builder = service.subscriber_builder();
+        let builder = match mode {
+            SubscriberMode::Latest => builder.buffer_size(qos::LATEST_BUFFER),
+            SubscriberMode::Deep => builder.buffer_size(q.max_buffer),
+        };
+        let port = builder.create().map_err(|e| IpcError::Port {
+            kind: "subscriber",
+            topic: topic.into(),
+            reason: format!("{e:?}"),
+        })?;
+        Ok(Subscriber {
+            port,
+            service,
+            topic: leak_topic(topic),
+            _t: PhantomData,
+        })
+    }
+}
+
+/// How a subscriber buffers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SubscriberMode {
+    /// Buffer of one: a read returns the newest sample (older ones are overwritten).
+    Latest,
+    /// The topic's full buffer (`qos::for_topic(..).max_buffer`).
+    Deep,
+}
+
+fn peers<T: ZeroCopySend + Debug + Copy + 'static>(s: &PubSubFactory<Svc, T, ()>) -> PeerReport {
+    let mut rep = PeerReport::default();
+    let _ = s.nodes(|state| {
+        match state {
+            NodeState::Alive(_) => rep.alive += 1,
+            NodeState::Dead(_) => rep.dead += 1,
+            _ => {}
+        }
+        CallbackProgression::Continue
+    });
+    let dc = s.dynamic_config();
+    rep.publishers = dc.number_of_publishers();
+    rep.subscribers = dc.number_of_subscribers();
+    rep
+}
+
+/// Typed publisher. `publish` copies the value into a loaned shared-memory
+/// sample; allocation-free.
+pub struct Publisher<T: ZeroCopySend + Debug + Copy + 'static> {
+    port: IoxPublisher<Svc, T, ()>,
+    service: PubSubFactory<Svc, T, ()>,
+    topic: &'static str,
+}
+
+impl<T: ZeroCopySend + Debug + Copy + 'static> Debug for Publisher<T> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Publisher")
+            .field("topic", &self.topic)
+            .finish()
+    }
+}
+
+impl<T: ZeroCopySend + Debug + Copy + 'static> Publisher<T> {
+    /// Publishes a copy of `value`; returns how many subscribers got it.
+    pub fn publish(&self, value: &T) -> Result<usize, IpcError> {
+        let sample = self.port.loan_uninit().map_err(|_| IpcError::Send {
+            topic: self.topic,
+            reason: "loan failed (all samples in use)",
+        })?;
+        let sample = sample.write_payload(*value);
+        sample.send().map_err(|_| IpcError::Send {
+            topic: self.topic,
+            reason: "send failed",
+        })
+    }
+    /// The topic.
+    pub fn topic(&self) -> &'static str {
+        self.topic
+    }
+    /// Liveness of the topic's peers (not for the hot path: iterates nodes).
+    pub fn peers(&self) -> PeerReport {
+        peers(&self.service)
+    }
+    pub(crate) fn id(&self) -> iceoryx2::identifiers::UniquePublisherId {
+        self.port.id()
+    }
+}
+
+/// Typed subscriber; reads copy the sample out and release it at once.
+pub struct Subscriber<T: ZeroCopySend + Debug + Copy + 'static> {
+    port: IoxSubscriber<Svc, T, ()>,
+    service: PubSubFactory<Svc, T, ()>,
+    topic: &'static str,
+    _t: PhantomData<T>,
+}
+
+impl<T: ZeroCopySend + Debug + Copy + 'static> Debug for Subscriber<T> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Subscriber")
+            .field("topic", &self.topic)
+            .finish()
+    }
+}
+
+impl<T: ZeroCopySend + Debug + Copy + 'static> Subscriber<T> {
+    /// The oldest unread sample, if any.
+    pub fn recv(&self) -> Result<Option<T>, IpcError> {
+        match self.port.receive() {
+            Ok(Some(s)) => Ok(Some(*s)),
+            Ok(None) => Ok(None),
+            Err(_) => Err(IpcError::Receive {
+                topic: self.topic,
+                reason: "receive failed",
+            }),
+        }
+    }
+    /// Drains the buffer and returns the newest sample, if any arrived.
+    pub fn latest(&self) -> Result<Option<T>, IpcError> {
+        let mut last = None;
+        while let Some(v) = self.recv()? {
+            last = Some(v);
+        }
+        Ok(last)
+    }
+    /// Calls `f` for every unread sample in order; returns how many.
+    pub fn drain(&self, mut f: impl FnMut(&T)) -> Result<usize, IpcError> {
+        let mut n = 0;
+        loop {
+            match self.port.receive() {
+                Ok(Some(s)) => {
+                    f(&s);
+                    n += 1;
+                }
+                Ok(None) => return Ok(n),
+                Err(_) => {
+                    return Err(IpcError::Receive {
+                        topic: self.topic,
+                        reason: "receive failed",
+                    });
+                }
+            }
+        }
+    }
+    /// Like [`recv`](Self::recv) but skips samples from the publisher `own`
+    /// (used by the simulated bus).
+    pub(crate) fn recv_not_from(
+        &self,
+        own: iceoryx2::identifiers::UniquePublisherId,
+    ) -> Result<Option<T>, IpcError> {
+        loop {
+            match self.port.receive() {
+                Ok(Some(s)) => {
+                    if s.header().publisher_id() != own {
+                        return Ok(Some(*s));
+                    }
+                }
+                Ok(None) => return Ok(None),
+                Err(_) => {
+                    return Err(IpcError::Receive {
+                        topic: self.topic,
+                        reason: "receive failed",
+                    });
+                }
+            }
+        }
+    }
+    /// The topic.
+    pub fn topic(&self) -> &'static str {
+        self.topic
+    }
+    /// Liveness of the topic's peers: a `dead` count > 0 means a publisher's
+    /// or subscriber's process died; call [`cleanup_dead_nodes`].
+    pub fn peers(&self) -> PeerReport {
+        peers(&self.service)
+    }
+}

@@ -1,0 +1,204 @@
+//! Simulated CAN bus and iceoryx2 ports within one process (threads).
+
+use std::time::Duration;
+
+use grip_io::can::protocol::*;
+use grip_io::can::{BusKind, CanBus, CanBusConfig, SimBus, Transport, open_bus};
+use grip_io::ipc::{IpcNode, SubscriberMode};
+use grip_msgs::{CanFrame, CycleRecord, can_dir};
+
+fn unique(name: &str) -> String {
+    format!("test_{}_{}", name, std::process::id())
+}
+
+#[test]
+fn two_threads_exchange_protocol_frames_both_ways() {
+    let bus = unique("twothreads");
+    let b2 = bus.clone();
+    let node = IpcNode::create("simbus-test-a").unwrap();
+    let mut a = SimBus::open(&node, &bus, 0).unwrap();
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+    // "inverter" thread: answers every TorqueCommand with a MotorStatus
+    let h = std::thread::spawn(move || {
+        let node = IpcNode::create("simbus-test-b").unwrap();
+        let mut b = SimBus::open(&node, &b2, 0).unwrap();
+        ready_tx.send(()).unwrap();
+        let mut rx = ProtocolRx::for_inverter();
+        let mut tx = E2eSender::<MotorStatus>::new();
+        let mut n = 0;
+        while n < 100 {
+            let Some(f) = b.recv_timeout(Duration::from_secs(5)).unwrap() else {
+                panic!("inverter: no frame within 5 s after {n}");
+            };
+            assert_eq!(f.direction, can_dir::RX);
+            if let Ok(Some(InverterMsg::TorqueCommand(c))) = rx.receive(&f, f.stamp_ns) {
+                let s = MotorStatus {
+                    ready: true,
+                    torque_actual: c.torque_request,
+                    ..MotorStatus::default()
+                };
+                b.send(&tx.encode(&s, 0)).unwrap();
+                n += 1;
+            }
+        }
+        rx.faults()
+    });
+    ready_rx.recv().unwrap();
+    std::thread::sleep(Duration::from_millis(50));
+    let mut tx = E2eSender::<TorqueCommand>::new();
+    let mut rx = ProtocolRx::for_tcs();
+    for i in 0..100 {
+        let cmd = TorqueCommand {
+            torque_request: f64::from(i) * 1.5,
+            enable: true,
+        };
+        a.send(&tx.encode(&cmd, 0)).unwrap();
+        // never our own frame back: the next frame must be the answer
+        let f = a
+            .recv_timeout(Duration::from_secs(5))
+            .unwrap()
+            .expect("answer within 5 s");
+        match rx.receive(&f, f.stamp_ns) {
+            Ok(Some(InverterMsg::MotorStatus(s))) => {
+                assert!((s.torque_actual - cmd.torque_request).abs() < 0.051, "{i}");
+            }
+            other => panic!("cycle {i}: {other:?}"),
+        }
+    }
+    let inv_faults = h.join().unwrap();
+    assert_eq!(
+        inv_faults.total(),
+        0,
+        "inverter saw E2E faults: {inv_faults:?}"
+    );
+    assert_eq!(rx.faults().total(), 0, "tcs saw E2E faults");
+    assert_eq!(a.try_recv().unwrap(), None);
+}
+
+#[test]
+fn recv_timeout_returns_none_in_time_when_bus_is_silent() {
+    let node = IpcNode::create("simbus-test-silent").unwrap();
+    let mut a = SimBus::open(&node, &unique("silent"), 0).unwrap();
+    let t0 = std::time::Instant::now();
+    assert_eq!(a.recv_timeout(Duration::from_millis(30)).unwrap(), None);
+    let dt = t0.elapsed();
+    assert!(dt >= Duration::from_millis(30), "{dt:?}");
+    assert!(dt < Duration::from_secs(2), "{dt:?}");
+}
+
+#[test]
+fn three_participants_each_see_the_others_frames() {
+    let bus = unique("three");
+    let node = IpcNode::create("simbus-test-three").unwrap();
+    let mut p: Vec<SimBus> = (0..3)
+        .map(|_| SimBus::open(&node, &bus, 0).unwrap())
+        .collect();
+    for (i, b) in p.iter_mut().enumerate() {
+        b.send(&CanFrame::new(0x200 + i as u32, &[i as u8; 8]))
+            .unwrap();
+    }
+    for (i, b) in p.iter_mut().enumerate() {
+        let mut ids = Vec::new();
+        while let Some(f) = b.try_recv().unwrap() {
+            ids.push(f.id);
+        }
+        ids.sort();
+        let want: Vec<u32> = (0..3)
+            .filter(|&j| j != i)
+            .map(|j| 0x200 + j as u32)
+            .collect();
+        assert_eq!(ids, want, "participant {i}");
+    }
+}
+
+#[test]
+fn sim_bus_rejects_oversized_dlc() {
+    let node = IpcNode::create("simbus-test-dlc").unwrap();
+    let mut a = SimBus::open(&node, &unique("dlc"), 0).unwrap();
+    let mut f = CanFrame::new(1, &[0; 8]);
+    f.dlc = 9;
+    assert!(a.send(&f).is_err());
+}
+
+#[test]
+fn auto_transport_falls_back_to_sim_without_the_interface() {
+    let node = IpcNode::create("simbus-test-auto").unwrap();
+    let cfg = CanBusConfig {
+        transport: Transport::Auto,
+        interface: "gripnonexist0".into(),
+        sim_bus: Some(unique("auto")),
+        bus_id: 3,
+    };
+    let mut bus = open_bus(&cfg, &node).unwrap();
+    assert_eq!(bus.kind(), BusKind::Sim);
+    let mut other = SimBus::open(&node, cfg.sim_bus_name(), 3).unwrap();
+    other.send(&CanFrame::new(0x120, &[1; 8])).unwrap();
+    let f = bus.try_recv().unwrap().unwrap();
+    assert_eq!((f.id, f.bus), (0x120, 3));
+    // SocketCAN forced: the error names the interface and the fix
+    let forced = CanBusConfig {
+        transport: Transport::Socketcan,
+        ..cfg
+    };
+    let e = open_bus(&forced, &node).unwrap_err().to_string();
+    assert!(
+        e.contains("AF_CAN") || (e.contains("gripnonexist0") && e.contains("ip link add")),
+        "{e}"
+    );
+}
+
+#[test]
+fn can_config_parses_and_denies_unknown_fields() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../config/can.toml");
+    let text = std::fs::read_to_string(path).unwrap();
+    let cfg: CanBusConfig = toml_like(&text);
+    assert_eq!(cfg.interface, "vcan0");
+    assert_eq!(cfg.transport, Transport::Auto);
+    let bad = serde_json::from_str::<CanBusConfig>(r#"{"interface":"can0","bitrate":5}"#);
+    assert!(bad.unwrap_err().to_string().contains("bitrate"));
+}
+
+/// Minimal reader for the flat `key = "value"` can.toml (the io crate does
+/// not depend on a TOML parser; grip-config owns TOML loading).
+fn toml_like(text: &str) -> CanBusConfig {
+    let mut m = serde_json::Map::new();
+    for line in text.lines() {
+        let line = line.split('#').next().unwrap().trim();
+        if let Some((k, v)) = line.split_once('=') {
+            let v = v.trim();
+            let val = if let Some(s) = v.strip_prefix('"').and_then(|s| s.strip_suffix('"')) {
+                serde_json::Value::String(s.into())
+            } else {
+                serde_json::Value::from(v.parse::<u64>().unwrap())
+            };
+            m.insert(k.trim().into(), val);
+        }
+    }
+    serde_json::from_value(serde_json::Value::Object(m)).unwrap()
+}
+
+#[test]
+fn latest_subscriber_gets_newest_deep_subscriber_gets_all() {
+    let topic = format!("grip/test/{}", unique("ports"));
+    let node = IpcNode::create("ports-test").unwrap();
+    let publisher = node.publisher::<CycleRecord>(&topic).unwrap();
+    let latest = node
+        .subscriber::<CycleRecord>(&topic, SubscriberMode::Latest)
+        .unwrap();
+    let deep = node
+        .subscriber::<CycleRecord>(&topic, SubscriberMode::Deep)
+        .unwrap();
+    for i in 0..500u64 {
+        let mut r = CycleRecord::zeroed();
+        r.seq = i;
+        assert_eq!(publisher.publish(&r).unwrap(), 2);
+    }
+    assert_eq!(latest.recv().unwrap().map(|r| r.seq), Some(499));
+    assert_eq!(latest.recv().unwrap(), None);
+    let mut seqs = Vec::new();
+    deep.drain(|r| seqs.push(r.seq)).unwrap();
+    assert_eq!(seqs, (0..500).collect::<Vec<_>>());
+    let peers = deep.peers();
+    assert_eq!((peers.publishers, peers.subscribers, peers.dead), (1, 2, 0));
+    assert!(peers.alive >= 1);
+}
