@@ -19,3 +19,6 @@ pub mod features;
 pub mod svm;
 pub mod eval;
 pub mod model;
+pub mod synth;
+pub mod select;
+pub mod stream;

@@ -1,0 +1,98 @@
+//! The streaming estimator, the feature extractor, a real model's predictor
+//! and the streaming synthesiser allocate nothing after construction.
+
+use grip_arte::eval::Samples;
+use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet};
+use grip_arte::mlp::LmConfig;
+use grip_arte::model::{ClassifierSpec, Predictor, fit};
+use grip_arte::stream::{StreamConfig, StreamEstimator};
+use grip_arte::synth::{NoiseConfig, RoadAudioSynth, SynthConfig};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+struct Counting;
+static ALLOCS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.realloc(p, l, n) }
+    }
+}
+
+#[global_allocator]
+static A: Counting = Counting;
+
+fn allocs() -> usize {
+    ALLOCS.load(Ordering::SeqCst)
+}
+
+// One test function only, so no other test thread allocates meanwhile.
+#[test]
+fn hot_paths_allocate_nothing() {
+    let synth_cfg = SynthConfig {
+        sample_rate: 44_100,
+        noise: Some(NoiseConfig {
+            rain: true,
+            car: true,
+            snr_db: 10.0,
+        }),
+    };
+    let mut synth = RoadAudioSynth::new(&synth_cfg, 1).unwrap();
+    for set in [FeatureSet::Paper20, FeatureSet::Paper7, FeatureSet::Rich] {
+        let fcfg = FeatureConfig::new(44_100, set);
+        // A real (tiny) model, trained on synthetic frames of two roads.
+        let mut ex = FeatureExtractor::new(&fcfg).unwrap();
+        let mut train = Samples::new(ex.dim());
+        let mut buf = vec![0f32; 4410];
+        let mut row = vec![0.0; ex.dim()];
+        for i in 0..40 {
+            let road = i % 2 * 2;
+            synth.fill(road, 8.0, &mut buf);
+            ex.extract(&buf, &mut row).unwrap();
+            train.push(&row, i % 2, i / 4);
+        }
+        let classes = vec!["asphalt".to_string(), "snow".to_string()];
+        let spec = ClassifierSpec::Mlp {
+            lm: LmConfig {
+                epochs: 5,
+                ..Default::default()
+            },
+            val_fraction: 0.0,
+        };
+        let (model, _) = fit(&classes, &fcfg, &spec, &train).unwrap();
+        let mut est =
+            StreamEstimator::new(Predictor::new(model), &fcfg, &StreamConfig::default()).unwrap();
+
+        let mut block = vec![0f32; 1024];
+        let mut out = vec![0.0; ex.dim()];
+        // Warm up (first decision, first road change).
+        synth.fill(0, 8.0, &mut block);
+        est.push(&block, |_| {});
+        let before = allocs();
+        let mut n = 0;
+        let mut seen = 0u64;
+        for i in 0..200 {
+            let road = if i < 100 { 0 } else { 3 };
+            synth.fill(road, 5.0 + i as f64 * 0.02, &mut block);
+            n += est.push(&block, |d| seen = d.seq);
+            ex.extract(&block, &mut out).unwrap();
+        }
+        let after = allocs();
+        assert!(n > 80, "{n} decisions");
+        assert!(seen > 80);
+        assert_eq!(
+            after - before,
+            0,
+            "{set:?}: {} allocations in the hot loop",
+            after - before
+        );
+    }
+}
