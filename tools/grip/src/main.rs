@@ -6,6 +6,7 @@
 use clap::{Parser, Subcommand};
 
 mod cmd;
+mod dataset;
 mod plot;
 
 #[derive(Parser)]
@@ -26,6 +27,10 @@ enum Command {
     Sim(cmd::sim::Args),
     /// Linear analysis: transfer functions, the K_MFC bound and Vinnicombe nu-gaps.
     Analyze(cmd::analyze::Args),
+    /// Train an ARTE road classifier on a labelled WAV dataset (CV by recording, model file).
+    Train(cmd::train::Args),
+    /// Classify a WAV recording frame by frame with an ARTE model.
+    Classify(cmd::classify::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -42,6 +47,8 @@ fn main() -> std::process::ExitCode {
         Command::Roads(a) => cmd::roads::run(&ctx, a),
         Command::Sim(a) => cmd::sim::run(&ctx, a),
         Command::Analyze(a) => cmd::analyze::run(&ctx, a),
+        Command::Train(a) => cmd::train::run(&ctx, a),
+        Command::Classify(a) => cmd::classify::run(&ctx, a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -3,6 +3,8 @@
 pub mod analyze;
 pub mod roads;
 pub mod sim;
+pub mod train;
+pub mod classify;
 
 /// What every subcommand gets from the global options.
 pub struct Ctx {

@@ -1,0 +1,135 @@
+//! `grip classify FILE.wav`: the road and class probabilities per frame.
+//!
+//! Loads the model (default `<config-dir>/models/default.model`), cuts the
+//! recording into the model's frames (hop `--hop`, default = the frame
+//! length), and prints one line per frame: start and end time, the most
+//! probable road, and every class probability; then a summary line (frames
+//! per road, the majority road and its share).
+
+use super::Ctx;
+use crate::dataset::read_wav;
+use anyhow::{Context, Result, bail};
+use grip_arte::features::FeatureExtractor;
+use grip_arte::model::Model;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args, Clone, Debug)]
+pub struct Args {
+    /// WAV recording to classify (mono or multi-channel, averaged).
+    pub file: PathBuf,
+    /// Model file (default: <config-dir>/models/default.model).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Hop between frames (s); default: the model's frame length.
+    #[arg(long)]
+    pub hop: Option<f64>,
+    /// Print only the summary line.
+    #[arg(long)]
+    pub summary: bool,
+}
+
+/// Loads and validates a model file; errors name the path.
+pub fn load_model(path: &Path) -> Result<Model> {
+    let bytes = std::fs::read(path)
+        .with_context(|| format!("cannot read model file {}", path.display()))?;
+    Model::from_bytes(&bytes).with_context(|| format!("model file {}", path.display()))
+}
+
+/// One frame's decision: start and end time (s), class, probabilities.
+pub type FrameDecision = (f64, f64, usize, Vec<f64>);
+
+/// Per-frame decisions.
+pub fn classify(
+    model: &Model,
+    samples: &[f32],
+    sample_rate: u32,
+    hop_s: Option<f64>,
+) -> Result<Vec<FrameDecision>> {
+    let cfg = model.feature_config();
+    if sample_rate != cfg.sample_rate {
+        bail!(
+            "recording is sampled at {sample_rate} Hz, the model was trained at {} Hz",
+            cfg.sample_rate
+        );
+    }
+    let mut ex = FeatureExtractor::new(cfg).context("model feature config")?;
+    let frame = ex.frame_len();
+    let hop = match hop_s {
+        Some(h) if h > 0.0 && h.is_finite() => {
+            ((h * f64::from(sample_rate)).round() as usize).max(1)
+        }
+        Some(h) => bail!("--hop must be a positive number of seconds, got {h}"),
+        None => frame,
+    };
+    if samples.len() < frame {
+        bail!(
+            "recording has {} samples, shorter than one frame of {frame}",
+            samples.len()
+        );
+    }
+    let mut pred = model.predictor();
+    let mut feat = vec![0.0; ex.dim()];
+    let mut out = Vec::new();
+    let fs = f64::from(sample_rate);
+    let mut start = 0;
+    while start + frame <= samples.len() {
+        ex.extract(&samples[start..start + frame], &mut feat)?;
+        let mut p = vec![0.0; model.classes().len()];
+        let c = pred.predict_proba(&feat, &mut p)?;
+        out.push((start as f64 / fs, (start + frame) as f64 / fs, c, p));
+        start += hop;
+    }
+    Ok(out)
+}
+
+pub fn run(ctx: &Ctx, args: Args) -> Result<()> {
+    let path = args
+        .model
+        .clone()
+        .unwrap_or_else(|| ctx.config_dir.join("models").join("default.model"));
+    let model = load_model(&path)?;
+    let audio = read_wav(&args.file)?;
+    let rows = classify(&model, &audio.samples, audio.sample_rate, args.hop)
+        .with_context(|| format!("classifying {}", args.file.display()))?;
+    let classes = model.classes();
+    let stdout = std::io::stdout();
+    let mut o = stdout.lock();
+    if !args.summary {
+        write!(o, "{:>8} {:>8} {:<12}", "t0_s", "t1_s", "road")?;
+        for c in classes {
+            write!(o, " {c:>11}")?;
+        }
+        writeln!(o)?;
+        for (t0, t1, c, p) in &rows {
+            write!(o, "{t0:>8.3} {t1:>8.3} {:<12}", classes[*c])?;
+            for v in p {
+                write!(o, " {v:>11.4}")?;
+            }
+            writeln!(o)?;
+        }
+    }
+    let mut counts = vec![0usize; classes.len()];
+    for (_, _, c, _) in &rows {
+        counts[*c] += 1;
+    }
+    let best = (0..classes.len())
+        .max_by_key(|&i| (counts[i], std::cmp::Reverse(i)))
+        .unwrap_or(0);
+    let n = rows.len().max(1);
+    writeln!(
+        o,
+        "summary: {} frames, majority {} ({:.1} %); {} [model {}]",
+        rows.len(),
+        classes[best],
+        100.0 * counts[best] as f64 / n as f64,
+        classes
+            .iter()
+            .zip(&counts)
+            .map(|(c, k)| format!("{c} {k}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        path.display()
+    )?;
+    Ok(())
+}

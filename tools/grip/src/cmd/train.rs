@@ -1,0 +1,590 @@
+//! `grip train`: features, cross-validation by recording, final fit, model file.
+//!
+//! Steps: scan the dataset (one folder per class, see `dataset.rs`), cut
+//! every recording into frames (`--frame`, default 0.1 s, hop `--hop`),
+//! extract features, run stratified k-fold cross-validation split by
+//! recording (for `paper7`, the paper's pruning runs inside each fold), print
+//! the report and the confusion matrix (rows predicted, columns actual, as
+//! the paper's Tables II/III), fit on all data, write the model file, and
+//! with `--test DIR` score held-out recordings.
+//!
+//! SVM: C and γ are chosen by grid search on the same CV folds (macro-F1;
+//! `--svm-c`, `--svm-gamma`, γ given as multiples of 1/dim since the
+//! features are standardised), with Platt CV switched off during the search
+//! for speed; the reported CV uses the final settings.
+//!
+//! Deterministic for a seed: the same arguments on the same data give the
+//! same model bytes (the date defaults to `SOURCE_DATE_EPOCH` when set,
+//! else today's UTC date; `--date` fixes it).
+
+use super::Ctx;
+use crate::dataset::{Dataset, read_wav};
+use anyhow::{Context, Result, bail};
+use grip_arte::eval::{Confusion, Samples};
+use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet};
+use grip_arte::mlp::{LmConfig, OutputKind};
+use grip_arte::model::{
+    ClassifierSpec, EvalSummary, FitReport, Model, cross_validate, fit, grid_search_svm, sha256_hex,
+};
+use grip_arte::svm::{Kernel, SvmConfig};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args, Clone, Debug)]
+pub struct Args {
+    /// Dataset folder: one sub-folder of WAV files per class.
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Classifier.
+    #[arg(long, default_value = "mlp", value_parser = ["mlp", "svm"])]
+    pub classifier: String,
+    /// MLP hidden layer sizes (the paper's network: 4,3,2).
+    #[arg(long, default_value = "4,3,2", value_delimiter = ',')]
+    pub hidden: Vec<usize>,
+    /// MLP output units.
+    #[arg(long, default_value = "softmax", value_parser = ["softmax", "logistic"])]
+    pub output: String,
+    /// Feature set: paper7 (the paper's pruned 7), paper20, rich.
+    #[arg(long, default_value = "paper7", value_parser = ["paper7", "paper20", "rich"])]
+    pub features: String,
+    /// Cross-validation folds (split by recording); 0 skips CV.
+    #[arg(long, default_value_t = 5)]
+    pub folds: usize,
+    /// Seed of initialisation, subsampling and fold assignment.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output model file (default: <config-dir>/models/trained.model).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Held-out dataset folder(s) to evaluate the final model on (repeatable).
+    #[arg(long)]
+    pub test: Vec<PathBuf>,
+    /// Frame length (s).
+    #[arg(long, default_value_t = 0.1)]
+    pub frame: f64,
+    /// Hop between frames (s).
+    #[arg(long, default_value_t = 0.1)]
+    pub hop: f64,
+    /// MLP: maximum LM epochs (trainlm: 1000).
+    #[arg(long, default_value_t = 1000)]
+    pub epochs: usize,
+    /// MLP: cap on rows in the LM Jacobian (seeded stratified subsample).
+    #[arg(long, default_value_t = 4000)]
+    pub lm_max_rows: usize,
+    /// MLP: fraction of each class's recordings held out for early stopping.
+    #[arg(long, default_value_t = 0.15)]
+    pub val_fraction: f64,
+    /// SVM: C grid.
+    #[arg(long, default_value = "1,10,100", value_delimiter = ',')]
+    pub svm_c: Vec<f64>,
+    /// SVM: gamma grid, in multiples of 1/dim.
+    #[arg(long, default_value = "0.25,0.5,1,2", value_delimiter = ',')]
+    pub svm_gamma: Vec<f64>,
+    /// SVM: frames per class used for training (seeded subsample).
+    #[arg(long, default_value_t = 1000)]
+    pub svm_max_per_class: usize,
+    /// Profile name stored in the model (e.g. paper, default).
+    #[arg(long, default_value = "custom")]
+    pub profile: String,
+    /// Training date stored in the model, YYYY-MM-DD.
+    #[arg(long)]
+    pub date: Option<String>,
+    /// Also write the report (Markdown, with confusion matrices) here.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+}
+
+impl Args {
+    /// The command line that reproduces this run (stored in the model).
+    fn command_line(&self) -> String {
+        let mut s = format!(
+            "grip train --data {} --classifier {} --features {} --folds {} --seed {} --frame {} --hop {}",
+            self.data.display(),
+            self.classifier,
+            self.features,
+            self.folds,
+            self.seed,
+            self.frame,
+            self.hop
+        );
+        if self.classifier == "mlp" {
+            let h: Vec<String> = self.hidden.iter().map(usize::to_string).collect();
+            let _ = write!(
+                s,
+                " --hidden {} --output {} --epochs {} --lm-max-rows {} --val-fraction {}",
+                h.join(","),
+                self.output,
+                self.epochs,
+                self.lm_max_rows,
+                self.val_fraction
+            );
+        } else {
+            let j = |v: &[f64]| v.iter().map(f64::to_string).collect::<Vec<_>>().join(",");
+            let _ = write!(
+                s,
+                " --svm-c {} --svm-gamma {} --svm-max-per-class {}",
+                j(&self.svm_c),
+                j(&self.svm_gamma),
+                self.svm_max_per_class
+            );
+        }
+        let _ = write!(s, " --profile {}", self.profile);
+        s
+    }
+}
+
+/// Today's UTC date, or `SOURCE_DATE_EPOCH`'s.
+fn today() -> String {
+    let secs = std::env::var("SOURCE_DATE_EPOCH")
+        .ok()
+        .and_then(|v| v.trim().parse::<i64>().ok())
+        .unwrap_or_else(|| {
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map(|d| d.as_secs() as i64)
+                .unwrap_or(0)
+        });
+    civil_date(secs)
+}
+
+/// `YYYY-MM-DD` (UTC) of a Unix time, by H. Hinnant's `civil_from_days`.
+fn civil_date(secs: i64) -> String {
+    let z = secs.div_euclid(86_400) + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!("{y:04}-{m:02}-{d:02}")
+}
+
+/// Features of every frame of every recording of `ds`, in `cfg`'s layout,
+/// class labels mapped through `class_map` (dataset class -> model class).
+/// Returns the samples and the dataset hash.
+pub fn extract_dataset(
+    ds: &Dataset,
+    cfg: &FeatureConfig,
+    hop_s: f64,
+    class_map: &[usize],
+) -> Result<(Samples, String)> {
+    let mut ex = FeatureExtractor::new(cfg).context("feature config")?;
+    let hop = ((hop_s * f64::from(cfg.sample_rate)).round() as usize).max(1);
+    let frame_len = ex.frame_len();
+    let mut s = Samples::new(ex.dim());
+    let mut row = vec![0.0; ex.dim()];
+    let mut hash_input = String::new();
+    let pb = ProgressBar::new(ds.entries.len() as u64);
+    pb.set_style(
+        ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} files {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    pb.set_prefix(format!("features {}", ds.root.display()));
+    for e in &ds.entries {
+        let audio = read_wav(&e.path)?;
+        if audio.sample_rate != cfg.sample_rate {
+            bail!(
+                "{}: sample rate {} Hz, but the features are configured for {} Hz (all files of a dataset must share one rate)",
+                e.path.display(),
+                audio.sample_rate,
+                cfg.sample_rate
+            );
+        }
+        let _ = writeln!(
+            hash_input,
+            "{}\0{}\0{}",
+            ds.classes[e.class], e.rel, audio.sha256
+        );
+        if audio.samples.len() < frame_len {
+            bail!(
+                "{}: {} samples, shorter than one {:.3} s frame ({} samples)",
+                e.path.display(),
+                audio.samples.len(),
+                cfg.frame_s,
+                frame_len
+            );
+        }
+        let mut start = 0;
+        while start + frame_len <= audio.samples.len() {
+            ex.extract(&audio.samples[start..start + frame_len], &mut row)
+                .with_context(|| format!("{}: feature extraction", e.path.display()))?;
+            s.push(&row, class_map[e.class], e.recording);
+            start += hop;
+        }
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    Ok((s, sha256_hex(hash_input.as_bytes())))
+}
+
+/// Sample rate of the first file (all files are checked during extraction).
+fn dataset_rate(ds: &Dataset) -> Result<u32> {
+    let first = ds.entries.first().context("dataset has no files")?;
+    Ok(read_wav(&first.path)?.sample_rate)
+}
+
+/// Evaluates `model` on a held-out dataset folder (classes matched by name).
+pub fn evaluate_folder(model: &Model, dir: &Path, hop_s: f64) -> Result<Confusion> {
+    let ds = Dataset::scan(dir)?;
+    let mut map = Vec::new();
+    for c in &ds.classes {
+        let Some(i) = model.classes().iter().position(|m| m == c) else {
+            bail!(
+                "held-out dataset {}: class `{c}` is not one of the model's classes {:?}",
+                dir.display(),
+                model.classes()
+            );
+        };
+        map.push(i);
+    }
+    let (samples, _) = extract_dataset(&ds, model.feature_config(), hop_s, &map)?;
+    Ok(model.evaluate(&samples)?)
+}
+
+fn summary(what: String, conf: Confusion) -> EvalSummary {
+    EvalSummary {
+        what,
+        metrics: conf.metrics(),
+        confusion: conf,
+    }
+}
+
+fn print_eval(report: &mut String, title: &str, e: &EvalSummary) {
+    println!("\n{title}: {}", e.metrics);
+    let per: Vec<String> = e
+        .confusion
+        .classes()
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            format!(
+                "{c} {:.1}/{:.1}",
+                100.0 * e.metrics.recall[i],
+                100.0 * e.metrics.precision[i]
+            )
+        })
+        .collect();
+    println!("recall/precision %: {}", per.join(", "));
+    print!("{}", e.confusion);
+    let _ = writeln!(report, "\n**{title}**: {}\n", e.metrics);
+    let _ = writeln!(report, "recall/precision (%): {}\n", per.join(", "));
+    report.push_str(&e.confusion.to_markdown());
+}
+
+/// Trains and returns the model and the Markdown report (no file written).
+pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
+    let _ = ctx_config;
+    if args.hop <= 0.0 || !args.hop.is_finite() {
+        bail!(
+            "--hop must be a positive number of seconds, got {}",
+            args.hop
+        );
+    }
+    let ds = Dataset::scan(&args.data)?;
+    let per_class = ds.recordings_per_class();
+    println!(
+        "dataset {}: {} classes, {} files, recordings per class: {}",
+        ds.root.display(),
+        ds.classes.len(),
+        ds.entries.len(),
+        ds.classes
+            .iter()
+            .zip(&per_class)
+            .map(|(c, n)| format!("{c} {n}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let set = FeatureSet::from_name(&args.features).context("--features")?;
+    let rate = dataset_rate(&ds)?;
+    let mut model_cfg = FeatureConfig::new(rate, set);
+    model_cfg.frame_s = args.frame;
+    // Paper7: extract Paper20; the pruning runs in `fit` on each training set.
+    let extract_cfg = if set == FeatureSet::Paper7 {
+        FeatureConfig {
+            set: FeatureSet::Paper20,
+            ..model_cfg.clone()
+        }
+    } else {
+        model_cfg.clone()
+    };
+    extract_cfg.validate().context("feature config")?;
+    let identity: Vec<usize> = (0..ds.classes.len()).collect();
+    let (data, dataset_hash) = extract_dataset(&ds, &extract_cfg, args.hop, &identity)?;
+    println!(
+        "{} frames of {} features ({} at {} Hz, hop {} s)",
+        data.len(),
+        data.dim,
+        args.features,
+        rate,
+        args.hop
+    );
+    let classes = ds.classes.clone();
+    let dim = model_cfg.dim();
+    let mut notes = Vec::new();
+    let spec = match args.classifier.as_str() {
+        "mlp" => {
+            let lm = LmConfig {
+                hidden: args.hidden.clone(),
+                output: if args.output == "logistic" {
+                    OutputKind::Logistic
+                } else {
+                    OutputKind::Softmax
+                },
+                epochs: args.epochs,
+                max_rows: args.lm_max_rows,
+                seed: args.seed,
+                ..Default::default()
+            };
+            ClassifierSpec::Mlp {
+                lm,
+                val_fraction: args.val_fraction,
+            }
+        }
+        _ => {
+            let base = SvmConfig {
+                seed: args.seed,
+                ..Default::default()
+            };
+            let gammas: Vec<f64> = args.svm_gamma.iter().map(|g| g / dim as f64).collect();
+            let chosen = if args.svm_c.len() * gammas.len() > 1 && args.folds >= 2 {
+                println!(
+                    "SVM grid search over C {:?} x gamma {:?} ({}-fold CV by recording)",
+                    args.svm_c, gammas, args.folds
+                );
+                let fast = SvmConfig {
+                    prob_folds: 0,
+                    ..base.clone()
+                };
+                let (best, _) = grid_search_svm(
+                    &classes,
+                    &model_cfg,
+                    &fast,
+                    args.svm_max_per_class,
+                    &args.svm_c,
+                    &gammas,
+                    &data,
+                    args.folds,
+                    args.seed,
+                    |p| println!("  C {:>8} gamma {:>10.5}: {}", p.c, p.gamma, p.metrics),
+                )?;
+                best
+            } else {
+                let gamma = gammas.first().copied().unwrap_or(1.0 / dim as f64);
+                SvmConfig {
+                    c: args.svm_c.first().copied().unwrap_or(10.0),
+                    kernel: Kernel::Rbf { gamma },
+                    ..base.clone()
+                }
+            };
+            let cfg = SvmConfig {
+                prob_folds: base.prob_folds,
+                ..chosen
+            };
+            if let Kernel::Rbf { gamma } = cfg.kernel {
+                notes.push(format!("svm: C = {}, gamma = {gamma}", cfg.c));
+                println!("SVM: C = {}, gamma = {gamma}", cfg.c);
+            }
+            ClassifierSpec::Svm {
+                cfg,
+                max_per_class: args.svm_max_per_class,
+            }
+        }
+    };
+    let mut report = String::new();
+    let _ = writeln!(report, "`{}`\n", args.command_line());
+    let cv = if args.folds >= 2 {
+        let conf = cross_validate(&classes, &model_cfg, &spec, &data, args.folds, args.seed)?;
+        let e = summary(
+            format!("{}-fold cross-validation by recording", args.folds),
+            conf,
+        );
+        print_eval(&mut report, &e.what.clone(), &e);
+        Some(e)
+    } else {
+        None
+    };
+    let (mut model, fit_report) = fit(&classes, &model_cfg, &spec, &data)?;
+    match &fit_report {
+        FitReport::Mlp(r) => {
+            let n = format!(
+                "lm: {} epochs, stop {:?}, best epoch {}, train MSE {:.5}, rows {}",
+                r.epochs,
+                r.stop,
+                r.best_epoch,
+                r.train_mse.last().copied().unwrap_or(f64::NAN),
+                r.rows_used
+            );
+            println!("\nfinal fit: {n}");
+            notes.push(n);
+        }
+        FitReport::Svm(r) => {
+            let n = format!(
+                "svm: {} support vectors, {} SMO iterations, {} capped pairs",
+                r.n_sv, r.iterations, r.capped_pairs
+            );
+            println!("\nfinal fit: {n}");
+            notes.push(n);
+        }
+    }
+    if model.feature_config().set == FeatureSet::Paper7 {
+        let names = model.feature_config().names();
+        let n = format!(
+            "paper7 selection: {:?} = {}",
+            model.feature_config().selection,
+            names.join(", ")
+        );
+        println!("{n}");
+        notes.push(n);
+    }
+    println!("classifier: {}", model.classifier().describe());
+    let _ = writeln!(
+        report,
+        "\nclassifier: {}; {}\n",
+        model.classifier().describe(),
+        notes.join("; ")
+    );
+    model.meta.seed = args.seed;
+    model.meta.dataset_hash = dataset_hash;
+    model.meta.date = args.date.clone().unwrap_or_else(today);
+    model.meta.profile = args.profile.clone();
+    model.meta.command = args.command_line();
+    model.meta.notes = notes;
+    model.meta.cv = cv;
+    for dir in &args.test {
+        let conf = evaluate_folder(&model, dir, args.hop)?;
+        let e = summary(format!("held-out {}", dir.display()), conf);
+        print_eval(&mut report, &e.what.clone(), &e);
+    }
+    Ok((model, report))
+}
+
+pub fn run(ctx: &Ctx, args: Args) -> Result<()> {
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| ctx.config_dir.join("models").join("trained.model"));
+    let (model, report) = train(&ctx.config_dir, &args)?;
+    let bytes = model.to_bytes()?;
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create folder {}", dir.display()))?;
+    }
+    std::fs::write(&out, &bytes)
+        .with_context(|| format!("cannot write model {}", out.display()))?;
+    println!(
+        "\nwrote {} ({} bytes, file sha256 {}...)",
+        out.display(),
+        bytes.len(),
+        &sha256_hex(&bytes)[..16]
+    );
+    if let Some(r) = &args.report {
+        std::fs::write(r, &report)
+            .with_context(|| format!("cannot write report {}", r.display()))?;
+        println!("wrote report {}", r.display());
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+    use grip_arte::synth::{ROADS, Segment, SynthConfig, render};
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: Args,
+    }
+
+    /// 3 roads × 5 recordings × 1 s at 16 kHz.
+    fn make_dataset(dir: &Path) {
+        let cfg = SynthConfig {
+            sample_rate: 16_000,
+            noise: None,
+        };
+        for road in ["asphalt", "gravel", "snow"] {
+            let r = ROADS.iter().position(|n| *n == road).unwrap();
+            std::fs::create_dir_all(dir.join(road)).unwrap();
+            for k in 0..5u64 {
+                let speed = (10.0 + 4.0 * k as f64) / 3.6;
+                let x = render(
+                    &cfg,
+                    100 * r as u64 + k,
+                    &[Segment {
+                        road: r,
+                        speed_mps: speed,
+                        duration_s: 1.0,
+                    }],
+                )
+                .unwrap();
+                let spec = hound::WavSpec {
+                    channels: 1,
+                    sample_rate: 16_000,
+                    bits_per_sample: 16,
+                    sample_format: hound::SampleFormat::Int,
+                };
+                let mut w =
+                    hound::WavWriter::create(dir.join(road).join(format!("r{k}.wav")), spec)
+                        .unwrap();
+                for v in x {
+                    w.write_sample((v * 32767.0) as i16).unwrap();
+                }
+                w.finalize().unwrap();
+            }
+        }
+    }
+
+    #[test]
+    fn training_twice_gives_identical_model_bytes() {
+        let d = tempfile::tempdir().unwrap();
+        make_dataset(d.path());
+        for extra in [
+            &["--classifier", "mlp", "--features", "paper7"][..],
+            &[
+                "--classifier",
+                "svm",
+                "--features",
+                "rich",
+                "--svm-c",
+                "1,10",
+            ],
+        ] {
+            let mut argv = vec![
+                "t",
+                "--data",
+                d.path().to_str().unwrap(),
+                "--folds",
+                "5",
+                "--date",
+                "2026-01-01",
+                "--hop",
+                "0.05",
+            ];
+            argv.extend_from_slice(extra);
+            let args = Cli::parse_from(&argv).args;
+            let (a, _) = train(d.path(), &args).unwrap();
+            let (b, _) = train(d.path(), &args).unwrap();
+            let (ba, bb) = (a.to_bytes().unwrap(), b.to_bytes().unwrap());
+            assert_eq!(ba, bb, "{extra:?}: model bytes differ between two runs");
+            assert_eq!(a.classes(), ["asphalt", "gravel", "snow"]);
+            let cv = a.meta.cv.as_ref().unwrap();
+            assert_eq!(cv.metrics.n as usize, 3 * 5 * 19);
+            let back = Model::from_bytes(&ba).unwrap();
+            assert_eq!(back, a);
+        }
+    }
+
+    #[test]
+    fn civil_dates() {
+        assert_eq!(civil_date(0), "1970-01-01");
+        assert_eq!(civil_date(951_782_400), "2000-02-29");
+        assert_eq!(civil_date(1_767_225_599), "2025-12-31");
+        assert_eq!(civil_date(1_767_225_600), "2026-01-01");
+        assert_eq!(today().len(), 10);
+    }
+}

@@ -1,0 +1,404 @@
+//! Labelled audio datasets for `grip train`: one folder per class of WAV files.
+//!
+//! ```text
+//! DIR/
+//!   asphalt/  *.wav      one recording per file, class = folder name
+//!   gravel/   *.wav
+//!   ...
+//!   manifest.csv         optional
+//! ```
+//!
+//! Classes are the sub-folders that hold WAV files, in sorted order. Folders
+//! and files starting with `.` are ignored. Each WAV file is one recording
+//! (one group for cross-validation), unless the optional `manifest.csv`
+//! says otherwise: a CSV with a header; column `file` (path relative to
+//! `DIR`, required) and optionally `recording` (files with the same value
+//! are one recording, e.g. several clips of one drive) and `class` (or
+//! `road`, as `grip dataset synth` writes it; if given, must equal the
+//! folder name). Other columns (speed, seed, SNR, ...)
+//! are ignored here. Files missing from the manifest are their own
+//! recordings; manifest rows naming missing files are an error.
+//!
+//! Errors name the path and the reason: a class folder without WAV files, a
+//! dataset with fewer than two classes, no WAV files at all, an unreadable
+//! or malformed WAV, mixed sample rates.
+//!
+//! The dataset hash (stored in model files) is SHA-256 over, for every file
+//! in order (class, then path): `class \0 relative/path \0 sha256(file) \n`.
+
+use anyhow::{Context, Result, bail};
+use grip_arte::model::sha256_hex;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// One WAV file of the dataset.
+#[derive(Clone, Debug)]
+pub struct Entry {
+    /// Class index into [`Dataset::classes`].
+    pub class: usize,
+    /// Full path.
+    pub path: PathBuf,
+    /// Path relative to the dataset root, `/`-separated.
+    pub rel: String,
+    /// Recording id (cross-validation group).
+    pub recording: usize,
+}
+
+/// A scanned dataset (audio not loaded yet).
+#[derive(Clone, Debug)]
+pub struct Dataset {
+    /// Root folder.
+    pub root: PathBuf,
+    /// Class names (sorted folder names).
+    pub classes: Vec<String>,
+    /// Files, sorted by class then path.
+    pub entries: Vec<Entry>,
+}
+
+fn is_wav(p: &Path) -> bool {
+    p.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("wav"))
+}
+
+fn hidden(p: &Path) -> bool {
+    p.file_name()
+        .and_then(|n| n.to_str())
+        .is_some_and(|n| n.starts_with('.'))
+}
+
+fn wavs_under(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
+    let rd =
+        std::fs::read_dir(dir).with_context(|| format!("cannot read folder {}", dir.display()))?;
+    for e in rd {
+        let p = e
+            .with_context(|| format!("cannot list folder {}", dir.display()))?
+            .path();
+        if hidden(&p) {
+            continue;
+        }
+        if p.is_dir() {
+            wavs_under(&p, out)?;
+        } else if is_wav(&p) {
+            out.push(p);
+        }
+    }
+    Ok(())
+}
+
+impl Dataset {
+    /// Scans `root`: class folders, their WAV files (recursively), the manifest.
+    pub fn scan(root: &Path) -> Result<Self> {
+        if !root.is_dir() {
+            bail!(
+                "dataset folder {} does not exist or is not a folder",
+                root.display()
+            );
+        }
+        let mut class_dirs: Vec<PathBuf> = std::fs::read_dir(root)
+            .with_context(|| format!("cannot read dataset folder {}", root.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.is_dir() && !hidden(p))
+            .collect();
+        class_dirs.sort();
+        let mut classes = Vec::new();
+        let mut entries = Vec::new();
+        for dir in &class_dirs {
+            let name = dir
+                .file_name()
+                .and_then(|n| n.to_str())
+                .with_context(|| format!("class folder {} has a non-UTF-8 name", dir.display()))?
+                .to_string();
+            let mut files = Vec::new();
+            wavs_under(dir, &mut files)?;
+            if files.is_empty() {
+                bail!(
+                    "class folder {} holds no .wav files; put the recordings of class `{name}` there or remove the folder",
+                    dir.display()
+                );
+            }
+            files.sort();
+            let class = classes.len();
+            classes.push(name);
+            for path in files {
+                let rel = path
+                    .strip_prefix(root)
+                    .unwrap_or(&path)
+                    .components()
+                    .map(|c| c.as_os_str().to_string_lossy().into_owned())
+                    .collect::<Vec<_>>()
+                    .join("/");
+                entries.push(Entry {
+                    class,
+                    path,
+                    rel,
+                    recording: 0,
+                });
+            }
+        }
+        if entries.is_empty() {
+            bail!(
+                "dataset folder {} has no .wav files; expected one sub-folder per class (e.g. {}/asphalt/*.wav)",
+                root.display(),
+                root.display()
+            );
+        }
+        if classes.len() < 2 {
+            bail!(
+                "dataset folder {} has only one class (`{}`); a classifier needs at least two class folders",
+                root.display(),
+                classes[0]
+            );
+        }
+        let mut ds = Self {
+            root: root.to_path_buf(),
+            classes,
+            entries,
+        };
+        ds.assign_recordings()?;
+        Ok(ds)
+    }
+
+    fn assign_recordings(&mut self) -> Result<()> {
+        let manifest = self.root.join("manifest.csv");
+        let mut rec_of_file: BTreeMap<String, String> = BTreeMap::new();
+        if manifest.is_file() {
+            let mut rdr = csv::Reader::from_path(&manifest)
+                .with_context(|| format!("cannot read manifest {}", manifest.display()))?;
+            let headers = rdr
+                .headers()
+                .with_context(|| format!("manifest {}: bad header", manifest.display()))?
+                .clone();
+            let col = |n: &str| headers.iter().position(|h| h.trim() == n);
+            let Some(fcol) = col("file") else {
+                bail!(
+                    "manifest {}: no `file` column (header: {:?})",
+                    manifest.display(),
+                    headers.iter().collect::<Vec<_>>()
+                );
+            };
+            let (rcol, ccol) = (col("recording"), col("class").or_else(|| col("road")));
+            let by_rel: BTreeMap<&str, &Entry> =
+                self.entries.iter().map(|e| (e.rel.as_str(), e)).collect();
+            for (line, rec) in rdr.records().enumerate() {
+                let rec = rec.with_context(|| {
+                    format!("manifest {}: record {}", manifest.display(), line + 1)
+                })?;
+                let file = rec.get(fcol).unwrap_or("").trim().replace('\\', "/");
+                let Some(entry) = by_rel.get(file.as_str()) else {
+                    bail!(
+                        "manifest {} line {}: file `{file}` is not a .wav inside a class folder of {}",
+                        manifest.display(),
+                        line + 2,
+                        self.root.display()
+                    );
+                };
+                if let Some(c) = ccol.and_then(|c| rec.get(c)).map(str::trim)
+                    && !c.is_empty()
+                    && c != self.classes[entry.class]
+                {
+                    bail!(
+                        "manifest {} line {}: file `{file}` is labelled `{c}` but lies in class folder `{}`",
+                        manifest.display(),
+                        line + 2,
+                        self.classes[entry.class]
+                    );
+                }
+                if let Some(r) = rcol.and_then(|c| rec.get(c)).map(str::trim)
+                    && !r.is_empty()
+                {
+                    rec_of_file.insert(file, format!("{}\0{r}", self.classes[entry.class]));
+                }
+            }
+        }
+        let mut ids: BTreeMap<String, usize> = BTreeMap::new();
+        for e in &mut self.entries {
+            let key = rec_of_file
+                .get(&e.rel)
+                .cloned()
+                .unwrap_or_else(|| format!("file\0{}", e.rel));
+            let next = ids.len();
+            e.recording = *ids.entry(key).or_insert(next);
+        }
+        Ok(())
+    }
+
+    /// Number of recordings per class.
+    pub fn recordings_per_class(&self) -> Vec<usize> {
+        let mut sets = vec![std::collections::BTreeSet::new(); self.classes.len()];
+        for e in &self.entries {
+            sets[e.class].insert(e.recording);
+        }
+        sets.iter().map(|s| s.len()).collect()
+    }
+}
+
+/// A decoded WAV file: mono samples in [-1, 1] and the sample rate.
+#[derive(Clone, Debug)]
+pub struct Audio {
+    /// Sample rate (Hz).
+    pub sample_rate: u32,
+    /// Mono samples (channels averaged).
+    pub samples: Vec<f32>,
+    /// SHA-256 of the file bytes.
+    pub sha256: String,
+}
+
+/// Reads a WAV file (PCM 8/16/24/32-bit integer or 32-bit float, any
+/// channel count, averaged to mono).
+pub fn read_wav(path: &Path) -> Result<Audio> {
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let sha256 = sha256_hex(&bytes);
+    let mut rdr = hound::WavReader::new(std::io::Cursor::new(&bytes))
+        .with_context(|| format!("{} is not a readable WAV file", path.display()))?;
+    let spec = rdr.spec();
+    let ch = usize::from(spec.channels.max(1));
+    let interleaved: Vec<f32> = match spec.sample_format {
+        hound::SampleFormat::Float => rdr
+            .samples::<f32>()
+            .collect::<Result<_, _>>()
+            .with_context(|| format!("{}: bad float sample data", path.display()))?,
+        hound::SampleFormat::Int => {
+            let scale = 1.0 / (1u64 << (spec.bits_per_sample.clamp(1, 32) - 1)) as f32;
+            rdr.samples::<i32>()
+                .map(|s| s.map(|v| v as f32 * scale))
+                .collect::<Result<_, _>>()
+                .with_context(|| {
+                    format!("{}: bad integer sample data (truncated?)", path.display())
+                })?
+        }
+    };
+    let samples = interleaved
+        .chunks(ch)
+        .map(|c| c.iter().sum::<f32>() / c.len() as f32)
+        .collect();
+    Ok(Audio {
+        sample_rate: spec.sample_rate,
+        samples,
+        sha256,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write_wav(path: &Path, n: usize) {
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        let spec = hound::WavSpec {
+            channels: 1,
+            sample_rate: 8000,
+            bits_per_sample: 16,
+            sample_format: hound::SampleFormat::Int,
+        };
+        let mut w = hound::WavWriter::create(path, spec).unwrap();
+        for i in 0..n {
+            w.write_sample(((i * 37 % 200) as i16 - 100) * 50).unwrap();
+        }
+        w.finalize().unwrap();
+    }
+
+    #[test]
+    fn scans_classes_and_recordings() {
+        let d = tempfile::tempdir().unwrap();
+        for (c, f) in [
+            ("snow", "a.wav"),
+            ("asphalt", "x.wav"),
+            ("asphalt", "y.WAV"),
+            ("asphalt", "sub/z.wav"),
+        ] {
+            write_wav(&d.path().join(c).join(f), 100);
+        }
+        std::fs::write(d.path().join("asphalt/notes.txt"), "ignored").unwrap();
+        let ds = Dataset::scan(d.path()).unwrap();
+        assert_eq!(ds.classes, ["asphalt", "snow"]);
+        assert_eq!(ds.entries.len(), 4);
+        assert_eq!(ds.recordings_per_class(), [3, 1]);
+        assert_eq!(ds.entries[0].rel, "asphalt/sub/z.wav");
+        let a = read_wav(&ds.entries[0].path).unwrap();
+        assert_eq!((a.sample_rate, a.samples.len()), (8000, 100));
+        assert!(a.samples.iter().all(|v| v.abs() <= 1.0));
+    }
+
+    #[test]
+    fn manifest_groups_files_into_recordings() {
+        let d = tempfile::tempdir().unwrap();
+        for f in [
+            "asphalt/a1.wav",
+            "asphalt/a2.wav",
+            "asphalt/a3.wav",
+            "gravel/g1.wav",
+        ] {
+            write_wav(&d.path().join(f), 10);
+        }
+        std::fs::write(
+            d.path().join("manifest.csv"),
+            "file,recording,speed_kmh\nasphalt/a1.wav,drive1,10\nasphalt/a2.wav,drive1,20\n",
+        )
+        .unwrap();
+        let ds = Dataset::scan(d.path()).unwrap();
+        assert_eq!(ds.entries[0].recording, ds.entries[1].recording);
+        assert_ne!(ds.entries[0].recording, ds.entries[2].recording);
+        assert_eq!(ds.recordings_per_class(), [2, 1]);
+
+        std::fs::write(
+            d.path().join("manifest.csv"),
+            "file,class\nasphalt/a1.wav,gravel\n",
+        )
+        .unwrap();
+        let e = format!("{:#}", Dataset::scan(d.path()).unwrap_err());
+        assert!(
+            e.contains("labelled `gravel`") && e.contains("manifest.csv line 2"),
+            "{e}"
+        );
+        std::fs::write(d.path().join("manifest.csv"), "file\nasphalt/nope.wav\n").unwrap();
+        let e = format!("{:#}", Dataset::scan(d.path()).unwrap_err());
+        assert!(e.contains("nope.wav"), "{e}");
+        std::fs::write(d.path().join("manifest.csv"), "path\nasphalt/a1.wav\n").unwrap();
+        let e = format!("{:#}", Dataset::scan(d.path()).unwrap_err());
+        assert!(e.contains("no `file` column"), "{e}");
+    }
+
+    #[test]
+    fn errors_name_the_path_and_reason() {
+        let d = tempfile::tempdir().unwrap();
+        let e = format!(
+            "{:#}",
+            Dataset::scan(&d.path().join("missing")).unwrap_err()
+        );
+        assert!(e.contains("missing") && e.contains("does not exist"), "{e}");
+
+        let e = format!("{:#}", Dataset::scan(d.path()).unwrap_err());
+        assert!(e.contains("has no .wav files"), "{e}");
+
+        write_wav(&d.path().join("asphalt/a.wav"), 10);
+        let e = format!("{:#}", Dataset::scan(d.path()).unwrap_err());
+        assert!(e.contains("only one class") && e.contains("asphalt"), "{e}");
+
+        std::fs::create_dir_all(d.path().join("gravel")).unwrap();
+        let e = format!("{:#}", Dataset::scan(d.path()).unwrap_err());
+        assert!(
+            e.contains("gravel") && e.contains("holds no .wav files"),
+            "{e}"
+        );
+
+        write_wav(&d.path().join("gravel/g.wav"), 10);
+        std::fs::write(d.path().join("gravel/bad.wav"), b"RIFF....not a wav").unwrap();
+        let ds = Dataset::scan(d.path()).unwrap();
+        let bad = ds
+            .entries
+            .iter()
+            .find(|e| e.rel == "gravel/bad.wav")
+            .unwrap();
+        let e = format!("{:#}", read_wav(&bad.path).unwrap_err());
+        assert!(
+            e.contains("bad.wav") && e.contains("not a readable WAV"),
+            "{e}"
+        );
+        let e = format!(
+            "{:#}",
+            read_wav(&d.path().join("gravel/none.wav")).unwrap_err()
+        );
+        assert!(e.contains("cannot read") && e.contains("none.wav"), "{e}");
+    }
+}
