@@ -1,0 +1,278 @@
+//! One closed-loop run: [`Sim`] (stepped cycle by cycle) and [`run`].
+//!
+//! Cycle k (t = k dt), in this order:
+//!
+//! 1. The scenario gives the true road and grade at (t, x) and the demand T_d(t).
+//! 2. The sensors sample the plant's true state (noise, quantisation, delay).
+//! 3. ARTE variants: the latest estimate so far (from frames that ended at or
+//!    before t) becomes [`RoadKnowledge`] with age t − t_stamp; other
+//!    variants get `None`.
+//! 4. The controller computes T* from the measurement and the knowledge.
+//! 5. The cycle is recorded (trace, metrics) with the plant's true values at t.
+//! 6. ARTE variants: the estimator hears the cycle [t, t + dt) on the true
+//!    road; a frame that completes yields the estimate used from cycle k + 1.
+//! 7. The plant advances by dt with T* held (sub-stepped inside the plant).
+//!
+//! The estimate a controller sees is therefore causal: based on the road up
+//! to t, never on the road ahead.
+
+use grip_physics::{Plant, PlantState, Sensors};
+use grip_tcs::{AnyController, Controller, Measurement, Metrics, MetricsAccumulator, Sample};
+
+use crate::estimator::{Estimate, RoadEstimator};
+use crate::setup::SimSetup;
+use crate::trace::Trace;
+use crate::variant::Variant;
+use crate::{SimError, sub_seed};
+
+/// Sub-seed stream of the sensor noise.
+pub const SENSOR_STREAM: u64 = 1;
+/// Sub-seed stream of the road estimator.
+pub const ARTE_STREAM: u64 = 2;
+
+/// How well the road estimator did in a run (ARTE variants only; zeros otherwise).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ArteStats {
+    /// Decisions received.
+    pub frames: u64,
+    /// Decisions equal to the true road at the cycle they arrived.
+    pub correct: u64,
+    /// Cycles in which the controller used the knowledge.
+    pub used_cycles: u64,
+    /// Cycles in the run.
+    pub cycles: u64,
+}
+
+impl ArteStats {
+    /// correct / frames (NaN with no frame).
+    pub fn accuracy(&self) -> f64 {
+        if self.frames == 0 {
+            f64::NAN
+        } else {
+            self.correct as f64 / self.frames as f64
+        }
+    }
+    /// used_cycles / cycles.
+    pub fn usage(&self) -> f64 {
+        if self.cycles == 0 {
+            0.0
+        } else {
+            self.used_cycles as f64 / self.cycles as f64
+        }
+    }
+}
+
+/// The outcome of one run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunResult {
+    /// Which variant.
+    pub variant: Variant,
+    /// The run seed.
+    pub seed: u64,
+    /// The metrics of MODELS.md §4 (`grip_tcs::metrics`).
+    pub metrics: Metrics,
+    /// Road-estimator statistics.
+    pub arte: ArteStats,
+    /// Final true plant state.
+    pub final_state: PlantState,
+    /// Cycles in which the plant state was not finite (should be 0).
+    pub non_finite_cycles: u64,
+    /// The time series, when recorded.
+    pub trace: Option<Trace>,
+}
+
+/// One closed-loop run in progress. Build with [`Sim::new`], call
+/// [`Sim::step`] until it returns false, then [`Sim::finish`].
+/// `step` allocates nothing.
+pub struct Sim<'a> {
+    setup: &'a SimSetup,
+    variant: Variant,
+    seed: u64,
+    estimator: &'a mut dyn RoadEstimator,
+    plant: Plant,
+    sensors: Sensors,
+    controller: AnyController,
+    latest: Option<Estimate>,
+    metrics: MetricsAccumulator,
+    trace: Option<Trace>,
+    arte: ArteStats,
+    non_finite: u64,
+    k: usize,
+}
+
+impl std::fmt::Debug for Sim<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Sim")
+            .field("variant", &self.variant)
+            .field("seed", &self.seed)
+            .field("estimator", &self.estimator.name())
+            .field("k", &self.k)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'a> Sim<'a> {
+    /// A run of `variant` with `seed` on `setup`. The estimator is reset
+    /// with a sub-seed of `seed` (it is only consulted by ARTE variants).
+    /// With `record_trace` the trace is preallocated for the whole run.
+    pub fn new(
+        setup: &'a SimSetup,
+        variant: Variant,
+        seed: u64,
+        estimator: &'a mut dyn RoadEstimator,
+        record_trace: bool,
+    ) -> Result<Self, SimError> {
+        let vehicle = *setup.vehicle();
+        let mut plant = Plant::new(vehicle, PlantState::rolling(setup.scenario().v0, vehicle.r))
+            .map_err(|e| SimError::from_field("vehicle", e))?;
+        plant
+            .set_max_substep(setup.max_substep())
+            .map_err(|e| SimError::from_field("", e))?;
+        let sensors = Sensors::new(*setup.sensors(), sub_seed(seed, SENSOR_STREAM))
+            .map_err(|e| SimError::from_field("sensors", e))?;
+        let controller =
+            AnyController::new(variant.kind, setup.controllers(), &vehicle, setup.dt())
+                .map_err(|e| SimError::from_field("controllers", e))?;
+        estimator.reset(sub_seed(seed, ARTE_STREAM));
+        Ok(Self {
+            setup,
+            variant,
+            seed,
+            estimator,
+            plant,
+            sensors,
+            controller,
+            latest: None,
+            metrics: MetricsAccumulator::new(&vehicle),
+            trace: record_trace.then(|| Trace::with_capacity(setup.cycles())),
+            arte: ArteStats {
+                cycles: setup.cycles() as u64,
+                ..ArteStats::default()
+            },
+            non_finite: 0,
+            k: 0,
+        })
+    }
+
+    /// Cycles done so far.
+    pub fn cycle(&self) -> usize {
+        self.k
+    }
+
+    /// The plant (true state).
+    pub fn plant(&self) -> &Plant {
+        &self.plant
+    }
+
+    /// One controller cycle (see the module docs). Returns false, doing
+    /// nothing, once the run's cycles are done. Allocation-free.
+    pub fn step(&mut self) -> bool {
+        let setup = self.setup;
+        if self.k >= setup.cycles() {
+            return false;
+        }
+        let dt = setup.dt();
+        let t = self.k as f64 * dt;
+        let s = *self.plant.state();
+        let scenario = setup.scenario();
+        let seg = scenario.segment_at(t, s.x);
+        let road_idx = scenario.segments[seg].road;
+        let road = &setup.roads()[road_idx];
+        let grade = scenario.segments[seg].grade_rad();
+        let demand = scenario.demand_at(t);
+
+        let reading = self.sensors.sample(&s, dt);
+        let knowledge = if self.variant.arte {
+            self.latest.map(|e| setup.knowledge(&e, t))
+        } else {
+            None
+        };
+        let m = Measurement {
+            t,
+            omega: reading.omega,
+            v: reading.v,
+            torque: reading.torque,
+            demand,
+        };
+        let out = self.controller.step(&m, knowledge.as_ref());
+
+        let lambda = self.plant.slip_of(s.omega, s.v);
+        let finite = s.omega.is_finite() && s.v.is_finite() && s.torque.is_finite();
+        if !finite {
+            self.non_finite += 1;
+        }
+        self.metrics.push(&Sample {
+            dt,
+            lambda,
+            torque: s.torque,
+            omega: s.omega,
+            v: s.v,
+        });
+        if out.used_arte {
+            self.arte.used_cycles += 1;
+        }
+        if let Some(tr) = self.trace.as_mut() {
+            tr.t.push(t);
+            tr.v.push(s.v);
+            tr.omega.push(s.omega);
+            tr.r_omega.push(setup.vehicle().r * s.omega);
+            tr.lambda.push(lambda);
+            tr.torque.push(s.torque);
+            tr.torque_cmd.push(out.torque_cmd);
+            tr.demand.push(demand);
+            tr.mu.push(road.mu(lambda));
+            tr.mu_hat.push(out.mu_hat);
+            tr.internal.push(out.internal);
+            tr.true_road.push(road_idx as u32);
+            tr.lambda_opt_true.push(road.lambda_opt());
+            tr.est_road
+                .push(knowledge.and(self.latest).map(|e| e.road_index as u32));
+            tr.confidence.push(
+                knowledge
+                    .and(self.latest)
+                    .map_or(f64::NAN, |e| e.confidence),
+            );
+            tr.used_arte.push(out.used_arte);
+        }
+
+        if self.variant.arte
+            && let Some(e) = self.estimator.update(t, dt, road_idx, s.v)
+        {
+            self.arte.frames += 1;
+            if e.road_index == road_idx {
+                self.arte.correct += 1;
+            }
+            self.latest = Some(e);
+        }
+
+        self.plant.step(dt, out.torque_cmd, road, grade);
+        self.k += 1;
+        true
+    }
+
+    /// Run the remaining cycles and return the result.
+    pub fn finish(mut self) -> RunResult {
+        while self.step() {}
+        RunResult {
+            variant: self.variant,
+            seed: self.seed,
+            metrics: self.metrics.finish(),
+            arte: self.arte,
+            final_state: *self.plant.state(),
+            non_finite_cycles: self.non_finite,
+            trace: self.trace,
+        }
+    }
+}
+
+/// Run `variant` with `seed` on `setup` from start to end, recording the
+/// trace. The estimator is only consulted by ARTE variants. Fails only on an
+/// invalid setup (which [`SimSetup::new`] already rules out).
+pub fn run(
+    setup: &SimSetup,
+    variant: Variant,
+    seed: u64,
+    estimator: &mut dyn RoadEstimator,
+) -> Result<RunResult, SimError> {
+    Ok(Sim::new(setup, variant, seed, estimator, true)?.finish())
+}
