@@ -20,9 +20,9 @@ pub mod roads;
 pub mod scenario;
 pub mod vehicle;
 
+pub use controllers::load_controllers;
 pub use dir::ConfigDir;
 pub use error::{ConfigError, line_of, parse_toml, read_file};
 pub use roads::{load_roads, parse_roads};
 pub use scenario::{load_scenario, parse_scenario};
 pub use vehicle::{load_vehicle, parse_vehicle};
-pub use controllers::load_controllers;

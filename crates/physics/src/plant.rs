@@ -329,6 +329,9 @@ mod tests {
             ("x", a.x, b.x),
         ] {
             let e = rel(x, y);
+            eprintln!(
+                "{what}: {name} h={DEFAULT_MAX_SUBSTEP:e}: {x:.6}, h/2: {y:.6}, relative change {e:.2e}"
+            );
             assert!(
                 e < 1e-3,
                 "{what}: {name} changes by {:.3e} relative ({x} vs {y})",

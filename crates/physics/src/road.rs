@@ -95,12 +95,10 @@ impl FrictionModel {
             }
             Self::Pacejka { b, c, d, e } => {
                 validate::positive("b", b)?;
-                // C in (0, 2): beyond 2 the curve changes sign within the
-                // first half-wave of the sine, which is not a traction curve.
-                if !(c.is_finite() && c > 0.0 && c < 2.0) {
+                if !(c.is_finite() && c > 0.0 && c < 3.0) {
                     return Err(InvalidField::new(
                         "c",
-                        format!("must be in (0, 2) (got {c})"),
+                        format!("must be in (0, 3) (got {c})"),
                     ));
                 }
                 validate::positive("d", d)?;
@@ -110,6 +108,19 @@ impl FrictionModel {
                         "e",
                         format!("must be finite and <= 1 (got {e})"),
                     ));
+                }
+                // With C > 2 the sine can turn negative at large slip: reject
+                // curves that do so on (0, 1] (not a traction curve).
+                for i in 1..=GRID {
+                    let l = i as f64 / GRID as f64;
+                    if self.mu_pos(l) <= 0.0 {
+                        return Err(InvalidField::new(
+                            "c",
+                            format!(
+                                "mu(λ) <= 0 at λ = {l} with C = {c}, E = {e}: not a traction curve"
+                            ),
+                        ));
+                    }
                 }
                 Ok(())
             }
@@ -634,6 +645,35 @@ mod tests {
         // Stationary point: derivative ~ 0 and D reached (sin = 1 at the peak).
         assert!(r.dmu_dlambda(r.lambda_opt()).abs() < 1e-6);
         assert!((r.mu_peak() - 1.2).abs() < 1e-9);
+    }
+
+    #[test]
+    fn pacejka_shape_limits() {
+        // C > 2 is fine while the curve stays positive (E = 1 bounds the argument).
+        assert!(
+            Road::new(
+                "w",
+                FrictionModel::Pacejka {
+                    b: 12.0,
+                    c: 2.3,
+                    d: 0.82,
+                    e: 1.0
+                }
+            )
+            .is_ok()
+        );
+        // C = 2.5 with E = 0 turns negative at large slip.
+        let e = Road::new(
+            "n",
+            FrictionModel::Pacejka {
+                b: 12.0,
+                c: 2.5,
+                d: 0.82,
+                e: 0.0,
+            },
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "c");
     }
 
     #[test]
