@@ -42,6 +42,10 @@ use super::nugap::{NuGap, nu_gap};
 use super::tf::Tf;
 use super::vehicle_tf::{K_MOTOR, mfc_plant, mtte_observer_plant, src_slip, src_slip_tf};
 
+/// Slopes dμ/dλ smaller than this are rounding noise at a smooth friction
+/// peak and are taken as exactly 0 (the SRC model is then an integrator).
+pub const SLOPE_ZERO: f64 = 1e-9;
+
 /// The paper's road classes, in the order of Table II.
 pub const PAPER_CLASSES: [&str; 4] = ["asphalt", "snow", "stone", "gravel"];
 
@@ -208,7 +212,11 @@ fn plants(
             let lam_ref = cat[model_road].lambda_opt();
             let v_w = g.speed / (1.0 - lam_ref);
             let at = |r: usize| -> Result<Tf, AnalysisError> {
-                let sl = src_slip(v, lam_ref, cat[r].dmu_dlambda(lam_ref), v_w)?;
+                // at a smooth peak the slope is 0 up to rounding (~1e-13):
+                // take it as exactly 0 so that the model is an integrator
+                let a = cat[r].dmu_dlambda(lam_ref);
+                let a = if a.abs() < SLOPE_ZERO { 0.0 } else { a };
+                let sl = src_slip(v, lam_ref, a, v_w)?;
                 src_slip_tf(&sl, v, true)
             };
             Ok((at(model_road)?, at(road)?))
