@@ -83,6 +83,10 @@ pub struct SrcParams {
     pub kp: f64,
     /// PI integral time T_i, s (K_i = K_p / T_i).
     pub ti: f64,
+    /// Gain per unit of wheel speed used for the *integral* action while the
+    /// slip is below the reference (torque recovery), N m s:
+    /// K_i,up = kp_recover · max(ω, v_eps / r) / T_i.
+    pub kp_recover: f64,
     /// Time constant of the slope estimator's exponential window, s.
     pub tau_slope: f64,
     /// Excitation (Σ Δλ² over the window) below which the slope estimate
@@ -102,6 +106,7 @@ impl Default for SrcParams {
             tau_obs: 0.01,
             kp: 6.0,
             ti: 0.2,
+            kp_recover: 20.0,
             tau_slope: 0.1,
             slope_excitation: 1e-7,
             tau_ref: 0.05,
@@ -118,6 +123,7 @@ impl SrcParams {
         non_negative("tau_obs", self.tau_obs)?;
         non_negative("kp", self.kp)?;
         positive("ti", self.ti)?;
+        non_negative("kp_recover", self.kp_recover)?;
         positive("tau_slope", self.tau_slope)?;
         positive("slope_excitation", self.slope_excitation)?;
         non_negative("tau_ref", self.tau_ref)?;

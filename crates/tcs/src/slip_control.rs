@@ -7,7 +7,8 @@
 //! a      = dμ̂/dλ   (SlopeEstimator on LPF_τo(λ) and μ̂)
 //! λ*     = ARTE usable ? λ_opt(road)
 //!                      : LPF_τref( clamp( λ_f + fuzzy(λ_f, μ̂, a λ_f/μ̂), λ_min, λ_max ) )
-//! K_p    = kp · max(|ω|, v_eps / r),   K_i = K_p / T_i
+//! K_p    = kp · max(|ω|, v_eps / r)
+//! K_i    = (e > 0 ? kp_recover : kp) · max(|ω|, v_eps / r) / T_i
 //! u      = K_p e + I + K_i e dt,   e = λ* − λ
 //! T_PI   = clamp(u, 0, T_d);   I ← T_PI − K_p e                 (tracking anti-windup)
 //! T*     = min(T_d, T_PI)
@@ -133,7 +134,14 @@ impl Controller for Src {
             }
             let e = lambda_ref - lambda;
             let kp = self.params.kp * m.omega.abs().max(self.v_eps / self.r);
-            let ki = kp / self.params.ti;
+            // Below the reference the wheel is coupled to the vehicle (inertia
+            // J_w + (M/n) r²), so the recovery uses that plant's gain; above
+            // it (slipping), the wheel alone (J_w).
+            let ki = if e > 0.0 {
+                self.params.kp_recover * m.omega.abs().max(self.v_eps / self.r) / self.params.ti
+            } else {
+                kp / self.params.ti
+            };
             let unsat = kp * e + self.integral + ki * e * self.dt;
             let t_pi = if unsat.is_finite() {
                 unsat.clamp(0.0, m.demand)
