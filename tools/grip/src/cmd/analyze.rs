@@ -19,7 +19,6 @@ use grip_tcs::analysis::vehicle_tf::{
     mtte_tzw_paper, src_slip, src_slip_tf, src_vdiff_tf,
 };
 use grip_tcs::analysis::{NuGap, Tf, nu_gap};
-use grip_tcs::params::ControllersConfig;
 
 use super::Ctx;
 
@@ -158,14 +157,6 @@ fn print_gap(r: &NuGap) {
     }
 }
 
-fn load_controllers(path: &std::path::Path) -> anyhow::Result<ControllersConfig> {
-    let text = grip_config::read_file(path)?;
-    let c: ControllersConfig = grip_config::parse_toml(path, &text)?;
-    c.validate()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    Ok(c)
-}
-
 fn tf_line(name: &str, tf: &Tf) -> anyhow::Result<()> {
     println!("  {name}");
     println!(
@@ -200,7 +191,7 @@ fn run_report(ctx: &Ctx, args: &Args) -> anyhow::Result<()> {
     let (v, _) = dir.vehicle()?;
     let cat: RoadCatalogue = dir.roads()?;
     let ctl_path = dir.file("controllers.toml");
-    let ctl = load_controllers(&ctl_path)?;
+    let ctl = grip_config::load_controllers(&ctl_path)?;
     let k = args.k_motor;
     let m = v.mass_share();
     let jm = v.j_model();
@@ -468,6 +459,28 @@ mod tests {
         assert_eq!(a.den.coeffs_desc(), vec![2.0, 1.0]);
         let c = parse_tf("--p2", "1, -2/1,-1").unwrap();
         assert_eq!(c.num.coeffs_desc(), vec![1.0, -2.0]);
+    }
+
+    #[test]
+    fn report_runs_on_the_shipped_config() {
+        let ctx = Ctx {
+            config_dir: std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config"),
+        };
+        let args = Args {
+            cmd: None,
+            k_motor: 1.0,
+            speed_kmh: 20.0,
+            src_nominal_road: "asphalt".into(),
+        };
+        run(&ctx, args).unwrap();
+        let bad = Args {
+            cmd: None,
+            k_motor: 1.0,
+            speed_kmh: 20.0,
+            src_nominal_road: "moon".into(),
+        };
+        let e = run(&ctx, bad).unwrap_err().to_string();
+        assert!(e.contains("--src-nominal-road `moon`"), "{e}");
     }
 
     #[test]
