@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 mod cmd;
 mod dataset;
 mod plot;
+mod wav;
 
 #[derive(Parser)]
 #[command(name = "grip", version, about = "Acoustic road-aware traction control for electric vehicles")]
@@ -31,6 +32,10 @@ enum Command {
     Train(cmd::train::Args),
     /// Classify a WAV recording frame by frame with an ARTE model.
     Classify(cmd::classify::Args),
+    /// Labelled datasets: `grip dataset synth` writes synthetic tyre-road recordings.
+    Dataset(cmd::dataset::Args),
+    /// Acoustic features of a WAV file per frame (--csv), or pruning and KL report of a dataset.
+    Features(cmd::features::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -49,6 +54,8 @@ fn main() -> std::process::ExitCode {
         Command::Analyze(a) => cmd::analyze::run(&ctx, a),
         Command::Train(a) => cmd::train::run(&ctx, a),
         Command::Classify(a) => cmd::classify::run(&ctx, a),
+        Command::Dataset(a) => cmd::dataset::run(&ctx, a),
+        Command::Features(a) => cmd::features::run(&ctx, a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

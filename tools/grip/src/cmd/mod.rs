@@ -5,6 +5,8 @@ pub mod roads;
 pub mod sim;
 pub mod train;
 pub mod classify;
+pub mod dataset;
+pub mod features;
 
 /// What every subcommand gets from the global options.
 pub struct Ctx {

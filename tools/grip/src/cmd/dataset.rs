@@ -1,0 +1,732 @@
+//! `grip dataset synth`: writes a labelled synthetic tyre-road dataset; and
+//! the reader of road-change recordings (`read_changes`).
+//!
+//! Layout (also how users bring their own recordings; `grip train` reads it
+//! with `crate::dataset::Dataset::scan`):
+//!
+//! ```text
+//! OUT/
+//!   asphalt/asphalt_0000.wav ...   one folder per class, 16-bit mono WAV
+//!   gravel/ ...                    (the folder name is the class)
+//!   manifest.csv                   optional: file,road,speed_kmh,seed,noise,snr_db,duration_s
+//! OUT-changes/                     with --changes N (or --changes-out DIR):
+//!   change_0000.wav ...            recordings with abrupt road changes
+//!   segments.csv                   file,t_start,t_end,road,speed_kmh,seed,noise,snr_db
+//! ```
+//!
+//! The change recordings live in a folder of their own so that a class
+//! dataset holds nothing but class folders.
+
+use super::Ctx;
+use crate::wav;
+use anyhow::{Context, Result, bail};
+use grip_arte::synth::{NoiseConfig, ROADS, Segment, SynthConfig, render, road_index};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    cmd: DatasetCmd,
+}
+
+#[derive(clap::Subcommand)]
+enum DatasetCmd {
+    /// Synthesise a labelled dataset of tyre-road recordings (16-bit mono WAV).
+    Synth(SynthArgs),
+    /// Run the streaming estimator over road-change recordings: detection
+    /// delay (p50/p95/max) and decision accuracy.
+    Delay(DelayArgs),
+}
+
+#[derive(clap::Args)]
+struct DelayArgs {
+    /// Model file (from `grip train`).
+    #[arg(long)]
+    model: PathBuf,
+    /// Folder of change recordings (segments.csv + WAVs, from `grip dataset synth --changes`).
+    dir: PathBuf,
+    /// Time between decisions (s).
+    #[arg(long, default_value_t = 0.05)]
+    hop: f64,
+    /// HMM: probability of staying on the same road per hop; 0 disables smoothing.
+    #[arg(long, default_value_t = 0.9)]
+    stay: f64,
+    /// HMM: floor on a frame's class probability.
+    #[arg(long, default_value_t = 0.01)]
+    floor: f64,
+    /// A detection counts once the new road persists this long (s).
+    #[arg(long, default_value_t = 0.2)]
+    hold: f64,
+}
+
+#[derive(clap::Args)]
+struct SynthArgs {
+    /// Output folder (created; existing files with the same names are overwritten).
+    #[arg(long)]
+    out: PathBuf,
+    /// Base seed; every recording's seed is derived from it, its class and its index.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Recordings per road class.
+    #[arg(long, default_value_t = 20)]
+    recordings_per_class: usize,
+    /// Duration of each recording (s).
+    #[arg(long, default_value_t = 10.0)]
+    duration: f64,
+    /// Speed range in km/h, "A-B" (uniform per recording) or a single value.
+    #[arg(long, default_value = "10-30")]
+    speeds: String,
+    /// Noise sources to mix in: "none", a comma list of "rain", "car", or
+    /// "random" (each recording draws one of none, rain, car, rain+car).
+    #[arg(long, default_value = "none")]
+    noise: String,
+    /// Signal-to-noise ratio over each recording (dB) when noise is mixed in:
+    /// a value, or "A..B" for a uniform draw per recording.
+    #[arg(long, default_value = "10", allow_hyphen_values = true)]
+    snr_db: String,
+    /// Also write this many recordings with abrupt road changes (into --changes-out).
+    #[arg(long, default_value_t = 0)]
+    changes: usize,
+    /// Folder for the change recordings (default: OUT-changes next to OUT).
+    #[arg(long)]
+    changes_out: Option<PathBuf>,
+    /// Segment length range (s) of the change recordings, "A-B".
+    #[arg(long, default_value = "1-3")]
+    segment: String,
+    /// Road classes, comma separated (default: all six).
+    #[arg(long)]
+    roads: Option<String>,
+    /// Sample rate (Hz).
+    #[arg(long, default_value_t = 44_100)]
+    sample_rate: u32,
+}
+
+/// One row of `manifest.csv`.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct ManifestRow {
+    /// Path relative to the dataset folder.
+    pub file: String,
+    /// Class name.
+    pub road: String,
+    /// Vehicle speed (km/h), if known.
+    pub speed_kmh: Option<f64>,
+    /// Synthesis seed, if synthetic.
+    pub seed: Option<u64>,
+    /// Noise sources mixed in ("none", "rain", "car", "rain+car").
+    pub noise: Option<String>,
+    /// SNR of the mixed noise (dB).
+    pub snr_db: Option<f64>,
+    /// Duration (s).
+    pub duration_s: Option<f64>,
+}
+
+/// One row of `changes/segments.csv`.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct SegmentRow {
+    /// Path relative to the `changes` folder.
+    pub file: String,
+    /// Segment start (s).
+    pub t_start: f64,
+    /// Segment end (s).
+    pub t_end: f64,
+    /// Class name.
+    pub road: String,
+    /// Speed (km/h).
+    pub speed_kmh: Option<f64>,
+    /// Recording seed.
+    pub seed: Option<u64>,
+    /// Noise.
+    pub noise: Option<String>,
+    /// SNR (dB).
+    pub snr_db: Option<f64>,
+}
+
+/// A recording with road changes and its ground truth.
+#[derive(Clone, Debug)]
+pub struct ChangeRecording {
+    /// Full path.
+    pub path: PathBuf,
+    /// (t_start, t_end, class index) in time order.
+    pub segments: Vec<(f64, f64, usize)>,
+}
+
+/// Reads a folder of road-change recordings (`segments.csv` plus the WAV
+/// files it names). `classes` maps road names to class indices (e.g. a
+/// model's classes); a road not in it is an error naming the file, the
+/// record and the field.
+pub fn read_changes(dir: &Path, classes: &[String]) -> Result<Vec<ChangeRecording>> {
+    let seg_path = dir.join("segments.csv");
+    if !seg_path.is_file() {
+        bail!(
+            "{} does not exist (expected a folder written by `grip dataset synth --changes N`)",
+            seg_path.display()
+        );
+    }
+    let mut rd = csv::Reader::from_path(&seg_path)
+        .with_context(|| format!("opening {}", seg_path.display()))?;
+    let mut by_file: Vec<ChangeRecording> = Vec::new();
+    for (i, r) in rd.deserialize::<SegmentRow>().enumerate() {
+        let row = r.with_context(|| format!("{}: record {}", seg_path.display(), i + 1))?;
+        let Some(class) = classes.iter().position(|c| *c == row.road) else {
+            bail!(
+                "{}: record {}: field `road`: `{}` is not one of the classes ({})",
+                seg_path.display(),
+                i + 1,
+                row.road,
+                classes.join(", ")
+            );
+        };
+        if !(row.t_start.is_finite() && row.t_start >= 0.0 && row.t_end > row.t_start) {
+            bail!(
+                "{}: record {}: fields `t_start`/`t_end`: need 0 <= t_start < t_end",
+                seg_path.display(),
+                i + 1
+            );
+        }
+        let p = dir.join(&row.file);
+        if !p.is_file() {
+            bail!(
+                "{}: record {}: field `file`: {} does not exist",
+                seg_path.display(),
+                i + 1,
+                p.display()
+            );
+        }
+        match by_file.iter_mut().find(|c| c.path == p) {
+            Some(c) => c.segments.push((row.t_start, row.t_end, class)),
+            None => by_file.push(ChangeRecording {
+                path: p,
+                segments: vec![(row.t_start, row.t_end, class)],
+            }),
+        }
+    }
+    for c in &mut by_file {
+        c.segments.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+    if by_file.is_empty() {
+        bail!("{} lists no segments", seg_path.display());
+    }
+    Ok(by_file)
+}
+
+fn parse_range(s: &str, what: &str) -> Result<(f64, f64)> {
+    let parse = |t: &str| {
+        t.trim()
+            .parse::<f64>()
+            .with_context(|| format!("--{what}: `{t}` is not a number"))
+    };
+    let (a, b) = match s.split_once('-') {
+        Some((a, b)) => (parse(a)?, parse(b)?),
+        None => {
+            let v = parse(s)?;
+            (v, v)
+        }
+    };
+    if !(a.is_finite() && b.is_finite() && a >= 0.0 && b >= a) {
+        bail!("--{what}: `{s}` is not a range A-B with 0 <= A <= B");
+    }
+    Ok((a, b))
+}
+
+fn parse_snr(s: &str) -> Result<(f64, f64)> {
+    let parse = |t: &str| {
+        t.trim()
+            .parse::<f64>()
+            .with_context(|| format!("--snr-db: `{t}` is not a number"))
+    };
+    let (a, b) = match s.split_once("..") {
+        Some((a, b)) => (parse(a)?, parse(b)?),
+        None => {
+            let v = parse(s)?;
+            (v, v)
+        }
+    };
+    if !(a.is_finite() && b.is_finite() && a <= b && a >= -30.0 && b <= 80.0) {
+        bail!("--snr-db: `{s}` is not a value or range A..B within -30..80 dB");
+    }
+    Ok((a, b))
+}
+
+fn parse_noise(s: &str, snr_db: f64) -> Result<(Option<NoiseConfig>, String)> {
+    let mut rain = false;
+    let mut car = false;
+    for t in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
+        match t {
+            "none" => {}
+            "rain" => rain = true,
+            "car" => car = true,
+            other => bail!("--noise: `{other}` is not one of none, rain, car"),
+        }
+    }
+    let label = match (rain, car) {
+        (false, false) => "none",
+        (true, false) => "rain",
+        (false, true) => "car",
+        (true, true) => "rain+car",
+    };
+    Ok((
+        (rain || car).then_some(NoiseConfig { rain, car, snr_db }),
+        label.to_string(),
+    ))
+}
+
+/// SplitMix64 of the base seed, a stream id and an index: independent
+/// per-recording seeds.
+fn derive_seed(base: u64, stream: u64, index: u64) -> u64 {
+    let mut z = base
+        ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ index.wrapping_mul(0xD1B5_4A32_D192_ED03);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// A uniform draw in [0, 1) from a derived seed.
+fn unit(base: u64, stream: u64, index: u64) -> f64 {
+    (derive_seed(base, stream, index) >> 11) as f64 / (1u64 << 53) as f64
+}
+
+/// Counter-based uniform draws: `next()` gives the next value of the stream.
+struct Draws {
+    base: u64,
+    stream: u64,
+    i: u64,
+}
+
+impl Draws {
+    fn next(&mut self) -> f64 {
+        self.i += 1;
+        unit(self.base, self.stream, self.i)
+    }
+    fn index(&mut self, n: usize) -> usize {
+        ((self.next() * n as f64) as usize).min(n - 1)
+    }
+}
+
+/// The noise of one recording: the fixed choice, or a random one; the SNR
+/// drawn from its range.
+fn recording_noise(
+    base: &SynthConfig,
+    label: &str,
+    random: bool,
+    snr: (f64, f64),
+    rng: &mut Draws,
+) -> (SynthConfig, String) {
+    let snr_db = snr.0 + (snr.1 - snr.0) * rng.next();
+    let (noise, label) = if random {
+        match rng.index(4) {
+            0 => (None, "none".to_string()),
+            1 => (
+                Some(NoiseConfig {
+                    rain: true,
+                    car: false,
+                    snr_db,
+                }),
+                "rain".to_string(),
+            ),
+            2 => (
+                Some(NoiseConfig {
+                    rain: false,
+                    car: true,
+                    snr_db,
+                }),
+                "car".to_string(),
+            ),
+            _ => (
+                Some(NoiseConfig {
+                    rain: true,
+                    car: true,
+                    snr_db,
+                }),
+                "rain+car".to_string(),
+            ),
+        }
+    } else {
+        (
+            base.noise.clone().map(|n| NoiseConfig { snr_db, ..n }),
+            label.to_string(),
+        )
+    };
+    (
+        SynthConfig {
+            sample_rate: base.sample_rate,
+            noise,
+        },
+        label,
+    )
+}
+
+fn synth(a: SynthArgs) -> Result<()> {
+    let (v0, v1) = parse_range(&a.speeds, "speeds")?;
+    if v1 > 250.0 {
+        bail!("--speeds: {v1} km/h is above 250");
+    }
+    let (s0, s1) = parse_range(&a.segment, "segment")?;
+    if s0 <= 0.0 {
+        bail!("--segment: segments must be longer than 0 s");
+    }
+    if !(a.duration > 0.0 && a.duration <= 3600.0) {
+        bail!("--duration: {} s is outside (0, 3600]", a.duration);
+    }
+    let (snr0, snr1) = parse_snr(&a.snr_db)?;
+    let random_noise = a.noise.trim() == "random";
+    let (noise, noise_label) = if random_noise {
+        (None, String::new())
+    } else {
+        parse_noise(&a.noise, snr0)?
+    };
+    let roads: Vec<usize> = match &a.roads {
+        None => (0..ROADS.len()).collect(),
+        Some(list) => list
+            .split(',')
+            .map(|r| {
+                road_index(r.trim()).with_context(|| {
+                    format!("--roads: `{}` is not one of {}", r.trim(), ROADS.join(", "))
+                })
+            })
+            .collect::<Result<_>>()?,
+    };
+    if roads.len() < 2 && a.changes > 0 {
+        bail!("--changes needs at least two roads");
+    }
+    let base_cfg = SynthConfig {
+        sample_rate: a.sample_rate,
+        noise,
+    };
+    base_cfg.validate().context("synth config")?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let total = (roads.len() * a.recordings_per_class + a.changes) as u64;
+    let pb = ProgressBar::new(total);
+    pb.set_style(ProgressStyle::with_template(
+        "{bar:40} {pos}/{len} recordings, {elapsed} elapsed, eta {eta} {msg}",
+    )?);
+    let mut rng = Draws {
+        base: a.seed,
+        stream: 0xDA7A,
+        i: 0,
+    };
+    let mut manifest = Vec::new();
+    for &r in &roads {
+        let name = ROADS[r];
+        let sub = a.out.join(name);
+        std::fs::create_dir_all(&sub).with_context(|| format!("creating {}", sub.display()))?;
+        for i in 0..a.recordings_per_class {
+            let seed = derive_seed(a.seed, r as u64 + 1, i as u64);
+            let kmh = v0 + (v1 - v0) * rng.next();
+            let (cfg, noise_label) = recording_noise(
+                &base_cfg,
+                &noise_label,
+                random_noise,
+                (snr0, snr1),
+                &mut rng,
+            );
+            let snr = cfg.noise.as_ref().map(|n| n.snr_db);
+            let x = render(
+                &cfg,
+                seed,
+                &[Segment {
+                    road: r,
+                    speed_mps: kmh / 3.6,
+                    duration_s: a.duration,
+                }],
+            )?;
+            let file = format!("{name}/{name}_{i:04}.wav");
+            wav::write_mono_i16(&a.out.join(&file), a.sample_rate, &x)?;
+            manifest.push(ManifestRow {
+                file,
+                road: name.to_string(),
+                speed_kmh: Some((kmh * 1000.0).round() / 1000.0),
+                seed: Some(seed),
+                noise: Some(noise_label.clone()),
+                snr_db: snr,
+                duration_s: Some(a.duration),
+            });
+            pb.inc(1);
+        }
+    }
+    let mpath = a.out.join("manifest.csv");
+    let mut w =
+        csv::Writer::from_path(&mpath).with_context(|| format!("creating {}", mpath.display()))?;
+    for row in &manifest {
+        w.serialize(row)?;
+    }
+    w.flush()?;
+    if a.changes > 0 {
+        let cdir = a.changes_out.clone().unwrap_or_else(|| {
+            let mut p = a.out.clone().into_os_string();
+            p.push("-changes");
+            PathBuf::from(p)
+        });
+        std::fs::create_dir_all(&cdir).with_context(|| format!("creating {}", cdir.display()))?;
+        let spath = cdir.join("segments.csv");
+        let mut sw = csv::Writer::from_path(&spath)
+            .with_context(|| format!("creating {}", spath.display()))?;
+        for i in 0..a.changes {
+            let seed = derive_seed(a.seed, 0xC4A6, i as u64);
+            let kmh = v0 + (v1 - v0) * rng.next();
+            let (cfg, noise_label) = recording_noise(
+                &base_cfg,
+                &noise_label,
+                random_noise,
+                (snr0, snr1),
+                &mut rng,
+            );
+            let snr = cfg.noise.as_ref().map(|n| n.snr_db);
+            let mut segs = Vec::new();
+            let mut t = 0.0;
+            let mut prev = usize::MAX;
+            while t < a.duration - 1e-9 {
+                let mut r = roads[rng.index(roads.len())];
+                while r == prev {
+                    r = roads[rng.index(roads.len())];
+                }
+                let d = (s0 + (s1 - s0) * rng.next()).min(a.duration - t);
+                segs.push(Segment {
+                    road: r,
+                    speed_mps: kmh / 3.6,
+                    duration_s: d,
+                });
+                prev = r;
+                t += d;
+            }
+            let x = render(&cfg, seed, &segs)?;
+            let file = format!("change_{i:04}.wav");
+            wav::write_mono_i16(&cdir.join(&file), a.sample_rate, &x)?;
+            let mut t = 0.0;
+            for s in &segs {
+                // Segment boundaries at whole samples, as rendered.
+                let t1 = t
+                    + (s.duration_s * f64::from(a.sample_rate)).round() / f64::from(a.sample_rate);
+                sw.serialize(SegmentRow {
+                    file: file.clone(),
+                    t_start: t,
+                    t_end: t1,
+                    road: ROADS[s.road].to_string(),
+                    speed_kmh: Some((kmh * 1000.0).round() / 1000.0),
+                    seed: Some(seed),
+                    noise: Some(noise_label.clone()),
+                    snr_db: snr,
+                })?;
+                t = t1;
+            }
+            pb.inc(1);
+        }
+        sw.flush()?;
+    }
+    pb.finish_with_message("done");
+    eprintln!(
+        "wrote {} recordings ({} per class, {} roads) and {} change recordings to {}",
+        manifest.len(),
+        a.recordings_per_class,
+        roads.len(),
+        a.changes,
+        a.out.display()
+    );
+    Ok(())
+}
+
+fn delay(a: DelayArgs) -> Result<()> {
+    use grip_arte::model::{Model, Predictor};
+    use grip_arte::stream::{
+        Smoothing, StreamConfig, StreamEstimator, detection_delays, percentile,
+    };
+    let bytes = std::fs::read(&a.model)
+        .with_context(|| format!("reading model file {}", a.model.display()))?;
+    let model =
+        Model::from_bytes(&bytes).with_context(|| format!("model file {}", a.model.display()))?;
+    let fcfg = model.feature_config().clone();
+    let classes = model.classes().to_vec();
+    let recs = read_changes(&a.dir, &classes)?;
+    let smoothing = if a.stay == 0.0 {
+        Smoothing::None
+    } else {
+        Smoothing::Hmm {
+            stay: a.stay,
+            floor: a.floor,
+        }
+    };
+    let scfg = StreamConfig {
+        hop_s: a.hop,
+        smoothing,
+    };
+    let mut est = StreamEstimator::new(Predictor::new(model), &fcfg, &scfg)?;
+    let (mut delays, mut missed, mut n_changes) = (Vec::new(), 0usize, 0usize);
+    let (mut ok, mut ok_raw, mut n_dec) = (0usize, 0usize, 0usize);
+    let block = 1024;
+    let pb = ProgressBar::new(recs.len() as u64);
+    for r in &recs {
+        let audio = wav::read_mono_at(&r.path, fcfg.sample_rate)?;
+        est.reset();
+        let mut dec: Vec<(f64, usize)> = Vec::new();
+        let mut raw: Vec<(f64, f64, usize)> = Vec::new();
+        for b in audio.samples.chunks(block) {
+            est.push(b, |d| {
+                dec.push((d.t_end, d.class));
+                raw.push((d.t_start, d.t_end, d.raw_class));
+            });
+        }
+        // Accuracy over decisions whose frame lies inside one segment.
+        for (&(t_end, c), &(t0, _, rc)) in dec.iter().zip(&raw) {
+            if let Some(seg) = r
+                .segments
+                .iter()
+                .find(|s| t0 >= s.0 - 1e-9 && t_end <= s.1 + 1e-9)
+            {
+                n_dec += 1;
+                ok += usize::from(c == seg.2);
+                ok_raw += usize::from(rc == seg.2);
+            }
+        }
+        let changes: Vec<(f64, usize)> = r.segments.iter().map(|s| (s.0, s.2)).collect();
+        let end = r.segments.last().map_or(0.0, |s| s.1);
+        for d in detection_delays(&dec, &changes, end, a.hold)
+            .into_iter()
+            .skip(1)
+        {
+            n_changes += 1;
+            match d {
+                Some(v) => delays.push(v),
+                None => missed += 1,
+            }
+        }
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    let ms = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.0} ms", v * 1000.0));
+    println!(
+        "{} recordings, {n_changes} road changes, hop {} s, smoothing {:?}, hold {} s",
+        recs.len(),
+        a.hop,
+        smoothing,
+        a.hold
+    );
+    println!(
+        "detection delay: p50 {}, p95 {}, max {}; missed {missed} of {n_changes}",
+        ms(percentile(&delays, 50.0)),
+        ms(percentile(&delays, 95.0)),
+        ms(percentile(&delays, 100.0))
+    );
+    if n_dec > 0 {
+        println!(
+            "decisions inside one segment: {n_dec}; accuracy smoothed {:.2} %, single-frame {:.2} %",
+            100.0 * ok as f64 / n_dec as f64,
+            100.0 * ok_raw as f64 / n_dec as f64
+        );
+    }
+    Ok(())
+}
+
+pub fn run(_ctx: &Ctx, args: Args) -> Result<()> {
+    match args.cmd {
+        DatasetCmd::Synth(a) => synth(a),
+        DatasetCmd::Delay(a) => delay(a),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::Dataset;
+
+    fn args(out: PathBuf) -> SynthArgs {
+        SynthArgs {
+            out,
+            seed: 3,
+            recordings_per_class: 2,
+            duration: 0.3,
+            speeds: "10-30".into(),
+            noise: "rain,car".into(),
+            snr_db: "5..15".into(),
+            changes: 2,
+            changes_out: None,
+            segment: "0.1-0.2".into(),
+            roads: None,
+            sample_rate: 44_100,
+        }
+    }
+
+    #[test]
+    fn synth_then_read_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("ds");
+        synth(args(out.clone())).unwrap();
+        let ds = Dataset::scan(&out).unwrap();
+        assert_eq!(ds.classes, ROADS);
+        assert_eq!(ds.entries.len(), 12);
+        let a = wav::read_mono(&ds.entries[0].path).unwrap();
+        assert_eq!(
+            (a.sample_rate, a.file_channels, a.samples.len()),
+            (44_100, 1, 13_230)
+        );
+        let mut rd = csv::Reader::from_path(out.join("manifest.csv")).unwrap();
+        let rows: Vec<ManifestRow> = rd.deserialize().map(|r| r.unwrap()).collect();
+        assert_eq!(rows.len(), 12);
+        assert_eq!(rows[0].noise.as_deref(), Some("rain+car"));
+        assert!(
+            rows.iter()
+                .all(|r| (10.0..=30.0).contains(&r.speed_kmh.unwrap()))
+        );
+        let changes = read_changes(&dir.path().join("ds-changes"), &ds.classes).unwrap();
+        assert_eq!(changes.len(), 2);
+        for c in &changes {
+            assert!(c.segments.len() >= 2);
+            assert!(
+                c.segments
+                    .windows(2)
+                    .all(|w| w[0].2 != w[1].2 && (w[0].1 - w[1].0).abs() < 1e-9)
+            );
+            let a = wav::read_mono(&c.path).unwrap();
+            assert!((a.duration_s() - 0.3).abs() < 1e-3);
+        }
+        // Same seed, same files.
+        let out2 = dir.path().join("ds2");
+        synth(args(out2.clone())).unwrap();
+        assert_eq!(
+            std::fs::read(out.join("snow/snow_0001.wav")).unwrap(),
+            std::fs::read(out2.join("snow/snow_0001.wav")).unwrap()
+        );
+    }
+
+    #[test]
+    fn bad_arguments_and_folders_are_clear_errors() {
+        assert!(parse_range("30-10", "speeds").is_err());
+        assert!(
+            parse_range("x", "speeds")
+                .unwrap_err()
+                .to_string()
+                .contains("--speeds")
+        );
+        assert!(
+            parse_noise("rain,snow", 10.0)
+                .unwrap_err()
+                .to_string()
+                .contains("snow")
+        );
+        assert_eq!(parse_snr("-5..10").unwrap(), (-5.0, 10.0));
+        assert_eq!(parse_snr("10").unwrap(), (10.0, 10.0));
+        assert!(parse_snr("10..5").is_err());
+        let dir = tempfile::tempdir().unwrap();
+        let classes = vec!["asphalt".to_string()];
+        let e = read_changes(dir.path(), &classes).unwrap_err().to_string();
+        assert!(e.contains("segments.csv"), "{e}");
+        std::fs::write(
+            dir.path().join("segments.csv"),
+            "file,t_start,t_end,road,speed_kmh,seed,noise,snr_db\nmissing.wav,0,1,asphalt,,,,\n",
+        )
+        .unwrap();
+        let e = format!("{:#}", read_changes(dir.path(), &classes).unwrap_err());
+        assert!(
+            e.contains("segments.csv") && e.contains("missing.wav"),
+            "{e}"
+        );
+        std::fs::write(
+            dir.path().join("segments.csv"),
+            "file,t_start,t_end,road,speed_kmh,seed,noise,snr_db\nmissing.wav,0,1,ice,,,,\n",
+        )
+        .unwrap();
+        let e = format!("{:#}", read_changes(dir.path(), &classes).unwrap_err());
+        assert!(e.contains("`road`") && e.contains("ice"), "{e}");
+    }
+}
