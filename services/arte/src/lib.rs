@@ -1,0 +1,1 @@
+//! grip service arte: the loop, drivable from tests.

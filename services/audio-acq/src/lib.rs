@@ -1,0 +1,1 @@
+//! grip service audio-acq: the loop, drivable from tests.

@@ -1,0 +1,1 @@
+//! grip service plant-sim: the loop, drivable from tests.

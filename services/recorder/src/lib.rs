@@ -1,0 +1,1 @@
+//! grip service recorder: the loop, drivable from tests.

@@ -1,0 +1,1 @@
+//! grip service tcs-loop: the loop, drivable from tests.
