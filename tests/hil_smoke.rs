@@ -586,3 +586,28 @@ fn child_processes_run_and_their_logs_are_kept() -> anyhow::Result<()> {
     assert!(p.log_path().starts_with(&dir));
     Ok(())
 }
+
+/// The workspace's binaries and `config/` are where later HIL tests will look
+/// for them (`GRIP_BIN_DIR`, `GRIP_CONFIG_DIR`; the harness builds and copies
+/// them): `grip`, the one binary every workspace has, runs from there.
+#[test]
+fn workspace_binaries_and_config_are_in_place() -> anyhow::Result<()> {
+    let cfg = hil::config_dir();
+    let vehicle = std::fs::read_to_string(cfg.join("vehicle.toml"))
+        .with_context(|| format!("reading {}/vehicle.toml", cfg.display()))?;
+    ensure!(
+        !vehicle.trim().is_empty(),
+        "{}/vehicle.toml is empty",
+        cfg.display()
+    );
+
+    let dir = hil::out_dir("hil_smoke")?;
+    let mut p = Proc::service("grip", &["--version"], &dir)?;
+    let st = p
+        .wait_timeout(Duration::from_secs(30))?
+        .context("grip --version did not exit")?;
+    let text = p.log_text();
+    assert!(st.success(), "grip --version: {st}, output {text:?}");
+    assert!(text.starts_with("grip "), "grip --version printed {text:?}");
+    Ok(())
+}
