@@ -73,6 +73,44 @@ pub mod qos {
     }
 }
 
+/// Environment variable naming the grip instance: concurrent drives (and
+/// tests running in parallel) set a different value each, so their iceoryx2
+/// services, nodes and simulated CAN buses never meet. Unset or empty: the
+/// production namespace (iceoryx2's default file prefix).
+pub const INSTANCE_ENV: &str = "GRIP_INSTANCE";
+
+/// The iceoryx2 configuration this process uses: iceoryx2's global
+/// configuration, with the file prefix `grip_<instance>_` when
+/// [`INSTANCE_ENV`] is set. Read once per process.
+pub fn iox_config() -> Result<&'static Config, IpcError> {
+    static CONFIG: std::sync::OnceLock<Result<Config, String>> = std::sync::OnceLock::new();
+    let cfg = CONFIG.get_or_init(|| {
+        let mut cfg = Config::global_config().clone();
+        match std::env::var(INSTANCE_ENV) {
+            Ok(inst) if !inst.is_empty() => {
+                let valid = inst.len() <= 64
+                    && inst
+                        .bytes()
+                        .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
+                if !valid {
+                    return Err(format!(
+                        "{INSTANCE_ENV}={inst:?}: use at most 64 characters of [A-Za-z0-9_-]"
+                    ));
+                }
+                let prefix = format!("grip_{inst}_");
+                cfg.global.prefix = FileName::new(prefix.as_bytes())
+                    .map_err(|e| format!("{INSTANCE_ENV}={inst:?}: {e:?}"))?;
+            }
+            _ => {}
+        }
+        Ok(cfg)
+    });
+    cfg.as_ref().map_err(|reason| IpcError::Name {
+        name: INSTANCE_ENV.into(),
+        reason: reason.clone(),
+    })
+}
+
 /// Errors of the iceoryx2 adapters.
 #[derive(Debug, thiserror::Error)]
 pub enum IpcError {
@@ -153,7 +191,10 @@ pub struct CleanupReport {
 /// `DeadNodeView::try_remove_stale_resources`).
 pub fn cleanup_dead_nodes() -> CleanupReport {
     let mut rep = CleanupReport::default();
-    let res = Node::<Svc>::list(Config::global_config(), |state| {
+    let Ok(config) = iox_config() else {
+        return rep;
+    };
+    let res = Node::<Svc>::list(config, |state| {
         if let NodeState::<Svc>::Dead(view) = state {
             rep.dead_found += 1;
             let pid = view.details().as_ref().map(|d| d.executable().to_string());
@@ -216,7 +257,9 @@ impl IpcNode {
             name: name.into(),
             reason: format!("{e:?}"),
         })?;
+        let config = iox_config()?;
         let node = NodeBuilder::new()
+            .config(config)
             .name(&node_name)
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<Svc>()
