@@ -230,7 +230,7 @@ fn panel(
     let mut chart = ChartBuilder::on(area)
         .margin(8)
         .caption(caption, ("sans-serif", 20))
-        .x_label_area_size(28)
+        .x_label_area_size(34)
         .y_label_area_size(60)
         .build_cartesian_2d(0.0..t_end, y_lo..y_hi)?;
     // Road bands.
@@ -243,7 +243,7 @@ fn panel(
             c.mix(0.25).filled(),
         )))?;
         if label_roads {
-            let label = setup.roads().by_index(i).map_or("?", |r| r.label());
+            let label = setup.roads().by_index(i).map_or("?", |r| r.name());
             chart.draw_series(std::iter::once(Text::new(
                 label.to_owned(),
                 (t_at(tr, a, dt) + 0.01 * t_end, y_hi - 0.02 * (y_hi - y_lo)),
