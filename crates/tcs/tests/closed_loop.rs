@@ -155,9 +155,9 @@ fn src_without_arte_finds_the_snow_peak() {
     let l = mean(window(&tr.lambda, 2.0, 5.0));
     let mu = mean(window(&tr.mu, 2.0, 5.0));
     assert!((0.02..0.12).contains(&l), "mean slip {l}");
-    // The fuzzy estimate settles on the safe (low-slip) side of the peak.
+    // Measured: mean slip ≈ 0.08 on the flat part just past the peak, μ within 1 % of the peak.
     assert!(
-        mu > 0.9 * road.mu_peak(),
+        mu > 0.97 * road.mu_peak(),
         "mean mu {mu} vs peak {}",
         road.mu_peak()
     );
