@@ -163,7 +163,7 @@ fn construction_errors_are_clear() {
         e,
         StreamError::FeatureCount {
             expected: 7,
-            got: 40
+            got: 43
         }
     );
     let e = StreamEstimator::new(

@@ -6,7 +6,7 @@
 //! - [`FeatureSet::Paper7`]: 7 of those 20 (by default 3 LPC + 2 PS + 2
 //!   cepstrum), the indices chosen by [`crate::select`] on training data and
 //!   stored in [`FeatureConfig::selection`].
-//! - [`FeatureSet::Rich`]: 40 level-invariant features (log-mel spectral shape,
+//! - [`FeatureSet::Rich`]: 43 level-invariant features (log-mel spectral shape,
 //!   within-frame band-energy variability, spectral descriptors, impact
 //!   statistics), see `rich.rs` and the crate README for exact definitions.
 //!
@@ -30,7 +30,7 @@ pub enum FeatureSet {
     Paper20,
     /// The paper's pruned 7: `FeatureConfig::selection` indices into Paper20.
     Paper7,
-    /// This project's richer 40-feature set.
+    /// This project's richer 43-feature set.
     Rich,
 }
 
@@ -103,7 +103,7 @@ pub const N_CEP: usize = 5;
 /// Length of the Paper20 vector.
 pub const N_PAPER20: usize = N_LPC + N_PS + N_CEP;
 /// Length of the Rich vector for the default 24 mel bands.
-pub const N_RICH_DEFAULT: usize = 40;
+pub const N_RICH_DEFAULT: usize = 43;
 
 /// Everything that defines a feature vector. Stored inside a model file, so
 /// a model always extracts the features it was trained on.

@@ -1,4 +1,4 @@
-//! The Rich set: 40 level-invariant features (for 24 mel bands) that capture
+//! The Rich set: 43 level-invariant features (for 24 mel bands) that capture
 //! what separates tyre-road sounds: spectral shape, within-frame temporal
 //! variability, spectral descriptors and impact statistics. Every feature is
 //! invariant to the microphone gain (a scale of the signal), so level, which
@@ -12,7 +12,7 @@ use rustfft::num_complex::Complex;
 /// Number of broad band groups whose within-frame variability is measured.
 const N_GROUPS: usize = 6;
 /// Scalar features after the mel shape and the group variabilities.
-const SCALARS: [&str; 10] = [
+const SCALARS: [&str; 13] = [
     "flux",
     "centroid_khz",
     "spread_khz",
@@ -23,6 +23,9 @@ const SCALARS: [&str; 10] = [
     "env_crest_db",
     "diff_kurtosis_ln",
     "env_periodicity",
+    "hf_kurtosis_ln",
+    "hf_env_crest_db",
+    "lf_env_periodicity",
 ];
 const MEL_FMIN: f64 = 50.0;
 const MEL_FMAX: f64 = 16_000.0;
@@ -77,6 +80,53 @@ pub(crate) struct Rich {
     env: Vec<f64>,
     lag_lo: usize,
     lag_hi: usize,
+    /// Band filters (biquad coefficients b0, b1, b2, a1, a2): high-pass 3 kHz, low-pass 400 Hz.
+    hp: [f64; 5],
+    lp: [f64; 5],
+    /// Samples skipped at the frame start while the band filters settle.
+    settle: usize,
+    lf_block: usize,
+    lf_env: Vec<f64>,
+    lf_lag_lo: usize,
+    lf_lag_hi: usize,
+}
+
+/// RBJ cookbook biquad, normalised: [b0, b1, b2, a1, a2].
+fn biquad(fs: f64, f: f64, highpass: bool) -> [f64; 5] {
+    let w0 = 2.0 * std::f64::consts::PI * f.min(0.45 * fs) / fs;
+    let (c, al) = (w0.cos(), w0.sin() / (2.0 * std::f64::consts::FRAC_1_SQRT_2));
+    let a0 = 1.0 + al;
+    let (b0, b1) = if highpass {
+        ((1.0 + c) / 2.0, -(1.0 + c))
+    } else {
+        ((1.0 - c) / 2.0, 1.0 - c)
+    };
+    [b0 / a0, b1 / a0, b0 / a0, -2.0 * c / a0, (1.0 - al) / a0]
+}
+
+/// Max over lags [lo, hi] of the normalised autocorrelation of `e` (de-meaned in place).
+fn periodicity(e: &mut [f64], lo: usize, hi: usize) -> f64 {
+    let n = e.len();
+    let mean = e.iter().sum::<f64>() / n.max(1) as f64;
+    let mut e0 = 0.0;
+    for v in e.iter_mut() {
+        *v -= mean;
+        e0 += *v * *v;
+    }
+    let mut best = 0.0f64;
+    if e0 > 0.0 {
+        for lag in lo..=hi.max(lo) {
+            if lag >= n {
+                break;
+            }
+            let mut acc = 0.0;
+            for j in 0..n - lag {
+                acc += e[j] * e[j + lag];
+            }
+            best = best.max(acc / e0);
+        }
+    }
+    best
 }
 
 impl Rich {
@@ -133,7 +183,17 @@ impl Rich {
         let lag_lo = ((0.004 * fs) / env_block as f64).ceil() as usize;
         let lag_hi = (((0.060 * fs) / env_block as f64).floor() as usize).min(n_env / 2);
         let n_sub = starts.len();
+        let lf_block = ((0.002 * fs).round() as usize).max(1);
+        let settle = ((0.005 * fs).round() as usize).min(frame_len / 4);
+        let n_lf = (frame_len - settle) / lf_block;
         Self {
+            hp: biquad(fs, 3000.0, true),
+            lp: biquad(fs, 400.0, false),
+            settle,
+            lf_block,
+            lf_env: vec![0.0; n_lf.max(1)],
+            lf_lag_lo: ((0.004 * fs) / lf_block as f64).ceil() as usize,
+            lf_lag_hi: (((0.060 * fs) / lf_block as f64).floor() as usize).min(n_lf / 2),
             fs,
             n_mel,
             frame_len,
@@ -339,24 +399,52 @@ impl Rich {
         };
         // Envelope periodicity: max normalised autocorrelation of the
         // de-meaned envelope over lags 4..60 ms (sett joints, regular impacts).
-        let mut e0 = 0.0;
-        for v in self.env.iter_mut() {
-            *v -= env_mean;
-            e0 += *v * *v;
-        }
-        let mut best = 0.0f64;
-        if e0 > 0.0 {
-            for lag in self.lag_lo..=self.lag_hi.max(self.lag_lo) {
-                if lag >= nenv {
-                    break;
-                }
-                let mut acc = 0.0;
-                for j in 0..nenv - lag {
-                    acc += self.env[j] * self.env[j + lag];
-                }
-                best = best.max(acc / e0);
+        out[i + 4] = periodicity(&mut self.env, self.lag_lo, self.lag_hi);
+        // Band-limited impulsiveness: the > 3 kHz band (snaps, crunch, drops
+        // vs. spray hiss) and the < 400 Hz envelope's periodicity (thumps).
+        let (h, g) = (self.hp, self.lp);
+        let (mut h1, mut h2, mut g1, mut g2) = (0.0, 0.0, 0.0, 0.0);
+        let (mut hm2, mut hm4, mut hmax_blk, mut hblk, mut hsum_blk, mut nblk) =
+            (0.0, 0.0, 0.0f64, 0.0, 0.0, 0usize);
+        let mut cnt = 0usize;
+        self.lf_env.fill(0.0);
+        let nlf = self.lf_env.len();
+        for n in 0..l {
+            let v = x[n];
+            let yh = h[0] * v + h1;
+            h1 = h[1] * v - h[3] * yh + h2;
+            h2 = h[2] * v - h[4] * yh;
+            let yl = g[0] * v + g1;
+            g1 = g[1] * v - g[3] * yl + g2;
+            g2 = g[2] * v - g[4] * yl;
+            if n < self.settle {
+                continue;
+            }
+            let k = n - self.settle;
+            let e = yh * yh;
+            hm2 += e;
+            hm4 += e * e;
+            cnt += 1;
+            hblk += e;
+            if (k + 1).is_multiple_of(self.env_block) {
+                hmax_blk = hmax_blk.max(hblk);
+                hsum_blk += hblk;
+                nblk += 1;
+                hblk = 0.0;
+            }
+            let j = k / self.lf_block;
+            if j < nlf {
+                self.lf_env[j] += yl * yl;
             }
         }
-        out[i + 4] = best;
+        let (hm2, hm4) = (hm2 / cnt.max(1) as f64, hm4 / cnt.max(1) as f64);
+        out[i + 5] = if hm2 > 0.0 {
+            (hm4 / (hm2 * hm2)).max(1e-12).ln()
+        } else {
+            0.0
+        };
+        let hmean_blk = hsum_blk / nblk.max(1) as f64;
+        out[i + 6] = 10.0 * ((hmax_blk + tiny) / (hmean_blk + tiny)).log10();
+        out[i + 7] = periodicity(&mut self.lf_env, self.lf_lag_lo, self.lf_lag_hi);
     }
 }
