@@ -1,0 +1,196 @@
+//! [`run`]: loads the configuration, opens the CAN bus and the `TRUTH`
+//! publisher, applies the real-time set-up and runs [`PlantSim`] on the
+//! absolute-deadline timer until stopped or (with `exit_at_end`) finished.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use grip_config::{ConfigDir, ConfigError, parse_toml, read_file};
+use grip_io::can::{CanBus, CanBusConfig, CanError, open_bus};
+use grip_io::clock::{Clock, MonotonicClock};
+use grip_io::ipc::{IpcError, IpcNode, Publisher};
+use grip_io::rt::{self, PeriodicTimer};
+use grip_msgs::{GroundTruth, topics};
+
+use crate::config::{PlantSimConfig, StartOn};
+use crate::sim::{Outcome, PlantSim, SimError, Tick, TruthSink};
+use crate::svc;
+
+/// Command-line choices (see `main.rs`).
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    /// Shared configuration directory.
+    pub config_dir: PathBuf,
+    /// The service's own TOML (default `<config_dir>/plant-sim.toml`).
+    pub config: Option<PathBuf>,
+    /// `--scenario NAME|PATH`.
+    pub scenario: Option<String>,
+    /// `--seed`.
+    pub seed: Option<u64>,
+    /// `--exit-at-end` (only ever switches it on).
+    pub exit_at_end: bool,
+    /// `--start-on`.
+    pub start_on: Option<StartOn>,
+}
+
+/// Fatal start-up errors.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// A configuration file is wrong.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// A model rejected a parameter.
+    #[error("{file}: {source}")]
+    Model {
+        /// The file the parameter came from.
+        file: PathBuf,
+        /// The error.
+        source: SimError,
+    },
+    /// iceoryx2.
+    #[error(transparent)]
+    Ipc(#[from] IpcError),
+    /// The CAN bus could not be opened.
+    #[error(transparent)]
+    Can(#[from] CanError),
+    /// The helper thread could not be started.
+    #[error("cannot start the helper thread: {0}")]
+    Thread(std::io::Error),
+}
+
+/// Reads `can.toml`.
+pub fn load_can(dir: &ConfigDir) -> Result<CanBusConfig, ConfigError> {
+    let path = dir.file("can.toml");
+    let c: CanBusConfig = parse_toml(&path, &read_file(&path)?)?;
+    if c.interface.trim().is_empty() {
+        return Err(ConfigError::new(&path, "interface", "must not be empty"));
+    }
+    Ok(c)
+}
+
+/// Everything a run reads, loaded and validated, overrides applied.
+pub fn load(opts: &Options) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), RunError> {
+    let dir = ConfigDir::new(&opts.config_dir);
+    let own_path = opts
+        .config
+        .clone()
+        .unwrap_or_else(|| dir.file("plant-sim.toml"));
+    let mut cfg = PlantSimConfig::load(&own_path)?;
+    if let Some(s) = &opts.scenario {
+        cfg.scenario = s.clone();
+    }
+    if let Some(s) = opts.seed {
+        cfg.seed = s;
+    }
+    if let Some(s) = opts.start_on {
+        cfg.start_on = s;
+    }
+    cfg.exit_at_end |= opts.exit_at_end;
+    let roads = dir.roads()?;
+    let scenario = dir.scenario_with(&cfg.scenario, &roads)?;
+    let (vehicle, sensors) = dir.vehicle()?;
+    let can = load_can(&dir)?;
+    let sim = PlantSim::new(&cfg, scenario, roads, &vehicle, &sensors).map_err(|source| {
+        RunError::Model {
+            file: dir.vehicle_path(),
+            source,
+        }
+    })?;
+    Ok((cfg, sim, can))
+}
+
+/// The `TRUTH` publisher; errors counted, never fatal.
+#[derive(Debug)]
+pub struct IpcTruth {
+    /// Publisher.
+    pub publisher: Publisher<GroundTruth>,
+    /// Failed publishes.
+    pub errors: u64,
+}
+
+impl TruthSink for IpcTruth {
+    fn truth(&mut self, g: &GroundTruth) {
+        if self.publisher.publish(g).is_err() {
+            self.errors += 1;
+        }
+    }
+}
+
+/// Runs until `stop` (SIGTERM/SIGINT) or, with `exit_at_end`, the scenario's
+/// end plus the hold time. `start` (SIGUSR1) requests the scenario start.
+/// Sends `READY=1` once the bus and the publisher are open and the
+/// real-time set-up is done (vehicle held, frames about to flow).
+pub fn run(
+    opts: &Options,
+    stop: &Arc<AtomicBool>,
+    start: &Arc<AtomicBool>,
+) -> Result<(), RunError> {
+    let (cfg, mut sim, can) = load(opts)?;
+    tracing::info!(
+        scenario = %sim.scenario().name,
+        duration_s = sim.scenario().duration,
+        seed = cfg.seed,
+        rate_hz = cfg.rate_hz,
+        cmd_timeout_ms = cfg.cmd_timeout_ms,
+        start_on = ?cfg.start_on,
+        start_commands = cfg.start_commands,
+        exit_at_end = cfg.exit_at_end,
+        "plant-sim starting"
+    );
+    let node = IpcNode::create(topics::node::PLANT_SIM)?;
+    let mut bus = open_bus(&can, &node)?;
+    let mut truth = IpcTruth {
+        publisher: node.publisher::<GroundTruth>(topics::TRUTH)?,
+        errors: 0,
+    };
+    let done = Arc::new(AtomicBool::new(false));
+    let helper = svc::spawn_helper(sim.status(), Arc::clone(&done)).map_err(RunError::Thread)?;
+    let report = rt::apply(&cfg.rt);
+    report.log();
+
+    let clock = MonotonicClock;
+    let period_ns = (1e9 / cfg.rate_hz).round() as u64;
+    let mut timer = PeriodicTimer::new(clock, period_ns);
+    svc::notify_ready(&format!(
+        "holding scenario {} (start on {:?}), bus {:?}",
+        sim.scenario().name,
+        cfg.start_on,
+        bus.kind()
+    ));
+    tracing::info!("plant-sim ready: vehicle held at its initial state, sensor frames flowing");
+
+    let mut finished = false;
+    while !stop.load(Ordering::Relaxed) {
+        if start.load(Ordering::Relaxed) {
+            sim.request_start();
+        }
+        let t = timer.wait_next();
+        if sim.cycle(&Tick::from_timing(&t), &clock, &mut bus, &mut truth) == Outcome::Finished {
+            finished = true;
+            break;
+        }
+    }
+    svc::notify_stopping();
+    done.store(true, Ordering::Relaxed);
+    let _ = helper.join();
+    let h = timer.histogram();
+    tracing::info!(
+        finished,
+        scenario_time_s = sim.scenario_time(),
+        cycles = h.count(),
+        latency_p50_us = h.p50_ns() as f64 / 1e3,
+        latency_p99_us = h.p99_ns() as f64 / 1e3,
+        latency_max_us = h.max_ns() as f64 / 1e3,
+        deadline_misses = timer.deadline_misses(),
+        cmd_timeouts = sim.cmd_timeouts(),
+        e2e_faults = sim.protocol_rx().faults().total(),
+        publish_errors = truth.errors,
+        x_m = sim.plant().state().x,
+        v_kmh = sim.plant().state().v * 3.6,
+        "plant-sim stopped"
+    );
+    let _ = clock.now_ns();
+    drop(report);
+    Ok(())
+}

@@ -1,0 +1,435 @@
+//! [`TcsLoop`]: one traction-control cycle, driven by `run` at the loop rate
+//! on the real clock and by the tests on a manual clock.
+//!
+//! A cycle, in this order:
+//! 1. **Drain CAN** (non-blocking, at most [`MAX_RX_PER_CYCLE`] frames): each
+//!    frame goes through `ProtocolRx::for_tcs()` (length, CRC, alive counter,
+//!    unknown id; faults counted) and is copied to `CAN_LOG` (direction RX,
+//!    flag `E2E_REJECTED` when rejected). Accepted frames update the latest
+//!    `WheelSpeeds`, `MotorStatus`, `VehicleSpeed`, `DriverDemand`.
+//! 2. **Road**: the newest `RoadEstimate` (latest value wins) replaces the
+//!    held one; its age is `now − stamp_ns` (both CLOCK_MONOTONIC).
+//! 3. **Safe state**: inputs are valid when a `WheelSpeeds` frame with
+//!    `DrivenValid` and a `MotorStatus` frame were accepted within
+//!    `sensor_timeout_ms` and a `DriverDemand` frame within
+//!    `demand_timeout_ms`. Invalid inputs (including none yet, at start)
+//!    put the loop in its safe state; it leaves the safe state only when the
+//!    inputs have been valid without interruption for `recover_ms`, and then
+//!    resets the controller (its integrators are stale).
+//! 4. **Control**: in the safe state the command is 0 N m with `Enable`
+//!    cleared and the controller is not stepped. Otherwise the controller
+//!    steps on the [`Measurement`] (ω = OmegaDriven; V = r·OmegaRef when
+//!    `RefValid`, else `VehicleSpeed` when valid and fresh, else none;
+//!    T = TorqueActual; T_d = TorqueDemand, 0 while `BrakePressed`) and the
+//!    road knowledge (ARTE on and an estimate held; the controller's own
+//!    fallback rule `[arte]` of controllers.toml decides whether it is used).
+//!    With `TcsEnable` = 0 the demand is passed through unchanged. A
+//!    non-finite controller output is sent as 0 N m.
+//! 5. **Send** `TorqueCommand` (E2E counter + CRC) and copy it to `CAN_LOG`
+//!    (direction TX).
+//! 6. **Publish** the `CycleRecord`.
+//!
+//! Nothing here allocates, blocks or logs; transitions are reported through
+//! [`SharedStatus`] atomics that a non-real-time thread reads and logs.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+use grip_io::can::protocol::{
+    DRIVER_DEMAND, DriverDemand, E2eSender, InverterMsg, MOTOR_STATUS, MotorStatus, ProtocolRx,
+    TorqueCommand, VEHICLE_SPEED, VehicleSpeed, WHEEL_SPEEDS, WheelSpeeds,
+};
+use grip_io::can::{CanBus, CanFrame};
+use grip_io::clock::Clock;
+use grip_io::rt::CycleTiming;
+use grip_msgs::{CycleRecord, NO_CLASS, RoadEstimate, can_dir, can_flags};
+use grip_physics::VehicleParams;
+use grip_tcs::{AnyController, Controller, ControllersConfig, Measurement, RoadKnowledge};
+
+use crate::config::SafetyConfig;
+use crate::ports::{RecordSink, RoadSource};
+
+/// Most frames drained from the bus in one cycle (the bus carries ~3.2
+/// frames per ms; the rest waits for the next cycle, so a flood cannot make
+/// a cycle unbounded).
+pub const MAX_RX_PER_CYCLE: usize = 64;
+
+/// When a cycle runs: its deadline and actual wake-up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Tick {
+    /// Nominal start of the cycle (the timer's absolute deadline), ns.
+    pub deadline_ns: u64,
+    /// When the thread actually woke, ns.
+    pub woke_ns: u64,
+    /// Deadline misses since start (from the timer).
+    pub deadline_misses: u64,
+}
+
+impl Tick {
+    /// From the periodic timer's report and its miss count.
+    pub fn from_timing(t: &CycleTiming, deadline_misses: u64) -> Self {
+        Self {
+            deadline_ns: t.deadline_ns,
+            woke_ns: t.woke_ns,
+            deadline_misses,
+        }
+    }
+    /// A cycle woken exactly at its deadline `t_ns` (tests).
+    pub fn at(t_ns: u64) -> Self {
+        Self {
+            deadline_ns: t_ns,
+            woke_ns: t_ns,
+            deadline_misses: 0,
+        }
+    }
+}
+
+/// Loop state published for the non-real-time helper thread (watchdog,
+/// transition logging). Written with relaxed stores every cycle.
+#[derive(Debug, Default)]
+pub struct SharedStatus {
+    /// Cycles completed (the watchdog heartbeat).
+    pub heartbeat: AtomicU64,
+    /// In the safe state now.
+    pub safe_state: AtomicBool,
+    /// Times the safe state was entered.
+    pub safe_entries: AtomicU64,
+    /// The controller used ARTE's knowledge in the last cycle.
+    pub used_arte: AtomicBool,
+    /// Road estimates received so far.
+    pub road_estimates: AtomicU64,
+    /// Sum of all E2E faults so far.
+    pub faults_total: AtomicU64,
+    /// CAN send/receive errors so far.
+    pub bus_errors: AtomicU64,
+    /// Deadline misses so far.
+    pub deadline_misses: AtomicU64,
+}
+
+/// Errors building the loop.
+#[derive(Debug, thiserror::Error)]
+pub enum LoopError {
+    /// The controller rejected its parameters (field named).
+    #[error("controller parameters: field `{field}`: {reason}")]
+    Controller {
+        /// Offending field.
+        field: String,
+        /// Why.
+        reason: String,
+    },
+}
+
+/// The traction-control loop's state. Build once; [`cycle`](Self::cycle)
+/// allocates nothing.
+#[derive(Debug)]
+pub struct TcsLoop {
+    controller: AnyController,
+    arte: bool,
+    r: f64,
+    sensor_timeout_ns: u64,
+    demand_timeout_ns: u64,
+    vspeed_timeout_ns: u64,
+    recover_ns: u64,
+    rx: ProtocolRx,
+    tx: E2eSender<TorqueCommand>,
+    t0_ns: Option<u64>,
+    ws: Option<(WheelSpeeds, u64)>,
+    ms: Option<(MotorStatus, u64)>,
+    vs: Option<(VehicleSpeed, u64)>,
+    dd: Option<(DriverDemand, u64)>,
+    road: Option<RoadEstimate>,
+    safe: bool,
+    valid_since_ns: Option<u64>,
+    safe_entries: u64,
+    bus_errors: u64,
+    seq: u64,
+    record: CycleRecord,
+    status: Arc<SharedStatus>,
+}
+
+impl TcsLoop {
+    /// A loop running `kind` with `controllers` parameters for `vehicle`
+    /// at `controllers.loop_.rate_hz`, with or without ARTE.
+    pub fn new(
+        kind: grip_tcs::ControllerKind,
+        arte: bool,
+        controllers: &ControllersConfig,
+        vehicle: &VehicleParams,
+        safety: &SafetyConfig,
+    ) -> Result<Self, LoopError> {
+        let controller = AnyController::new(kind, controllers, vehicle, controllers.loop_.dt())
+            .map_err(|e| LoopError::Controller {
+                field: e.field,
+                reason: e.reason,
+            })?;
+        let mut rx = ProtocolRx::for_tcs();
+        for (id, t) in [
+            (WHEEL_SPEEDS.id, safety.sensor_timeout_ns()),
+            (MOTOR_STATUS.id, safety.sensor_timeout_ns()),
+            (DRIVER_DEMAND.id, safety.demand_timeout_ns()),
+        ] {
+            if let Some(r) = rx.receiver_mut(id) {
+                *r = r.clone().with_timeout_ns(t);
+            }
+        }
+        Ok(Self {
+            controller,
+            arte,
+            r: vehicle.r,
+            sensor_timeout_ns: safety.sensor_timeout_ns(),
+            demand_timeout_ns: safety.demand_timeout_ns(),
+            vspeed_timeout_ns: u64::from(VEHICLE_SPEED.timeout_ms) * 1_000_000,
+            recover_ns: safety.recover_ns(),
+            rx,
+            tx: E2eSender::new(),
+            t0_ns: None,
+            ws: None,
+            ms: None,
+            vs: None,
+            dd: None,
+            road: None,
+            safe: true,
+            valid_since_ns: None,
+            safe_entries: 0,
+            bus_errors: 0,
+            seq: 0,
+            record: CycleRecord::zeroed(),
+            status: Arc::new(SharedStatus {
+                safe_state: AtomicBool::new(true),
+                ..SharedStatus::default()
+            }),
+        })
+    }
+
+    /// The status shared with the helper thread.
+    pub fn status(&self) -> Arc<SharedStatus> {
+        Arc::clone(&self.status)
+    }
+
+    /// Which controller runs.
+    pub fn controller_kind(&self) -> grip_tcs::ControllerKind {
+        self.controller.kind()
+    }
+
+    /// ARTE on.
+    pub fn arte(&self) -> bool {
+        self.arte
+    }
+
+    /// In the safe state.
+    pub fn in_safe_state(&self) -> bool {
+        self.safe
+    }
+
+    /// Times the safe state was entered from normal operation (the loop
+    /// also *starts* in the safe state; that is not counted).
+    pub fn safe_entries(&self) -> u64 {
+        self.safe_entries
+    }
+
+    /// The receive side (fault counters per message).
+    pub fn protocol_rx(&self) -> &ProtocolRx {
+        &self.rx
+    }
+
+    /// The last published record.
+    pub fn last_record(&self) -> &CycleRecord {
+        &self.record
+    }
+
+    fn fresh<T: Copy>(v: &Option<(T, u64)>, now: u64, timeout: u64) -> Option<T> {
+        match v {
+            Some((m, t)) if now.saturating_sub(*t) <= timeout => Some(*m),
+            _ => None,
+        }
+    }
+
+    fn on_frame<S: RecordSink>(&mut self, frame: &CanFrame, now: u64, sink: &mut S) {
+        let mut logged = *frame;
+        logged.direction = can_dir::RX;
+        match self.rx.receive(frame, now) {
+            Ok(Some(msg)) => match msg {
+                InverterMsg::WheelSpeeds(m) => {
+                    // a frame saying the driven wheel speed is invalid is no
+                    // valid sensor frame: it does not refresh the timeout
+                    if m.driven_valid {
+                        self.ws = Some((m, now));
+                    }
+                }
+                InverterMsg::MotorStatus(m) => self.ms = Some((m, now)),
+                InverterMsg::VehicleSpeed(m) => self.vs = Some((m, now)),
+                InverterMsg::DriverDemand(m) => self.dd = Some((m, now)),
+                InverterMsg::TorqueCommand(_) => {}
+            },
+            Ok(None) => {}
+            Err(_) => logged.flags |= can_flags::E2E_REJECTED,
+        }
+        sink.can(&logged);
+    }
+
+    /// One cycle at `tick` (see the module docs). `clock` gives "now" for
+    /// E2E timeouts and the road estimate's age, and the compute time.
+    /// Returns the published record. Allocation-free.
+    pub fn cycle<B: CanBus, R: RoadSource, S: RecordSink, C: Clock>(
+        &mut self,
+        tick: &Tick,
+        clock: &C,
+        bus: &mut B,
+        road: &mut R,
+        sink: &mut S,
+    ) -> &CycleRecord {
+        let now = clock.now_ns();
+        let t0 = *self.t0_ns.get_or_insert(tick.deadline_ns);
+
+        // 1. drain CAN
+        for _ in 0..MAX_RX_PER_CYCLE {
+            match bus.try_recv() {
+                Ok(Some(f)) => self.on_frame(&f, now, sink),
+                Ok(None) => break,
+                Err(_) => {
+                    self.bus_errors += 1;
+                    break;
+                }
+            }
+        }
+        // counts timeout episodes into the E2E fault counters
+        self.rx.poll_timeouts(now);
+
+        // 2. road estimate (latest value wins)
+        if let Some(e) = road.poll_latest() {
+            self.road = Some(e);
+            self.status.road_estimates.fetch_add(1, Ordering::Relaxed);
+        }
+
+        // 3. safe state
+        let ws = Self::fresh(&self.ws, now, self.sensor_timeout_ns);
+        let ms = Self::fresh(&self.ms, now, self.sensor_timeout_ns);
+        let dd = Self::fresh(&self.dd, now, self.demand_timeout_ns);
+        let inputs_ok = ws.is_some() && ms.is_some() && dd.is_some();
+        if inputs_ok {
+            self.valid_since_ns.get_or_insert(now);
+        } else {
+            self.valid_since_ns = None;
+            if !self.safe {
+                self.safe = true;
+                self.safe_entries += 1;
+            }
+        }
+        if self.safe
+            && let Some(since) = self.valid_since_ns
+            && now.saturating_sub(since) >= self.recover_ns
+        {
+            self.safe = false;
+            self.controller.reset();
+        }
+
+        // 4. measurement and control
+        let omega = self.ws.map_or(0.0, |(w, _)| w.omega_driven);
+        let v = match self.ws {
+            Some((w, _)) if w.ref_valid => Some(self.r * w.omega_ref),
+            _ => Self::fresh(&self.vs, now, self.vspeed_timeout_ns)
+                .filter(|s| s.valid)
+                .map(|s| s.speed),
+        };
+        let torque = self.ms.map_or(0.0, |(m, _)| m.torque_actual);
+        let (demand, tcs_enable) = match self.dd {
+            Some((d, _)) if d.brake_pressed => (0.0, d.tcs_enable),
+            Some((d, _)) => (d.torque_demand, d.tcs_enable),
+            None => (0.0, true),
+        };
+        let knowledge = match (self.arte, &self.road) {
+            (true, Some(e)) => Some(RoadKnowledge {
+                lambda_opt: e.lambda_opt,
+                mu_peak: e.mu_peak,
+                alpha: e.alpha,
+                confidence: e.confidence,
+                // negative when the stamp is in the future: the fallback
+                // rule rejects it
+                age: (now as i128 - e.stamp_ns as i128) as f64 / 1e9,
+            }),
+            _ => None,
+        };
+        let mut rec = CycleRecord::zeroed();
+        let (cmd, enable) = if self.safe {
+            rec.internal = f64::NAN;
+            rec.mu_hat = f64::NAN;
+            (0.0, false)
+        } else {
+            let m = Measurement {
+                t: tick.deadline_ns.saturating_sub(t0) as f64 * 1e-9,
+                omega,
+                v,
+                torque,
+                demand,
+            };
+            let out = self.controller.step(&m, knowledge.as_ref());
+            rec.internal = out.internal;
+            rec.mu_hat = out.mu_hat;
+            rec.used_arte = u8::from(out.used_arte);
+            if out.used_arte {
+                rec.road_class = self.road.map_or(NO_CLASS, |e| e.class_index);
+            }
+            let cmd = if tcs_enable { out.torque_cmd } else { demand };
+            (if cmd.is_finite() { cmd } else { 0.0 }, true)
+        };
+
+        // 5. send the command
+        let frame = self.tx.encode(
+            &TorqueCommand {
+                torque_request: cmd,
+                enable,
+            },
+            now,
+        );
+        if bus.send(&frame).is_err() {
+            self.bus_errors += 1;
+        }
+        sink.can(&frame);
+
+        // 6. record
+        let done = clock.now_ns();
+        rec.seq = self.seq;
+        rec.stamp_ns = tick.deadline_ns;
+        rec.wakeup_latency_ns = tick.woke_ns as i64 - tick.deadline_ns as i64;
+        rec.compute_ns = done.saturating_sub(tick.woke_ns);
+        rec.deadline_misses = tick.deadline_misses;
+        rec.omega = omega;
+        rec.v = v.unwrap_or(f64::NAN);
+        rec.v_valid = u8::from(v.is_some());
+        rec.torque = torque;
+        rec.demand = demand;
+        rec.torque_cmd = cmd;
+        rec.safe_state = u8::from(self.safe);
+        rec.faults = self.rx.faults();
+        sink.cycle(&rec);
+        self.record = rec;
+        self.seq += 1;
+
+        let s = &self.status;
+        s.heartbeat.store(self.seq, Ordering::Relaxed);
+        s.safe_state.store(self.safe, Ordering::Relaxed);
+        s.safe_entries.store(self.safe_entries, Ordering::Relaxed);
+        s.used_arte.store(rec.used_arte != 0, Ordering::Relaxed);
+        s.faults_total.store(rec.faults.total(), Ordering::Relaxed);
+        s.bus_errors.store(self.bus_errors, Ordering::Relaxed);
+        s.deadline_misses
+            .store(tick.deadline_misses, Ordering::Relaxed);
+        &self.record
+    }
+
+    /// Stop: sends 0 N m with `Enable` cleared (and logs the frame), so the
+    /// inverter drops torque at once instead of after its command timeout.
+    pub fn shutdown<B: CanBus, S: RecordSink>(&mut self, now_ns: u64, bus: &mut B, sink: &mut S) {
+        let frame = self.tx.encode(
+            &TorqueCommand {
+                torque_request: 0.0,
+                enable: false,
+            },
+            now_ns,
+        );
+        if bus.send(&frame).is_err() {
+            self.bus_errors += 1;
+        }
+        sink.can(&frame);
+    }
+}

@@ -1,0 +1,238 @@
+//! [`run`]: loads the configuration, opens the real ports, applies the
+//! real-time set-up and runs [`TcsLoop`] on the absolute-deadline timer
+//! until the stop flag is set.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use grip_config::{ConfigDir, ConfigError, load_controllers, parse_toml, read_file};
+use grip_io::can::{CanBus, CanBusConfig, CanError, open_bus};
+use grip_io::clock::{Clock, MonotonicClock};
+use grip_io::ipc::{IpcError, IpcNode, SubscriberMode};
+use grip_io::rt::{self, LatencyHistogram, PeriodicTimer};
+use grip_msgs::{CanFrame, CycleRecord, RoadEstimate, topics};
+use grip_tcs::ControllerKind;
+
+use crate::config::TcsLoopConfig;
+use crate::cycle::{LoopError, TcsLoop, Tick};
+use crate::ports::{IpcRoad, IpcSink};
+use crate::svc;
+
+/// Command-line choices (see `main.rs` for the flags).
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    /// Shared configuration directory (`controllers.toml`, `vehicle.toml`, `can.toml`).
+    pub config_dir: PathBuf,
+    /// The service's own TOML (default `<config_dir>/tcs-loop.toml`).
+    pub config: Option<PathBuf>,
+    /// `--controller` override.
+    pub controller: Option<ControllerKind>,
+    /// `--arte on|off` override.
+    pub arte: Option<bool>,
+    /// Stop by itself after this many seconds (benchmarks).
+    pub run_for_s: Option<f64>,
+}
+
+/// Fatal start-up errors.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// A configuration file is wrong (file, field, reason).
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// The controller rejected its parameters.
+    #[error("{file}: {source}")]
+    Loop {
+        /// controllers.toml
+        file: PathBuf,
+        /// The error.
+        source: LoopError,
+    },
+    /// iceoryx2.
+    #[error(transparent)]
+    Ipc(#[from] IpcError),
+    /// The CAN bus could not be opened.
+    #[error(transparent)]
+    Can(#[from] CanError),
+    /// The helper thread could not be started.
+    #[error("cannot start the helper thread: {0}")]
+    Thread(std::io::Error),
+}
+
+/// What a run did.
+#[derive(Debug, Clone)]
+pub struct RunSummary {
+    /// Cycles run.
+    pub cycles: u64,
+    /// Deadline misses.
+    pub deadline_misses: u64,
+    /// Wake-up latency histogram.
+    pub latency: LatencyHistogram,
+    /// Safe-state entries (from normal operation).
+    pub safe_entries: u64,
+    /// E2E faults at the end.
+    pub faults_total: u64,
+    /// Whether SCHED_FIFO was applied.
+    pub fifo: bool,
+    /// Whether cpu_dma_latency was held at 0.
+    pub dma_latency: bool,
+}
+
+/// The files a run reads.
+#[derive(Debug, Clone)]
+pub struct LoadedConfig {
+    /// The service's own TOML.
+    pub own: TcsLoopConfig,
+    /// `controllers.toml`.
+    pub controllers: grip_tcs::ControllersConfig,
+    /// `vehicle.toml` `[vehicle]`.
+    pub vehicle: grip_physics::VehicleParams,
+    /// `can.toml`.
+    pub can: CanBusConfig,
+    /// Path of `controllers.toml` (for error messages).
+    pub controllers_path: PathBuf,
+    /// Path of the service's own TOML.
+    pub own_path: PathBuf,
+}
+
+/// Reads `can.toml` (shared by tcs-loop and plant-sim).
+pub fn load_can(dir: &ConfigDir) -> Result<CanBusConfig, ConfigError> {
+    let path = dir.file("can.toml");
+    let c: CanBusConfig = parse_toml(&path, &read_file(&path)?)?;
+    if c.interface.trim().is_empty() {
+        return Err(ConfigError::new(&path, "interface", "must not be empty"));
+    }
+    Ok(c)
+}
+
+/// Loads and validates every file the service needs, applying the overrides.
+pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
+    let dir = ConfigDir::new(&opts.config_dir);
+    let own_path = opts
+        .config
+        .clone()
+        .unwrap_or_else(|| dir.file("tcs-loop.toml"));
+    let mut own = TcsLoopConfig::load(&own_path)?;
+    if let Some(k) = opts.controller {
+        own.controller = k.as_str().to_owned();
+    }
+    if let Some(a) = opts.arte {
+        own.arte = a;
+    }
+    let controllers_path = dir.file("controllers.toml");
+    let controllers = load_controllers(&controllers_path)?;
+    let (vehicle, _) = dir.vehicle()?;
+    let can = load_can(&dir)?;
+    Ok(LoadedConfig {
+        own,
+        controllers,
+        vehicle,
+        can,
+        controllers_path,
+        own_path,
+    })
+}
+
+/// Runs the service until `stop` is set (SIGTERM/SIGINT in `main`) or
+/// `run_for_s` has passed. Sends `READY=1` once the ports are open and the
+/// real-time set-up is done. Only start-up errors are returned; nothing
+/// after start is fatal.
+pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunError> {
+    let cfg = load(opts)?;
+    let kind = cfg
+        .own
+        .controller_kind()
+        .map_err(|(field, reason)| ConfigError::new(&cfg.own_path, field, reason))?;
+    let mut lp = TcsLoop::new(
+        kind,
+        cfg.own.arte,
+        &cfg.controllers,
+        &cfg.vehicle,
+        &cfg.own.safety,
+    )
+    .map_err(|source| RunError::Loop {
+        file: cfg.controllers_path.clone(),
+        source,
+    })?;
+    let rate = cfg.controllers.loop_.rate_hz;
+    let period_ns = (1e9 / rate).round() as u64;
+    tracing::info!(
+        controller = %kind,
+        arte = cfg.own.arte,
+        rate_hz = rate,
+        sensor_timeout_ms = cfg.own.safety.sensor_timeout_ms,
+        demand_timeout_ms = cfg.own.safety.demand_timeout_ms,
+        recover_ms = cfg.own.safety.recover_ms,
+        "tcs-loop starting"
+    );
+
+    let node = IpcNode::create(topics::node::TCS_LOOP)?;
+    let mut bus = open_bus(&cfg.can, &node)?;
+    let mut sink = IpcSink {
+        cycle: node.publisher::<CycleRecord>(topics::CYCLE)?,
+        can: node.publisher::<CanFrame>(topics::CAN_LOG)?,
+        errors: 0,
+    };
+    let mut road = IpcRoad {
+        sub: node.subscriber::<RoadEstimate>(topics::ROAD, SubscriberMode::Latest)?,
+        errors: 0,
+    };
+
+    // helper first, so it stays SCHED_OTHER and unpinned
+    let done = Arc::new(AtomicBool::new(false));
+    let helper = svc::spawn_helper(lp.status(), cfg.own.arte, Arc::clone(&done))
+        .map_err(RunError::Thread)?;
+    let report = rt::apply(&cfg.own.rt);
+    report.log();
+
+    let clock = MonotonicClock;
+    let mut timer = PeriodicTimer::new(clock, period_ns);
+    let end_ns = opts
+        .run_for_s
+        .map(|s| clock.now_ns() + (s.max(0.0) * 1e9) as u64);
+    svc::notify_ready(&format!(
+        "{} arte={} at {rate} Hz, bus {:?}",
+        kind,
+        if cfg.own.arte { "on" } else { "off" },
+        bus.kind()
+    ));
+    tracing::info!("tcs-loop ready");
+
+    while !stop.load(Ordering::Relaxed) {
+        let t = timer.wait_next();
+        let tick = Tick::from_timing(&t, timer.deadline_misses());
+        lp.cycle(&tick, &clock, &mut bus, &mut road, &mut sink);
+        if end_ns.is_some_and(|e| t.woke_ns >= e) {
+            break;
+        }
+    }
+    svc::notify_stopping();
+    lp.shutdown(clock.now_ns(), &mut bus, &mut sink);
+    done.store(true, Ordering::Relaxed);
+    let _ = helper.join();
+
+    let h = timer.histogram().clone();
+    let summary = RunSummary {
+        cycles: h.count(),
+        deadline_misses: timer.deadline_misses(),
+        safe_entries: lp.safe_entries(),
+        faults_total: lp.protocol_rx().faults().total(),
+        fifo: report.fifo.is_applied(),
+        dma_latency: report.dma_latency.is_applied(),
+        latency: h,
+    };
+    tracing::info!(
+        cycles = summary.cycles,
+        latency_p50_us = summary.latency.p50_ns() as f64 / 1e3,
+        latency_p99_us = summary.latency.p99_ns() as f64 / 1e3,
+        latency_max_us = summary.latency.max_ns() as f64 / 1e3,
+        deadline_misses = summary.deadline_misses,
+        safe_entries = summary.safe_entries,
+        e2e_faults = summary.faults_total,
+        publish_errors = sink.errors,
+        road_errors = road.errors,
+        "tcs-loop stopped (zero torque sent, enable cleared)"
+    );
+    drop(report);
+    Ok(summary)
+}

@@ -1,0 +1,470 @@
+//! The loop on a manual clock with an in-memory bus: safe state on sensor and
+//! demand timeouts (and recovery), E2E rejection without effect on the
+//! command, road-estimate age and the ARTE switch.
+
+mod common;
+
+use common::{LastSink, MemBus, SetRoad};
+use grip_io::can::protocol::{
+    DriverDemand, E2eSender, MotorStatus, ProtocolMessage, TorqueCommand, WheelSpeeds, encode,
+};
+use grip_io::clock::{Clock, ManualClock};
+use grip_msgs::{CanFrame, CycleRecord, NO_CLASS, RoadEstimate};
+use grip_physics::VehicleParams;
+use grip_tcs::{ControllerKind, ControllersConfig};
+use grip_tcs_loop::{NoRoad, SafetyConfig, TcsLoop, Tick};
+
+const MS: u64 = 1_000_000;
+const T0: u64 = 1_000 * MS;
+
+/// The plant side of the test: encodes the sensor frames.
+struct Feeder {
+    ws: E2eSender<WheelSpeeds>,
+    ms: E2eSender<MotorStatus>,
+    dd: E2eSender<DriverDemand>,
+    omega: f64,
+    torque: f64,
+    demand: f64,
+}
+
+impl Feeder {
+    fn new() -> Self {
+        Self {
+            ws: E2eSender::new(),
+            ms: E2eSender::new(),
+            dd: E2eSender::new(),
+            omega: 10.0,
+            torque: 50.0,
+            demand: 200.0,
+        }
+    }
+    fn wheel(&self) -> WheelSpeeds {
+        WheelSpeeds {
+            driven_valid: true,
+            ref_valid: true,
+            omega_driven: self.omega,
+            omega_ref: 9.9,
+        }
+    }
+    fn ws_frame(&mut self, now: u64) -> CanFrame {
+        let w = self.wheel();
+        self.ws.encode(&w, now)
+    }
+    fn ms_frame(&mut self, now: u64) -> CanFrame {
+        self.ms.encode(
+            &MotorStatus {
+                ready: true,
+                torque_actual: self.torque,
+                motor_speed: self.omega,
+                ..MotorStatus::default()
+            },
+            now,
+        )
+    }
+    fn dd_frame(&mut self, now: u64) -> CanFrame {
+        self.dd.encode(
+            &DriverDemand {
+                brake_pressed: false,
+                tcs_enable: true,
+                torque_demand: self.demand,
+                pedal_position: 20.0,
+            },
+            now,
+        )
+    }
+}
+
+struct Rig {
+    clock: ManualClock,
+    bus: MemBus,
+    sink: LastSink,
+    lp: TcsLoop,
+    feed: Feeder,
+    k: u64,
+}
+
+impl Rig {
+    fn new(kind: ControllerKind, arte: bool) -> Self {
+        let lp = TcsLoop::new(
+            kind,
+            arte,
+            &ControllersConfig::default(),
+            &VehicleParams::default(),
+            &SafetyConfig::default(),
+        )
+        .unwrap();
+        Self {
+            clock: ManualClock::new(T0),
+            bus: MemBus::new(),
+            sink: LastSink::default(),
+            lp,
+            feed: Feeder::new(),
+            k: 0,
+        }
+    }
+    fn now(&self) -> u64 {
+        self.clock.now_ns()
+    }
+    /// Injects the frames of one millisecond (`ws`, `ms`: the 1 ms frames;
+    /// `dd`: the 10 ms demand on its schedule).
+    fn feed(&mut self, ws: bool, ms: bool, dd: bool) {
+        let now = self.now();
+        if ws {
+            let f = self.feed.ws_frame(now);
+            self.bus.inject(f);
+        }
+        if ms {
+            let f = self.feed.ms_frame(now);
+            self.bus.inject(f);
+        }
+        if dd && self.k.is_multiple_of(10) {
+            let f = self.feed.dd_frame(now);
+            self.bus.inject(f);
+        }
+    }
+    /// One cycle at the current time, then the clock advances 1 ms.
+    fn cycle_with<R: grip_tcs_loop::RoadSource>(
+        &mut self,
+        road: &mut R,
+    ) -> (CycleRecord, TorqueCommand) {
+        let tick = Tick::at(self.now());
+        let rec = *self
+            .lp
+            .cycle(&tick, &self.clock, &mut self.bus, road, &mut self.sink);
+        let sent = self.bus.take_sent();
+        assert_eq!(sent.len(), 1, "one TorqueCommand per cycle");
+        assert_eq!(sent[0].id, 0x100);
+        let cmd = TorqueCommand::read_signals(&sent[0].data);
+        self.clock.advance_ns(MS);
+        self.k += 1;
+        (rec, cmd)
+    }
+    fn cycle(&mut self) -> (CycleRecord, TorqueCommand) {
+        self.cycle_with(&mut NoRoad)
+    }
+    /// `n` ms of normal traffic; returns the last cycle.
+    fn run_ok(&mut self, n: usize) -> (CycleRecord, TorqueCommand) {
+        let mut last = None;
+        for _ in 0..n {
+            self.feed(true, true, true);
+            last = Some(self.cycle());
+        }
+        last.unwrap()
+    }
+}
+
+fn assert_safe(rec: &CycleRecord, cmd: &TorqueCommand) {
+    assert_eq!(rec.safe_state, 1);
+    assert_eq!(rec.torque_cmd, 0.0);
+    assert!(!cmd.enable, "enable must be cleared in the safe state");
+    assert_eq!(cmd.torque_request, 0.0);
+}
+
+#[test]
+fn starts_safe_and_leaves_after_recover_time() {
+    let mut r = Rig::new(ControllerKind::Mtte, false);
+    // no frames at all: safe
+    for _ in 0..20 {
+        let (rec, cmd) = r.cycle();
+        assert_safe(&rec, &cmd);
+    }
+    // valid frames: still safe until 50 ms of valid inputs
+    let mut left_at = None;
+    for i in 0..80 {
+        r.feed(true, true, true);
+        let (rec, cmd) = r.cycle();
+        if rec.safe_state == 0 {
+            assert!(cmd.enable);
+            left_at.get_or_insert(i);
+        } else {
+            assert!(left_at.is_none(), "re-entered the safe state at {i}");
+            assert_safe(&rec, &cmd);
+        }
+    }
+    assert_eq!(left_at, Some(50), "leaves after exactly recover_ms = 50 ms");
+    assert_eq!(r.lp.safe_entries(), 0, "the start is not an entry");
+}
+
+#[test]
+fn sensor_timeout_enters_safe_state_and_recovers_after_valid_frames() {
+    let mut r = Rig::new(ControllerKind::Mtte, false);
+    let (rec, cmd) = r.run_ok(100);
+    assert_eq!(rec.safe_state, 0);
+    assert!(cmd.enable && cmd.torque_request > 0.0, "{cmd:?}");
+
+    // WheelSpeeds stop (motor status and demand keep coming)
+    let mut entered = None;
+    for i in 1..=20u64 {
+        r.feed(false, true, true);
+        let (rec, cmd) = r.cycle();
+        if rec.safe_state == 1 {
+            assert_safe(&rec, &cmd);
+            entered.get_or_insert(i);
+        } else {
+            assert!(cmd.enable);
+        }
+    }
+    // last frame at cycle 0; "older than 10 ms" is true at 11 ms
+    assert_eq!(entered, Some(11), "safe state 10 ms after the last frame");
+    assert_eq!(r.lp.safe_entries(), 1);
+    assert_eq!(r.lp.last_record().faults.timeout, 1, "one timeout episode");
+
+    // frames back: safe for recover_ms, then normal
+    let mut left = None;
+    for i in 0..70u64 {
+        r.feed(true, true, true);
+        let (rec, cmd) = r.cycle();
+        if rec.safe_state == 0 {
+            left.get_or_insert(i);
+            assert!(cmd.enable);
+        } else {
+            assert!(left.is_none());
+            assert_safe(&rec, &cmd);
+        }
+    }
+    assert_eq!(left, Some(50));
+
+    // a frame saying "driven wheel speed invalid" does not count as valid
+    for _ in 0..15 {
+        let now = r.now();
+        let w = WheelSpeeds {
+            driven_valid: false,
+            ..r.feed.wheel()
+        };
+        let f = r.feed.ws.encode(&w, now);
+        r.bus.inject(f);
+        r.feed(false, true, true);
+        r.cycle();
+    }
+    assert_eq!(r.lp.last_record().safe_state, 1);
+    assert_eq!(r.lp.safe_entries(), 2);
+}
+
+#[test]
+fn motor_status_timeout_enters_safe_state() {
+    let mut r = Rig::new(ControllerKind::Src, false);
+    r.run_ok(100);
+    for _ in 0..12 {
+        r.feed(true, false, true);
+        r.cycle();
+    }
+    let (rec, cmd) = r.cycle();
+    assert_safe(&rec, &cmd);
+}
+
+#[test]
+fn demand_timeout_enters_safe_state() {
+    let mut r = Rig::new(ControllerKind::Mfc, false);
+    r.run_ok(100);
+    // the demand frame last came at k = 90 (every 10 ms); timeout 50 ms
+    let mut entered = None;
+    for i in 0..80u64 {
+        r.feed(true, true, false);
+        let (rec, cmd) = r.cycle();
+        if rec.safe_state == 1 {
+            assert_safe(&rec, &cmd);
+            entered.get_or_insert(i);
+        }
+    }
+    // last demand frame at t = 90 ms; now = 100 + i ms; > 50 ms old at i = 41
+    assert_eq!(entered, Some(41));
+    let (_, cmd) = r.run_ok(60);
+    assert!(cmd.enable, "recovers once the demand is back");
+}
+
+/// A loop that gets corrupted frames on top of the valid ones sends exactly
+/// the same commands as a twin that gets only the valid ones.
+#[test]
+fn corrupted_frames_are_rejected_counted_and_do_not_change_the_command() {
+    let mut a = Rig::new(ControllerKind::Src, false);
+    let mut b = Rig::new(ControllerKind::Src, false);
+    for k in 0..400u64 {
+        // identical valid traffic (slowly varying wheel speed)
+        for r in [&mut a, &mut b] {
+            r.feed.omega = 10.0 + 0.002 * k as f64;
+            r.feed(true, true, true);
+        }
+        let now = a.now();
+        match k {
+            200 => {
+                // bad CRC: a valid frame with one payload bit flipped
+                let mut f = encode(
+                    &WheelSpeeds {
+                        omega_driven: 300.0,
+                        ..a.feed.wheel()
+                    },
+                    a.feed.ws.next_counter(),
+                    now,
+                );
+                f.data[3] ^= 0x10;
+                a.bus.inject(f);
+            }
+            210 => {
+                // repeated counter: correct CRC, counter of the frame just sent
+                let last = a.feed.ws.next_counter().wrapping_sub(1) & 0x0F;
+                a.bus.inject(encode(
+                    &WheelSpeeds {
+                        omega_driven: 300.0,
+                        ..a.feed.wheel()
+                    },
+                    last,
+                    now,
+                ));
+            }
+            220 => {
+                // wrong length
+                let mut f = encode(
+                    &MotorStatus {
+                        torque_actual: 900.0,
+                        ..MotorStatus::default()
+                    },
+                    a.feed.ms.next_counter(),
+                    now,
+                );
+                f.dlc = 6;
+                a.bus.inject(f);
+            }
+            230 => {
+                // unknown id
+                a.bus
+                    .inject(CanFrame::new(0x7E5, &[1, 2, 3, 4, 5, 6, 7, 8]));
+            }
+            _ => {}
+        }
+        let (ra, ca) = a.cycle();
+        let (rb, cb) = b.cycle();
+        assert_eq!(ca, cb, "command differs at cycle {k}");
+        assert_eq!(ra.torque_cmd.to_bits(), rb.torque_cmd.to_bits());
+        assert_eq!(ra.omega, rb.omega);
+        assert_eq!(ra.torque, rb.torque);
+        if k > 100 {
+            assert_eq!(ra.safe_state, 0);
+        }
+    }
+    let f = a.lp.last_record().faults;
+    assert_eq!(
+        (f.crc, f.counter_repeated, f.length, f.unknown_id),
+        (1, 1, 1, 1),
+        "{f:?}"
+    );
+    assert_eq!(f.counter_skipped, 0);
+    assert_eq!(f.timeout, 0);
+    assert_eq!(b.lp.last_record().faults.total(), 0);
+    assert_eq!(
+        a.sink.can_rejected, 4,
+        "rejected frames logged with E2E_REJECTED"
+    );
+    assert_eq!(a.sink.can_tx, 400);
+    assert_eq!(a.sink.can_rx, b.sink.can_rx + 4);
+}
+
+fn estimate(stamp_ns: u64, confidence: f64) -> RoadEstimate {
+    RoadEstimate {
+        seq: 1,
+        stamp_ns,
+        class_index: 2,
+        n_classes: 4,
+        class_name: grip_msgs::name_to_bytes("snow"),
+        confidence,
+        lambda_opt: 0.06,
+        mu_peak: 0.19,
+        alpha: 0.94,
+        ..RoadEstimate::zeroed()
+    }
+}
+
+#[test]
+fn road_estimate_is_used_while_fresh_then_falls_back_by_age() {
+    let mut r = Rig::new(ControllerKind::Mtte, true);
+    r.run_ok(100);
+    let mut road = SetRoad {
+        next: Some(estimate(r.now() - 20 * MS, 0.9)),
+    };
+    // [arte] max_age_s = 0.3: the estimate stamped 20 ms ago is usable for
+    // 280 more ms; no new estimate comes (arte died)
+    let mut used = 0;
+    let mut first_unused = None;
+    for i in 0..400u64 {
+        r.feed(true, true, true);
+        let (rec, _) = r.cycle_with(&mut road);
+        if rec.used_arte == 1 {
+            assert!(first_unused.is_none(), "used again after falling back");
+            assert_eq!(rec.road_class, 2);
+            used += 1;
+        } else {
+            assert_eq!(rec.road_class, NO_CLASS);
+            first_unused.get_or_insert(i);
+        }
+    }
+    assert_eq!(used, 281, "age 20 ms .. 300 ms inclusive");
+    assert_eq!(first_unused, Some(281));
+
+    // a low-confidence estimate is not used
+    road.next = Some(estimate(r.now(), 0.3));
+    r.feed(true, true, true);
+    assert_eq!(r.cycle_with(&mut road).0.used_arte, 0);
+    // a stamp in the future (clock mismatch) is not used
+    road.next = Some(estimate(r.now() + 5 * MS, 0.9));
+    r.feed(true, true, true);
+    assert_eq!(r.cycle_with(&mut road).0.used_arte, 0);
+    // a fresh confident one is
+    road.next = Some(estimate(r.now(), 0.9));
+    r.feed(true, true, true);
+    assert_eq!(r.cycle_with(&mut road).0.used_arte, 1);
+}
+
+#[test]
+fn arte_off_ignores_estimates() {
+    let mut r = Rig::new(ControllerKind::Mtte, false);
+    r.run_ok(100);
+    let mut road = SetRoad::default();
+    for _ in 0..50 {
+        road.next = Some(estimate(r.now(), 1.0));
+        r.feed(true, true, true);
+        let (rec, _) = r.cycle_with(&mut road);
+        assert_eq!(rec.used_arte, 0);
+    }
+}
+
+#[test]
+fn record_carries_timing_and_measurements() {
+    let mut r = Rig::new(ControllerKind::Src, false);
+    r.run_ok(60);
+    r.feed(true, true, true);
+    let now = r.now();
+    let tick = Tick {
+        deadline_ns: now - 30_000,
+        woke_ns: now,
+        deadline_misses: 3,
+    };
+    let rec = *r
+        .lp
+        .cycle(&tick, &r.clock, &mut r.bus, &mut NoRoad, &mut r.sink);
+    assert_eq!(rec.seq, 60);
+    assert_eq!(rec.stamp_ns, now - 30_000);
+    assert_eq!(rec.wakeup_latency_ns, 30_000);
+    assert_eq!(rec.deadline_misses, 3);
+    assert_eq!(rec.omega, 10.0);
+    assert_eq!(rec.v_valid, 1);
+    assert!((rec.v - 0.28 * 9.9).abs() < 1e-9, "V = r * OmegaRef");
+    assert_eq!(rec.torque, 50.0);
+    assert_eq!(rec.demand, 200.0);
+    assert!(rec.torque_cmd <= 200.0 + 1e-9);
+    assert_eq!(r.sink.records, 61);
+}
+
+#[test]
+fn shutdown_sends_zero_torque_with_enable_cleared() {
+    let mut r = Rig::new(ControllerKind::Mtte, false);
+    r.run_ok(100);
+    let now = r.now();
+    r.lp.shutdown(now, &mut r.bus, &mut r.sink);
+    let sent = r.bus.take_sent();
+    assert_eq!(sent.len(), 1);
+    let c = TorqueCommand::read_signals(&sent[0].data);
+    assert!(!c.enable);
+    assert_eq!(c.torque_request, 0.0);
+    // and it passes the inverter's E2E check after the loop's commands
+    let mut rx = grip_io::can::protocol::ProtocolRx::for_inverter();
+    assert!(rx.receive(&sent[0], now).is_ok());
+}
