@@ -1,1 +1,82 @@
-fn main() {}
+//! `recorder`: writes every grip topic to an MCAP file.
+//!
+//! ```text
+//! recorder [--config-dir DIR] [--config FILE] [--out FILE] [--meta KEY=VALUE]...
+//! ```
+//! - `--config-dir DIR` (default `config`; systemd: `/etc/grip`): the
+//!   configuration files in it (`*.toml`, the DBC, `roads/`, `scenarios/`,
+//!   `models/`) are hashed into the `grip.run` metadata and attached.
+//! - `--config FILE` (default `DIR/recorder.toml`).
+//! - `--out FILE` (default `<out_dir>/grip-<unix s>-<pid>.mcap`).
+//! - `--meta KEY=VALUE`: extra `grip.run` metadata (`grip drive` passes the
+//!   scenario, controller, ARTE switch and seed).
+//! - `GRIP_INSTANCE` (environment) selects an isolated iceoryx2 namespace.
+//!
+//! Readiness: `READY=1` once the subscribers and the file are open and the
+//! run metadata is written. Stop: SIGTERM/SIGINT → drains the subscribers and
+//! the queue, writes the `grip.recorder` summary, finishes the file, exit 0.
+//! Fatal error: one `error: ...` line on stderr, exit code 1.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use clap::Parser;
+use grip_recorder::{Options, run};
+
+/// The grip recorder (every topic to MCAP).
+#[derive(Debug, Parser)]
+#[command(name = "recorder", version)]
+struct Args {
+    /// Shared configuration directory.
+    #[arg(long, default_value = "config")]
+    config_dir: PathBuf,
+    /// The service's TOML (default: <config-dir>/recorder.toml).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Output MCAP file.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Extra run metadata, KEY=VALUE (repeatable).
+    #[arg(long, value_parser = parse_kv)]
+    meta: Vec<(String, String)>,
+}
+
+fn parse_kv(s: &str) -> Result<(String, String), String> {
+    match s.split_once('=') {
+        Some((k, v)) if !k.is_empty() => Ok((k.to_owned(), v.to_owned())),
+        _ => Err(format!("expected KEY=VALUE, got {s:?}")),
+    }
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .init();
+    let args = Args::parse();
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
+        if let Err(e) = signal_hook::flag::register(sig, Arc::clone(&stop)) {
+            eprintln!("error: cannot install the handler for signal {sig}: {e}");
+            return ExitCode::from(1);
+        }
+    }
+    let opts = Options {
+        config_dir: args.config_dir,
+        config: args.config,
+        out: args.out,
+        meta: args.meta,
+    };
+    match run(&opts, &stop) {
+        Ok(_) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(1)
+        }
+    }
+}
