@@ -4,7 +4,7 @@
 
 use super::fft::RealFft;
 use super::lpc::levinson_durbin;
-use super::{FeatureConfig, N_CEP, N_LPC, N_PS, hamming};
+use super::{FeatureConfig, N_CEP, N_LPC, N_PS, fast_ln, hamming};
 use rustfft::num_complex::Complex;
 
 pub(crate) struct Paper {
@@ -139,7 +139,7 @@ impl Paper {
         // Real cepstrum of the pre-filtered spectrum: c[n] = IDFT(ln|X_f|)[n].
         let floor = 1e-10 * total / nb as f64 + 1e-300;
         for k in 0..nb {
-            self.logmag[k] = 0.5 * (self.pf[k] + floor).ln();
+            self.logmag[k] = 0.5 * fast_ln(self.pf[k] + floor);
         }
         cepstrum_from_logmag(
             &self.logmag,

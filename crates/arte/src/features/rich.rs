@@ -6,7 +6,7 @@
 //! the crate README ("Features", "Rich").
 
 use super::fft::RealFft;
-use super::{FeatureConfig, hann};
+use super::{FeatureConfig, fast_ln, hann};
 use rustfft::num_complex::Complex;
 
 /// Number of broad band groups whose within-frame variability is measured.
@@ -336,7 +336,7 @@ impl Rich {
             let p = self.mean_pow[k] + floor;
             p_sum += p;
             pf_sum += p * k as f64 * df;
-            ln_sum += p.ln();
+            ln_sum += fast_ln(p);
         }
         let nk = (self.k_hi - self.k_lo) as f64;
         let centroid = pf_sum / p_sum;
