@@ -1,1 +1,376 @@
-//! grip service arte: the loop, drivable from tests.
+//! grip service `arte`: audio blocks in (topic `grip/audio/block`), road
+//! estimates out (topic `grip/arte/road`).
+//!
+//! - [`config`]: the `arte-svc.toml` file.
+//! - [`load_model`], [`road_table`]: the model file and the road catalogue
+//!   entry (λ_opt, μ_peak, α = 1 − λ_opt) of each of its classes, checked
+//!   at start-up.
+//! - [`ArteLoop`]: one call per audio block ([`ArteLoop::on_block`]):
+//!   sequence and time checks, S16 → f32, `grip_arte::stream`'s estimator,
+//!   one [`RoadEstimate`] per decision. Allocation-free
+//!   (`tests/no_alloc.rs`).
+//! - [`run`]: the service.
+//!
+//! **Sample rate**: blocks at another rate than the model's are *refused*
+//! (not resampled): they are counted in `rate_mismatch`, an error is logged
+//! once naming both rates, and no estimate is published, so tcs-loop falls
+//! back to its no-ARTE behaviour. Resampling live would feed the classifier
+//! audio whose band limits differ from its training data; the fix is to
+//! set audio-acq's `[audio] sample_rate` to the model's rate.
+
+pub mod config;
+pub mod run;
+pub mod svc;
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use grip_arte::model::{Model, ModelError};
+use grip_arte::stream::{Classify, StreamConfig, StreamError, StreamEstimator};
+use grip_io::clock::Clock;
+use grip_msgs::{AUDIO_MAX_SAMPLES, AudioBlock, MAX_ROAD_CLASSES, NAME_LEN, RoadEstimate};
+use grip_physics::RoadCatalogue;
+
+pub use config::ArteConfig;
+pub use run::{Options, run};
+
+/// Errors of the arte service (start-up).
+#[derive(Debug, thiserror::Error)]
+pub enum ArteError {
+    /// Bad configuration file (or road catalogue).
+    #[error(transparent)]
+    Config(#[from] grip_config::ConfigError),
+    /// The model file cannot be read.
+    #[error("model file {}: cannot read: {reason}", path.display())]
+    ModelIo {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// The model file is not a valid model.
+    #[error("model file {}: {source}", path.display())]
+    Model {
+        /// The file.
+        path: PathBuf,
+        /// The model crate's error.
+        source: ModelError,
+    },
+    /// A model class has no road in the catalogue, or too many classes.
+    #[error("model file {}: {reason}", path.display())]
+    Classes {
+        /// The model file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// The streaming estimator refused model or settings.
+    #[error("streaming estimator: {0}")]
+    Stream(#[from] StreamError),
+    /// iceoryx2.
+    #[error(transparent)]
+    Ipc(#[from] grip_io::ipc::IpcError),
+    /// Other start-up failure.
+    #[error("{0}")]
+    Other(String),
+}
+
+/// Reads and validates a model file; errors carry the path.
+pub fn load_model(path: &Path) -> Result<Model, ArteError> {
+    let bytes = std::fs::read(path).map_err(|e| ArteError::ModelIo {
+        path: path.to_owned(),
+        reason: e.to_string(),
+    })?;
+    Model::from_bytes(&bytes).map_err(|source| ArteError::Model {
+        path: path.to_owned(),
+        source,
+    })
+}
+
+/// What a road estimate says about one class's road.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RoadInfo {
+    /// Class (= road) name, zero padded.
+    pub name: [u8; NAME_LEN],
+    /// Optimal slip of the road's μ-λ curve.
+    pub lambda_opt: f64,
+    /// Peak friction.
+    pub mu_peak: f64,
+    /// MTTE relaxation factor α = 1 − λ_opt.
+    pub alpha: f64,
+}
+
+/// The catalogue entry of every model class, in class order. Errors: more
+/// classes than `RoadEstimate` carries, a class name longer than
+/// `NAME_LEN` bytes, or a class not in the catalogue (named, with the
+/// catalogue's names and `roads_file`).
+pub fn road_table(
+    classes: &[String],
+    roads: &RoadCatalogue,
+    model_path: &Path,
+    roads_file: &Path,
+) -> Result<Vec<RoadInfo>, ArteError> {
+    let err = |reason: String| ArteError::Classes {
+        path: model_path.to_owned(),
+        reason,
+    };
+    if classes.is_empty() || classes.len() > MAX_ROAD_CLASSES {
+        return Err(err(format!(
+            "has {} classes; a road estimate carries 1..={MAX_ROAD_CLASSES}",
+            classes.len()
+        )));
+    }
+    classes
+        .iter()
+        .map(|c| {
+            if c.len() > NAME_LEN {
+                return Err(err(format!(
+                    "class name `{c}` is longer than {NAME_LEN} bytes"
+                )));
+            }
+            let r = roads.get(c).ok_or_else(|| {
+                err(format!(
+                    "class `{c}` is not a road in the catalogue {} (roads: {})",
+                    roads_file.display(),
+                    roads.names()
+                ))
+            })?;
+            Ok(RoadInfo {
+                name: grip_msgs::name_to_bytes(c),
+                lambda_opt: r.lambda_opt(),
+                mu_peak: r.mu_peak(),
+                alpha: 1.0 - r.lambda_opt(),
+            })
+        })
+        .collect()
+}
+
+/// Counters shared with the helper thread (and read by tests).
+#[derive(Debug, Default)]
+pub struct ArteStats {
+    /// Loop iterations (the heartbeat the watchdog follows).
+    pub heartbeat: AtomicU64,
+    /// Audio blocks received.
+    pub blocks: AtomicU64,
+    /// Blocks missing by sequence number (lost in transport).
+    pub lost_blocks: AtomicU64,
+    /// Estimator restarts (time discontinuity or publisher restart).
+    pub resets: AtomicU64,
+    /// Blocks refused for a sample rate other than the model's.
+    pub rate_mismatch: AtomicU64,
+    /// The last refused rate, Hz.
+    pub bad_rate: AtomicU64,
+    /// Road estimates published.
+    pub estimates: AtomicU64,
+    /// Publish failures.
+    pub publish_errors: AtomicU64,
+    /// Receive failures.
+    pub receive_errors: AtomicU64,
+    /// Latest xrun count reported by audio-acq.
+    pub xruns: AtomicU64,
+}
+
+/// Where estimates go: the iceoryx2 publisher, or a test sink.
+pub trait EstimateSink {
+    /// Sends one estimate. Allocation-free.
+    fn send(&mut self, e: &RoadEstimate) -> Result<(), grip_io::ipc::IpcError>;
+}
+
+impl EstimateSink for grip_io::ipc::Publisher<RoadEstimate> {
+    fn send(&mut self, e: &RoadEstimate) -> Result<(), grip_io::ipc::IpcError> {
+        self.publish(e).map(|_| ())
+    }
+}
+
+/// The per-block work of the arte service (see the crate docs).
+///
+/// Frame spans: the estimator counts samples since its last restart; a
+/// decision at sample count `t_end` that falls inside a block starting at
+/// count `S0` with stamp `B` gets `frame_t1 = B + (t_end − S0)/fs` and
+/// `frame_t0 = frame_t1 − frame_len/fs`. Each block re-anchors time, so
+/// lost blocks and overruns shift no later estimate's span (within a frame
+/// that straddles a small gap, `frame_t0` is off by the gap).
+pub struct ArteLoop<C: Classify, K: Clock> {
+    est: StreamEstimator<C>,
+    roads: Vec<RoadInfo>,
+    fs: u32,
+    frame_ns: u64,
+    scratch: Vec<f32>,
+    expected_seq: Option<u64>,
+    next_stamp: Option<u64>,
+    pushed: u64,
+    out_seq: u64,
+    resync_ns: u64,
+    clock: K,
+    est_buf: RoadEstimate,
+}
+
+impl<C: Classify, K: Clock> std::fmt::Debug for ArteLoop<C, K> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ArteLoop")
+            .field("fs", &self.fs)
+            .field("out_seq", &self.out_seq)
+            .finish_non_exhaustive()
+    }
+}
+
+fn samples_ns(n: u64, fs: u32) -> u64 {
+    (u128::from(n) * 1_000_000_000 / u128::from(fs.max(1))) as u64
+}
+
+impl<K: Clock> ArteLoop<grip_arte::model::Predictor, K> {
+    /// From a model: its predictor, feature config and class table.
+    pub fn from_model(
+        model: &Model,
+        stream: &StreamConfig,
+        roads: Vec<RoadInfo>,
+        resync_gap_s: f64,
+        clock: K,
+    ) -> Result<Self, ArteError> {
+        Self::new(
+            model.predictor(),
+            model.feature_config(),
+            stream,
+            roads,
+            resync_gap_s,
+            clock,
+        )
+    }
+}
+
+impl<C: Classify, K: Clock> ArteLoop<C, K> {
+    /// Builds the estimator for `classifier` on `model`'s features at
+    /// `sample_rate`; `roads[i]` describes class i.
+    pub fn new(
+        classifier: C,
+        features: &grip_arte::features::FeatureConfig,
+        stream: &StreamConfig,
+        roads: Vec<RoadInfo>,
+        resync_gap_s: f64,
+        clock: K,
+    ) -> Result<Self, ArteError> {
+        if roads.len() != classifier.n_classes() || roads.len() > MAX_ROAD_CLASSES {
+            return Err(ArteError::Other(format!(
+                "{} road entries for {} classes (max {MAX_ROAD_CLASSES})",
+                roads.len(),
+                classifier.n_classes()
+            )));
+        }
+        let est = StreamEstimator::new(classifier, features, stream)?;
+        let fs = features.sample_rate;
+        Ok(Self {
+            frame_ns: samples_ns(est.frame_len() as u64, fs),
+            est,
+            roads,
+            fs,
+            scratch: vec![0.0; AUDIO_MAX_SAMPLES],
+            expected_seq: None,
+            next_stamp: None,
+            pushed: 0,
+            out_seq: 0,
+            resync_ns: (resync_gap_s.max(0.0) * 1e9) as u64,
+            clock,
+            est_buf: RoadEstimate::zeroed(),
+        })
+    }
+
+    /// The model's sample rate, Hz.
+    pub fn sample_rate(&self) -> u32 {
+        self.fs
+    }
+
+    /// Estimates published so far.
+    pub fn estimates(&self) -> u64 {
+        self.out_seq
+    }
+
+    fn restart(&mut self, stats: &ArteStats) {
+        self.est.reset();
+        self.pushed = 0;
+        stats.resets.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Processes one block; sends every estimate that falls due in it.
+    /// Returns how many. Allocation-free.
+    pub fn on_block(
+        &mut self,
+        b: &AudioBlock,
+        sink: &mut impl EstimateSink,
+        stats: &ArteStats,
+    ) -> usize {
+        stats.blocks.fetch_add(1, Ordering::Relaxed);
+        stats.xruns.store(u64::from(b.xruns), Ordering::Relaxed);
+        if b.sample_rate != self.fs {
+            stats.rate_mismatch.fetch_add(1, Ordering::Relaxed);
+            stats
+                .bad_rate
+                .store(u64::from(b.sample_rate), Ordering::Relaxed);
+            return 0;
+        }
+        let x = b.samples();
+        let n = x.len();
+        // Sequence: gaps are counted; a sequence going backwards means the
+        // publisher restarted.
+        let mut discontinuity = false;
+        if let Some(exp) = self.expected_seq {
+            if b.seq > exp {
+                stats.lost_blocks.fetch_add(b.seq - exp, Ordering::Relaxed);
+            } else if b.seq < exp {
+                discontinuity = true;
+            }
+        }
+        if let Some(ns) = self.next_stamp
+            && b.stamp_ns.abs_diff(ns) > self.resync_ns
+        {
+            discontinuity = true;
+        }
+        if discontinuity && self.pushed > 0 {
+            self.restart(stats);
+        }
+        self.expected_seq = Some(b.seq.wrapping_add(1));
+        self.next_stamp = Some(b.stamp_ns + samples_ns(n as u64, self.fs));
+        for (d, &s) in self.scratch.iter_mut().zip(x) {
+            *d = f32::from(s) / 32768.0;
+        }
+        let start = self.pushed;
+        let stamp = b.stamp_ns;
+        let fs = self.fs;
+        let frame_ns = self.frame_ns;
+        let roads = &self.roads;
+        let clock = &self.clock;
+        let e = &mut self.est_buf;
+        let out_seq = &mut self.out_seq;
+        let mut sent = 0;
+        self.est.push(&self.scratch[..n], |d| {
+            let end = (d.t_end * f64::from(fs)).round().max(0.0) as u64;
+            let t1 = stamp + samples_ns(end.saturating_sub(start), fs);
+            let k = d.probs.len().min(MAX_ROAD_CLASSES);
+            let class = d.class.min(k.saturating_sub(1));
+            e.seq = *out_seq;
+            e.frame_t1_ns = t1;
+            e.frame_t0_ns = t1.saturating_sub(frame_ns);
+            e.class_index = class as u32;
+            e.n_classes = k as u32;
+            e.probabilities = [0.0; MAX_ROAD_CLASSES];
+            for (p, &q) in e.probabilities.iter_mut().zip(d.probs) {
+                *p = q as f32;
+            }
+            e.confidence = d.probs.get(class).copied().unwrap_or(0.0).clamp(0.0, 1.0);
+            let r = &roads[class];
+            e.class_name = r.name;
+            e.lambda_opt = r.lambda_opt;
+            e.mu_peak = r.mu_peak;
+            e.alpha = r.alpha;
+            e.stamp_ns = clock.now_ns();
+            if sink.send(e).is_err() {
+                stats.publish_errors.fetch_add(1, Ordering::Relaxed);
+            } else {
+                stats.estimates.fetch_add(1, Ordering::Relaxed);
+            }
+            *out_seq += 1;
+            sent += 1;
+        });
+        self.pushed += n as u64;
+        sent
+    }
+}

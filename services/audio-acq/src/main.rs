@@ -1,1 +1,88 @@
-fn main() {}
+//! `audio-acq`: tyre-road audio (ALSA microphone, WAV file or synthesiser)
+//! in blocks on the iceoryx2 topic `grip/audio/block`.
+//!
+//! ```text
+//! audio-acq [--config-dir DIR] [--config FILE] [--source alsa|wav|synth]
+//!           [--device PCM] [--wav FILE] [--once] [--run-for SECONDS]
+//! ```
+//! - `--config-dir DIR` (default `config`; systemd: `/etc/grip`); relative
+//!   WAV paths are resolved against it.
+//! - `--config FILE` (default `DIR/audio-acq.toml`).
+//! - `--source`, `--device` (e.g. `hw:Loopback,1,0`), `--wav`, `--once`
+//!   override the file (HIL tests use `--source alsa --device ...`).
+//! - `--run-for SECONDS`: stop by itself.
+//! - `GRIP_INSTANCE` (environment) selects an isolated iceoryx2 namespace.
+//!
+//! `READY=1` once the publisher and the source are open and the real-time
+//! set-up is done. SIGTERM/SIGINT: finish the block, exit 0. A WAV file
+//! played once: exit 0 after its last block. Start-up errors (bad config,
+//! missing device or file): one `error: ...` line, exit code 1.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use clap::Parser;
+use grip_audio_acq::{Options, SourceKind, run};
+
+/// grip audio acquisition: blocks of mono PCM on topic grip/audio/block.
+#[derive(Debug, Parser)]
+#[command(name = "audio-acq", version)]
+struct Args {
+    /// Shared configuration directory.
+    #[arg(long, default_value = "config")]
+    config_dir: PathBuf,
+    /// The service's TOML (default: <config-dir>/audio-acq.toml).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Source override.
+    #[arg(long, value_enum)]
+    source: Option<SourceKind>,
+    /// ALSA capture PCM override, e.g. hw:Loopback,1,0 or default.
+    #[arg(long)]
+    device: Option<String>,
+    /// WAV file override.
+    #[arg(long)]
+    wav: Option<PathBuf>,
+    /// Play the WAV file once, then exit 0 (default: as configured).
+    #[arg(long)]
+    once: bool,
+    /// Stop after this many seconds.
+    #[arg(long)]
+    run_for: Option<f64>,
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .init();
+    let args = Args::parse();
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
+        if let Err(e) = signal_hook::flag::register(sig, Arc::clone(&stop)) {
+            eprintln!("error: cannot install the handler for signal {sig}: {e}");
+            return ExitCode::from(1);
+        }
+    }
+    let opts = Options {
+        config_dir: args.config_dir,
+        config: args.config,
+        source: args.source,
+        device: args.device,
+        wav: args.wav,
+        looped: args.once.then_some(false),
+        run_for: args.run_for,
+    };
+    match run(&opts, stop) {
+        Ok(_) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(1)
+        }
+    }
+}

@@ -1,0 +1,195 @@
+//! `arte-svc.toml`: the model, the streaming estimator's settings, input
+//! handling and real-time settings.
+//!
+//! (`config/arte.toml` is the offline simulator's confusion-matrix
+//! configuration, read by `grip sim`; the live service's file is
+//! `config/arte-svc.toml`.)
+
+use std::path::{Path, PathBuf};
+
+use grip_arte::stream::{Smoothing, StreamConfig};
+use grip_config::ConfigError;
+use grip_io::rt::RtConfig;
+use serde::{Deserialize, Serialize};
+
+/// `[input]`: how audio blocks are taken from the topic.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputSection {
+    /// Sleep between polls of the audio topic when it is empty, ms. A block
+    /// waits at most this long before it is processed.
+    #[serde(default = "default_poll")]
+    pub poll_interval_ms: f64,
+    /// A block whose stamp is further than this from where the previous
+    /// block ended (audio-acq restarted, a long overrun, lost blocks)
+    /// restarts the estimator (its frame and smoothing state), s.
+    #[serde(default = "default_resync")]
+    pub resync_gap_s: f64,
+}
+
+fn default_poll() -> f64 {
+    2.0
+}
+fn default_resync() -> f64 {
+    0.2
+}
+
+impl Default for InputSection {
+    fn default() -> Self {
+        Self {
+            poll_interval_ms: default_poll(),
+            resync_gap_s: default_resync(),
+        }
+    }
+}
+
+/// The whole `arte-svc.toml`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ArteConfig {
+    /// Model file (`--model` overrides); relative to the configuration directory.
+    #[serde(default = "default_model")]
+    pub model: PathBuf,
+    /// Streaming estimator: `hop_s` and `smoothing`.
+    #[serde(default)]
+    pub stream: StreamConfig,
+    /// `[input]`.
+    #[serde(default)]
+    pub input: InputSection,
+    /// `[rt]`.
+    #[serde(default)]
+    pub rt: RtConfig,
+}
+
+fn default_model() -> PathBuf {
+    PathBuf::from("models/default.model")
+}
+
+impl Default for ArteConfig {
+    fn default() -> Self {
+        Self {
+            model: default_model(),
+            stream: StreamConfig::default(),
+            input: InputSection::default(),
+            rt: RtConfig::default(),
+        }
+    }
+}
+
+impl ArteConfig {
+    /// Parses and validates `text`, the contents of `file`.
+    pub fn parse(file: &Path, text: &str) -> Result<Self, ConfigError> {
+        let c: Self = grip_config::parse_toml(file, text)?;
+        c.validate(file)?;
+        Ok(c)
+    }
+
+    /// Reads, parses and validates `file`.
+    pub fn load(file: &Path) -> Result<Self, ConfigError> {
+        Self::parse(file, &grip_config::read_file(file)?)
+    }
+
+    /// Range checks (the estimator checks hop and smoothing again when built).
+    pub fn validate(&self, file: &Path) -> Result<(), ConfigError> {
+        let bad = |field: &str, reason: String| Err(ConfigError::new(file, field, reason));
+        if !(self.stream.hop_s > 0.0 && self.stream.hop_s <= 10.0) {
+            return bad(
+                "stream.hop_s",
+                format!("{} s is outside (0, 10]", self.stream.hop_s),
+            );
+        }
+        if let Smoothing::Hmm { stay, floor } = self.stream.smoothing {
+            if !(stay > 0.0 && stay < 1.0) {
+                return bad(
+                    "stream.smoothing.hmm.stay",
+                    format!("{stay} is outside (0, 1)"),
+                );
+            }
+            if !(floor > 0.0 && floor <= 1.0) {
+                return bad(
+                    "stream.smoothing.hmm.floor",
+                    format!("{floor} is outside (0, 1]"),
+                );
+            }
+        }
+        let i = &self.input;
+        if !(i.poll_interval_ms >= 0.1 && i.poll_interval_ms <= 100.0) {
+            return bad(
+                "input.poll_interval_ms",
+                format!("{} ms is outside [0.1, 100]", i.poll_interval_ms),
+            );
+        }
+        if !(i.resync_gap_s > 0.0 && i.resync_gap_s <= 60.0) {
+            return bad(
+                "input.resync_gap_s",
+                format!("{} s is outside (0, 60]", i.resync_gap_s),
+            );
+        }
+        if let Some(p) = self.rt.fifo_priority
+            && !(1..=99).contains(&p)
+        {
+            return bad("rt.fifo_priority", format!("{p} is outside 1..=99"));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+model = "models/x.model"
+[stream]
+hop_s = 0.05
+smoothing = { hmm = { stay = 0.9, floor = 0.01 } }
+[input]
+poll_interval_ms = 2.0
+[rt]
+fifo_priority = 50
+"#;
+
+    #[test]
+    fn parses_and_defaults() {
+        let c = ArteConfig::parse(Path::new("a.toml"), GOOD).unwrap();
+        assert_eq!(c.model, PathBuf::from("models/x.model"));
+        assert_eq!(
+            c.stream.smoothing,
+            Smoothing::Hmm {
+                stay: 0.9,
+                floor: 0.01
+            }
+        );
+        assert_eq!(c.input.resync_gap_s, 0.2);
+        let d = ArteConfig::parse(Path::new("a.toml"), "").unwrap();
+        assert_eq!(d, ArteConfig::default());
+        let n = ArteConfig::parse(
+            Path::new("a.toml"),
+            "[stream]\nhop_s = 0.1\nsmoothing = \"none\"\n",
+        )
+        .unwrap();
+        assert_eq!(n.stream.smoothing, Smoothing::None);
+    }
+
+    #[test]
+    fn errors_name_the_field() {
+        let e = ArteConfig::parse(
+            Path::new("a.toml"),
+            &GOOD.replace("stay = 0.9", "stay = 1.5"),
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "stream.smoothing.hmm.stay", "{e}");
+        let e = ArteConfig::parse(Path::new("a.toml"), &GOOD.replace("hop_s", "hops")).unwrap_err();
+        assert!(e.field.starts_with("stream"), "{e}");
+        let e = ArteConfig::parse(
+            Path::new("a.toml"),
+            &GOOD.replace("poll_interval_ms = 2.0", "poll_interval_ms = 0.0"),
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "input.poll_interval_ms");
+        assert!(
+            e.to_string()
+                .starts_with("a.toml: field `input.poll_interval_ms`")
+        );
+    }
+}

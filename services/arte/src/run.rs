@@ -1,0 +1,177 @@
+//! The service: configuration, model, road table, ports, real-time set-up,
+//! readiness, the loop until stopped.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use grip_io::clock::{Clock, MonotonicClock};
+use grip_io::ipc::{IpcNode, SubscriberMode};
+use grip_msgs::{AudioBlock, RoadEstimate, topics};
+
+use crate::{ArteConfig, ArteError, ArteLoop, ArteStats, load_model, road_table, svc};
+
+/// Command-line choices.
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    /// Shared configuration directory (`roads.toml`, `models/`).
+    pub config_dir: PathBuf,
+    /// The service's TOML (default `<config_dir>/arte-svc.toml`).
+    pub config: Option<PathBuf>,
+    /// Model file override (as given: relative to the working directory).
+    pub model: Option<PathBuf>,
+    /// Stop by itself after this many seconds.
+    pub run_for: Option<f64>,
+}
+
+/// What a run did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RunSummary {
+    /// Audio blocks received.
+    pub blocks: u64,
+    /// Estimates published.
+    pub estimates: u64,
+    /// Blocks lost (sequence gaps).
+    pub lost_blocks: u64,
+}
+
+/// Everything checked at start-up, before any port opens.
+#[derive(Debug)]
+pub struct Prepared {
+    /// The config file used.
+    pub config_file: PathBuf,
+    /// Its contents.
+    pub cfg: ArteConfig,
+    /// The model file used.
+    pub model_path: PathBuf,
+    /// The loop, ready to run.
+    pub lp: ArteLoop<grip_arte::model::Predictor, MonotonicClock>,
+    /// Model class names.
+    pub classes: Vec<String>,
+}
+
+fn resolve(dir: &Path, p: &Path) -> PathBuf {
+    if p.is_absolute() {
+        p.to_owned()
+    } else {
+        dir.join(p)
+    }
+}
+
+/// Loads config, model and road catalogue and builds the loop; every
+/// start-up error names its file.
+pub fn prepare(opts: &Options) -> Result<Prepared, ArteError> {
+    let config_file = opts
+        .config
+        .clone()
+        .unwrap_or_else(|| opts.config_dir.join("arte-svc.toml"));
+    let cfg = ArteConfig::load(&config_file)?;
+    let model_path = match &opts.model {
+        Some(p) => p.clone(),
+        None => resolve(&opts.config_dir, &cfg.model),
+    };
+    let model = load_model(&model_path)?;
+    let roads_file = opts.config_dir.join("roads.toml");
+    let roads = grip_config::load_roads(&roads_file)?;
+    let table = road_table(model.classes(), &roads, &model_path, &roads_file)?;
+    let lp = ArteLoop::from_model(
+        &model,
+        &cfg.stream,
+        table,
+        cfg.input.resync_gap_s,
+        MonotonicClock,
+    )?;
+    Ok(Prepared {
+        config_file,
+        model_path,
+        classes: model.classes().to_vec(),
+        cfg,
+        lp,
+    })
+}
+
+/// Runs the service until `stop` is set or `run_for` passes.
+pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteError> {
+    let Prepared {
+        config_file,
+        cfg,
+        model_path,
+        mut lp,
+        classes,
+    } = prepare(opts)?;
+    let rate = lp.sample_rate();
+    tracing::info!(
+        config = %config_file.display(),
+        model = %model_path.display(),
+        classes = %classes.join(", "),
+        rate,
+        hop_s = cfg.stream.hop_s,
+        "arte starting"
+    );
+    let node = IpcNode::create(topics::node::ARTE)?;
+    let sub = node.subscriber::<AudioBlock>(topics::AUDIO, SubscriberMode::Deep)?;
+    let mut publisher = node.publisher::<RoadEstimate>(topics::ROAD)?;
+    let stats = Arc::new(ArteStats::default());
+    let done = Arc::new(AtomicBool::new(false));
+    let helper = svc::spawn_helper(Arc::clone(&stats), rate, Arc::clone(&done))
+        .map_err(|e| ArteError::Other(format!("cannot start the helper thread: {e}")))?;
+    let rt = grip_io::rt::apply(&cfg.rt);
+    rt.log();
+    let clock = MonotonicClock;
+    let poll_ns = (cfg.input.poll_interval_ms * 1e6) as u64;
+    let deadline = opts
+        .run_for
+        .map(|s| clock.now_ns() + (s.max(0.0) * 1e9) as u64);
+    svc::notify_ready(&format!(
+        "estimating: {} classes at {rate} Hz from {}",
+        classes.len(),
+        topics::AUDIO
+    ));
+    let mut beat = 0u64;
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            break;
+        }
+        let now = clock.now_ns();
+        if deadline.is_some_and(|d| now >= d) {
+            break;
+        }
+        beat += 1;
+        stats.heartbeat.store(beat, Ordering::Relaxed);
+        let mut got = 0;
+        loop {
+            match sub.recv() {
+                Ok(Some(b)) => {
+                    lp.on_block(&b, &mut publisher, &stats);
+                    got += 1;
+                }
+                Ok(None) => break,
+                Err(_) => {
+                    stats.receive_errors.fetch_add(1, Ordering::Relaxed);
+                    break;
+                }
+            }
+        }
+        if got == 0 {
+            clock.sleep_until_ns(now + poll_ns);
+        }
+    }
+    svc::notify_stopping();
+    done.store(true, Ordering::Relaxed);
+    let _ = helper.join();
+    drop(rt);
+    let summary = RunSummary {
+        blocks: stats.blocks.load(Ordering::Relaxed),
+        estimates: stats.estimates.load(Ordering::Relaxed),
+        lost_blocks: stats.lost_blocks.load(Ordering::Relaxed),
+    };
+    tracing::info!(
+        blocks = summary.blocks,
+        estimates = summary.estimates,
+        lost_blocks = summary.lost_blocks,
+        resets = stats.resets.load(Ordering::Relaxed),
+        rate_mismatch = stats.rate_mismatch.load(Ordering::Relaxed),
+        "arte stopped"
+    );
+    Ok(summary)
+}

@@ -1,0 +1,371 @@
+//! `audio-acq.toml`: which source, block size, rate, device and real-time
+//! settings. Parsed with `grip_config::parse_toml` (unknown fields refused,
+//! errors name file, field and line) and range-checked by [`AcqConfig::validate`].
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use grip_config::ConfigError;
+use grip_io::rt::RtConfig;
+use serde::{Deserialize, Serialize};
+
+/// Where the audio comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum SourceKind {
+    /// An ALSA capture PCM (the microphone on the car, `hw:Loopback,1,0` in HIL tests).
+    Alsa,
+    /// A WAV file, played once or looped, paced in real time.
+    Wav,
+    /// Synthetic tyre-road audio following plant-sim's ground truth.
+    Synth,
+}
+
+impl SourceKind {
+    /// Lower-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            SourceKind::Alsa => "alsa",
+            SourceKind::Wav => "wav",
+            SourceKind::Synth => "synth",
+        }
+    }
+}
+
+/// `[audio]`: what every source shares.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AudioSection {
+    /// Source kind (`--source` overrides).
+    pub source: SourceKind,
+    /// Sample rate of the published blocks, Hz (8000..=192000).
+    pub sample_rate: u32,
+    /// Samples per block (1..=`grip_msgs::AUDIO_MAX_SAMPLES`).
+    pub block_samples: usize,
+}
+
+/// `[alsa]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AlsaSection {
+    /// PCM name (`--device` overrides), e.g. `default`, `hw:Loopback,1,0`.
+    pub device: String,
+    /// Channels to open the device with (1..=32).
+    #[serde(default = "one")]
+    pub channels: u32,
+    /// Which of them is published (0-based, < channels).
+    #[serde(default)]
+    pub channel: u32,
+    /// ALSA period size, frames.
+    pub period_frames: usize,
+    /// ALSA buffer size, frames (≥ 2 periods).
+    pub buffer_frames: usize,
+    /// Longest single wait for data, ms; on expiry the loop checks its stop
+    /// flag and waits again (no unbounded waits).
+    #[serde(default = "default_wait_ms")]
+    pub wait_timeout_ms: u32,
+}
+
+fn one() -> u32 {
+    1
+}
+fn default_wait_ms() -> u32 {
+    200
+}
+
+/// `[wav]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WavSection {
+    /// The file (`--wav` overrides); relative paths are relative to the
+    /// configuration directory.
+    pub path: PathBuf,
+    /// Start again at the end (`false`: publish the file once, then exit 0).
+    #[serde(default = "yes")]
+    pub looped: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// What the synth source does when ground truth stops arriving.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TruthLost {
+    /// Keep generating the last known road at the last known speed.
+    Hold,
+    /// Publish digital silence (zeros) until truth returns.
+    Silence,
+}
+
+/// Noise mixed into the synthetic road sound (see `grip_arte::synth`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SynthNoise {
+    /// Rain.
+    #[serde(default)]
+    pub rain: bool,
+    /// Passing cars.
+    #[serde(default)]
+    pub car: bool,
+    /// Road-sound power over noise power, dB.
+    pub snr_db: f64,
+}
+
+/// `[synth]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SynthSection {
+    /// Seed of the per-recording variation (tyre, microphone, surfaces).
+    #[serde(default = "one64")]
+    pub seed: u64,
+    /// Ground truth older than this (no new sample for this long) counts as lost, s.
+    #[serde(default = "default_truth_timeout")]
+    pub truth_timeout_s: f64,
+    /// Behaviour while truth is lost (and before the first truth arrives:
+    /// always silence then, there is no last road).
+    #[serde(default = "default_truth_lost")]
+    pub on_truth_lost: TruthLost,
+    /// Noise; leave out for clean road sound.
+    #[serde(default)]
+    pub noise: Option<SynthNoise>,
+    /// Catalogue road names the synthesiser does not know, mapped to one it
+    /// does (`grip_arte::synth::ROADS`). A road neither known nor aliased
+    /// gives vehicle and microphone sound only (no tyre-road sound).
+    #[serde(default = "default_aliases")]
+    pub aliases: BTreeMap<String, String>,
+}
+
+fn one64() -> u64 {
+    1
+}
+fn default_truth_timeout() -> f64 {
+    0.5
+}
+fn default_truth_lost() -> TruthLost {
+    TruthLost::Hold
+}
+fn default_aliases() -> BTreeMap<String, String> {
+    BTreeMap::new()
+}
+
+impl Default for SynthSection {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            truth_timeout_s: default_truth_timeout(),
+            on_truth_lost: default_truth_lost(),
+            noise: None,
+            aliases: default_aliases(),
+        }
+    }
+}
+
+/// The whole `audio-acq.toml`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AcqConfig {
+    /// `[audio]`.
+    pub audio: AudioSection,
+    /// `[alsa]` (needed when the source is alsa).
+    #[serde(default)]
+    pub alsa: Option<AlsaSection>,
+    /// `[wav]` (needed when the source is wav).
+    #[serde(default)]
+    pub wav: Option<WavSection>,
+    /// `[synth]`.
+    #[serde(default)]
+    pub synth: SynthSection,
+    /// `[rt]`: SCHED_FIFO priority, mlockall, CPUs, cpu_dma_latency.
+    #[serde(default)]
+    pub rt: RtConfig,
+}
+
+impl AcqConfig {
+    /// Parses `text` (the contents of `file`) and validates it.
+    pub fn parse(file: &Path, text: &str) -> Result<Self, ConfigError> {
+        let c: Self = grip_config::parse_toml(file, text)?;
+        c.validate(file)?;
+        Ok(c)
+    }
+
+    /// Reads, parses and validates `file`.
+    pub fn load(file: &Path) -> Result<Self, ConfigError> {
+        Self::parse(file, &grip_config::read_file(file)?)
+    }
+
+    /// Range checks; the error names `file`, the field and the reason.
+    pub fn validate(&self, file: &Path) -> Result<(), ConfigError> {
+        let bad = |field: &str, reason: String| Err(ConfigError::new(file, field, reason));
+        let a = &self.audio;
+        if !(8_000..=192_000).contains(&a.sample_rate) {
+            return bad(
+                "audio.sample_rate",
+                format!("{} Hz is outside 8000..=192000", a.sample_rate),
+            );
+        }
+        if !(1..=grip_msgs::AUDIO_MAX_SAMPLES).contains(&a.block_samples) {
+            return bad(
+                "audio.block_samples",
+                format!(
+                    "{} is outside 1..={} (grip_msgs::AUDIO_MAX_SAMPLES)",
+                    a.block_samples,
+                    grip_msgs::AUDIO_MAX_SAMPLES
+                ),
+            );
+        }
+        match (a.source, &self.alsa, &self.wav) {
+            (SourceKind::Alsa, None, _) => {
+                return bad(
+                    "alsa",
+                    "source is \"alsa\" but there is no [alsa] section".into(),
+                );
+            }
+            (SourceKind::Wav, _, None) => {
+                return bad(
+                    "wav",
+                    "source is \"wav\" but there is no [wav] section".into(),
+                );
+            }
+            _ => {}
+        }
+        if let Some(al) = &self.alsa {
+            if al.device.is_empty() {
+                return bad("alsa.device", "is empty".into());
+            }
+            if !(1..=32).contains(&al.channels) {
+                return bad(
+                    "alsa.channels",
+                    format!("{} is outside 1..=32", al.channels),
+                );
+            }
+            if al.channel >= al.channels {
+                return bad(
+                    "alsa.channel",
+                    format!("{} is not below channels = {}", al.channel, al.channels),
+                );
+            }
+            if !(16..=65_536).contains(&al.period_frames) {
+                return bad(
+                    "alsa.period_frames",
+                    format!("{} is outside 16..=65536", al.period_frames),
+                );
+            }
+            if al.buffer_frames < 2 * al.period_frames || al.buffer_frames > 1 << 20 {
+                return bad(
+                    "alsa.buffer_frames",
+                    format!(
+                        "{} must be at least 2 periods ({}) and at most 1048576",
+                        al.buffer_frames,
+                        2 * al.period_frames
+                    ),
+                );
+            }
+            if !(1..=10_000).contains(&al.wait_timeout_ms) {
+                return bad(
+                    "alsa.wait_timeout_ms",
+                    format!("{} is outside 1..=10000", al.wait_timeout_ms),
+                );
+            }
+        }
+        let s = &self.synth;
+        if !(s.truth_timeout_s > 0.0 && s.truth_timeout_s <= 60.0) {
+            return bad(
+                "synth.truth_timeout_s",
+                format!("{} s is outside (0, 60]", s.truth_timeout_s),
+            );
+        }
+        if let Some(n) = &s.noise
+            && !(-30.0..=80.0).contains(&n.snr_db)
+        {
+            return bad(
+                "synth.noise.snr_db",
+                format!("{} dB is outside -30..=80", n.snr_db),
+            );
+        }
+        for (from, to) in &s.aliases {
+            if grip_arte::synth::road_index(to).is_none() {
+                return bad(
+                    &format!("synth.aliases.{from}"),
+                    format!(
+                        "`{to}` is not a road the synthesiser knows ({})",
+                        grip_arte::synth::ROADS.join(", ")
+                    ),
+                );
+            }
+        }
+        if let Some(p) = self.rt.fifo_priority
+            && !(1..=99).contains(&p)
+        {
+            return bad("rt.fifo_priority", format!("{p} is outside 1..=99"));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+[audio]
+source = "synth"
+sample_rate = 44100
+block_samples = 1024
+[alsa]
+device = "hw:Loopback,1,0"
+period_frames = 512
+buffer_frames = 4096
+[synth]
+seed = 3
+aliases = { asphalt_mf = "asphalt" }
+[rt]
+fifo_priority = 60
+"#;
+
+    #[test]
+    fn good_config_parses() {
+        let c = AcqConfig::parse(Path::new("a.toml"), GOOD).unwrap();
+        assert_eq!(c.audio.source, SourceKind::Synth);
+        assert_eq!(c.alsa.as_ref().unwrap().channels, 1);
+        assert_eq!(c.synth.seed, 3);
+        assert_eq!(c.synth.on_truth_lost, TruthLost::Hold);
+        assert_eq!(c.rt.fifo_priority, Some(60));
+    }
+
+    #[test]
+    fn errors_name_file_field_and_reason() {
+        let e = AcqConfig::parse(
+            Path::new("a.toml"),
+            &GOOD.replace("block_samples = 1024", "block_samples = 5000"),
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "audio.block_samples");
+        assert!(
+            e.to_string()
+                .starts_with("a.toml: field `audio.block_samples`: 5000")
+        );
+        let e = AcqConfig::parse(Path::new("a.toml"), &GOOD.replace("seed = 3", "sed = 3"))
+            .unwrap_err();
+        assert_eq!(e.field, "synth.sed");
+        let e = AcqConfig::parse(
+            Path::new("a.toml"),
+            &GOOD.replace("\"asphalt\" }", "\"tarmac\" }"),
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "synth.aliases.asphalt_mf");
+        let e = AcqConfig::parse(
+            Path::new("a.toml"),
+            &GOOD.replace("source = \"synth\"", "source = \"wav\""),
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "wav");
+        let e = AcqConfig::parse(
+            Path::new("a.toml"),
+            &GOOD.replace("buffer_frames = 4096", "buffer_frames = 600"),
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "alsa.buffer_frames");
+    }
+}

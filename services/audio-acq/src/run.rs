@@ -1,0 +1,267 @@
+//! The service: configuration, ports, source, real-time set-up, readiness,
+//! the loop until stopped, shutdown.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use grip_io::clock::{MonotonicClock, monotonic_now_ns};
+use grip_io::ipc::{IpcNode, SubscriberMode};
+use grip_msgs::{AudioBlock, GroundTruth, topics};
+
+use crate::alsa_src::{AlsaPcm, AlsaSource};
+use crate::config::{AcqConfig, AlsaSection, SourceKind, WavSection};
+use crate::synth::SynthSource;
+use crate::wav::{WavSource, read_mono_i16};
+use crate::{AcqError, AcqLoop, AcqStatus, Source, Step, svc};
+
+/// A paced source that falls further behind than this drops its backlog
+/// (counted as an xrun), as a capture device with a 200 ms buffer would.
+pub const PACER_SLACK_NS: u64 = 200_000_000;
+
+/// Command-line choices (each overrides the file).
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    /// Shared configuration directory.
+    pub config_dir: PathBuf,
+    /// The service's TOML (default `<config_dir>/audio-acq.toml`).
+    pub config: Option<PathBuf>,
+    /// Source override.
+    pub source: Option<SourceKind>,
+    /// ALSA device override (creates an `[alsa]` section with defaults if
+    /// the file has none).
+    pub device: Option<String>,
+    /// WAV file override.
+    pub wav: Option<PathBuf>,
+    /// WAV: play once (`Some(false)`) or looped (`Some(true)`).
+    pub looped: Option<bool>,
+    /// Stop by itself after this many seconds.
+    pub run_for: Option<f64>,
+}
+
+/// What a run did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RunSummary {
+    /// Blocks published.
+    pub blocks: u64,
+    /// Overruns.
+    pub xruns: u64,
+    /// Publish failures.
+    pub publish_errors: u64,
+    /// True if the source ended (WAV once), false if stopped.
+    pub source_ended: bool,
+}
+
+/// The effective configuration: file plus command-line overrides, validated.
+pub fn effective_config(opts: &Options) -> Result<(PathBuf, AcqConfig), AcqError> {
+    let file = opts
+        .config
+        .clone()
+        .unwrap_or_else(|| opts.config_dir.join("audio-acq.toml"));
+    let mut cfg = AcqConfig::load(&file)?;
+    if let Some(s) = opts.source {
+        cfg.audio.source = s;
+    }
+    if let Some(d) = &opts.device {
+        match &mut cfg.alsa {
+            Some(a) => a.device = d.clone(),
+            None => {
+                cfg.alsa = Some(AlsaSection {
+                    device: d.clone(),
+                    channels: 1,
+                    channel: 0,
+                    period_frames: 512,
+                    buffer_frames: 4096,
+                    wait_timeout_ms: 200,
+                })
+            }
+        }
+    }
+    if let Some(p) = &opts.wav {
+        match &mut cfg.wav {
+            Some(w) => w.path = p.clone(),
+            None => {
+                cfg.wav = Some(WavSection {
+                    path: p.clone(),
+                    looped: true,
+                })
+            }
+        }
+    }
+    if let (Some(l), Some(w)) = (opts.looped, &mut cfg.wav) {
+        w.looped = l;
+    }
+    cfg.validate(&file)?;
+    Ok((file, cfg))
+}
+
+fn resolve(dir: &Path, p: &Path) -> PathBuf {
+    if p.is_absolute() || p.exists() {
+        p.to_owned()
+    } else {
+        dir.join(p)
+    }
+}
+
+/// Runs the service until `stop` is set, `run_for` passes, or the source
+/// ends. Start-up errors are returned before `READY=1`.
+pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, AcqError> {
+    let (file, cfg) = effective_config(opts)?;
+    let rate = cfg.audio.sample_rate;
+    let block = cfg.audio.block_samples;
+    tracing::info!(
+        config = %file.display(),
+        source = cfg.audio.source.name(),
+        rate,
+        block,
+        "audio-acq starting"
+    );
+    let node = IpcNode::create(topics::node::AUDIO_ACQ)?;
+    let publisher = node.publisher::<AudioBlock>(topics::AUDIO)?;
+    let status = Arc::new(AcqStatus::default());
+    match cfg.audio.source {
+        SourceKind::Alsa => {
+            let al = cfg.alsa.clone().ok_or_else(|| {
+                AcqError::Config(grip_config::ConfigError::new(&file, "alsa", "missing"))
+            })?;
+            let pcm = AlsaPcm::open(&al, rate)?;
+            let what = format!(
+                "ALSA {} ({} ch, channel {}, period {} frames, buffer {} frames)",
+                pcm.device, al.channels, al.channel, pcm.period_frames, pcm.buffer_frames
+            );
+            let src = AlsaSource::new(pcm, &al, rate, block);
+            serve(
+                src,
+                &cfg,
+                &what,
+                al.channel as u16,
+                publisher,
+                status,
+                opts,
+                stop,
+            )
+        }
+        SourceKind::Wav => {
+            let w = cfg.wav.clone().ok_or_else(|| {
+                AcqError::Config(grip_config::ConfigError::new(&file, "wav", "missing"))
+            })?;
+            let path = resolve(&opts.config_dir, &w.path);
+            let audio = read_mono_i16(&path, rate)?;
+            let what = format!(
+                "WAV {} ({} Hz, {} ch, {:.1} s, {})",
+                path.display(),
+                audio.file_rate,
+                audio.file_channels,
+                audio.samples.len() as f64 / f64::from(rate),
+                if w.looped { "looped" } else { "once" }
+            );
+            let src = WavSource::new(
+                audio.samples,
+                rate,
+                w.looped,
+                MonotonicClock,
+                PACER_SLACK_NS,
+            );
+            serve(src, &cfg, &what, 0, publisher, status, opts, stop)
+        }
+        SourceKind::Synth => {
+            let truth = node.subscriber::<GroundTruth>(topics::TRUTH, SubscriberMode::Latest)?;
+            let src = SynthSource::new(
+                &cfg.synth,
+                rate,
+                block,
+                truth,
+                MonotonicClock,
+                PACER_SLACK_NS,
+            )?;
+            let what = format!(
+                "synth (seed {}, noise {}, truth from {}, on loss: {:?})",
+                cfg.synth.seed,
+                cfg.synth
+                    .noise
+                    .as_ref()
+                    .map_or("off".to_string(), |n| format!(
+                        "rain {} car {} SNR {} dB",
+                        n.rain, n.car, n.snr_db
+                    )),
+                topics::TRUTH,
+                cfg.synth.on_truth_lost
+            );
+            serve(src, &cfg, &what, 0, publisher, status, opts, stop)
+        }
+    }
+}
+
+fn serve<S: Source>(
+    source: S,
+    cfg: &AcqConfig,
+    what: &str,
+    channel: u16,
+    mut publisher: grip_io::ipc::Publisher<AudioBlock>,
+    status: Arc<AcqStatus>,
+    opts: &Options,
+    stop: Arc<AtomicBool>,
+) -> Result<RunSummary, AcqError> {
+    let done = Arc::new(AtomicBool::new(false));
+    let helper = svc::spawn_helper(
+        Arc::clone(&status),
+        cfg.audio.source == SourceKind::Synth,
+        Arc::clone(&done),
+    )
+    .map_err(|e| AcqError::Synth(format!("cannot start the helper thread: {e}")))?;
+    let rt = grip_io::rt::apply(&cfg.rt);
+    rt.log();
+    let mut lp = AcqLoop::new(
+        source,
+        cfg.audio.block_samples,
+        channel,
+        Arc::clone(&status),
+    );
+    let deadline = opts
+        .run_for
+        .map(|s| monotonic_now_ns() + (s.max(0.0) * 1e9) as u64);
+    tracing::info!(
+        "source: {what}; publishing {} samples/block at {} Hz on {}",
+        cfg.audio.block_samples,
+        cfg.audio.sample_rate,
+        topics::AUDIO
+    );
+    svc::notify_ready(&format!("capturing: {what}"));
+    let mut ended = false;
+    let res = loop {
+        if stop.load(Ordering::Relaxed) {
+            break Ok(());
+        }
+        if let Some(d) = deadline
+            && monotonic_now_ns() >= d
+        {
+            break Ok(());
+        }
+        match lp.step(&mut publisher) {
+            Ok(Step::Published | Step::Timeout) => {}
+            Ok(Step::End) => {
+                ended = true;
+                break Ok(());
+            }
+            Err(e) => break Err(e),
+        }
+    };
+    svc::notify_stopping();
+    done.store(true, Ordering::Relaxed);
+    let _ = helper.join();
+    drop(rt);
+    let summary = RunSummary {
+        blocks: lp.blocks(),
+        xruns: status.xruns.load(Ordering::Relaxed),
+        publish_errors: status.publish_errors.load(Ordering::Relaxed),
+        source_ended: ended,
+    };
+    tracing::info!(
+        blocks = summary.blocks,
+        xruns = summary.xruns,
+        publish_errors = summary.publish_errors,
+        source_ended = ended,
+        "audio-acq stopped"
+    );
+    res.map(|()| summary)
+}
