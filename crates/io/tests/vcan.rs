@@ -9,7 +9,8 @@
 //! tests FAIL (never skip) when the interface or AF_CAN is missing.
 
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::cell::Cell;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use grip_io::can::protocol::*;
@@ -19,14 +20,17 @@ use grip_io::can::{
 use grip_io::ipc::IpcNode;
 use grip_msgs::{CanFrame, can_dir};
 
-/// Counts allocations while `ON` is set (tests that use it hold `LOCK`).
+/// Counts allocations made by a thread while its `ON` flag is set, so tests
+/// running in parallel in this binary never pollute the count.
 struct Counting;
-static ON: AtomicBool = AtomicBool::new(false);
+thread_local! {
+    static ON: Cell<bool> = const { Cell::new(false) };
+}
 static COUNT: AtomicU64 = AtomicU64::new(0);
 // SAFETY: forwards to the system allocator; only counts.
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        if ON.load(Ordering::Relaxed) {
+        if ON.with(Cell::get) {
             COUNT.fetch_add(1, Ordering::Relaxed);
         }
         // SAFETY: same layout contract as the caller's.
@@ -148,10 +152,8 @@ fn auto_transport_chooses_socketcan_when_available() {
     assert_eq!(open_bus(&cfg, &node).unwrap().kind(), BusKind::SocketCan);
 }
 
-/// SocketCAN send / try_recv / recv_timeout allocate nothing. Run alone
-/// (`-- --test-threads=1` is not needed: other tests' allocations only make
-/// this fail spuriously, never pass wrongly; the HIL harness runs the binary
-/// with RUST_TEST_THREADS=1 for a clean count).
+/// SocketCAN send / try_recv / recv_timeout allocate nothing (counted on
+/// this test's thread only).
 #[test]
 fn socketcan_hot_path_allocates_nothing() {
     let mut a = open();
@@ -163,7 +165,7 @@ fn socketcan_hot_path_allocates_nothing() {
     }
     let mut got = 0;
     COUNT.store(0, Ordering::SeqCst);
-    ON.store(true, Ordering::SeqCst);
+    ON.with(|on| on.set(true));
     for _ in 0..500 {
         a.send(&f).unwrap();
         while let Some(r) = b.recv_timeout(Duration::from_millis(100)).unwrap() {
@@ -174,7 +176,7 @@ fn socketcan_hot_path_allocates_nothing() {
         }
         let _ = b.try_recv().unwrap();
     }
-    ON.store(false, Ordering::SeqCst);
+    ON.with(|on| on.set(false));
     assert_eq!(got, 500);
     assert_eq!(COUNT.load(Ordering::SeqCst), 0);
 }
