@@ -1,0 +1,110 @@
+//! The plant-sim cycle allocates nothing after warm-up: a counting global
+//! allocator (current thread only) around 20 000 cycles with commands,
+//! corrupted frames, command outages (inverter timeout) and the scenario
+//! running through all its segments to its end.
+//!
+//! The ports are in-memory doubles; with the real iceoryx2 ports each
+//! publish allocates one 48-byte Arc inside iceoryx2 0.10 (see
+//! `crates/io/tests/no_alloc.rs`).
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use common::{LastTruth, MemBus, sim};
+use grip_io::can::protocol::{E2eSender, TorqueCommand};
+use grip_io::clock::{Clock, ManualClock};
+use grip_msgs::CanFrame;
+use grip_plant_sim::{Phase, PlantSimConfig, StartOn, Tick};
+
+struct Counting;
+thread_local! {
+    static ON: Cell<bool> = const { Cell::new(false) };
+    static COUNT: Cell<u64> = const { Cell::new(0) };
+}
+// SAFETY: forwards to the system allocator; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        if ON.with(|o| o.get()) {
+            COUNT.with(|c| c.set(c.get() + 1));
+        }
+        // SAFETY: same layout contract as the caller's.
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        // SAFETY: p was allocated by System with l.
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        if ON.with(|o| o.get()) {
+            COUNT.with(|c| c.set(c.get() + 1));
+        }
+        // SAFETY: forwarded unchanged.
+        unsafe { System.realloc(p, l, n) }
+    }
+}
+#[global_allocator]
+static A: Counting = Counting;
+
+fn allocations(f: impl FnOnce()) -> u64 {
+    COUNT.with(|c| c.set(0));
+    ON.with(|o| o.set(true));
+    f();
+    ON.with(|o| o.set(false));
+    COUNT.with(|c| c.get())
+}
+
+const MS: u64 = 1_000_000;
+
+#[test]
+fn cycle_allocates_nothing_after_warm_up() {
+    let cfg = PlantSimConfig {
+        start_on: StartOn::Commands,
+        ..PlantSimConfig::with_scenario("paper")
+    };
+    let mut s = sim(&cfg);
+    let clock = ManualClock::new(1_000 * MS);
+    let mut bus = MemBus::new();
+    let mut truth = LastTruth::default();
+    let mut tx = E2eSender::<TorqueCommand>::new();
+    let mut k = 0u64;
+    let mut step = |s: &mut grip_plant_sim::PlantSim, bus: &mut MemBus, truth: &mut LastTruth| {
+        let now = clock.now_ns();
+        let outage = (1_500..1_540).contains(&(k % 3_000));
+        if !outage {
+            let f = tx.encode(
+                &TorqueCommand {
+                    torque_request: 150.0 + (k % 100) as f64,
+                    enable: true,
+                },
+                now,
+            );
+            bus.inject(f);
+        }
+        if k % 700 == 11 {
+            let mut f = tx.encode(&TorqueCommand::default(), now);
+            f.data[5] ^= 1;
+            bus.inject(f);
+            bus.inject(CanFrame::new(0x42, &[0; 3]));
+        }
+        s.cycle(&Tick::at(now), &clock, bus, truth);
+        bus.tx.borrow_mut().clear();
+        clock.advance_ns(MS);
+        k += 1;
+    };
+    for _ in 0..500 {
+        step(&mut s, &mut bus, &mut truth);
+    }
+    assert_eq!(s.phase(), Phase::Running);
+    let n = allocations(|| {
+        for _ in 0..20_000 {
+            step(&mut s, &mut bus, &mut truth);
+        }
+    });
+    assert_eq!(n, 0, "{n} allocations in 20 000 cycles");
+    assert_eq!(s.phase(), Phase::Ended, "ran through the whole scenario");
+    assert!(s.cmd_timeouts() >= 5, "outages: {}", s.cmd_timeouts());
+    assert!(s.protocol_rx().faults().crc >= 20);
+    assert!(truth.last.unwrap().v.is_finite());
+}

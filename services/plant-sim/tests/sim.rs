@@ -1,0 +1,287 @@
+//! plant-sim's loop on a manual clock with an in-memory bus: the inverter's
+//! command timeout, E2E rejection, frame rates and contents, start triggers,
+//! the end of a scenario.
+
+mod common;
+
+use common::{LastTruth, MemBus, sim};
+use grip_io::can::protocol::{
+    E2eSender, InverterMsg, MotorStatus, ProtocolMessage, ProtocolRx, TorqueCommand, encode,
+};
+use grip_io::clock::{Clock, ManualClock};
+use grip_msgs::CanFrame;
+use grip_plant_sim::{FAULT_CMD_TIMEOUT, Outcome, Phase, PlantSim, PlantSimConfig, StartOn, Tick};
+
+const MS: u64 = 1_000_000;
+
+struct Rig {
+    clock: ManualClock,
+    bus: MemBus,
+    truth: LastTruth,
+    sim: PlantSim,
+    tx: E2eSender<TorqueCommand>,
+    tcs_rx: ProtocolRx,
+    last_status: Option<MotorStatus>,
+}
+
+impl Rig {
+    fn new(cfg: &PlantSimConfig) -> Self {
+        Self {
+            clock: ManualClock::new(5_000 * MS),
+            bus: MemBus::new(),
+            truth: LastTruth::default(),
+            sim: sim(cfg),
+            tx: E2eSender::new(),
+            tcs_rx: ProtocolRx::for_tcs(),
+            last_status: None,
+        }
+    }
+    fn send_cmd(&mut self, torque: f64, enable: bool) {
+        let f = self.tx.encode(
+            &TorqueCommand {
+                torque_request: torque,
+                enable,
+            },
+            self.clock.now_ns(),
+        );
+        self.bus.inject(f);
+    }
+    /// One cycle; checks every frame sent with a tcs-side receiver.
+    fn cycle(&mut self) -> (Outcome, Vec<CanFrame>) {
+        let now = self.clock.now_ns();
+        let o = self
+            .sim
+            .cycle(&Tick::at(now), &self.clock, &mut self.bus, &mut self.truth);
+        let sent = self.bus.take_sent();
+        for f in &sent {
+            match self.tcs_rx.receive(f, now) {
+                Ok(Some(InverterMsg::MotorStatus(m))) => self.last_status = Some(m),
+                Ok(_) => {}
+                Err(e) => panic!("plant-sim sent a frame that fails E2E: {e}"),
+            }
+        }
+        self.clock.advance_ns(MS);
+        (o, sent)
+    }
+}
+
+fn immediate() -> PlantSimConfig {
+    PlantSimConfig {
+        start_on: StartOn::Immediate,
+        ..PlantSimConfig::with_scenario("paper")
+    }
+}
+
+#[test]
+fn inverter_zeroes_torque_when_commands_stop_and_resumes_on_valid_ones() {
+    let mut r = Rig::new(&immediate());
+    for _ in 0..100 {
+        r.send_cmd(100.0, true);
+        r.cycle();
+    }
+    assert_eq!(r.sim.applied_torque(), 100.0);
+    assert!(!r.sim.cmd_timed_out());
+    let st = r.last_status.unwrap();
+    assert!(!st.cmd_timeout && !st.fault && st.fault_code == 0);
+    let t_before = r.truth.last.unwrap().torque;
+    assert!(t_before > 80.0, "motor lag 50 ms: {t_before}");
+
+    // commands stop at cycle 100 (last one at t = 99 ms)
+    let mut zero_at = None;
+    for i in 1..=40u64 {
+        r.cycle();
+        if r.sim.applied_torque() == 0.0 {
+            zero_at.get_or_insert(i);
+            let st = r.last_status.unwrap();
+            assert!(st.cmd_timeout && st.fault, "{st:?}");
+            assert_eq!(st.fault_code, FAULT_CMD_TIMEOUT);
+        } else {
+            assert_eq!(r.sim.applied_torque(), 100.0);
+        }
+    }
+    // "older than 20 ms" first holds 21 ms after the last command
+    assert_eq!(zero_at, Some(21));
+    assert_eq!(r.sim.cmd_timeouts(), 1);
+    let t_after = r.truth.last.unwrap().torque;
+    // 20 cycles at 0 N m through the 50 ms motor lag: exp(-20/50) = 0.67
+    assert!(t_after < 0.75 * t_before, "motor torque decays: {t_after}");
+
+    // one valid command: torque resumes at once, the episode count stays
+    r.send_cmd(100.0, true);
+    r.cycle();
+    assert_eq!(r.sim.applied_torque(), 100.0);
+    assert!(!r.last_status.unwrap().cmd_timeout);
+    assert_eq!(r.sim.cmd_timeouts(), 1);
+
+    // enable = 0 applies 0 N m without a fault
+    r.send_cmd(100.0, false);
+    r.cycle();
+    assert_eq!(r.sim.applied_torque(), 0.0);
+    assert!(!r.last_status.unwrap().fault);
+}
+
+#[test]
+fn corrupted_commands_are_rejected_counted_and_ignored() {
+    let mut r = Rig::new(&immediate());
+    for _ in 0..50 {
+        r.send_cmd(120.0, true);
+        r.cycle();
+    }
+    let now = r.clock.now_ns();
+    let evil = TorqueCommand {
+        torque_request: 900.0,
+        enable: true,
+    };
+    let mut bad_crc = encode(&evil, r.tx.next_counter(), now);
+    bad_crc.data[2] ^= 0x01;
+    let repeated = encode(&evil, r.tx.next_counter().wrapping_sub(1) & 0x0F, now);
+    let mut short = encode(&evil, r.tx.next_counter(), now);
+    short.dlc = 4;
+    for f in [bad_crc, repeated, short, CanFrame::new(0x555, &[0; 8])] {
+        r.bus.inject(f);
+        r.cycle();
+        assert_eq!(r.sim.applied_torque(), 120.0);
+    }
+    let f = r.sim.protocol_rx().faults();
+    assert_eq!(
+        (f.crc, f.counter_repeated, f.length, f.unknown_id),
+        (1, 1, 1, 1),
+        "{f:?}"
+    );
+    // the rejected frames were no valid commands: 20 ms later torque is zeroed
+    for _ in 0..20 {
+        r.cycle();
+    }
+    assert_eq!(r.sim.applied_torque(), 0.0);
+}
+
+#[test]
+fn frames_follow_the_dbc_rates_and_carry_the_state() {
+    let mut r = Rig::new(&immediate());
+    let mut counts = [0usize; 5];
+    for _ in 0..100 {
+        r.send_cmd(0.0, true);
+        let (_, sent) = r.cycle();
+        for f in sent {
+            counts[((f.id - 0x100) / 0x10) as usize] += 1;
+        }
+    }
+    assert_eq!(
+        counts,
+        [0, 100, 100, 10, 10],
+        "TC, MS, WS, VS, DD per 100 ms"
+    );
+    let g = r.truth.last.unwrap();
+    assert_eq!(r.truth.n, 100);
+    assert_eq!(g.seq, 99);
+    assert_eq!(g.road_name(), Some("asphalt"));
+    assert!((g.v - 10.0 / 3.6).abs() < 0.1, "{g:?}");
+}
+
+#[test]
+fn signal_start_needs_the_request_and_enabled_commands() {
+    let cfg = PlantSimConfig::with_scenario("paper");
+    assert_eq!(cfg.start_on, StartOn::Signal);
+    let mut r = Rig::new(&cfg);
+    let x0 = r.sim.plant().state().x;
+    // commands alone do not start it
+    for _ in 0..100 {
+        r.send_cmd(300.0, true);
+        r.cycle();
+    }
+    assert_eq!(r.sim.phase(), Phase::Holding);
+    assert_eq!(r.sim.plant().state().x, x0, "vehicle held");
+    assert_eq!(r.sim.applied_torque(), 0.0, "no torque while holding");
+    // the request with disabled commands does not either
+    r.sim.request_start();
+    for _ in 0..30 {
+        r.send_cmd(0.0, false);
+        r.cycle();
+    }
+    assert_eq!(r.sim.phase(), Phase::Holding);
+    // 20 consecutive enabled commands after the request: running
+    for i in 0..20 {
+        r.send_cmd(0.0, true);
+        r.cycle();
+        assert_eq!(r.sim.phase() == Phase::Running, i == 19, "cycle {i}");
+    }
+    r.send_cmd(300.0, true);
+    r.cycle();
+    assert!(r.sim.scenario_time() > 0.0);
+    assert!(r.sim.plant().state().x > x0);
+}
+
+#[test]
+fn commands_start_and_demand_follows_the_scenario() {
+    let cfg = PlantSimConfig {
+        start_on: StartOn::Commands,
+        start_commands: 5,
+        ..PlantSimConfig::with_scenario("paper")
+    };
+    let mut r = Rig::new(&cfg);
+    let mut demand = Vec::new();
+    for _ in 0..40 {
+        r.send_cmd(0.0, true);
+        let (_, sent) = r.cycle();
+        for f in sent.iter().filter(|f| f.id == 0x140) {
+            demand.push(grip_io::can::protocol::DriverDemand::read_signals(&f.data).torque_demand);
+        }
+    }
+    assert_eq!(r.sim.phase(), Phase::Running);
+    // holding: demand 0; running: the paper's constant 300 N m
+    assert_eq!(demand.first(), Some(&0.0));
+    assert_eq!(demand.last(), Some(&300.0));
+}
+
+#[test]
+fn exit_at_end_holds_zero_torque_then_finishes() {
+    let cfg = PlantSimConfig {
+        exit_at_end: true,
+        ..immediate()
+    };
+    let mut r = Rig::new(&cfg);
+    let duration_ms = (r.sim.scenario().duration * 1000.0).round() as u64;
+    let mut ended_at = None;
+    let mut finished_at = None;
+    for k in 0..duration_ms + 300 {
+        r.send_cmd(150.0, true);
+        let (o, _) = r.cycle();
+        if r.sim.phase() == Phase::Ended {
+            // the cycle that reaches the end still applied the last command
+            if ended_at.is_some() {
+                assert_eq!(r.sim.applied_torque(), 0.0, "zero torque after the end");
+            }
+            ended_at.get_or_insert(k);
+        }
+        if o == Outcome::Finished {
+            finished_at = Some(k);
+            break;
+        }
+    }
+    let e = ended_at.unwrap();
+    assert_eq!(e + 1, duration_ms, "ended after the scenario's duration");
+    assert_eq!(finished_at.unwrap(), e + 100, "100 ms zero-torque hold");
+    let g = r.truth.last.unwrap();
+    assert!(g.v.is_finite() && g.x > 0.0);
+    assert_eq!(
+        g.road_name(),
+        Some("snow"),
+        "last segment of the paper scenario"
+    );
+}
+
+#[test]
+fn skipped_periods_advance_the_scenario_clock() {
+    let mut r = Rig::new(&immediate());
+    let now = r.clock.now_ns();
+    r.sim.cycle(
+        &Tick {
+            deadline_ns: now,
+            skipped: 4,
+        },
+        &r.clock,
+        &mut r.bus,
+        &mut r.truth,
+    );
+    assert!((r.sim.scenario_time() - 0.005).abs() < 1e-12);
+}

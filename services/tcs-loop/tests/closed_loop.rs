@@ -1,0 +1,252 @@
+//! tcs-loop's loop struct and plant-sim's loop struct in closed loop over
+//! the real simulated CAN bus (iceoryx2 SimBus, two nodes in this process),
+//! lock-stepped on a manual clock through the shipped paper scenario
+//! (2.4 s: asphalt, snow, gravel, stone, snow at a constant 300 N m demand).
+
+use grip_config::ConfigDir;
+use grip_io::can::SimBus;
+use grip_io::clock::{Clock, ManualClock};
+use grip_io::ipc::IpcNode;
+use grip_msgs::{GroundTruth, RoadEstimate};
+use grip_physics::{Plant, PlantState};
+use grip_plant_sim::{Outcome, Phase, PlantSim, PlantSimConfig, StartOn, TruthSink};
+use grip_tcs::ControllerKind;
+use grip_tcs_loop::{NullSink, RoadSource, TcsLoop, TcsLoopConfig};
+
+const MS: u64 = 1_000_000;
+
+fn dir() -> ConfigDir {
+    ConfigDir::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../config"))
+}
+
+#[derive(Default)]
+struct Truths(Vec<GroundTruth>);
+impl TruthSink for Truths {
+    fn truth(&mut self, g: &GroundTruth) {
+        self.0.push(*g);
+    }
+}
+
+/// A perfect road estimator: the true road, confidence 1, stamped now.
+struct Perfect(Option<RoadEstimate>);
+impl RoadSource for Perfect {
+    fn poll_latest(&mut self) -> Option<RoadEstimate> {
+        self.0.take()
+    }
+}
+
+#[derive(Debug)]
+struct Outcome_ {
+    /// Mean |λ| over the scenario (the metric's "slip deviation").
+    mean_abs_slip: f64,
+    /// Largest true slip in the last 0.3 s of each snow patch.
+    late_snow_slip: f64,
+    /// Largest true motor torque there, N m.
+    late_snow_torque: f64,
+    v_end_kmh: f64,
+    x_end: f64,
+    safe_entries: u64,
+    faults: u64,
+    inverter_faults: u64,
+    cmd_timeouts: u64,
+    used_arte_cycles: u64,
+}
+
+fn closed_loop(kind: ControllerKind, arte: bool) -> Outcome_ {
+    let d = dir();
+    let roads = d.roads().unwrap();
+    let scenario = d.scenario_with("paper", &roads).unwrap();
+    let (vehicle, sensors) = d.vehicle().unwrap();
+    let controllers = grip_config::load_controllers(d.file("controllers.toml")).unwrap();
+    let own = TcsLoopConfig::load(&d.file("tcs-loop.toml")).unwrap();
+    let pcfg = PlantSimConfig {
+        start_on: StartOn::Commands,
+        exit_at_end: true,
+        ..PlantSimConfig::load(&d.file("plant-sim.toml")).unwrap()
+    };
+    let mut plant = PlantSim::new(&pcfg, scenario, roads.clone(), &vehicle, &sensors).unwrap();
+    let mut tcs = TcsLoop::new(kind, arte, &controllers, &vehicle, &own.safety).unwrap();
+
+    let bus_name = format!("cl-{}-{}-{}", std::process::id(), kind, arte);
+    let node_p = IpcNode::create("plant-sim").unwrap();
+    let node_t = IpcNode::create("tcs-loop").unwrap();
+    let mut bus_p = SimBus::open(&node_p, &bus_name, 0).unwrap();
+    let mut bus_t = SimBus::open(&node_t, &bus_name, 0).unwrap();
+
+    let clock = ManualClock::new(10_000 * MS);
+    let mut truths = Truths::default();
+    let mut road = Perfect(None);
+    let mut sink = NullSink;
+    let mut used = 0;
+    for _ in 0..10_000 {
+        let now = clock.now_ns();
+        let o = plant.cycle(
+            &grip_plant_sim::Tick::at(now),
+            &clock,
+            &mut bus_p,
+            &mut truths,
+        );
+        if o == Outcome::Finished {
+            break;
+        }
+        let g = *truths.0.last().unwrap();
+        let r = &roads[g.road_index as usize];
+        road.0 = Some(RoadEstimate {
+            stamp_ns: now,
+            class_index: g.road_index,
+            confidence: 1.0,
+            lambda_opt: r.lambda_opt(),
+            mu_peak: r.mu_peak(),
+            alpha: 1.0 - r.lambda_opt(),
+            ..RoadEstimate::zeroed()
+        });
+        let rec = tcs.cycle(
+            &grip_tcs_loop::Tick::at(now),
+            &clock,
+            &mut bus_t,
+            &mut road,
+            &mut sink,
+        );
+        used += u64::from(rec.used_arte);
+        if std::env::var("CL_DEBUG").is_ok() && truths.0.len() % 50 == 0 {
+            eprintln!(
+                "k={} safe={} T_d={:.1} T*={:.1} int={:.1} mu={:.3} om={:.2} T={:.1} | true lam={:.3} T={:.1} road={:?}",
+                truths.0.len(),
+                rec.safe_state,
+                rec.demand,
+                rec.torque_cmd,
+                rec.internal,
+                rec.mu_hat,
+                rec.omega,
+                rec.torque,
+                g.lambda,
+                g.torque,
+                g.road_name()
+            );
+        }
+        clock.advance_ns(MS);
+    }
+    assert_eq!(plant.phase(), Phase::Ended, "scenario ran to its end");
+    // the scenario's 2.4 s: from the first cycle the plant moved on
+    let x0 = truths.0[0].x;
+    let first = truths.0.iter().position(|g| g.x != x0).unwrap();
+    let n = (plant.scenario().duration * 1000.0).round() as usize;
+    assert!(
+        truths.0.len() >= first + n,
+        "ran {} cycles",
+        truths.0.len() - first
+    );
+    let run = &truths.0[first..first + n];
+    for g in run {
+        assert!(
+            g.v.is_finite() && g.omega.is_finite() && g.lambda.is_finite() && g.torque.is_finite(),
+            "{g:?}"
+        );
+    }
+    let late = late_snow(plant.scenario());
+    let last = truths.0.last().unwrap();
+    Outcome_ {
+        mean_abs_slip: run.iter().map(|g| g.lambda.abs()).sum::<f64>() / n as f64,
+        late_snow_slip: late_max(run, &late, |g| g.lambda),
+        late_snow_torque: late_max(run, &late, |g| g.torque),
+        v_end_kmh: last.v * 3.6,
+        x_end: last.x,
+        safe_entries: tcs.safe_entries(),
+        faults: tcs.protocol_rx().faults().total(),
+        inverter_faults: plant.protocol_rx().faults().total(),
+        cmd_timeouts: plant.cmd_timeouts(),
+        used_arte_cycles: used,
+    }
+}
+
+/// Cycle-index windows of the last 0.3 s of every snow patch.
+fn late_snow(sc: &grip_physics::Scenario) -> Vec<(usize, usize)> {
+    (0..sc.segments.len())
+        .filter(|&i| sc.segments[i].road_name == "snow")
+        .map(|i| {
+            let end = sc.segment_start(i) + sc.segments[i].span;
+            (
+                ((end - 0.3) * 1000.0).round() as usize,
+                (end * 1000.0).round() as usize,
+            )
+        })
+        .collect()
+}
+
+fn late_max(run: &[GroundTruth], w: &[(usize, usize)], f: impl Fn(&GroundTruth) -> f64) -> f64 {
+    w.iter()
+        .flat_map(|&(a, b)| run[a..b.min(run.len())].iter())
+        .map(f)
+        .fold(f64::MIN, f64::max)
+}
+
+/// The same scenario with the driver's 300 N m applied directly (no TCS):
+/// (mean |λ|, largest slip in the late snow windows).
+fn open_loop() -> (f64, f64) {
+    let d = dir();
+    let roads = d.roads().unwrap();
+    let sc = d.scenario_with("paper", &roads).unwrap();
+    let (vehicle, _) = d.vehicle().unwrap();
+    let mut p = Plant::new(vehicle, PlantState::rolling(sc.v0, vehicle.r)).unwrap();
+    let n = (sc.duration * 1000.0).round() as usize;
+    let mut lam = Vec::with_capacity(n);
+    for k in 0..n {
+        let t = k as f64 * 1e-3;
+        let seg = sc.segment_at(t, p.state().x);
+        p.step(1e-3, sc.demand_at(t), &roads[sc.segments[seg].road], 0.0);
+        lam.push(p.lambda());
+    }
+    let late = late_snow(&sc)
+        .iter()
+        .flat_map(|&(a, b)| lam[a..b].iter().copied())
+        .fold(f64::MIN, f64::max);
+    (lam.iter().map(|l| l.abs()).sum::<f64>() / n as f64, late)
+}
+
+fn check_common(o: &Outcome_) {
+    assert_eq!(o.safe_entries, 0, "no safe state once running: {o:?}");
+    assert_eq!(o.faults, 0, "no E2E fault on a clean bus: {o:?}");
+    assert_eq!(o.inverter_faults, 0, "{o:?}");
+    assert_eq!(o.cmd_timeouts, 0, "{o:?}");
+    // the car accelerates from 10 km/h and stays in the paper's bracket
+    assert!(o.v_end_kmh > 11.0 && o.v_end_kmh < 35.0, "{o:?}");
+    assert!(o.x_end > 5.0 && o.x_end < 25.0, "{o:?}");
+}
+
+#[test]
+fn mtte_keeps_the_wheel_from_running_away_on_snow() {
+    let (ol_slip, ol_snow) = open_loop();
+    let o = closed_loop(ControllerKind::Mtte, false);
+    eprintln!("MTTE: {o:?}\nopen loop: mean |slip| {ol_slip:.4}, late snow slip {ol_snow:.3}");
+    check_common(&o);
+    assert_eq!(o.used_arte_cycles, 0);
+    // open loop the wheel runs away on snow (300 N m > 183 N m it carries)
+    assert!(ol_snow > 0.8, "{ol_snow}");
+    // with MTTE the slip stays bounded well below that and the torque
+    // settles near what snow carries (0.19 * 3434 N * 0.28 m = 183 N m)
+    assert!(o.late_snow_slip < 0.7 * ol_snow, "{o:?} vs {ol_snow}");
+    assert!(o.late_snow_torque < 200.0, "{o:?}");
+    assert!(o.mean_abs_slip < 0.6 * ol_slip, "{o:?} vs {ol_slip}");
+}
+
+#[test]
+fn mtte_with_perfect_arte_uses_it_and_stays_sensible() {
+    let (ol_slip, ol_snow) = open_loop();
+    let o = closed_loop(ControllerKind::Mtte, true);
+    eprintln!("MTTE-ARTE: {o:?}");
+    check_common(&o);
+    assert!(o.used_arte_cycles > 2_000, "{o:?}");
+    assert!(o.late_snow_slip < 0.7 * ol_snow, "{o:?}");
+    assert!(o.mean_abs_slip < 0.6 * ol_slip, "{o:?}");
+}
+
+#[test]
+fn src_and_mfc_run_the_scenario_with_finite_results() {
+    let (ol_slip, _) = open_loop();
+    for kind in [ControllerKind::Src, ControllerKind::Mfc] {
+        let o = closed_loop(kind, false);
+        eprintln!("{kind}: {o:?}");
+        check_common(&o);
+        assert!(o.mean_abs_slip < ol_slip, "{kind}: {o:?} vs {ol_slip}");
+    }
+}

@@ -1,0 +1,184 @@
+//! The tcs-loop cycle allocates nothing after warm-up: a counting global
+//! allocator (current thread only) around 20 000 cycles of every path —
+//! normal control with ARTE estimates, corrupted frames, a sensor outage
+//! with safe state and recovery — for each controller.
+//!
+//! The ports here are in-memory doubles. With the real iceoryx2 ports each
+//! *publish* allocates one 48-byte Arc inside iceoryx2 0.10 (pinned by
+//! `crates/io/tests/no_alloc.rs`); grip's own code adds none.
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use common::{LastSink, MemBus, SetRoad};
+use grip_io::can::protocol::{DriverDemand, E2eSender, MotorStatus, WheelSpeeds};
+use grip_io::clock::{Clock, ManualClock};
+use grip_msgs::{CanFrame, RoadEstimate};
+use grip_physics::VehicleParams;
+use grip_tcs::{ControllerKind, ControllersConfig};
+use grip_tcs_loop::{SafetyConfig, TcsLoop, Tick};
+
+struct Counting;
+thread_local! {
+    static ON: Cell<bool> = const { Cell::new(false) };
+    static COUNT: Cell<u64> = const { Cell::new(0) };
+}
+// SAFETY: forwards to the system allocator; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        if ON.with(|o| o.get()) {
+            COUNT.with(|c| c.set(c.get() + 1));
+        }
+        // SAFETY: same layout contract as the caller's.
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        // SAFETY: p was allocated by System with l.
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        if ON.with(|o| o.get()) {
+            COUNT.with(|c| c.set(c.get() + 1));
+        }
+        // SAFETY: forwarded unchanged.
+        unsafe { System.realloc(p, l, n) }
+    }
+}
+#[global_allocator]
+static A: Counting = Counting;
+
+fn allocations(f: impl FnOnce()) -> u64 {
+    COUNT.with(|c| c.set(0));
+    ON.with(|o| o.set(true));
+    f();
+    ON.with(|o| o.set(false));
+    COUNT.with(|c| c.get())
+}
+
+const MS: u64 = 1_000_000;
+
+struct Rig {
+    clock: ManualClock,
+    bus: MemBus,
+    sink: LastSink,
+    road: SetRoad,
+    lp: TcsLoop,
+    ws: E2eSender<WheelSpeeds>,
+    ms: E2eSender<MotorStatus>,
+    dd: E2eSender<DriverDemand>,
+    k: u64,
+}
+
+impl Rig {
+    fn step(&mut self) {
+        let now = self.clock.now_ns();
+        let k = self.k;
+        let outage = (5_000..5_030).contains(&(k % 10_000));
+        let omega = 10.0 + (k % 500) as f64 * 0.01;
+        if !outage {
+            let f = self.ws.encode(
+                &WheelSpeeds {
+                    driven_valid: true,
+                    ref_valid: true,
+                    omega_driven: omega,
+                    omega_ref: 9.8,
+                },
+                now,
+            );
+            self.bus.inject(f);
+        }
+        let f = self.ms.encode(
+            &MotorStatus {
+                ready: true,
+                torque_actual: 120.0,
+                motor_speed: omega,
+                ..MotorStatus::default()
+            },
+            now,
+        );
+        self.bus.inject(f);
+        if k.is_multiple_of(10) {
+            let f = self.dd.encode(
+                &DriverDemand {
+                    tcs_enable: true,
+                    torque_demand: 300.0,
+                    ..DriverDemand::default()
+                },
+                now,
+            );
+            self.bus.inject(f);
+        }
+        if k % 1000 == 333 {
+            // corrupted and unknown frames
+            let mut f = self.ws.encode(&WheelSpeeds::default(), now);
+            f.data[4] ^= 0xFF;
+            self.bus.inject(f);
+            self.bus.inject(CanFrame::new(0x7FF, &[0; 8]));
+        }
+        if k.is_multiple_of(100) {
+            self.road.next = Some(RoadEstimate {
+                stamp_ns: now,
+                class_index: 1,
+                confidence: 0.9,
+                lambda_opt: 0.17,
+                mu_peak: 1.17,
+                alpha: 0.83,
+                ..RoadEstimate::zeroed()
+            });
+        }
+        self.lp.cycle(
+            &Tick::at(now),
+            &self.clock,
+            &mut self.bus,
+            &mut self.road,
+            &mut self.sink,
+        );
+        self.bus.tx.borrow_mut().clear();
+        self.clock.advance_ns(MS);
+        self.k += 1;
+    }
+}
+
+#[test]
+fn cycle_allocates_nothing_after_warm_up() {
+    for kind in ControllerKind::ALL {
+        let lp = TcsLoop::new(
+            kind,
+            true,
+            &ControllersConfig::default(),
+            &VehicleParams::default(),
+            &SafetyConfig::default(),
+        )
+        .unwrap();
+        let mut r = Rig {
+            clock: ManualClock::new(1_000 * MS),
+            bus: MemBus::new(),
+            sink: LastSink::default(),
+            road: SetRoad::default(),
+            lp,
+            ws: E2eSender::new(),
+            ms: E2eSender::new(),
+            dd: E2eSender::new(),
+            k: 0,
+        };
+        for _ in 0..1_000 {
+            r.step();
+        }
+        let n = allocations(|| {
+            for _ in 0..20_000 {
+                r.step();
+            }
+        });
+        assert_eq!(n, 0, "{kind}: {n} allocations in 20 000 cycles");
+        // the paths were exercised
+        assert!(
+            r.lp.safe_entries() >= 2,
+            "{kind}: outages entered the safe state"
+        );
+        let f = r.lp.last_record().faults;
+        assert!(f.crc >= 20 && f.unknown_id >= 20, "{kind}: {f:?}");
+        assert!(r.sink.records >= 21_000);
+    }
+}
