@@ -58,6 +58,14 @@ fn allocations(f: impl FnOnce()) -> u64 {
 const MS: u64 = 1_000_000;
 
 #[test]
+fn the_counter_sees_allocations() {
+    let n = allocations(|| {
+        std::hint::black_box(vec![1u8; 64]);
+    });
+    assert_eq!(n, 1);
+}
+
+#[test]
 fn cycle_allocates_nothing_after_warm_up() {
     let cfg = PlantSimConfig {
         start_on: StartOn::Commands,

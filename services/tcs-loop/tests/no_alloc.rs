@@ -59,6 +59,14 @@ fn allocations(f: impl FnOnce()) -> u64 {
 
 const MS: u64 = 1_000_000;
 
+#[test]
+fn the_counter_sees_allocations() {
+    let n = allocations(|| {
+        std::hint::black_box(vec![1u8; 64]);
+    });
+    assert_eq!(n, 1);
+}
+
 struct Rig {
     clock: ManualClock,
     bus: MemBus,
