@@ -57,7 +57,7 @@ pub struct MfcParams {
 impl Default for MfcParams {
     fn default() -> Self {
         Self {
-            k_mfc: 2.5,
+            k_mfc: 177.0,
             tau_hpf: 1.0,
         }
     }
