@@ -305,6 +305,9 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             stats
                 .bad_rate
                 .store(u64::from(b.sample_rate), Ordering::Relaxed);
+            // received, not lost: later blocks are not counted as gaps (a
+            // long run of refused blocks restarts the estimator by time)
+            self.expected_seq = Some(b.seq.wrapping_add(1));
             return 0;
         }
         let x = b.samples();
