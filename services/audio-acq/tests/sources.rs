@@ -181,9 +181,11 @@ fn synth_run(on_lost: TruthLost) -> (Vec<AudioBlock>, Vec<(usize, f64)>, Vec<boo
             (3 * s, None, 0.0),                    // 3 s on: truth lost
         ],
     };
-    let mut cfg = SynthSection::default();
-    cfg.on_truth_lost = on_lost;
-    cfg.aliases = BTreeMap::from([("asphalt_mf".to_string(), "asphalt".to_string())]);
+    let cfg = SynthSection {
+        on_truth_lost: on_lost,
+        aliases: BTreeMap::from([("asphalt_mf".to_string(), "asphalt".to_string())]),
+        ..SynthSection::default()
+    };
     let src = SynthSource::new(&cfg, 44_100, 1024, truth, clock.clone(), 200_000_000).unwrap();
     let mut lp = AcqLoop::new(src, 1024, 0, Arc::new(AcqStatus::default()));
     let mut sink = VecSink::default();
