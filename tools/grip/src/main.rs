@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 
 mod cmd;
 mod dataset;
+mod drive;
 mod plot;
 mod wav;
 
@@ -36,6 +37,10 @@ enum Command {
     Dataset(cmd::dataset::Args),
     /// Acoustic features of a WAV file per frame (--csv), or pruning and KL report of a dataset.
     Features(cmd::features::Args),
+    /// Drive: all five services as processes on a scenario in real time, MCAP log, summary.
+    Drive(cmd::drive::Args),
+    /// Summary, timing histogram, road timeline, CSV and plots of a drive log (MCAP).
+    Inspect(cmd::inspect::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -56,6 +61,8 @@ fn main() -> std::process::ExitCode {
         Command::Classify(a) => cmd::classify::run(&ctx, a),
         Command::Dataset(a) => cmd::dataset::run(&ctx, a),
         Command::Features(a) => cmd::features::run(&ctx, a),
+        Command::Drive(a) => cmd::drive::run(&ctx, a),
+        Command::Inspect(a) => cmd::inspect::run(&ctx, a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

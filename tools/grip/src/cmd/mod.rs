@@ -1,12 +1,14 @@
 //! One module per subcommand.
 
 pub mod analyze;
+pub mod classify;
+pub mod dataset;
+pub mod drive;
+pub mod features;
+pub mod inspect;
 pub mod roads;
 pub mod sim;
 pub mod train;
-pub mod classify;
-pub mod dataset;
-pub mod features;
 
 /// What every subcommand gets from the global options.
 pub struct Ctx {

@@ -1,0 +1,147 @@
+//! `grip drive`: a real-time drive of all five services as separate
+//! processes (the command lines of the systemd units), on a scenario, with
+//! a summary read back from the MCAP log. See `drive/` for the parts and
+//! `services/README.md` ("recorder / drive / inspect / systemd").
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+use anyhow::{Context, bail};
+use grip_config::ConfigDir;
+
+use super::Ctx;
+use crate::drive::{self, DrivePlan, log::DriveLog, summary};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum OnOff {
+    On,
+    Off,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Controller {
+    Mfc,
+    Src,
+    Mtte,
+}
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scenario: a name under <config-dir>/scenarios or a path to a TOML file.
+    #[arg(long, default_value = "paper")]
+    scenario: String,
+    /// Traction controller of tcs-loop.
+    #[arg(long, value_enum, default_value_t = Controller::Mtte)]
+    controller: Controller,
+    /// Whether the controller uses ARTE's road estimates (arte runs either way).
+    #[arg(long, value_enum, default_value_t = OnOff::On)]
+    arte: OnOff,
+    /// MCAP log to write.
+    #[arg(long, default_value = "drive.mcap")]
+    out: PathBuf,
+    /// Sensor-noise seed of plant-sim.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Seconds each service may take to report READY=1.
+    #[arg(long, default_value_t = 30.0)]
+    ready_timeout: f64,
+    /// Print each service's command line (and its systemd ExecStart=) and exit.
+    #[arg(long)]
+    dry_run: bool,
+    /// Forward every line the services write to stderr (default: warnings and errors).
+    #[arg(long, short)]
+    verbose: bool,
+}
+
+pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
+    let bin = drive::bin_dir()?;
+    if !args.dry_run {
+        drive::check_binaries(&bin)?;
+    }
+    let cwd = std::env::current_dir().context("current directory")?;
+    let config_dir = cwd.join(&ctx.config_dir);
+    let dir = ConfigDir::new(&config_dir);
+    let roads = dir.roads()?;
+    let scenario = dir.scenario_with(&args.scenario, &roads)?;
+    if !(args.ready_timeout.is_finite() && args.ready_timeout > 0.0) {
+        bail!("--ready-timeout must be a positive number of seconds");
+    }
+    let controller = match args.controller {
+        Controller::Mfc => "mfc",
+        Controller::Src => "src",
+        Controller::Mtte => "mtte",
+    };
+    let out = cwd.join(&args.out);
+    if let Some(parent) = out.parent() {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("creating {}", parent.display()))?;
+    }
+    let plan = DrivePlan {
+        config_dir: config_dir.clone(),
+        scenario: args.scenario.clone(),
+        duration_s: scenario.duration,
+        controller: controller.into(),
+        arte: args.arte == OnOff::On,
+        out: out.clone(),
+        seed: args.seed,
+        instance: drive::new_instance(),
+        ready_timeout: Duration::from_secs_f64(args.ready_timeout),
+    };
+    if args.dry_run {
+        for svc in drive::services::Service::START_ORDER {
+            println!("{}:", svc.name());
+            println!(
+                "  drive:   {} {}",
+                bin.join(svc.binary()).display(),
+                plan.args(svc).join(" ")
+            );
+            println!("  systemd: {} ExecStart={}", svc.unit(), svc.exec_start());
+        }
+        return Ok(());
+    }
+    eprintln!(
+        "drive: services from {}, GRIP_INSTANCE={}, log {}",
+        bin.display(),
+        plan.instance,
+        out.display()
+    );
+    let interrupt = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(sig, Arc::clone(&interrupt))
+            .context("installing the signal handler")?;
+    }
+    let outcome = drive::run_services(&plan, &bin, args.verbose, &interrupt)?;
+
+    eprintln!(
+        "drive: services stopped (scenario part {:.2} s wall):",
+        outcome.scenario_wall_s
+    );
+    for (svc, last, st) in &outcome.services {
+        eprintln!(
+            "  {:<9} {:<22} {}",
+            svc.name(),
+            st.as_deref().unwrap_or("not reaped"),
+            last
+        );
+    }
+    // the summary, from the log (also after a failure: what was recorded)
+    match DriveLog::load(&out) {
+        Ok(log) => {
+            let vehicle = drive::vehicle_for(&log, &config_dir);
+            let s = summary::summarize(&log, &vehicle);
+            println!("{}", s.render());
+            println!(
+                "loop wake-up latency histogram:\n{}",
+                summary::latency_histogram(&s.timing.wakeup_ns)
+            );
+        }
+        Err(e) if outcome.failure.is_some() => eprintln!("drive: no readable log: {e:#}"),
+        Err(e) => return Err(e),
+    }
+    if let Some(f) = outcome.failure {
+        bail!("drive failed: {f}");
+    }
+    Ok(())
+}

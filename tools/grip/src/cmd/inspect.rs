@@ -1,0 +1,89 @@
+//! `grip inspect LOG`: the summary `grip drive` prints, for any drive log,
+//! with the loop-timing histogram, the road timeline, `--csv DIR` and
+//! `--plot DIR`. A truncated log gives a partial summary that says what was
+//! lost; a file that is not MCAP gives a clear error.
+
+use std::path::PathBuf;
+
+use super::Ctx;
+use crate::drive::{self, export, log::DriveLog, plot, summary};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The MCAP log (from `grip drive` or the recorder service).
+    log: PathBuf,
+    /// Write cycles.csv, estimates.csv, truth.csv and can.csv here.
+    #[arg(long)]
+    csv: Option<PathBuf>,
+    /// Write drive.png and timing.png here.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+}
+
+pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
+    let log = DriveLog::load(&args.log)?;
+    let vehicle = drive::vehicle_for(&log, &ctx.config_dir);
+    let s = summary::summarize(&log, &vehicle);
+    println!("{}", s.render());
+    println!(
+        "loop wake-up latency histogram:\n{}",
+        summary::latency_histogram(&s.timing.wakeup_ns)
+    );
+    println!("road timeline (ground truth vs ARTE, per 0.1 s of the truth stream):");
+    println!("{}", road_timeline(&log));
+    if let Some(dir) = &args.csv {
+        for p in export::write_csv(&log, dir)? {
+            println!("wrote {}", p.display());
+        }
+    }
+    if let Some(dir) = &args.plot {
+        let title = format!(
+            "grip drive: {} {} ARTE {}, scenario {}",
+            log.run
+                .get("controller")
+                .map_or("?", String::as_str)
+                .to_uppercase(),
+            "",
+            log.run.get("arte").map_or("?", String::as_str),
+            log.run.get("scenario").map_or("?", String::as_str)
+        );
+        for p in plot::write_plots(&log, dir, vehicle.r, &title)? {
+            println!("wrote {}", p.display());
+        }
+    }
+    Ok(())
+}
+
+/// One line per 0.1 s: true road and the latest ARTE class published by then.
+pub fn road_timeline(log: &DriveLog) -> String {
+    let Some(first) = log.truth.first() else {
+        return "  (no ground truth in the log)".into();
+    };
+    let last = log.truth.last().map_or(first.stamp_ns, |g| g.stamp_ns);
+    let mut out = String::new();
+    let step = 100_000_000u64;
+    let mut t = first.stamp_ns;
+    let mut k_est = 0usize;
+    let mut latest: Option<String> = None;
+    while t <= last {
+        while k_est < log.roads.len() && log.roads[k_est].stamp_ns <= t {
+            let e = &log.roads[k_est];
+            latest = (e.class_index != grip_msgs::NO_CLASS)
+                .then(|| e.class_name().unwrap_or("?").to_owned());
+            k_est += 1;
+        }
+        let truth = summary::truth_at(&log.truth, t)
+            .and_then(|g| g.road_name().map(str::to_owned))
+            .unwrap_or_else(|| "?".into());
+        let est = latest.clone().unwrap_or_else(|| "-".into());
+        let mark = if est == truth { "" } else { "  <- differs" };
+        out.push_str(&format!(
+            "  {:>7.1} s  truth {:<10} ARTE {:<10}{mark}\n",
+            (t - first.stamp_ns) as f64 * 1e-9,
+            truth,
+            est
+        ));
+        t += step;
+    }
+    out
+}

@@ -1,0 +1,329 @@
+//! `grip drive` and `grip inspect`: running all five services as separate
+//! processes on one scenario, and summarising any drive log.
+//!
+//! - [`services`]: the services and their command lines (shared with the
+//!   systemd units).
+//! - [`manager`]: process start, `NOTIFY_SOCKET` readiness, stderr tails,
+//!   stop.
+//! - [`log`]: a drive's MCAP read back; [`summary`]: the printed summary
+//!   (one code path for drive and inspect); [`export`]: CSV; [`plot`]: PNGs.
+
+pub mod export;
+pub mod log;
+pub mod manager;
+pub mod plot;
+pub mod services;
+pub mod summary;
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use grip_config::ConfigDir;
+use grip_physics::VehicleParams;
+
+use self::log::DriveLog;
+use self::manager::{Env, Proc, describe_status};
+use self::services::Service;
+
+/// Directory holding the service binaries: `$GRIP_BIN_DIR`, else the
+/// directory of the running `grip` executable (`target/<profile>/`).
+pub fn bin_dir() -> anyhow::Result<PathBuf> {
+    if let Some(d) = std::env::var_os("GRIP_BIN_DIR").filter(|d| !d.is_empty()) {
+        return Ok(PathBuf::from(d));
+    }
+    let exe = std::env::current_exe().context("locating the grip executable")?;
+    exe.parent()
+        .map(Path::to_path_buf)
+        .context("the grip executable has no parent directory")
+}
+
+/// Checks that every service binary exists in `dir`.
+pub fn check_binaries(dir: &Path) -> anyhow::Result<()> {
+    let missing: Vec<&str> = Service::START_ORDER
+        .iter()
+        .map(|s| s.binary())
+        .filter(|b| !dir.join(b).is_file())
+        .collect();
+    if !missing.is_empty() {
+        let profile_hint = if dir.ends_with("debug") {
+            "cargo build --workspace"
+        } else {
+            "cargo build --release --workspace"
+        };
+        bail!(
+            "service binaries missing in {}: {}.\n  Build them with `{profile_hint}` (they land next to `grip` in target/<profile>/), or point GRIP_BIN_DIR at the directory that holds them.",
+            dir.display(),
+            missing.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// Vehicle parameters for the metrics: the log's attached `vehicle.toml`,
+/// else the configuration directory's, else the defaults (with a warning).
+pub fn vehicle_for(log: &DriveLog, config_dir: &Path) -> VehicleParams {
+    if let Some(text) = log.attachment_text("vehicle.toml")
+        && let Ok((v, _)) = grip_config::parse_vehicle(Path::new("vehicle.toml (attached)"), text)
+    {
+        return v;
+    }
+    match ConfigDir::new(config_dir).vehicle() {
+        Ok((v, _)) => v,
+        Err(e) => {
+            eprintln!("warning: {e}; using the default vehicle for the energy metrics");
+            VehicleParams::default()
+        }
+    }
+}
+
+/// What a drive is asked to do.
+#[derive(Debug, Clone)]
+pub struct DrivePlan {
+    /// Configuration directory (absolute).
+    pub config_dir: PathBuf,
+    /// Scenario name or path.
+    pub scenario: String,
+    /// Scenario duration, s.
+    pub duration_s: f64,
+    /// Controller.
+    pub controller: String,
+    /// ARTE in the controller.
+    pub arte: bool,
+    /// Output log (absolute).
+    pub out: PathBuf,
+    /// Plant sensor-noise seed.
+    pub seed: u64,
+    /// `GRIP_INSTANCE`.
+    pub instance: String,
+    /// Readiness timeout per service.
+    pub ready_timeout: Duration,
+}
+
+impl DrivePlan {
+    /// The full argument list of `svc` in this drive: the base command line
+    /// (as in the systemd units) plus the drive's overrides.
+    pub fn args(&self, svc: Service) -> Vec<String> {
+        let mut a = svc.base_args(&self.config_dir.display().to_string());
+        let s = |x: &str| x.to_owned();
+        match svc {
+            Service::Recorder => {
+                a.extend([s("--out"), self.out.display().to_string()]);
+                for (k, v) in [
+                    ("scenario", self.scenario.clone()),
+                    ("scenario_duration_s", format!("{}", self.duration_s)),
+                    ("controller", self.controller.clone()),
+                    ("arte", s(if self.arte { "on" } else { "off" })),
+                    ("seed", self.seed.to_string()),
+                    ("instance", self.instance.clone()),
+                ] {
+                    a.extend([s("--meta"), format!("{k}={v}")]);
+                }
+            }
+            Service::PlantSim => a.extend([
+                s("--scenario"),
+                self.scenario.clone(),
+                s("--seed"),
+                self.seed.to_string(),
+                s("--start-on"),
+                s("signal"),
+                s("--exit-at-end"),
+            ]),
+            Service::TcsLoop => a.extend([
+                s("--controller"),
+                self.controller.clone(),
+                s("--arte"),
+                s(if self.arte { "on" } else { "off" }),
+            ]),
+            Service::AudioAcq | Service::Arte => {}
+        }
+        a
+    }
+}
+
+/// How a drive ended.
+#[derive(Debug)]
+pub struct DriveOutcome {
+    /// Error to report after the summary (a service died, timeout, ...).
+    pub failure: Option<String>,
+    /// Per service: final status line and exit description.
+    pub services: Vec<(Service, String, Option<String>)>,
+    /// Wall time of the scenario part, s.
+    pub scenario_wall_s: f64,
+}
+
+/// Runs the drive: start in order with readiness, SIGUSR1 to plant-sim,
+/// wait for its end (or a death, or `interrupt`), stop the rest (recorder
+/// last). Returns once every child has ended; the log is then complete.
+pub fn run_services(
+    plan: &DrivePlan,
+    bin: &Path,
+    verbose: bool,
+    interrupt: &Arc<AtomicBool>,
+) -> anyhow::Result<DriveOutcome> {
+    let sock_dir = std::env::temp_dir().join(format!("grip-drive-{}", plan.instance));
+    std::fs::create_dir_all(&sock_dir)
+        .with_context(|| format!("creating {}", sock_dir.display()))?;
+    struct RmDir(PathBuf);
+    impl Drop for RmDir {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+    let _rm = RmDir(sock_dir.clone());
+    let env = Env {
+        instance: plan.instance.clone(),
+        sock_dir,
+        verbose,
+    };
+    let mut procs: Vec<Proc> = Vec::new();
+    let t_start = Instant::now();
+    let mut failure: Option<String> = None;
+    for svc in Service::START_ORDER {
+        let p = Proc::spawn(svc, &bin.join(svc.binary()), &plan.args(svc), &env);
+        let mut p = match p {
+            Ok(p) => p,
+            Err(e) => {
+                failure = Some(format!("{e:#}"));
+                break;
+            }
+        };
+        match p.wait_ready(plan.ready_timeout) {
+            Ok(d) => {
+                eprintln!(
+                    "drive: {:<9} ready after {:.2} s (pid {})",
+                    svc.name(),
+                    d.as_secs_f64(),
+                    p.pid()
+                );
+                procs.push(p);
+            }
+            Err(e) => {
+                procs.push(p);
+                failure = Some(format!("{e:#}"));
+                break;
+            }
+        }
+        if interrupt.load(Ordering::Relaxed) {
+            failure = Some("interrupted".into());
+            break;
+        }
+    }
+
+    let mut scenario_wall_s = 0.0;
+    if failure.is_none() {
+        eprintln!(
+            "drive: all services ready in {:.2} s; starting scenario {} ({:.2} s, {} {}ARTE)",
+            t_start.elapsed().as_secs_f64(),
+            plan.scenario,
+            plan.duration_s,
+            plan.controller,
+            if plan.arte { "with " } else { "without " }
+        );
+        let t_scn = Instant::now();
+        if let Some(p) = procs.iter().find(|p| p.service == Service::PlantSim) {
+            p.signal(libc::SIGUSR1);
+        }
+        // generous: the loop first leaves its safe state, then the scenario runs
+        let limit = Duration::from_secs_f64(plan.duration_s + 60.0);
+        loop {
+            std::thread::sleep(Duration::from_millis(20));
+            if interrupt.load(Ordering::Relaxed) {
+                failure = Some("interrupted (SIGINT/SIGTERM): services stopped early".into());
+                break;
+            }
+            let mut ended = false;
+            for p in procs.iter_mut() {
+                if let Some(st) = p.poll_exit() {
+                    if p.service == Service::PlantSim && st.success() {
+                        ended = true;
+                    } else if failure.is_none() {
+                        failure = Some(format!(
+                            "{} died during the drive ({}) after {:.2} s.\n  command: {}\n  last stderr lines:\n{}",
+                            p.service.name(),
+                            describe_status(&st),
+                            p.started.elapsed().as_secs_f64(),
+                            p.cmdline,
+                            p.tail_text(15)
+                        ));
+                    }
+                }
+            }
+            if failure.is_some() || ended {
+                break;
+            }
+            if t_scn.elapsed() > limit {
+                failure = Some(format!(
+                    "plant-sim did not finish the {:.2} s scenario within {:.0} s (did tcs-loop leave its safe state?).\n  plant-sim stderr:\n{}",
+                    plan.duration_s,
+                    limit.as_secs_f64(),
+                    procs
+                        .iter()
+                        .find(|p| p.service == Service::PlantSim)
+                        .map(|p| p.tail_text(10))
+                        .unwrap_or_default()
+                ));
+                break;
+            }
+        }
+        scenario_wall_s = t_scn.elapsed().as_secs_f64();
+    }
+
+    // stop: plant-sim (if still up), tcs-loop, arte, audio-acq, recorder last
+    let mut services = Vec::new();
+    for svc in Service::STOP_ORDER {
+        let Some(p) = procs.iter_mut().find(|p| p.service == svc) else {
+            continue;
+        };
+        let grace = if svc == Service::Recorder {
+            Duration::from_secs(60)
+        } else {
+            Duration::from_secs(10)
+        };
+        let (st, killed) = p.stop(grace);
+        let desc = st.map(|s| describe_status(&s));
+        if killed && failure.is_none() {
+            failure = Some(format!(
+                "{} did not stop within {:.0} s of SIGTERM and was killed.\n  last stderr lines:\n{}",
+                svc.name(),
+                grace.as_secs_f64(),
+                p.tail_text(10)
+            ));
+        } else if let Some(s) = st
+            && !s.success()
+            && failure.is_none()
+        {
+            failure = Some(format!(
+                "{} exited with {} on SIGTERM.\n  last stderr lines:\n{}",
+                svc.name(),
+                describe_status(&s),
+                p.tail_text(10)
+            ));
+        }
+        let last = p
+            .tail(TAIL_FOR_REPORT)
+            .into_iter()
+            .rev()
+            .find(|l| l.contains("stopped"))
+            .unwrap_or_default();
+        services.push((svc, last, desc));
+    }
+    Ok(DriveOutcome {
+        failure,
+        services,
+        scenario_wall_s,
+    })
+}
+
+const TAIL_FOR_REPORT: usize = 40;
+
+/// A unique `GRIP_INSTANCE` value for a drive.
+pub fn new_instance() -> String {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(0);
+    format!("drive-{}-{nanos:x}", std::process::id())
+}

@@ -1,0 +1,696 @@
+//! The summary of a drive, computed from its MCAP log alone (so `grip drive`
+//! and `grip inspect` print the same thing for the same file):
+//!
+//! - run description (`grip.run` metadata) and what the reader found;
+//! - messages per topic, gaps by sequence number in the log, and the
+//!   recorder's own counters (`grip.recorder`: received, queue drops);
+//! - loop timing from the `CycleRecord`s: wake-up latency and compute time
+//!   (p50/p99/max), deadline misses, safe-state cycles;
+//! - the metrics of MODELS.md §4 via `grip_tcs::MetricsAccumulator` (the
+//!   code the offline simulator uses) on the plant's ground truth over the
+//!   scenario window;
+//! - CAN: frames per message and direction, E2E rejections, the loop's
+//!   fault counters;
+//! - ARTE: accuracy against the ground truth, per-road recall, detection
+//!   delay at each road change, how often the controller used the estimate.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+use grip_io::can::protocol::spec_for_id;
+use grip_msgs::{CycleRecord, E2eFaults, GroundTruth, RoadEstimate, can_dir, can_flags, topics};
+use grip_physics::VehicleParams;
+use grip_tcs::{Metrics, MetricsAccumulator, Sample};
+
+use super::log::DriveLog;
+
+/// p50 / p99 / max of a set of values (ns), and the count.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Percentiles {
+    /// Values.
+    pub n: usize,
+    /// Median.
+    pub p50: i64,
+    /// 99th percentile.
+    pub p99: i64,
+    /// 99.9th percentile.
+    pub p999: i64,
+    /// Maximum.
+    pub max: i64,
+}
+
+impl Percentiles {
+    /// Nearest-rank percentiles of `v` (sorted in place).
+    pub fn of(v: &mut [i64]) -> Self {
+        if v.is_empty() {
+            return Self::default();
+        }
+        v.sort_unstable();
+        let at = |q: f64| v[((q * v.len() as f64).ceil() as usize).clamp(1, v.len()) - 1];
+        Self {
+            n: v.len(),
+            p50: at(0.5),
+            p99: at(0.99),
+            p999: at(0.999),
+            max: v[v.len() - 1],
+        }
+    }
+}
+
+/// Per-topic accounting.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct TopicLine {
+    /// Topic.
+    pub topic: String,
+    /// Messages in the log.
+    pub in_log: u64,
+    /// Sequence numbers missing between consecutive messages in the log
+    /// (None: the payload has no sequence number).
+    pub seq_gaps: Option<u64>,
+    /// Times the sequence went backwards (publisher restarted).
+    pub seq_resets: Option<u64>,
+    /// The recorder's counters: received, written, queue drops.
+    pub recorder: Option<(u64, u64, u64)>,
+}
+
+/// A detected (or missed) road change.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RoadChange {
+    /// Time of the change from the scenario start (or the first truth), s.
+    pub t: f64,
+    /// Road before.
+    pub from: String,
+    /// Road after.
+    pub to: String,
+    /// Delay until ARTE first published the new road, s (None: not before
+    /// the next change or the end).
+    pub delay: Option<f64>,
+}
+
+/// ARTE against the ground truth.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ArteEval {
+    /// Estimates in the log.
+    pub estimates: u64,
+    /// Estimates with a class and a ground truth at their frame's midpoint.
+    pub judged: u64,
+    /// Of those, equal to the true road.
+    pub correct: u64,
+    /// Per true road: (judged, correct).
+    pub per_road: BTreeMap<String, (u64, u64)>,
+    /// Road changes in the scenario window.
+    pub changes: Vec<RoadChange>,
+    /// Cycles (scenario window, out of safe state) the controller used the estimate.
+    pub used_cycles: u64,
+    /// Cycles in the scenario window out of safe state.
+    pub active_cycles: u64,
+}
+
+impl ArteEval {
+    /// correct / judged (NaN with nothing judged).
+    pub fn accuracy(&self) -> f64 {
+        if self.judged == 0 {
+            f64::NAN
+        } else {
+            self.correct as f64 / self.judged as f64
+        }
+    }
+}
+
+/// CAN accounting.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct CanSummary {
+    /// (message name or id, direction) → frames.
+    pub frames: BTreeMap<(String, &'static str), u64>,
+    /// Frames flagged `E2E_REJECTED` by the receiver.
+    pub rejected: u64,
+    /// The loop's E2E fault counters at its last record.
+    pub faults: E2eFaults,
+}
+
+/// Loop timing.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Timing {
+    /// Cycle records.
+    pub cycles: u64,
+    /// Wake-up latency, ns.
+    pub wakeup: Percentiles,
+    /// Compute time (wake-up to command sent), ns.
+    pub compute: Percentiles,
+    /// Deadline misses over the log (last record minus first).
+    pub deadline_misses: u64,
+    /// Cycles in the safe state (whole log).
+    pub safe_cycles: u64,
+    /// Cycle period from the stamps (median), ns.
+    pub period_ns: i64,
+    /// Wake-up latencies, ns (for the histogram).
+    pub wakeup_ns: Vec<i64>,
+}
+
+/// Everything `grip drive` / `grip inspect` print.
+#[derive(Debug, Clone, Default)]
+pub struct Summary {
+    /// Log file.
+    pub file: String,
+    /// `grip.run` entries worth showing.
+    pub run: Vec<(String, String)>,
+    /// Reader findings (truncation etc.), as lines.
+    pub warnings: Vec<String>,
+    /// Per topic.
+    pub topics: Vec<TopicLine>,
+    /// Loop timing.
+    pub timing: Timing,
+    /// MODELS.md §4 metrics over the scenario window (None: no truth).
+    pub metrics: Option<Metrics>,
+    /// Scenario window, s from the first truth: (start, end).
+    pub window: Option<(f64, f64)>,
+    /// CAN.
+    pub can: CanSummary,
+    /// ARTE.
+    pub arte: ArteEval,
+    /// Speed at the window's start and end, km/h.
+    pub speed_kmh: Option<(f64, f64)>,
+}
+
+/// Sequence gaps and resets of a sequence.
+pub fn seq_gaps(seqs: impl IntoIterator<Item = u64>) -> (u64, u64) {
+    let mut last: Option<u64> = None;
+    let (mut gaps, mut resets) = (0, 0);
+    for s in seqs {
+        if let Some(l) = last {
+            if s > l {
+                gaps += s - l - 1;
+            } else {
+                resets += 1;
+            }
+        }
+        last = Some(s);
+    }
+    (gaps, resets)
+}
+
+/// The scenario's duration, s: `grip.run` `scenario_duration_s`, else the
+/// `duration` of the attached `scenarios/<scenario>.toml`.
+pub fn scenario_duration(log: &DriveLog) -> Option<f64> {
+    if let Some(d) = log
+        .run
+        .get("scenario_duration_s")
+        .and_then(|s| s.parse::<f64>().ok())
+    {
+        return Some(d);
+    }
+    let name = log.run.get("scenario")?;
+    let text = log.attachment_text(&format!("scenarios/{name}.toml"))?;
+    let v: toml::Value = toml::from_str(text).ok()?;
+    v.get("duration")?.as_float()
+}
+
+/// Index of the first truth sample of the running scenario: plant-sim
+/// holds the vehicle (state frozen) until the start, so it is the first
+/// sample whose state differs from the first one; 0 if none differs.
+pub fn scenario_start(truth: &[GroundTruth]) -> usize {
+    let Some(f) = truth.first() else { return 0 };
+    truth
+        .iter()
+        .position(|g| g.x != f.x || g.v != f.v || g.omega != f.omega)
+        .map_or(0, |i| i.saturating_sub(1))
+}
+
+/// Truth in effect at `t_ns` (the last sample at or before it).
+pub fn truth_at(truth: &[GroundTruth], t_ns: u64) -> Option<&GroundTruth> {
+    let i = truth.partition_point(|g| g.stamp_ns <= t_ns);
+    if i == 0 { None } else { truth.get(i - 1) }
+}
+
+fn name_of_truth(g: &GroundTruth) -> String {
+    g.road_name().unwrap_or("?").to_owned()
+}
+
+fn name_of_est(e: &RoadEstimate) -> Option<String> {
+    if e.class_index == grip_msgs::NO_CLASS {
+        None
+    } else {
+        e.class_name().map(str::to_owned)
+    }
+}
+
+fn timing(cycles: &[CycleRecord]) -> Timing {
+    let mut wake: Vec<i64> = cycles.iter().map(|c| c.wakeup_latency_ns).collect();
+    let wakeup_ns = wake.clone();
+    let mut comp: Vec<i64> = cycles.iter().map(|c| c.compute_ns as i64).collect();
+    let mut periods: Vec<i64> = cycles
+        .windows(2)
+        .map(|w| w[1].stamp_ns as i64 - w[0].stamp_ns as i64)
+        .collect();
+    Timing {
+        cycles: cycles.len() as u64,
+        wakeup: Percentiles::of(&mut wake),
+        compute: Percentiles::of(&mut comp),
+        deadline_misses: match (cycles.first(), cycles.last()) {
+            (Some(a), Some(b)) => b.deadline_misses.saturating_sub(a.deadline_misses),
+            _ => 0,
+        },
+        safe_cycles: cycles.iter().filter(|c| c.safe_state != 0).count() as u64,
+        period_ns: Percentiles::of(&mut periods).p50,
+        wakeup_ns,
+    }
+}
+
+/// Computes the summary of `log`; `vehicle` gives M/n and J_w for the
+/// kinetic-energy metric (from the log's attached `vehicle.toml` if the
+/// caller found it, else the configuration directory's).
+pub fn summarize(log: &DriveLog, vehicle: &VehicleParams) -> Summary {
+    let mut s = Summary {
+        file: log.path.display().to_string(),
+        ..Summary::default()
+    };
+    for k in [
+        "scenario",
+        "controller",
+        "arte",
+        "seed",
+        "version",
+        "git_revision",
+        "instance",
+    ] {
+        if let Some(v) = log.run.get(k) {
+            s.run.push((k.to_owned(), v.clone()));
+        }
+    }
+    if let Some(t) = &log.report.truncated {
+        s.warnings.push(format!(
+            "log is incomplete (read up to the damage; later data lost): {t}"
+        ));
+    }
+    if log.report.bad > 0 {
+        s.warnings.push(format!(
+            "{} messages did not decode (first: {})",
+            log.report.bad,
+            log.report.first_error.as_deref().unwrap_or("?")
+        ));
+    }
+    if log.recorder.is_none() {
+        s.warnings
+            .push("no grip.recorder summary: the recorder did not finish (crash or kill)".into());
+    }
+
+    // topics
+    for (t, _) in topics::ALL {
+        let in_log = log.counts.get(t).copied().unwrap_or(0);
+        let seqs: Option<Vec<u64>> = match t {
+            x if x == topics::CYCLE => Some(log.cycles.iter().map(|c| c.seq).collect()),
+            x if x == topics::TRUTH => Some(log.truth.iter().map(|c| c.seq).collect()),
+            x if x == topics::ROAD => Some(log.roads.iter().map(|c| c.seq).collect()),
+            x if x == topics::AUDIO => Some(log.audio.seqs.clone()),
+            _ => None,
+        };
+        let (g, r) = seqs.map(seq_gaps).unzip();
+        let recorder = log.recorder.as_ref().and_then(|m| {
+            let get = |k: &str| {
+                m.get(&format!("{t}.{k}"))
+                    .and_then(|v| v.parse::<u64>().ok())
+            };
+            Some((get("received")?, get("written")?, get("queue_dropped")?))
+        });
+        s.topics.push(TopicLine {
+            topic: t.to_owned(),
+            in_log,
+            seq_gaps: g,
+            seq_resets: r,
+            recorder,
+        });
+    }
+
+    s.timing = timing(&log.cycles);
+
+    // scenario window and metrics
+    if log.truth.len() >= 2 {
+        let t_first = log.truth[0].stamp_ns;
+        let i0 = scenario_start(&log.truth);
+        let start_ns = log.truth[i0].stamp_ns;
+        let end_ns = scenario_duration(log).map_or(u64::MAX, |d| start_ns + (d * 1e9) as u64);
+        let mut acc = MetricsAccumulator::new(vehicle);
+        let mut last_in = i0;
+        for k in i0..log.truth.len() {
+            let g = &log.truth[k];
+            if g.stamp_ns >= end_ns {
+                break;
+            }
+            let next = log
+                .truth
+                .get(k + 1)
+                .map_or(g.stamp_ns + 1_000_000, |n| n.stamp_ns);
+            let next = next.min(end_ns);
+            acc.push(&Sample {
+                dt: next.saturating_sub(g.stamp_ns) as f64 * 1e-9,
+                lambda: g.lambda,
+                torque: g.torque,
+                omega: g.omega,
+                v: g.v,
+            });
+            last_in = k;
+        }
+        s.metrics = Some(acc.finish());
+        let rel = |ns: u64| ns.saturating_sub(t_first) as f64 * 1e-9;
+        let last_ns = log.truth[last_in].stamp_ns;
+        s.window = Some((rel(start_ns), rel(end_ns.min(last_ns + 1_000_000))));
+        s.speed_kmh = Some((log.truth[i0].v * 3.6, log.truth[last_in].v * 3.6));
+
+        // ARTE
+        let mut a = ArteEval {
+            estimates: log.roads.len() as u64,
+            ..ArteEval::default()
+        };
+        for e in &log.roads {
+            let mid = e.frame_t0_ns / 2 + e.frame_t1_ns / 2;
+            let (Some(est), Some(g)) = (name_of_est(e), truth_at(&log.truth, mid)) else {
+                continue;
+            };
+            let truth_name = name_of_truth(g);
+            a.judged += 1;
+            let ok = est == truth_name;
+            a.correct += u64::from(ok);
+            let r = a.per_road.entry(truth_name).or_default();
+            r.0 += 1;
+            r.1 += u64::from(ok);
+        }
+        // changes of the true road inside the window
+        let window: Vec<&GroundTruth> = log.truth[i0..=last_in].iter().collect();
+        let mut change_at: Vec<(u64, String, String)> = Vec::new();
+        for w in window.windows(2) {
+            if w[1].road_index != w[0].road_index {
+                change_at.push((w[1].stamp_ns, name_of_truth(w[0]), name_of_truth(w[1])));
+            }
+        }
+        for (k, (tc, from, to)) in change_at.iter().enumerate() {
+            let until = change_at.get(k + 1).map_or(u64::MAX, |c| c.0);
+            let delay = log
+                .roads
+                .iter()
+                .filter(|e| e.stamp_ns >= *tc && e.stamp_ns < until)
+                .find(|e| name_of_est(e).as_deref() == Some(to.as_str()))
+                .map(|e| (e.stamp_ns - tc) as f64 * 1e-9);
+            a.changes.push(RoadChange {
+                t: (tc - start_ns) as f64 * 1e-9,
+                from: from.clone(),
+                to: to.clone(),
+                delay,
+            });
+        }
+        for c in &log.cycles {
+            if c.stamp_ns >= start_ns && c.stamp_ns < end_ns && c.safe_state == 0 {
+                a.active_cycles += 1;
+                a.used_cycles += u64::from(c.used_arte != 0);
+            }
+        }
+        s.arte = a;
+    } else {
+        s.arte.estimates = log.roads.len() as u64;
+    }
+
+    // CAN
+    for f in &log.can {
+        let name = spec_for_id(f.id).map_or_else(|| format!("0x{:X}", f.id), |m| m.name.to_owned());
+        let dir = if f.direction == can_dir::TX {
+            "tx"
+        } else {
+            "rx"
+        };
+        *s.can.frames.entry((name, dir)).or_default() += 1;
+        if f.flags & can_flags::E2E_REJECTED != 0 {
+            s.can.rejected += 1;
+        }
+    }
+    if let Some(c) = log.cycles.last() {
+        s.can.faults = c.faults;
+    }
+    s
+}
+
+fn us(ns: i64) -> String {
+    format!("{:.1}", ns as f64 / 1e3)
+}
+
+/// Text histogram of wake-up latencies (µs buckets, log-spaced).
+pub fn latency_histogram(lat_ns: &[i64]) -> String {
+    const EDGES_US: [i64; 11] = [0, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10_000];
+    let mut counts = [0u64; 11];
+    for &l in lat_ns {
+        let u = l / 1000;
+        let i = EDGES_US.iter().rposition(|&e| u >= e).unwrap_or(0);
+        counts[i] += 1;
+    }
+    let max = counts.iter().copied().max().unwrap_or(0).max(1);
+    let mut out = String::new();
+    for (i, &c) in counts.iter().enumerate() {
+        let label = if i + 1 < EDGES_US.len() {
+            format!("{:>6}-{:<6}", EDGES_US[i], EDGES_US[i + 1])
+        } else {
+            format!("{:>6}+      ", EDGES_US[i])
+        };
+        // log-ish bar so rare outliers stay visible
+        let bar = if c == 0 {
+            0
+        } else {
+            1 + ((c as f64).ln() / (max as f64).ln().max(1e-9) * 49.0) as usize
+        };
+        let _ = writeln!(out, "  {label} µs {c:>8} {}", "#".repeat(bar));
+    }
+    out
+}
+
+impl Summary {
+    /// The printed report.
+    pub fn render(&self) -> String {
+        let mut o = String::new();
+        let _ = writeln!(o, "drive log {}", self.file);
+        if !self.run.is_empty() {
+            let parts: Vec<String> = self.run.iter().map(|(k, v)| format!("{k}={v}")).collect();
+            let _ = writeln!(o, "  {}", parts.join("  "));
+        }
+        for w in &self.warnings {
+            let _ = writeln!(o, "  WARNING: {w}");
+        }
+
+        let _ = writeln!(
+            o,
+            "\nmessages per topic (recorder: received / written / dropped in its queue)"
+        );
+        for t in &self.topics {
+            let gaps = match (t.seq_gaps, t.seq_resets) {
+                (Some(g), Some(r)) => format!("seq gaps {g:<5} restarts {r:<3}"),
+                _ => "(no sequence number)      ".to_owned(),
+            };
+            let rec = t.recorder.map_or_else(
+                || "recorder: -".to_owned(),
+                |(r, w, d)| format!("recorder: {r} / {w} / {d}"),
+            );
+            let _ = writeln!(o, "  {:<20} {:>9}  {gaps}  {rec}", t.topic, t.in_log);
+        }
+
+        let tm = &self.timing;
+        let _ = writeln!(
+            o,
+            "\ncontrol loop timing ({} cycles, period {} µs)",
+            tm.cycles,
+            us(tm.period_ns)
+        );
+        let _ = writeln!(
+            o,
+            "  wake-up latency  p50 {} µs  p99 {} µs  p99.9 {} µs  max {} µs",
+            us(tm.wakeup.p50),
+            us(tm.wakeup.p99),
+            us(tm.wakeup.p999),
+            us(tm.wakeup.max)
+        );
+        let _ = writeln!(
+            o,
+            "  compute time     p50 {} µs  p99 {} µs  p99.9 {} µs  max {} µs",
+            us(tm.compute.p50),
+            us(tm.compute.p99),
+            us(tm.compute.p999),
+            us(tm.compute.max)
+        );
+        let _ = writeln!(
+            o,
+            "  deadline misses {}   cycles in safe state {}",
+            tm.deadline_misses, tm.safe_cycles
+        );
+
+        if let (Some(m), Some((t0, t1))) = (&self.metrics, self.window) {
+            let _ = writeln!(
+                o,
+                "\nmetrics (MODELS.md §4, ground truth, scenario window {t0:.3}-{t1:.3} s of the truth stream)"
+            );
+            let _ = writeln!(
+                o,
+                "  slip deviation (1/T)∫|λ|dt      {:.4}",
+                m.slip_deviation
+            );
+            let _ = writeln!(
+                o,
+                "  max torque                      {:.2} N m",
+                m.max_torque
+            );
+            let _ = writeln!(
+                o,
+                "  torque effort (normalised area) {:.2} N m",
+                m.torque_effort
+            );
+            let _ = writeln!(
+                o,
+                "  mean acceleration               {:.3} m/s²",
+                m.mean_accel
+            );
+            let _ = writeln!(o, "  distance                        {:.2} m", m.distance);
+            let _ = writeln!(o, "  energy ∫Tω dt                   {:.1} J", m.energy);
+            let _ = writeln!(
+                o,
+                "  kinetic energy gained           {:.1} J",
+                m.kinetic_energy_gain
+            );
+            if let Some((a, b)) = self.speed_kmh {
+                let _ = writeln!(o, "  speed                           {a:.1} -> {b:.1} km/h");
+            }
+            let _ = writeln!(
+                o,
+                "  duration {:.3} s, {} samples ({} rejected)",
+                m.duration, m.samples, m.rejected
+            );
+        } else {
+            let _ = writeln!(o, "\nmetrics: no ground truth in the log");
+        }
+
+        let _ = writeln!(o, "\nCAN frames (logged by tcs-loop)");
+        for ((name, dir), n) in &self.can.frames {
+            let _ = writeln!(o, "  {name:<14} {dir}  {n:>8}");
+        }
+        let f = &self.can.faults;
+        let _ = writeln!(
+            o,
+            "  E2E rejected {}; loop fault counters: crc {} repeated {} skipped {} length {} unknown id {} timeouts {}",
+            self.can.rejected,
+            f.crc,
+            f.counter_repeated,
+            f.counter_skipped,
+            f.length,
+            f.unknown_id,
+            f.timeout
+        );
+
+        let a = &self.arte;
+        let _ = writeln!(o, "\nARTE ({} estimates)", a.estimates);
+        if a.judged > 0 {
+            let _ = writeln!(
+                o,
+                "  accuracy vs ground truth {:.1} % ({}/{} frames, truth at each frame's midpoint)",
+                100.0 * a.accuracy(),
+                a.correct,
+                a.judged
+            );
+            for (road, (n, c)) in &a.per_road {
+                let _ = writeln!(
+                    o,
+                    "    {road:<12} recall {:.1} % ({c}/{n})",
+                    100.0 * *c as f64 / *n as f64
+                );
+            }
+        }
+        for c in &a.changes {
+            let d = c
+                .delay
+                .map_or("not detected before the next change".to_owned(), |d| {
+                    format!("detected after {:.3} s", d)
+                });
+            let _ = writeln!(o, "  change at {:.3} s {} -> {}: {d}", c.t, c.from, c.to);
+        }
+        if a.active_cycles > 0 {
+            let _ = writeln!(
+                o,
+                "  controller used the estimate in {:.1} % of the active scenario cycles ({}/{})",
+                100.0 * a.used_cycles as f64 / a.active_cycles as f64,
+                a.used_cycles,
+                a.active_cycles
+            );
+        }
+        o
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percentiles_nearest_rank() {
+        let mut v: Vec<i64> = (1..=1000).collect();
+        let p = Percentiles::of(&mut v);
+        assert_eq!((p.p50, p.p99, p.p999, p.max), (500, 990, 999, 1000));
+        assert_eq!(Percentiles::of(&mut []), Percentiles::default());
+    }
+
+    #[test]
+    fn gaps_and_restarts() {
+        assert_eq!(seq_gaps([0, 1, 2, 3]), (0, 0));
+        assert_eq!(seq_gaps([0, 2, 5, 0, 1]), (1 + 2, 1));
+    }
+
+    fn truth(seq: u64, t_ms: u64, x: f64, road: u32, name: &str) -> GroundTruth {
+        let mut g = GroundTruth::zeroed();
+        g.seq = seq;
+        g.stamp_ns = t_ms * 1_000_000;
+        g.x = x;
+        g.v = 3.0;
+        g.omega = 10.0;
+        g.road_index = road;
+        g.road_name = grip_msgs::name_to_bytes(name);
+        g
+    }
+
+    #[test]
+    fn start_is_where_the_held_state_first_moves() {
+        let mut t: Vec<GroundTruth> = (0..5).map(|k| truth(k, k, 0.0, 0, "asphalt")).collect();
+        t.push(truth(5, 5, 0.003, 0, "asphalt"));
+        assert_eq!(scenario_start(&t), 4);
+        assert_eq!(truth_at(&t, 2_500_000).map(|g| g.seq), Some(2));
+        assert!(truth_at(&t, 0).is_some());
+    }
+
+    #[test]
+    fn arte_accuracy_and_change_delay() {
+        // held 10 ms, then asphalt 100 ms, snow 100 ms
+        let mut t = Vec::new();
+        for k in 0..210u64 {
+            let x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
+            let (r, n) = if k < 110 { (0, "asphalt") } else { (1, "snow") };
+            t.push(truth(k, k, x, r, n));
+        }
+        let est = |seq: u64, t1_ms: u64, name: &str| {
+            let mut e = RoadEstimate::zeroed();
+            e.seq = seq;
+            e.frame_t0_ns = (t1_ms - 20) * 1_000_000;
+            e.frame_t1_ns = t1_ms * 1_000_000;
+            e.stamp_ns = t1_ms * 1_000_000 + 1;
+            e.class_index = 0;
+            e.class_name = grip_msgs::name_to_bytes(name);
+            e
+        };
+        let log = DriveLog {
+            truth: t,
+            roads: vec![
+                est(0, 50, "asphalt"),
+                est(1, 100, "snow"),    // wrong (truth asphalt at 90 ms)
+                est(2, 140, "asphalt"), // wrong (truth snow at 130 ms)
+                est(3, 160, "snow"),
+            ],
+            ..DriveLog::default()
+        };
+        let s = summarize(&log, &VehicleParams::default());
+        assert_eq!((s.arte.judged, s.arte.correct), (4, 2));
+        assert_eq!(s.arte.changes.len(), 1);
+        let d = s.arte.changes[0].delay.unwrap();
+        assert!((d - 0.050).abs() < 1e-6, "{d}");
+        let m = s.metrics.unwrap();
+        assert_eq!(m.samples, 201, "window starts at the last held sample");
+    }
+}
