@@ -1,0 +1,321 @@
+//! End-to-end: all five services as separate processes over the simulated
+//! CAN bus (iceoryx2), isolated by a unique `GRIP_INSTANCE`.
+//!
+//! 1. `grip drive --scenario e2e` (1.5 s): the MCAP holds every control
+//!    cycle with contiguous sequence numbers, as many as tcs-loop says it
+//!    ran; every TorqueCommand tcs-loop sent (cycles + its shutdown frame);
+//!    as many ground-truth samples as plant-sim cycles, audio blocks as
+//!    audio-acq published, road estimates as arte published; the recorder
+//!    lost and dropped nothing; the road estimates are mostly right.
+//! 2. `kill -9` of arte mid-drive: the other four keep running, tcs-loop
+//!    reports the missing estimates, a restarted arte cleans the dead
+//!    node's iceoryx2 resources, reconnects, and its estimates reach
+//!    tcs-loop and the recorder again; the control loop never stopped.
+//!
+//! No timing assertions (a loaded 2-core machine must pass): timeouts are
+//! generous and only counts and contents are checked. See e2e_support.rs
+//! for how the binaries are found or built.
+
+#[path = "e2e_support.rs"]
+mod support;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::Command;
+use std::time::Duration;
+
+use grip_io::mcaplog::{LogMessage, McapLog, MetadataMap};
+use grip_msgs::{can_dir, topics};
+use support::{Svc, bin_dir, config_dir, field, instance};
+
+const READY: Duration = Duration::from_secs(60);
+
+struct Read {
+    cycles: Vec<grip_msgs::CycleRecord>,
+    truth: Vec<grip_msgs::GroundTruth>,
+    roads: Vec<grip_msgs::RoadEstimate>,
+    can: Vec<grip_msgs::CanFrame>,
+    audio: u64,
+    recorder: MetadataMap,
+}
+
+fn read(path: &Path) -> Read {
+    let log = McapLog::open(path).unwrap();
+    let (msgs, rep) = log.messages().unwrap();
+    assert!(rep.truncated.is_none(), "log truncated: {rep:?}");
+    assert_eq!(rep.bad, 0, "{rep:?}");
+    let mut r = Read {
+        cycles: vec![],
+        truth: vec![],
+        roads: vec![],
+        can: vec![],
+        audio: 0,
+        recorder: MetadataMap::new(),
+    };
+    for m in msgs {
+        match m.msg {
+            LogMessage::Cycle(c) => r.cycles.push(c),
+            LogMessage::Truth(t) => r.truth.push(t),
+            LogMessage::Road(e) => r.roads.push(e),
+            LogMessage::Can(f) => r.can.push(f),
+            LogMessage::Audio(_) => r.audio += 1,
+        }
+    }
+    r.recorder = log
+        .metadata()
+        .unwrap()
+        .into_iter()
+        .find(|(n, _)| n == "grip.recorder")
+        .map(|(_, m)| m)
+        .expect("no grip.recorder summary: the recorder did not finish");
+    r
+}
+
+fn meta(m: &MetadataMap, topic: &str, key: &str) -> u64 {
+    m.get(&format!("{topic}.{key}"))
+        .unwrap_or_else(|| panic!("recorder metadata lacks {topic}.{key}"))
+        .parse()
+        .unwrap()
+}
+
+/// The recorder received, wrote and lost nothing it should not have.
+fn recorder_lost_nothing(m: &MetadataMap) {
+    for (t, _) in topics::ALL {
+        let rx = meta(m, t, "received");
+        assert_eq!(rx, meta(m, t, "written"), "{t}: received != written");
+        assert_eq!(meta(m, t, "queue_dropped"), 0, "{t}: queue drops");
+        assert_eq!(meta(m, t, "receive_errors"), 0, "{t}: receive errors");
+    }
+    for t in [topics::CYCLE, topics::TRUTH, topics::AUDIO] {
+        assert_eq!(meta(m, t, "seq_gaps"), 0, "{t}: sequence gaps");
+    }
+    assert_eq!(
+        meta(m, topics::CAN_LOG, "counter_gaps"),
+        0,
+        "CAN frames missing by alive counter"
+    );
+}
+
+/// The "... stopped" line of `service` in `text`, and its numeric field.
+fn stopped_field(text: &str, service_module: &str, key: &str) -> u64 {
+    let line = text
+        .lines()
+        .find(|l| l.contains(service_module) && l.contains("stopped"))
+        .unwrap_or_else(|| panic!("no '{service_module} ... stopped' line in:\n{text}"));
+    field(line, key).unwrap_or_else(|| panic!("no {key}= in: {line}")) as u64
+}
+
+fn arte_accuracy(r: &Read) -> (u64, u64) {
+    let (mut judged, mut ok) = (0, 0);
+    for e in &r.roads {
+        if e.class_index == grip_msgs::NO_CLASS {
+            continue;
+        }
+        let mid = e.frame_t0_ns / 2 + e.frame_t1_ns / 2;
+        let i = r.truth.partition_point(|g| g.stamp_ns <= mid);
+        if i == 0 {
+            continue;
+        }
+        judged += 1;
+        ok += u64::from(e.class_name() == r.truth[i - 1].road_name());
+    }
+    (judged, ok)
+}
+
+#[test]
+fn drive_records_every_cycle_frame_and_estimate() {
+    let bin = bin_dir();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("drive.mcap");
+    let res = Command::new(bin.join("grip"))
+        .arg("--config-dir")
+        .arg(config_dir())
+        .args([
+            "drive",
+            "--scenario",
+            "e2e",
+            "--ready-timeout",
+            "60",
+            "-v",
+            "--out",
+        ])
+        .arg(&out)
+        .env("GRIP_BIN_DIR", &bin)
+        .env("NO_COLOR", "1")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&res.stderr).into_owned();
+    let stdout = String::from_utf8_lossy(&res.stdout).into_owned();
+    assert!(
+        res.status.success(),
+        "grip drive failed ({}):\n{stderr}\n{stdout}",
+        res.status
+    );
+    assert!(stdout.contains("metrics (MODELS.md §4"), "{stdout}");
+
+    let r = read(&out);
+    recorder_lost_nothing(&r.recorder);
+
+    // every control cycle, contiguous, as many as tcs-loop ran
+    let n = stopped_field(&stderr, "grip_tcs_loop", "cycles");
+    assert!(n > 1000, "only {n} cycles for a 1.5 s scenario");
+    assert_eq!(r.cycles.len() as u64, n, "cycle records != tcs-loop cycles");
+    for (k, c) in r.cycles.iter().enumerate() {
+        assert_eq!(c.seq, k as u64, "cycle sequence broken at {k}");
+    }
+    // every command frame: one per cycle plus the shutdown frame
+    let tx = r
+        .can
+        .iter()
+        .filter(|f| f.direction == can_dir::TX && f.id == 0x100)
+        .count() as u64;
+    assert_eq!(tx, n + 1, "TorqueCommand frames in the log");
+    let ws = r.can.iter().filter(|f| f.id == 0x120).count() as u64;
+    assert!(ws * 10 >= n * 9, "WheelSpeeds frames {ws} for {n} cycles");
+    // ground truth: one per plant-sim cycle
+    let plant_cycles = stopped_field(&stderr, "grip_plant_sim", "cycles");
+    assert_eq!(
+        r.truth.len() as u64,
+        plant_cycles,
+        "truth samples != plant-sim cycles"
+    );
+    for (k, g) in r.truth.iter().enumerate() {
+        assert_eq!(g.seq, k as u64, "truth sequence broken at {k}");
+    }
+    // audio blocks and road estimates as their producers counted them
+    assert_eq!(r.audio, stopped_field(&stderr, "grip_audio_acq", "blocks"));
+    assert_eq!(
+        r.roads.len() as u64,
+        stopped_field(&stderr, "grip_arte_svc", "estimates")
+    );
+    // the vehicle drove and ARTE was mostly right
+    let x_end = r.truth.last().unwrap().x;
+    assert!(x_end > 2.0, "vehicle moved only {x_end} m");
+    let (judged, ok) = arte_accuracy(&r);
+    assert!(judged >= 10, "only {judged} road estimates judged");
+    assert!(
+        ok * 2 > judged,
+        "ARTE right in only {ok}/{judged} frames against the ground truth"
+    );
+    // the loop spent the scenario out of its safe state
+    let active = r.cycles.iter().filter(|c| c.safe_state == 0).count();
+    assert!(active * 2 > r.cycles.len(), "{active} active cycles");
+}
+
+#[test]
+fn killed_service_is_reported_and_a_restart_reconnects() {
+    let inst = instance("kill");
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("kill.mcap");
+    let cfg = config_dir().display().to_string();
+    let base = |extra: &[&str]| {
+        let mut v = vec!["--config-dir".to_owned(), cfg.clone()];
+        v.extend(extra.iter().map(|s| s.to_string()));
+        v
+    };
+    let out_s = out.display().to_string();
+    let args: BTreeMap<&str, Vec<String>> = [
+        ("recorder", base(&["--out", &out_s])),
+        (
+            "plant-sim",
+            base(&["--scenario", "paper", "--start-on", "commands"]),
+        ),
+        ("audio-acq", base(&[])),
+        ("arte", base(&[])),
+        ("tcs-loop", base(&["--controller", "mtte", "--arte", "on"])),
+    ]
+    .into_iter()
+    .collect();
+    let mut procs: BTreeMap<&str, Svc> = BTreeMap::new();
+    for name in support::SERVICES {
+        let mut s = Svc::spawn(name, &args[name], &inst, tmp.path());
+        s.wait_ready(READY);
+        procs.insert(name, s);
+    }
+    // let estimates flow, then kill arte hard
+    std::thread::sleep(Duration::from_millis(1500));
+    procs.get_mut("arte").unwrap().signal("KILL");
+    let killed_at = grip_io::clock::monotonic_now_ns();
+    std::thread::sleep(Duration::from_millis(2500));
+    for (name, p) in procs.iter_mut() {
+        if *name == "arte" {
+            assert!(p.poll().is_some(), "arte survived SIGKILL");
+        } else {
+            assert!(
+                p.poll().is_none(),
+                "{name} died after arte was killed:\n{}",
+                p.stderr()
+            );
+        }
+    }
+    let tcs = &procs["tcs-loop"];
+    assert!(
+        tcs.has_line("no ARTE road estimate for 1 s"),
+        "tcs-loop did not report the missing estimates:\n{}",
+        tcs.stderr()
+    );
+
+    // restart arte: it cleans the dead node's resources and reconnects
+    let mut arte = Svc::spawn("arte", &args["arte"], &inst, tmp.path());
+    arte.wait_ready(READY);
+    let restarted_at = grip_io::clock::monotonic_now_ns();
+    std::thread::sleep(Duration::from_millis(2500));
+    assert!(
+        arte.poll().is_none(),
+        "restarted arte died:\n{}",
+        arte.stderr()
+    );
+    assert!(
+        arte.has_line("dead iceoryx2 nodes found at start-up")
+            || arte.has_line("removed stale iceoryx2 resources"),
+        "restarted arte did not clean up the killed node:\n{}",
+        arte.stderr()
+    );
+    assert!(
+        procs["tcs-loop"].has_line("ARTE road estimates arriving again"),
+        "tcs-loop did not see the restarted arte:\n{}",
+        procs["tcs-loop"].stderr()
+    );
+    procs.insert("arte", arte);
+
+    // stop: loop first, recorder last; every clean exit is 0
+    for name in ["tcs-loop", "arte", "audio-acq", "plant-sim", "recorder"] {
+        let p = procs.get_mut(name).unwrap();
+        let grace = Duration::from_secs(if name == "recorder" { 60 } else { 15 });
+        let st = p.stop(grace);
+        assert!(
+            st.success(),
+            "{name}: {} on SIGTERM:\n{}",
+            Svc::describe(&st),
+            p.stderr()
+        );
+    }
+
+    let r = read(&out);
+    // the loop never stopped: every cycle is in the log, contiguous
+    for (k, c) in r.cycles.iter().enumerate() {
+        assert_eq!(c.seq, k as u64, "cycle sequence broken at {k}");
+    }
+    assert_eq!(meta(&r.recorder, topics::CYCLE, "seq_gaps"), 0);
+    // estimates before the kill, and from the restarted arte after it
+    let before = r.roads.iter().filter(|e| e.stamp_ns < killed_at).count();
+    let after = r.roads.iter().filter(|e| e.stamp_ns > restarted_at).count();
+    assert!(
+        before > 0 && after > 0,
+        "estimates before {before}, after restart {after}"
+    );
+    assert!(
+        meta(&r.recorder, topics::ROAD, "seq_resets") >= 1,
+        "the restarted arte's sequence did not restart in the recorder's view"
+    );
+    // tcs-loop used the restarted arte's estimates
+    let used_after = r
+        .cycles
+        .iter()
+        .filter(|c| c.stamp_ns > restarted_at && c.used_arte != 0)
+        .count();
+    assert!(
+        used_after > 0,
+        "the loop never used an estimate after the restart"
+    );
+}
