@@ -5,6 +5,7 @@
 
 use clap::{Parser, Subcommand};
 
+mod acoustic;
 mod cmd;
 mod dataset;
 mod drive;

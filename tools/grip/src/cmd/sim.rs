@@ -9,18 +9,26 @@ mod plot;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use anyhow::Context;
+use grip_arte::model::Model;
+use grip_arte::stream::{Smoothing, percentile};
 use grip_config::{ConfigDir, ConfigError, parse_toml, read_file};
 use grip_sim::report::{self, format_paper_comparison, format_relative, format_table, summarize};
 use grip_sim::{
-    ArteConfig, ConfusionArte, Job, PerfectArte, RoadEstimator, RunResult, SimSetup, Variant,
-    run_batch,
+    ArteConfig, ConfusionArte, Job, PerfectArte, RoadEstimator, RunResult, Sim, SimSetup, Variant,
 };
 use grip_tcs::ControllersConfig;
 
 use super::Ctx;
+use crate::acoustic::{AcousticArte, AcousticConfig, InLoopProbe, InLoopStats};
+
+/// Hold (s) of the "stable" detection delay: the ARTE crate's definition
+/// (`grip_arte::stream::detection_delays`, `grip dataset delay`).
+const HOLD_S: f64 = 0.2;
 
 /// Which road-estimate source the ARTE variants get.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -29,6 +37,10 @@ pub enum ArteSource {
     Confusion,
     /// The true road, confidence 1 (upper bound of what ARTE can give).
     Perfect,
+    /// The real acoustic chain: synthetic tyre-road audio of the true road at
+    /// the true speed, classified by the model (`--model`) in the stream
+    /// estimator.
+    Acoustic,
 }
 
 #[derive(clap::Args)]
@@ -51,6 +63,18 @@ pub struct Args {
     /// ARTE configuration (default: <config-dir>/arte.toml).
     #[arg(long)]
     arte_config: Option<PathBuf>,
+    /// `--arte acoustic`: the ARTE model file (default: <config-dir>/models/default.model).
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// `--arte acoustic`: mix rain and passing-car noise into the audio at
+    /// this SNR, dB (default: clean road sound).
+    #[arg(long, allow_hyphen_values = true)]
+    snr_db: Option<f64>,
+    /// `--arte acoustic`: what roads without a synthesiser model sound like,
+    /// ROAD=SOUND,... with SOUND a synthesiser road or `silence` (defaults:
+    /// asphalt_mf=asphalt, gravel_table=gravel, any other such road silence).
+    #[arg(long)]
+    sound_as: Option<String>,
     /// Write summary.csv, traces and plots here.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -139,21 +163,33 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         .max(1);
     let jobs = Job::grid(&variants, &seeds, args.all_traces);
 
-    // One estimator prototype, checked now; each worker clones it.
+    // One estimator prototype, checked now; each worker builds its own.
     let confusion = ConfusionArte::new(&loaded.arte.confusion, setup.roads())
         .map_err(|e| anyhow::anyhow!("{}", e))?;
     let frame_s = loaded.arte.confusion.frame_s;
     let source = args.arte;
-    let make = move || -> Box<dyn RoadEstimator> {
-        match source {
-            ArteSource::Confusion => Box::new(confusion.clone()),
-            ArteSource::Perfect => Box::new(PerfectArte::new(frame_s)),
-        }
+    let acoustic = match source {
+        ArteSource::Acoustic => Some(load_acoustic(ctx, &args, setup)?),
+        _ => None,
+    };
+    let probe_frame_s = acoustic.as_ref().map_or(frame_s, |a| a.frame_s);
+    let cycles = setup.cycles();
+    let make = |/* per worker */| -> anyhow::Result<InLoopProbe> {
+        let inner: Box<dyn RoadEstimator> = match (&acoustic, source) {
+            (Some(a), _) => Box::new(AcousticArte::new(&a.model, setup.roads(), &a.config)?),
+            (None, ArteSource::Perfect) => Box::new(PerfectArte::new(frame_s)),
+            (None, _) => Box::new(confusion.clone()),
+        };
+        Ok(InLoopProbe::new(inner, probe_frame_s, cycles, HOLD_S))
+    };
+    let source_text = match &acoustic {
+        Some(a) => a.describe.clone(),
+        None => format!("{source:?}").to_lowercase(),
     };
 
     let sc = setup.scenario();
     eprintln!(
-        "scenario `{}` ({}): {:.2} s, {} cycles at {} Hz, plant sub-step <= {:.0e} s; {} variants x {} seeds on {} threads; ARTE source: {:?}",
+        "scenario `{}` ({}): {:.2} s, {} cycles at {} Hz, plant sub-step <= {:.0e} s; {} variants x {} seeds on {} threads; ARTE source: {}",
         sc.name,
         loaded.scenario_path.display(),
         setup.sim_time(),
@@ -163,7 +199,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         variants.len(),
         seeds.len(),
         threads,
-        source
+        source_text
     );
     let bar = indicatif::ProgressBar::new(jobs.len() as u64);
     bar.set_style(
@@ -171,15 +207,14 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let started = Instant::now();
-    let results = run_batch(setup, &jobs, threads, &make, &|_r| bar.inc(1))
-        .map_err(|e| anyhow::anyhow!("simulation setup: {e}"))?;
+    let (results, inloop) = run_probed(setup, &jobs, threads, &make, &|| bar.inc(1))?;
     let wall = started.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
     let summaries = summarize(&results);
     let mut out = String::new();
     out.push_str(&format!(
-        "\nScenario `{}`: {}\n{} seeds ({}..={}), mean ± std over seeds; ARTE source: {:?}.\n\
+        "\nScenario `{}`: {}\n{} seeds ({}..={}), mean ± std over seeds; ARTE source: {}.\n\
          slip dev. = (1/T) ∫|λ| dt; max torque = max |T|; effort = (1/T) ∫|T| dt (the paper's \"normalised area\", N m);\n\
          mean accel = ΔV / T; ∫Tω dt = motor energy at the wheel; ΔKE = kinetic energy gained (one wheel's share, M/n).\n\n",
         sc.name,
@@ -187,7 +222,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         seeds.len(),
         seeds[0],
         seeds[seeds.len() - 1],
-        source
+        source_text
     ));
     out.push_str(&format_table(&summaries));
     out.push('\n');
@@ -200,6 +235,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             "\nWARNING: {unhealthy} runs had a non-finite plant state or rejected metric samples (see summary.csv).\n"
         ));
     }
+    out.push_str(&format_inloop(&source_text, &results, &inloop));
     let simulated = setup.sim_time() * results.len() as f64;
     out.push_str(&format!(
         "\n{} runs, {:.1} simulated s in {:.2} s wall ({:.0}x real time on {} threads).\n",
@@ -209,13 +245,333 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         simulated / wall.max(1e-9),
         threads
     ));
+    if acoustic.is_some() {
+        let arte_runs = results.iter().filter(|r| r.variant.arte).count();
+        out.push_str(&format!(
+            "Acoustic chain: {:.1} s of audio synthesised and classified ({} ARTE runs).\n",
+            setup.sim_time() * arte_runs as f64,
+            arte_runs
+        ));
+    }
     print!("{out}");
 
     if let Some(dir) = &args.out {
         write_outputs(dir, setup, &results, &out)?;
+        write_inloop_csv(dir, &results, &inloop)?;
         eprintln!("wrote {}", dir.display());
     }
     Ok(())
+}
+
+/// The acoustic source: model, chain settings, and a one-line description.
+struct AcousticSetup {
+    model: Model,
+    config: AcousticConfig,
+    frame_s: f64,
+    describe: String,
+}
+
+/// Load the model and build one chain now, so that every error (file,
+/// checksum, class names, sound map) shows before any run.
+fn load_acoustic(ctx: &Ctx, args: &Args, setup: &SimSetup) -> anyhow::Result<AcousticSetup> {
+    let path = args
+        .model
+        .clone()
+        .unwrap_or_else(|| ctx.config_dir.join("models").join("default.model"));
+    let bytes = std::fs::read(&path).with_context(|| {
+        format!(
+            "cannot read the ARTE model {} (train one with `grip train`, or pass --model)",
+            path.display()
+        )
+    })?;
+    let model = Model::from_bytes(&bytes).with_context(|| format!("{}", path.display()))?;
+    let mut config = AcousticConfig::default();
+    if let Some(snr) = args.snr_db {
+        if !(-30.0..=80.0).contains(&snr) {
+            anyhow::bail!("--snr-db: {snr} dB is outside -30..=80");
+        }
+        config = config.with_noise_snr(snr);
+    }
+    if let Some(spec) = &args.sound_as {
+        config.parse_sound_as(spec)?;
+    }
+    let chain = AcousticArte::new(&model, setup.roads(), &config)
+        .with_context(|| format!("acoustic ARTE with model {}", path.display()))?;
+    let roads = setup.roads();
+    let silent: Vec<&str> = (0..roads.len())
+        .filter(|&i| chain.sound_of(i).is_none())
+        .map(|i| roads[i].name())
+        .collect();
+    let borrowed: Vec<String> = (0..roads.len())
+        .filter_map(|i| {
+            let s = chain.sound_of(i)?;
+            (s != roads[i].name()).then(|| format!("{}={s}", roads[i].name()))
+        })
+        .collect();
+    let smoothing = match config.stream.smoothing {
+        Smoothing::None => "none".to_owned(),
+        Smoothing::Hmm { stay, floor } => format!("HMM stay {stay} floor {floor}"),
+    };
+    let describe = format!(
+        "acoustic (model {} [{}; {}; classes {}], {} Hz, frame {} s, hop {} s, {}; noise: {}; sounds like: {}; silent: {})",
+        path.display(),
+        model.meta.profile,
+        model.classifier().describe(),
+        model.classes().join(","),
+        chain.sample_rate(),
+        chain.frame_s(),
+        config.stream.hop_s,
+        smoothing,
+        config.noise.as_ref().map_or_else(
+            || "none".to_owned(),
+            |n| format!("rain+car at {} dB SNR", n.snr_db)
+        ),
+        if borrowed.is_empty() {
+            "-".to_owned()
+        } else {
+            borrowed.join(",")
+        },
+        if silent.is_empty() {
+            "-".to_owned()
+        } else {
+            silent.join(",")
+        },
+    );
+    Ok(AcousticSetup {
+        frame_s: chain.frame_s(),
+        model,
+        config,
+        describe,
+    })
+}
+
+type ProbedResults = (Vec<RunResult>, Vec<Option<InLoopStats>>);
+
+/// Run `jobs` on `threads` workers like `grip_sim::run_batch` (one estimator
+/// per worker, reset per job by the simulator with the job's seed, so the
+/// output is the same for any thread count), keeping each run's in-loop
+/// statistics from the probe. Results in job order.
+fn run_probed(
+    setup: &SimSetup,
+    jobs: &[Job],
+    threads: usize,
+    make: &(dyn Fn() -> anyhow::Result<InLoopProbe> + Sync),
+    on_done: &(dyn Fn() + Sync),
+) -> anyhow::Result<ProbedResults> {
+    type Slot = Option<anyhow::Result<(RunResult, Option<InLoopStats>)>>;
+    let threads = threads.clamp(1, jobs.len().max(1));
+    let next = AtomicUsize::new(0);
+    let slots: Mutex<Vec<Slot>> = Mutex::new((0..jobs.len()).map(|_| None).collect());
+    let store = |i: usize, r: anyhow::Result<(RunResult, Option<InLoopStats>)>| {
+        if let Ok(mut g) = slots.lock() {
+            g[i] = Some(r);
+        }
+    };
+    let worker = || {
+        let mut probe = match make() {
+            Ok(p) => p,
+            Err(e) => {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                if i < jobs.len() {
+                    store(i, Err(e));
+                }
+                next.store(jobs.len(), Ordering::Relaxed);
+                return;
+            }
+        };
+        loop {
+            let i = next.fetch_add(1, Ordering::Relaxed);
+            let Some(job) = jobs.get(i) else { break };
+            let r = Sim::new(setup, job.variant, job.seed, &mut probe, job.keep_trace)
+                .map(Sim::finish)
+                .map(|r| {
+                    let stats = probe.take_stats();
+                    (r, stats)
+                })
+                .map_err(|e| anyhow::anyhow!("simulation setup: {e}"));
+            let failed = r.is_err();
+            store(i, r);
+            on_done();
+            if failed {
+                next.store(jobs.len(), Ordering::Relaxed);
+                break;
+            }
+        }
+    };
+    if threads == 1 {
+        worker();
+    } else {
+        std::thread::scope(|s| {
+            for _ in 0..threads {
+                s.spawn(worker);
+            }
+        });
+    }
+    let slots = slots
+        .into_inner()
+        .map_err(|_| anyhow::anyhow!("a simulation worker thread panicked"))?;
+    let mut results = Vec::with_capacity(jobs.len());
+    let mut stats = Vec::with_capacity(jobs.len());
+    let mut first_err = None;
+    for slot in slots {
+        match slot {
+            Some(Ok((r, s))) => {
+                results.push(r);
+                stats.push(s);
+            }
+            Some(Err(e)) => {
+                first_err.get_or_insert(e);
+            }
+            None => {}
+        }
+    }
+    if let Some(e) = first_err {
+        return Err(e);
+    }
+    if results.len() != jobs.len() {
+        anyhow::bail!("a simulation job did not run (a worker panicked)");
+    }
+    Ok((results, stats))
+}
+
+/// Pooled in-loop statistics of some runs.
+#[derive(Default)]
+struct Pooled {
+    runs: usize,
+    decisions: u64,
+    correct: u64,
+    single_road: u64,
+    single_road_correct: u64,
+    first: Vec<f64>,
+    stable: Vec<f64>,
+    changes: usize,
+    missed: usize,
+}
+
+impl Pooled {
+    fn add(&mut self, s: &InLoopStats) {
+        self.runs += 1;
+        self.decisions += s.decisions;
+        self.correct += s.correct;
+        self.single_road += s.single_road;
+        self.single_road_correct += s.single_road_correct;
+        self.changes += s.stable_delays.len();
+        self.first.extend(s.first_delays.iter().flatten());
+        self.stable.extend(s.stable_delays.iter().flatten());
+        self.missed += s.stable_delays.iter().filter(|d| d.is_none()).count();
+    }
+
+    fn row(&self, label: &str) -> String {
+        let pct = |a: u64, b: u64| {
+            if b == 0 {
+                "-".to_owned()
+            } else {
+                format!("{:.1} %", 100.0 * a as f64 / b as f64)
+            }
+        };
+        let p = |v: &[f64], q: f64| {
+            percentile(v, q).map_or_else(|| "-".to_owned(), |x| format!("{x:.3}"))
+        };
+        format!(
+            "{label:<10} {:>5} {:>10} {:>9} {:>11} {:>10} {:>7} {:>7} {:>8} {:>8} {:>6}\n",
+            self.runs,
+            self.decisions,
+            pct(self.correct, self.decisions),
+            pct(self.single_road_correct, self.single_road),
+            self.changes,
+            p(&self.first, 50.0),
+            p(&self.first, 95.0),
+            p(&self.stable, 50.0),
+            p(&self.stable, 95.0),
+            self.missed,
+        )
+    }
+}
+
+/// The in-loop block of the report: per ARTE variant and pooled.
+fn format_inloop(source: &str, results: &[RunResult], stats: &[Option<InLoopStats>]) -> String {
+    let mut variants: Vec<Variant> = Vec::new();
+    for r in results {
+        if r.variant.arte && !variants.contains(&r.variant) {
+            variants.push(r.variant);
+        }
+    }
+    if variants.is_empty() {
+        return String::new();
+    }
+    let mut out = format!(
+        "\nARTE in the loop ({source}):\n\
+         accuracy = decisions equal to the true road of the cycle they arrived in; single-road = the same over\n\
+         decisions whose analysis frame lay on one road; delays (s) from a true road change (not the start) to the\n\
+         first decision of the new road, \"stable\" = that decision held for {HOLD_S} s; missed = no stable detection\n\
+         before the next change or the end. The controller gets a decision one cycle after it completes.\n\n\
+         {:<10} {:>5} {:>10} {:>9} {:>11} {:>10} {:>7} {:>7} {:>8} {:>8} {:>6}\n",
+        "variant",
+        "runs",
+        "decisions",
+        "accuracy",
+        "single-road",
+        "changes",
+        "1st p50",
+        "1st p95",
+        "stbl p50",
+        "stbl p95",
+        "missed"
+    );
+    let mut all = Pooled::default();
+    for v in &variants {
+        let mut pool = Pooled::default();
+        for (r, s) in results.iter().zip(stats) {
+            if r.variant == *v
+                && let Some(s) = s
+            {
+                pool.add(s);
+                all.add(s);
+            }
+        }
+        out.push_str(&pool.row(v.label()));
+    }
+    if variants.len() > 1 {
+        out.push_str(&all.row("all"));
+    }
+    out
+}
+
+/// `arte_inloop.csv`: one row per ARTE run.
+fn write_inloop_csv(
+    dir: &Path,
+    results: &[RunResult],
+    stats: &[Option<InLoopStats>],
+) -> anyhow::Result<()> {
+    let p = dir.join("arte_inloop.csv");
+    let mut w = create(&p)?;
+    let fmt = |v: &[Option<f64>]| {
+        v.iter()
+            .map(|d| d.map_or_else(|| "missed".to_owned(), |x| format!("{x:.4}")))
+            .collect::<Vec<_>>()
+            .join(";")
+    };
+    let mut text = String::from(
+        "variant,seed,decisions,correct,single_road,single_road_correct,first_delays_s,stable_delays_s\n",
+    );
+    for (r, s) in results.iter().zip(stats) {
+        if let Some(s) = s {
+            text.push_str(&format!(
+                "{},{},{},{},{},{},{},{}\n",
+                r.variant.name(),
+                r.seed,
+                s.decisions,
+                s.correct,
+                s.single_road,
+                s.single_road_correct,
+                fmt(&s.first_delays),
+                fmt(&s.stable_delays)
+            ));
+        }
+    }
+    w.write_all(text.as_bytes())
+        .and_then(|()| w.flush())
+        .with_context(|| format!("writing {}", p.display()))
 }
 
 fn create(path: &Path) -> anyhow::Result<BufWriter<File>> {

@@ -1,0 +1,648 @@
+//! The acoustic road estimator in the offline loop (`grip sim --arte acoustic`).
+//!
+//! [`AcousticArte`] implements [`grip_sim::RoadEstimator`] with the real ARTE
+//! chain instead of a confusion matrix. Every controller cycle `[t, t + dt)`:
+//!
+//! 1. the plant's true road (catalogue index) is mapped to a road of the
+//!    synthesiser by name (`grip_arte::synth::road_index`); roads the
+//!    synthesiser has no model for follow [`AcousticConfig::sound_as`]
+//!    (default: `asphalt_mf` sounds like `asphalt`, `gravel_table` like
+//!    `gravel`, i.e. the same surface with another friction model; every
+//!    other road, e.g. `ice`, is [`SoundAs::Silence`]: the synthesiser's
+//!    vehicle and microphone sound with no tyre-road component);
+//! 2. `RoadAudioSynth::fill` generates the samples that fall due in the
+//!    cycle, `round((t + dt) f_s) − samples so far` (44.1 per millisecond at
+//!    44.1 kHz, so the count alternates 44/45 and never drifts), at the
+//!    plant's true vehicle speed, with rain and passing-car noise mixed in
+//!    at [`AcousticConfig::noise`]'s SNR (default: none);
+//! 3. the samples go through the real `StreamEstimator` (features of the
+//!    model's `FeatureConfig`, the model's classifier, HMM smoothing);
+//! 4. a decision completed in the cycle becomes an [`Estimate`]: the class
+//!    name is mapped to the catalogue index, the confidence is the smoothed
+//!    probability of that class, `t_stamp` is the end of the decision's
+//!    frame (run time; the decision is available then).
+//!
+//! [`AcousticArte::update`] allocates nothing (tested with a counting
+//! allocator); [`RoadEstimator::reset`] rebuilds the synthesiser from the
+//! seed (a new car, tyre and microphone per seed, drawn by the
+//! synthesiser) and clears the stream, so a run is a function of its seed.
+//!
+//! [`InLoopProbe`] wraps any estimator and records its decisions and the true
+//! road changes of a run, for the in-loop accuracy and detection delays
+//! `grip sim` reports; it allocates nothing per cycle either (buffers sized
+//! to the run's cycle count).
+
+use std::collections::BTreeMap;
+
+use anyhow::{Context, bail};
+use grip_arte::model::{Model, Predictor};
+use grip_arte::stream::{StreamConfig, StreamEstimator, detection_delays};
+use grip_arte::synth::{self, NoiseConfig, RoadAudioSynth, SynthConfig};
+use grip_physics::RoadCatalogue;
+use grip_sim::{Estimate, RoadEstimator};
+
+/// Synthesiser road index that has no tyre-road sound (out of range on
+/// purpose: `RoadAudioSynth::fill` then renders vehicle and microphone only).
+const SILENCE: usize = usize::MAX;
+
+/// Longest block handed to the synthesiser and the stream at once, s. A
+/// cycle longer than this is processed in several blocks (no allocation).
+const MAX_BLOCK_S: f64 = 0.01;
+
+/// What a catalogue road sounds like to the acoustic chain.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SoundAs {
+    /// Like this synthesiser road (one of `grip_arte::synth::ROADS`).
+    Road(String),
+    /// No tyre-road sound: the vehicle and microphone only.
+    Silence,
+}
+
+/// Settings of [`AcousticArte`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct AcousticConfig {
+    /// Rain and passing-car noise; `None` (default) for clean road sound.
+    pub noise: Option<NoiseConfig>,
+    /// Hop and temporal smoothing of the stream (default: 0.05 s, HMM 0.9/0.01).
+    pub stream: StreamConfig,
+    /// Sound of catalogue roads the synthesiser has no model of, by road
+    /// name. A road neither synthesisable by name nor listed here is silent.
+    pub sound_as: BTreeMap<String, SoundAs>,
+}
+
+impl Default for AcousticConfig {
+    fn default() -> Self {
+        let mut sound_as = BTreeMap::new();
+        sound_as.insert("asphalt_mf".to_owned(), SoundAs::Road("asphalt".to_owned()));
+        sound_as.insert(
+            "gravel_table".to_owned(),
+            SoundAs::Road("gravel".to_owned()),
+        );
+        Self {
+            noise: None,
+            stream: StreamConfig::default(),
+            sound_as,
+        }
+    }
+}
+
+impl AcousticConfig {
+    /// Rain and passing cars together at `snr_db` (road-sound power over
+    /// noise power, following the synthesiser's 1 s running estimate).
+    pub fn with_noise_snr(mut self, snr_db: f64) -> Self {
+        self.noise = Some(NoiseConfig {
+            rain: true,
+            car: true,
+            snr_db,
+        });
+        self
+    }
+
+    /// Parse `ROAD=SOUND[,ROAD=SOUND...]` (SOUND: a synthesiser road or
+    /// `silence`) into `sound_as`, replacing entries of the same road.
+    pub fn parse_sound_as(&mut self, spec: &str) -> anyhow::Result<()> {
+        for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            let Some((road, sound)) = item.split_once('=') else {
+                bail!("--sound-as: `{item}` is not ROAD=SOUND");
+            };
+            let (road, sound) = (road.trim(), sound.trim());
+            let sound = if sound == "silence" {
+                SoundAs::Silence
+            } else {
+                SoundAs::Road(sound.to_owned())
+            };
+            self.sound_as.insert(road.to_owned(), sound);
+        }
+        Ok(())
+    }
+}
+
+/// The real acoustic chain as a road estimator (see the module docs).
+pub struct AcousticArte {
+    synth_cfg: SynthConfig,
+    synth: RoadAudioSynth,
+    stream: StreamEstimator<Predictor>,
+    /// Catalogue index → synthesiser road index (or [`SILENCE`]).
+    synth_road: Vec<usize>,
+    /// Model class → catalogue index.
+    class_road: Vec<usize>,
+    fs: f64,
+    buf: Vec<f32>,
+    /// Samples generated since the reset.
+    generated: u64,
+    /// Run time of the first sample (the `t` of the first update).
+    t0: Option<f64>,
+    frame_s: f64,
+}
+
+impl std::fmt::Debug for AcousticArte {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AcousticArte")
+            .field("fs", &self.fs)
+            .field("synth_road", &self.synth_road)
+            .field("class_road", &self.class_road)
+            .field("generated", &self.generated)
+            .finish_non_exhaustive()
+    }
+}
+
+impl AcousticArte {
+    /// The chain for `model` on catalogue `roads`. Fails (naming the class
+    /// or road) when a model class is not a catalogue road, a `sound_as`
+    /// entry names an unknown road or sound, or the model's sample rate is
+    /// outside the synthesiser's range.
+    pub fn new(model: &Model, roads: &RoadCatalogue, cfg: &AcousticConfig) -> anyhow::Result<Self> {
+        let class_road = model
+            .classes()
+            .iter()
+            .map(|c| {
+                roads.index_of(c).with_context(|| {
+                    format!(
+                        "model class `{c}` is not a road of the catalogue (roads: {})",
+                        roads.names()
+                    )
+                })
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        for (road, sound) in &cfg.sound_as {
+            // Entries for roads this catalogue lacks are harmless defaults
+            // (the shipped map names asphalt_mf and gravel_table); a sound
+            // must exist.
+            if let SoundAs::Road(s) = sound
+                && synth::road_index(s).is_none()
+            {
+                bail!(
+                    "sound of road `{road}`: `{s}` is not a synthesiser road (known: {}, or silence)",
+                    synth::ROADS.join(", ")
+                );
+            }
+        }
+        let synth_road = roads
+            .iter()
+            .map(|r| match cfg.sound_as.get(r.name()) {
+                Some(SoundAs::Road(s)) => synth::road_index(s).unwrap_or(SILENCE),
+                Some(SoundAs::Silence) => SILENCE,
+                None => synth::road_index(r.name()).unwrap_or(SILENCE),
+            })
+            .collect();
+        let fcfg = model.feature_config();
+        let synth_cfg = SynthConfig {
+            sample_rate: fcfg.sample_rate,
+            noise: cfg.noise.clone(),
+        };
+        let synth = RoadAudioSynth::new(&synth_cfg, 0).context("acoustic ARTE synthesiser")?;
+        let stream = StreamEstimator::new(Predictor::new(model.clone()), fcfg, &cfg.stream)
+            .context("acoustic ARTE stream estimator")?;
+        let fs = f64::from(fcfg.sample_rate);
+        let block = ((MAX_BLOCK_S * fs).ceil() as usize).max(1);
+        Ok(Self {
+            synth_cfg,
+            synth,
+            stream,
+            synth_road,
+            class_road,
+            fs,
+            buf: vec![0.0; block],
+            generated: 0,
+            t0: None,
+            frame_s: fcfg.frame_s,
+        })
+    }
+
+    /// The synthesiser road a catalogue road sounds like (`None`: silence).
+    pub fn sound_of(&self, road_index: usize) -> Option<&'static str> {
+        self.synth_road
+            .get(road_index)
+            .and_then(|&i| synth::ROADS.get(i).copied())
+    }
+
+    /// Analysis frame length, s.
+    pub fn frame_s(&self) -> f64 {
+        self.frame_s
+    }
+
+    /// Audio sample rate, Hz.
+    pub fn sample_rate(&self) -> f64 {
+        self.fs
+    }
+
+    /// Samples synthesised since the last reset.
+    #[cfg(test)]
+    pub fn samples_generated(&self) -> u64 {
+        self.generated
+    }
+}
+
+impl RoadEstimator for AcousticArte {
+    fn reset(&mut self, seed: u64) {
+        // The config was validated by the first construction, so this cannot
+        // fail; if it ever did, the old synthesiser keeps playing.
+        if let Ok(s) = RoadAudioSynth::new(&self.synth_cfg, seed) {
+            self.synth = s;
+        }
+        self.stream.reset();
+        self.generated = 0;
+        self.t0 = None;
+    }
+
+    fn update(
+        &mut self,
+        t: f64,
+        dt: f64,
+        true_road_index: usize,
+        speed_mps: f64,
+    ) -> Option<Estimate> {
+        if !(t.is_finite() && dt.is_finite() && dt > 0.0) {
+            return None;
+        }
+        let t0 = *self.t0.get_or_insert(t);
+        let due = ((t + dt - t0) * self.fs).round();
+        let target = if due > 0.0 { due as u64 } else { 0 };
+        let mut need = target.saturating_sub(self.generated);
+        let road = self
+            .synth_road
+            .get(true_road_index)
+            .copied()
+            .unwrap_or(SILENCE);
+        let mut out = None;
+        let Self {
+            synth,
+            stream,
+            buf,
+            class_road,
+            generated,
+            ..
+        } = self;
+        while need > 0 {
+            let n = usize::try_from(need).unwrap_or(usize::MAX).min(buf.len());
+            let block = &mut buf[..n];
+            synth.fill(road, speed_mps, block);
+            stream.push(block, |d| {
+                if let Some(&road_index) = class_road.get(d.class) {
+                    out = Some(Estimate {
+                        road_index,
+                        confidence: d.probs.get(d.class).copied().unwrap_or(0.0),
+                        t_stamp: t0 + d.t_end,
+                    });
+                }
+            });
+            *generated += n as u64;
+            need -= n as u64;
+        }
+        out
+    }
+
+    fn name(&self) -> &str {
+        "acoustic"
+    }
+}
+
+/// What an estimator did in one run, as seen from the loop.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct InLoopStats {
+    /// Decisions received.
+    pub decisions: u64,
+    /// Decisions equal to the true road of the cycle they arrived in.
+    pub correct: u64,
+    /// Decisions whose whole analysis frame lay on one road.
+    pub single_road: u64,
+    /// Of those, correct.
+    pub single_road_correct: u64,
+    /// Per true road change (not the start): time from the change to the
+    /// first decision of the new road, s (`None`: none before the next change
+    /// or the end).
+    pub first_delays: Vec<Option<f64>>,
+    /// The same with the decision required to hold for `hold_s` (the ARTE
+    /// crate's detection-delay definition, `stream::detection_delays`).
+    pub stable_delays: Vec<Option<f64>>,
+}
+
+/// Records an estimator's decisions and the true road changes of a run
+/// (see [`InLoopStats`]); forwards everything to the wrapped estimator.
+pub struct InLoopProbe {
+    inner: Box<dyn RoadEstimator>,
+    frame_s: f64,
+    hold_s: f64,
+    decisions: Vec<(f64, usize)>,
+    changes: Vec<(f64, usize)>,
+    correct: u64,
+    single_road: u64,
+    single_road_correct: u64,
+    last_road: Option<usize>,
+    last_change: f64,
+    end: f64,
+}
+
+impl std::fmt::Debug for InLoopProbe {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("InLoopProbe")
+            .field("inner", &self.inner.name())
+            .field("decisions", &self.decisions.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl InLoopProbe {
+    /// Wrap `inner` whose decisions analyse frames of `frame_s`; room for
+    /// `cycles` cycles (at most one decision and one change per cycle, so
+    /// recording never allocates); stable detection needs `hold_s`.
+    pub fn new(inner: Box<dyn RoadEstimator>, frame_s: f64, cycles: usize, hold_s: f64) -> Self {
+        Self {
+            inner,
+            frame_s,
+            hold_s,
+            decisions: Vec::with_capacity(cycles),
+            changes: Vec::with_capacity(cycles),
+            correct: 0,
+            single_road: 0,
+            single_road_correct: 0,
+            last_road: None,
+            last_change: f64::NEG_INFINITY,
+            end: 0.0,
+        }
+    }
+
+    /// The statistics of the run since the last reset, or `None` when the
+    /// estimator was never asked (a variant without ARTE).
+    pub fn take_stats(&mut self) -> Option<InLoopStats> {
+        self.last_road?;
+        let first = detection_delays(&self.decisions, &self.changes, self.end, 0.0);
+        let stable = detection_delays(&self.decisions, &self.changes, self.end, self.hold_s);
+        Some(InLoopStats {
+            decisions: self.decisions.len() as u64,
+            correct: self.correct,
+            single_road: self.single_road,
+            single_road_correct: self.single_road_correct,
+            first_delays: first,
+            stable_delays: stable,
+        })
+    }
+}
+
+impl RoadEstimator for InLoopProbe {
+    fn reset(&mut self, seed: u64) {
+        self.inner.reset(seed);
+        self.decisions.clear();
+        self.changes.clear();
+        self.correct = 0;
+        self.single_road = 0;
+        self.single_road_correct = 0;
+        self.last_road = None;
+        self.last_change = f64::NEG_INFINITY;
+        self.end = 0.0;
+    }
+
+    fn update(
+        &mut self,
+        t: f64,
+        dt: f64,
+        true_road_index: usize,
+        speed_mps: f64,
+    ) -> Option<Estimate> {
+        match self.last_road {
+            Some(r) if r != true_road_index => {
+                if self.changes.len() < self.changes.capacity() {
+                    self.changes.push((t, true_road_index));
+                }
+                self.last_change = t;
+            }
+            None => self.last_road = Some(true_road_index),
+            _ => {}
+        }
+        self.last_road = Some(true_road_index);
+        self.end = t + dt;
+        let e = self.inner.update(t, dt, true_road_index, speed_mps)?;
+        if self.decisions.len() < self.decisions.capacity() {
+            self.decisions.push((e.t_stamp, e.road_index));
+        }
+        let ok = e.road_index == true_road_index;
+        self.correct += u64::from(ok);
+        // Frame [t_stamp − frame_s, t_stamp] on one road: no change after its start.
+        if self.last_change <= e.t_stamp - self.frame_s + 1e-9 {
+            self.single_road += 1;
+            self.single_road_correct += u64::from(ok);
+        }
+        Some(e)
+    }
+
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use grip_arte::eval::Samples;
+    use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet};
+    use grip_arte::mlp::LmConfig;
+    use grip_arte::model::{ClassifierSpec, fit};
+    use grip_physics::Road;
+    use std::alloc::{GlobalAlloc, Layout, System};
+    use std::cell::Cell;
+
+    // Counts allocations of the current thread only, so the other tests of
+    // this binary running in parallel do not disturb the count.
+    struct Counting;
+    thread_local! {
+        static ALLOCS: Cell<u64> = const { Cell::new(0) };
+    }
+    fn bump() {
+        let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
+    }
+    // SAFETY: forwards to the system allocator unchanged; the counter is a
+    // const-initialised thread-local without destructor (no allocation).
+    unsafe impl GlobalAlloc for Counting {
+        unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+            bump();
+            // SAFETY: same contract as the caller's.
+            unsafe { System.alloc(l) }
+        }
+        unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+            // SAFETY: same contract as the caller's.
+            unsafe { System.dealloc(p, l) }
+        }
+        unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+            bump();
+            // SAFETY: same contract as the caller's.
+            unsafe { System.realloc(p, l, n) }
+        }
+    }
+    #[global_allocator]
+    static A: Counting = Counting;
+    fn allocs() -> u64 {
+        ALLOCS.with(Cell::get)
+    }
+
+    fn roads() -> RoadCatalogue {
+        RoadCatalogue::new(vec![
+            Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap(),
+            Road::burckhardt("gravel", 0.6212, 20.80, 0.0712).unwrap(),
+            Road::burckhardt("snow", 0.1946, 94.129, 0.0646).unwrap(),
+            Road::burckhardt("stone", 1.3713, 6.4565, 0.6691).unwrap(),
+            Road::burckhardt("ice", 0.05, 306.39, 0.0).unwrap(),
+        ])
+        .unwrap()
+    }
+
+    /// A small real model (asphalt vs snow vs stone, Rich features, MLP),
+    /// trained on synthetic frames in a few seconds.
+    fn tiny_model() -> Model {
+        let fcfg = FeatureConfig::new(44_100, FeatureSet::Rich);
+        let mut ex = FeatureExtractor::new(&fcfg).unwrap();
+        let mut train = Samples::new(ex.dim());
+        let mut buf = vec![0f32; ex.frame_len()];
+        let mut row = vec![0.0; ex.dim()];
+        let classes = ["asphalt", "snow", "stone"];
+        for (c, name) in classes.iter().enumerate() {
+            let road = synth::road_index(name).unwrap();
+            for rec in 0..4 {
+                let mut s = RoadAudioSynth::new(&SynthConfig::default(), 100 + rec + 10 * c as u64)
+                    .unwrap();
+                for i in 0..15 {
+                    s.fill(road, 3.0 + 0.3 * i as f64, &mut buf);
+                    ex.extract(&buf, &mut row).unwrap();
+                    train.push(&row, c, c * 4 + rec as usize);
+                }
+            }
+        }
+        let spec = ClassifierSpec::Mlp {
+            lm: LmConfig {
+                epochs: 30,
+                ..Default::default()
+            },
+            val_fraction: 0.0,
+        };
+        let names: Vec<String> = classes.iter().map(|s| (*s).to_owned()).collect();
+        fit(&names, &fcfg, &spec, &train).unwrap().0
+    }
+
+    /// Drive the estimator like the simulator: 1 kHz cycles, road by time.
+    fn drive(
+        e: &mut dyn RoadEstimator,
+        seed: u64,
+        plan: &[(f64, usize)],
+        end: f64,
+    ) -> Vec<Estimate> {
+        e.reset(seed);
+        let dt = 1e-3;
+        let mut out = Vec::new();
+        let n = (end / dt).round() as usize;
+        for k in 0..n {
+            let t = k as f64 * dt;
+            let road = plan
+                .iter()
+                .rev()
+                .find(|p| p.0 <= t + 1e-12)
+                .map_or(0, |p| p.1);
+            if let Some(x) = e.update(t, dt, road, 4.0 + t) {
+                out.push(x);
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn cycle_is_allocation_free_and_deterministic() {
+        let model = tiny_model();
+        let roads = roads();
+        for cfg in [
+            AcousticConfig::default(),
+            AcousticConfig::default().with_noise_snr(10.0),
+        ] {
+            let mut e = AcousticArte::new(&model, &roads, &cfg).unwrap();
+            e.reset(3);
+            let dt = 1e-3;
+            // Warm up: the first frame and one decision.
+            for k in 0..150 {
+                e.update(k as f64 * dt, dt, 0, 5.0);
+            }
+            let before = allocs();
+            let mut decisions = 0;
+            for k in 150..1500 {
+                let road = [0, 2, 3, 4][(k / 300) % 4];
+                // Also a cycle longer than the internal block (several blocks).
+                let dt_k = if k == 700 { 0.025 } else { dt };
+                if e.update(k as f64 * dt, dt_k, road, 3.0 + k as f64 * 0.01)
+                    .is_some()
+                {
+                    decisions += 1;
+                }
+            }
+            let after = allocs();
+            assert!(decisions > 20, "{decisions} decisions");
+            assert_eq!(after - before, 0, "{cfg:?}: allocations in update");
+        }
+        // Same seed, same decisions; another seed, another car.
+        let mut e = AcousticArte::new(&model, &roads, &AcousticConfig::default()).unwrap();
+        let plan = [(0.0, 0), (0.5, 2), (1.0, 3)];
+        let a = drive(&mut e, 7, &plan, 1.5);
+        let b = drive(&mut e, 7, &plan, 1.5);
+        assert_eq!(a, b);
+        assert_eq!(e.samples_generated(), 66_150);
+    }
+
+    #[test]
+    fn recognises_roads_and_maps_names() {
+        let model = tiny_model();
+        let roads = roads();
+        let mut e = AcousticArte::new(&model, &roads, &AcousticConfig::default()).unwrap();
+        assert_eq!(e.sound_of(0), Some("asphalt"));
+        assert_eq!(e.sound_of(4), None, "ice is silent");
+        let plan = [(0.0, 0), (1.0, 2), (2.0, 3)];
+        let est = drive(&mut e, 11, &plan, 3.0);
+        // One decision per 0.05 s hop once the first 0.1 s frame is full.
+        assert_eq!(est.len(), 59);
+        assert!((est[0].t_stamp - 0.1).abs() < 1e-9);
+        assert!((est[1].t_stamp - 0.15).abs() < 1e-9);
+        // Late in each segment the decision is that road (catalogue index),
+        // with a smoothed confidence in (0.5, 1].
+        for (t, road) in [(0.9, 0), (1.9, 2), (2.9, 3)] {
+            let d = est.iter().rev().find(|d| d.t_stamp <= t + 1e-9).unwrap();
+            assert_eq!(d.road_index, road, "at {t} s: {d:?}");
+            assert!(d.confidence > 0.5 && d.confidence <= 1.0, "{d:?}");
+        }
+    }
+
+    #[test]
+    fn bad_model_class_and_sound_are_refused() {
+        let model = tiny_model();
+        let only_snow = RoadCatalogue::new(vec![
+            Road::burckhardt("snow", 0.1946, 94.129, 0.0646).unwrap(),
+            Road::burckhardt("stone", 1.3713, 6.4565, 0.6691).unwrap(),
+        ])
+        .unwrap();
+        let e = AcousticArte::new(&model, &only_snow, &AcousticConfig::default()).unwrap_err();
+        assert!(e.to_string().contains("`asphalt`"), "{e}");
+        let mut cfg = AcousticConfig::default();
+        cfg.parse_sound_as("ice=tarmac").unwrap();
+        let e = AcousticArte::new(&model, &roads(), &cfg).unwrap_err();
+        assert!(e.to_string().contains("`tarmac`"), "{e}");
+        assert!(cfg.parse_sound_as("ice").is_err());
+        let mut cfg = AcousticConfig::default();
+        cfg.parse_sound_as("ice=snow, asphalt = silence").unwrap();
+        let e = AcousticArte::new(&model, &roads(), &cfg).unwrap();
+        assert_eq!(e.sound_of(4), Some("snow"));
+        assert_eq!(e.sound_of(0), None);
+    }
+
+    #[test]
+    fn probe_counts_and_measures_delays() {
+        // Perfect source with 0.1 s frames: a change is seen at the next
+        // frame end; frames straddling a change are not single-road.
+        let mut p = InLoopProbe::new(Box::new(grip_sim::PerfectArte::new(0.1)), 0.1, 1000, 0.2);
+        assert!(p.take_stats().is_none());
+        let plan = [(0.0, 0), (0.33, 2)];
+        let est = drive(&mut p, 1, &plan, 1.0);
+        assert_eq!(est.len(), 10);
+        let s = p.take_stats().unwrap();
+        assert_eq!(s.decisions, 10);
+        // The frame ending at 0.4 s arrives in the cycle [0.399, 0.4) on snow.
+        assert_eq!(s.correct, 10);
+        assert_eq!(s.single_road, 9);
+        assert_eq!(s.first_delays.len(), 1);
+        let d = s.first_delays[0].unwrap();
+        assert!((d - 0.07).abs() < 1e-6, "{d}");
+        assert_eq!(s.stable_delays[0], s.first_delays[0]);
+    }
+}
