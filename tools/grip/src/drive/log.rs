@@ -51,11 +51,147 @@ pub struct DriveLog {
     pub attachments: BTreeMap<String, Vec<u8>>,
 }
 
+/// A temporary file removed on drop.
+struct TempCopy(PathBuf);
+
+impl TempCopy {
+    fn new(data: &[u8]) -> std::io::Result<Self> {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.subsec_nanos())
+            .unwrap_or(0);
+        let p = std::env::temp_dir().join(format!(
+            "grip-inspect-{}-{nanos:x}.mcap",
+            std::process::id()
+        ));
+        std::fs::write(&p, data)?;
+        Ok(Self(p))
+    }
+}
+
+impl Drop for TempCopy {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+/// Largest uncompressed chunk accepted (the recorder writes 512 KiB chunks).
+const MAX_CHUNK: u64 = 1 << 30;
+
+fn u64_at(d: &[u8], at: usize) -> Option<u64> {
+    Some(u64::from_le_bytes(d.get(at..at + 8)?.try_into().ok()?))
+}
+
+fn u32_at(d: &[u8], at: usize) -> Option<u32> {
+    Some(u32::from_le_bytes(d.get(at..at + 4)?.try_into().ok()?))
+}
+
+/// Walks the top-level MCAP records and returns where a safe read must
+/// stop, with the reason: the first record whose length runs past the end
+/// of the file (a crash-truncated tail), the first Chunk whose header is
+/// implausible (uncompressed size over 1 GiB, or an uncompressed chunk whose
+/// sizes disagree), or the first Chunk whose CRC does not match its
+/// decompressed content (checked with the mcap crate's reader, which
+/// validates a chunk before it parses a record of it). `None`: the file
+/// reads as a whole.
+pub fn first_bad_chunk(d: &[u8]) -> Option<(usize, String)> {
+    const MAGIC_LEN: usize = 8;
+    let mut at = MAGIC_LEN;
+    let mut chunks = Vec::new();
+    let mut stop = None;
+    while at + 9 <= d.len() {
+        let op = d[at];
+        let Some(len) = u64_at(d, at + 1) else { break };
+        let body = at + 9;
+        let end = usize::try_from(len).ok().and_then(|l| body.checked_add(l));
+        let Some(end) = end.filter(|e| *e <= d.len()) else {
+            stop = Some((
+                at,
+                format!("record at byte {at} runs past the end of the file"),
+            ));
+            break;
+        };
+        if op == 0x06 {
+            let hdr = (|| {
+                let usize_ = u64_at(d, body + 16)?;
+                let clen = u32_at(d, body + 28)? as usize;
+                let comp = d.get(body + 32..body + 32 + clen)?;
+                let rec_len = u64_at(d, body + 32 + clen)?;
+                Some((usize_, comp.is_empty(), rec_len))
+            })();
+            match hdr {
+                None => {
+                    stop = Some((at, "unreadable chunk header".to_owned()));
+                    break;
+                }
+                Some((u, _, _)) if u > MAX_CHUNK => {
+                    stop = Some((at, format!("chunk claims {u} bytes uncompressed")));
+                    break;
+                }
+                Some((u, true, r)) if u != r => {
+                    stop = Some((at, format!("uncompressed chunk of {r} bytes claims {u}")));
+                    break;
+                }
+                _ => chunks.push(at),
+            }
+        }
+        at = end;
+    }
+    // CRC of every chunk before the stop point
+    let limit = stop.as_ref().map_or(d.len(), |s| s.0);
+    let data = &d[..limit];
+    let mut r = mcap::sans_io::LinearReader::new_with_options(
+        mcap::sans_io::LinearReaderOptions::default()
+            .with_skip_end_magic(true)
+            .with_prevalidate_chunk_crcs(true)
+            .with_record_length_limit(data.len()),
+    );
+    let mut fed = 0usize;
+    while let Some(ev) = r.next_event() {
+        match ev {
+            Ok(mcap::sans_io::LinearReadEvent::ReadRequest(n)) => {
+                let n = n.min(data.len() - fed);
+                if n == 0 {
+                    break;
+                }
+                r.insert(n).copy_from_slice(&data[fed..fed + n]);
+                r.notify_read(n);
+                fed += n;
+            }
+            Ok(mcap::sans_io::LinearReadEvent::Record { .. }) => {}
+            Err(e) => {
+                let bad = chunks.iter().rev().find(|&&c| c < fed).copied();
+                return match bad {
+                    Some(c) => Some((c, format!("chunk at byte {c} is corrupt: {e}"))),
+                    None => Some((MAGIC_LEN.min(d.len()), format!("{e}"))),
+                };
+            }
+        }
+    }
+    stop
+}
+
 impl DriveLog {
     /// Reads `path`. A file that is not MCAP, or unreadable, is an error; a
     /// truncated one reads up to the damage (see `report.truncated`).
     pub fn load(path: &Path) -> anyhow::Result<Self> {
-        let log = McapLog::open(path).with_context(|| format!("reading {}", path.display()))?;
+        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+        // Corrupt lengths inside a chunk make the mcap reader (0.26) reserve
+        // absurd buffers and abort the process: find the first damaged record
+        // or chunk (CRC) and read only what precedes it, from a temporary copy.
+        let bad = first_bad_chunk(&bytes);
+        let tmp;
+        let open_path = match &bad {
+            Some((off, _)) => {
+                tmp = TempCopy::new(&bytes[..*off])
+                    .with_context(|| format!("copying the readable part of {}", path.display()))?;
+                tmp.0.as_path()
+            }
+            None => path,
+        };
+        drop(bytes);
+        let log =
+            McapLog::open(open_path).with_context(|| format!("reading {}", path.display()))?;
         let mut me = DriveLog {
             path: path.to_path_buf(),
             ..Self::default()
@@ -79,6 +215,9 @@ impl DriveLog {
             })
             .with_context(|| format!("reading {}", path.display()))?;
         me.report = report;
+        if let Some((off, why)) = bad {
+            me.report.truncated = Some(format!("read up to byte {off}: {why}"));
+        }
         for (name, map) in log.metadata().unwrap_or_default() {
             match name.as_str() {
                 "grip.run" => me.run = map,
@@ -100,5 +239,125 @@ impl DriveLog {
         self.attachments
             .get(name)
             .and_then(|d| std::str::from_utf8(d).ok())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use grip_io::mcaplog::{McapWriter, McapWriterOptions};
+    use grip_msgs::{CanFrame, CycleRecord, GroundTruth, RoadEstimate};
+
+    fn sample_log(path: &Path) {
+        let mut w = McapWriter::create(
+            path,
+            McapWriterOptions {
+                chunk_size: 4096,
+                ..McapWriterOptions::default()
+            },
+        )
+        .unwrap();
+        for k in 0..600u64 {
+            let mut c = CycleRecord::zeroed();
+            c.seq = k;
+            c.stamp_ns = 1_000_000_000 + k * 1_000_000;
+            w.write(topics::CYCLE, &c).unwrap();
+            let mut g = GroundTruth::zeroed();
+            g.seq = k;
+            g.stamp_ns = c.stamp_ns;
+            g.x = if k < 100 { 0.0 } else { k as f64 * 0.01 };
+            g.road_index = u32::from(k >= 300);
+            g.road_name = grip_msgs::name_to_bytes(if k >= 300 { "snow" } else { "asphalt" });
+            w.write(topics::TRUTH, &g).unwrap();
+            let mut f = CanFrame::new(0x100, &[1, (k & 15) as u8, 0, 0, 0, 0, 0, 0]);
+            f.stamp_ns = c.stamp_ns;
+            w.write(topics::CAN_LOG, &f).unwrap();
+            if k % 100 == 50 {
+                let mut e = RoadEstimate::zeroed();
+                e.seq = k / 100;
+                e.stamp_ns = c.stamp_ns;
+                e.frame_t0_ns = c.stamp_ns - 100_000_000;
+                e.frame_t1_ns = c.stamp_ns;
+                e.class_index = 0;
+                e.class_name = grip_msgs::name_to_bytes("asphalt");
+                w.write(topics::ROAD, &e).unwrap();
+            }
+        }
+        w.finish().unwrap();
+    }
+
+    #[test]
+    fn complete_log_reads_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.mcap");
+        sample_log(&p);
+        let log = DriveLog::load(&p).unwrap();
+        assert!(log.report.truncated.is_none());
+        assert_eq!(
+            (
+                log.cycles.len(),
+                log.truth.len(),
+                log.can.len(),
+                log.roads.len()
+            ),
+            (600, 600, 600, 6)
+        );
+        let s = super::super::summary::summarize(&log, &grip_physics::VehicleParams::default());
+        assert!(
+            s.warnings.iter().any(|w| w.contains("grip.recorder")),
+            "{:?}",
+            s.warnings
+        );
+        assert_eq!(s.arte.changes.len(), 1);
+    }
+
+    /// Every truncation and many single-byte corruptions give an error or a
+    /// partial log that says it is incomplete; never a panic.
+    #[test]
+    fn truncated_or_corrupt_logs_never_panic() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.mcap");
+        sample_log(&p);
+        let bytes = std::fs::read(&p).unwrap();
+        let q = dir.path().join("b.mcap");
+        let v = grip_physics::VehicleParams::default();
+        let step = (bytes.len() / 120).max(1);
+        for cut in (0..bytes.len()).step_by(step) {
+            std::fs::write(&q, &bytes[..cut]).unwrap();
+            match DriveLog::load(&q) {
+                Ok(log) => {
+                    assert!(log.report.truncated.is_some(), "cut at {cut} not reported");
+                    let s = super::super::summary::summarize(&log, &v);
+                    let text = s.render();
+                    assert!(text.contains("incomplete"), "cut at {cut}: {text}");
+                }
+                Err(e) => assert!(!e.to_string().is_empty()),
+            }
+        }
+        for pos in (0..bytes.len()).step_by(step) {
+            let mut b = bytes.clone();
+            b[pos] ^= 0x5A;
+            std::fs::write(&q, &b).unwrap();
+            if let Ok(log) = DriveLog::load(&q) {
+                let _ = super::super::summary::summarize(&log, &v).render();
+            }
+        }
+    }
+
+    #[test]
+    fn not_mcap_is_a_clear_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("x.mcap");
+        std::fs::write(&p, "hello, not a log").unwrap();
+        let e = format!("{:#}", DriveLog::load(&p).unwrap_err());
+        assert!(
+            e.contains("x.mcap") && e.contains("not an MCAP file"),
+            "{e}"
+        );
+        let e = format!(
+            "{:#}",
+            DriveLog::load(&dir.path().join("missing.mcap")).unwrap_err()
+        );
+        assert!(e.contains("missing.mcap"), "{e}");
     }
 }

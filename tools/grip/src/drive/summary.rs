@@ -124,8 +124,10 @@ pub struct CanSummary {
     pub frames: BTreeMap<(String, &'static str), u64>,
     /// Frames flagged `E2E_REJECTED` by the receiver.
     pub rejected: u64,
-    /// The loop's E2E fault counters at its last record.
+    /// The loop's E2E fault counters at its last record (whole log).
     pub faults: E2eFaults,
+    /// Faults counted during the scenario window (last minus first record in it).
+    pub faults_in_window: Option<E2eFaults>,
 }
 
 /// Loop timing.
@@ -170,6 +172,8 @@ pub struct Summary {
     pub arte: ArteEval,
     /// Speed at the window's start and end, km/h.
     pub speed_kmh: Option<(f64, f64)>,
+    /// Cycles in the safe state during the scenario window.
+    pub safe_cycles_in_window: Option<u64>,
 }
 
 /// Sequence gaps and resets of a sequence.
@@ -206,14 +210,26 @@ pub fn scenario_duration(log: &DriveLog) -> Option<f64> {
 }
 
 /// Index of the first truth sample of the running scenario: plant-sim
-/// holds the vehicle (state frozen) until the start, so it is the first
-/// sample whose state differs from the first one; 0 if none differs.
-pub fn scenario_start(truth: &[GroundTruth]) -> usize {
-    let Some(f) = truth.first() else { return 0 };
+/// holds the vehicle (state frozen) until the start, so it is the last
+/// sample before the state first changes; `None` if it never changes (the
+/// scenario never started).
+pub fn scenario_start(truth: &[GroundTruth]) -> Option<usize> {
+    let f = truth.first()?;
     truth
         .iter()
         .position(|g| g.x != f.x || g.v != f.v || g.omega != f.omega)
-        .map_or(0, |i| i.saturating_sub(1))
+        .map(|i| i.saturating_sub(1))
+}
+
+fn fault_delta(a: &E2eFaults, b: &E2eFaults) -> E2eFaults {
+    E2eFaults {
+        crc: b.crc.wrapping_sub(a.crc),
+        counter_repeated: b.counter_repeated.wrapping_sub(a.counter_repeated),
+        counter_skipped: b.counter_skipped.wrapping_sub(a.counter_skipped),
+        length: b.length.wrapping_sub(a.length),
+        unknown_id: b.unknown_id.wrapping_sub(a.unknown_id),
+        timeout: b.timeout.wrapping_sub(a.timeout),
+    }
 }
 
 /// Truth in effect at `t_ns` (the last sample at or before it).
@@ -326,7 +342,16 @@ pub fn summarize(log: &DriveLog, vehicle: &VehicleParams) -> Summary {
     // scenario window and metrics
     if log.truth.len() >= 2 {
         let t_first = log.truth[0].stamp_ns;
-        let i0 = scenario_start(&log.truth);
+        let i0 = match scenario_start(&log.truth) {
+            Some(i) => i,
+            None => {
+                s.warnings.push(
+                    "the scenario never started: the plant's state never changed (metrics over the whole log)"
+                        .into(),
+                );
+                0
+            }
+        };
         let start_ns = log.truth[i0].stamp_ns;
         let end_ns = scenario_duration(log).map_or(u64::MAX, |d| start_ns + (d * 1e9) as u64);
         let mut acc = MetricsAccumulator::new(vehicle);
@@ -397,11 +422,24 @@ pub fn summarize(log: &DriveLog, vehicle: &VehicleParams) -> Summary {
                 delay,
             });
         }
+        let mut safe_in = 0;
+        let mut first_in: Option<&CycleRecord> = None;
+        let mut last_in_c: Option<&CycleRecord> = None;
         for c in &log.cycles {
-            if c.stamp_ns >= start_ns && c.stamp_ns < end_ns && c.safe_state == 0 {
-                a.active_cycles += 1;
-                a.used_cycles += u64::from(c.used_arte != 0);
+            if c.stamp_ns >= start_ns && c.stamp_ns < end_ns {
+                first_in.get_or_insert(c);
+                last_in_c = Some(c);
+                if c.safe_state == 0 {
+                    a.active_cycles += 1;
+                    a.used_cycles += u64::from(c.used_arte != 0);
+                } else {
+                    safe_in += 1;
+                }
             }
+        }
+        s.safe_cycles_in_window = Some(safe_in);
+        if let (Some(a0), Some(a1)) = (first_in, last_in_c) {
+            s.can.faults_in_window = Some(fault_delta(&a0.faults, &a1.faults));
         }
         s.arte = a;
     } else {
@@ -513,8 +551,11 @@ impl Summary {
         );
         let _ = writeln!(
             o,
-            "  deadline misses {}   cycles in safe state {}",
-            tm.deadline_misses, tm.safe_cycles
+            "  deadline misses {}   cycles in safe state {} (during the scenario: {})",
+            tm.deadline_misses,
+            tm.safe_cycles,
+            self.safe_cycles_in_window
+                .map_or("-".to_owned(), |n| n.to_string())
         );
 
         if let (Some(m), Some((t0, t1))) = (&self.metrics, self.window) {
@@ -651,7 +692,8 @@ mod tests {
     fn start_is_where_the_held_state_first_moves() {
         let mut t: Vec<GroundTruth> = (0..5).map(|k| truth(k, k, 0.0, 0, "asphalt")).collect();
         t.push(truth(5, 5, 0.003, 0, "asphalt"));
-        assert_eq!(scenario_start(&t), 4);
+        assert_eq!(scenario_start(&t), Some(4));
+        assert_eq!(scenario_start(&t[..5]), None);
         assert_eq!(truth_at(&t, 2_500_000).map(|g| g.seq), Some(2));
         assert!(truth_at(&t, 0).is_some());
     }
