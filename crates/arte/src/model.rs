@@ -433,6 +433,21 @@ impl Model {
     /// layout; for a Paper7 model, Paper20 rows are accepted and the
     /// model's selection is applied).
     pub fn evaluate(&self, data: &Samples) -> Result<Confusion, ModelError> {
+        self.evaluate_smoothed(data, 1)
+    }
+
+    /// As [`Model::evaluate`], but each frame's decision is the argmax of
+    /// the class probabilities averaged over the last `window` frames of the
+    /// same recording (causal moving average; `window` 1 = per frame).
+    /// Rows of one recording must be consecutive and in time order, as the
+    /// trainer extracts them. Shows what a streaming estimator that smooths
+    /// over `window` frames (latency `window` × hop) can reach.
+    pub fn evaluate_smoothed(
+        &self,
+        data: &Samples,
+        window: usize,
+    ) -> Result<Confusion, ModelError> {
+        let window = window.max(1);
         let picked;
         let data = if self.feature_config.set == FeatureSet::Paper7
             && data.dim == N_PAPER20
@@ -443,12 +458,33 @@ impl Model {
         } else {
             data
         };
+        let k = self.classes.len();
         let mut p = self.predictor();
-        let mut probs = vec![0.0; self.classes.len()];
+        let mut probs = vec![0.0; k];
+        let mut hist: Vec<f64> = Vec::with_capacity(data.len() * k);
         let mut conf = Confusion::new(self.classes.clone());
+        let mut rec_start = 0;
+        let mut avg = vec![0.0; k];
         for i in 0..data.len() {
-            let c = p.predict_proba(data.row(i), &mut probs)?;
-            conf.add(c, data.y[i]);
+            if i > 0 && data.group[i] != data.group[i - 1] {
+                rec_start = i;
+            }
+            p.predict_proba(data.row(i), &mut probs)?;
+            hist.extend_from_slice(&probs);
+            let from = rec_start.max((i + 1).saturating_sub(window));
+            avg.fill(0.0);
+            for j in from..=i {
+                for (a, v) in avg.iter_mut().zip(&hist[j * k..(j + 1) * k]) {
+                    *a += v;
+                }
+            }
+            let mut best = 0;
+            for c in 1..k {
+                if avg[c] > avg[best] {
+                    best = c;
+                }
+            }
+            conf.add(best, data.y[i]);
         }
         Ok(conf)
     }

@@ -89,6 +89,12 @@ fn wavs_under(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
 impl Dataset {
     /// Scans `root`: class folders, their WAV files (recursively), the manifest.
     pub fn scan(root: &Path) -> Result<Self> {
+        Self::scan_classes(root, None)
+    }
+
+    /// As [`Dataset::scan`], keeping only the class folders named in `only`
+    /// (each must exist); manifest rows of other classes are ignored.
+    pub fn scan_classes(root: &Path, only: Option<&[String]>) -> Result<Self> {
         if !root.is_dir() {
             bail!(
                 "dataset folder {} does not exist or is not a folder",
@@ -101,6 +107,24 @@ impl Dataset {
             .filter(|p| p.is_dir() && !hidden(p))
             .collect();
         class_dirs.sort();
+        if let Some(only) = only {
+            for want in only {
+                if !class_dirs
+                    .iter()
+                    .any(|d| d.file_name().is_some_and(|n| n == want.as_str()))
+                {
+                    bail!(
+                        "dataset folder {} has no class folder `{want}`",
+                        root.display()
+                    );
+                }
+            }
+            class_dirs.retain(|d| {
+                d.file_name()
+                    .and_then(|n| n.to_str())
+                    .is_some_and(|n| only.iter().any(|w| w == n))
+            });
+        }
         let mut classes = Vec::new();
         let mut entries = Vec::new();
         for dir in &class_dirs {
@@ -186,6 +210,10 @@ impl Dataset {
                 })?;
                 let file = rec.get(fcol).unwrap_or("").trim().replace('\\', "/");
                 let Some(entry) = by_rel.get(file.as_str()) else {
+                    let top = file.split('/').next().unwrap_or("");
+                    if self.root.join(top).is_dir() && !self.classes.iter().any(|c| c == top) {
+                        continue; // a class left out by `scan_classes`
+                    }
                     bail!(
                         "manifest {} line {}: file `{file}` is not a .wav inside a class folder of {}",
                         manifest.display(),
@@ -314,6 +342,21 @@ mod tests {
         assert_eq!(ds.classes, ["asphalt", "snow"]);
         assert_eq!(ds.entries.len(), 4);
         assert_eq!(ds.recordings_per_class(), [3, 1]);
+        write_wav(&d.path().join("gravel/g.wav"), 100);
+        let only =
+            Dataset::scan_classes(d.path(), Some(&["snow".to_string(), "gravel".to_string()]))
+                .unwrap();
+        assert_eq!(only.classes, ["gravel", "snow"]);
+        let e = format!(
+            "{:#}",
+            Dataset::scan_classes(d.path(), Some(&["snow".to_string()])).unwrap_err()
+        );
+        assert!(e.contains("only one class"), "{e}");
+        let e = format!(
+            "{:#}",
+            Dataset::scan_classes(d.path(), Some(&["ice".to_string()])).unwrap_err()
+        );
+        assert!(e.contains("no class folder `ice`"), "{e}");
         assert_eq!(ds.entries[0].rel, "asphalt/sub/z.wav");
         let a = read_wav(&ds.entries[0].path).unwrap();
         assert_eq!((a.sample_rate, a.samples.len()), (8000, 100));

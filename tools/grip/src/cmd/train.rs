@@ -93,6 +93,13 @@ pub struct Args {
     /// Also write the report (Markdown, with confusion matrices) here.
     #[arg(long)]
     pub report: Option<PathBuf>,
+    /// Also report held-out results with class probabilities averaged over
+    /// this many consecutive frames of a recording (causal); 1 = off.
+    #[arg(long, default_value_t = 5)]
+    pub window: usize,
+    /// Use only these class folders (comma separated), in training and held-out data.
+    #[arg(long, value_delimiter = ',')]
+    pub classes: Vec<String>,
 }
 
 impl Args {
@@ -128,6 +135,9 @@ impl Args {
                 j(&self.svm_gamma),
                 self.svm_max_per_class
             );
+        }
+        if !self.classes.is_empty() {
+            let _ = write!(s, " --classes {}", self.classes.join(","));
         }
         let _ = write!(s, " --profile {}", self.profile);
         s
@@ -228,8 +238,14 @@ fn dataset_rate(ds: &Dataset) -> Result<u32> {
 }
 
 /// Evaluates `model` on a held-out dataset folder (classes matched by name).
-pub fn evaluate_folder(model: &Model, dir: &Path, hop_s: f64) -> Result<Confusion> {
-    let ds = Dataset::scan(dir)?;
+pub fn evaluate_folder(
+    model: &Model,
+    dir: &Path,
+    hop_s: f64,
+    only: Option<&[String]>,
+    window: usize,
+) -> Result<(Confusion, Confusion)> {
+    let ds = Dataset::scan_classes(dir, only)?;
     let mut map = Vec::new();
     for c in &ds.classes {
         let Some(i) = model.classes().iter().position(|m| m == c) else {
@@ -242,7 +258,10 @@ pub fn evaluate_folder(model: &Model, dir: &Path, hop_s: f64) -> Result<Confusio
         map.push(i);
     }
     let (samples, _) = extract_dataset(&ds, model.feature_config(), hop_s, &map)?;
-    Ok(model.evaluate(&samples)?)
+    Ok((
+        model.evaluate(&samples)?,
+        model.evaluate_smoothed(&samples, window)?,
+    ))
 }
 
 fn summary(what: String, conf: Confusion) -> EvalSummary {
@@ -284,7 +303,8 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
             args.hop
         );
     }
-    let ds = Dataset::scan(&args.data)?;
+    let only = (!args.classes.is_empty()).then_some(args.classes.as_slice());
+    let ds = Dataset::scan_classes(&args.data, only)?;
     let per_class = ds.recordings_per_class();
     println!(
         "dataset {}: {} classes, {} files, recordings per class: {}",
@@ -455,9 +475,20 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     model.meta.notes = notes;
     model.meta.cv = cv;
     for dir in &args.test {
-        let conf = evaluate_folder(&model, dir, args.hop)?;
-        let e = summary(format!("held-out {}", dir.display()), conf);
+        let (conf, smooth) = evaluate_folder(&model, dir, args.hop, only, args.window)?;
+        let e = summary(format!("held-out {}, per frame", dir.display()), conf);
         print_eval(&mut report, &e.what.clone(), &e);
+        if args.window > 1 {
+            let e = summary(
+                format!(
+                    "held-out {}, probabilities averaged over {} frames",
+                    dir.display(),
+                    args.window
+                ),
+                smooth,
+            );
+            print_eval(&mut report, &e.what.clone(), &e);
+        }
     }
     Ok((model, report))
 }
