@@ -29,7 +29,9 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         "loop wake-up latency histogram:\n{}",
         summary::latency_histogram(&s.timing.wakeup_ns)
     );
-    println!("road timeline (ground truth vs ARTE, per 0.1 s of the truth stream):");
+    println!(
+        "road timeline (ground truth vs the latest ARTE estimate, every 0.1 s; t from the scenario start, negative while plant-sim held the vehicle):"
+    );
     println!("{}", road_timeline(&log));
     if let Some(dir) = &args.csv {
         for p in export::write_csv(&log, dir)? {
@@ -60,6 +62,9 @@ pub fn road_timeline(log: &DriveLog) -> String {
         return "  (no ground truth in the log)".into();
     };
     let last = log.truth.last().map_or(first.stamp_ns, |g| g.stamp_ns);
+    let origin = summary::scenario_start(&log.truth)
+        .and_then(|i| log.truth.get(i))
+        .map_or(first.stamp_ns, |g| g.stamp_ns);
     let mut out = String::new();
     let step = 100_000_000u64;
     let mut t = first.stamp_ns;
@@ -79,7 +84,7 @@ pub fn road_timeline(log: &DriveLog) -> String {
         let mark = if est == truth { "" } else { "  <- differs" };
         out.push_str(&format!(
             "  {:>7.1} s  truth {:<10} ARTE {:<10}{mark}\n",
-            (t - first.stamp_ns) as f64 * 1e-9,
+            (t as i128 - origin as i128) as f64 * 1e-9,
             truth,
             est
         ));

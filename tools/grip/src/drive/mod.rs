@@ -327,3 +327,64 @@ pub fn new_instance() -> String {
         .unwrap_or(0);
     format!("drive-{}-{nanos:x}", std::process::id())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every service's drive command line is its unit's command line (base
+    /// arguments) with the drive's overrides appended, never changed.
+    #[test]
+    fn drive_args_extend_the_unit_command_line() {
+        let plan = DrivePlan {
+            config_dir: PathBuf::from("/cfg"),
+            scenario: "paper".into(),
+            duration_s: 2.4,
+            controller: "src".into(),
+            arte: false,
+            out: PathBuf::from("/tmp/x.mcap"),
+            seed: 7,
+            instance: "t".into(),
+            ready_timeout: Duration::from_secs(1),
+        };
+        for s in Service::START_ORDER {
+            let a = plan.args(s);
+            let base = s.base_args("/cfg");
+            assert_eq!(&a[..base.len()], &base[..], "{}", s.name());
+        }
+        let p = plan.args(Service::PlantSim).join(" ");
+        assert!(
+            p.contains("--scenario paper") && p.contains("--seed 7") && p.contains("--exit-at-end")
+        );
+        assert!(
+            plan.args(Service::TcsLoop)
+                .join(" ")
+                .ends_with("--controller src --arte off")
+        );
+        assert!(
+            plan.args(Service::Recorder)
+                .join(" ")
+                .contains("--out /tmp/x.mcap")
+        );
+    }
+
+    #[test]
+    fn missing_binaries_name_the_build_command() {
+        let d = tempfile::tempdir().unwrap();
+        let e = check_binaries(d.path()).unwrap_err().to_string();
+        assert!(e.contains("recorder") && e.contains("tcs-loop"), "{e}");
+        assert!(e.contains("cargo build --release --workspace"), "{e}");
+    }
+
+    #[test]
+    fn instances_are_valid_and_unique() {
+        let a = new_instance();
+        assert!(a.len() <= 64);
+        assert!(
+            a.bytes()
+                .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_')
+        );
+        std::thread::sleep(Duration::from_millis(1));
+        assert_ne!(a, new_instance());
+    }
+}
