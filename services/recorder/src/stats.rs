@@ -43,9 +43,16 @@ impl SeqTracker {
     }
 }
 
+/// Most (id, direction) pairs tracked; frames of further pairs are counted in
+/// [`CanCounterTracker::untracked`] (bounded memory against a bus full of
+/// unknown identifiers).
+pub const MAX_CAN_KEYS: usize = 1024;
+
 /// Alive-counter tracking of the CAN log, per (id, direction).
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct CanCounterTracker {
+    /// Frames of pairs beyond [`MAX_CAN_KEYS`] (not tracked).
+    pub untracked: u64,
     last: BTreeMap<(u32, u8), u8>,
     /// Frames missing according to the alive counters (lower bound).
     pub gaps: u64,
@@ -62,6 +69,10 @@ impl CanCounterTracker {
         }
         let c = f.data[1] & 0x0F;
         let key = (f.id, f.direction);
+        if self.last.len() >= MAX_CAN_KEYS && !self.last.contains_key(&key) {
+            self.untracked += 1;
+            return;
+        }
         if let Some(&prev) = self.last.get(&key) {
             let delta = c.wrapping_sub(prev) & 0x0F;
             if delta == 0 {
@@ -144,6 +155,15 @@ mod tests {
         t.push(&frame(0x110, 3));
         assert_eq!(t.gaps, 2);
         assert_eq!(t.repeats, 1);
+    }
+
+    #[test]
+    fn can_tracking_is_bounded() {
+        let mut t = CanCounterTracker::default();
+        for id in 0..(MAX_CAN_KEYS as u32 + 10) {
+            t.push(&frame(id, 0));
+        }
+        assert_eq!(t.untracked, 10);
     }
 
     proptest! {
