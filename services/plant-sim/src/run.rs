@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use grip_config::{ConfigDir, ConfigError, parse_toml, read_file};
 use grip_io::can::{CanBus, CanBusConfig, CanError, open_bus};
-use grip_io::clock::{Clock, MonotonicClock};
+use grip_io::clock::MonotonicClock;
 use grip_io::ipc::{IpcError, IpcNode, Publisher};
 use grip_io::rt::{self, PeriodicTimer};
 use grip_msgs::{GroundTruth, topics};
@@ -107,12 +107,15 @@ pub struct IpcTruth {
     pub publisher: Publisher<GroundTruth>,
     /// Failed publishes.
     pub errors: u64,
+    /// Samples published.
+    pub published: u64,
 }
 
 impl TruthSink for IpcTruth {
     fn truth(&mut self, g: &GroundTruth) {
-        if self.publisher.publish(g).is_err() {
-            self.errors += 1;
+        match self.publisher.publish(g) {
+            Ok(_) => self.published += 1,
+            Err(_) => self.errors += 1,
         }
     }
 }
@@ -143,6 +146,7 @@ pub fn run(
     let mut truth = IpcTruth {
         publisher: node.publisher::<GroundTruth>(topics::TRUTH)?,
         errors: 0,
+        published: 0,
     };
     let done = Arc::new(AtomicBool::new(false));
     let helper = svc::spawn_helper(sim.status(), Arc::clone(&done)).map_err(RunError::Thread)?;
@@ -185,12 +189,15 @@ pub fn run(
         deadline_misses = timer.deadline_misses(),
         cmd_timeouts = sim.cmd_timeouts(),
         e2e_faults = sim.protocol_rx().faults().total(),
+        can_tx = sim.can_tx(),
+        can_rx = sim.can_rx(),
+        can_errors = sim.io_errors(),
+        truth_published = truth.published,
         publish_errors = truth.errors,
         x_m = sim.plant().state().x,
         v_kmh = sim.plant().state().v * 3.6,
         "plant-sim stopped"
     );
-    let _ = clock.now_ns();
     drop(report);
     Ok(())
 }

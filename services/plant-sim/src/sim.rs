@@ -176,6 +176,8 @@ pub struct PlantSim {
     prev_v: f64,
     applied: f64,
     io_errors: u64,
+    can_tx: u64,
+    can_rx: u64,
     seq: u64,
     truth: GroundTruth,
     status: Arc<PlantStatus>,
@@ -248,6 +250,8 @@ impl PlantSim {
             prev_v: scenario.v0,
             applied: 0.0,
             io_errors: 0,
+            can_tx: 0,
+            can_rx: 0,
             seq: 0,
             truth: GroundTruth::zeroed(),
             status: Arc::new(PlantStatus::default()),
@@ -304,9 +308,26 @@ impl PlantSim {
     }
 
     fn send<B: CanBus>(&mut self, bus: &mut B, f: &CanFrame) {
-        if bus.send(f).is_err() {
+        if bus.send(f).is_ok() {
+            self.can_tx += 1;
+        } else {
             self.io_errors += 1;
         }
+    }
+
+    /// CAN frames sent successfully.
+    pub fn can_tx(&self) -> u64 {
+        self.can_tx
+    }
+
+    /// CAN frames received (accepted or rejected).
+    pub fn can_rx(&self) -> u64 {
+        self.can_rx
+    }
+
+    /// CAN send/receive errors.
+    pub fn io_errors(&self) -> u64 {
+        self.io_errors
     }
 
     /// One cycle at `tick` (see the module docs). Allocation-free.
@@ -323,6 +344,7 @@ impl PlantSim {
         for _ in 0..MAX_RX_PER_CYCLE {
             match bus.try_recv() {
                 Ok(Some(f)) => {
+                    self.can_rx += 1;
                     if let Ok(Some(InverterMsg::TorqueCommand(c))) = self.rx.receive(&f, now) {
                         self.cmd = c;
                         self.cmd_ns = Some(now);

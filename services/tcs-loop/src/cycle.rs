@@ -142,6 +142,8 @@ pub struct TcsLoop {
     valid_since_ns: Option<u64>,
     safe_entries: u64,
     bus_errors: u64,
+    can_tx: u64,
+    can_rx: u64,
     seq: u64,
     record: CycleRecord,
     status: Arc<SharedStatus>,
@@ -192,6 +194,8 @@ impl TcsLoop {
             valid_since_ns: None,
             safe_entries: 0,
             bus_errors: 0,
+            can_tx: 0,
+            can_rx: 0,
             seq: 0,
             record: CycleRecord::zeroed(),
             status: Arc::new(SharedStatus {
@@ -284,7 +288,10 @@ impl TcsLoop {
         // 1. drain CAN
         for _ in 0..MAX_RX_PER_CYCLE {
             match bus.try_recv() {
-                Ok(Some(f)) => self.on_frame(&f, now, sink),
+                Ok(Some(f)) => {
+                    self.can_rx += 1;
+                    self.on_frame(&f, now, sink);
+                }
                 Ok(None) => break,
                 Err(_) => {
                     self.bus_errors += 1;
@@ -381,9 +388,7 @@ impl TcsLoop {
             },
             now,
         );
-        if bus.send(&frame).is_err() {
-            self.bus_errors += 1;
-        }
+        self.send(bus, &frame);
         sink.can(&frame);
 
         // 6. record
@@ -427,9 +432,30 @@ impl TcsLoop {
             },
             now_ns,
         );
-        if bus.send(&frame).is_err() {
+        self.send(bus, &frame);
+        sink.can(&frame);
+    }
+
+    fn send<B: CanBus>(&mut self, bus: &mut B, frame: &CanFrame) {
+        if bus.send(frame).is_ok() {
+            self.can_tx += 1;
+        } else {
             self.bus_errors += 1;
         }
-        sink.can(&frame);
+    }
+
+    /// CAN frames sent successfully (every cycle's command and the shutdown frame).
+    pub fn can_tx(&self) -> u64 {
+        self.can_tx
+    }
+
+    /// CAN frames received from the bus (accepted or rejected).
+    pub fn can_rx(&self) -> u64 {
+        self.can_rx
+    }
+
+    /// CAN send/receive errors.
+    pub fn bus_errors(&self) -> u64 {
+        self.bus_errors
     }
 }

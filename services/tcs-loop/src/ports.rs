@@ -69,17 +69,36 @@ pub struct IpcSink {
     pub can: Publisher<CanFrame>,
     /// Failed publishes so far.
     pub errors: u64,
+    /// `CycleRecord`s published.
+    pub cycle_published: u64,
+    /// `CAN_LOG` copies published.
+    pub can_published: u64,
+}
+
+impl IpcSink {
+    /// A sink on the two publishers, counters at zero.
+    pub fn new(cycle: Publisher<CycleRecord>, can: Publisher<CanFrame>) -> Self {
+        Self {
+            cycle,
+            can,
+            errors: 0,
+            cycle_published: 0,
+            can_published: 0,
+        }
+    }
 }
 
 impl RecordSink for IpcSink {
     fn cycle(&mut self, rec: &CycleRecord) {
-        if self.cycle.publish(rec).is_err() {
-            self.errors += 1;
+        match self.cycle.publish(rec) {
+            Ok(_) => self.cycle_published += 1,
+            Err(_) => self.errors += 1,
         }
     }
     fn can(&mut self, frame: &CanFrame) {
-        if self.can.publish(frame).is_err() {
-            self.errors += 1;
+        match self.can.publish(frame) {
+            Ok(_) => self.can_published += 1,
+            Err(_) => self.errors += 1,
         }
     }
 }

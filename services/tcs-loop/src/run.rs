@@ -68,6 +68,8 @@ pub struct RunSummary {
     pub deadline_misses: u64,
     /// Wake-up latency histogram.
     pub latency: LatencyHistogram,
+    /// Wake-ups later than 1 ms after their deadline.
+    pub late_1ms: u64,
     /// Safe-state entries (from normal operation).
     pub safe_entries: u64,
     /// E2E faults at the end.
@@ -168,11 +170,10 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
 
     let node = IpcNode::create(topics::node::TCS_LOOP)?;
     let mut bus = open_bus(&cfg.can, &node)?;
-    let mut sink = IpcSink {
-        cycle: node.publisher::<CycleRecord>(topics::CYCLE)?,
-        can: node.publisher::<CanFrame>(topics::CAN_LOG)?,
-        errors: 0,
-    };
+    let mut sink = IpcSink::new(
+        node.publisher::<CycleRecord>(topics::CYCLE)?,
+        node.publisher::<CanFrame>(topics::CAN_LOG)?,
+    );
     let mut road = IpcRoad {
         sub: node.subscriber::<RoadEstimate>(topics::ROAD, SubscriberMode::Latest)?,
         errors: 0,
@@ -198,8 +199,10 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
     ));
     tracing::info!("tcs-loop ready");
 
+    let mut late_1ms = 0u64;
     while !stop.load(Ordering::Relaxed) {
         let t = timer.wait_next();
+        late_1ms += u64::from(t.latency_ns > 1_000_000);
         let tick = Tick::from_timing(&t, timer.deadline_misses());
         lp.cycle(&tick, &clock, &mut bus, &mut road, &mut sink);
         if end_ns.is_some_and(|e| t.woke_ns >= e) {
@@ -220,15 +223,22 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
         fifo: report.fifo.is_applied(),
         dma_latency: report.dma_latency.is_applied(),
         latency: h,
+        late_1ms,
     };
     tracing::info!(
         cycles = summary.cycles,
         latency_p50_us = summary.latency.p50_ns() as f64 / 1e3,
         latency_p99_us = summary.latency.p99_ns() as f64 / 1e3,
         latency_max_us = summary.latency.max_ns() as f64 / 1e3,
+        wakeups_over_1ms = summary.late_1ms,
         deadline_misses = summary.deadline_misses,
         safe_entries = summary.safe_entries,
         e2e_faults = summary.faults_total,
+        can_tx = lp.can_tx(),
+        can_rx = lp.can_rx(),
+        bus_errors = lp.bus_errors(),
+        cycle_published = sink.cycle_published,
+        can_log_published = sink.can_published,
         publish_errors = sink.errors,
         road_errors = road.errors,
         "tcs-loop stopped (zero torque sent, enable cleared)"

@@ -356,6 +356,9 @@ fn corrupted_frames_are_rejected_counted_and_do_not_change_the_command() {
     );
     assert_eq!(a.sink.can_tx, 400);
     assert_eq!(a.sink.can_rx, b.sink.can_rx + 4);
+    // the counters of the "stopped" log line agree with what was logged
+    assert_eq!(a.lp.can_tx(), a.sink.can_tx);
+    assert_eq!(a.lp.can_rx(), a.sink.can_rx);
 }
 
 fn estimate(stamp_ns: u64, confidence: f64) -> RoadEstimate {
