@@ -8,11 +8,12 @@
 //!   μ ∝ λ, 0 at the peak, negative past it). The slope dμ̂/dλ itself is
 //!   estimated online by [`SlopeEstimator`].
 //!
-//! Output: a slip *correction* Δλ; the estimate is `λ* = λ + Δλ`. The rule
-//! base moves the reference up the μ-λ curve while the slope is positive,
-//! holds it where the slope vanishes and pulls it back past the peak, with
-//! step sizes graded by the friction level (small steps on low-μ roads, whose
-//! peak is narrow and close to zero slip). This is the "track the adherence
+//! Output: the optimal-slip estimate λ* itself (absolute). The rule base
+//! puts λ* above the current slip while the slope is positive (by how much
+//! the friction level allows: low-μ peaks are narrow and close to zero slip),
+//! at it where the slope vanishes and below it past the peak. (Before the
+//! first comparison the output was a correction Δλ of at most ±0.08 added to
+//! the current slip, which made λ* follow a spinning wheel: see README.) This is the "track the adherence
 //! gradient without knowing the road" idea of Delli Colli, Tomassi and
 //! Scarano (IEEE TPEL 21(3), 2006) expressed as the optimal-slip estimator of
 //! the Hori group's SRC (Kataoka, Sado, Sakai, Hori, IEEJ Trans. IA 2001:
@@ -20,7 +21,7 @@
 //!
 //! Inference: AND = min, implication = min (clipping), aggregation = max,
 //! defuzzification = centroid over a fixed grid of [`GRID`] points on
-//! [−0.12, 0.12]. Membership functions and the 27-rule table are constants
+//! [0, 0.5]. Membership functions and the 27-rule table are constants
 //! below and are reproduced in `crates/tcs/README.md`. Nothing allocates.
 
 /// A trapezoidal membership function (a, b, c, d): 0 below a, rising to 1 at
@@ -85,50 +86,56 @@ pub const SLOPE_SETS: [Trapezoid; 3] = [
     Trapezoid::new(0.0, 0.3, POS_INF, POS_INF),
 ];
 
-/// Output sets on Δλ: NB, NS, ZE, PS, PM (triangles).
-pub const OUT_SETS: [Trapezoid; 5] = [
-    Trapezoid::new(-0.12, -0.08, -0.08, -0.04),
-    Trapezoid::new(-0.06, -0.03, -0.03, 0.0),
-    Trapezoid::new(-0.02, 0.0, 0.0, 0.02),
-    Trapezoid::new(0.0, 0.02, 0.02, 0.04),
-    Trapezoid::new(0.02, 0.05, 0.05, 0.08),
+/// Output sets on the optimal-slip estimate λ* itself (absolute, not a
+/// correction of the current slip): VS, S, M, ML, L, VL (triangles).
+pub const OUT_SETS: [Trapezoid; 6] = [
+    Trapezoid::new(0.0, 0.03, 0.03, 0.06),
+    Trapezoid::new(0.03, 0.06, 0.06, 0.10),
+    Trapezoid::new(0.06, 0.12, 0.12, 0.18),
+    Trapezoid::new(0.12, 0.20, 0.20, 0.28),
+    Trapezoid::new(0.20, 0.30, 0.30, 0.40),
+    Trapezoid::new(0.30, 0.42, 0.42, 0.50),
 ];
 /// Names of the output sets, for the README table and tests.
-pub const OUT_NAMES: [&str; 5] = ["NB", "NS", "ZE", "PS", "PM"];
+pub const OUT_NAMES: [&str; 6] = ["VS", "S", "M", "ML", "L", "VL"];
 
-const NB: usize = 0;
-const NS: usize = 1;
-const ZE: usize = 2;
-const PS: usize = 3;
-const PM: usize = 4;
+const VS: usize = 0;
+const S: usize = 1;
+const M: usize = 2;
+const ML: usize = 3;
+const L: usize = 4;
+const VL: usize = 5;
 
-/// Rule table: `RULES[slope][mu][lambda]` = output set index.
-/// slope: 0 N, 1 Z, 2 P; mu: 0 L, 1 M, 2 H; lambda: 0 S, 1 M, 2 L.
+/// Rule table: `RULES[slope][mu][lambda]` = output set index (the estimate
+/// of the optimal slip). slope: 0 N, 1 Z, 2 P; mu: 0 L, 1 M, 2 H;
+/// lambda: 0 S, 1 M, 2 L. Negative slope: the peak is *below* the current
+/// slip; zero: at it; positive: above it, the more so the higher μ̂ (low-μ
+/// roads peak near zero slip, high-μ ones at 0.1-0.4).
 pub const RULES: [[[usize; 3]; 3]; 3] = [
-    // slope N (past the peak): back off, harder at large slip
-    [[NS, NS, NB], [NS, NS, NB], [NS, NS, NB]],
-    // slope Z (at or near the peak): hold; on a plateau at large slip (or at
-    // medium slip on a low-μ road, whose peak is near zero slip) back off:
-    // little traction is lost and the slip shrinks
-    [[ZE, NS, NS], [ZE, ZE, NS], [ZE, ZE, NS]],
-    // slope P (rising): climb; small steps on low μ; at large slip only on a
-    // high-μ road (cobblestone-like peaks near 0.4), back off on a low-μ one
-    [[PS, PS, NS], [PM, PS, ZE], [PM, PM, PS]],
+    // slope N (past the peak): an estimate below the current slip
+    [[VS, S, S], [VS, S, M], [S, M, ML]],
+    // slope Z (at the peak): about the current slip (a low-μ road's
+    // plateau at large slip: its peak is near zero slip)
+    [[S, S, S], [S, M, M], [M, ML, L]],
+    // slope P (rising): above the current slip, by how much μ̂ allows;
+    // rising at large slip on a low-μ road is noise: no such road peaks there
+    [[S, M, S], [M, ML, L], [ML, L, VL]],
 ];
 
-/// Output grid resolution (points on [−0.12, 0.12]).
+/// Output grid resolution (points on [0, 0.5]).
 pub const GRID: usize = 121;
-const OUT_LO: f64 = -0.12;
-const OUT_HI: f64 = 0.12;
+const OUT_LO: f64 = 0.0;
+const OUT_HI: f64 = 0.5;
 
-/// Evaluate the rule base: Δλ for (λ, μ̂, s_n). Always finite; 0 when no
-/// rule fires (cannot happen for finite inputs: the input sets cover ℝ).
+/// Evaluate the rule base: the optimal-slip estimate λ* for (λ, μ̂, s_n).
+/// Always finite; 0 when no rule fires (cannot happen for finite inputs:
+/// the input sets cover ℝ).
 pub fn infer(lambda: f64, mu: f64, slope_n: f64) -> f64 {
     let gl = LAMBDA_SETS.map(|s| s.grade(lambda));
     let gm = MU_SETS.map(|s| s.grade(mu));
     let gs = SLOPE_SETS.map(|s| s.grade(slope_n));
     // Strength of each output set: max over the rules that conclude it.
-    let mut strength = [0.0_f64; 5];
+    let mut strength = [0.0_f64; 6];
     for (i, &ws) in gs.iter().enumerate() {
         for (j, &wm) in gm.iter().enumerate() {
             for (k, &wl) in gl.iter().enumerate() {
@@ -276,25 +283,39 @@ mod tests {
     }
 
     #[test]
-    fn rules_climb_hold_and_back_off() {
-        // Linear region on a high-μ road at small slip: climb by about PM.
-        let d = infer(0.02, 0.9, 1.0);
-        assert!((d - 0.05).abs() < 0.005, "{d}");
-        // At the peak: hold.
-        assert!(infer(0.12, 1.17, 0.0).abs() < 1e-9);
-        // On a plateau at large slip: back off.
-        assert!(infer(0.35, 1.0, 0.0) < -0.02);
-        // Past the peak at large slip: back off by about NB.
-        let d = infer(0.4, 0.5, -1.0);
-        assert!((d + 0.08).abs() < 0.005, "{d}");
-        // Low μ, rising: small step.
-        let d = infer(0.02, 0.1, 1.0);
-        assert!((d - 0.02).abs() < 0.003, "{d}");
-        // Output monotone in the slope for a fixed operating point.
+    fn the_estimate_points_toward_the_peak_on_both_sides() {
+        // Snow-like: low μ, far past the peak (λ = 0.7, negative or flat
+        // slope, or no excitation at all): λ* near snow's 0.06, far below λ.
+        for sn in [-1.0, -0.2, 0.0] {
+            let e = infer(0.7, 0.17, sn);
+            assert!((e - 0.06).abs() < 0.015, "s_n {sn}: {e}");
+        }
+        // With the no-excitation prior (s_n = 1) μ̂ = 0.17 is a little
+        // "medium", whose rising-at-large-slip rule says L: still far below.
+        let e = infer(0.7, 0.17, 1.0);
+        assert!(e < 0.15, "{e}");
+        assert!((infer(0.7, 0.12, 1.0) - 0.06).abs() < 0.01);
+        // Past the peak on any road: below the current slip.
+        for (l, mu) in [(0.12, 0.15), (0.3, 0.6), (0.35, 1.0), (0.5, 0.9)] {
+            let e = infer(l, mu, -1.0);
+            assert!(e < l - 0.05, "λ {l} μ {mu}: {e}");
+        }
+        // Rising with high μ̂: above the current slip.
+        for l in [0.01, 0.05, 0.1, 0.2, 0.3] {
+            let e = infer(l, 1.0, 1.0);
+            assert!(e > l + 0.05, "λ {l}: {e}");
+        }
+        // Asphalt-like linear region at 300 N m (λ 0.011, μ̂ 0.31): above the
+        // slip, so SRC does not cut a torque the road carries.
+        assert!(infer(0.011, 0.31, 1.0) > 0.05);
+        // At the peak: about the current slip.
+        let e = infer(0.12, 0.45, 0.0);
+        assert!((e - 0.12).abs() < 0.03, "{e}");
+        // Monotone in the slope for a fixed operating point.
         let mut last = f64::NEG_INFINITY;
         for k in -30..=30 {
             let d = infer(0.08, 0.5, k as f64 * 0.05);
-            assert!(d >= last - 1e-12);
+            assert!(d >= last - 1e-12, "{k}: {d} < {last}");
             last = d;
         }
     }

@@ -6,18 +6,19 @@
 //! F̂_d    = (LPF(T) − J_w dω/dt) / r,   μ̂ = F̂_d / N           (observer, τ_o = tau_obs)
 //! a      = dμ̂/dλ   (SlopeEstimator on LPF_τo(λ) and μ̂)
 //! λ*     = ARTE usable ? λ_opt(road)
-//!                      : LPF_τref( clamp( λ_f + fuzzy(λ_f, μ̂, a λ_f/μ̂), λ_min, λ_max ) )
-//! K_p    = kp · max(|ω|, v_eps / r)
+//!                      : LPF_τref( clamp( fuzzy(λ_f, μ̂, a λ_f/μ̂), λ_min, λ_max ) )
+//! K_p    = kp · max(|ω|, v_eps / r) / (1 − λ)     ((1 − λ) clamped to [0.1, 1])
 //! K_i    = (e > 0 ? kp_recover : kp) · max(|ω|, v_eps / r) / T_i
 //! u      = K_p e + I + K_i e dt,   e = λ* − λ
 //! T_PI   = clamp(u, 0, T_d);   I ← T_PI − K_p e                 (tracking anti-windup)
 //! T*     = min(T_d, T_PI)
 //! ```
 //!
-//! - The proportional gain is scheduled with the wheel speed because the
-//!   slip's sensitivity to torque near the μ-λ peak is (1 − λ)/(J_w ω) per
-//!   N m s: kp = J_w / (2 τ_m) and T_i = 4 τ_m make the loop the symmetric
-//!   optimum (Kessler) for that integrator plant with the motor lag τ_m.
+//! - The proportional gain is scheduled with the wheel speed and the slip
+//!   because the slip's sensitivity to torque near the μ-λ peak is
+//!   (1 − λ)/(J_w ω) per N m s: kp = J_w / (2 τ_m) and T_i = 4 τ_m make the
+//!   loop the symmetric optimum (Kessler) for that integrator plant with the
+//!   motor lag τ_m.
 //! - No chassis speed (`v == None`, or non-finite): the control law cannot run;
 //!   T* = T_d is passed through, `ControlOutput::passthrough` is true and the
 //!   integrator is set to T_d so that the PI resumes bumplessly.
@@ -118,8 +119,8 @@ impl Controller for Src {
         let slope_n = self.slope.step(lambda_f, mu_hat);
 
         // Fuzzy estimate runs every cycle (so it is warm when ARTE drops out).
-        let delta = infer(lambda_f, mu_hat, slope_n);
-        let fuzzy_target = (lambda_f + delta).clamp(self.params.lambda_min, self.params.lambda_max);
+        let fuzzy_target =
+            infer(lambda_f, mu_hat, slope_n).clamp(self.params.lambda_min, self.params.lambda_max);
         let fuzzy_ref = self.reference.step(fuzzy_target);
         let lambda_ref = match known {
             Some(k) => k.lambda_opt,
@@ -133,7 +134,10 @@ impl Controller for Src {
                 self.pi_active = true;
             }
             let e = lambda_ref - lambda;
-            let kp = self.params.kp * m.omega.abs().max(self.v_eps / self.r);
+            // Slip plant (paper eqs. 6-8, corrected): dλ/dt = (1 − λ)/(J_w ω) · T
+            // at the peak, so the symmetric optimum is K_p = J_w ω / (2 τ_m (1 − λ)).
+            let one_minus = (1.0 - lambda.clamp(0.0, 0.9)).max(0.1);
+            let kp = self.params.kp * m.omega.abs().max(self.v_eps / self.r) / one_minus;
             // Below the reference the wheel is coupled to the vehicle (inertia
             // J_w + (M/n) r²), so the recovery uses that plant's gain; above
             // it (slipping), the wheel alone (J_w).

@@ -208,3 +208,42 @@ fn every_controller_limits_the_spin_on_snow() {
         );
     }
 }
+
+#[test]
+fn src_without_arte_stops_a_snow_spin_quickly() {
+    // 300 N m on snow from 10 km/h (snow carries ~183 N m). With the 50 ms
+    // motor lag the wheel spins up before any TCS can act; the fuzzy λ*
+    // must then point back to snow's peak (not follow the slip) and the PI
+    // must bring the slip down within a few hundred ms.
+    let road = snow();
+    let start = PlantState::rolling(10.0 / 3.6, VehicleParams::default().r);
+    let tr = run(Some(ControllerKind::Src), &road, start, 300.0, 1.5, |_| {
+        None
+    });
+    let peak = tr.lambda.iter().cloned().fold(0.0, f64::max);
+    let late = window(&tr.lambda, 0.4, 1.5)
+        .iter()
+        .cloned()
+        .fold(0.0, f64::max);
+    let reference_late = mean(window(&tr.reference, 0.4, 1.5));
+    println!("peak slip {peak:.3}, max slip after 0.4 s {late:.3}, mean λ* {reference_late:.3}");
+    assert!(peak < 0.6, "peak slip {peak}");
+    assert!(late < 0.15, "max slip after 0.4 s {late}");
+    assert!(
+        (0.03..0.1).contains(&reference_late),
+        "λ* after 0.4 s {reference_late}"
+    );
+}
+
+#[test]
+fn mtte_delivers_a_demand_the_road_carries() {
+    // Dry asphalt carries ~1125 N m: MTTE must not limit 300 N m.
+    let road = Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap();
+    let start = PlantState::rolling(10.0 / 3.6, VehicleParams::default().r);
+    let tr = run(Some(ControllerKind::Mtte), &road, start, 300.0, 2.0, |_| {
+        None
+    });
+    let t = mean(window(&tr.torque, 0.3, 2.0));
+    println!("MTTE mean torque on asphalt {t:.1} N m");
+    assert!(t > 295.0, "mean torque {t}");
+}
