@@ -319,3 +319,74 @@ fn killed_service_is_reported_and_a_restart_reconnects() {
         "the loop never used an estimate after the restart"
     );
 }
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let p = e.path();
+        if p.is_dir() {
+            copy_dir(&p, &to.join(e.file_name()));
+        } else {
+            std::fs::copy(&p, to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+/// A service that cannot start fails the drive with its name, exit code and
+/// stderr (the offending field); the others are stopped, the recorder last,
+/// so the log is still finished.
+#[test]
+fn drive_names_the_service_that_did_not_come_up() {
+    let bin = bin_dir();
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = tmp.path().join("config");
+    copy_dir(&config_dir(), &cfg);
+    let own = cfg.join("tcs-loop.toml");
+    let text = std::fs::read_to_string(&own).unwrap();
+    std::fs::write(&own, format!("bogus_field = 1\n{text}")).unwrap();
+    let out = tmp.path().join("drive.mcap");
+    let res = Command::new(bin.join("grip"))
+        .arg("--config-dir")
+        .arg(&cfg)
+        .args([
+            "drive",
+            "--scenario",
+            "e2e",
+            "--ready-timeout",
+            "60",
+            "--out",
+        ])
+        .arg(&out)
+        .env("GRIP_BIN_DIR", &bin)
+        .env("NO_COLOR", "1")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert!(!res.status.success(), "the drive should fail:\n{stderr}");
+    assert!(
+        stderr.contains("tcs-loop exited before it was ready (exit code 1)"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("bogus_field"),
+        "stderr tail missing:\n{stderr}"
+    );
+    // the others were stopped cleanly and the recorder finished its file
+    for s in ["recorder", "plant-sim", "audio-acq", "arte"] {
+        assert!(
+            stderr
+                .lines()
+                .any(|l| l.trim_start().starts_with(s) && l.contains("exit code 0")),
+            "{s} not stopped cleanly:\n{stderr}"
+        );
+    }
+    let log = McapLog::open(&out).unwrap();
+    assert!(
+        log.metadata()
+            .unwrap()
+            .iter()
+            .any(|(n, _)| n == "grip.recorder"),
+        "recorder did not finish the log"
+    );
+}
