@@ -45,6 +45,8 @@ struct Outcome_ {
     late_snow_torque: f64,
     v_end_kmh: f64,
     x_end: f64,
+    /// Distance covered during the scenario's 2.4 s, m.
+    distance: f64,
     safe_entries: u64,
     faults: u64,
     inverter_faults: u64,
@@ -151,6 +153,7 @@ fn closed_loop(kind: ControllerKind, arte: bool) -> Outcome_ {
         late_snow_torque: late_max(run, &late, |g| g.torque),
         v_end_kmh: last.v * 3.6,
         x_end: last.x,
+        distance: run[n - 1].x - x0,
         safe_entries: tcs.safe_entries(),
         faults: tcs.protocol_rx().faults().total(),
         inverter_faults: plant.protocol_rx().faults().total(),
@@ -248,5 +251,51 @@ fn src_and_mfc_run_the_scenario_with_finite_results() {
         eprintln!("{kind}: {o:?}");
         check_common(&o);
         assert!(o.mean_abs_slip < ol_slip, "{kind}: {o:?} vs {ol_slip}");
+    }
+}
+
+/// The live path (CAN encoding, E2E, SimBus, the service loops) against the
+/// offline simulator (`grip_sim::run`: the same controller, plant and sensor
+/// models called directly) on the same scenario. They differ in the sensor
+/// noise sequence (different seeds and sampling), in the phase of the 10 ms
+/// DriverDemand frame (the live demand reaches the controller up to 10 ms
+/// later) and in where the one-cycle delay sits (offline: a sensor sample;
+/// live: the command frame), so they agree within tolerances, not bitwise.
+#[test]
+fn live_loop_matches_the_offline_simulator() {
+    let d = dir();
+    let roads = d.roads().unwrap();
+    let sc = d.scenario_with("paper", &roads).unwrap();
+    let (vehicle, sensors) = d.vehicle().unwrap();
+    let controllers = grip_config::load_controllers(d.file("controllers.toml")).unwrap();
+    let setup = grip_sim::SimSetup::new(
+        vehicle,
+        sensors,
+        roads,
+        sc,
+        controllers,
+        &grip_sim::KnowledgeConfig::default(),
+    )
+    .unwrap();
+    for kind in ControllerKind::ALL {
+        let mut est = grip_sim::PerfectArte::new(0.1);
+        let off = grip_sim::run(&setup, grip_sim::Variant::new(kind, false), 1, &mut est).unwrap();
+        let live = closed_loop(kind, false);
+        let m = off.metrics;
+        eprintln!(
+            "{kind}: slip dev offline {:.4} live {:.4}; distance {:.3} / {:.3} m; V end {:.2} / {:.2} km/h",
+            m.slip_deviation,
+            live.mean_abs_slip,
+            m.distance,
+            live.distance,
+            off.final_state.v * 3.6,
+            live.v_end_kmh
+        );
+        let rel = |a: f64, b: f64| (a - b).abs() / b.abs().max(1e-9);
+        assert!(
+            rel(live.mean_abs_slip, m.slip_deviation) < 0.10,
+            "{kind}: slip"
+        );
+        assert!(rel(live.distance, m.distance) < 0.02, "{kind}: distance");
     }
 }
