@@ -3,7 +3,8 @@
 //!
 //! 1. `grip drive --scenario e2e` (1.5 s): the MCAP holds every control
 //!    cycle with contiguous sequence numbers, as many as tcs-loop says it
-//!    ran; every TorqueCommand tcs-loop sent (cycles + its shutdown frame);
+//!    ran and published; every TorqueCommand tcs-loop sent (cycles + its
+//!    shutdown frame) and every frame it received, as its own counters say;
 //!    as many ground-truth samples as plant-sim cycles, audio blocks as
 //!    audio-acq published, road estimates as arte published; the recorder
 //!    lost and dropped nothing; the road estimates are mostly right.
@@ -170,6 +171,29 @@ fn drive_records_every_cycle_frame_and_estimate() {
         .filter(|f| f.direction == can_dir::TX && f.id == 0x100)
         .count() as u64;
     assert_eq!(tx, n + 1, "TorqueCommand frames in the log");
+    // ... and exactly the frames tcs-loop counted sending, receiving and
+    // copying to the CAN log
+    assert_eq!(
+        tx,
+        stopped_field(&stderr, "grip_tcs_loop", "can_tx"),
+        "can_tx"
+    );
+    let rx = r.can.iter().filter(|f| f.direction == can_dir::RX).count() as u64;
+    assert_eq!(
+        rx,
+        stopped_field(&stderr, "grip_tcs_loop", "can_rx"),
+        "can_rx"
+    );
+    assert_eq!(
+        r.can.len() as u64,
+        stopped_field(&stderr, "grip_tcs_loop", "can_log_published"),
+        "CAN log copies"
+    );
+    assert_eq!(
+        n,
+        stopped_field(&stderr, "grip_tcs_loop", "cycle_published"),
+        "cycle records published"
+    );
     let ws = r.can.iter().filter(|f| f.id == 0x120).count() as u64;
     assert!(ws * 10 >= n * 9, "WheelSpeeds frames {ws} for {n} cycles");
     // ground truth: one per plant-sim cycle
