@@ -168,6 +168,8 @@ pub struct ArteStats {
     pub receive_errors: AtomicU64,
     /// Latest xrun count reported by audio-acq.
     pub xruns: AtomicU64,
+    /// Published estimates per winning class index.
+    pub per_class: [AtomicU64; MAX_ROAD_CLASSES],
 }
 
 /// Where estimates go: the iceoryx2 publisher, or a test sink.
@@ -369,6 +371,7 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
                 stats.publish_errors.fetch_add(1, Ordering::Relaxed);
             } else {
                 stats.estimates.fetch_add(1, Ordering::Relaxed);
+                stats.per_class[class].fetch_add(1, Ordering::Relaxed);
             }
             *out_seq += 1;
             sent += 1;

@@ -165,7 +165,13 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
         estimates: stats.estimates.load(Ordering::Relaxed),
         lost_blocks: stats.lost_blocks.load(Ordering::Relaxed),
     };
+    let per_class: Vec<String> = classes
+        .iter()
+        .zip(&stats.per_class)
+        .map(|(c, n)| format!("{c} {}", n.load(Ordering::Relaxed)))
+        .collect();
     tracing::info!(
+        per_class = %per_class.join(", "),
         blocks = summary.blocks,
         estimates = summary.estimates,
         lost_blocks = summary.lost_blocks,
