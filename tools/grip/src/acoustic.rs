@@ -315,6 +315,10 @@ pub struct InLoopStats {
     /// The same with the decision required to hold for `hold_s` (the ARTE
     /// crate's detection-delay definition, `stream::detection_delays`).
     pub stable_delays: Vec<Option<f64>>,
+    /// In-loop confusion counts, `confusion[estimated][true]` (catalogue
+    /// indices; rows estimated, columns true: the paper's Table II layout),
+    /// over every decision against the true road of its arrival cycle.
+    pub confusion: Vec<Vec<u64>>,
 }
 
 /// Records an estimator's decisions and the true road changes of a run
@@ -331,6 +335,9 @@ pub struct InLoopProbe {
     last_road: Option<usize>,
     last_change: f64,
     end: f64,
+    /// Row-major n × n, `[estimated * n + true]`.
+    confusion: Vec<u64>,
+    n_roads: usize,
 }
 
 impl std::fmt::Debug for InLoopProbe {
@@ -345,8 +352,16 @@ impl std::fmt::Debug for InLoopProbe {
 impl InLoopProbe {
     /// Wrap `inner` whose decisions analyse frames of `frame_s`; room for
     /// `cycles` cycles (at most one decision and one change per cycle, so
-    /// recording never allocates); stable detection needs `hold_s`.
-    pub fn new(inner: Box<dyn RoadEstimator>, frame_s: f64, cycles: usize, hold_s: f64) -> Self {
+    /// recording never allocates); stable detection needs `hold_s`; the
+    /// catalogue has `n_roads` roads (larger indices are not counted in the
+    /// confusion matrix).
+    pub fn new(
+        inner: Box<dyn RoadEstimator>,
+        frame_s: f64,
+        cycles: usize,
+        hold_s: f64,
+        n_roads: usize,
+    ) -> Self {
         Self {
             inner,
             frame_s,
@@ -359,6 +374,8 @@ impl InLoopProbe {
             last_road: None,
             last_change: f64::NEG_INFINITY,
             end: 0.0,
+            confusion: vec![0; n_roads * n_roads],
+            n_roads,
         }
     }
 
@@ -375,6 +392,11 @@ impl InLoopProbe {
             single_road_correct: self.single_road_correct,
             first_delays: first,
             stable_delays: stable,
+            confusion: self
+                .confusion
+                .chunks(self.n_roads.max(1))
+                .map(<[u64]>::to_vec)
+                .collect(),
         })
     }
 }
@@ -390,6 +412,7 @@ impl RoadEstimator for InLoopProbe {
         self.last_road = None;
         self.last_change = f64::NEG_INFINITY;
         self.end = 0.0;
+        self.confusion.fill(0);
     }
 
     fn update(
@@ -416,6 +439,14 @@ impl RoadEstimator for InLoopProbe {
             self.decisions.push((e.t_stamp, e.road_index));
         }
         let ok = e.road_index == true_road_index;
+        if e.road_index < self.n_roads
+            && true_road_index < self.n_roads
+            && let Some(c) = self
+                .confusion
+                .get_mut(e.road_index * self.n_roads + true_road_index)
+        {
+            *c += 1;
+        }
         self.correct += u64::from(ok);
         // Frame [t_stamp − frame_s, t_stamp] on one road: no change after its start.
         if self.last_change <= e.t_stamp - self.frame_s + 1e-9 {
@@ -630,7 +661,7 @@ mod tests {
     fn probe_counts_and_measures_delays() {
         // Perfect source with 0.1 s frames: a change is seen at the next
         // frame end; frames straddling a change are not single-road.
-        let mut p = InLoopProbe::new(Box::new(grip_sim::PerfectArte::new(0.1)), 0.1, 1000, 0.2);
+        let mut p = InLoopProbe::new(Box::new(grip_sim::PerfectArte::new(0.1)), 0.1, 1000, 0.2, 3);
         assert!(p.take_stats().is_none());
         let plan = [(0.0, 0), (0.33, 2)];
         let est = drive(&mut p, 1, &plan, 1.0);
@@ -644,5 +675,13 @@ mod tests {
         let d = s.first_delays[0].unwrap();
         assert!((d - 0.07).abs() < 1e-6, "{d}");
         assert_eq!(s.stable_delays[0], s.first_delays[0]);
+        assert_eq!(s.confusion, vec![vec![3, 0, 0], vec![0; 3], vec![0, 0, 7]]);
+        // Reset clears everything.
+        p.reset(2);
+        assert!(p.take_stats().is_none());
+        drive(&mut p, 1, &[(0.0, 1)], 0.3);
+        let s = p.take_stats().unwrap();
+        assert_eq!(s.confusion, vec![vec![0; 3], vec![0, 3, 0], vec![0; 3]]);
+        assert!(s.first_delays.is_empty());
     }
 }

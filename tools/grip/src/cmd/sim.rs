@@ -180,7 +180,13 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             (None, ArteSource::Perfect) => Box::new(PerfectArte::new(frame_s)),
             (None, _) => Box::new(confusion.clone()),
         };
-        Ok(InLoopProbe::new(inner, probe_frame_s, cycles, HOLD_S))
+        Ok(InLoopProbe::new(
+            inner,
+            probe_frame_s,
+            cycles,
+            HOLD_S,
+            setup.roads().len(),
+        ))
     };
     let source_text = match &acoustic {
         Some(a) => a.describe.clone(),
@@ -235,7 +241,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             "\nWARNING: {unhealthy} runs had a non-finite plant state or rejected metric samples (see summary.csv).\n"
         ));
     }
-    out.push_str(&format_inloop(&source_text, &results, &inloop));
+    out.push_str(&format_inloop(&source_text, setup, &results, &inloop));
     let simulated = setup.sim_time() * results.len() as f64;
     out.push_str(&format!(
         "\n{} runs, {:.1} simulated s in {:.2} s wall ({:.0}x real time on {} threads).\n",
@@ -489,7 +495,12 @@ impl Pooled {
 }
 
 /// The in-loop block of the report: per ARTE variant and pooled.
-fn format_inloop(source: &str, results: &[RunResult], stats: &[Option<InLoopStats>]) -> String {
+fn format_inloop(
+    source: &str,
+    setup: &SimSetup,
+    results: &[RunResult],
+    stats: &[Option<InLoopStats>],
+) -> String {
     let mut variants: Vec<Variant> = Vec::new();
     for r in results {
         if r.variant.arte && !variants.contains(&r.variant) {
@@ -533,6 +544,56 @@ fn format_inloop(source: &str, results: &[RunResult], stats: &[Option<InLoopStat
     }
     if variants.len() > 1 {
         out.push_str(&all.row("all"));
+    }
+    out.push_str(&format_confusion(setup, stats));
+    out
+}
+
+/// The in-loop confusion matrix pooled over all ARTE runs, rows estimated,
+/// columns true (the paper's Table II layout), over the roads that occur.
+fn format_confusion(setup: &SimSetup, stats: &[Option<InLoopStats>]) -> String {
+    let roads = setup.roads();
+    let n = roads.len();
+    let mut m = vec![vec![0u64; n]; n];
+    for s in stats.iter().flatten() {
+        for (i, row) in s.confusion.iter().enumerate().take(n) {
+            for (j, &c) in row.iter().enumerate().take(n) {
+                m[i][j] += c;
+            }
+        }
+    }
+    let used: Vec<usize> = (0..n)
+        .filter(|&k| m[k].iter().any(|&c| c > 0) || m.iter().any(|r| r[k] > 0))
+        .collect();
+    if used.is_empty() {
+        return String::new();
+    }
+    let w = used
+        .iter()
+        .map(|&k| roads[k].name().len())
+        .max()
+        .unwrap_or(0)
+        .max(7);
+    let mut out = format!(
+        "\nIn-loop decisions, all ARTE runs (rows estimated, columns true; % of the column):\n{:<w$}",
+        "est \\ true"
+    );
+    for &j in &used {
+        out.push_str(&format!(" {:>w$}", roads[j].name()));
+    }
+    out.push('\n');
+    for &i in &used {
+        out.push_str(&format!("{:<w$}", roads[i].name()));
+        for &j in &used {
+            let col: u64 = m.iter().map(|r| r[j]).sum();
+            let cell = if col == 0 {
+                "-".to_owned()
+            } else {
+                format!("{:.1}", 100.0 * m[i][j] as f64 / col as f64)
+            };
+            out.push_str(&format!(" {cell:>w$}"));
+        }
+        out.push('\n');
     }
     out
 }
