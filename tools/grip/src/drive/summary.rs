@@ -64,8 +64,9 @@ pub struct TopicLine {
     pub topic: String,
     /// Messages in the log.
     pub in_log: u64,
-    /// Sequence numbers missing between consecutive messages in the log
-    /// (None: the payload has no sequence number).
+    /// Sequence numbers missing between consecutive messages in the log;
+    /// for the CAN log (no sequence number) the recorder's alive-counter gap
+    /// count; None when unknown.
     pub seq_gaps: Option<u64>,
     /// Times the sequence went backwards (publisher restarted).
     pub seq_resets: Option<u64>,
@@ -320,7 +321,15 @@ pub fn summarize(log: &DriveLog, vehicle: &VehicleParams) -> Summary {
             x if x == topics::AUDIO => Some(log.audio.seqs.clone()),
             _ => None,
         };
-        let (g, r) = seqs.map(seq_gaps).unzip();
+        let (mut g, r) = seqs.map(seq_gaps).unzip();
+        if t == topics::CAN_LOG {
+            // no sequence number: the recorder's alive-counter gap count
+            g = log
+                .recorder
+                .as_ref()
+                .and_then(|m| m.get(&format!("{t}.counter_gaps")))
+                .and_then(|v| v.parse().ok());
+        }
         let recorder = log.recorder.as_ref().and_then(|m| {
             let get = |k: &str| {
                 m.get(&format!("{t}.{k}"))
@@ -517,6 +526,7 @@ impl Summary {
         for t in &self.topics {
             let gaps = match (t.seq_gaps, t.seq_resets) {
                 (Some(g), Some(r)) => format!("seq gaps {g:<5} restarts {r:<3}"),
+                (Some(g), None) => format!("counter gaps {g:<13}"),
                 _ => "(no sequence number)      ".to_owned(),
             };
             let rec = t.recorder.map_or_else(
@@ -606,17 +616,24 @@ impl Summary {
         for ((name, dir), n) in &self.can.frames {
             let _ = writeln!(o, "  {name:<14} {dir}  {n:>8}");
         }
-        let f = &self.can.faults;
+        let fmt_f = |f: &E2eFaults| {
+            format!(
+                "crc {} repeated {} skipped {} length {} unknown id {} timeouts {}",
+                f.crc, f.counter_repeated, f.counter_skipped, f.length, f.unknown_id, f.timeout
+            )
+        };
         let _ = writeln!(
             o,
-            "  E2E rejected {}; loop fault counters: crc {} repeated {} skipped {} length {} unknown id {} timeouts {}",
-            self.can.rejected,
-            f.crc,
-            f.counter_repeated,
-            f.counter_skipped,
-            f.length,
-            f.unknown_id,
-            f.timeout
+            "  frames rejected by the E2E check: {}",
+            self.can.rejected
+        );
+        if let Some(w) = &self.can.faults_in_window {
+            let _ = writeln!(o, "  loop fault counters during the scenario: {}", fmt_f(w));
+        }
+        let _ = writeln!(
+            o,
+            "  loop fault counters, whole log (incl. start-up and after plant-sim stopped): {}",
+            fmt_f(&self.can.faults)
         );
 
         let a = &self.arte;
