@@ -224,6 +224,124 @@ fn drive_records_every_cycle_frame_and_estimate() {
     // the loop spent the scenario out of its safe state
     let active = r.cycles.iter().filter(|c| c.safe_state == 0).count();
     assert!(active * 2 > r.cycles.len(), "{active} active cycles");
+
+    // grip inspect on the same log: CSVs with one row per message, plots
+    let csv = tmp.path().join("csv");
+    let png = tmp.path().join("png");
+    let res = Command::new(bin.join("grip"))
+        .arg("--config-dir")
+        .arg(config_dir())
+        .arg("inspect")
+        .arg(&out)
+        .arg("--csv")
+        .arg(&csv)
+        .arg("--plot")
+        .arg(&png)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&res.stdout);
+    assert!(
+        res.status.success(),
+        "grip inspect failed: {}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    assert!(text.contains("road timeline"), "{text}");
+    let rows = |name: &str| {
+        std::fs::read_to_string(csv.join(name))
+            .unwrap()
+            .lines()
+            .count()
+            - 1
+    };
+    assert_eq!(rows("cycles.csv"), r.cycles.len());
+    assert_eq!(rows("truth.csv"), r.truth.len());
+    assert_eq!(rows("estimates.csv"), r.roads.len());
+    assert_eq!(rows("can.csv"), r.can.len());
+    for f in ["drive.png", "timing.png"] {
+        let len = std::fs::metadata(png.join(f)).unwrap().len();
+        assert!(len > 10_000, "{f}: {len} bytes");
+    }
+}
+
+/// Ctrl-C (SIGINT) to `grip drive` mid-scenario: it stops the services in
+/// order (they get no SIGINT of their own: own process groups), the log is
+/// finished, and the drive reports the interruption with a non-zero exit.
+#[test]
+fn interrupted_drive_stops_the_services_and_finishes_the_log() {
+    let bin = bin_dir();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("int.mcap");
+    let child = Command::new(bin.join("grip"))
+        .arg("--config-dir")
+        .arg(config_dir())
+        .args([
+            "drive",
+            "--scenario",
+            "stop-and-go",
+            "--ready-timeout",
+            "60",
+            "--out",
+        ])
+        .arg(&out)
+        .env("GRIP_BIN_DIR", &bin)
+        .env("NO_COLOR", "1")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut child = child;
+    let pid = child.id().to_string();
+    // read stderr as it comes; SIGINT 1 s after the scenario started
+    let err = child.stderr.take().unwrap();
+    let lines = std::sync::Arc::new(std::sync::Mutex::new(Vec::<String>::new()));
+    let l2 = std::sync::Arc::clone(&lines);
+    let reader = std::thread::spawn(move || {
+        use std::io::BufRead;
+        for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
+            l2.lock().unwrap().push(l);
+        }
+    });
+    let t0 = std::time::Instant::now();
+    while !lines
+        .lock()
+        .unwrap()
+        .iter()
+        .any(|l| l.contains("starting scenario"))
+    {
+        assert!(
+            t0.elapsed() < Duration::from_secs(120),
+            "drive did not start:\n{}",
+            lines.lock().unwrap().join("\n")
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(Duration::from_secs(1));
+    assert!(
+        Command::new("kill")
+            .args(["-INT", &pid])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let status = child.wait().unwrap();
+    reader.join().unwrap();
+    let stderr = lines.lock().unwrap().join("\n");
+    assert!(
+        !status.success(),
+        "an interrupted drive must fail:\n{stderr}"
+    );
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    for s in ["recorder", "tcs-loop", "arte", "audio-acq", "plant-sim"] {
+        assert!(
+            stderr
+                .lines()
+                .any(|l| l.trim_start().starts_with(s) && l.contains("exit code 0")),
+            "{s} not stopped cleanly:\n{stderr}"
+        );
+    }
+    let r = read(&out);
+    recorder_lost_nothing(&r.recorder);
+    assert!(!r.cycles.is_empty());
 }
 
 #[test]
