@@ -30,94 +30,123 @@ const CHANGE_S: f64 = 4.0;
 /// (measured: see the printed delays and services/README.md).
 const MAX_DELAY_S: f64 = 0.5;
 
-#[test]
-fn estimates_follow_a_road_change() {
-    let model = train_model(6);
-    let roads = roads_for(&model);
+/// Feeds `first` then `second` (4 s each, 12 m/s, clean synthetic audio
+/// of an unseen seed) through the loop; checks every estimate's fields and
+/// returns (accuracy over frames wholly on one road outside the allowed
+/// delay, detection delay of the change in s).
+fn follow(
+    model: &grip_arte::model::Model,
+    first: &str,
+    second: &str,
+    speed: f64,
+    seed: u64,
+) -> (f64, f64) {
+    let roads = roads_for(model);
+    let k = model.classes().len();
     let clock = ManualClock::new(T0);
     let stats = ArteStats::default();
     let mut sink = VecSink::default();
-    for (first, second) in [("asphalt", "snow"), ("stone", "gravel")] {
-        sink.0.clear();
-        let bl = blocks(
-            999,
-            &[(first, 12.0, CHANGE_S), (second, 12.0, 4.0)],
-            1024,
-            T0,
-        );
-        let mut lp = ArteLoop::from_model(
-            &model,
-            &StreamConfig::default(),
-            roads.clone(),
-            0.2,
-            clock.clone(),
-        )
-        .unwrap();
-        for b in &bl {
-            clock.set_ns(b.stamp_ns + 23_000_000);
-            lp.on_block(b, &mut sink, &stats);
-        }
-        let est = &sink.0;
-        // one estimate per 50 ms hop after the first 0.1 s frame
-        let dur = bl.len() as f64 * 1024.0 / f64::from(RATE);
-        assert_eq!(est.len(), ((dur - 0.1) / 0.05).floor() as usize + 1);
-        let change_ns = T0 + (CHANGE_S * 1e9) as u64;
-        let mut right = 0;
-        let mut judged = 0;
-        let mut detect: Option<f64> = None;
-        for (i, e) in est.iter().enumerate() {
-            assert_eq!(e.seq, i as u64);
-            assert_eq!(e.frame_t1_ns - e.frame_t0_ns, 100_000_000);
-            assert_eq!(e.n_classes, 4);
-            let sum: f32 = e.probabilities[..4].iter().sum();
-            assert!((sum - 1.0).abs() < 1e-4, "probabilities sum to {sum}");
-            assert!(
-                (e.confidence - f64::from(e.probabilities[e.class_index as usize])).abs() < 1e-6
-            );
-            let name = e.class_name().unwrap();
-            assert_eq!(name, CLASSES[e.class_index as usize]);
-            let r = &roads[e.class_index as usize];
-            assert_eq!(
-                (e.lambda_opt, e.mu_peak, e.alpha),
-                (r.lambda_opt, r.mu_peak, 1.0 - r.lambda_opt)
-            );
-            if i > 0 {
-                assert_eq!(e.frame_t1_ns - est[i - 1].frame_t1_ns, 50_000_000);
-            }
-            // frame entirely on one road, and (after a change) past the
-            // allowed delay: must be that road
-            let truth = if e.frame_t1_ns <= change_ns {
-                Some(first)
-            } else if e.frame_t0_ns >= change_ns + (MAX_DELAY_S * 1e9) as u64 {
-                Some(second)
-            } else {
-                None
-            };
-            if let Some(t) = truth {
-                judged += 1;
-                right += usize::from(name == t);
-            }
-            if detect.is_none() && e.frame_t1_ns > change_ns && name == second {
-                // holds for 0.3 s
-                let holds = est[i..]
-                    .iter()
-                    .take_while(|f| f.frame_t1_ns <= e.frame_t1_ns + 300_000_000)
-                    .all(|f| f.class_name() == Some(second));
-                if holds {
-                    detect = Some((e.frame_t1_ns - change_ns) as f64 / 1e9);
-                }
-            }
-        }
-        let acc = right as f64 / judged as f64;
-        let delay = detect.expect("change detected");
-        println!(
-            "{first} -> {second}: accuracy {acc:.3} over {judged} estimates, detection delay {delay:.3} s"
-        );
-        assert!(acc >= 0.9, "{first} -> {second}: accuracy {acc}");
-        assert!(delay <= MAX_DELAY_S, "{first} -> {second}: delay {delay} s");
+    let bl = blocks(seed, &[(first, speed, CHANGE_S), (second, speed, 4.0)], 1024, T0);
+    let mut lp =
+        ArteLoop::from_model(model, &StreamConfig::default(), roads.clone(), 0.2, clock.clone())
+            .unwrap();
+    for b in &bl {
+        clock.set_ns(b.stamp_ns + 23_219_955); // the block arrives after its last sample
+        lp.on_block(b, &mut sink, &stats);
     }
     assert_eq!(stats.lost_blocks.load(Ordering::Relaxed), 0);
     assert_eq!(stats.resets.load(Ordering::Relaxed), 0);
+    let est = &sink.0;
+    // one estimate per 50 ms hop after the first 0.1 s frame
+    let dur = bl.len() as f64 * 1024.0 / f64::from(RATE);
+    assert_eq!(est.len(), ((dur - 0.1) / 0.05).floor() as usize + 1);
+    let change_ns = T0 + (CHANGE_S * 1e9) as u64;
+    let mut right = 0;
+    let mut judged = 0;
+    let mut detect: Option<f64> = None;
+    let mut hist = vec![[0usize; 2]; k];
+    for (i, e) in est.iter().enumerate() {
+        hist[e.class_index as usize][usize::from(e.frame_t1_ns > change_ns)] += 1;
+        assert_eq!(e.seq, i as u64);
+        assert_eq!(e.frame_t1_ns - e.frame_t0_ns, 100_000_000);
+        assert!(e.stamp_ns >= e.frame_t1_ns, "published after the frame ends");
+        assert_eq!(e.n_classes as usize, k);
+        let sum: f32 = e.probabilities[..k].iter().sum();
+        assert!((sum - 1.0).abs() < 1e-4, "probabilities sum to {sum}");
+        assert!(e.probabilities[k..].iter().all(|&p| p == 0.0));
+        assert!(
+            (e.confidence - f64::from(e.probabilities[e.class_index as usize])).abs() < 1e-6
+        );
+        let name = e.class_name().unwrap();
+        assert_eq!(name, model.classes()[e.class_index as usize]);
+        let r = &roads[e.class_index as usize];
+        assert_eq!(
+            (e.lambda_opt, e.mu_peak, e.alpha),
+            (r.lambda_opt, r.mu_peak, 1.0 - r.lambda_opt)
+        );
+        if i > 0 {
+            assert_eq!(e.frame_t1_ns - est[i - 1].frame_t1_ns, 50_000_000);
+        }
+        // frame entirely on one road, and (after a change) past the
+        // allowed delay: must be that road
+        let truth = if e.frame_t1_ns <= change_ns {
+            Some(first)
+        } else if e.frame_t0_ns >= change_ns + (MAX_DELAY_S * 1e9) as u64 {
+            Some(second)
+        } else {
+            None
+        };
+        if let Some(t) = truth {
+            judged += 1;
+            right += usize::from(name == t);
+        }
+        if detect.is_none() && e.frame_t1_ns > change_ns && name == second {
+            // holds for 0.3 s
+            let holds = est[i..]
+                .iter()
+                .take_while(|f| f.frame_t1_ns <= e.frame_t1_ns + 300_000_000)
+                .all(|f| f.class_name() == Some(second));
+            if holds {
+                detect = Some((e.frame_t1_ns - change_ns) as f64 / 1e9);
+            }
+        }
+    }
+    let acc = right as f64 / judged as f64;
+    let delay = detect.unwrap_or(f64::INFINITY);
+    println!(
+        "{first} -> {second} at {speed} m/s: accuracy {acc:.3} over {judged} estimates, detection delay {delay:.3} s; estimates per class before/after: {:?}",
+        model.classes().iter().zip(&hist).collect::<Vec<_>>()
+    );
+    (acc, delay)
+}
+
+#[test]
+fn estimates_follow_a_road_change() {
+    let model = train_model(6);
+    for (first, second) in [("asphalt", "snow"), ("stone", "gravel")] {
+        let (acc, delay) = follow(&model, first, second, 12.0, 999);
+        assert!(acc >= 0.9, "{first} -> {second}: accuracy {acc}");
+        assert!(delay <= MAX_DELAY_S, "{first} -> {second}: delay {delay} s");
+    }
+}
+
+/// The shipped `config/models/default.model` (trained by `grip train`,
+/// not by this test) through the same loop: every estimate's fields are
+/// checked inside `follow`; its accuracy is printed, not asserted, because
+/// it is the classifier's property, not the service's. Measured
+/// 2026-11-22: seeds 1-4, 10, 11 all 1.000; on seeds 5-9 and 12 the model
+/// calls the synthesiser's asphalt "snow" in every frame (reported to the
+/// classifier engineer; `services/README.md`, "audio-acq / arte").
+#[test]
+fn shipped_default_model_runs_in_the_loop() {
+    let model = load_model(&config_dir().join("models/default.model")).unwrap();
+    assert_eq!(model.feature_config().sample_rate, RATE);
+    for seed in [1, 5] {
+        for (first, second) in [("asphalt", "snow"), ("stone", "gravel")] {
+            let (acc, delay) = follow(&model, first, second, 6.0, seed);
+            println!("shipped model, seed {seed}: {first} -> {second}: accuracy {acc:.3}, delay {delay:.3} s");
+        }
+    }
 }
 
 #[test]
