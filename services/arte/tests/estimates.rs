@@ -46,10 +46,20 @@ fn follow(
     let clock = ManualClock::new(T0);
     let stats = ArteStats::default();
     let mut sink = VecSink::default();
-    let bl = blocks(seed, &[(first, speed, CHANGE_S), (second, speed, 4.0)], 1024, T0);
-    let mut lp =
-        ArteLoop::from_model(model, &StreamConfig::default(), roads.clone(), 0.2, clock.clone())
-            .unwrap();
+    let bl = blocks(
+        seed,
+        &[(first, speed, CHANGE_S), (second, speed, 4.0)],
+        1024,
+        T0,
+    );
+    let mut lp = ArteLoop::from_model(
+        model,
+        &StreamConfig::default(),
+        roads.clone(),
+        0.2,
+        clock.clone(),
+    )
+    .unwrap();
     for b in &bl {
         clock.set_ns(b.stamp_ns + 23_219_955); // the block arrives after its last sample
         lp.on_block(b, &mut sink, &stats);
@@ -69,14 +79,15 @@ fn follow(
         hist[e.class_index as usize][usize::from(e.frame_t1_ns > change_ns)] += 1;
         assert_eq!(e.seq, i as u64);
         assert_eq!(e.frame_t1_ns - e.frame_t0_ns, 100_000_000);
-        assert!(e.stamp_ns >= e.frame_t1_ns, "published after the frame ends");
+        assert!(
+            e.stamp_ns >= e.frame_t1_ns,
+            "published after the frame ends"
+        );
         assert_eq!(e.n_classes as usize, k);
         let sum: f32 = e.probabilities[..k].iter().sum();
         assert!((sum - 1.0).abs() < 1e-4, "probabilities sum to {sum}");
         assert!(e.probabilities[k..].iter().all(|&p| p == 0.0));
-        assert!(
-            (e.confidence - f64::from(e.probabilities[e.class_index as usize])).abs() < 1e-6
-        );
+        assert!((e.confidence - f64::from(e.probabilities[e.class_index as usize])).abs() < 1e-6);
         let name = e.class_name().unwrap();
         assert_eq!(name, model.classes()[e.class_index as usize]);
         let r = &roads[e.class_index as usize];
@@ -144,7 +155,9 @@ fn shipped_default_model_runs_in_the_loop() {
     for seed in [1, 5] {
         for (first, second) in [("asphalt", "snow"), ("stone", "gravel")] {
             let (acc, delay) = follow(&model, first, second, 6.0, seed);
-            println!("shipped model, seed {seed}: {first} -> {second}: accuracy {acc:.3}, delay {delay:.3} s");
+            println!(
+                "shipped model, seed {seed}: {first} -> {second}: accuracy {acc:.3}, delay {delay:.3} s"
+            );
         }
     }
 }
