@@ -1,6 +1,7 @@
 //! The ALSA capture source.
 //!
-//! Opening (`AlsaPcm::open`): the named PCM, non-blocking, interleaved
+//! Opening (`AlsaPcm::open`, prepared; capture starts at the first read,
+//! after the real-time set-up, so `mlockall` cannot overrun it): the named PCM, non-blocking, interleaved
 //! S16_LE, the configured channel count, **exactly** the configured rate
 //! (a device that cannot do it is an error naming the rate it offered; use
 //! a `plug:` device to have alsa-lib resample), period and buffer sizes as
@@ -55,6 +56,11 @@ pub trait CaptureDevice {
     /// Driver time stamp (CLOCK_MONOTONIC ns) and delay (frames) now, if
     /// the device gives them.
     fn timing(&mut self) -> Option<(u64, i64)>;
+    /// Starts capture (called by the first read, so that nothing overruns
+    /// between opening and the loop, e.g. during `mlockall`).
+    fn start(&mut self) -> Result<(), alsa::Error> {
+        Ok(())
+    }
 }
 
 /// An opened, configured, started ALSA capture PCM.
@@ -168,7 +174,6 @@ impl AlsaPcm {
         // Check the sample format once; reads then use io_unchecked.
         drop(pcm.io_i16().map_err(|e| param("S16 I/O", e))?);
         pcm.prepare().map_err(|e| param("prepare", e))?;
-        pcm.start().map_err(|e| param("start", e))?;
         Ok(Self {
             pcm,
             device: dev.into(),
@@ -201,6 +206,9 @@ impl CaptureDevice for AlsaPcm {
         let _ = self.pcm.start();
         Ok(())
     }
+    fn start(&mut self) -> Result<(), alsa::Error> {
+        self.pcm.start()
+    }
     fn timing(&mut self) -> Option<(u64, i64)> {
         let s = self.pcm.status().ok()?;
         let t = ts_ns(&s.get_htstamp());
@@ -220,6 +228,7 @@ pub struct AlsaSource<D: CaptureDevice> {
     pos: usize,
     xruns: u32,
     stamp_fallbacks: u64,
+    started: bool,
 }
 
 fn is_xrun(e: &alsa::Error) -> bool {
@@ -240,6 +249,7 @@ impl<D: CaptureDevice> AlsaSource<D> {
             pos: 0,
             xruns: 0,
             stamp_fallbacks: 0,
+            started: false,
         }
     }
 
@@ -269,6 +279,13 @@ impl<D: CaptureDevice> Source for AlsaSource<D> {
     }
 
     fn read(&mut self, out: &mut [i16]) -> Result<Read, AcqError> {
+        if !self.started {
+            self.dev.start().map_err(|e| AcqError::AlsaIo {
+                what: "starting capture",
+                reason: e.to_string(),
+            })?;
+            self.started = true;
+        }
         let n = out.len().min(self.inter.len() / self.channels);
         let ch = self.channels;
         while self.pos < n {
