@@ -366,10 +366,10 @@ fn draw_variation(rng: &mut ChaCha8Rng) -> Variation {
         s.texture_wavelength_m = uni(rng, 0.006, 0.012 + 0.02 * c);
         s
     };
-    // Water film depth 0.2–2 mm (log-uniform): spray level −8..+4 dB re hump.
+    // Water film depth 0.2–2 mm (log-uniform): spray level −2..+10 dB re hump.
     let wet = |rng: &mut ChaCha8Rng, s: &mut SurfaceParams| {
         let depth_mm = 0.2 * 10f64.powf(rng.random::<f64>());
-        s.spray_db = -6.0 + 8.0 * (depth_mm / 0.2).log10() + uni(rng, -2.0, 2.0);
+        s.spray_db = 0.0 + 8.0 * (depth_mm / 0.2).log10() + uni(rng, -2.0, 2.0);
         s.spray_hz = uni(rng, 1500.0, 3500.0);
         s.splash_mod = uni(rng, 0.2, 0.6);
     };
@@ -380,7 +380,7 @@ fn draw_variation(rng: &mut ChaCha8Rng) -> Variation {
         s.sett_length_m = uni(rng, 0.08, 0.16);
         s.texture_wavelength_m = s.sett_length_m / uni(rng, 2.0, 5.0);
         s.sett_jitter = uni(rng, 0.03, 0.15);
-        s.impact_db = uni(rng, 0.0, 6.0);
+        s.impact_db = uni(rng, 2.0, 8.0);
         s.thump_hz = uni(rng, 80.0, 250.0);
         s.thump_tau_s = uni(rng, 0.004, 0.012);
         s.click_hz = uni(rng, 1500.0, 4000.0);
