@@ -213,7 +213,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let started = Instant::now();
-    let (results, inloop) = run_probed(setup, &jobs, threads, &make, &|| bar.inc(1))?;
+    let (results, inloop) = run_probed(setup, &jobs, threads, frame_s, &make, &|| bar.inc(1))?;
     let wall = started.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
@@ -361,6 +361,7 @@ fn run_probed(
     setup: &SimSetup,
     jobs: &[Job],
     threads: usize,
+    frame_s: f64,
     make: &(dyn Fn() -> anyhow::Result<InLoopProbe> + Sync),
     on_done: &(dyn Fn() + Sync),
 ) -> anyhow::Result<ProbedResults> {
@@ -385,13 +386,25 @@ fn run_probed(
                 return;
             }
         };
+        // Variants without ARTE never ask the estimator; they get a stand-in
+        // so that the (possibly costly) reset of the real one is skipped.
+        let mut idle = PerfectArte::new(frame_s);
         loop {
             let i = next.fetch_add(1, Ordering::Relaxed);
             let Some(job) = jobs.get(i) else { break };
-            let r = Sim::new(setup, job.variant, job.seed, &mut probe, job.keep_trace)
+            let est: &mut dyn RoadEstimator = if job.variant.arte {
+                &mut probe
+            } else {
+                &mut idle
+            };
+            let r = Sim::new(setup, job.variant, job.seed, est, job.keep_trace)
                 .map(Sim::finish)
                 .map(|r| {
-                    let stats = probe.take_stats();
+                    let stats = if job.variant.arte {
+                        probe.take_stats()
+                    } else {
+                        None
+                    };
                     (r, stats)
                 })
                 .map_err(|e| anyhow::anyhow!("simulation setup: {e}"));
