@@ -42,9 +42,21 @@ pub fn spawn_helper(
         .spawn(move || helper(&status, &done))
 }
 
+/// The watchdog period from `WATCHDOG_USEC`, if set. As
+/// `sd_watchdog_enabled(3)`: when `WATCHDOG_PID` is set it must be this
+/// process; unlike sd-notify 0.4 it need not be set.
+pub fn watchdog_period() -> Option<Duration> {
+    let usec: u64 = std::env::var("WATCHDOG_USEC").ok()?.trim().parse().ok()?;
+    if let Ok(pid) = std::env::var("WATCHDOG_PID")
+        && pid.trim().parse::<u32>().ok() != Some(std::process::id())
+    {
+        return None;
+    }
+    (usec > 0).then(|| Duration::from_micros(usec))
+}
+
 fn helper(s: &PlantStatus, done: &AtomicBool) {
-    let mut usec = 0u64;
-    let wd = sd_notify::watchdog_enabled(false, &mut usec).then(|| Duration::from_micros(usec / 2));
+    let wd = watchdog_period().map(|p| p / 2);
     let tick = wd
         .map_or(Duration::from_millis(50), |h| {
             h.min(Duration::from_millis(50))

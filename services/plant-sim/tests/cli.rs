@@ -102,6 +102,15 @@ fn wait_ready(sock: &UnixDatagram) -> bool {
     false
 }
 
+/// Kills the child if the test fails before it ends.
+struct KillOnDrop(std::process::Child);
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
 unsafe extern "C" {
     #[link_name = "kill"]
     fn libc_kill(pid: i32, sig: i32) -> i32;
@@ -118,7 +127,7 @@ fn ready_then_exit_at_end_and_sigterm() {
 
     // immediate start, exits by itself after 2.4 s + 0.1 s
     let t0 = Instant::now();
-    let mut child = Command::new(BIN)
+    let child = Command::new(BIN)
         .args([
             "--config-dir",
             dir,
@@ -128,13 +137,16 @@ fn ready_then_exit_at_end_and_sigterm() {
         ])
         .env("NOTIFY_SOCKET", &sock_path)
         .env("GRIP_INSTANCE", format!("ps-ready-{}", std::process::id()))
+        .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    let mut child = KillOnDrop(child);
     assert!(wait_ready(&sock), "no READY=1");
-    let status = child.wait().unwrap();
+    let status = child.0.wait().unwrap();
     let mut err = String::new();
     child
+        .0
         .stderr
         .take()
         .unwrap()
@@ -145,23 +157,26 @@ fn ready_then_exit_at_end_and_sigterm() {
     assert!(t0.elapsed() >= Duration::from_millis(2500), "real time");
 
     // signal start: without SIGUSR1 (and commands) it holds; SIGTERM → 0
-    let mut child = Command::new(BIN)
+    let child = Command::new(BIN)
         .args(["--config-dir", dir, "--exit-at-end"])
         .env("NOTIFY_SOCKET", &sock_path)
         .env("GRIP_INSTANCE", format!("ps-ready2-{}", std::process::id()))
+        .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    let mut child = KillOnDrop(child);
     assert!(wait_ready(&sock), "no READY=1");
     std::thread::sleep(Duration::from_millis(300));
     // SAFETY: kill(2) on our child.
-    unsafe { libc_kill(child.id() as i32, 10) }; // SIGUSR1: no commands, so it keeps holding
+    unsafe { libc_kill(child.0.id() as i32, 10) }; // SIGUSR1: no commands, so it keeps holding
     std::thread::sleep(Duration::from_millis(300));
     // SAFETY: kill(2) on our child.
-    unsafe { libc_kill(child.id() as i32, 15) };
-    let status = child.wait().unwrap();
+    unsafe { libc_kill(child.0.id() as i32, 15) };
+    let status = child.0.wait().unwrap();
     let mut err = String::new();
     child
+        .0
         .stderr
         .take()
         .unwrap()

@@ -23,10 +23,18 @@ pub fn notify_stopping() {
     let _ = sd_notify::notify(false, &[NotifyState::Stopping]);
 }
 
-/// The watchdog period from `WATCHDOG_USEC`, if systemd (or `grip drive`) set one.
+/// The watchdog period from `WATCHDOG_USEC`, if systemd (or `grip drive`)
+/// set one. As `sd_watchdog_enabled(3)`: when `WATCHDOG_PID` is set it must
+/// be this process (sd-notify 0.4 also requires it to be set at all; we do
+/// not, so a manager that sets only `WATCHDOG_USEC` works too).
 pub fn watchdog_period() -> Option<Duration> {
-    let mut usec = 0u64;
-    sd_notify::watchdog_enabled(false, &mut usec).then(|| Duration::from_micros(usec))
+    let usec: u64 = std::env::var("WATCHDOG_USEC").ok()?.trim().parse().ok()?;
+    if let Ok(pid) = std::env::var("WATCHDOG_PID")
+        && pid.trim().parse::<u32>().ok() != Some(std::process::id())
+    {
+        return None;
+    }
+    (usec > 0).then(|| Duration::from_micros(usec))
 }
 
 /// Spawns the helper thread (call it *before* the calling thread switches to

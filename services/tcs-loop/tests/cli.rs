@@ -111,13 +111,16 @@ fn ready_then_clean_exit_on_sigterm() {
     let sock = UnixDatagram::bind(&sock_path).unwrap();
     sock.set_read_timeout(Some(Duration::from_millis(200)))
         .unwrap();
-    let mut child = Command::new(BIN)
+    let child = Command::new(BIN)
         .args(["--config-dir", t.path().to_str().unwrap(), "--arte", "off"])
         .env("NOTIFY_SOCKET", &sock_path)
+        .env("WATCHDOG_USEC", "200000")
         .env("GRIP_INSTANCE", format!("tcs-ready-{}", std::process::id()))
+        .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    let mut child = KillOnDrop(child);
     let t0 = Instant::now();
     let mut ready = false;
     let mut buf = [0u8; 512];
@@ -129,13 +132,29 @@ fn ready_then_clean_exit_on_sigterm() {
         }
     }
     assert!(ready, "no READY=1 within 20 s");
-    std::thread::sleep(Duration::from_millis(300));
+    // the helper feeds the watchdog at half WATCHDOG_USEC while the loop runs
+    let t1 = Instant::now();
+    let mut pings = 0;
+    while t1.elapsed() < Duration::from_millis(600) {
+        if let Ok(n) = sock.recv(&mut buf)
+            && String::from_utf8_lossy(&buf[..n])
+                .lines()
+                .any(|l| l == "WATCHDOG=1")
+        {
+            pings += 1;
+        }
+    }
+    assert!(
+        pings >= 3,
+        "{pings} WATCHDOG=1 in 0.6 s at a 0.2 s watchdog"
+    );
     // SAFETY: plain kill(2) on our child's pid.
-    unsafe { libc_kill(child.id() as i32, 15) };
-    let status = child.wait().unwrap();
+    unsafe { libc_kill(child.0.id() as i32, 15) };
+    let status = child.0.wait().unwrap();
     let mut err = String::new();
     use std::io::Read;
     child
+        .0
         .stderr
         .take()
         .unwrap()
@@ -145,6 +164,15 @@ fn ready_then_clean_exit_on_sigterm() {
     assert!(err.contains("tcs-loop stopped"), "{err}");
     // no sensor frames: it stayed in its safe state
     assert!(err.contains("safe_entries=0"), "{err}");
+}
+
+/// Kills the child if the test fails before it stops it.
+struct KillOnDrop(std::process::Child);
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
 }
 
 unsafe extern "C" {

@@ -69,7 +69,10 @@ fn closed_loop(kind: ControllerKind, arte: bool) -> Outcome_ {
     let mut plant = PlantSim::new(&pcfg, scenario, roads.clone(), &vehicle, &sensors).unwrap();
     let mut tcs = TcsLoop::new(kind, arte, &controllers, &vehicle, &own.safety).unwrap();
 
-    let bus_name = format!("cl-{}-{}-{}", std::process::id(), kind, arte);
+    // unique per run: tests run in parallel and some run the same controller
+    static RUN: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let run_id = RUN.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let bus_name = format!("cl-{}-{run_id}-{kind}-{arte}", std::process::id());
     let node_p = IpcNode::create("plant-sim").unwrap();
     let node_t = IpcNode::create("tcs-loop").unwrap();
     let mut bus_p = SimBus::open(&node_p, &bus_name, 0).unwrap();
