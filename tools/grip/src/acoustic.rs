@@ -14,7 +14,8 @@
 //!    cycle, `round((t + dt) f_s) − samples so far` (44.1 per millisecond at
 //!    44.1 kHz, so the count alternates 44/45 and never drifts), at the
 //!    plant's true vehicle speed, with rain and passing-car noise mixed in
-//!    at [`AcousticConfig::noise`]'s SNR (default: none). For speed, samples
+//!    at [`AcousticConfig::noise`]'s SNR (default here: none; `grip sim`
+//!    defaults to 10 dB, the shipped models' training condition). For speed, samples
 //!    are rendered in runs of at most 256 (5.8 ms, the synthesiser's own
 //!    filter-retune interval) at the speed of the run's first cycle: causal,
 //!    and 6x cheaper than a `fill` per cycle (each call retunes the filters).

@@ -4,7 +4,8 @@
 //!
 //! The model is `$GRIP_TEST_ARTE_MODEL` when set (`train`: always train),
 //! else the shipped `config/models/default.model` when it exists, else one
-//! trained here on a small synthetic dataset of the paper's four roads.
+//! trained here on a small synthetic dataset of the paper's four roads
+//! (rain and passing cars at 10 dB, like the shipped models).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -63,6 +64,10 @@ fn model() -> &'static Path {
             "4",
             "--seed",
             "5",
+            "--noise",
+            "rain,car",
+            "--snr-db",
+            "10",
         ]));
         let m = scratch().join("test.model");
         run_ok(
@@ -133,26 +138,31 @@ fn inloop(dir: &Path) -> Vec<InLoopRow> {
         .collect()
 }
 
-/// The reference scenario with three seeds: the acoustic chain recognises the
-/// road most of the time, detects (nearly) every change within a few hops,
-/// and every variant's metrics are finite.
+/// The reference scenario with three seeds and the default noise (rain and
+/// passing cars at 10 dB SNR): the acoustic chain recognises the road most
+/// of the time, detects nearly every change, and every variant's metrics are
+/// finite.
 ///
 /// Measured on these seeds (1..=3, all three ARTE variants):
-/// - shipped `default.model` (SVM, Rich features, 6 classes): 80.4 % of all
-///   in-loop decisions correct, 83.7 % of single-road frames, no change
-///   missed, every stable delay 0.10 s (its weak spot: asphalt at 10-14 km/h
-///   is heard as snow about half the time, see crates/sim/README.md);
-/// - the 4-class model trained here: 95.3 %, 100 %, none missed, 0.10 s.
+/// - shipped `default.model` (SVM, Rich features, 6 classes), 10 dB: 74.7 %
+///   of all in-loop decisions correct, 79.3 % of single-road frames, 2 of 36
+///   changes never detected stably, detected ones after 0-0.5 s (p50 0.1 s);
+///   clean audio: 80.6 %, 83.7 %, none missed, all 0.1 s. Over 20 seeds:
+///   82.0 % / 86.7 % (10 dB). Its weak spot, asphalt at 10-14 km/h heard
+///   as snow, is discussed in crates/sim/README.md;
+/// - the 4-class model trained here (GRIP_TEST_ARTE_MODEL=train; training
+///   audio with rain and cars at 10 dB): 88.9 %, 94.3 %, none missed.
 ///
-/// Asserted with margin: at least 70 % overall, at least 75 % on single-road
-/// frames, at least 90 % of the changes detected, every detected change
-/// within 0.3 s.
+/// Asserted with margin: at least 65 % overall, at least 70 % on single-road
+/// frames, at most 15 % of the changes missed, every detected change within
+/// 0.6 s (the next change comes 0.4-0.6 s later).
 #[test]
 fn reference_scenario_in_the_loop() {
     let dir = scratch().join("ref");
     let table = sim(&dir, &["--seeds", "3"]);
     assert!(table.contains("ARTE source: acoustic (model"), "{table}");
     assert!(table.contains("ARTE in the loop (acoustic"), "{table}");
+    assert!(table.contains("noise: rain+car at 10 dB SNR"), "{table}");
 
     let rows = inloop(&dir);
     // Three ARTE variants x three seeds.
@@ -168,7 +178,7 @@ fn reference_scenario_in_the_loop() {
         for x in delays {
             changes += 1;
             match x {
-                Some(x) => assert!((0.0..=0.3).contains(x), "{variant}: delay {x} s"),
+                Some(x) => assert!((0.0..=0.6).contains(x), "{variant}: delay {x} s"),
                 None => missed += 1,
             }
         }
@@ -180,10 +190,10 @@ fn reference_scenario_in_the_loop() {
     let acc = ok as f64 / dec as f64;
     let single_acc = single_ok as f64 / single as f64;
     eprintln!("in-loop accuracy {acc:.3}, single-road {single_acc:.3}, missed {missed}/{changes}");
-    assert!(acc >= 0.70, "in-loop accuracy {acc}");
-    assert!(single_acc >= 0.75, "single-road accuracy {single_acc}");
+    assert!(acc >= 0.65, "in-loop accuracy {acc}");
+    assert!(single_acc >= 0.70, "single-road accuracy {single_acc}");
     assert!(
-        missed * 10 <= changes,
+        missed * 100 <= changes * 15,
         "{missed} of {changes} changes never detected"
     );
 
@@ -266,15 +276,15 @@ fn same_seed_same_summary() {
     assert_ne!(rows(&sa, "11"), rows(&sc, "13"));
 }
 
-/// Noise at a given SNR runs; bad inputs give errors naming what is wrong.
+/// Clean audio (`--snr-db off`) runs; bad inputs give errors naming what is wrong.
 #[test]
 fn noise_and_errors() {
     let dir = scratch().join("noise");
     let table = sim(
         &dir,
-        &["--seeds", "1", "--variants", "src-arte", "--snr-db", "10"],
+        &["--seeds", "1", "--variants", "src-arte", "--snr-db", "off"],
     );
-    assert!(table.contains("noise: rain+car at 10 dB SNR"), "{table}");
+    assert!(table.contains("noise: none"), "{table}");
     assert_eq!(inloop(&dir).len(), 1);
 
     let missing = scratch().join("no-such.model");
@@ -297,6 +307,14 @@ fn noise_and_errors() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("bad.model"), "{err}");
+
+    let out = grip()
+        .args(["sim", "--arte", "acoustic", "--snr-db", "loud"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("loud") && err.contains("--snr-db"), "{err}");
 
     let out = grip()
         .args([

@@ -66,10 +66,11 @@ pub struct Args {
     /// `--arte acoustic`: the ARTE model file (default: <config-dir>/models/default.model).
     #[arg(long)]
     model: Option<PathBuf>,
-    /// `--arte acoustic`: mix rain and passing-car noise into the audio at
-    /// this SNR, dB (default: clean road sound).
-    #[arg(long, allow_hyphen_values = true)]
-    snr_db: Option<f64>,
+    /// `--arte acoustic`: rain and passing-car noise mixed into the audio at
+    /// this SNR in dB, or `off` for clean road sound. Default 10 dB: the
+    /// condition the shipped models are trained and evaluated at.
+    #[arg(long, default_value = "10", allow_hyphen_values = true, value_parser = parse_snr)]
+    snr_db: Snr,
     /// `--arte acoustic`: what roads without a synthesiser model sound like,
     /// ROAD=SOUND,... with SOUND a synthesiser road or `silence` (defaults:
     /// asphalt_mf=asphalt, gravel_table=gravel, any other such road silence).
@@ -269,6 +270,28 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `--snr-db`: a level in dB or no noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Snr {
+    /// Clean road sound.
+    Off,
+    /// Rain and passing cars at this SNR, dB.
+    Db(f64),
+}
+
+fn parse_snr(s: &str) -> Result<Snr, String> {
+    if s.eq_ignore_ascii_case("off") {
+        return Ok(Snr::Off);
+    }
+    let x: f64 = s
+        .parse()
+        .map_err(|_| format!("`{s}` is neither a number of dB nor `off`"))?;
+    if !(-30.0..=80.0).contains(&x) {
+        return Err(format!("{x} dB is outside -30..=80"));
+    }
+    Ok(Snr::Db(x))
+}
+
 /// The acoustic source: model, chain settings, and a one-line description.
 struct AcousticSetup {
     model: Model,
@@ -292,10 +315,7 @@ fn load_acoustic(ctx: &Ctx, args: &Args, setup: &SimSetup) -> anyhow::Result<Aco
     })?;
     let model = Model::from_bytes(&bytes).with_context(|| format!("{}", path.display()))?;
     let mut config = AcousticConfig::default();
-    if let Some(snr) = args.snr_db {
-        if !(-30.0..=80.0).contains(&snr) {
-            anyhow::bail!("--snr-db: {snr} dB is outside -30..=80");
-        }
+    if let Snr::Db(snr) = args.snr_db {
         config = config.with_noise_snr(snr);
     }
     if let Some(spec) = &args.sound_as {
