@@ -14,11 +14,11 @@
 //! - `model`: the versioned, checksummed model file, standardisation inside.
 //! - `eval`: cross-validation by recording, confusion matrices, macro-F1.
 
-pub mod mlp;
-pub mod features;
-pub mod svm;
 pub mod eval;
+pub mod features;
+pub mod mlp;
 pub mod model;
-pub mod synth;
 pub mod select;
 pub mod stream;
+pub mod svm;
+pub mod synth;

@@ -13,7 +13,11 @@ mod plot;
 mod wav;
 
 #[derive(Parser)]
-#[command(name = "grip", version, about = "Acoustic road-aware traction control for electric vehicles")]
+#[command(
+    name = "grip",
+    version,
+    about = "Acoustic road-aware traction control for electric vehicles"
+)]
 struct Cli {
     /// Directory holding grip's configuration (vehicle, roads, controllers, scenarios).
     #[arg(long, global = true, default_value = "config", env = "GRIP_CONFIG_DIR")]
@@ -53,7 +57,9 @@ fn main() -> std::process::ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
-    let ctx = cmd::Ctx { config_dir: cli.config_dir };
+    let ctx = cmd::Ctx {
+        config_dir: cli.config_dir,
+    };
     let result = match cli.command {
         Command::Roads(a) => cmd::roads::run(&ctx, a),
         Command::Sim(a) => cmd::sim::run(&ctx, a),
