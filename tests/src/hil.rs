@@ -338,11 +338,23 @@ impl Proc {
         label: &str,
         log_dir: &Path,
     ) -> anyhow::Result<Self> {
+        Self::spawn_env(program, args, &[], label, log_dir)
+    }
+
+    /// Like [`Proc::spawn`], with extra environment variables.
+    pub fn spawn_env(
+        program: &Path,
+        args: &[&str],
+        envs: &[(&str, &str)],
+        label: &str,
+        log_dir: &Path,
+    ) -> anyhow::Result<Self> {
         let log = log_dir.join(format!("{label}.log"));
         let out = fs::File::create(&log).with_context(|| format!("creating {}", log.display()))?;
         let err = out.try_clone()?;
         let child = Command::new(program)
             .args(args)
+            .envs(envs.iter().copied())
             .stdin(Stdio::null())
             .stdout(out)
             .stderr(err)
@@ -456,6 +468,1047 @@ pub fn zero_crossing_frequency(x: &[i16], rate: u32) -> Option<f64> {
         return None;
     }
     Some((count - 1) as f64 * f64::from(rate) / (last - first))
+}
+
+// --- monotonic time ------------------------------------------------------------
+
+/// CLOCK_MONOTONIC now, ns: the clock the services stamp their records with.
+pub fn mono_ns() -> u64 {
+    // SAFETY: all-zero is a valid timespec; clock_gettime only writes it.
+    let mut ts: libc::timespec = unsafe { mem::zeroed() };
+    // SAFETY: ts is a valid timespec; CLOCK_MONOTONIC always exists on Linux.
+    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &raw mut ts) };
+    (ts.tv_sec as u64) * 1_000_000_000 + ts.tv_nsec as u64
+}
+
+// --- the inverter DBC, decoded independently of grip-io --------------------------
+
+/// CRC-8 SAE J1850 (poly 0x1D, init 0xFF, final XOR 0xFF, not reflected) over
+/// the 16-bit E2E data id (low byte, high byte) followed by `bytes`: the E2E
+/// CRC the DBC's comment specifies, written here from that text (not taken
+/// from grip-io) so the HIL checks are independent of the code under test.
+pub fn e2e_crc8(data_id: u16, bytes: &[u8]) -> u8 {
+    let mut crc: u8 = 0xFF;
+    for b in data_id.to_le_bytes().iter().chain(bytes) {
+        crc ^= *b;
+        for _ in 0..8 {
+            crc = if crc & 0x80 != 0 {
+                (crc << 1) ^ 0x1D
+            } else {
+                crc << 1
+            };
+        }
+    }
+    crc ^ 0xFF
+}
+
+/// One signal of a DBC message (Intel byte order, as the grip DBC uses).
+#[derive(Debug, Clone)]
+pub struct DbcSignal {
+    /// Signal name.
+    pub name: String,
+    start: u32,
+    len: u32,
+    signed: bool,
+    factor: f64,
+    offset: f64,
+}
+
+impl DbcSignal {
+    /// Raw value in an 8-byte payload.
+    pub fn raw(&self, data: &[u8; 8]) -> i64 {
+        let mask = if self.len >= 64 {
+            u64::MAX
+        } else {
+            (1u64 << self.len) - 1
+        };
+        let v = (u64::from_le_bytes(*data) >> self.start) & mask;
+        if self.signed && self.len < 64 && (v >> (self.len - 1)) & 1 == 1 {
+            (v | !mask) as i64
+        } else {
+            v as i64
+        }
+    }
+
+    /// Physical value in an 8-byte payload.
+    pub fn phys(&self, data: &[u8; 8]) -> f64 {
+        self.raw(data) as f64 * self.factor + self.offset
+    }
+
+    /// Writes the raw value of `phys` (rounded, saturated to the field) into `data`.
+    pub fn put(&self, data: &mut [u8; 8], phys: f64) {
+        let (lo, hi) = if self.signed {
+            (-(1i64 << (self.len - 1)), (1i64 << (self.len - 1)) - 1)
+        } else {
+            (0, (1i64 << self.len) - 1)
+        };
+        let raw = (((phys - self.offset) / self.factor).round() as i64).clamp(lo, hi);
+        let mask = ((1u64 << self.len) - 1) << self.start;
+        let word = (u64::from_le_bytes(*data) & !mask) | (((raw as u64) << self.start) & mask);
+        *data = word.to_le_bytes();
+    }
+}
+
+/// One message of the DBC with grip's attributes.
+#[derive(Debug, Clone)]
+pub struct DbcMessage {
+    /// 11-bit identifier.
+    pub id: u32,
+    /// Message name.
+    pub name: String,
+    /// Data length code.
+    pub dlc: u8,
+    /// `GripE2eDataId`.
+    pub data_id: u16,
+    /// `GenMsgCycleTime`, ms.
+    pub cycle_ms: u32,
+    /// `GripTimeoutMs`, ms.
+    pub timeout_ms: u32,
+    /// Signals.
+    pub signals: Vec<DbcSignal>,
+}
+
+impl DbcMessage {
+    /// The signal called `name`.
+    pub fn sig(&self, name: &str) -> anyhow::Result<&DbcSignal> {
+        self.signals
+            .iter()
+            .find(|s| s.name == name)
+            .with_context(|| format!("{} has no signal {name} in the DBC", self.name))
+    }
+
+    /// Physical value of signal `name` in `data` (NaN when the DBC lacks it).
+    pub fn value(&self, name: &str, data: &[u8; 8]) -> f64 {
+        self.sig(name).map_or(f64::NAN, |s| s.phys(data))
+    }
+
+    /// The E2E CRC byte `data` should carry.
+    pub fn expected_crc(&self, data: &[u8; 8]) -> u8 {
+        e2e_crc8(self.data_id, &data[1..])
+    }
+
+    /// The alive counter (signal `Counter`).
+    pub fn counter(&self, data: &[u8; 8]) -> u8 {
+        self.sig("Counter").map_or(0, |s| s.raw(data) as u8)
+    }
+
+    /// A payload with the given signal values, `counter` and a correct CRC.
+    pub fn encode(&self, values: &[(&str, f64)], counter: u8) -> anyhow::Result<[u8; 8]> {
+        let mut d = [0u8; 8];
+        for (n, v) in values {
+            self.sig(n)?.put(&mut d, *v);
+        }
+        self.sig("Counter")?.put(&mut d, f64::from(counter & 0x0F));
+        d[0] = self.expected_crc(&d);
+        Ok(d)
+    }
+}
+
+/// `config/inverter.dbc` parsed with `can-dbc`.
+#[derive(Debug, Clone)]
+pub struct Dbc {
+    /// The messages.
+    pub messages: Vec<DbcMessage>,
+}
+
+impl Dbc {
+    /// Parses the DBC at `path`.
+    pub fn load(path: &Path) -> anyhow::Result<Self> {
+        use can_dbc::{AttributeValue, ByteOrder, MessageId, ValueType};
+        let text =
+            fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        let dbc = can_dbc::Dbc::try_from(text.as_str())
+            .map_err(|e| anyhow::anyhow!("{}: DBC parse error: {e:?}", path.display()))?;
+        let attr = |name: &str, id: u32| -> anyhow::Result<i64> {
+            let a = dbc
+                .attribute_values_message
+                .iter()
+                .find(|a| a.name == name && a.message_id.raw() == id)
+                .with_context(|| format!("{}: message {id:#x} lacks {name}", path.display()))?;
+            Ok(match &a.value {
+                AttributeValue::Uint(u) => *u as i64,
+                AttributeValue::Int(i) => *i,
+                AttributeValue::Double(d) => *d as i64,
+                AttributeValue::String(s) => bail!("{}: {name} is a string {s:?}", path.display()),
+            })
+        };
+        let mut messages = Vec::new();
+        for m in &dbc.messages {
+            let MessageId::Standard(id) = m.id else {
+                bail!("{}: {} is not an 11-bit id", path.display(), m.name);
+            };
+            let id = u32::from(id);
+            let mut signals = Vec::new();
+            for s in &m.signals {
+                if s.byte_order != ByteOrder::LittleEndian {
+                    bail!(
+                        "{}: {}.{} is not Intel order",
+                        path.display(),
+                        m.name,
+                        s.name
+                    );
+                }
+                signals.push(DbcSignal {
+                    name: s.name.clone(),
+                    start: u32::try_from(s.start_bit)?,
+                    len: u32::try_from(s.size)?,
+                    signed: s.value_type == ValueType::Signed,
+                    factor: s.factor,
+                    offset: s.offset,
+                });
+            }
+            messages.push(DbcMessage {
+                id,
+                name: m.name.clone(),
+                dlc: u8::try_from(m.size)?,
+                data_id: u16::try_from(attr("GripE2eDataId", id)?)?,
+                cycle_ms: u32::try_from(attr("GenMsgCycleTime", id)?)?,
+                timeout_ms: u32::try_from(attr("GripTimeoutMs", id)?)?,
+                signals,
+            });
+        }
+        Ok(Self { messages })
+    }
+
+    /// The workspace's `inverter.dbc` (from [`config_dir`]).
+    pub fn inverter() -> anyhow::Result<Self> {
+        Self::load(&config_dir().join("inverter.dbc"))
+    }
+
+    /// The message with identifier `id`.
+    pub fn by_id(&self, id: u32) -> Option<&DbcMessage> {
+        self.messages.iter().find(|m| m.id == id)
+    }
+
+    /// The message called `name`.
+    pub fn by_name(&self, name: &str) -> anyhow::Result<&DbcMessage> {
+        self.messages
+            .iter()
+            .find(|m| m.name == name)
+            .with_context(|| format!("no message {name} in the DBC"))
+    }
+}
+
+/// A frame seen on the bus by a [`CanCapture`], with its time of arrival
+/// (the kernel's stamp mapped onto CLOCK_MONOTONIC, else the reading
+/// thread's CLOCK_MONOTONIC).
+#[derive(Debug, Clone, Copy)]
+pub struct Captured {
+    /// Arrival time, ns (CLOCK_MONOTONIC, as the services' stamps).
+    pub t_ns: u64,
+    /// The frame.
+    pub frame: RawFrame,
+}
+
+impl Captured {
+    /// Standard id (flags removed).
+    pub fn id(&self) -> u32 {
+        self.frame.can_id & CAN_SFF_MASK
+    }
+
+    /// The payload padded to 8 bytes.
+    pub fn data8(&self) -> [u8; 8] {
+        self.frame.data
+    }
+}
+
+/// Result of checking a captured stream against the DBC, per message.
+#[derive(Debug, Default, Clone)]
+pub struct StreamCheck {
+    /// Per message name: frames, bad DLC, bad CRC, counter breaks (not +1 mod 16).
+    pub per_message: std::collections::BTreeMap<String, [u64; 4]>,
+    /// Frames whose id the DBC does not have.
+    pub unknown: u64,
+    /// First few problems, for messages.
+    pub problems: Vec<String>,
+}
+
+impl StreamCheck {
+    /// Checks every frame of `frames` (in bus order): known id, the DBC's
+    /// DLC, a valid E2E CRC, and an alive counter that is the previous
+    /// frame's of the same id + 1 mod 16.
+    pub fn run(dbc: &Dbc, frames: &[Captured]) -> Self {
+        let mut c = StreamCheck::default();
+        let mut last: std::collections::BTreeMap<u32, u8> = Default::default();
+        for f in frames {
+            let Some(m) = dbc.by_id(f.id()) else {
+                c.unknown += 1;
+                c.note(format!("unknown id {:#x}", f.id()));
+                continue;
+            };
+            let e = c.per_message.entry(m.name.clone()).or_default();
+            e[0] += 1;
+            let d = f.data8();
+            if f.frame.len != m.dlc {
+                e[1] += 1;
+                c.note(format!("{} with DLC {}", m.name, f.frame.len));
+                continue;
+            }
+            if d[0] != m.expected_crc(&d) {
+                e[2] += 1;
+                c.note(format!(
+                    "{} at {} ns: CRC {:#04x}, expected {:#04x}",
+                    m.name,
+                    f.t_ns,
+                    d[0],
+                    m.expected_crc(&d)
+                ));
+                continue;
+            }
+            let ctr = m.counter(&d);
+            if let Some(p) = last.insert(m.id, ctr)
+                && ctr != (p + 1) & 0x0F
+            {
+                let e = c.per_message.entry(m.name.clone()).or_default();
+                e[3] += 1;
+                c.note(format!(
+                    "{} at {} ns: counter {ctr} after {p}",
+                    m.name, f.t_ns
+                ));
+            }
+        }
+        c
+    }
+
+    fn note(&mut self, s: String) {
+        if self.problems.len() < 20 {
+            self.problems.push(s);
+        }
+    }
+
+    /// True when every frame was known, of the right length, with a valid
+    /// CRC and counter.
+    pub fn all_valid(&self) -> bool {
+        self.unknown == 0
+            && self
+                .per_message
+                .values()
+                .all(|v| v[1..].iter().all(|&x| x == 0))
+    }
+}
+
+impl RawCanSocket {
+    /// Raises the receive buffer to `bytes` (`SO_RCVBUFFORCE` as root, else
+    /// `SO_RCVBUF` up to `rmem_max`), so a briefly descheduled reader loses nothing.
+    pub fn set_rcvbuf(&self, bytes: i32) -> anyhow::Result<()> {
+        let set = |opt| {
+            // SAFETY: a valid int option value of the given size.
+            cvt(unsafe {
+                libc::setsockopt(
+                    self.fd.as_raw_fd(),
+                    libc::SOL_SOCKET,
+                    opt,
+                    (&raw const bytes).cast(),
+                    mem::size_of::<i32>() as libc::socklen_t,
+                )
+            })
+        };
+        if set(libc::SO_RCVBUFFORCE).is_err() {
+            set(libc::SO_RCVBUF).context("setsockopt(SO_RCVBUF)")?;
+        }
+        Ok(())
+    }
+
+    /// Asks the kernel to report frames dropped for this socket
+    /// (`SO_RXQ_OVFL`), read by [`RawCanSocket::recv_counting_drops`].
+    pub fn enable_drop_count(&self) -> anyhow::Result<()> {
+        let one: i32 = 1;
+        // SAFETY: a valid int option value of the given size.
+        cvt(unsafe {
+            libc::setsockopt(
+                self.fd.as_raw_fd(),
+                libc::SOL_SOCKET,
+                libc::SO_RXQ_OVFL,
+                (&raw const one).cast(),
+                mem::size_of::<i32>() as libc::socklen_t,
+            )
+        })
+        .context("setsockopt(SO_RXQ_OVFL)")?;
+        Ok(())
+    }
+
+    /// Asks the kernel to stamp each received frame (`SO_TIMESTAMPNS`,
+    /// CLOCK_REALTIME at the frame's arrival on the interface), read by
+    /// [`RawCanSocket::recv_counting_drops`].
+    pub fn enable_timestamps(&self) -> anyhow::Result<()> {
+        let one: i32 = 1;
+        // SAFETY: a valid int option value of the given size.
+        cvt(unsafe {
+            libc::setsockopt(
+                self.fd.as_raw_fd(),
+                libc::SOL_SOCKET,
+                libc::SO_TIMESTAMPNS,
+                (&raw const one).cast(),
+                mem::size_of::<i32>() as libc::socklen_t,
+            )
+        })
+        .context("setsockopt(SO_TIMESTAMPNS)")?;
+        Ok(())
+    }
+
+    /// Like [`RawCanSocket::recv_timeout`], also returning the socket's
+    /// cumulative drop count (`SO_RXQ_OVFL`) and the kernel's CLOCK_REALTIME
+    /// stamp in ns (`SO_TIMESTAMPNS`) when enabled.
+    pub fn recv_counting_drops(&self, timeout: Duration) -> anyhow::Result<Option<RecvMeta>> {
+        let mut pfd = libc::pollfd {
+            fd: self.fd.as_raw_fd(),
+            events: libc::POLLIN,
+            revents: 0,
+        };
+        let ms = libc::c_int::try_from(timeout.as_millis()).unwrap_or(libc::c_int::MAX);
+        // SAFETY: pfd is one valid pollfd.
+        if cvt(unsafe { libc::poll(&raw mut pfd, 1, ms) }).context("poll")? == 0 {
+            return Ok(None);
+        }
+        let mut frame = RawFrame::default();
+        let mut iov = libc::iovec {
+            iov_base: (&raw mut frame).cast(),
+            iov_len: mem::size_of::<RawFrame>(),
+        };
+        let mut cbuf = [0u64; 8];
+        // SAFETY: all-zero is a valid msghdr; the pointers set below are valid.
+        let mut msg: libc::msghdr = unsafe { mem::zeroed() };
+        msg.msg_iov = &raw mut iov;
+        msg.msg_iovlen = 1;
+        msg.msg_control = cbuf.as_mut_ptr().cast();
+        msg.msg_controllen = mem::size_of_val(&cbuf);
+        // SAFETY: msg describes valid buffers we own.
+        let n = unsafe { libc::recvmsg(self.fd.as_raw_fd(), &raw mut msg, 0) };
+        if n != mem::size_of::<RawFrame>() as isize {
+            return Err(io::Error::last_os_error())
+                .with_context(|| format!("recvmsg(can_frame) returned {n}"));
+        }
+        let (mut drops, mut stamp) = (None, None);
+        // SAFETY: walking the control messages the kernel wrote into cbuf.
+        unsafe {
+            let mut c = libc::CMSG_FIRSTHDR(&raw const msg);
+            while !c.is_null() {
+                if (*c).cmsg_level == libc::SOL_SOCKET && (*c).cmsg_type == libc::SO_RXQ_OVFL {
+                    drops = Some(std::ptr::read_unaligned(libc::CMSG_DATA(c).cast::<u32>()));
+                }
+                if (*c).cmsg_level == libc::SOL_SOCKET && (*c).cmsg_type == libc::SCM_TIMESTAMPNS {
+                    let ts = std::ptr::read_unaligned(libc::CMSG_DATA(c).cast::<libc::timespec>());
+                    stamp = Some(ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64);
+                }
+                c = libc::CMSG_NXTHDR(&raw const msg, c);
+            }
+        }
+        Ok(Some(RecvMeta {
+            frame,
+            drops,
+            stamp,
+        }))
+    }
+}
+
+/// A frame with what the kernel said about it.
+#[derive(Debug, Clone, Copy)]
+pub struct RecvMeta {
+    /// The frame.
+    pub frame: RawFrame,
+    /// The socket's cumulative drop count (`SO_RXQ_OVFL`), when enabled.
+    pub drops: Option<u32>,
+    /// Kernel receive time, CLOCK_REALTIME ns (`SO_TIMESTAMPNS`), when enabled.
+    pub stamp: Option<u64>,
+}
+
+/// Everything a [`CanCapture`] saw.
+#[derive(Debug, Default, Clone)]
+pub struct CaptureLog {
+    /// Frames in bus order.
+    pub frames: Vec<Captured>,
+    /// Frames the kernel dropped for the capturing socket (`SO_RXQ_OVFL`).
+    pub dropped: u32,
+}
+
+impl CaptureLog {
+    /// Frames with standard id `id`.
+    pub fn with_id(&self, id: u32) -> impl Iterator<Item = &Captured> {
+        self.frames.iter().filter(move |f| f.id() == id)
+    }
+}
+
+/// CLOCK_REALTIME now, ns.
+fn realtime_ns() -> u64 {
+    // SAFETY: as in mono_ns.
+    let mut ts: libc::timespec = unsafe { mem::zeroed() };
+    // SAFETY: ts is a valid timespec.
+    unsafe { libc::clock_gettime(libc::CLOCK_REALTIME, &raw mut ts) };
+    (ts.tv_sec as u64) * 1_000_000_000 + ts.tv_nsec as u64
+}
+
+/// A thread that records every frame on a CAN interface through its own raw
+/// socket (independent of the services and of grip-io), like `candump`, with
+/// the kernel's receive time stamp of each frame (mapped to CLOCK_MONOTONIC)
+/// and the kernel's count of frames dropped for the socket.
+#[derive(Debug)]
+pub struct CanCapture {
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    handle: thread::JoinHandle<anyhow::Result<CaptureLog>>,
+}
+
+impl CanCapture {
+    /// Opens the socket (4 MiB receive buffer, drop counting) and starts recording.
+    pub fn start(iface: &str) -> anyhow::Result<Self> {
+        require_can_iface(iface)?;
+        let sock = RawCanSocket::open(iface)?;
+        sock.set_rcvbuf(4 << 20)?;
+        sock.enable_drop_count()?;
+        sock.enable_timestamps()?;
+        // kernel stamps are CLOCK_REALTIME: map them onto CLOCK_MONOTONIC
+        // with the offset now (nothing steps the clock during a test)
+        let offset = realtime_ns().wrapping_sub(mono_ns());
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let stop2 = std::sync::Arc::clone(&stop);
+        let handle = thread::Builder::new()
+            .name("can-capture".into())
+            .spawn(move || {
+                let mut log = CaptureLog::default();
+                while !stop2.load(std::sync::atomic::Ordering::Relaxed) {
+                    while let Some(RecvMeta {
+                        frame,
+                        drops,
+                        stamp,
+                    }) = sock.recv_counting_drops(Duration::from_millis(20))?
+                    {
+                        let t_ns = stamp.map_or_else(mono_ns, |s| s.wrapping_sub(offset));
+                        log.frames.push(Captured { t_ns, frame });
+                        if let Some(d) = drops {
+                            log.dropped = d;
+                        }
+                    }
+                }
+                Ok(log)
+            })?;
+        Ok(Self { stop, handle })
+    }
+
+    /// Stops recording and returns what was seen.
+    pub fn finish(self) -> anyhow::Result<CaptureLog> {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        self.handle
+            .join()
+            .map_err(|_| anyhow::anyhow!("the CAN capture thread panicked"))?
+    }
+}
+
+/// Waits for a frame with id `id` whose payload satisfies `pred` on `sock`;
+/// returns it with its receive time, or an error after `timeout`.
+pub fn wait_for_frame(
+    sock: &RawCanSocket,
+    id: u32,
+    timeout: Duration,
+    mut pred: impl FnMut(&[u8; 8]) -> bool,
+) -> anyhow::Result<Captured> {
+    let end = Instant::now() + timeout;
+    while Instant::now() < end {
+        if let Some(frame) = sock.recv_timeout(Duration::from_millis(50))?
+            && frame.can_id & CAN_SFF_MASK == id
+            && pred(&frame.data)
+        {
+            return Ok(Captured {
+                t_ns: mono_ns(),
+                frame,
+            });
+        }
+    }
+    bail!("no matching frame {id:#x} within {timeout:?}")
+}
+
+// --- configuration for HIL drives ----------------------------------------------
+
+/// What a HIL drive changes in the shipped configuration.
+#[derive(Debug, Clone)]
+pub struct HilConfig {
+    /// CAN interface (`can.toml` `interface`), with `transport = "socketcan"`
+    /// (no silent fallback to the simulated bus).
+    pub iface: String,
+    /// ALSA capture PCM of audio-acq (`audio-acq.toml`, `source = "alsa"`).
+    pub capture_device: String,
+}
+
+/// Replaces the line of `file` that starts with `key =` inside `[section]`
+/// (`""` = top level) by `key = value`; an error when there is none.
+fn set_toml_line(
+    text: &str,
+    file: &str,
+    section: &str,
+    key: &str,
+    value: &str,
+) -> anyhow::Result<String> {
+    let mut cur = String::new();
+    let mut done = false;
+    let mut out = String::new();
+    for line in text.lines() {
+        let t = line.trim();
+        if t.starts_with('[') {
+            cur = t.trim_matches(|c| c == '[' || c == ']').to_owned();
+        }
+        let is_key = t
+            .split_once('=')
+            .is_some_and(|(k, _)| k.trim() == key && !t.starts_with('#'));
+        if !done && cur == section && is_key {
+            out.push_str(&format!(
+                "{key} = {value}  # set by grip_tests::hil (HIL drive)\n"
+            ));
+            done = true;
+        } else {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    if !done {
+        bail!("{file}: no `{key} =` in [{section}] to set for the HIL drive");
+    }
+    Ok(out)
+}
+
+/// A configuration folder for a HIL drive in `dir`: every entry of the
+/// shipped [`config_dir`] symlinked, except `can.toml` (SocketCAN only, on
+/// `cfg.iface`) and `audio-acq.toml` (the ALSA source on
+/// `cfg.capture_device`), which are written modified. That is how a car is
+/// configured too (its `/etc/grip`), and the recorder attaches both files
+/// to the MCAP.
+pub fn hil_config_dir(dir: &Path, cfg: &HilConfig) -> anyhow::Result<PathBuf> {
+    let src = config_dir();
+    let _ = fs::remove_dir_all(dir);
+    fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    for e in fs::read_dir(&src).with_context(|| format!("reading {}", src.display()))? {
+        let e = e?;
+        let name = e.file_name();
+        if name == "can.toml" || name == "audio-acq.toml" {
+            continue;
+        }
+        std::os::unix::fs::symlink(e.path(), dir.join(&name))
+            .with_context(|| format!("symlinking {}", e.path().display()))?;
+    }
+    let can_path = src.join("can.toml");
+    let can =
+        fs::read_to_string(&can_path).with_context(|| format!("reading {}", can_path.display()))?;
+    let f = can_path.display().to_string();
+    let can = set_toml_line(&can, &f, "", "transport", "\"socketcan\"")?;
+    let can = set_toml_line(&can, &f, "", "interface", &format!("{:?}", cfg.iface))?;
+    fs::write(dir.join("can.toml"), can)?;
+    let acq_path = src.join("audio-acq.toml");
+    let acq =
+        fs::read_to_string(&acq_path).with_context(|| format!("reading {}", acq_path.display()))?;
+    let f = acq_path.display().to_string();
+    let acq = set_toml_line(&acq, &f, "audio", "source", "\"alsa\"")?;
+    let acq = set_toml_line(
+        &acq,
+        &f,
+        "alsa",
+        "device",
+        &format!("{:?}", cfg.capture_device),
+    )?;
+    fs::write(dir.join("audio-acq.toml"), acq)?;
+    Ok(dir.to_path_buf())
+}
+
+// --- the road-audio player --------------------------------------------------------
+
+/// What the [`RoadAudioPlayer`] did.
+#[derive(Debug, Default, Clone)]
+pub struct PlayerReport {
+    /// Blocks written to the playback PCM.
+    pub blocks: u64,
+    /// Playback underruns (recovered).
+    pub xruns: u64,
+    /// When the scenario started (first DriverDemand with demand > 0), ns.
+    pub started_ns: Option<u64>,
+    /// (time ns, synthesiser road name) at every change of the played road.
+    pub roads: Vec<(u64, String)>,
+    /// Highest vehicle speed the player followed, m/s.
+    pub max_speed: f64,
+}
+
+/// Plays the scenario's synthetic tyre-road sound into an ALSA playback PCM
+/// (the loopback's `hw:Loopback,0,0`) in real time, following the drive
+/// from outside, off the bus: the road comes from the scenario's road
+/// timeline, whose clock starts with the first `DriverDemand` carrying a
+/// demand (plant-sim sends 0 until its scenario runs); `VehicleSpeed`
+/// frames give the distance for distance-based timelines. Before the start
+/// it plays the first road, as the plant holds the car rolling there.
+///
+/// The sound of each segment's road is pre-rendered with
+/// `grip_arte::synth::RoadAudioSynth` (seed 1, clean) at [`PLAYER_SPEED`]
+/// as a 2 s loop: under emulation a live synthesiser beside five services
+/// could not keep up with 44.1 kHz (it underran in half its blocks). Mono
+/// S16 at 44.1 kHz, written in 1024-frame blocks into an 8192-frame buffer
+/// by a SCHED_FIFO (55) thread where permitted; the playback blocks pace
+/// it, so the sound lags the plant by at most about 186 ms.
+#[derive(Debug)]
+pub struct RoadAudioPlayer {
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    handle: thread::JoinHandle<anyhow::Result<PlayerReport>>,
+}
+
+/// Sample rate of the player (= audio-acq's and the ARTE model's).
+pub const PLAYER_RATE: u32 = 44_100;
+/// Length of the pre-rendered loop per road, s.
+const PLAYER_LOOP_S: usize = 2;
+/// The speed the road sound is rendered at, m/s: about the middle of a HIL
+/// drive (10 km/h rising to 20-30 km/h).
+pub const PLAYER_SPEED: f64 = 5.0;
+const PLAYER_BLOCK: usize = 1024;
+
+impl RoadAudioPlayer {
+    /// Opens `device` for playback and starts the player thread for
+    /// `scenario` (a name under `config` or a path); `iface` is the bus.
+    pub fn start(device: &str, iface: &str, config: &Path, scenario: &str) -> anyhow::Result<Self> {
+        use alsa::pcm::{Access, Format, HwParams, PCM};
+        use alsa::{Direction, ValueOr};
+        let cdir = grip_config::ConfigDir::new(config);
+        let roads = cdir.roads()?;
+        let scn = cdir.scenario_with(scenario, &roads)?;
+        // the same road-name aliases audio-acq's synth source uses
+        let acq_text = fs::read_to_string(config.join("audio-acq.toml"))?;
+        let acq: toml::Value = toml::from_str(&acq_text).context("audio-acq.toml")?;
+        let alias = |name: &str| -> usize {
+            grip_arte::synth::road_index(name)
+                .or_else(|| {
+                    acq.get("synth")?
+                        .get("aliases")?
+                        .get(name)?
+                        .as_str()
+                        .and_then(grip_arte::synth::road_index)
+                })
+                .unwrap_or(usize::MAX)
+        };
+        let seg_roads: Vec<(usize, String)> = scn
+            .segments
+            .iter()
+            .map(|s| (alias(&s.road_name), s.road_name.clone()))
+            .collect();
+        let dbc = Dbc::inverter()?;
+        let vs = dbc.by_name("VehicleSpeed")?.clone();
+        let dd = dbc.by_name("DriverDemand")?.clone();
+        let sock = RawCanSocket::open(iface)?;
+        let std_mask = CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_SFF_MASK;
+        sock.set_filters(&[(vs.id, std_mask), (dd.id, std_mask)])?;
+        sock.set_rcvbuf(1 << 20)?;
+        let mut synth = grip_arte::synth::RoadAudioSynth::new(
+            &grip_arte::synth::SynthConfig {
+                sample_rate: PLAYER_RATE,
+                noise: None,
+            },
+            1,
+        )
+        .map_err(|e| anyhow::anyhow!("road audio synthesiser: {e}"))?;
+        // pre-rendered: under emulation a live synthesiser beside five
+        // services cannot keep up with 44.1 kHz; copying samples can
+        let mut fbuf = vec![0f32; PLAYER_LOOP_S * PLAYER_RATE as usize];
+        let loops: Vec<Vec<i16>> = seg_roads
+            .iter()
+            .map(|&(road, _)| {
+                synth.fill(road, PLAYER_SPEED, &mut fbuf);
+                fbuf.iter()
+                    .map(|v| (v.clamp(-1.0, 1.0) * f32::from(i16::MAX)).round() as i16)
+                    .collect()
+            })
+            .collect();
+        let cname = CString::new(device)?;
+        let pcm = PCM::open(&cname, Direction::Playback, false)
+            .with_context(|| format!("opening {device} for playback"))?;
+        {
+            let hwp = HwParams::any(&pcm)?;
+            hwp.set_access(Access::RWInterleaved)?;
+            hwp.set_format(Format::s16())?;
+            hwp.set_channels(1)?;
+            hwp.set_rate(PLAYER_RATE, ValueOr::Nearest)?;
+            hwp.set_period_size_near(PLAYER_BLOCK as alsa::pcm::Frames, ValueOr::Nearest)?;
+            hwp.set_buffer_size_near(8 * PLAYER_BLOCK as alsa::pcm::Frames)?;
+            pcm.hw_params(&hwp)
+                .with_context(|| format!("{device}: hardware parameters"))?;
+            let rate = hwp.get_rate()?;
+            if rate != PLAYER_RATE {
+                bail!("{device} plays at {rate} Hz, not {PLAYER_RATE}");
+            }
+        }
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let stop2 = std::sync::Arc::clone(&stop);
+        let v0 = scn.v0;
+        let handle = thread::Builder::new()
+            .name("road-audio".into())
+            .spawn(move || {
+                let mut rep = PlayerReport::default();
+                // a microphone does not starve: play at SCHED_FIFO 55 where
+                // permitted (root in the VM; between audio-acq's 60 and arte's 50)
+                let prio = libc::sched_param { sched_priority: 55 };
+                // SAFETY: sets this thread's own policy; prio is a valid sched_param.
+                let _ = unsafe {
+                    libc::pthread_setschedparam(
+                        libc::pthread_self(),
+                        libc::SCHED_FIFO,
+                        &raw const prio,
+                    )
+                };
+                let io = pcm.io_i16()?;
+                let mut ibuf = vec![0i16; PLAYER_BLOCK];
+                let mut pos = 0usize;
+                let (mut speed, mut x, mut last_ns) = (v0, 0.0f64, mono_ns());
+                let mut cur_road = usize::MAX - 1;
+                while !stop2.load(std::sync::atomic::Ordering::Relaxed) {
+                    while let Some(f) = sock.recv_timeout(Duration::ZERO)? {
+                        let id = f.can_id & CAN_SFF_MASK;
+                        if id == vs.id && f.len == vs.dlc && f.data[0] == vs.expected_crc(&f.data) {
+                            speed = vs.value("Speed", &f.data);
+                        } else if id == dd.id
+                            && f.len == dd.dlc
+                            && f.data[0] == dd.expected_crc(&f.data)
+                            && rep.started_ns.is_none()
+                            && dd.value("TorqueDemand", &f.data).abs() > 0.05
+                        {
+                            rep.started_ns = Some(mono_ns());
+                        }
+                    }
+                    let now = mono_ns();
+                    let (t, seg) = match rep.started_ns {
+                        Some(t0) => {
+                            x += speed.max(0.0) * (now - last_ns) as f64 * 1e-9;
+                            let t = (now - t0) as f64 * 1e-9;
+                            (t, scn.segment_at(t, x))
+                        }
+                        None => (0.0, 0),
+                    };
+                    let _ = t;
+                    last_ns = now;
+                    let (road, ref name) = seg_roads[seg];
+                    if road != cur_road {
+                        cur_road = road;
+                        rep.roads.push((now, name.clone()));
+                    }
+                    rep.max_speed = rep.max_speed.max(speed);
+                    let lp = &loops[seg];
+                    for o in &mut ibuf {
+                        *o = lp[pos % lp.len()];
+                        pos += 1;
+                    }
+                    let mut off = 0;
+                    while off < ibuf.len() {
+                        match io.writei(&ibuf[off..]) {
+                            Ok(n) => off += n,
+                            Err(e) => {
+                                rep.xruns += 1;
+                                pcm.try_recover(e, true).context("playback recover")?;
+                            }
+                        }
+                    }
+                    rep.blocks += 1;
+                }
+                let _ = pcm.drop();
+                Ok(rep)
+            })?;
+        Ok(Self { stop, handle })
+    }
+
+    /// Stops the player and returns its report.
+    pub fn finish(self) -> anyhow::Result<PlayerReport> {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        self.handle
+            .join()
+            .map_err(|_| anyhow::anyhow!("the road-audio player thread panicked"))?
+    }
+}
+
+// --- services as the drive starts them ----------------------------------------
+
+/// A service's command line as `grip drive` would start it.
+#[derive(Debug, Clone)]
+pub struct ServiceCmd {
+    /// Service name (= binary name).
+    pub name: String,
+    /// Binary.
+    pub bin: PathBuf,
+    /// Arguments.
+    pub args: Vec<String>,
+}
+
+/// The five services' command lines of a drive, in start order, taken from
+/// `grip --config-dir CONFIG drive --dry-run ...` (one source of truth for
+/// how a drive starts them), with the recorder's `instance=` metadata set
+/// to `instance`.
+pub fn drive_command_lines(
+    config: &Path,
+    scenario: &str,
+    out: &Path,
+    instance: &str,
+) -> anyhow::Result<Vec<ServiceCmd>> {
+    let grip = service_bin("grip")?;
+    let o = Command::new(&grip)
+        .arg("--config-dir")
+        .arg(config)
+        .args(["drive", "--dry-run", "--scenario", scenario, "--out"])
+        .arg(out)
+        .output()
+        .with_context(|| format!("running {} drive --dry-run", grip.display()))?;
+    if !o.status.success() {
+        bail!(
+            "grip drive --dry-run failed: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    let text = String::from_utf8_lossy(&o.stdout);
+    let mut cmds = Vec::new();
+    let mut name = None;
+    for line in text.lines() {
+        if !line.starts_with(' ') && line.ends_with(':') {
+            name = Some(line.trim_end_matches(':').to_owned());
+        } else if let Some(rest) = line.trim().strip_prefix("drive:") {
+            let mut parts = rest.split_whitespace().map(str::to_owned);
+            let bin = PathBuf::from(parts.next().context("empty drive: line")?);
+            let args = parts
+                .map(|a| {
+                    if a.starts_with("instance=") {
+                        format!("instance={instance}")
+                    } else {
+                        a
+                    }
+                })
+                .collect();
+            cmds.push(ServiceCmd {
+                name: name.clone().context("drive: line before a service name")?,
+                bin,
+                args,
+            });
+        }
+    }
+    if cmds.len() != 5 {
+        bail!("expected 5 services from grip drive --dry-run, got:\n{text}");
+    }
+    Ok(cmds)
+}
+
+/// Services started like `grip drive` does (own `NOTIFY_SOCKET` each,
+/// `READY=1` awaited in order, one `GRIP_INSTANCE`), but left to the test
+/// to signal, kill and stop one by one. Dropping it kills what still runs.
+#[derive(Debug)]
+pub struct ServiceSet {
+    procs: Vec<(String, Proc)>,
+    sock_dir: PathBuf,
+}
+
+impl ServiceSet {
+    /// Starts `cmds` in order, each awaited for `READY=1` (up to `ready` each).
+    pub fn start(
+        cmds: &[ServiceCmd],
+        instance: &str,
+        log_dir: &Path,
+        ready: Duration,
+    ) -> anyhow::Result<Self> {
+        let sock_dir = env::temp_dir().join(format!("grip-hil-{instance}"));
+        fs::create_dir_all(&sock_dir)?;
+        let mut set = ServiceSet {
+            procs: Vec::new(),
+            sock_dir,
+        };
+        for c in cmds {
+            let sock_path = set.sock_dir.join(format!("{}.sock", c.name));
+            let _ = fs::remove_file(&sock_path);
+            let sock = std::os::unix::net::UnixDatagram::bind(&sock_path)?;
+            sock.set_read_timeout(Some(Duration::from_millis(50)))?;
+            let args: Vec<&str> = c.args.iter().map(String::as_str).collect();
+            let mut p = Proc::spawn_env(
+                &c.bin,
+                &args,
+                &[
+                    ("GRIP_INSTANCE", instance),
+                    ("NOTIFY_SOCKET", &sock_path.display().to_string()),
+                    ("NO_COLOR", "1"),
+                ],
+                &c.name,
+                log_dir,
+            )?;
+            let t0 = Instant::now();
+            let mut buf = [0u8; 4096];
+            loop {
+                if let Ok(n) = sock.recv(&mut buf)
+                    && String::from_utf8_lossy(&buf[..n])
+                        .lines()
+                        .any(|l| l == "READY=1")
+                {
+                    break;
+                }
+                if let Some(st) = p.wait_timeout(Duration::ZERO)? {
+                    bail!("{} exited before READY=1 ({st}):\n{}", c.name, p.log_text());
+                }
+                if t0.elapsed() > ready {
+                    bail!("{} not ready within {ready:?}:\n{}", c.name, p.log_text());
+                }
+            }
+            set.procs.push((c.name.clone(), p));
+        }
+        Ok(set)
+    }
+
+    /// The running service `name`.
+    pub fn get(&mut self, name: &str) -> anyhow::Result<&mut Proc> {
+        self.procs
+            .iter_mut()
+            .find(|(n, _)| n == name)
+            .map(|(_, p)| p)
+            .with_context(|| format!("no service {name} in this drive"))
+    }
+
+    /// SIGTERM to `name` and wait up to `grace` (then SIGKILL and an error).
+    pub fn stop(&mut self, name: &str, grace: Duration) -> anyhow::Result<ExitStatus> {
+        let p = self.get(name)?;
+        if let Some(st) = p.wait_timeout(Duration::ZERO)? {
+            return Ok(st);
+        }
+        p.signal(libc::SIGTERM)?;
+        match p.wait_timeout(grace)? {
+            Some(st) => Ok(st),
+            None => {
+                p.signal(libc::SIGKILL)?;
+                bail!(
+                    "{name} did not stop within {grace:?} of SIGTERM:\n{}",
+                    p.log_text()
+                )
+            }
+        }
+    }
+}
+
+impl Drop for ServiceSet {
+    fn drop(&mut self) {
+        // the procs kill themselves on drop; the sockets go with the folder
+        self.procs.clear();
+        let _ = fs::remove_dir_all(&self.sock_dir);
+    }
+}
+
+/// The pid of a child of `parent` whose command name is `comm`, if one runs.
+pub fn child_pid(parent: u32, comm: &str) -> Option<u32> {
+    for e in fs::read_dir("/proc").ok()?.flatten() {
+        let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(stat) = fs::read_to_string(format!("/proc/{pid}/stat")) else {
+            continue;
+        };
+        // "pid (comm) state ppid ..."; comm may contain spaces, so split at the last ')'
+        let (Some(l), Some(r)) = (stat.find('('), stat.rfind(')')) else {
+            continue;
+        };
+        let name = &stat[l + 1..r];
+        let ppid = stat[r + 1..]
+            .split_whitespace()
+            .nth(1)
+            .and_then(|s| s.parse::<u32>().ok());
+        if name == comm && ppid == Some(parent) {
+            return Some(pid);
+        }
+    }
+    None
+}
+
+/// Sends `sig` to process `pid`.
+pub fn kill_pid(pid: u32, sig: libc::c_int) -> anyhow::Result<()> {
+    let p = libc::pid_t::try_from(pid).context("pid out of range")?;
+    // SAFETY: kill(2) on a pid the caller found among its own children.
+    cvt(unsafe { libc::kill(p, sig) }).with_context(|| format!("kill({pid}, {sig})"))?;
+    Ok(())
 }
 
 #[cfg(test)]
