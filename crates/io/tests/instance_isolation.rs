@@ -62,11 +62,21 @@ fn first_line(c: &mut std::process::Child) -> String {
     line.trim().to_string()
 }
 
+#[path = "support/harness.rs"]
+mod harness;
+
 fn main() {
     if let Ok(role) = std::env::var(ROLE) {
         child(&role);
         return;
     }
+    harness::run_tests(&[(
+        "grip_instance_separates_namespaces",
+        grip_instance_separates_namespaces,
+    )]);
+}
+
+fn grip_instance_separates_namespaces() {
     let pid = std::process::id();
     let topic = format!("grip/test/instance_{pid}");
     let (a, b) = (format!("isoA{pid}"), format!("isoB{pid}"));

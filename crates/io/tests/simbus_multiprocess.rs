@@ -8,7 +8,6 @@
 //!    stale resources, and afterwards sees no dead node and no publisher.
 
 use std::io::{BufRead, BufReader};
-use std::panic::{UnwindSafe, catch_unwind};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -126,32 +125,19 @@ fn killed_peer_is_detected_and_cleaned() {
     assert_eq!((cleaned.dead, cleaned.publishers), (0, 0), "{cleaned:?}");
 }
 
-fn run(name: &str, f: impl FnOnce() + UnwindSafe) -> bool {
-    println!("test {name} ...");
-    let ok = catch_unwind(f).is_ok();
-    println!("test {name} ... {}", if ok { "ok" } else { "FAILED" });
-    ok
-}
+#[path = "support/harness.rs"]
+mod harness;
 
 fn main() {
     if let Ok(role) = std::env::var(ENV) {
         child(&role);
         return;
     }
-    let results = [
-        run("echo_between_processes", echo_between_processes),
-        run(
+    harness::run_tests(&[
+        ("echo_between_processes", echo_between_processes),
+        (
             "killed_peer_is_detected_and_cleaned",
             killed_peer_is_detected_and_cleaned,
         ),
-    ];
-    let failed = results.iter().filter(|ok| !**ok).count();
-    println!(
-        "\ntest result: {}. {} passed; {failed} failed",
-        if failed == 0 { "ok" } else { "FAILED" },
-        results.len() - failed
-    );
-    if failed > 0 {
-        std::process::exit(1);
-    }
+    ]);
 }
