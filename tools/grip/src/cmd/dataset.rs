@@ -56,6 +56,9 @@ struct DelayArgs {
     /// HMM: floor on a frame's class probability.
     #[arg(long, default_value_t = 0.01)]
     floor: f64,
+    /// Also print the confusion matrices of the decisions inside one segment.
+    #[arg(long)]
+    confusion: bool,
     /// A detection counts once the new road persists this long (s).
     #[arg(long, default_value_t = 0.2)]
     hold: f64,
@@ -553,7 +556,8 @@ fn delay(a: DelayArgs) -> Result<()> {
     };
     let mut est = StreamEstimator::new(Predictor::new(model), &fcfg, &scfg)?;
     let (mut delays, mut missed, mut n_changes) = (Vec::new(), 0usize, 0usize);
-    let (mut ok, mut ok_raw, mut n_dec) = (0usize, 0usize, 0usize);
+    let mut conf = grip_arte::eval::Confusion::new(classes.clone());
+    let mut conf_raw = grip_arte::eval::Confusion::new(classes.clone());
     let block = 1024;
     let pb = ProgressBar::new(recs.len() as u64);
     for r in &recs {
@@ -574,9 +578,8 @@ fn delay(a: DelayArgs) -> Result<()> {
                 .iter()
                 .find(|s| t0 >= s.0 - 1e-9 && t_end <= s.1 + 1e-9)
             {
-                n_dec += 1;
-                ok += usize::from(c == seg.2);
-                ok_raw += usize::from(rc == seg.2);
+                conf.add(c, seg.2);
+                conf_raw.add(rc, seg.2);
             }
         }
         let changes: Vec<(f64, usize)> = r.segments.iter().map(|s| (s.0, s.2)).collect();
@@ -608,12 +611,23 @@ fn delay(a: DelayArgs) -> Result<()> {
         ms(percentile(&delays, 95.0)),
         ms(percentile(&delays, 100.0))
     );
-    if n_dec > 0 {
+    if conf.total() > 0 {
+        let (m, mr) = (conf.metrics(), conf_raw.metrics());
         println!(
-            "decisions inside one segment: {n_dec}; accuracy smoothed {:.2} %, single-frame {:.2} %",
-            100.0 * ok as f64 / n_dec as f64,
-            100.0 * ok_raw as f64 / n_dec as f64
+            "decisions inside one segment: {}; smoothed: accuracy {:.2} %, macro recall {:.2} %; \
+             single-frame: accuracy {:.2} %, macro recall {:.2} %",
+            conf.total(),
+            100.0 * m.accuracy,
+            100.0 * m.macro_recall,
+            100.0 * mr.accuracy,
+            100.0 * mr.macro_recall
         );
+        if a.confusion {
+            println!("\nsmoothed decisions (rows predicted, columns actual):\n");
+            println!("{}", conf.to_markdown());
+            println!("single frames (rows predicted, columns actual):\n");
+            println!("{}", conf_raw.to_markdown());
+        }
     }
     Ok(())
 }
