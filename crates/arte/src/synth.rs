@@ -1143,12 +1143,37 @@ pub struct Segment {
     pub duration_s: f64,
 }
 
+/// Over what the SNR of a rendered recording is defined.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SnrScope {
+    /// Road-sound power over the whole recording / noise power over the
+    /// whole recording: the noise has one level, so a quiet road (snow) in a
+    /// recording with loud ones (stone, gravel) sits below the nominal SNR.
+    #[default]
+    Recording,
+    /// Every segment at the nominal SNR: the noise gain is set per segment
+    /// (ramped over 3 ms at the boundaries), as in a one-road recording.
+    Segment,
+}
+
 /// Renders a whole recording (segments back to back, abrupt road changes at
 /// the segment boundaries). With noise configured, the noise mix is scaled
 /// so that the road-sound power over the whole recording divided by the
 /// noise power over the whole recording equals the SNR exactly; then the
 /// sum is clamped to [−1, 1]. Allocates the output.
 pub fn render(cfg: &SynthConfig, seed: u64, segments: &[Segment]) -> Result<Vec<f32>, SynthError> {
+    render_scoped(cfg, seed, segments, SnrScope::Recording)
+}
+
+/// [`render`] with the SNR defined over the whole recording or per segment
+/// ([`SnrScope`]). For one segment both scopes give identical samples.
+pub fn render_scoped(
+    cfg: &SynthConfig,
+    seed: u64,
+    segments: &[Segment],
+    scope: SnrScope,
+) -> Result<Vec<f32>, SynthError> {
     let mut synth = RoadAudioSynth::new(cfg, seed)?;
     let fs = f64::from(cfg.sample_rate);
     let mut lens = Vec::with_capacity(segments.len());
@@ -1189,24 +1214,44 @@ pub fn render(cfg: &SynthConfig, seed: u64, segments: &[Segment]) -> Result<Vec<
     let Some(nc) = &cfg.noise else {
         return Ok(road.into_iter().map(|v| v.clamp(-1.0, 1.0)).collect());
     };
-    let p_road: f64 = road
-        .iter()
-        .map(|&v| f64::from(v) * f64::from(v))
-        .sum::<f64>()
-        / total.max(1) as f64;
-    let p_noise: f64 = noise
-        .iter()
-        .map(|&v| f64::from(v) * f64::from(v))
-        .sum::<f64>()
-        / total.max(1) as f64;
-    let g = if p_noise > 0.0 {
-        (p_road / p_noise * db(-nc.snr_db).powi(2)).sqrt()
-    } else {
-        0.0
+    let power = |x: &[f32]| -> f64 {
+        x.iter().map(|&v| f64::from(v) * f64::from(v)).sum::<f64>() / x.len().max(1) as f64
     };
-    Ok(road
-        .iter()
-        .zip(&noise)
-        .map(|(&r, &n)| (f64::from(r) + g * f64::from(n)).clamp(-1.0, 1.0) as f32)
-        .collect())
+    let gain = |r: &[f32], n: &[f32]| -> f64 {
+        let (p_road, p_noise) = (power(r), power(n));
+        if p_noise > 0.0 {
+            (p_road / p_noise * db(-nc.snr_db).powi(2)).sqrt()
+        } else {
+            0.0
+        }
+    };
+    // Noise gain per sample: one value, or one per segment ramped over 3 ms.
+    let mut gains = Vec::with_capacity(lens.len());
+    match scope {
+        SnrScope::Recording => gains.resize(lens.len(), gain(&road, &noise)),
+        SnrScope::Segment => {
+            let mut at = 0;
+            for &n in &lens {
+                gains.push(gain(&road[at..at + n], &noise[at..at + n]));
+                at += n;
+            }
+        }
+    }
+    let ramp = ((0.003 * fs).round() as usize).max(1);
+    let mut out = Vec::with_capacity(total);
+    let mut at = 0;
+    for (i, &n) in lens.iter().enumerate() {
+        let (g0, g1) = (if i == 0 { gains[0] } else { gains[i - 1] }, gains[i]);
+        for j in 0..n {
+            let g = if j < ramp {
+                g0 + (g1 - g0) * (j + 1) as f64 / ramp as f64
+            } else {
+                g1
+            };
+            let v = f64::from(road[at + j]) + g * f64::from(noise[at + j]);
+            out.push(v.clamp(-1.0, 1.0) as f32);
+        }
+        at += n;
+    }
+    Ok(out)
 }

@@ -1,7 +1,8 @@
 //! Synthetic tyre-road audio: determinism, streaming continuity, SNR, physics sanity.
 
 use grip_arte::synth::{
-    NoiseConfig, ROADS, RoadAudioSynth, Segment, SynthConfig, render, road_index,
+    NoiseConfig, ROADS, RoadAudioSynth, Segment, SnrScope, SynthConfig, render, render_scoped,
+    road_index,
 };
 
 fn cfg(noise: Option<NoiseConfig>) -> SynthConfig {
@@ -114,6 +115,61 @@ fn render_hits_the_snr_exactly() {
             "asked {snr} dB, got {measured}"
         );
     }
+}
+
+#[test]
+fn snr_per_segment_holds_in_every_segment() {
+    // Stone (loud) then snow (quiet): with one noise level for the whole
+    // recording the snow segment sits well below the nominal SNR; with the
+    // per-segment scope both are at it (the 3 ms gain ramp aside).
+    let seg = [
+        Segment {
+            road: road_index("stone").unwrap(),
+            speed_mps: 6.0,
+            duration_s: 1.0,
+        },
+        Segment {
+            road: road_index("snow").unwrap(),
+            speed_mps: 6.0,
+            duration_s: 1.0,
+        },
+    ];
+    let noisy_cfg = cfg(Some(NoiseConfig {
+        rain: true,
+        car: true,
+        snr_db: 10.0,
+    }));
+    let clean = render(&cfg(None), 11, &seg).unwrap();
+    let n = clean.len() / 2;
+    let snr_of = |x: &[f32], range: std::ops::Range<usize>| {
+        let noise: Vec<f32> = x[range.clone()]
+            .iter()
+            .zip(&clean[range.clone()])
+            .map(|(a, b)| a - b)
+            .collect();
+        20.0 * (rms(&clean[range]) / rms(&noise)).log10()
+    };
+    let whole = render_scoped(&noisy_cfg, 11, &seg, SnrScope::Recording).unwrap();
+    assert_eq!(whole, render(&noisy_cfg, 11, &seg).unwrap());
+    let per = render_scoped(&noisy_cfg, 11, &seg, SnrScope::Segment).unwrap();
+    let ramp = 200; // > 3 ms at 44.1 kHz
+    let (s_stone, s_snow) = (snr_of(&per, 0..n), snr_of(&per, n + ramp..2 * n));
+    assert!(
+        (s_stone - 10.0).abs() < 0.1,
+        "stone segment at {s_stone} dB"
+    );
+    assert!((s_snow - 10.0).abs() < 0.2, "snow segment at {s_snow} dB");
+    let w_snow = snr_of(&whole, n + ramp..2 * n);
+    assert!(
+        w_snow < 7.0,
+        "one noise level: snow should sit below 10 dB, got {w_snow}"
+    );
+    // One segment: both scopes give the same samples.
+    let one = &seg[..1];
+    assert_eq!(
+        render_scoped(&noisy_cfg, 5, one, SnrScope::Segment).unwrap(),
+        render_scoped(&noisy_cfg, 5, one, SnrScope::Recording).unwrap()
+    );
 }
 
 #[test]
