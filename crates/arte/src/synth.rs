@@ -1152,8 +1152,13 @@ pub enum SnrScope {
     /// recording with loud ones (stone, gravel) sits below the nominal SNR.
     #[default]
     Recording,
-    /// Every segment at the nominal SNR: the noise gain is set per segment
-    /// (ramped over 3 ms at the boundaries), as in a one-road recording.
+    /// Every segment at the nominal SNR against the noise's long-run power:
+    /// the noise gain is set per segment from that segment's road-sound power
+    /// and the noise mix's calibrated unit power (ramped over 3 ms at the
+    /// boundaries), so each road gets the noise level a one-road recording of
+    /// it would get. (Not the segment's own noise power: in a 1–3 s segment
+    /// that depends on whether a car happens to pass, and scaling to it would
+    /// turn the rain up whenever none does.)
     Segment,
 }
 
@@ -1217,8 +1222,7 @@ pub fn render_scoped(
     let power = |x: &[f32]| -> f64 {
         x.iter().map(|&v| f64::from(v) * f64::from(v)).sum::<f64>() / x.len().max(1) as f64
     };
-    let gain = |r: &[f32], n: &[f32]| -> f64 {
-        let (p_road, p_noise) = (power(r), power(n));
+    let gain = |p_road: f64, p_noise: f64| -> f64 {
         if p_noise > 0.0 {
             (p_road / p_noise * db(-nc.snr_db).powi(2)).sqrt()
         } else {
@@ -1228,11 +1232,12 @@ pub fn render_scoped(
     // Noise gain per sample: one value, or one per segment ramped over 3 ms.
     let mut gains = Vec::with_capacity(lens.len());
     match scope {
-        SnrScope::Recording => gains.resize(lens.len(), gain(&road, &noise)),
+        SnrScope::Recording => gains.resize(lens.len(), gain(power(&road), power(&noise))),
         SnrScope::Segment => {
             let mut at = 0;
             for &n in &lens {
-                gains.push(gain(&road[at..at + n], &noise[at..at + n]));
+                // fill_parts gives the noise mix at unit long-run power.
+                gains.push(gain(power(&road[at..at + n]), 1.0));
                 at += n;
             }
         }
