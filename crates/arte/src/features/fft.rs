@@ -72,12 +72,82 @@ impl RealFft {
         }
     }
 
-    /// Power spectrum |X[k]|², k = 0..=n/2, into `out`, using `spec` as
-    /// scratch (length n/2 + 1).
+    /// Power spectrum |X[k]|², k = 0..=n/2, into `out`: the same values as
+    /// `forward` then `norm_sqr`. `spec` (length n/2 + 1) is no longer
+    /// needed as scratch and is left untouched.
     pub(crate) fn forward_power(&mut self, x: &[f64], spec: &mut [Complex<f64>], out: &mut [f64]) {
-        self.forward(x, spec);
-        for (o, s) in out.iter_mut().zip(spec.iter()) {
-            *o = s.norm_sqr();
+        debug_assert_eq!(spec.len(), self.n / 2 + 1);
+        self.forward_power_windowed(x, None, out);
+    }
+
+    /// Power spectrum |X[k]|², k = 0..=n/2, of `x · window` (element-wise;
+    /// `x` zero-padded to n, `x.len()` ≤ n, `window.len()` = n) into `out`
+    /// (length n/2 + 1). The products `x[i]·window[i]` and every later
+    /// operation are those of `forward` on the windowed input, so the values
+    /// are identical; the windowing is fused into the packing and bins k
+    /// and n/2 − k share their even/odd split.
+    pub(crate) fn forward_power_windowed(
+        &mut self,
+        x: &[f64],
+        window: Option<&[f64]>,
+        out: &mut [f64],
+    ) {
+        let half = self.n / 2;
+        debug_assert!(x.len() <= self.n);
+        debug_assert_eq!(out.len(), half + 1);
+        let m = x.len().min(self.n);
+        let pairs = m / 2;
+        let (head, tail) = self.buf.split_at_mut(pairs);
+        match window {
+            Some(w) => {
+                debug_assert_eq!(w.len(), self.n);
+                for ((b, xc), wc) in head
+                    .iter_mut()
+                    .zip(x[..2 * pairs].chunks_exact(2))
+                    .zip(w.chunks_exact(2))
+                {
+                    *b = Complex::new(xc[0] * wc[0], xc[1] * wc[1]);
+                }
+                if let Some(b) = tail.first_mut() {
+                    *b = Complex::new(
+                        if m % 2 == 1 { x[m - 1] * w[m - 1] } else { 0.0 },
+                        0.0,
+                    );
+                }
+            }
+            None => {
+                for (b, xc) in head.iter_mut().zip(x[..2 * pairs].chunks_exact(2)) {
+                    *b = Complex::new(xc[0], xc[1]);
+                }
+                if let Some(b) = tail.first_mut() {
+                    *b = Complex::new(if m % 2 == 1 { x[m - 1] } else { 0.0 }, 0.0);
+                }
+            }
+        }
+        for b in tail.iter_mut().skip(1) {
+            *b = Complex::new(0.0, 0.0);
+        }
+        self.fft
+            .process_with_scratch(&mut self.buf, &mut self.scratch);
+        let buf = &self.buf[..half];
+        let tw = &self.twiddle[..=half];
+        let out = &mut out[..=half];
+        let z0 = buf[0];
+        out[0] = Complex::new(z0.re + z0.im, 0.0).norm_sqr();
+        out[half] = Complex::new(z0.re - z0.im, 0.0).norm_sqr();
+        // Bins k and half − k from one even/odd split: with
+        // e = (z_k + conj z_{h−k})/2 and o = −i (z_k − conj z_{h−k})/2,
+        // bin h−k has exactly conj e and conj o (negation and commutation
+        // are exact in IEEE arithmetic).
+        for k in 1..=half / 2 {
+            let zk = buf[k];
+            let zc = buf[half - k].conj();
+            let even = (zk + zc) * 0.5;
+            let odd = (zk - zc) * Complex::new(0.0, -0.5);
+            out[k] = (even + tw[k] * odd).norm_sqr();
+            if half - k != k {
+                out[half - k] = (even.conj() + tw[half - k] * odd.conj()).norm_sqr();
+            }
         }
     }
 }
@@ -108,6 +178,29 @@ mod tests {
                 out[k],
                 full[k]
             );
+        }
+    }
+
+    #[test]
+    fn power_paths_equal_forward_norm_sqr() {
+        for (n, len) in [(64, 50), (64, 64), (64, 33), (1024, 1024), (1024, 7), (2, 1), (8, 0)] {
+            let x: Vec<f64> = (0..len)
+                .map(|i| ((i * 37 % 11) as f64 - 5.0) * 0.3 + (i as f64 * 0.2).sin())
+                .collect();
+            let w: Vec<f64> = (0..n).map(|i| 0.3 + (i as f64 * 0.1).cos().abs()).collect();
+            let xw: Vec<f64> = x.iter().zip(&w).map(|(a, b)| a * b).collect();
+            let mut r = RealFft::new(n);
+            let mut spec = vec![Complex::new(0.0, 0.0); n / 2 + 1];
+            r.forward(&xw, &mut spec);
+            let want: Vec<f64> = spec.iter().map(|s| s.norm_sqr()).collect();
+            let mut got = vec![0.0; n / 2 + 1];
+            r.forward_power_windowed(&x, Some(&w), &mut got);
+            assert_eq!(got, want, "windowed, n {n}, len {len}");
+            r.forward(&x, &mut spec);
+            let want: Vec<f64> = spec.iter().map(|s| s.norm_sqr()).collect();
+            let mut got = vec![0.0; n / 2 + 1];
+            r.forward_power(&x, &mut spec, &mut got);
+            assert_eq!(got, want, "plain, n {n}, len {len}");
         }
     }
 }

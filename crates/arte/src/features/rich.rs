@@ -7,7 +7,6 @@
 
 use super::fft::RealFft;
 use super::{FeatureConfig, fast_ln, hann};
-use rustfft::num_complex::Complex;
 
 /// Number of broad band groups whose within-frame variability is measured.
 const N_GROUPS: usize = 6;
@@ -58,8 +57,6 @@ pub(crate) struct Rich {
     starts: Vec<usize>,
     window: Vec<f64>,
     fft: RealFft,
-    xs: Vec<f64>,
-    spec: Vec<Complex<f64>>,
     /// Power spectrum of each sub-frame, row-major (n_sub × nb).
     sub_pow: Vec<f64>,
     mean_pow: Vec<f64>,
@@ -68,6 +65,11 @@ pub(crate) struct Rich {
     mel_start: Vec<usize>,
     mel_off: Vec<usize>,
     mel_w: Vec<f64>,
+    /// Summed mel weights of each band group, flattened as the mel filters:
+    /// `grp_start[g]`, `grp_w[grp_off[g]..grp_off[g+1]]`.
+    grp_start: Vec<usize>,
+    grp_off: Vec<usize>,
+    grp_w: Vec<f64>,
     /// Bin range [k_lo, k_hi) used for the spectral descriptors.
     k_lo: usize,
     k_hi: usize,
@@ -89,6 +91,9 @@ pub(crate) struct Rich {
     lf_env: Vec<f64>,
     lf_lag_lo: usize,
     lf_lag_hi: usize,
+    /// Squared high-pass and low-pass outputs after `settle` (frame_len − settle).
+    eh: Vec<f64>,
+    el: Vec<f64>,
 }
 
 /// RBJ cookbook biquad, normalised: [b0, b1, b2, a1, a2].
@@ -105,6 +110,10 @@ fn biquad(fs: f64, f: f64, highpass: bool) -> [f64; 5] {
 }
 
 /// Max over lags [lo, hi] of the normalised autocorrelation of `e` (de-meaned in place).
+///
+/// Four lags are accumulated side by side (independent chains, shared
+/// loads); each lag's sum still runs over j in increasing order, so every
+/// value is the one of the plain per-lag loop.
 fn periodicity(e: &mut [f64], lo: usize, hi: usize) -> f64 {
     let n = e.len();
     let mean = e.iter().sum::<f64>() / n.max(1) as f64;
@@ -114,19 +123,142 @@ fn periodicity(e: &mut [f64], lo: usize, hi: usize) -> f64 {
         e0 += *v * *v;
     }
     let mut best = 0.0f64;
-    if e0 > 0.0 {
-        for lag in lo..=hi.max(lo) {
-            if lag >= n {
-                break;
-            }
-            let mut acc = 0.0;
-            for j in 0..n - lag {
-                acc += e[j] * e[j + lag];
-            }
-            best = best.max(acc / e0);
+    let positive = e0 > 0.0; // false for NaN too
+    if !positive || lo >= n {
+        return best;
+    }
+    let e = &*e;
+    // Lags lo..=last, all < n.
+    let last = hi.max(lo).min(n - 1);
+    let mut lag = lo;
+    while lag + 3 <= last {
+        // Lag lag+i has n − lag − i terms; the first m are common to all four.
+        let m = n - lag - 3;
+        let mut acc = [0.0f64; 4];
+        for ((((&a, &b0), &b1), &b2), &b3) in e[..m]
+            .iter()
+            .zip(&e[lag..lag + m])
+            .zip(&e[lag + 1..lag + 1 + m])
+            .zip(&e[lag + 2..lag + 2 + m])
+            .zip(&e[lag + 3..lag + 3 + m])
+        {
+            acc[0] += a * b0;
+            acc[1] += a * b1;
+            acc[2] += a * b2;
+            acc[3] += a * b3;
         }
+        for (i, acc) in acc.iter_mut().enumerate() {
+            for j in m..n - lag - i {
+                *acc += e[j] * e[j + lag + i];
+            }
+            best = best.max(*acc / e0);
+        }
+        lag += 4;
+    }
+    for lag in lag..=last {
+        let acc = e[..n - lag]
+            .iter()
+            .zip(&e[lag..])
+            .fold(0.0, |acc, (a, b)| acc + a * b);
+        best = best.max(acc / e0);
     }
     best
+}
+
+/// Sum of `v` with four interleaved partial sums (a reassociation of the
+/// sequential sum that breaks its add-latency chain).
+#[inline]
+fn sum4(v: &[f64]) -> f64 {
+    let mut a = [0.0f64; 4];
+    let mut it = v.chunks_exact(4);
+    for c in &mut it {
+        a[0] += c[0];
+        a[1] += c[1];
+        a[2] += c[2];
+        a[3] += c[3];
+    }
+    let mut s = (a[0] + a[1]) + (a[2] + a[3]);
+    for &r in it.remainder() {
+        s += r;
+    }
+    s
+}
+
+/// (Σ v, Σ v²) with four interleaved partial sums each.
+#[inline]
+fn sum_sumsq4(v: &[f64]) -> (f64, f64) {
+    let (mut a, mut q) = ([0.0f64; 4], [0.0f64; 4]);
+    let mut it = v.chunks_exact(4);
+    for c in &mut it {
+        for i in 0..4 {
+            a[i] += c[i];
+            q[i] += c[i] * c[i];
+        }
+    }
+    let (mut s, mut s2) = ((a[0] + a[1]) + (a[2] + a[3]), (q[0] + q[1]) + (q[2] + q[3]));
+    for &r in it.remainder() {
+        s += r;
+        s2 += r * r;
+    }
+    (s, s2)
+}
+
+/// Σ w[i]·p[i] with four interleaved partial sums.
+#[inline]
+fn dot4(w: &[f64], p: &[f64]) -> f64 {
+    let mut a = [0.0f64; 4];
+    let (mut wi, mut pi) = (w.chunks_exact(4), p.chunks_exact(4));
+    for (wc, pc) in (&mut wi).zip(&mut pi) {
+        for i in 0..4 {
+            a[i] += wc[i] * pc[i];
+        }
+    }
+    let mut s = (a[0] + a[1]) + (a[2] + a[3]);
+    for (&a, &b) in wi.remainder().iter().zip(pi.remainder()) {
+        s += a * b;
+    }
+    s
+}
+
+/// Running statistics of the time-domain pass (four lanes each).
+struct TimeAcc {
+    zc: [u32; 4],
+    peak: [f64; 4],
+    sq: [f64; 4],
+    m4: [f64; 4],
+}
+
+impl TimeAcc {
+    /// Samples `cur[i]` with predecessors `prev[i]` (same length): counts
+    /// sign changes, tracks |x| peak and Σx², Σd⁴ of d = cur − prev;
+    /// returns Σd².
+    #[inline]
+    fn run(&mut self, prev: &[f64], cur: &[f64]) -> f64 {
+        let mut m2 = [0.0f64; 4];
+        let (mut pi, mut ci) = (prev.chunks_exact(4), cur.chunks_exact(4));
+        for (p, c) in (&mut pi).zip(&mut ci) {
+            for i in 0..4 {
+                self.zc[i] += u32::from((c[i] >= 0.0) != (p[i] >= 0.0));
+                self.peak[i] = self.peak[i].max(c[i].abs());
+                self.sq[i] += c[i] * c[i];
+                let d = c[i] - p[i];
+                let d2 = d * d;
+                m2[i] += d2;
+                self.m4[i] += d2 * d2;
+            }
+        }
+        let mut s = (m2[0] + m2[1]) + (m2[2] + m2[3]);
+        for (&p, &c) in pi.remainder().iter().zip(ci.remainder()) {
+            self.zc[0] += u32::from((c >= 0.0) != (p >= 0.0));
+            self.peak[0] = self.peak[0].max(c.abs());
+            self.sq[0] += c * c;
+            let d = c - p;
+            let d2 = d * d;
+            s += d2;
+            self.m4[0] += d2 * d2;
+        }
+        s
+    }
 }
 
 impl Rich {
@@ -178,6 +310,36 @@ impl Rich {
             mel_w.extend_from_slice(&w);
             mel_off.push(mel_w.len());
         }
+        // Each group's summed weights (the group energy is linear in the power).
+        let per = n_mel / N_GROUPS;
+        let mut grp_start = Vec::with_capacity(N_GROUPS);
+        let mut grp_off = vec![0];
+        let mut grp_w = Vec::new();
+        for g in 0..N_GROUPS {
+            let (lo, hi) = (
+                g * per,
+                if g + 1 == N_GROUPS {
+                    n_mel
+                } else {
+                    (g + 1) * per
+                },
+            );
+            let k0 = mel_start[lo..hi].iter().copied().min().unwrap_or(0);
+            let k1 = (lo..hi)
+                .map(|b| mel_start[b] + (mel_off[b + 1] - mel_off[b]))
+                .max()
+                .unwrap_or(k0);
+            let mut w = vec![0.0; k1 - k0];
+            for b in lo..hi {
+                let wb = &mel_w[mel_off[b]..mel_off[b + 1]];
+                for (j, &v) in wb.iter().enumerate() {
+                    w[mel_start[b] - k0 + j] += v;
+                }
+            }
+            grp_start.push(k0);
+            grp_w.extend_from_slice(&w);
+            grp_off.push(grp_w.len());
+        }
         let env_block = ((0.000_725 * fs).round() as usize).max(1);
         let n_env = frame_len / env_block;
         let lag_lo = ((0.004 * fs) / env_block as f64).ceil() as usize;
@@ -200,13 +362,14 @@ impl Rich {
             sub_len,
             window: hann(sub_len),
             fft: RealFft::new(sub_len),
-            xs: vec![0.0; sub_len],
-            spec: vec![Complex::new(0.0, 0.0); nb],
             sub_pow: vec![0.0; n_sub * nb],
             mean_pow: vec![0.0; nb],
             mel_start,
             mel_off,
             mel_w,
+            grp_start,
+            grp_off,
+            grp_w,
             k_lo: ((MEL_FMIN / df).ceil() as usize).max(1),
             k_hi: ((fmax / df).floor() as usize + 1).min(nb),
             mel_e: vec![0.0; n_mel],
@@ -218,6 +381,8 @@ impl Rich {
             lag_lo,
             lag_hi,
             starts,
+            eh: vec![0.0; frame_len - settle],
+            el: vec![0.0; frame_len - settle],
         }
     }
 
@@ -230,14 +395,13 @@ impl Rich {
     }
 
     fn mel_energies(&self, pow: &[f64], out: &mut [f64]) {
-        for b in 0..self.n_mel {
+        for (b, o) in out.iter_mut().enumerate().take(self.n_mel) {
             let k0 = self.mel_start[b];
             let w = &self.mel_w[self.mel_off[b]..self.mel_off[b + 1]];
-            let mut acc = 0.0;
-            for (j, &wj) in w.iter().enumerate() {
-                acc += wj * pow[k0 + j];
-            }
-            out[b] = acc;
+            *o = w
+                .iter()
+                .zip(&pow[k0..k0 + w.len()])
+                .fold(0.0, |acc, (wj, pj)| acc + wj * pj);
         }
     }
 
@@ -245,83 +409,86 @@ impl Rich {
     pub(crate) fn extract(&mut self, x: &[f64], out: &mut [f64]) {
         let nb = self.sub_len / 2 + 1;
         let n_sub = self.starts.len();
+        let l = self.frame_len;
+        let x = &x[..l];
         // Sub-frame power spectra and their mean (Welch).
         self.mean_pow.fill(0.0);
-        for s in 0..n_sub {
-            let st = self.starts[s];
-            for i in 0..self.sub_len {
-                self.xs[i] = x.get(st + i).copied().unwrap_or(0.0) * self.window[i];
-            }
-            let row = &mut self.sub_pow[s * nb..(s + 1) * nb];
-            self.fft.forward_power(&self.xs, &mut self.spec, row);
-            for k in 0..nb {
-                self.mean_pow[k] += row[k] / n_sub as f64;
+        let inv_sub = 1.0 / n_sub as f64;
+        for (row, &st) in self.sub_pow.chunks_exact_mut(nb).zip(&self.starts) {
+            let seg = &x[st.min(l)..(st + self.sub_len).min(l)];
+            self.fft
+                .forward_power_windowed(seg, Some(&self.window), row);
+            for (m, &p) in self.mean_pow.iter_mut().zip(row.iter()) {
+                *m += p * inv_sub;
             }
         }
-        let total: f64 = self.mean_pow[self.k_lo..self.k_hi].iter().sum();
-        let floor = 1e-10 * total / (self.k_hi - self.k_lo) as f64 + 1e-300;
+        let (k_lo, k_hi) = (self.k_lo, self.k_hi);
+        let total: f64 = self.mean_pow[k_lo..k_hi].iter().sum();
+        let floor = 1e-10 * total / (k_hi - k_lo) as f64 + 1e-300;
 
         // 1. Mel shape: ln band energy minus its mean over bands.
         let mut mel_e = std::mem::take(&mut self.mel_e);
         self.mel_energies(&self.mean_pow, &mut mel_e);
+        self.mel_e = mel_e;
         let mut mean_log = 0.0;
-        for (b, e) in mel_e.iter().enumerate() {
-            out[b] = (e + floor).ln();
-            mean_log += out[b] / self.n_mel as f64;
+        for (o, e) in out[..self.n_mel].iter_mut().zip(&self.mel_e) {
+            *o = (e + floor).ln();
+            mean_log += *o;
         }
+        mean_log /= self.n_mel as f64;
         for o in out[..self.n_mel].iter_mut() {
             *o -= mean_log;
         }
         // 2. Within-frame variability: std over sub-frames of the ln energy of
         //    N_GROUPS groups of adjacent mel bands.
-        let per = self.n_mel / N_GROUPS;
-        for s in 0..n_sub {
-            let row = &self.sub_pow[s * nb..(s + 1) * nb];
-            self.mel_energies(row, &mut mel_e);
-            for g in 0..N_GROUPS {
-                let lo = g * per;
-                let hi = if g + 1 == N_GROUPS {
-                    self.n_mel
-                } else {
-                    lo + per
-                };
-                let e: f64 = mel_e[lo..hi].iter().sum();
-                self.group_log[s * N_GROUPS + g] = (e + floor).ln();
+        for (row, gl) in self
+            .sub_pow
+            .chunks_exact(nb)
+            .zip(self.group_log.chunks_exact_mut(N_GROUPS))
+        {
+            for (g, o) in gl.iter_mut().enumerate() {
+                let k0 = self.grp_start[g];
+                let w = &self.grp_w[self.grp_off[g]..self.grp_off[g + 1]];
+                *o = (dot4(w, &row[k0..k0 + w.len()]) + floor).ln();
             }
         }
-        self.mel_e = mel_e;
         for g in 0..N_GROUPS {
             let mut m = 0.0;
-            for s in 0..n_sub {
-                m += self.group_log[s * N_GROUPS + g];
+            for gl in self.group_log.chunks_exact(N_GROUPS) {
+                m += gl[g];
             }
-            m /= n_sub as f64;
+            m *= inv_sub;
             let mut v = 0.0;
-            for s in 0..n_sub {
-                let d = self.group_log[s * N_GROUPS + g] - m;
+            for gl in self.group_log.chunks_exact(N_GROUPS) {
+                let d = gl[g] - m;
                 v += d * d;
             }
-            out[self.n_mel + g] = (v / n_sub as f64).sqrt();
+            out[self.n_mel + g] = (v * inv_sub).sqrt();
         }
         let mut i = self.n_mel + N_GROUPS;
         // 3. Spectral flux: mean squared difference of unit-norm magnitude
         //    spectra of consecutive sub-frames.
         let mut flux = 0.0;
-        for s in 0..n_sub {
-            let row = &self.sub_pow[s * nb..(s + 1) * nb];
-            let mut n2 = 0.0;
-            for k in self.k_lo..self.k_hi {
-                n2 += row[k];
-            }
-            let inv = 1.0 / (n2 + floor).sqrt();
-            for k in self.k_lo..self.k_hi {
-                self.norm_cur[k] = row[k].sqrt() * inv;
+        for (s, row) in self.sub_pow.chunks_exact(nb).enumerate() {
+            let row = &row[k_lo..k_hi];
+            let inv = 1.0 / (sum4(row) + floor).sqrt();
+            let cur = &mut self.norm_cur[k_lo..k_hi];
+            for (c, &p) in cur.iter_mut().zip(row) {
+                *c = p.sqrt() * inv;
             }
             if s > 0 {
-                let mut d = 0.0;
-                for k in self.k_lo..self.k_hi {
-                    let e = self.norm_cur[k] - self.norm_prev[k];
-                    d += e * e;
+                let prev = &self.norm_prev[k_lo..k_hi];
+                let mut a = [0.0f64; 4];
+                let (mut ci, mut pi) = (cur.chunks_exact(4), prev.chunks_exact(4));
+                for (c, p) in (&mut ci).zip(&mut pi) {
+                    for j in 0..4 {
+                        let e = c[j] - p[j];
+                        a[j] += e * e;
+                    }
+                }
+                let mut d = (a[0] + a[1]) + (a[2] + a[3]);
+                for (c, p) in ci.remainder().iter().zip(pi.remainder()) {
+                    d += (c - p) * (c - p);
                 }
                 flux += d / (n_sub - 1) as f64;
             }
@@ -331,21 +498,22 @@ impl Rich {
         i += 1;
         // 4. Spectral descriptors of the mean spectrum over [50 Hz, 16 kHz].
         let df = self.fs / self.sub_len as f64;
+        let mp = &self.mean_pow[k_lo..k_hi];
         let (mut p_sum, mut pf_sum, mut ln_sum) = (0.0, 0.0, 0.0);
-        for k in self.k_lo..self.k_hi {
-            let p = self.mean_pow[k] + floor;
+        for (k, &pk) in (k_lo..).zip(mp) {
+            let p = pk + floor;
             p_sum += p;
             pf_sum += p * k as f64 * df;
             ln_sum += fast_ln(p);
         }
-        let nk = (self.k_hi - self.k_lo) as f64;
+        let nk = (k_hi - k_lo) as f64;
         let centroid = pf_sum / p_sum;
         let mut var = 0.0;
         let mut cum = 0.0;
-        let mut rolloff = (self.k_hi - 1) as f64 * df;
+        let mut rolloff = (k_hi - 1) as f64 * df;
         let mut rolled = false;
-        for k in self.k_lo..self.k_hi {
-            let p = self.mean_pow[k] + floor;
+        for (k, &pk) in (k_lo..).zip(mp) {
+            let p = pk + floor;
             let f = k as f64 * df;
             var += p * (f - centroid) * (f - centroid);
             cum += p;
@@ -360,34 +528,39 @@ impl Rich {
         out[i + 3] = 10.0 * (ln_sum / nk - (p_sum / nk).ln()) / std::f64::consts::LN_10;
         i += 4;
         // 5. Time domain: zero-crossing rate, crest factor, and impact
-        //    statistics of the first difference d[n] = x[n] − x[n−1].
-        let l = self.frame_len;
-        let mut zc = 0usize;
-        let (mut peak, mut sq) = (0.0f64, 0.0);
-        for n in 0..l {
-            if n > 0 && (x[n] >= 0.0) != (x[n - 1] >= 0.0) {
-                zc += 1;
-            }
-            peak = peak.max(x[n].abs());
-            sq += x[n] * x[n];
+        //    statistics of the first difference d[n] = x[n] − x[n−1]; the
+        //    envelope block j sums d[n]² over n in [j·B, (j+1)·B) (n ≥ 1).
+        //    One pass over the frame, envelope block by envelope block.
+        let eb = self.env_block;
+        let nenv = self.env.len();
+        let mut acc = TimeAcc {
+            zc: [0; 4],
+            peak: [x[0].abs(), 0.0, 0.0, 0.0],
+            sq: [x[0] * x[0], 0.0, 0.0, 0.0],
+            m4: [0.0; 4],
+        };
+        let mut m2 = 0.0;
+        for (j, env) in self.env.iter_mut().enumerate() {
+            let (a, b) = ((j * eb).max(1), ((j + 1) * eb).min(l));
+            *env = if a < b {
+                acc.run(&x[a - 1..b - 1], &x[a..b])
+            } else {
+                0.0
+            };
+            m2 += *env;
         }
+        let a = (nenv * eb).max(1);
+        if a < l {
+            m2 += acc.run(&x[a - 1..l - 1], &x[a..l]);
+        }
+        let zc = acc.zc.iter().map(|&z| z as usize).sum::<usize>();
+        let peak = acc.peak.iter().fold(0.0f64, |a, &b| a.max(b));
+        let sq = (acc.sq[0] + acc.sq[1]) + (acc.sq[2] + acc.sq[3]);
+        let m4 = (acc.m4[0] + acc.m4[1]) + (acc.m4[2] + acc.m4[3]);
         let rms = (sq / l as f64).sqrt();
         out[i] = zc as f64 / (l - 1) as f64 * self.fs / 1000.0;
         let tiny = 1e-30;
         out[i + 1] = 20.0 * ((peak + tiny) / (rms + tiny)).log10();
-        let (mut m2, mut m4) = (0.0, 0.0);
-        let nenv = self.env.len();
-        self.env.fill(0.0);
-        for n in 1..l {
-            let d = x[n] - x[n - 1];
-            let d2 = d * d;
-            m2 += d2;
-            m4 += d2 * d2;
-            let j = n / self.env_block;
-            if j < nenv {
-                self.env[j] += d2;
-            }
-        }
         let (m2, m4) = (m2 / (l - 1) as f64, m4 / (l - 1) as f64);
         let env_mean = self.env.iter().sum::<f64>() / nenv as f64;
         let env_max = self.env.iter().fold(0.0f64, |a, &b| a.max(b));
@@ -402,42 +575,49 @@ impl Rich {
         out[i + 4] = periodicity(&mut self.env, self.lag_lo, self.lag_hi);
         // Band-limited impulsiveness: the > 3 kHz band (snaps, crunch, drops
         // vs. spray hiss) and the < 400 Hz envelope's periodicity (thumps).
+        // Both biquads (transposed direct form II) run in one loop; their
+        // squared outputs after the settling time are reduced afterwards.
         let (h, g) = (self.hp, self.lp);
         let (mut h1, mut h2, mut g1, mut g2) = (0.0, 0.0, 0.0, 0.0);
-        let (mut hm2, mut hm4, mut hmax_blk, mut hblk, mut hsum_blk, mut nblk) =
-            (0.0, 0.0, 0.0f64, 0.0, 0.0, 0usize);
-        let mut cnt = 0usize;
-        self.lf_env.fill(0.0);
-        let nlf = self.lf_env.len();
-        for n in 0..l {
-            let v = x[n];
+        let settle = self.settle;
+        for &v in &x[..settle] {
             let yh = h[0] * v + h1;
             h1 = h[1] * v - h[3] * yh + h2;
             h2 = h[2] * v - h[4] * yh;
             let yl = g[0] * v + g1;
             g1 = g[1] * v - g[3] * yl + g2;
             g2 = g[2] * v - g[4] * yl;
-            if n < self.settle {
-                continue;
-            }
-            let k = n - self.settle;
-            let e = yh * yh;
-            hm2 += e;
-            hm4 += e * e;
-            cnt += 1;
-            hblk += e;
-            if (k + 1).is_multiple_of(self.env_block) {
-                hmax_blk = hmax_blk.max(hblk);
-                hsum_blk += hblk;
-                nblk += 1;
-                hblk = 0.0;
-            }
-            let j = k / self.lf_block;
-            if j < nlf {
-                self.lf_env[j] += yl * yl;
-            }
         }
-        let (hm2, hm4) = (hm2 / cnt.max(1) as f64, hm4 / cnt.max(1) as f64);
+        for ((&v, eh), el) in x[settle..]
+            .iter()
+            .zip(self.eh.iter_mut())
+            .zip(self.el.iter_mut())
+        {
+            let yh = h[0] * v + h1;
+            h1 = h[1] * v - h[3] * yh + h2;
+            h2 = h[2] * v - h[4] * yh;
+            let yl = g[0] * v + g1;
+            g1 = g[1] * v - g[3] * yl + g2;
+            g2 = g[2] * v - g[4] * yl;
+            *eh = yh * yh;
+            *el = yl * yl;
+        }
+        // High band: moments of e = y², and the crest of its block sums.
+        let (mut hm2, mut hm4, mut hmax_blk, mut hsum_blk, mut nblk) =
+            (0.0, 0.0, 0.0f64, 0.0, 0usize);
+        let mut blocks = self.eh.chunks_exact(eb);
+        for c in &mut blocks {
+            let (s, s2) = sum_sumsq4(c);
+            hmax_blk = hmax_blk.max(s);
+            hsum_blk += s;
+            hm4 += s2;
+            nblk += 1;
+        }
+        let (rs, rs2) = sum_sumsq4(blocks.remainder());
+        hm2 += hsum_blk + rs;
+        hm4 += rs2;
+        let cnt = self.eh.len().max(1) as f64;
+        let (hm2, hm4) = (hm2 / cnt, hm4 / cnt);
         out[i + 5] = if hm2 > 0.0 {
             (hm4 / (hm2 * hm2)).max(1e-12).ln()
         } else {
@@ -445,6 +625,17 @@ impl Rich {
         };
         let hmean_blk = hsum_blk / nblk.max(1) as f64;
         out[i + 6] = 10.0 * ((hmax_blk + tiny) / (hmean_blk + tiny)).log10();
+        // Low band: its energy envelope in blocks of lf_block samples (a
+        // frame shorter than one block leaves everything in the first).
+        let lfb = self.lf_block;
+        if self.el.len() < lfb {
+            self.lf_env.fill(0.0);
+            self.lf_env[0] = sum4(&self.el);
+        } else {
+            for (dst, c) in self.lf_env.iter_mut().zip(self.el.chunks_exact(lfb)) {
+                *dst = sum4(c);
+            }
+        }
         out[i + 7] = periodicity(&mut self.lf_env, self.lf_lag_lo, self.lf_lag_hi);
     }
 }
