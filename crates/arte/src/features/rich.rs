@@ -91,7 +91,7 @@ pub(crate) struct Rich {
     lf_env: Vec<f64>,
     lf_lag_lo: usize,
     lf_lag_hi: usize,
-    /// Squared high-pass and low-pass outputs after `settle` (frame_len − settle).
+    /// High-pass and low-pass feed-forward parts, then squared outputs (frame_len).
     eh: Vec<f64>,
     el: Vec<f64>,
 }
@@ -381,8 +381,8 @@ impl Rich {
             lag_lo,
             lag_hi,
             starts,
-            eh: vec![0.0; frame_len - settle],
-            el: vec![0.0; frame_len - settle],
+            eh: vec![0.0; frame_len],
+            el: vec![0.0; frame_len],
         }
     }
 
@@ -575,37 +575,62 @@ impl Rich {
         out[i + 4] = periodicity(&mut self.env, self.lag_lo, self.lag_hi);
         // Band-limited impulsiveness: the > 3 kHz band (snaps, crunch, drops
         // vs. spray hiss) and the < 400 Hz envelope's periodicity (thumps).
-        // Both biquads (transposed direct form II) run in one loop; their
-        // squared outputs after the settling time are reduced afterwards.
+        // Both biquads run as direct form I, y[n] = f[n] − a1·y[n−1] −
+        // a2·y[n−2] with the feed-forward part f[n] = b0·x[n] + b1·x[n−1] +
+        // b2·x[n−2] computed first (no recursion there, so it vectorises);
+        // the same transfer function and zero initial state as the
+        // transposed form, with a shorter dependency chain per sample.
+        // `eh`/`el` hold f, then the squared outputs.
         let (h, g) = (self.hp, self.lp);
-        let (mut h1, mut h2, mut g1, mut g2) = (0.0, 0.0, 0.0, 0.0);
-        let settle = self.settle;
-        for &v in &x[..settle] {
-            let yh = h[0] * v + h1;
-            h1 = h[1] * v - h[3] * yh + h2;
-            h2 = h[2] * v - h[4] * yh;
-            let yl = g[0] * v + g1;
-            g1 = g[1] * v - g[3] * yl + g2;
-            g2 = g[2] * v - g[4] * yl;
-        }
-        for ((&v, eh), el) in x[settle..]
-            .iter()
-            .zip(self.eh.iter_mut())
-            .zip(self.el.iter_mut())
         {
-            let yh = h[0] * v + h1;
-            h1 = h[1] * v - h[3] * yh + h2;
-            h2 = h[2] * v - h[4] * yh;
-            let yl = g[0] * v + g1;
-            g1 = g[1] * v - g[3] * yl + g2;
-            g2 = g[2] * v - g[4] * yl;
-            *eh = yh * yh;
-            *el = yl * yl;
+            let (fh, fl) = (&mut self.eh[..l], &mut self.el[..l]);
+            fh[0] = h[0] * x[0];
+            fl[0] = g[0] * x[0];
+            fh[1] = h[0] * x[1] + h[1] * x[0];
+            fl[1] = g[0] * x[1] + g[1] * x[0];
+            for ((((oh, ol), &x0), &x1), &x2) in fh[2..]
+                .iter_mut()
+                .zip(fl[2..].iter_mut())
+                .zip(&x[2..])
+                .zip(&x[1..])
+                .zip(x)
+            {
+                *oh = h[0] * x0 + h[1] * x1 + h[2] * x2;
+                *ol = g[0] * x0 + g[1] * x1 + g[2] * x2;
+            }
         }
+        // Two samples per step from y[n−1], y[n−2]:
+        //   y[n]   = f[n] − a1·y[n−1] − a2·y[n−2]
+        //   y[n+1] = (f[n+1] − a1·f[n]) + (a1² − a2)·y[n−1] + a1·a2·y[n−2]
+        // (y[n] substituted), which halves the recursion's latency per sample.
+        let (hc1, hc2) = (h[3] * h[3] - h[4], h[3] * h[4]);
+        let (gc1, gc2) = (g[3] * g[3] - g[4], g[3] * g[4]);
+        let (mut yh1, mut yh2, mut yl1, mut yl2) = (0.0, 0.0, 0.0, 0.0);
+        let mut ph = self.eh.chunks_exact_mut(2);
+        let mut pl = self.el.chunks_exact_mut(2);
+        for (fh, fl) in (&mut ph).zip(&mut pl) {
+            let yh0 = (fh[0] - h[4] * yh2) - h[3] * yh1;
+            let yh_1 = ((fh[1] - h[3] * fh[0]) + hc2 * yh2) + hc1 * yh1;
+            let yl0 = (fl[0] - g[4] * yl2) - g[3] * yl1;
+            let yl_1 = ((fl[1] - g[3] * fl[0]) + gc2 * yl2) + gc1 * yl1;
+            (yh2, yh1, yl2, yl1) = (yh0, yh_1, yl0, yl_1);
+            fh[0] = yh0 * yh0;
+            fh[1] = yh_1 * yh_1;
+            fl[0] = yl0 * yl0;
+            fl[1] = yl_1 * yl_1;
+        }
+        for (fh, fl) in ph.into_remainder().iter_mut().zip(pl.into_remainder()) {
+            let yh = (*fh - h[4] * yh2) - h[3] * yh1;
+            let yl = (*fl - g[4] * yl2) - g[3] * yl1;
+            *fh = yh * yh;
+            *fl = yl * yl;
+        }
+        let settle = self.settle;
+        let (eh, el) = (&self.eh[settle..], &self.el[settle..]);
         // High band: moments of e = y², and the crest of its block sums.
         let (mut hm2, mut hm4, mut hmax_blk, mut hsum_blk, mut nblk) =
             (0.0, 0.0, 0.0f64, 0.0, 0usize);
-        let mut blocks = self.eh.chunks_exact(eb);
+        let mut blocks = eh.chunks_exact(eb);
         for c in &mut blocks {
             let (s, s2) = sum_sumsq4(c);
             hmax_blk = hmax_blk.max(s);
@@ -616,7 +641,7 @@ impl Rich {
         let (rs, rs2) = sum_sumsq4(blocks.remainder());
         hm2 += hsum_blk + rs;
         hm4 += rs2;
-        let cnt = self.eh.len().max(1) as f64;
+        let cnt = eh.len().max(1) as f64;
         let (hm2, hm4) = (hm2 / cnt, hm4 / cnt);
         out[i + 5] = if hm2 > 0.0 {
             (hm4 / (hm2 * hm2)).max(1e-12).ln()
@@ -628,11 +653,11 @@ impl Rich {
         // Low band: its energy envelope in blocks of lf_block samples (a
         // frame shorter than one block leaves everything in the first).
         let lfb = self.lf_block;
-        if self.el.len() < lfb {
+        if el.len() < lfb {
             self.lf_env.fill(0.0);
-            self.lf_env[0] = sum4(&self.el);
+            self.lf_env[0] = sum4(el);
         } else {
-            for (dst, c) in self.lf_env.iter_mut().zip(self.el.chunks_exact(lfb)) {
+            for (dst, c) in self.lf_env.iter_mut().zip(el.chunks_exact(lfb)) {
                 *dst = sum4(c);
             }
         }
