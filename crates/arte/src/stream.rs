@@ -268,6 +268,20 @@ impl<C: Classify> StreamEstimator<C> {
         &self.classifier
     }
 
+    /// Sets the vehicle speed (m/s) for the frames that complete from now
+    /// on, for a speed-normalised model ([`crate::features::SpeedNorm`]);
+    /// `None` when unknown (frames are then taken as heard at the model's
+    /// reference speed). Ignored by models without speed normalisation.
+    /// Allocates nothing.
+    pub fn set_speed(&mut self, speed_mps: Option<f64>) {
+        self.extractor.set_speed(speed_mps);
+    }
+
+    /// Whether the features depend on the vehicle speed ([`Self::set_speed`]).
+    pub fn speed_normalised(&self) -> bool {
+        self.extractor.config().speed_norm.is_some()
+    }
+
     /// Forgets all audio and the filter state; the next sample is t = 0.
     pub fn reset(&mut self) {
         let k = self.post.len() as f64;

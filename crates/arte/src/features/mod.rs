@@ -125,6 +125,44 @@ pub struct FeatureConfig {
     /// Rich only: number of mel bands (a multiple of 4, 8..=64).
     #[serde(default = "default_n_mel")]
     pub n_mel: usize,
+    /// Rich only: speed normalisation of the frequency axis (`None`: off).
+    /// A speed-normalised model needs the vehicle speed of every frame
+    /// ([`FeatureExtractor::set_speed`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_norm: Option<SpeedNorm>,
+}
+
+/// Speed normalisation of the Rich features: the frequency-domain features
+/// of a frame heard at speed v are computed as if heard at `ref_kmh`, by
+/// reading every analysis frequency f at f · (v / v_ref)^exponent in the
+/// recorded spectrum. Tyre-road rolling noise peaks at a frequency that
+/// grows as v^κ, κ ≈ 0.1–0.3 (Sandberg & Ejsmont 2002), so an exponent of
+/// about 0.25 holds the tyre's noise hump in place across speeds.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpeedNorm {
+    /// Reference speed (km/h): at it the features equal the plain ones.
+    pub ref_kmh: f64,
+    /// Exponent of the frequency warp (0..=1).
+    pub exponent: f64,
+}
+
+impl SpeedNorm {
+    /// Speeds are clamped to this range (km/h) before the warp.
+    pub const SPEED_RANGE_KMH: (f64, f64) = (1.0, 250.0);
+
+    /// Frequency scale w = (v_ref / v)^exponent: a recorded frequency f is
+    /// read as f · w. `None` or an invalid speed gives 1 (no warp).
+    pub fn warp(&self, speed_mps: Option<f64>) -> f64 {
+        match speed_mps {
+            Some(v) if v.is_finite() && v >= 0.0 => {
+                let (lo, hi) = Self::SPEED_RANGE_KMH;
+                let kmh = (v * 3.6).clamp(lo, hi);
+                (self.ref_kmh / kmh).powf(self.exponent)
+            }
+            _ => 1.0,
+        }
+    }
 }
 
 fn default_selection() -> Vec<usize> {
@@ -152,6 +190,7 @@ impl FeatureConfig {
             prefilter: Prefilter::default(),
             selection: default_selection(),
             n_mel: default_n_mel(),
+            speed_norm: None,
         }
     }
 
@@ -216,6 +255,30 @@ impl FeatureConfig {
                 && !(f > 0.0 && f < nyq)
             {
                 return bad(field, format!("{f} Hz is not inside (0, {nyq})"));
+            }
+        }
+        if let Some(n) = &self.speed_norm {
+            if self.set != FeatureSet::Rich {
+                return bad(
+                    "speed_norm",
+                    format!(
+                        "speed normalisation is defined for the rich set, not {}",
+                        self.set.name()
+                    ),
+                );
+            }
+            let (lo, hi) = SpeedNorm::SPEED_RANGE_KMH;
+            if !(n.ref_kmh >= lo && n.ref_kmh <= hi) {
+                return bad(
+                    "speed_norm.ref_kmh",
+                    format!("{} km/h is outside {lo}..={hi}", n.ref_kmh),
+                );
+            }
+            if !(0.0..=1.0).contains(&n.exponent) {
+                return bad(
+                    "speed_norm.exponent",
+                    format!("{} is outside 0..=1", n.exponent),
+                );
             }
         }
         if let (Some(h), Some(l)) = (self.prefilter.highpass_hz, self.prefilter.lowpass_hz)
@@ -305,6 +368,8 @@ pub struct FeatureExtractor {
     rich: Option<rich::Rich>,
     /// Paper20 scratch for the Paper7 set.
     tmp20: Vec<f64>,
+    /// Frequency warp of the next frames ([`SpeedNorm::warp`]; 1 = none).
+    warp: f64,
 }
 
 impl std::fmt::Debug for FeatureExtractor {
@@ -334,7 +399,21 @@ impl FeatureExtractor {
             paper,
             rich,
             tmp20: vec![0.0; N_PAPER20],
+            warp: 1.0,
         })
+    }
+
+    /// Sets the vehicle speed (m/s) of the next frames, for a config with
+    /// [`FeatureConfig::speed_norm`]; ignored otherwise. `None` (speed
+    /// unknown) or a non-finite or negative speed means no normalisation:
+    /// the frame is taken as heard at the reference speed. Allocates nothing.
+    pub fn set_speed(&mut self, speed_mps: Option<f64>) {
+        self.warp = self.cfg.speed_norm.map_or(1.0, |n| n.warp(speed_mps));
+    }
+
+    /// The frequency warp in force ([`SpeedNorm::warp`]; 1 = none).
+    pub fn warp(&self) -> f64 {
+        self.warp
     }
 
     /// The config this extractor was built from.
