@@ -2,7 +2,7 @@
 //! and the streaming synthesiser allocate nothing after construction.
 
 use grip_arte::eval::Samples;
-use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet};
+use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet, SpeedNorm};
 use grip_arte::mlp::LmConfig;
 use grip_arte::model::{ClassifierSpec, Predictor, fit};
 use grip_arte::stream::{StreamConfig, StreamEstimator};
@@ -46,8 +46,20 @@ fn hot_paths_allocate_nothing() {
         }),
     };
     let mut synth = RoadAudioSynth::new(&synth_cfg, 1).unwrap();
-    for set in [FeatureSet::Paper20, FeatureSet::Paper7, FeatureSet::Rich] {
-        let fcfg = FeatureConfig::new(44_100, set);
+    let norm = Some(SpeedNorm {
+        ref_kmh: 20.0,
+        exponent: 0.25,
+    });
+    for (set, speed_norm) in [
+        (FeatureSet::Paper20, None),
+        (FeatureSet::Paper7, None),
+        (FeatureSet::Rich, None),
+        (FeatureSet::Rich, norm),
+    ] {
+        let fcfg = FeatureConfig {
+            speed_norm,
+            ..FeatureConfig::new(44_100, set)
+        };
         // A real (tiny) model, trained on synthetic frames of two roads.
         let mut ex = FeatureExtractor::new(&fcfg).unwrap();
         let mut train = Samples::new(ex.dim());
@@ -81,7 +93,13 @@ fn hot_paths_allocate_nothing() {
         let mut seen = 0u64;
         for i in 0..200 {
             let road = if i < 100 { 0 } else { 3 };
-            synth.fill(road, 5.0 + i as f64 * 0.02, &mut block);
+            let v = 5.0 + i as f64 * 0.02;
+            synth.fill(road, v, &mut block);
+            // The speed changes every block, over a range wide enough to
+            // rebuild the speed-normalised filter banks at every extreme.
+            let speed = [0.1, v, 70.0, 2.0 + 0.3 * i as f64][i % 4];
+            est.set_speed(Some(speed));
+            ex.set_speed(Some(speed));
             n += est.push(&block, |d| seen = d.seq);
             ex.extract(&block, &mut out).unwrap();
         }
@@ -91,7 +109,7 @@ fn hot_paths_allocate_nothing() {
         assert_eq!(
             after - before,
             0,
-            "{set:?}: {} allocations in the hot loop",
+            "{set:?} (speed norm {speed_norm:?}): {} allocations in the hot loop",
             after - before
         );
     }

@@ -481,6 +481,7 @@ impl FeatureExtractor {
             }
             FeatureSet::Rich => {
                 if let Some(r) = self.rich.as_mut() {
+                    r.set_warp(self.warp);
                     r.extract(&self.x, out);
                 }
             }

@@ -73,6 +73,11 @@ pub(crate) struct Rich {
     /// Bin range [k_lo, k_hi) used for the spectral descriptors.
     k_lo: usize,
     k_hi: usize,
+    /// Mel band points (Hz) on the normalised frequency axis (n_mel + 2).
+    mel_pts: Vec<f64>,
+    /// Frequency warp the banks, ranges and filters are built for (1 = none):
+    /// a recorded frequency f counts as f · warp.
+    warp: f64,
     mel_e: Vec<f64>,
     /// Per sub-frame, log energy of each group (n_sub × N_GROUPS).
     group_log: Vec<f64>,
@@ -275,71 +280,16 @@ impl Rich {
                 .collect()
         };
         let nb = sub_len / 2 + 1;
-        let df = fs / sub_len as f64;
         let fmax = MEL_FMAX.min(0.5 * fs);
         let (m0, m1) = (hz_to_mel(MEL_FMIN), hz_to_mel(fmax));
         let n_mel = cfg.n_mel;
         let pts: Vec<f64> = (0..n_mel + 2)
             .map(|i| mel_to_hz(m0 + (m1 - m0) * i as f64 / (n_mel + 1) as f64))
             .collect();
-        let mut mel_start = Vec::with_capacity(n_mel);
-        let mut mel_off = vec![0];
-        let mut mel_w = Vec::new();
-        for b in 0..n_mel {
-            let (fl, fc, fh) = (pts[b], pts[b + 1], pts[b + 2]);
-            let k0 = (fl / df).floor() as usize;
-            let k1 = ((fh / df).ceil() as usize).min(nb - 1);
-            let mut w: Vec<f64> = (k0..=k1)
-                .map(|k| {
-                    let f = k as f64 * df;
-                    if f <= fl || f >= fh {
-                        0.0
-                    } else if f <= fc {
-                        (f - fl) / (fc - fl)
-                    } else {
-                        (fh - f) / (fh - fc)
-                    }
-                })
-                .collect();
-            if w.iter().all(|&v| v == 0.0) {
-                // Band narrower than a bin: take the bin nearest its centre.
-                let kc = ((fc / df).round() as usize).clamp(k0, k1);
-                w[kc - k0] = 1.0;
-            }
-            mel_start.push(k0);
-            mel_w.extend_from_slice(&w);
-            mel_off.push(mel_w.len());
-        }
-        // Each group's summed weights (the group energy is linear in the power).
-        let per = n_mel / N_GROUPS;
-        let mut grp_start = Vec::with_capacity(N_GROUPS);
-        let mut grp_off = vec![0];
-        let mut grp_w = Vec::new();
-        for g in 0..N_GROUPS {
-            let (lo, hi) = (
-                g * per,
-                if g + 1 == N_GROUPS {
-                    n_mel
-                } else {
-                    (g + 1) * per
-                },
-            );
-            let k0 = mel_start[lo..hi].iter().copied().min().unwrap_or(0);
-            let k1 = (lo..hi)
-                .map(|b| mel_start[b] + (mel_off[b + 1] - mel_off[b]))
-                .max()
-                .unwrap_or(k0);
-            let mut w = vec![0.0; k1 - k0];
-            for b in lo..hi {
-                let wb = &mel_w[mel_off[b]..mel_off[b + 1]];
-                for (j, &v) in wb.iter().enumerate() {
-                    w[mel_start[b] - k0 + j] += v;
-                }
-            }
-            grp_start.push(k0);
-            grp_w.extend_from_slice(&w);
-            grp_off.push(grp_w.len());
-        }
+        // Worst case of the filter-bank weights over all warps: every band
+        // spans its two neighbours' spacing plus rounding, bands past Nyquist
+        // one bin each (see `build_banks`).
+        let cap = 2 * nb + 4 * n_mel + 8;
         let env_block = ((0.000_725 * fs).round() as usize).max(1);
         let n_env = frame_len / env_block;
         let lag_lo = ((0.004 * fs) / env_block as f64).ceil() as usize;
@@ -348,9 +298,9 @@ impl Rich {
         let lf_block = ((0.002 * fs).round() as usize).max(1);
         let settle = ((0.005 * fs).round() as usize).min(frame_len / 4);
         let n_lf = (frame_len - settle) / lf_block;
-        Self {
-            hp: biquad(fs, 3000.0, true),
-            lp: biquad(fs, 400.0, false),
+        let mut r = Self {
+            hp: [0.0; 5],
+            lp: [0.0; 5],
             settle,
             lf_block,
             lf_env: vec![0.0; n_lf.max(1)],
@@ -364,14 +314,16 @@ impl Rich {
             fft: RealFft::new(sub_len),
             sub_pow: vec![0.0; n_sub * nb],
             mean_pow: vec![0.0; nb],
-            mel_start,
-            mel_off,
-            mel_w,
-            grp_start,
-            grp_off,
-            grp_w,
-            k_lo: ((MEL_FMIN / df).ceil() as usize).max(1),
-            k_hi: ((fmax / df).floor() as usize + 1).min(nb),
+            mel_start: Vec::with_capacity(n_mel),
+            mel_off: Vec::with_capacity(n_mel + 1),
+            mel_w: Vec::with_capacity(cap),
+            grp_start: Vec::with_capacity(N_GROUPS),
+            grp_off: Vec::with_capacity(N_GROUPS + 1),
+            grp_w: Vec::with_capacity(cap),
+            k_lo: 1,
+            k_hi: nb,
+            mel_pts: pts,
+            warp: f64::NAN,
             mel_e: vec![0.0; n_mel],
             group_log: vec![0.0; n_sub * N_GROUPS],
             norm_prev: vec![0.0; nb],
@@ -383,7 +335,111 @@ impl Rich {
             starts,
             eh: vec![0.0; frame_len],
             el: vec![0.0; frame_len],
+        };
+        r.build_banks(1.0);
+        r
+    }
+
+    /// Sets the frequency warp of the next frames (speed normalisation;
+    /// 1 = none). The warp is quantised to steps of 0.25 % so that the
+    /// banks are rebuilt only when the speed really changes. Allocates
+    /// nothing.
+    pub(crate) fn set_warp(&mut self, warp: f64) {
+        let w = if warp.is_finite() && warp > 0.0 {
+            let step = 0.0025;
+            (((warp.ln() / step).round()) * step).exp()
+        } else {
+            1.0
+        };
+        let w = if (w - 1.0).abs() < 1e-12 { 1.0 } else { w };
+        if w != self.warp {
+            self.build_banks(w);
         }
+    }
+
+    /// (Re)builds the mel and group filter banks, the descriptor bin range
+    /// and the band filters for `warp`: a band defined from f_l to f_h on
+    /// the normalised axis covers f_l / warp to f_h / warp in the recorded
+    /// spectrum. For warp = 1 these are the plain Rich definitions.
+    /// Writes into the buffers reserved by `new` (no allocation).
+    fn build_banks(&mut self, warp: f64) {
+        let fs = self.fs;
+        let nb = self.sub_len / 2 + 1;
+        let df = fs / self.sub_len as f64;
+        let n_mel = self.n_mel;
+        self.mel_start.clear();
+        self.mel_off.clear();
+        self.mel_off.push(0);
+        self.mel_w.clear();
+        for b in 0..n_mel {
+            let (fl, fc, fh) = (
+                self.mel_pts[b] / warp,
+                self.mel_pts[b + 1] / warp,
+                self.mel_pts[b + 2] / warp,
+            );
+            let k1 = ((fh / df).ceil() as usize).min(nb - 1);
+            let k0 = ((fl / df).floor() as usize).min(k1);
+            let at = self.mel_w.len();
+            let mut any = false;
+            for k in k0..=k1 {
+                let f = k as f64 * df;
+                let v = if f <= fl || f >= fh {
+                    0.0
+                } else if f <= fc {
+                    (f - fl) / (fc - fl)
+                } else {
+                    (fh - f) / (fh - fc)
+                };
+                any |= v != 0.0;
+                self.mel_w.push(v);
+            }
+            if !any {
+                // Band narrower than a bin: take the bin nearest its centre.
+                let kc = ((fc / df).round() as usize).clamp(k0, k1);
+                self.mel_w[at + kc - k0] = 1.0;
+            }
+            self.mel_start.push(k0);
+            self.mel_off.push(self.mel_w.len());
+        }
+        // Each group's summed weights (the group energy is linear in the power).
+        let per = n_mel / N_GROUPS;
+        self.grp_start.clear();
+        self.grp_off.clear();
+        self.grp_off.push(0);
+        self.grp_w.clear();
+        for g in 0..N_GROUPS {
+            let (lo, hi) = (
+                g * per,
+                if g + 1 == N_GROUPS {
+                    n_mel
+                } else {
+                    (g + 1) * per
+                },
+            );
+            let k0 = self.mel_start[lo..hi].iter().copied().min().unwrap_or(0);
+            let k1 = (lo..hi)
+                .map(|b| self.mel_start[b] + (self.mel_off[b + 1] - self.mel_off[b]))
+                .max()
+                .unwrap_or(k0);
+            let at = self.grp_w.len();
+            self.grp_w.resize(at + (k1 - k0), 0.0);
+            for b in lo..hi {
+                let (o0, o1) = (self.mel_off[b], self.mel_off[b + 1]);
+                for j in 0..o1 - o0 {
+                    self.grp_w[at + self.mel_start[b] - k0 + j] += self.mel_w[o0 + j];
+                }
+            }
+            self.grp_start.push(k0);
+            self.grp_off.push(self.grp_w.len());
+        }
+        let fmax = MEL_FMAX.min(0.5 * fs);
+        self.k_hi = ((fmax / warp / df).floor() as usize + 1).min(nb);
+        self.k_lo = (((MEL_FMIN / warp) / df).ceil() as usize)
+            .max(1)
+            .min(self.k_hi - 1);
+        self.hp = biquad(fs, 3000.0 / warp, true);
+        self.lp = biquad(fs, 400.0 / warp, false);
+        self.warp = warp;
     }
 
     pub(crate) fn nfft(&self) -> usize {
@@ -522,9 +578,11 @@ impl Rich {
                 rolled = true;
             }
         }
-        out[i] = centroid / 1000.0;
-        out[i + 1] = (var / p_sum).sqrt() / 1000.0;
-        out[i + 2] = rolloff / 1000.0;
+        // In Hz of the normalised axis (recorded f · warp).
+        let w = self.warp;
+        out[i] = centroid * w / 1000.0;
+        out[i + 1] = (var / p_sum).sqrt() * w / 1000.0;
+        out[i + 2] = rolloff * w / 1000.0;
         out[i + 3] = 10.0 * (ln_sum / nk - (p_sum / nk).ln()) / std::f64::consts::LN_10;
         i += 4;
         // 5. Time domain: zero-crossing rate, crest factor, and impact
@@ -558,7 +616,7 @@ impl Rich {
         let sq = (acc.sq[0] + acc.sq[1]) + (acc.sq[2] + acc.sq[3]);
         let m4 = (acc.m4[0] + acc.m4[1]) + (acc.m4[2] + acc.m4[3]);
         let rms = (sq / l as f64).sqrt();
-        out[i] = zc as f64 / (l - 1) as f64 * self.fs / 1000.0;
+        out[i] = zc as f64 / (l - 1) as f64 * self.fs * self.warp / 1000.0;
         let tiny = 1e-30;
         out[i + 1] = 20.0 * ((peak + tiny) / (rms + tiny)).log10();
         let (m2, m4) = (m2 / (l - 1) as f64, m4 / (l - 1) as f64);
