@@ -25,6 +25,11 @@ pub struct InputSection {
     /// restarts the estimator (its frame and smoothing state), s.
     #[serde(default = "default_resync")]
     pub resync_gap_s: f64,
+    /// The vehicle speed (newest tcs-loop cycle record on `grip/tcs/cycle`
+    /// with `v_valid = 1`) is given to the estimator while its stamp is at
+    /// most this old; older or absent: speed unknown, s.
+    #[serde(default = "default_speed_timeout")]
+    pub speed_timeout_s: f64,
 }
 
 fn default_poll() -> f64 {
@@ -33,12 +38,16 @@ fn default_poll() -> f64 {
 fn default_resync() -> f64 {
     0.2
 }
+fn default_speed_timeout() -> f64 {
+    crate::DEFAULT_SPEED_TIMEOUT_S
+}
 
 impl Default for InputSection {
     fn default() -> Self {
         Self {
             poll_interval_ms: default_poll(),
             resync_gap_s: default_resync(),
+            speed_timeout_s: default_speed_timeout(),
         }
     }
 }
@@ -125,6 +134,13 @@ impl ArteConfig {
                 format!("{} s is outside (0, 60]", i.resync_gap_s),
             );
         }
+        // a speed older than 10 s says nothing about the tyre noise now
+        if !(i.speed_timeout_s > 0.0 && i.speed_timeout_s <= 10.0) {
+            return bad(
+                "input.speed_timeout_s",
+                format!("{} s is outside (0, 10]", i.speed_timeout_s),
+            );
+        }
         if let Some(p) = self.rt.fifo_priority
             && !(1..=99).contains(&p)
         {
@@ -161,6 +177,13 @@ fifo_priority = 50
             }
         );
         assert_eq!(c.input.resync_gap_s, 0.2);
+        assert_eq!(c.input.speed_timeout_s, 0.2);
+        let s = ArteConfig::parse(
+            Path::new("a.toml"),
+            &GOOD.replace("[input]", "[input]\nspeed_timeout_s = 0.5"),
+        )
+        .unwrap();
+        assert_eq!(s.input.speed_timeout_s, 0.5);
         let d = ArteConfig::parse(Path::new("a.toml"), "").unwrap();
         assert_eq!(d, ArteConfig::default());
         let n = ArteConfig::parse(
@@ -191,5 +214,24 @@ fifo_priority = 50
             e.to_string()
                 .starts_with("a.toml: field `input.poll_interval_ms`")
         );
+    }
+
+    #[test]
+    fn speed_timeout_must_be_positive() {
+        for bad in ["0.0", "-0.1", "nan", "inf", "11.0"] {
+            let text = GOOD.replace("[input]", &format!("[input]\nspeed_timeout_s = {bad}"));
+            let e = ArteConfig::parse(Path::new("dir/arte-svc.toml"), &text).unwrap_err();
+            assert_eq!(e.field, "input.speed_timeout_s", "{bad}: {e}");
+            let msg = e.to_string();
+            assert!(
+                msg.starts_with("dir/arte-svc.toml: field `input.speed_timeout_s`")
+                    && msg.contains("outside (0, 10]"),
+                "{bad}: {msg}"
+            );
+        }
+        // a string is a type error naming the field, not a panic
+        let text = GOOD.replace("[input]", "[input]\nspeed_timeout_s = \"fast\"");
+        let e = ArteConfig::parse(Path::new("a.toml"), &text).unwrap_err();
+        assert!(e.to_string().contains("speed_timeout_s"), "{e}");
     }
 }

@@ -6,9 +6,9 @@
 //!   entry (λ_opt, μ_peak, α = 1 − λ_opt) of each of its classes, checked
 //!   at start-up.
 //! - [`ArteLoop`]: one call per audio block ([`ArteLoop::on_block`]):
-//!   sequence and time checks, S16 → f32, `grip_arte::stream`'s estimator,
-//!   one [`RoadEstimate`] per decision. Allocation-free
-//!   (`tests/no_alloc.rs`).
+//!   sequence and time checks, S16 → f32, the vehicle speed handed to
+//!   `grip_arte::stream`'s estimator, one [`RoadEstimate`] per decision.
+//!   Allocation-free (`tests/no_alloc.rs`).
 //! - [`run`]: the service.
 //!
 //! **Sample rate**: blocks at another rate than the model's are *refused*
@@ -17,18 +17,28 @@
 //! back to its no-ARTE behaviour. Resampling live would feed the classifier
 //! audio whose band limits differ from its training data; the fix is to
 //! set audio-acq's `[audio] sample_rate` to the model's rate.
+//!
+//! **Vehicle speed** (`README.md`, "Vehicle speed"): the newest
+//! [`CycleRecord`] of tcs-loop (topic `grip/tcs/cycle`) with `v_valid = 1`
+//! is kept ([`ArteLoop::on_cycle`], [`ArteLoop::poll_cycles`]); before each
+//! block the estimator gets its |v| if the record is at most
+//! `input.speed_timeout_s` old, else `None` (frames taken as heard at the
+//! model's reference speed). Counted in [`ArteStats::blocks_with_speed`] /
+//! [`ArteStats::blocks_without_speed`].
 
 pub mod config;
 pub mod run;
 pub mod svc;
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use grip_arte::model::{Model, ModelError};
 use grip_arte::stream::{Classify, StreamConfig, StreamError, StreamEstimator};
 use grip_io::clock::Clock;
-use grip_msgs::{AUDIO_MAX_SAMPLES, AudioBlock, MAX_ROAD_CLASSES, NAME_LEN, RoadEstimate};
+use grip_msgs::{
+    AUDIO_MAX_SAMPLES, AudioBlock, CycleRecord, MAX_ROAD_CLASSES, NAME_LEN, RoadEstimate,
+};
 use grip_physics::RoadCatalogue;
 
 pub use config::ArteConfig;
@@ -170,6 +180,31 @@ pub struct ArteStats {
     pub xruns: AtomicU64,
     /// Published estimates per winning class index.
     pub per_class: [AtomicU64; MAX_ROAD_CLASSES],
+    /// Cycle records received from tcs-loop (`grip/tcs/cycle`), valid or not.
+    pub cycle_records: AtomicU64,
+    /// Cycle records with `v_valid = 1` but a non-finite `v` (ignored).
+    pub bad_speeds: AtomicU64,
+    /// Receive failures on `grip/tcs/cycle`.
+    pub cycle_receive_errors: AtomicU64,
+    /// Blocks given to the estimator with a fresh vehicle speed.
+    pub blocks_with_speed: AtomicU64,
+    /// Blocks given to the estimator without one (none yet, or stale).
+    pub blocks_without_speed: AtomicU64,
+    /// Whether the last block given to the estimator had a fresh speed.
+    pub speed_fresh: AtomicBool,
+    /// The speed (m/s, `f64::to_bits`) of the last block that had one.
+    pub last_speed_bits: AtomicU64,
+}
+
+impl ArteStats {
+    /// The speed the estimator got with the last block: `Some(m/s)` if
+    /// that block had a fresh speed, `None` if it had none (or no block
+    /// yet).
+    pub fn speed_in_use(&self) -> Option<f64> {
+        self.speed_fresh
+            .load(Ordering::Relaxed)
+            .then(|| f64::from_bits(self.last_speed_bits.load(Ordering::Relaxed)))
+    }
 }
 
 /// Where estimates go: the iceoryx2 publisher, or a test sink.
@@ -205,7 +240,13 @@ pub struct ArteLoop<C: Classify, K: Clock> {
     resync_ns: u64,
     clock: K,
     est_buf: RoadEstimate,
+    /// Newest valid vehicle speed: (|v| m/s, its record's stamp ns).
+    speed: Option<(f64, u64)>,
+    speed_timeout_ns: u64,
 }
+
+/// Default of `input.speed_timeout_s`, s.
+pub const DEFAULT_SPEED_TIMEOUT_S: f64 = 0.2;
 
 impl<C: Classify, K: Clock> std::fmt::Debug for ArteLoop<C, K> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -273,7 +314,61 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             resync_ns: (resync_gap_s.max(0.0) * 1e9) as u64,
             clock,
             est_buf: RoadEstimate::zeroed(),
+            speed: None,
+            speed_timeout_ns: (DEFAULT_SPEED_TIMEOUT_S * 1e9) as u64,
         })
+    }
+
+    /// Sets how old (s) a vehicle speed may be and still be used (default
+    /// [`DEFAULT_SPEED_TIMEOUT_S`]; `input.speed_timeout_s`). Negative or
+    /// NaN: 0.
+    pub fn with_speed_timeout(mut self, timeout_s: f64) -> Self {
+        self.speed_timeout_ns = (timeout_s.max(0.0) * 1e9) as u64;
+        self
+    }
+
+    /// Whether the model's features depend on the vehicle speed (if not,
+    /// the speed is still tracked and counted but changes nothing).
+    pub fn speed_normalised(&self) -> bool {
+        self.est.speed_normalised()
+    }
+
+    /// Takes one tcs-loop cycle record: if `v_valid = 1` and `v` is finite,
+    /// its |v| becomes the vehicle speed unless a record with a later stamp
+    /// was taken before. Other records change nothing (the kept speed ages
+    /// out). Allocation-free.
+    pub fn on_cycle(&mut self, r: &CycleRecord, stats: &ArteStats) {
+        stats.cycle_records.fetch_add(1, Ordering::Relaxed);
+        if r.v_valid != 1 {
+            return;
+        }
+        if !r.v.is_finite() {
+            stats.bad_speeds.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        if self.speed.is_none_or(|(_, t)| r.stamp_ns >= t) {
+            // reversing: the tyre noise depends on the speed's magnitude
+            self.speed = Some((r.v.abs(), r.stamp_ns));
+        }
+    }
+
+    /// Drains `sub` (non-blocking) into [`Self::on_cycle`]. Receive errors
+    /// are counted in `cycle_receive_errors`. Allocation-free once the
+    /// subscriber is connected to its publisher.
+    pub fn poll_cycles(&mut self, sub: &grip_io::ipc::Subscriber<CycleRecord>, stats: &ArteStats) {
+        if sub.drain(|r| self.on_cycle(r, stats)).is_err() {
+            stats.cycle_receive_errors.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    /// The vehicle speed a block processed now would get: the kept speed
+    /// if its record's stamp is within `speed_timeout` of the clock's now
+    /// (either side: a stamp far in the future is not trusted either).
+    pub fn current_speed(&self) -> Option<f64> {
+        let now = self.clock.now_ns();
+        self.speed
+            .filter(|&(_, t)| now.abs_diff(t) <= self.speed_timeout_ns)
+            .map(|(v, _)| v)
     }
 
     /// The model's sample rate, Hz.
@@ -334,6 +429,20 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
         }
         self.expected_seq = Some(b.seq.wrapping_add(1));
         self.next_stamp = Some(b.stamp_ns + samples_ns(n as u64, self.fs));
+        // after a restart, which may reset the estimator's speed
+        let speed = self.current_speed();
+        self.est.set_speed(speed);
+        match speed {
+            Some(v) => {
+                stats.blocks_with_speed.fetch_add(1, Ordering::Relaxed);
+                stats.last_speed_bits.store(v.to_bits(), Ordering::Relaxed);
+                stats.speed_fresh.store(true, Ordering::Relaxed);
+            }
+            None => {
+                stats.blocks_without_speed.fetch_add(1, Ordering::Relaxed);
+                stats.speed_fresh.store(false, Ordering::Relaxed);
+            }
+        }
         for (d, &s) in self.scratch.iter_mut().zip(x) {
             *d = f32::from(s) / 32768.0;
         }

@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use grip_io::clock::{Clock, MonotonicClock};
 use grip_io::ipc::{IpcNode, SubscriberMode};
-use grip_msgs::{AudioBlock, RoadEstimate, topics};
+use grip_msgs::{AudioBlock, CycleRecord, RoadEstimate, topics};
 
 use crate::{ArteConfig, ArteError, ArteLoop, ArteStats, load_model, road_table, svc};
 
@@ -25,7 +25,7 @@ pub struct Options {
 }
 
 /// What a run did.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct RunSummary {
     /// Audio blocks received.
     pub blocks: u64,
@@ -33,6 +33,14 @@ pub struct RunSummary {
     pub estimates: u64,
     /// Blocks lost (sequence gaps).
     pub lost_blocks: u64,
+    /// Blocks given to the estimator with a fresh vehicle speed.
+    pub blocks_with_speed: u64,
+    /// Blocks given to the estimator without one (none, or stale).
+    pub blocks_without_speed: u64,
+    /// Cycle records received from tcs-loop.
+    pub cycle_records: u64,
+    /// The speed the last block was given (m/s; `None`: none or stale).
+    pub last_speed_mps: Option<f64>,
 }
 
 /// Everything checked at start-up, before any port opens.
@@ -80,7 +88,8 @@ pub fn prepare(opts: &Options) -> Result<Prepared, ArteError> {
         table,
         cfg.input.resync_gap_s,
         MonotonicClock,
-    )?;
+    )?
+    .with_speed_timeout(cfg.input.speed_timeout_s);
     Ok(Prepared {
         config_file,
         model_path,
@@ -106,15 +115,24 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
         classes = %classes.join(", "),
         rate,
         hop_s = cfg.stream.hop_s,
+        speed_normalised = lp.speed_normalised(),
+        speed_timeout_s = cfg.input.speed_timeout_s,
         "arte starting"
     );
     let node = IpcNode::create(topics::node::ARTE)?;
     let sub = node.subscriber::<AudioBlock>(topics::AUDIO, SubscriberMode::Deep)?;
+    // the newest cycle record is all that matters (1 kHz, one per ms)
+    let cycles = node.subscriber::<CycleRecord>(topics::CYCLE, SubscriberMode::Latest)?;
     let mut publisher = node.publisher::<RoadEstimate>(topics::ROAD)?;
     let stats = Arc::new(ArteStats::default());
     let done = Arc::new(AtomicBool::new(false));
-    let helper = svc::spawn_helper(Arc::clone(&stats), rate, Arc::clone(&done))
-        .map_err(|e| ArteError::Other(format!("cannot start the helper thread: {e}")))?;
+    let helper = svc::spawn_helper(
+        Arc::clone(&stats),
+        rate,
+        lp.speed_normalised(),
+        Arc::clone(&done),
+    )
+    .map_err(|e| ArteError::Other(format!("cannot start the helper thread: {e}")))?;
     let rt = grip_io::rt::apply(&cfg.rt);
     rt.log();
     let clock = MonotonicClock;
@@ -142,6 +160,7 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
         loop {
             match sub.recv() {
                 Ok(Some(b)) => {
+                    lp.poll_cycles(&cycles, &stats);
                     lp.on_block(&b, &mut publisher, &stats);
                     got += 1;
                 }
@@ -164,6 +183,10 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
         blocks: stats.blocks.load(Ordering::Relaxed),
         estimates: stats.estimates.load(Ordering::Relaxed),
         lost_blocks: stats.lost_blocks.load(Ordering::Relaxed),
+        blocks_with_speed: stats.blocks_with_speed.load(Ordering::Relaxed),
+        blocks_without_speed: stats.blocks_without_speed.load(Ordering::Relaxed),
+        cycle_records: stats.cycle_records.load(Ordering::Relaxed),
+        last_speed_mps: stats.speed_in_use(),
     };
     let per_class: Vec<String> = classes
         .iter()
@@ -177,6 +200,10 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
         lost_blocks = summary.lost_blocks,
         resets = stats.resets.load(Ordering::Relaxed),
         rate_mismatch = stats.rate_mismatch.load(Ordering::Relaxed),
+        blocks_with_speed = summary.blocks_with_speed,
+        blocks_without_speed = summary.blocks_without_speed,
+        cycle_records = summary.cycle_records,
+        bad_speeds = stats.bad_speeds.load(Ordering::Relaxed),
         "arte stopped"
     );
     Ok(summary)

@@ -35,18 +35,181 @@ pub fn watchdog_period() -> Option<Duration> {
 /// advanced, and logs transitions: audio stopped (no block for 1 s; the
 /// audio-acq peer died or stalled) / resumed, lost blocks, estimator
 /// restarts, refused sample rates, new xruns upstream, publish and receive
-/// errors; at most one line per kind per second.
+/// errors; at most one line per kind per second. Vehicle speed
+/// ([`SpeedLog`]): info once when it first becomes available (or once that
+/// none has come after 1 s of audio), info when it goes stale and when it
+/// returns, at most one stale line per [`SPEED_STALE_LOG_INTERVAL`].
 pub fn spawn_helper(
     stats: Arc<ArteStats>,
     model_rate: u32,
+    speed_normalised: bool,
     done: Arc<AtomicBool>,
 ) -> std::io::Result<JoinHandle<()>> {
     std::thread::Builder::new()
         .name("arte-helper".into())
-        .spawn(move || helper(&stats, model_rate, &done))
+        .spawn(move || helper(&stats, model_rate, speed_normalised, &done))
 }
 
-fn helper(s: &ArteStats, model_rate: u32, done: &AtomicBool) {
+/// Shortest time between two "vehicle speed stale" lines.
+pub const SPEED_STALE_LOG_INTERVAL: Duration = Duration::from_secs(10);
+
+/// What the helper says about the vehicle speed, from the counters, once
+/// per second.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum SpeedState {
+    /// No block has had a speed yet.
+    Never,
+    /// Blocks get a fresh speed.
+    Fresh,
+    /// It went stale.
+    Stale,
+}
+
+/// One line the speed log wants written.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SpeedEvent {
+    /// First block with a speed (m/s).
+    Available(f64),
+    /// After a logged stale period, speed again (m/s).
+    Again(f64),
+    /// Blocks go without a speed after having had one; `episodes` stale
+    /// periods since the last stale line (suppressed ones included).
+    Stale {
+        /// Stale periods since the last stale line.
+        episodes: u64,
+    },
+    /// Audio has flowed for a while and no block ever had a speed.
+    NeverArrived,
+}
+
+/// The helper's vehicle-speed transitions, fed by the block counters once
+/// per tick (pure: testable without threads or time).
+#[derive(Debug)]
+pub struct SpeedLog {
+    state: SpeedState,
+    with: u64,
+    without: u64,
+    last_stale_line: Option<Instant>,
+    stale_logged: bool,
+    episodes: u64,
+    never_logged: bool,
+    first_block_at: Option<Instant>,
+}
+
+impl Default for SpeedLog {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl SpeedLog {
+    /// Nothing seen yet.
+    pub fn new() -> Self {
+        Self {
+            state: SpeedState::Never,
+            with: 0,
+            without: 0,
+            last_stale_line: None,
+            stale_logged: false,
+            episodes: 0,
+            never_logged: false,
+            first_block_at: None,
+        }
+    }
+
+    /// Updates from the counters at `now`; `fresh` = the last block had a
+    /// speed, `speed` its value. Returns the line to write, if any.
+    pub fn update(
+        &mut self,
+        now: Instant,
+        with: u64,
+        without: u64,
+        fresh: bool,
+        speed: f64,
+    ) -> Option<SpeedEvent> {
+        let new_with = with > self.with;
+        let new_without = without > self.without;
+        self.with = with;
+        self.without = without;
+        if (new_with || new_without) && self.first_block_at.is_none() {
+            self.first_block_at = Some(now);
+        }
+        match self.state {
+            SpeedState::Never => {
+                if new_with {
+                    // (stale already: the next update says so)
+                    self.state = SpeedState::Fresh;
+                    return Some(SpeedEvent::Available(speed));
+                }
+                if !self.never_logged
+                    && self
+                        .first_block_at
+                        .is_some_and(|t| now.duration_since(t) >= Duration::from_secs(1))
+                {
+                    self.never_logged = true;
+                    return Some(SpeedEvent::NeverArrived);
+                }
+                None
+            }
+            SpeedState::Fresh => {
+                // a block without speed since the last update (a short
+                // stale period counts), or the last block had none
+                if new_without || !fresh {
+                    self.state = SpeedState::Stale;
+                    self.episodes += 1;
+                    let due = self
+                        .last_stale_line
+                        .is_none_or(|t| now.duration_since(t) >= SPEED_STALE_LOG_INTERVAL);
+                    self.stale_logged = due;
+                    if due {
+                        self.last_stale_line = Some(now);
+                        let episodes = self.episodes;
+                        self.episodes = 0;
+                        return Some(SpeedEvent::Stale { episodes });
+                    }
+                }
+                None
+            }
+            SpeedState::Stale => {
+                if new_with && fresh {
+                    self.state = SpeedState::Fresh;
+                    if self.stale_logged {
+                        self.stale_logged = false;
+                        return Some(SpeedEvent::Again(speed));
+                    }
+                }
+                None
+            }
+        }
+    }
+}
+
+fn log_speed(ev: SpeedEvent, speed_normalised: bool) {
+    let effect = if speed_normalised {
+        "frames taken as heard at the model's reference speed"
+    } else {
+        "no effect: the model is not speed-normalised"
+    };
+    match ev {
+        SpeedEvent::Available(v) => tracing::info!(
+            v_mps = v,
+            speed_normalised,
+            "vehicle speed available from grip/tcs/cycle"
+        ),
+        SpeedEvent::Again(v) => {
+            tracing::info!(v_mps = v, "vehicle speed from grip/tcs/cycle again");
+        }
+        SpeedEvent::Stale { episodes } => tracing::info!(
+            episodes,
+            "vehicle speed stale or invalid (no record with v_valid = 1 within speed_timeout_s; tcs-loop stopped or lost V): {effect}"
+        ),
+        SpeedEvent::NeverArrived => tracing::info!(
+            "no vehicle speed from grip/tcs/cycle after 1 s of audio (tcs-loop not running or V invalid): {effect}"
+        ),
+    }
+}
+
+fn helper(s: &ArteStats, model_rate: u32, speed_normalised: bool, done: &AtomicBool) {
     let wd = watchdog_period().map(|p| p / 2);
     let tick = wd
         .map_or(Duration::from_millis(50), |h| {
@@ -65,6 +228,9 @@ fn helper(s: &ArteStats, model_rate: u32, done: &AtomicBool) {
     let mut xruns = 0u64;
     let mut pub_err = 0u64;
     let mut rx_err = 0u64;
+    let mut cycle_err = 0u64;
+    let mut bad_speeds = 0u64;
+    let mut speed_log = SpeedLog::new();
     let mut last_report = Instant::now();
     while !done.load(Ordering::Relaxed) {
         std::thread::sleep(tick);
@@ -146,6 +312,91 @@ fn helper(s: &ArteStats, model_rate: u32, done: &AtomicBool) {
                 tracing::warn!(total = v, "receiving audio blocks failed");
                 rx_err = v;
             }
+            let v = s.cycle_receive_errors.load(Ordering::Relaxed);
+            if v != cycle_err {
+                tracing::warn!(total = v, "receiving cycle records (vehicle speed) failed");
+                cycle_err = v;
+            }
+            let v = s.bad_speeds.load(Ordering::Relaxed);
+            if v != bad_speeds {
+                tracing::warn!(
+                    total = v,
+                    "cycle records with v_valid = 1 but a non-finite v: ignored"
+                );
+                bad_speeds = v;
+            }
+            if let Some(ev) = speed_log.update(
+                Instant::now(),
+                s.blocks_with_speed.load(Ordering::Relaxed),
+                s.blocks_without_speed.load(Ordering::Relaxed),
+                s.speed_fresh.load(Ordering::Relaxed),
+                f64::from_bits(s.last_speed_bits.load(Ordering::Relaxed)),
+            ) {
+                log_speed(ev, speed_normalised);
+            }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn speed_log_transitions_and_rate_limit() {
+        let t0 = Instant::now();
+        let at = |s: f64| t0 + Duration::from_secs_f64(s);
+        let mut l = SpeedLog::new();
+        // nothing yet; audio without speed for < 1 s: silent, then one line
+        assert_eq!(l.update(at(0.0), 0, 0, false, 0.0), None);
+        assert_eq!(l.update(at(1.0), 0, 40, false, 0.0), None);
+        assert_eq!(
+            l.update(at(2.0), 0, 80, false, 0.0),
+            Some(SpeedEvent::NeverArrived)
+        );
+        assert_eq!(l.update(at(3.0), 0, 120, false, 0.0), None);
+        // speed arrives: once
+        assert_eq!(
+            l.update(at(4.0), 30, 130, true, 12.5),
+            Some(SpeedEvent::Available(12.5))
+        );
+        assert_eq!(l.update(at(5.0), 70, 130, true, 12.5), None);
+        // stale: logged, then back: logged
+        assert_eq!(
+            l.update(at(6.0), 80, 160, false, 12.5),
+            Some(SpeedEvent::Stale { episodes: 1 })
+        );
+        assert_eq!(l.update(at(7.0), 80, 200, false, 12.5), None);
+        assert_eq!(
+            l.update(at(8.0), 120, 200, true, 13.0),
+            Some(SpeedEvent::Again(13.0))
+        );
+        // flapping within 10 s of the last stale line: silent, counted
+        assert_eq!(l.update(at(9.0), 140, 220, false, 13.0), None);
+        assert_eq!(l.update(at(10.0), 180, 220, true, 13.0), None);
+        // a short stale period inside one tick (last block fresh) counts
+        assert_eq!(l.update(at(11.0), 210, 225, true, 13.0), None);
+        assert_eq!(l.update(at(12.0), 250, 225, true, 13.0), None);
+        // 10 s after the last stale line: logged with the episodes since
+        assert_eq!(
+            l.update(at(16.5), 260, 250, false, 13.0),
+            Some(SpeedEvent::Stale { episodes: 3 })
+        );
+        // audio stops while stale: silent
+        assert_eq!(l.update(at(17.5), 260, 250, false, 13.0), None);
+    }
+
+    #[test]
+    fn speed_available_then_stale_in_one_tick_is_reported() {
+        let t0 = Instant::now();
+        let mut l = SpeedLog::new();
+        assert_eq!(
+            l.update(t0, 5, 10, false, 9.0),
+            Some(SpeedEvent::Available(9.0))
+        );
+        assert_eq!(
+            l.update(t0 + Duration::from_secs(1), 5, 50, false, 9.0),
+            Some(SpeedEvent::Stale { episodes: 1 })
+        );
     }
 }
