@@ -273,6 +273,9 @@ impl AcousticArte {
                 .min(buf.len());
             let block = &mut buf[..n];
             synth.fill(road, speed, block);
+            // A speed-normalised model hears the audio at the vehicle speed
+            // it was rendered at (the ECU measures it; see the arte service).
+            stream.set_speed(Some(speed));
             stream.push(block, |d| {
                 if let Some(&road_index) = class_road.get(d.class) {
                     out = Some(Estimate {

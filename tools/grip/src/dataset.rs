@@ -15,8 +15,9 @@
 //! `DIR`, required) and optionally `recording` (files with the same value
 //! are one recording, e.g. several clips of one drive) and `class` (or
 //! `road`, as `grip dataset synth` writes it; if given, must equal the
-//! folder name). Other columns (speed, seed, SNR, ...)
-//! are ignored here. Files missing from the manifest are their own
+//! folder name), and `speed_kmh` (the vehicle speed of the recording, needed
+//! to train or evaluate a speed-normalised model). Other columns (seed, SNR,
+//! ...) are ignored here. Files missing from the manifest are their own
 //! recordings; manifest rows naming missing files are an error.
 //!
 //! Errors name the path and the reason: a class folder without WAV files, a
@@ -42,6 +43,8 @@ pub struct Entry {
     pub rel: String,
     /// Recording id (cross-validation group).
     pub recording: usize,
+    /// Vehicle speed (km/h) from the manifest's `speed_kmh` column, if given.
+    pub speed_kmh: Option<f64>,
 }
 
 /// A scanned dataset (audio not loaded yet).
@@ -157,6 +160,7 @@ impl Dataset {
                     path,
                     rel,
                     recording: 0,
+                    speed_kmh: None,
                 });
             }
         }
@@ -186,6 +190,7 @@ impl Dataset {
     fn assign_recordings(&mut self) -> Result<()> {
         let manifest = self.root.join("manifest.csv");
         let mut rec_of_file: BTreeMap<String, String> = BTreeMap::new();
+        let mut speed_of_file: BTreeMap<String, f64> = BTreeMap::new();
         if manifest.is_file() {
             let mut rdr = csv::Reader::from_path(&manifest)
                 .with_context(|| format!("cannot read manifest {}", manifest.display()))?;
@@ -202,6 +207,7 @@ impl Dataset {
                 );
             };
             let (rcol, ccol) = (col("recording"), col("class").or_else(|| col("road")));
+            let scol = col("speed_kmh");
             let by_rel: BTreeMap<&str, &Entry> =
                 self.entries.iter().map(|e| (e.rel.as_str(), e)).collect();
             for (line, rec) in rdr.records().enumerate() {
@@ -232,6 +238,20 @@ impl Dataset {
                         self.classes[entry.class]
                     );
                 }
+                if let Some(v) = scol.and_then(|c| rec.get(c)).map(str::trim)
+                    && !v.is_empty()
+                {
+                    match v.parse::<f64>() {
+                        Ok(kmh) if kmh.is_finite() && kmh >= 0.0 => {
+                            speed_of_file.insert(file.clone(), kmh);
+                        }
+                        _ => bail!(
+                            "manifest {} line {}: speed_kmh `{v}` of file `{file}` is not a speed in km/h (a number >= 0)",
+                            manifest.display(),
+                            line + 2
+                        ),
+                    }
+                }
                 if let Some(r) = rcol.and_then(|c| rec.get(c)).map(str::trim)
                     && !r.is_empty()
                 {
@@ -247,6 +267,7 @@ impl Dataset {
                 .unwrap_or_else(|| format!("file\0{}", e.rel));
             let next = ids.len();
             e.recording = *ids.entry(key).or_insert(next);
+            e.speed_kmh = speed_of_file.get(&e.rel).copied();
         }
         Ok(())
     }
@@ -383,6 +404,19 @@ mod tests {
         assert_eq!(ds.entries[0].recording, ds.entries[1].recording);
         assert_ne!(ds.entries[0].recording, ds.entries[2].recording);
         assert_eq!(ds.recordings_per_class(), [2, 1]);
+        assert_eq!(ds.entries[0].speed_kmh, Some(10.0));
+        assert_eq!(ds.entries[1].speed_kmh, Some(20.0));
+        assert_eq!(ds.entries[2].speed_kmh, None);
+        std::fs::write(
+            d.path().join("manifest.csv"),
+            "file,speed_kmh\nasphalt/a1.wav,fast\n",
+        )
+        .unwrap();
+        let e = format!("{:#}", Dataset::scan(d.path()).unwrap_err());
+        assert!(
+            e.contains("speed_kmh `fast`") && e.contains("manifest.csv line 2"),
+            "{e}"
+        );
 
         std::fs::write(
             d.path().join("manifest.csv"),

@@ -27,6 +27,10 @@ pub struct Args {
     /// Print only the summary line.
     #[arg(long)]
     pub summary: bool,
+    /// Vehicle speed of the recording (km/h); required by a speed-normalised
+    /// model (the default one), ignored by others.
+    #[arg(long)]
+    pub speed: Option<f64>,
 }
 
 /// Loads and validates a model file; errors name the path.
@@ -45,8 +49,18 @@ pub fn classify(
     samples: &[f32],
     sample_rate: u32,
     hop_s: Option<f64>,
+    speed_kmh: Option<f64>,
 ) -> Result<Vec<FrameDecision>> {
     let cfg = model.feature_config();
+    if cfg.speed_norm.is_some() {
+        match speed_kmh {
+            Some(v) if v.is_finite() && v >= 0.0 => {}
+            Some(v) => bail!("--speed: {v} km/h is not a speed"),
+            None => bail!(
+                "this model is speed-normalised: give the vehicle speed of the recording with --speed KMH"
+            ),
+        }
+    }
     if sample_rate != cfg.sample_rate {
         bail!(
             "recording is sampled at {sample_rate} Hz, the model was trained at {} Hz",
@@ -54,6 +68,7 @@ pub fn classify(
         );
     }
     let mut ex = FeatureExtractor::new(cfg).context("model feature config")?;
+    ex.set_speed(speed_kmh.map(|v| v / 3.6));
     let frame = ex.frame_len();
     let hop = match hop_s {
         Some(h) if h > 0.0 && h.is_finite() => {
@@ -90,8 +105,14 @@ pub fn run(ctx: &Ctx, args: Args) -> Result<()> {
         .unwrap_or_else(|| ctx.config_dir.join("models").join("default.model"));
     let model = load_model(&path)?;
     let audio = read_wav(&args.file)?;
-    let rows = classify(&model, &audio.samples, audio.sample_rate, args.hop)
-        .with_context(|| format!("classifying {}", args.file.display()))?;
+    let rows = classify(
+        &model,
+        &audio.samples,
+        audio.sample_rate,
+        args.hop,
+        args.speed,
+    )
+    .with_context(|| format!("classifying {}", args.file.display()))?;
     let classes = model.classes();
     let stdout = std::io::stdout();
     let mut o = stdout.lock();

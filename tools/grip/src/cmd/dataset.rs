@@ -165,6 +165,21 @@ pub struct ChangeRecording {
     pub path: PathBuf,
     /// (t_start, t_end, class index) in time order.
     pub segments: Vec<(f64, f64, usize)>,
+    /// (t_start, vehicle speed in km/h if given) of each segment, in time order.
+    pub speeds: Vec<(f64, Option<f64>)>,
+}
+
+impl ChangeRecording {
+    /// The vehicle speed (km/h) at time `t` (s): that of the last segment
+    /// starting at or before `t`.
+    pub fn speed_at(&self, t: f64) -> Option<f64> {
+        self.speeds
+            .iter()
+            .take_while(|s| s.0 <= t + 1e-9)
+            .last()
+            .or(self.speeds.first())
+            .and_then(|s| s.1)
+    }
 }
 
 /// Reads a folder of road-change recordings (`segments.csv` plus the WAV
@@ -209,16 +224,30 @@ pub fn read_changes(dir: &Path, classes: &[String]) -> Result<Vec<ChangeRecordin
                 p.display()
             );
         }
+        if let Some(v) = row.speed_kmh
+            && !(v.is_finite() && v >= 0.0)
+        {
+            bail!(
+                "{}: record {}: field `speed_kmh`: {v} is not a speed in km/h",
+                seg_path.display(),
+                i + 1
+            );
+        }
         match by_file.iter_mut().find(|c| c.path == p) {
-            Some(c) => c.segments.push((row.t_start, row.t_end, class)),
+            Some(c) => {
+                c.segments.push((row.t_start, row.t_end, class));
+                c.speeds.push((row.t_start, row.speed_kmh));
+            }
             None => by_file.push(ChangeRecording {
                 path: p,
                 segments: vec![(row.t_start, row.t_end, class)],
+                speeds: vec![(row.t_start, row.speed_kmh)],
             }),
         }
     }
     for c in &mut by_file {
         c.segments.sort_by(|a, b| a.0.total_cmp(&b.0));
+        c.speeds.sort_by(|a, b| a.0.total_cmp(&b.0));
     }
     if by_file.is_empty() {
         bail!("{} lists no segments", seg_path.display());
@@ -591,9 +620,19 @@ fn delay(a: DelayArgs) -> Result<()> {
     for r in &recs {
         let audio = wav::read_mono_at(&r.path, fcfg.sample_rate)?;
         est.reset();
+        if est.speed_normalised() && r.speeds.iter().any(|s| s.1.is_none()) {
+            bail!(
+                "{}: a segment of {} has no speed_kmh; the model {} is speed-normalised and needs the vehicle speed",
+                a.dir.join("segments.csv").display(),
+                r.path.display(),
+                a.model.display()
+            );
+        }
         let mut dec: Vec<(f64, usize)> = Vec::new();
         let mut raw: Vec<(f64, f64, usize)> = Vec::new();
-        for b in audio.samples.chunks(block) {
+        let fs = f64::from(fcfg.sample_rate);
+        for (bi, b) in audio.samples.chunks(block).enumerate() {
+            est.set_speed(r.speed_at((bi * block) as f64 / fs).map(|v| v / 3.6));
             est.push(b, |d| {
                 dec.push((d.t_end, d.class));
                 raw.push((d.t_start, d.t_end, d.raw_class));

@@ -21,7 +21,7 @@ use super::Ctx;
 use crate::dataset::{Dataset, read_wav};
 use anyhow::{Context, Result, bail};
 use grip_arte::eval::{Confusion, Samples};
-use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet};
+use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet, SpeedNorm};
 use grip_arte::mlp::{LmConfig, OutputKind};
 use grip_arte::model::{
     ClassifierSpec, EvalSummary, FitReport, Model, cross_validate, fit, grid_search_svm, sha256_hex,
@@ -97,6 +97,15 @@ pub struct Args {
     /// this many consecutive frames of a recording (causal); 1 = off.
     #[arg(long, default_value_t = 5)]
     pub window: usize,
+    /// Rich only: speed normalisation exponent (frequencies warped by
+    /// (v_ref/v)^EXP; 0.25 holds the tyre's noise hump in place). Needs the
+    /// `speed_kmh` of every recording in the manifest of training and
+    /// held-out data. Off unless given.
+    #[arg(long)]
+    pub speed_norm: Option<f64>,
+    /// Reference speed of the speed normalisation (km/h).
+    #[arg(long, default_value_t = 20.0)]
+    pub speed_ref: f64,
     /// Use only these class folders (comma separated), in training and held-out data.
     #[arg(long, value_delimiter = ',')]
     pub classes: Vec<String>,
@@ -138,6 +147,9 @@ impl Args {
         }
         if !self.classes.is_empty() {
             let _ = write!(s, " --classes {}", self.classes.join(","));
+        }
+        if let Some(e) = self.speed_norm {
+            let _ = write!(s, " --speed-norm {e} --speed-ref {}", self.speed_ref);
         }
         let _ = write!(s, " --profile {}", self.profile);
         s
@@ -217,6 +229,16 @@ pub fn extract_dataset(
                 cfg.frame_s,
                 frame_len
             );
+        }
+        if cfg.speed_norm.is_some() {
+            let Some(kmh) = e.speed_kmh else {
+                bail!(
+                    "{}: no speed_kmh for this recording in {}; a speed-normalised model needs the vehicle speed of every recording (column speed_kmh of manifest.csv)",
+                    e.path.display(),
+                    ds.root.join("manifest.csv").display()
+                );
+            };
+            ex.set_speed(Some(kmh / 3.6));
         }
         let mut start = 0;
         while start + frame_len <= audio.samples.len() {
@@ -322,6 +344,15 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     let rate = dataset_rate(&ds)?;
     let mut model_cfg = FeatureConfig::new(rate, set);
     model_cfg.frame_s = args.frame;
+    if let Some(exponent) = args.speed_norm {
+        if set != FeatureSet::Rich {
+            bail!("--speed-norm: speed normalisation is defined for --features rich only");
+        }
+        model_cfg.speed_norm = Some(SpeedNorm {
+            ref_kmh: args.speed_ref,
+            exponent,
+        });
+    }
     // Paper7: extract Paper20; the pruning runs in `fit` on each training set.
     let extract_cfg = if set == FeatureSet::Paper7 {
         FeatureConfig {
@@ -345,6 +376,22 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     let classes = ds.classes.clone();
     let dim = model_cfg.dim();
     let mut notes = Vec::new();
+    let speeds: Vec<f64> = ds.entries.iter().filter_map(|e| e.speed_kmh).collect();
+    if speeds.len() == ds.entries.len() {
+        let lo = speeds.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = speeds.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let n = format!("training speeds: {lo:.1}-{hi:.1} km/h");
+        println!("{n}");
+        notes.push(n);
+    }
+    if let Some(n) = &model_cfg.speed_norm {
+        let n = format!(
+            "speed normalisation: frequencies warped by ({} km/h / v)^{}",
+            n.ref_kmh, n.exponent
+        );
+        println!("{n}");
+        notes.push(n);
+    }
     let spec = match args.classifier.as_str() {
         "mlp" => {
             let lm = LmConfig {
