@@ -426,6 +426,115 @@ pub fn sigmoid_train(dec: &[f64], positive: &[bool]) -> (f64, f64) {
     (a, b)
 }
 
+/// [`Svm::kernel_values`] body: `out[i] = K(sv_i, x)` from the
+/// dimension-major support vectors `by_dim` (`x.len()` rows of `out.len()`).
+#[inline(always)]
+fn kernel_values_generic(kernel: Kernel, by_dim: &[f64], x: &[f64], out: &mut [f64]) {
+    let n = out.len();
+    if n == 0 {
+        return;
+    }
+    out.fill(0.0);
+    // Four dimensions per pass over `out`, each added in dimension order.
+    let term = |v: f64, xj: f64| match kernel {
+        Kernel::Linear => v * xj,
+        Kernel::Rbf { .. } => (v - xj) * (v - xj),
+    };
+    let mut cols = by_dim.chunks_exact(n).zip(x);
+    loop {
+        match (cols.next(), cols.next(), cols.next(), cols.next()) {
+            (Some((c0, &x0)), Some((c1, &x1)), Some((c2, &x2)), Some((c3, &x3))) => {
+                for ((((o, &v0), &v1), &v2), &v3) in out.iter_mut().zip(c0).zip(c1).zip(c2).zip(c3)
+                {
+                    *o = (((*o + term(v0, x0)) + term(v1, x1)) + term(v2, x2)) + term(v3, x3);
+                }
+            }
+            (a, b, c, _) => {
+                for (col, xj) in [a, b, c].into_iter().flatten() {
+                    for (o, &v) in out.iter_mut().zip(col) {
+                        *o += term(v, *xj);
+                    }
+                }
+                break;
+            }
+        }
+    }
+    if let Kernel::Rbf { gamma } = kernel {
+        for o in out.iter_mut() {
+            *o *= -gamma;
+        }
+        if out.iter().all(|a| EXP_FAST_RANGE.contains(a)) {
+            for o in out.iter_mut() {
+                *o = exp_in_range(*o);
+            }
+        } else {
+            for o in out.iter_mut() {
+                *o = if EXP_FAST_RANGE.contains(o) {
+                    exp_in_range(*o)
+                } else {
+                    o.exp()
+                };
+            }
+        }
+    }
+}
+
+/// [`kernel_values_generic`] compiled for AVX2 (same operations, wider
+/// vectors; no FMA contraction, so the same rounding).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn kernel_values_avx2(kernel: Kernel, by_dim: &[f64], x: &[f64], out: &mut [f64]) {
+    kernel_values_generic(kernel, by_dim, x, out);
+}
+
+/// Arguments for which [`exp_in_range`] is valid (its result and 2^k are
+/// normal numbers).
+const EXP_FAST_RANGE: std::ops::RangeInclusive<f64> = -708.0..=709.0;
+
+/// `e^x` for x in [`EXP_FAST_RANGE`], relative error below 1e-15 (a few
+/// ulp; unit test against `f64::exp`). Branch-free, so a loop of it
+/// vectorises; outside the range the result is meaningless.
+///
+/// Method (Cody & Waite reduction, as fdlibm's `exp`): x = k·ln2 + r with
+/// k = round(x/ln2), |r| ≤ ln2/2, ln2 split into a high part with trailing
+/// zero bits (k·LN2_HI exact) and a low part; e^r by its Taylor series to
+/// r¹³ (truncation ≤ (ln2/2)¹⁴/14! ≈ 4e-18); 2^k built from its bits.
+#[inline(always)]
+fn exp_in_range(x: f64) -> f64 {
+    const LOG2E: f64 = std::f64::consts::LOG2_E;
+    // fdlibm's ln2_hi = 6.93147180369123816490e-01 and ln2_lo = 1.90821492927058770002e-10.
+    const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
+    const LN2_LO: f64 = f64::from_bits(0x3dea_39ef_3579_3c76);
+    // 1.5·2^52: adding it rounds to an integer kept in the low mantissa bits.
+    const SHIFT: f64 = 6_755_399_441_055_744.0;
+    let t = x * LOG2E + SHIFT;
+    let kf = t - SHIFT;
+    let k = t.to_bits().wrapping_sub(SHIFT.to_bits()) as i64;
+    let r = (x - kf * LN2_HI) - kf * LN2_LO;
+    const C: [f64; 14] = [
+        1.0,
+        1.0,
+        1.0 / 2.0,
+        1.0 / 6.0,
+        1.0 / 24.0,
+        1.0 / 120.0,
+        1.0 / 720.0,
+        1.0 / 5_040.0,
+        1.0 / 40_320.0,
+        1.0 / 362_880.0,
+        1.0 / 3_628_800.0,
+        1.0 / 39_916_800.0,
+        1.0 / 479_001_600.0,
+        1.0 / 6_227_020_800.0,
+    ];
+    let mut p = C[13];
+    for &c in C[..13].iter().rev() {
+        p = p * r + c;
+    }
+    // k in [−1022, 1023] here, so 2^k is a normal number.
+    p * f64::from_bits(((k + 1023) as u64) << 52)
+}
+
 #[inline]
 fn sigmoid_predict(dec: f64, a: f64, b: f64) -> f64 {
     let fab = dec * a + b;
@@ -464,6 +573,22 @@ pub struct Svm {
     /// Support vectors, row-major, `dim` columns.
     sv: Vec<f64>,
     pairs: Vec<PairModel>,
+    /// The support vectors dimension-major (prediction only; not stored).
+    #[serde(skip)]
+    sv_by_dim: SvByDim,
+}
+
+/// The support vectors transposed (`dim` rows of `n_sv`), built once by
+/// [`Svm::scratch`] so the kernel loop runs across support vectors with
+/// contiguous loads. Derived from `sv`, which is private and never
+/// changes after construction; not serialised, and ignored by `==`.
+#[derive(Clone, Debug, Default)]
+struct SvByDim(std::sync::OnceLock<Vec<f64>>);
+
+impl PartialEq for SvByDim {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 /// SVM training settings.
@@ -713,6 +838,7 @@ impl Svm {
                 n_classes,
                 sv,
                 pairs,
+                sv_by_dim: SvByDim::default(),
             },
             report,
         ))
@@ -795,6 +921,16 @@ impl Svm {
     /// Buffers sized for this model.
     pub fn scratch(&self) -> SvmScratch {
         let k = self.n_classes;
+        let n = self.n_sv();
+        self.sv_by_dim.0.get_or_init(|| {
+            let mut t = vec![0.0; self.sv.len()];
+            for (i, row) in self.sv.chunks_exact(self.dim.max(1)).enumerate() {
+                for (j, &v) in row.iter().enumerate() {
+                    t[j * n + i] = v;
+                }
+            }
+            t
+        });
         SvmScratch {
             kvals: vec![0.0; self.n_sv()],
             r: vec![0.0; k * k],
@@ -804,20 +940,50 @@ impl Svm {
         }
     }
 
+    /// `K(sv_i, x)` for every support vector into `s.kvals`. With the
+    /// dimension-major copy made by [`Svm::scratch`], each `|sv_i − x|²`
+    /// (or `sv_i·x`) is summed over the dimensions in the same order as
+    /// [`Kernel::eval`], so it is the same number; the loop runs across
+    /// support vectors (contiguous, vectorised). The RBF `exp` is
+    /// [`exp_in_range`] (a few ulp; `f64::exp` outside its range). On
+    /// x86-64 CPUs with AVX2 the same code is compiled for AVX2 (four f64
+    /// per instruction) and chosen at run time.
     fn kernel_values(&self, x: &[f64], s: &mut SvmScratch) {
-        for (i, kv) in s.kvals.iter_mut().enumerate() {
-            *kv = self
-                .kernel
-                .eval(&self.sv[i * self.dim..(i + 1) * self.dim], x);
+        let Some(by_dim) = self.sv_by_dim.0.get() else {
+            // A scratch made by another (equal-shaped) model: row-major path.
+            for (kv, v) in s
+                .kvals
+                .iter_mut()
+                .zip(self.sv.chunks_exact(self.dim.max(1)))
+            {
+                *kv = self.kernel.eval(v, x);
+            }
+            return;
+        };
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked on the line above),
+            // the only requirement of a `target_feature(enable = "avx2")` fn.
+            unsafe { kernel_values_avx2(self.kernel, by_dim, x, &mut s.kvals) };
+            return;
         }
+        kernel_values_generic(self.kernel, by_dim, x, &mut s.kvals);
     }
 
+    /// `Σ coef_i K(sv_i, x) − rho`, summed with four interleaved partial sums.
     fn pair_decision(&self, p: &PairModel, kvals: &[f64]) -> f64 {
-        let mut s = -p.rho;
-        for (&i, &c) in p.sv.iter().zip(&p.coef) {
+        let mut a = [0.0f64; 4];
+        let (mut ii, mut ci) = (p.sv.chunks_exact(4), p.coef.chunks_exact(4));
+        for (ic, cc) in (&mut ii).zip(&mut ci) {
+            for j in 0..4 {
+                a[j] += cc[j] * kvals[ic[j] as usize];
+            }
+        }
+        let mut s = (a[0] + a[2]) + (a[1] + a[3]);
+        for (&i, &c) in ii.remainder().iter().zip(ci.remainder()) {
             s += c * kvals[i as usize];
         }
-        s
+        s - p.rho
     }
 
     /// Decision values of every pair machine (order of [`Svm::pairs`]) into `out`.
@@ -899,6 +1065,54 @@ fn couple(k: usize, r: &[f64], q: &mut [f64], qp: &mut [f64], p: &mut [f64]) {
                 qp[j] = (qp[j] + diff * q[t * k + j]) / (1.0 + diff);
                 p[j] /= 1.0 + diff;
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod exp_tests {
+    use super::{EXP_FAST_RANGE, exp_in_range};
+
+    #[test]
+    fn exp_in_range_matches_libm_to_1e15() {
+        let (lo, hi) = (*EXP_FAST_RANGE.start(), *EXP_FAST_RANGE.end());
+        let n = 2_000_000;
+        let mut worst = 0.0f64;
+        for i in 0..=n {
+            // A grid over the whole range plus a dense one over the kernel's usual [−40, 0].
+            for x in [
+                lo + (hi - lo) * i as f64 / n as f64,
+                -40.0 * i as f64 / n as f64,
+            ] {
+                let (a, b) = (exp_in_range(x), x.exp());
+                worst = worst.max(((a - b) / b).abs());
+            }
+        }
+        assert!(worst < 1e-15, "worst relative error {worst:e}");
+        assert_eq!(exp_in_range(0.0), 1.0);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_kernel_values_equal_generic_ones() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return; // nothing to compare on this CPU
+        }
+        let (n, dim) = (37, 11);
+        let by_dim: Vec<f64> = (0..n * dim)
+            .map(|i| ((i * 7919) % 1000) as f64 * 1e-3 - 0.5)
+            .collect();
+        let x: Vec<f64> = (0..dim).map(|j| 0.1 * j as f64 - 0.4).collect();
+        for kernel in [
+            super::Kernel::Rbf { gamma: 0.3 },
+            super::Kernel::Rbf { gamma: 900.0 },
+            super::Kernel::Linear,
+        ] {
+            let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+            super::kernel_values_generic(kernel, &by_dim, &x, &mut a);
+            // SAFETY: AVX2 support checked above.
+            unsafe { super::kernel_values_avx2(kernel, &by_dim, &x, &mut b) };
+            assert_eq!(a, b, "{kernel:?}");
         }
     }
 }

@@ -597,6 +597,9 @@ fn svm_probabilities_match_reference_on_the_shipped_default_model() {
     let Classifier::Svm(svm) = model.classifier() else {
         panic!("the default model is expected to be an SVM");
     };
+    // A model that has not made a scratch itself (fresh from the file) with
+    // another model's scratch takes the row-major fallback path.
+    let fresh = svm.clone();
     let cfg = model.feature_config();
     let mut ex = FeatureExtractor::new(cfg).expect("extractor");
     let mut feat = vec![0.0; ex.dim()];
@@ -608,6 +611,13 @@ fn svm_probabilities_match_reference_on_the_shipped_default_model() {
             ex.extract(&frame, &mut feat).expect("extract");
             model.standardiser().apply(&feat, &mut z);
             assert_proba_match(svm, &z, &format!("{} seed {seed}", ROADS[road]));
+            let mut s = svm.scratch();
+            let mut got = vec![0.0; svm.n_classes()];
+            fresh.predict_proba(&z, &mut s, &mut got);
+            let want = reference_proba(svm, &z);
+            for (g, w) in got.iter().zip(&want) {
+                assert!((g - w).abs() <= TOL, "fallback path: {g:e} vs {w:e}");
+            }
             n += 1;
         }
     }

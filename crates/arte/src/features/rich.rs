@@ -182,7 +182,7 @@ fn sum4(v: &[f64]) -> f64 {
         a[2] += c[2];
         a[3] += c[3];
     }
-    let mut s = (a[0] + a[1]) + (a[2] + a[3]);
+    let mut s = (a[0] + a[2]) + (a[1] + a[3]);
     for &r in it.remainder() {
         s += r;
     }
@@ -200,7 +200,7 @@ fn sum_sumsq4(v: &[f64]) -> (f64, f64) {
             q[i] += c[i] * c[i];
         }
     }
-    let (mut s, mut s2) = ((a[0] + a[1]) + (a[2] + a[3]), (q[0] + q[1]) + (q[2] + q[3]));
+    let (mut s, mut s2) = ((a[0] + a[2]) + (a[1] + a[3]), (q[0] + q[2]) + (q[1] + q[3]));
     for &r in it.remainder() {
         s += r;
         s2 += r * r;
@@ -218,7 +218,7 @@ fn dot4(w: &[f64], p: &[f64]) -> f64 {
             a[i] += wc[i] * pc[i];
         }
     }
-    let mut s = (a[0] + a[1]) + (a[2] + a[3]);
+    let mut s = (a[0] + a[2]) + (a[1] + a[3]);
     for (&a, &b) in wi.remainder().iter().zip(pi.remainder()) {
         s += a * b;
     }
@@ -252,7 +252,7 @@ impl TimeAcc {
                 self.m4[i] += d2 * d2;
             }
         }
-        let mut s = (m2[0] + m2[1]) + (m2[2] + m2[3]);
+        let mut s = (m2[0] + m2[2]) + (m2[1] + m2[3]);
         for (&p, &c) in pi.remainder().iter().zip(ci.remainder()) {
             self.zc[0] += u32::from((c >= 0.0) != (p >= 0.0));
             self.peak[0] = self.peak[0].max(c.abs());
@@ -542,7 +542,7 @@ impl Rich {
                         a[j] += e * e;
                     }
                 }
-                let mut d = (a[0] + a[1]) + (a[2] + a[3]);
+                let mut d = (a[0] + a[2]) + (a[1] + a[3]);
                 for (c, p) in ci.remainder().iter().zip(pi.remainder()) {
                     d += (c - p) * (c - p);
                 }
@@ -613,8 +613,8 @@ impl Rich {
         }
         let zc = acc.zc.iter().map(|&z| z as usize).sum::<usize>();
         let peak = acc.peak.iter().fold(0.0f64, |a, &b| a.max(b));
-        let sq = (acc.sq[0] + acc.sq[1]) + (acc.sq[2] + acc.sq[3]);
-        let m4 = (acc.m4[0] + acc.m4[1]) + (acc.m4[2] + acc.m4[3]);
+        let sq = (acc.sq[0] + acc.sq[2]) + (acc.sq[1] + acc.sq[3]);
+        let m4 = (acc.m4[0] + acc.m4[2]) + (acc.m4[1] + acc.m4[3]);
         let rms = (sq / l as f64).sqrt();
         out[i] = zc as f64 / (l - 1) as f64 * self.fs * self.warp / 1000.0;
         let tiny = 1e-30;
