@@ -1,4 +1,6 @@
-//! `arte`: acoustic road-type estimation, audio blocks in, road estimates out.
+//! `arte`: acoustic road-type estimation, audio blocks in, road estimates out;
+//! the vehicle speed from tcs-loop's cycle records (`grip/tcs/cycle`) goes
+//! to the estimator (`README.md`, "Vehicle speed").
 //!
 //! ```text
 //! arte [--config-dir DIR] [--config FILE] [--model FILE] [--run-for SECONDS]
