@@ -1152,13 +1152,13 @@ pub enum SnrScope {
     /// recording with loud ones (stone, gravel) sits below the nominal SNR.
     #[default]
     Recording,
-    /// Every segment at the nominal SNR against the noise's long-run power:
-    /// the noise gain is set per segment from that segment's road-sound power
-    /// and the noise mix's calibrated unit power (ramped over 3 ms at the
-    /// boundaries), so each road gets the noise level a one-road recording of
-    /// it would get. (Not the segment's own noise power: in a 1–3 s segment
-    /// that depends on whether a car happens to pass, and scaling to it would
-    /// turn the rain up whenever none does.)
+    /// Every segment at the nominal SNR against the noise power over the
+    /// whole recording: the noise gain is set per segment from that
+    /// segment's road-sound power (ramped over 3 ms at the boundaries), so
+    /// each road gets the noise level a one-road recording of it would get.
+    /// (Not the segment's own noise power: in a 1–3 s segment that depends on
+    /// whether a car happens to pass, and scaling to it would turn the rain
+    /// up whenever none does.)
     Segment,
 }
 
@@ -1234,10 +1234,13 @@ pub fn render_scoped(
     match scope {
         SnrScope::Recording => gains.resize(lens.len(), gain(power(&road), power(&noise))),
         SnrScope::Segment => {
+            // Against the noise power over the whole recording: this
+            // recording's rain and cars (their parameters are drawn per
+            // recording, so their level is not the calibrated nominal one).
+            let p_noise = power(&noise);
             let mut at = 0;
             for &n in &lens {
-                // fill_parts gives the noise mix at unit long-run power.
-                gains.push(gain(power(&road[at..at + n]), 1.0));
+                gains.push(gain(power(&road[at..at + n]), p_noise));
                 at += n;
             }
         }

@@ -122,7 +122,7 @@ fn snr_per_segment_holds_in_every_segment() {
     // Stone (loud) then snow (quiet). With one noise level for the whole
     // recording the snow segment sits well below the nominal SNR; with the
     // per-segment scope each segment's noise gain is set from its own road
-    // power against the noise mix's unit long-run power.
+    // power against the noise power over the whole recording.
     let seg = [
         Segment {
             road: road_index("stone").unwrap(),
@@ -153,9 +153,10 @@ fn snr_per_segment_holds_in_every_segment() {
     }
     let ramp = 133; // 3 ms at 44.1 kHz
     let mut gains = [0.0; 2];
+    let noise_rms = rms(&noise);
     for (i, g) in gains.iter_mut().enumerate() {
         let r = i * n..(i + 1) * n;
-        *g = rms(&road[r]) * 10f64.powf(-10.0 / 20.0);
+        *g = rms(&road[r]) / noise_rms * 10f64.powf(-10.0 / 20.0);
         for j in i * n + ramp..(i + 1) * n {
             let want = (f64::from(road[j]) + *g * f64::from(noise[j])).clamp(-1.0, 1.0) as f32;
             assert!(
