@@ -454,15 +454,30 @@ impl FeatureExtractor {
                 expected: self.dim,
             });
         }
-        let mut sum = 0.0;
-        for (i, xi) in self.x.iter_mut().enumerate() {
-            let v = frame.get(i).copied().unwrap_or(0.0);
-            *xi = if v.is_finite() { f64::from(v) } else { 0.0 };
-            sum += *xi;
+        // Convert (non-finite → 0) and sum with four interleaved partial
+        // sums; zero-pad the rest.
+        let (head, tail) = self.x.split_at_mut(frame.len());
+        tail.fill(0.0);
+        let mut acc = [0.0f64; 4];
+        let (mut hc, mut fc) = (head.chunks_exact_mut(4), frame.chunks_exact(4));
+        for (h, f) in (&mut hc).zip(&mut fc) {
+            for i in 0..4 {
+                h[i] = if f[i].is_finite() {
+                    f64::from(f[i])
+                } else {
+                    0.0
+                };
+                acc[i] += h[i];
+            }
+        }
+        let mut sum = (acc[0] + acc[2]) + (acc[1] + acc[3]);
+        for (h, &v) in hc.into_remainder().iter_mut().zip(fc.remainder()) {
+            *h = if v.is_finite() { f64::from(v) } else { 0.0 };
+            sum += *h;
         }
         let n = frame.len().max(1) as f64;
         let mean = sum / n;
-        for xi in self.x.iter_mut().take(frame.len()) {
+        for xi in head.iter_mut() {
             *xi -= mean;
         }
         match self.cfg.set {
