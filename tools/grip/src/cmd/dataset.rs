@@ -686,6 +686,17 @@ fn delay(a: DelayArgs) -> Result<()> {
         ms(percentile(&all, 95.0)),
         ms(percentile(&delays, 100.0))
     );
+    if n_changes > 0 {
+        let share = |lim: f64| {
+            100.0 * delays.iter().filter(|&&d| d <= lim).count() as f64 / n_changes as f64
+        };
+        println!(
+            "detected within 100 ms: {:.1} %, within 150 ms: {:.1} %, within 200 ms: {:.1} % of the changes",
+            share(0.1),
+            share(0.15),
+            share(0.2)
+        );
+    }
     if conf.total() > 0 {
         let (m, mr) = (conf.metrics(), conf_raw.metrics());
         println!(
