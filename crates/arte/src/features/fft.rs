@@ -109,10 +109,7 @@ impl RealFft {
                     *b = Complex::new(xc[0] * wc[0], xc[1] * wc[1]);
                 }
                 if let Some(b) = tail.first_mut() {
-                    *b = Complex::new(
-                        if m % 2 == 1 { x[m - 1] * w[m - 1] } else { 0.0 },
-                        0.0,
-                    );
+                    *b = Complex::new(if m % 2 == 1 { x[m - 1] * w[m - 1] } else { 0.0 }, 0.0);
                 }
             }
             None => {
@@ -183,7 +180,15 @@ mod tests {
 
     #[test]
     fn power_paths_equal_forward_norm_sqr() {
-        for (n, len) in [(64, 50), (64, 64), (64, 33), (1024, 1024), (1024, 7), (2, 1), (8, 0)] {
+        for (n, len) in [
+            (64, 50),
+            (64, 64),
+            (64, 33),
+            (1024, 1024),
+            (1024, 7),
+            (2, 1),
+            (8, 0),
+        ] {
             let x: Vec<f64> = (0..len)
                 .map(|i| ((i * 37 % 11) as f64 - 5.0) * 0.3 + (i as f64 * 0.2).sin())
                 .collect();
