@@ -51,6 +51,24 @@ fn bench(c: &mut Criterion) {
                 pred.predict_proba(&feat, &mut probs).expect("predict")
             })
         });
+        if model.feature_config().speed_norm.is_some() {
+            // Worst case of a speed-normalised model: the speed changes
+            // between every two frames, so the warped filter banks are
+            // rebuilt for every frame (the frame above runs at the
+            // reference speed, where they are built once).
+            let mut k = 0u32;
+            c.bench_function(
+                &format!("frame_features_and_classify/{name}_speed_changing"),
+                |b| {
+                    b.iter(|| {
+                        k = k.wrapping_add(1);
+                        ex.set_speed(Some(if k % 2 == 0 { 5.0 / 3.6 } else { 35.0 / 3.6 }));
+                        ex.extract(black_box(frame), &mut feat).expect("extract");
+                        pred.predict_proba(&feat, &mut probs).expect("predict")
+                    })
+                },
+            );
+        }
     }
 }
 
