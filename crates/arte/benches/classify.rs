@@ -62,7 +62,11 @@ fn bench(c: &mut Criterion) {
                 |b| {
                     b.iter(|| {
                         k = k.wrapping_add(1);
-                        ex.set_speed(Some(if k % 2 == 0 { 5.0 / 3.6 } else { 35.0 / 3.6 }));
+                        ex.set_speed(Some(if k.is_multiple_of(2) {
+                            5.0 / 3.6
+                        } else {
+                            35.0 / 3.6
+                        }));
                         ex.extract(black_box(frame), &mut feat).expect("extract");
                         pred.predict_proba(&feat, &mut probs).expect("predict")
                     })
