@@ -3,28 +3,15 @@
 //! when the blocks' stamps are contiguous; the loop's seq is contiguous and
 //! class tables are applied. A toy classifier stands in for a model.
 
+mod common;
+use common::Toy;
 use grip_arte::features::{FeatureConfig, FeatureSet};
-use grip_arte::stream::{Classify, StreamConfig};
+use grip_arte::stream::StreamConfig;
 use grip_arte_svc::{ArteLoop, ArteStats, EstimateSink, RoadInfo};
 use grip_io::clock::ManualClock;
 use grip_io::ipc::IpcError;
 use grip_msgs::{AudioBlock, RoadEstimate, name_to_bytes};
 use proptest::prelude::*;
-
-struct Toy {
-    dim: usize,
-}
-impl Classify for Toy {
-    fn n_classes(&self) -> usize {
-        3
-    }
-    fn n_features(&self) -> usize {
-        self.dim
-    }
-    fn predict_proba(&mut self, _x: &[f64], out: &mut [f64]) {
-        out.copy_from_slice(&[0.2, 0.7, 0.1]);
-    }
-}
 
 #[derive(Default)]
 struct VecSink(Vec<RoadEstimate>);
@@ -52,7 +39,10 @@ proptest! {
         let fcfg = FeatureConfig::new(rate, FeatureSet::Rich);
         let roads = vec![road("a", 0.1), road("b", 0.2), road("c", 0.3)];
         let mut lp = ArteLoop::new(
-            Toy { dim: fcfg.dim() },
+            Toy {
+                dim: fcfg.dim(),
+                probs: &[0.2, 0.7, 0.1],
+            },
             &fcfg,
             &StreamConfig::default(),
             roads,

@@ -5,10 +5,12 @@
 //! invalid, non-finite and older records change nothing; every processed
 //! block is counted with or without a speed.
 
+mod common;
+use common::Toy;
 use std::sync::atomic::Ordering;
 
 use grip_arte::features::{FeatureConfig, FeatureSet, SpeedNorm};
-use grip_arte::stream::{Classify, StreamConfig};
+use grip_arte::stream::StreamConfig;
 use grip_arte_svc::{ArteLoop, ArteStats, EstimateSink, RoadInfo};
 use grip_io::clock::ManualClock;
 use grip_io::ipc::IpcError;
@@ -18,21 +20,6 @@ const RATE: u32 = 16_000;
 const BLOCK: usize = 512; // 32 ms
 const T0: u64 = 10_000_000_000;
 const MS: u64 = 1_000_000;
-
-struct Toy {
-    dim: usize,
-}
-impl Classify for Toy {
-    fn n_classes(&self) -> usize {
-        2
-    }
-    fn n_features(&self) -> usize {
-        self.dim
-    }
-    fn predict_proba(&mut self, _x: &[f64], out: &mut [f64]) {
-        out.copy_from_slice(&[0.3, 0.7]);
-    }
-}
 
 #[derive(Default)]
 struct Count(u64);
@@ -54,7 +41,10 @@ fn road(name: &str) -> RoadInfo {
 
 fn new_loop(fcfg: &FeatureConfig, clock: &ManualClock) -> ArteLoop<Toy, ManualClock> {
     ArteLoop::new(
-        Toy { dim: fcfg.dim() },
+        Toy {
+            dim: fcfg.dim(),
+            probs: &[0.3, 0.7],
+        },
         fcfg,
         &StreamConfig::default(),
         vec![road("a"), road("b")],

@@ -9,6 +9,7 @@ use grip_arte::eval::Samples;
 use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet};
 use grip_arte::mlp::LmConfig;
 use grip_arte::model::{ClassifierSpec, Model, fit};
+use grip_arte::stream::Classify;
 use grip_arte::synth::{RoadAudioSynth, SynthConfig, road_index};
 use grip_arte_svc::{RoadInfo, road_table};
 use grip_msgs::{AUDIO_MAX_SAMPLES, AudioBlock};
@@ -98,4 +99,25 @@ pub fn blocks(
         }
     }
     out
+}
+
+/// A stand-in classifier with fixed class probabilities, for tests that must
+/// not depend on what a model hears.
+pub struct Toy {
+    /// Feature vector length it accepts.
+    pub dim: usize,
+    /// The probabilities it always returns (one per class).
+    pub probs: &'static [f64],
+}
+
+impl Classify for Toy {
+    fn n_classes(&self) -> usize {
+        self.probs.len()
+    }
+    fn n_features(&self) -> usize {
+        self.dim
+    }
+    fn predict_proba(&mut self, _x: &[f64], out: &mut [f64]) {
+        out.copy_from_slice(self.probs);
+    }
 }
