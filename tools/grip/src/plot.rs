@@ -24,7 +24,7 @@ pub fn init_fonts() {
 }
 
 /// Colour of a road band, by road name (falls back to a palette by index).
-/// Shared by every figure with road bands (`grip drive`/`inspect` plots).
+/// Shared by every figure with road bands (`grip sim`, `grip drive`/`inspect` plots).
 pub fn road_colour(name: &str, index: usize) -> plotters::style::RGBColor {
     use plotters::style::RGBColor;
     match name {

@@ -9,50 +9,13 @@ use grip_sim::{RunResult, SimSetup, Trace};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
+use crate::plot::{road_colour, runs};
+
 const W: u32 = 1900;
 const PANEL_H: u32 = 330;
 const STRIP_H: u32 = 70;
 const TITLE_H: u32 = 60;
 const LEGEND_H: u32 = 50;
-
-/// Colour of a road band, by name (falls back to a palette by index).
-fn road_colour(name: &str, index: usize) -> RGBColor {
-    match name {
-        "asphalt" => RGBColor(150, 150, 150),
-        "snow" => RGBColor(120, 180, 240),
-        "gravel" => RGBColor(225, 175, 90),
-        "stone" => RGBColor(170, 110, 80),
-        "wet_asphalt" => RGBColor(80, 100, 140),
-        "wet_stone" => RGBColor(120, 90, 130),
-        "ice" => RGBColor(120, 230, 230),
-        _ => {
-            const P: [RGBColor; 6] = [
-                RGBColor(200, 120, 200),
-                RGBColor(120, 200, 120),
-                RGBColor(230, 230, 120),
-                RGBColor(200, 200, 255),
-                RGBColor(255, 180, 180),
-                RGBColor(180, 255, 220),
-            ];
-            P[index % P.len()]
-        }
-    }
-}
-
-/// Runs of equal value: (start index, end index exclusive, value).
-fn runs<T: Copy + PartialEq>(xs: &[T]) -> Vec<(usize, usize, T)> {
-    let mut out = Vec::new();
-    let mut start = 0;
-    for k in 1..=xs.len() {
-        if k == xs.len() || xs[k] != xs[start] {
-            if start < xs.len() {
-                out.push((start, k, xs[start]));
-            }
-            start = k;
-        }
-    }
-    out
-}
 
 fn t_at(tr: &Trace, k: usize, dt: f64) -> f64 {
     if k < tr.len() {
