@@ -163,22 +163,21 @@ pub struct SegmentRow {
 pub struct ChangeRecording {
     /// Full path.
     pub path: PathBuf,
-    /// (t_start, t_end, class index) in time order.
-    pub segments: Vec<(f64, f64, usize)>,
-    /// (t_start, vehicle speed in km/h if given) of each segment, in time order.
-    pub speeds: Vec<(f64, Option<f64>)>,
+    /// (t_start, t_end, class index, vehicle speed in km/h if given) in
+    /// time order.
+    pub segments: Vec<(f64, f64, usize, Option<f64>)>,
 }
 
 impl ChangeRecording {
     /// The vehicle speed (km/h) at time `t` (s): that of the last segment
     /// starting at or before `t`.
     pub fn speed_at(&self, t: f64) -> Option<f64> {
-        self.speeds
+        self.segments
             .iter()
             .take_while(|s| s.0 <= t + 1e-9)
             .last()
-            .or(self.speeds.first())
-            .and_then(|s| s.1)
+            .or(self.segments.first())
+            .and_then(|s| s.3)
     }
 }
 
@@ -235,19 +234,17 @@ pub fn read_changes(dir: &Path, classes: &[String]) -> Result<Vec<ChangeRecordin
         }
         match by_file.iter_mut().find(|c| c.path == p) {
             Some(c) => {
-                c.segments.push((row.t_start, row.t_end, class));
-                c.speeds.push((row.t_start, row.speed_kmh));
+                c.segments
+                    .push((row.t_start, row.t_end, class, row.speed_kmh));
             }
             None => by_file.push(ChangeRecording {
                 path: p,
-                segments: vec![(row.t_start, row.t_end, class)],
-                speeds: vec![(row.t_start, row.speed_kmh)],
+                segments: vec![(row.t_start, row.t_end, class, row.speed_kmh)],
             }),
         }
     }
     for c in &mut by_file {
         c.segments.sort_by(|a, b| a.0.total_cmp(&b.0));
-        c.speeds.sort_by(|a, b| a.0.total_cmp(&b.0));
     }
     if by_file.is_empty() {
         bail!("{} lists no segments", seg_path.display());
@@ -620,7 +617,7 @@ fn delay(a: DelayArgs) -> Result<()> {
     for r in &recs {
         let audio = wav::read_mono_at(&r.path, fcfg.sample_rate)?;
         est.reset();
-        if est.speed_normalised() && r.speeds.iter().any(|s| s.1.is_none()) {
+        if est.speed_normalised() && r.segments.iter().any(|s| s.3.is_none()) {
             bail!(
                 "{}: a segment of {} has no speed_kmh; the model {} is speed-normalised and needs the vehicle speed",
                 a.dir.join("segments.csv").display(),
