@@ -72,12 +72,15 @@ fn run(
 #[test]
 fn one_decision_per_hop_with_exact_time_stamps() {
     let x = tone(500.0, 44_100, 0);
-    let d = run(1000, &x, &StreamConfig::default());
-    // First decision when the first 0.1 s frame is full, then every 0.05 s.
-    assert_eq!(d.len(), (44_100 - 4410) / 2205 + 1);
+    let cfg = StreamConfig::default();
+    let d = run(1000, &x, &cfg);
+    // First decision when the first 0.1 s frame is full, then every hop.
+    let hop = (cfg.hop_s * 44_100.0).round() as usize;
+    assert_eq!(hop, 1103, "default hop 0.025 s");
+    assert_eq!(d.len(), (44_100 - 4410) / hop + 1);
     for (i, e) in d.iter().enumerate() {
         assert_eq!(e.0, i as u64);
-        let t_end = (4410 + i * 2205) as f64 / 44_100.0;
+        let t_end = (4410 + i * hop) as f64 / 44_100.0;
         assert!((e.2 - t_end).abs() < 1e-12 && (e.1 - (t_end - 0.1)).abs() < 1e-12);
         assert_eq!(e.3, 0);
         assert!((e.5.iter().sum::<f64>() - 1.0).abs() < 1e-12);
@@ -222,4 +225,7 @@ fn detection_delay_definition() {
     assert_eq!(percentile(&[3.0, 1.0, 2.0, 4.0], 50.0), Some(2.5));
     assert_eq!(percentile(&[1.0, 2.0], 100.0), Some(2.0));
     assert_eq!(percentile(&[], 50.0), None);
+    let inf = f64::INFINITY;
+    assert_eq!(percentile(&[0.1, inf, inf], 90.0), Some(inf));
+    assert_eq!(percentile(&[0.1, 0.2, inf], 75.0), Some(inf));
 }

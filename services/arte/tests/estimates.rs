@@ -67,9 +67,12 @@ fn follow(
     assert_eq!(stats.lost_blocks.load(Ordering::Relaxed), 0);
     assert_eq!(stats.resets.load(Ordering::Relaxed), 0);
     let est = &sink.0;
-    // one estimate per 50 ms hop after the first 0.1 s frame
-    let dur = bl.len() as f64 * 1024.0 / f64::from(RATE);
-    assert_eq!(est.len(), ((dur - 0.1) / 0.05).floor() as usize + 1);
+    // one estimate per hop (default 0.025 s, whole samples) after the first 0.1 s frame
+    let n = bl.len() * 1024;
+    let frame = (0.1 * f64::from(RATE)).round() as usize;
+    let hop = (StreamConfig::default().hop_s * f64::from(RATE)).round() as usize;
+    assert_eq!(est.len(), (n - frame) / hop + 1);
+    let hop_ns = hop as f64 * 1e9 / f64::from(RATE);
     let change_ns = T0 + (CHANGE_S * 1e9) as u64;
     let mut right = 0;
     let mut judged = 0;
@@ -96,7 +99,9 @@ fn follow(
             (r.lambda_opt, r.mu_peak, 1.0 - r.lambda_opt)
         );
         if i > 0 {
-            assert_eq!(e.frame_t1_ns - est[i - 1].frame_t1_ns, 50_000_000);
+            // one hop of whole samples apart, to the nanosecond
+            let step = e.frame_t1_ns - est[i - 1].frame_t1_ns;
+            assert!(step.abs_diff(hop_ns.round() as u64) <= 1, "step {step} ns");
         }
         // frame entirely on one road, and (after a change) past the
         // allowed delay: must be that road

@@ -69,7 +69,7 @@ proptest! {
             k += 1;
         }
         let frame = (0.1 * f64::from(rate)).round() as u64;
-        let hop = (0.05 * f64::from(rate)).round() as u64;
+        let hop = (StreamConfig::default().hop_s * f64::from(rate)).round() as u64;
         let expect_n = ((total as u64 - frame) / hop + 1) as usize;
         prop_assert_eq!(sink.0.len(), expect_n);
         for (i, e) in sink.0.iter().enumerate() {

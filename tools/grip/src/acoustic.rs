@@ -78,7 +78,7 @@ pub enum SoundAs {
 pub struct AcousticConfig {
     /// Rain and passing-car noise; `None` (default) for clean road sound.
     pub noise: Option<NoiseConfig>,
-    /// Hop and temporal smoothing of the stream (default: 0.05 s, HMM 0.9/0.01).
+    /// Hop and temporal smoothing of the stream (default: 0.025 s, HMM 0.9/0.01).
     pub stream: StreamConfig,
     /// Sound of catalogue roads the synthesiser has no model of, by road
     /// name. A road neither synthesisable by name nor listed here is silent.
@@ -626,9 +626,12 @@ mod tests {
                 .find(|p| p.0 <= t + 1e-12)
                 .map_or(0, |p| p.1);
             if let Some(x) = e.update(t, dt, road, 4.0 + t) {
-                // A decision comes out in the cycle whose end it stamps.
+                // A decision comes out in the cycle whose end it stamps
+                // (stamps are whole samples: the cycle's samples are
+                // rounded, so a stamp may lie up to half a sample past it).
+                let half_sample = 0.5 / 44_100.0;
                 assert!(
-                    x.t_stamp <= t + dt + 1e-9 && x.t_stamp > t - 1e-9,
+                    x.t_stamp <= t + dt + half_sample + 1e-9 && x.t_stamp > t - 1e-9,
                     "{x:?} at {t}"
                 );
                 out.push(x);
@@ -686,10 +689,12 @@ mod tests {
         assert_eq!(e.sound_of(4), None, "ice is silent");
         let plan = [(0.0, 0), (1.0, 2), (2.0, 3)];
         let est = drive(&mut e, 11, &plan, 3.0);
-        // One decision per 0.05 s hop once the first 0.1 s frame is full.
-        assert_eq!(est.len(), 59);
+        // One decision per hop (default 0.025 s = 1103 samples at 44.1 kHz)
+        // once the first 0.1 s frame (4410 samples) is full.
+        let hop = 1103.0 / 44_100.0;
+        assert_eq!(est.len(), ((3.0 - 0.1) / hop) as usize + 1);
         assert!((est[0].t_stamp - 0.1).abs() < 1e-9);
-        assert!((est[1].t_stamp - 0.15).abs() < 1e-9);
+        assert!((est[1].t_stamp - 0.1 - hop).abs() < 1e-9);
         // Late in each segment the decision is that road (catalogue index),
         // with a smoothed confidence in (0.5, 1].
         for (t, road) in [(0.9, 0), (1.9, 2), (2.9, 3)] {

@@ -50,7 +50,7 @@ struct DelayArgs {
     /// Folder of change recordings (segments.csv + WAVs, from `grip dataset synth --changes`).
     dir: PathBuf,
     /// Time between decisions (s).
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.025)]
     hop: f64,
     /// HMM: probability of staying on the same road per hop; 0 disables smoothing.
     #[arg(long, default_value_t = 0.9)]
@@ -610,6 +610,11 @@ fn delay(a: DelayArgs) -> Result<()> {
     };
     let mut est = StreamEstimator::new(Predictor::new(model), &fcfg, &scfg)?;
     let (mut delays, mut missed, mut n_changes) = (Vec::new(), 0usize, 0usize);
+    // Per recording: its changes' delays (missed = ∞), for the bootstrap.
+    let mut per_rec: Vec<Vec<f64>> = Vec::with_capacity(recs.len());
+    // Switches of the smoothed decision to a road that is not the true one
+    // at that moment, and the audio time they were counted over.
+    let (mut false_near, mut false_inside, mut audio_s) = (0usize, 0usize, 0.0f64);
     let mut conf = grip_arte::eval::Confusion::new(classes.clone());
     let mut conf_raw = grip_arte::eval::Confusion::new(classes.clone());
     let block = 1024;
@@ -646,8 +651,13 @@ fn delay(a: DelayArgs) -> Result<()> {
                 conf_raw.add(rc, seg.2);
             }
         }
+        let (near, inside) = count_false_switches(&dec, &r.segments, a.hold);
+        false_near += near;
+        false_inside += inside;
+        audio_s += audio.samples.len() as f64 / fs;
         let changes: Vec<(f64, usize)> = r.segments.iter().map(|s| (s.0, s.2)).collect();
         let end = r.segments.last().map_or(0.0, |s| s.1);
+        let mut mine = Vec::new();
         for d in detection_delays(&dec, &changes, end, a.hold)
             .into_iter()
             .skip(1)
@@ -657,7 +667,9 @@ fn delay(a: DelayArgs) -> Result<()> {
                 Some(v) => delays.push(v),
                 None => missed += 1,
             }
+            mine.push(d.unwrap_or(f64::INFINITY));
         }
+        per_rec.push(mine);
         pb.inc(1);
     }
     pb.finish_and_clear();
@@ -683,6 +695,24 @@ fn delay(a: DelayArgs) -> Result<()> {
         ms(percentile(&all, 95.0)),
         ms(percentile(&delays, 100.0))
     );
+    if let Some((lo, hi)) = bootstrap_percentile(&per_rec, 95.0, 2000, 1) {
+        println!(
+            "p95 95 % interval (bootstrap over recordings, 2000 resamples): {} - {}",
+            ms(Some(lo)),
+            ms(Some(hi))
+        );
+    }
+    if audio_s > 0.0 {
+        let per_min = |n: usize| n as f64 * 60.0 / audio_s;
+        println!(
+            "false switches (the smoothed decision changes to a road that is not the true one): \
+             {:.2} per minute of audio inside segments ({false_inside}), \
+             {:.2} per minute within {} s after a true change ({false_near})",
+            per_min(false_inside),
+            per_min(false_near),
+            a.hold
+        );
+    }
     if n_changes > 0 {
         let share = |lim: f64| {
             100.0 * delays.iter().filter(|&&d| d <= lim).count() as f64 / n_changes as f64
@@ -715,6 +745,63 @@ fn delay(a: DelayArgs) -> Result<()> {
     Ok(())
 }
 
+/// Smoothed decisions `(t_end, class)` in time order that differ from the
+/// previous decision and name a road other than the true one at `t_end`
+/// (segments `(t_start, t_end, class, ..)`). A switch to the right road,
+/// late or not, is not counted; nor is the first decision. Returned as
+/// (within `near_s` after a true change, i.e. on the way from the old road
+/// to the new one; elsewhere).
+fn count_false_switches<T>(
+    dec: &[(f64, usize)],
+    segments: &[(f64, f64, usize, T)],
+    near_s: f64,
+) -> (usize, usize) {
+    let (mut near, mut inside) = (0, 0);
+    for w in dec.windows(2) {
+        let (t, c) = w[1];
+        let Some((i, seg)) = segments
+            .iter()
+            .enumerate()
+            .find(|(_, s)| t >= s.0 && t < s.1)
+            .or(segments.iter().enumerate().last())
+        else {
+            continue;
+        };
+        if c != w[0].1 && c != seg.2 {
+            if i > 0 && t - seg.0 <= near_s {
+                near += 1;
+            } else {
+                inside += 1;
+            }
+        }
+    }
+    (near, inside)
+}
+
+/// Percentile `p` of the pooled values, as a 95 % interval by resampling
+/// the groups (recordings) with replacement `n` times (seeded, so the
+/// interval is reproducible). `None` without values.
+fn bootstrap_percentile(groups: &[Vec<f64>], p: f64, n: usize, seed: u64) -> Option<(f64, f64)> {
+    use grip_arte::stream::percentile;
+    use rand::{Rng, SeedableRng};
+    if groups.iter().all(Vec::is_empty) {
+        return None;
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut stats = Vec::with_capacity(n);
+    let mut pool = Vec::new();
+    for _ in 0..n {
+        pool.clear();
+        for _ in 0..groups.len() {
+            pool.extend_from_slice(&groups[rng.random_range(0..groups.len())]);
+        }
+        if let Some(v) = percentile(&pool, p) {
+            stats.push(v);
+        }
+    }
+    Some((percentile(&stats, 2.5)?, percentile(&stats, 97.5)?))
+}
+
 pub fn run(_ctx: &Ctx, args: Args) -> Result<()> {
     match args.cmd {
         DatasetCmd::Synth(a) => synth(a),
@@ -744,6 +831,48 @@ mod tests {
             roads: None,
             sample_rate: 44_100,
         }
+    }
+
+    #[test]
+    fn false_switches_count_only_switches_to_a_wrong_road() {
+        // Road 0 until 1 s, then road 1.
+        let segs = [(0.0, 1.0, 0, ()), (1.0, 2.0, 1, ())];
+        let dec = [
+            (0.2, 0),
+            (0.4, 2), // wrong switch
+            (0.6, 0), // back to the right road: not counted
+            (0.8, 0),
+            (1.05, 0), // late, but no switch
+            (1.1, 1),  // right switch
+            (1.5, 0),  // wrong switch
+            (1.9, 0),
+        ];
+        assert_eq!(count_false_switches(&dec, &segs, 0.2), (0, 2));
+        assert_eq!(count_false_switches(&dec, &segs, 0.6), (1, 1));
+        assert_eq!(count_false_switches(&dec[..1], &segs, 0.2), (0, 0));
+    }
+
+    #[test]
+    fn bootstrap_interval_brackets_the_percentile_and_is_reproducible() {
+        let groups: Vec<Vec<f64>> = (0..40)
+            .map(|i| {
+                (0..4)
+                    .map(|j| 0.08 + 0.001 * f64::from(i * 4 + j))
+                    .collect()
+            })
+            .collect();
+        let pooled: Vec<f64> = groups.iter().flatten().copied().collect();
+        let p95 = grip_arte::stream::percentile(&pooled, 95.0).unwrap();
+        let (lo, hi) = bootstrap_percentile(&groups, 95.0, 500, 7).unwrap();
+        assert!(lo <= p95 && p95 <= hi && lo < hi, "{lo} {p95} {hi}");
+        assert_eq!(bootstrap_percentile(&groups, 95.0, 500, 7), Some((lo, hi)));
+        // A set where most changes are missed: the interval reaches ∞.
+        let missed = vec![vec![f64::INFINITY, 0.1], vec![f64::INFINITY]];
+        assert_eq!(
+            bootstrap_percentile(&missed, 95.0, 100, 1).map(|x| x.1),
+            Some(f64::INFINITY)
+        );
+        assert_eq!(bootstrap_percentile(&[vec![], vec![]], 95.0, 10, 1), None);
     }
 
     #[test]
