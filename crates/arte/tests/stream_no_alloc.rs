@@ -50,14 +50,16 @@ fn hot_paths_allocate_nothing() {
         ref_kmh: 20.0,
         exponent: 0.25,
     });
-    for (set, speed_norm) in [
-        (FeatureSet::Paper20, None),
-        (FeatureSet::Paper7, None),
-        (FeatureSet::Rich, None),
-        (FeatureSet::Rich, norm),
+    for (set, speed_norm, fixed_bands) in [
+        (FeatureSet::Paper20, None, false),
+        (FeatureSet::Paper7, None, false),
+        (FeatureSet::Rich, None, false),
+        (FeatureSet::Rich, norm, false),
+        (FeatureSet::Rich, norm, true),
     ] {
         let fcfg = FeatureConfig {
             speed_norm,
+            fixed_bands,
             ..FeatureConfig::new(44_100, set)
         };
         // A real (tiny) model, trained on synthetic frames of two roads.
@@ -109,7 +111,7 @@ fn hot_paths_allocate_nothing() {
         assert_eq!(
             after - before,
             0,
-            "{set:?} (speed norm {speed_norm:?}): {} allocations in the hot loop",
+            "{set:?} (speed norm {speed_norm:?}, fixed bands {fixed_bands}): {} allocations in the hot loop",
             after - before
         );
     }

@@ -130,6 +130,15 @@ pub struct FeatureConfig {
     /// ([`FeatureExtractor::set_speed`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub speed_norm: Option<SpeedNorm>,
+    /// Rich only: append the energy shares of three fixed bands (2-4, 4-8,
+    /// 8-16 kHz) of the recorded spectrum, never warped by the speed
+    /// normalisation (crate README, "Rich"). Off in older model files.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub fixed_bands: bool,
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 /// Speed normalisation of the Rich features: the frequency-domain features
@@ -191,6 +200,7 @@ impl FeatureConfig {
             selection: default_selection(),
             n_mel: default_n_mel(),
             speed_norm: None,
+            fixed_bands: false,
         }
     }
 
@@ -204,7 +214,7 @@ impl FeatureConfig {
         match self.set {
             FeatureSet::Paper20 => N_PAPER20,
             FeatureSet::Paper7 => self.selection.len(),
-            FeatureSet::Rich => rich::dim(self.n_mel),
+            FeatureSet::Rich => rich::dim(self.n_mel, self.fixed_bands),
         }
     }
 
@@ -219,7 +229,7 @@ impl FeatureConfig {
                     .map(|&i| all.get(i).cloned().unwrap_or_default())
                     .collect()
             }
-            FeatureSet::Rich => rich::names(self.n_mel),
+            FeatureSet::Rich => rich::names(self.n_mel, self.fixed_bands),
         }
     }
 
@@ -256,6 +266,15 @@ impl FeatureConfig {
             {
                 return bad(field, format!("{f} Hz is not inside (0, {nyq})"));
             }
+        }
+        if self.fixed_bands && self.set != FeatureSet::Rich {
+            return bad(
+                "fixed_bands",
+                format!(
+                    "fixed-band features are defined for the rich set, not {}",
+                    self.set.name()
+                ),
+            );
         }
         if let Some(n) = &self.speed_norm {
             if self.set != FeatureSet::Rich {

@@ -28,16 +28,28 @@ const SCALARS: [&str; 13] = [
 ];
 const MEL_FMIN: f64 = 50.0;
 const MEL_FMAX: f64 = 16_000.0;
+/// Optional features of the recorded (never warped) spectrum: ln of the
+/// energy share of these bands (Hz) in [`MEL_FMIN`, [`MEL_FMAX`]].
+/// Water-film spray and rain are not tyre resonances: their spectra stay
+/// put when the speed changes, and at low speed the warped bands no longer
+/// reach the top octave where spray and rain differ most.
+const FIXED_BANDS: [(f64, f64, &str); 3] = [
+    (2_000.0, 4_000.0, "fixed_share_2_4k"),
+    (4_000.0, 8_000.0, "fixed_share_4_8k"),
+    (8_000.0, 16_000.0, "fixed_share_8_16k"),
+];
 
-pub(crate) fn dim(n_mel: usize) -> usize {
-    n_mel + N_GROUPS + SCALARS.len()
+pub(crate) fn dim(n_mel: usize, fixed_bands: bool) -> usize {
+    n_mel + N_GROUPS + SCALARS.len() + if fixed_bands { FIXED_BANDS.len() } else { 0 }
 }
 
-pub(crate) fn names(n_mel: usize) -> Vec<String> {
+pub(crate) fn names(n_mel: usize, fixed_bands: bool) -> Vec<String> {
+    let fixed = FIXED_BANDS.iter().map(|b| b.2.to_string());
     (1..=n_mel)
         .map(|i| format!("mel_{i}"))
         .chain((1..=N_GROUPS).map(|i| format!("mel_std_{i}")))
         .chain(SCALARS.iter().map(|s| (*s).to_string()))
+        .chain(fixed.take(if fixed_bands { FIXED_BANDS.len() } else { 0 }))
         .collect()
 }
 
@@ -99,6 +111,16 @@ pub(crate) struct Rich {
     /// High-pass and low-pass feed-forward parts, then squared outputs (frame_len).
     eh: Vec<f64>,
     el: Vec<f64>,
+    /// Bin ranges of [`FIXED_BANDS`] and of their reference range (recorded
+    /// frequencies); `None` when the fixed-band features are off.
+    fixed: Option<FixedBins>,
+}
+
+/// Bin ranges [lo, hi) of the fixed bands and of their reference range.
+#[derive(Clone, Copy)]
+struct FixedBins {
+    bands: [(usize, usize); 3],
+    reference: (usize, usize),
 }
 
 /// RBJ cookbook biquad, normalised: [b0, b1, b2, a1, a2].
@@ -298,7 +320,20 @@ impl Rich {
         let lf_block = ((0.002 * fs).round() as usize).max(1);
         let settle = ((0.005 * fs).round() as usize).min(frame_len / 4);
         let n_lf = (frame_len - settle) / lf_block;
+        let df = fs / sub_len as f64;
+        let bin = |f: f64| ((f.min(0.5 * fs) / df).round() as usize).clamp(1, nb);
+        let fixed = cfg.fixed_bands.then(|| {
+            let mut b = [(0, 0); 3];
+            for (o, &(lo, hi, _)) in b.iter_mut().zip(&FIXED_BANDS) {
+                *o = (bin(lo), bin(hi).max(bin(lo)));
+            }
+            FixedBins {
+                bands: b,
+                reference: (bin(MEL_FMIN), bin(MEL_FMAX)),
+            }
+        });
         let mut r = Self {
+            fixed,
             hp: [0.0; 5],
             lp: [0.0; 5],
             settle,
@@ -720,5 +755,19 @@ impl Rich {
             }
         }
         out[i + 7] = periodicity(&mut self.lf_env, self.lf_lag_lo, self.lf_lag_hi);
+        // 6. Optional: energy shares of fixed bands of the recorded spectrum.
+        if let Some(FixedBins {
+            bands,
+            reference: (r0, r1),
+        }) = self.fixed
+        {
+            // (Their own floor, so that nothing here depends on the warp.)
+            let mp = &self.mean_pow;
+            let total = sum4(&mp[r0..r1]);
+            let floor = 1e-10 * total / (r1 - r0).max(1) as f64 + 1e-300;
+            for (o, &(b0, b1)) in out[i + 8..].iter_mut().zip(&bands) {
+                *o = ((sum4(&mp[b0..b1]) + floor) / (total + floor)).ln();
+            }
+        }
     }
 }

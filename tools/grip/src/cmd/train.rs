@@ -106,6 +106,11 @@ pub struct Args {
     /// Reference speed of the speed normalisation (km/h).
     #[arg(long, default_value_t = 20.0)]
     pub speed_ref: f64,
+    /// Rich only: also the energy shares of three fixed bands (2-4, 4-8,
+    /// 8-16 kHz) of the recorded spectrum, which the speed normalisation
+    /// does not warp (water spray and rain do not move with speed).
+    #[arg(long)]
+    pub fixed_bands: bool,
     /// Use only these class folders (comma separated), in training and held-out data.
     #[arg(long, value_delimiter = ',')]
     pub classes: Vec<String>,
@@ -150,6 +155,9 @@ impl Args {
         }
         if let Some(e) = self.speed_norm {
             let _ = write!(s, " --speed-norm {e} --speed-ref {}", self.speed_ref);
+        }
+        if self.fixed_bands {
+            s.push_str(" --fixed-bands");
         }
         let _ = write!(s, " --profile {}", self.profile);
         s
@@ -352,6 +360,12 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
             ref_kmh: args.speed_ref,
             exponent,
         });
+    }
+    if args.fixed_bands {
+        if set != FeatureSet::Rich {
+            bail!("--fixed-bands: the fixed-band features are defined for --features rich only");
+        }
+        model_cfg.fixed_bands = true;
     }
     // Paper7: extract Paper20; the pruning runs in `fit` on each training set.
     let extract_cfg = if set == FeatureSet::Paper7 {
