@@ -144,12 +144,11 @@ fn inloop(dir: &Path) -> Vec<InLoopRow> {
 /// finite.
 ///
 /// Measured on these seeds (1..=3, all three ARTE variants):
-/// - shipped `default.model` (SVM, Rich features, 6 classes), 10 dB: 74.7 %
-///   of all in-loop decisions correct, 79.3 % of single-road frames, 2 of 36
-///   changes never detected stably, detected ones after 0-0.5 s (p50 0.1 s);
-///   clean audio: 80.6 %, 83.7 %, none missed, all 0.1 s. Over 20 seeds:
-///   82.0 % / 86.7 % (10 dB). Its weak spot, asphalt at 10-14 km/h heard
-///   as snow, is discussed in crates/sim/README.md;
+/// - shipped `default.model` of 2026-11-22 (SVM, Rich + fixed bands,
+///   speed exponent 0.1, 6 classes), 10 dB, hop 0.025 s: 83.6 % of all
+///   in-loop decisions correct, 95.9 % of single-road frames, none of the
+///   36 changes missed. Over 20 seeds: 81.0 % / 92.5 % (crates/sim/README.md,
+///   which also explains why "all decisions" counts the lag after a change);
 /// - the 4-class model trained here (GRIP_TEST_ARTE_MODEL=train; training
 ///   audio with rain and cars at 10 dB): 88.9 %, 94.3 %, none missed.
 ///
