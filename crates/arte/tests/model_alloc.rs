@@ -5,32 +5,9 @@ use grip_arte::features::{FeatureConfig, FeatureSet};
 use grip_arte::mlp::LmConfig;
 use grip_arte::model::{ClassifierSpec, fit};
 use grip_arte::svm::{Kernel, SvmConfig};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
-struct Counting;
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-
-// SAFETY: forwards to the system allocator, only counting calls.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(p, l, n) }
-    }
-}
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static A: grip_testkit::CountingAlloc = grip_testkit::CountingAlloc;
 
 #[test]
 fn predict_proba_allocates_nothing() {
@@ -65,12 +42,12 @@ fn predict_proba_allocates_nothing() {
         let (model, _) = fit(&classes, &cfg, &spec, &s).unwrap();
         let mut p = model.predictor();
         let mut out = [0.0; 3];
-        let before = ALLOCS.load(Ordering::SeqCst);
+        let before = grip_testkit::total_allocations();
         let mut sum = 0;
         for i in 0..s.len() {
             sum += p.predict_proba(s.row(i), &mut out).unwrap();
         }
-        let after = ALLOCS.load(Ordering::SeqCst);
+        let after = grip_testkit::total_allocations();
         assert_eq!(
             after - before,
             0,

@@ -7,31 +7,13 @@ use grip_arte::mlp::LmConfig;
 use grip_arte::model::{ClassifierSpec, Predictor, fit};
 use grip_arte::stream::{StreamConfig, StreamEstimator};
 use grip_arte::synth::{NoiseConfig, RoadAudioSynth, SynthConfig};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
-struct Counting;
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.realloc(p, l, n) }
-    }
-}
 
 #[global_allocator]
-static A: Counting = Counting;
+static A: grip_testkit::CountingAlloc = grip_testkit::CountingAlloc;
 
+/// Every thread's allocations so far.
 fn allocs() -> usize {
-    ALLOCS.load(Ordering::SeqCst)
+    grip_testkit::total_allocations() as usize
 }
 
 // One test function only, so no other test thread allocates meanwhile.

@@ -4,8 +4,7 @@
 //! per message inside iceoryx2 0.10 (see the test below). A counting global
 //! allocator counts allocations made by the current thread only.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
+use grip_testkit::allocations;
 use std::time::Duration;
 
 use grip_io::can::protocol::*;
@@ -15,42 +14,8 @@ use grip_io::ipc::{IpcNode, SubscriberMode};
 use grip_io::rt::{LatencyHistogram, PeriodicTimer};
 use grip_msgs::{AudioBlock, CanFrame, CycleRecord};
 
-struct Counting;
-thread_local! {
-    static ON: Cell<bool> = const { Cell::new(false) };
-    static COUNT: Cell<u64> = const { Cell::new(0) };
-}
-// SAFETY: forwards to the system allocator; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        if ON.with(|o| o.get()) {
-            COUNT.with(|c| c.set(c.get() + 1));
-        }
-        // SAFETY: same layout contract as the caller's.
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        // SAFETY: p was allocated by System with l.
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        if ON.with(|o| o.get()) {
-            COUNT.with(|c| c.set(c.get() + 1));
-        }
-        // SAFETY: forwarded unchanged.
-        unsafe { System.realloc(p, l, n) }
-    }
-}
 #[global_allocator]
-static A: Counting = Counting;
-
-fn allocations(f: impl FnOnce()) -> u64 {
-    COUNT.with(|c| c.set(0));
-    ON.with(|o| o.set(true));
-    f();
-    ON.with(|o| o.set(false));
-    COUNT.with(|c| c.get())
-}
+static A: grip_testkit::CountingAlloc = grip_testkit::CountingAlloc;
 
 #[test]
 fn protocol_hot_path_allocates_nothing() {
@@ -135,23 +100,22 @@ fn simbus_and_ports_hot_path_allocations() {
                 pa.publish(&block).unwrap();
                 sends += 1;
             }
-            ON.with(|o| o.set(false));
-            let before = COUNT.with(|c| c.get());
-            ON.with(|o| o.set(true));
-            if b.try_recv().unwrap().is_some() {
-                got += 1;
-            }
-            if a.recv_timeout(Duration::from_millis(100))
-                .unwrap()
-                .is_some()
-            {
-                got += 1;
-            }
-            assert_eq!(s.latest().unwrap().map(|r| r.seq), Some(i));
-            if i % 20 == 0 {
-                sa.drain(|_| {}).unwrap();
-            }
-            recv_allocs += COUNT.with(|c| c.get()) - before;
+            // (nested: counted here and in the outer total)
+            recv_allocs += allocations(|| {
+                if b.try_recv().unwrap().is_some() {
+                    got += 1;
+                }
+                if a.recv_timeout(Duration::from_millis(100))
+                    .unwrap()
+                    .is_some()
+                {
+                    got += 1;
+                }
+                assert_eq!(s.latest().unwrap().map(|r| r.seq), Some(i));
+                if i % 20 == 0 {
+                    sa.drain(|_| {}).unwrap();
+                }
+            });
         }
     });
     let empty_wait = allocations(|| {

@@ -8,9 +8,6 @@
 //! The interface name comes from `GRIP_VCAN_IFACE` (default `vcan0`). These
 //! tests FAIL (never skip) when the interface or AF_CAN is missing.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use grip_io::can::protocol::*;
@@ -20,29 +17,10 @@ use grip_io::can::{
 use grip_io::ipc::IpcNode;
 use grip_msgs::{CanFrame, can_dir};
 
-/// Counts allocations made by a thread while its `ON` flag is set, so tests
-/// running in parallel in this binary never pollute the count.
-struct Counting;
-thread_local! {
-    static ON: Cell<bool> = const { Cell::new(false) };
-}
-static COUNT: AtomicU64 = AtomicU64::new(0);
-// SAFETY: forwards to the system allocator; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        if ON.with(Cell::get) {
-            COUNT.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: same layout contract as the caller's.
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        // SAFETY: p was allocated by System with l.
-        unsafe { System.dealloc(p, l) }
-    }
-}
+/// Counts allocations per thread, so tests running in parallel in this
+/// binary never pollute a count.
 #[global_allocator]
-static A: Counting = Counting;
+static A: grip_testkit::CountingAlloc = grip_testkit::CountingAlloc;
 
 fn iface() -> String {
     std::env::var("GRIP_VCAN_IFACE").unwrap_or_else(|_| "vcan0".into())
@@ -164,19 +142,18 @@ fn socketcan_hot_path_allocates_nothing() {
         b.recv_timeout(Duration::from_millis(100)).unwrap();
     }
     let mut got = 0;
-    COUNT.store(0, Ordering::SeqCst);
-    ON.with(|on| on.set(true));
-    for _ in 0..500 {
-        a.send(&f).unwrap();
-        while let Some(r) = b.recv_timeout(Duration::from_millis(100)).unwrap() {
-            if r.id == 0x555 {
-                got += 1;
-                break;
+    let n = grip_testkit::allocations(|| {
+        for _ in 0..500 {
+            a.send(&f).unwrap();
+            while let Some(r) = b.recv_timeout(Duration::from_millis(100)).unwrap() {
+                if r.id == 0x555 {
+                    got += 1;
+                    break;
+                }
             }
+            let _ = b.try_recv().unwrap();
         }
-        let _ = b.try_recv().unwrap();
-    }
-    ON.with(|on| on.set(false));
+    });
     assert_eq!(got, 500);
-    assert_eq!(COUNT.load(Ordering::SeqCst), 0);
+    assert_eq!(n, 0);
 }

@@ -7,33 +7,9 @@ use grip_tcs::{
     AnyController, Controller, ControllerKind, ControllersConfig, Measurement, MetricsAccumulator,
     RoadKnowledge, Sample,
 };
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-// SAFETY: forwards to the system allocator; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static A: grip_testkit::CountingAlloc = grip_testkit::CountingAlloc;
 
 #[test]
 fn steps_allocate_nothing() {
@@ -51,7 +27,7 @@ fn steps_allocate_nothing() {
     let mut acc = MetricsAccumulator::new(&v);
     let mut sink = 0.0;
 
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = grip_testkit::total_allocations();
     for c in controllers.iter_mut() {
         for k in 0..10_000 {
             let t = k as f64 * 1e-3;
@@ -78,7 +54,7 @@ fn steps_allocate_nothing() {
         c.reset();
     }
     let m = acc.finish();
-    let after = ALLOCATIONS.load(Ordering::SeqCst);
+    let after = grip_testkit::total_allocations();
     assert_eq!(after - before, 0, "allocations during 30 000 steps");
     assert!(sink.is_finite() && m.samples == 30_000);
 }

@@ -6,8 +6,7 @@
 
 mod common;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::Ordering;
 
 use common::*;
 use grip_arte::stream::StreamConfig;
@@ -16,28 +15,12 @@ use grip_io::clock::ManualClock;
 use grip_io::ipc::{IpcError, IpcNode, SubscriberMode};
 use grip_msgs::{CycleRecord, RoadEstimate, topics};
 
-struct Counting;
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.realloc(p, l, n) }
-    }
-}
-
 #[global_allocator]
-static A: Counting = Counting;
+static A: grip_testkit::CountingAlloc = grip_testkit::CountingAlloc;
 
+/// Every thread's allocations so far.
 fn allocs() -> usize {
-    ALLOCS.load(Ordering::SeqCst)
+    grip_testkit::total_allocations() as usize
 }
 
 #[derive(Default)]

@@ -3,10 +3,8 @@
 //! pre-sized buffers), into a test sink; into a real iceoryx2 publisher it
 //! allocates exactly iceoryx2's one per published sample.
 
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::collections::BTreeMap;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use grip_audio_acq::config::{SynthNoise, SynthSection};
 use grip_audio_acq::synth::{SynthSource, TruthInput, TruthReadError};
@@ -16,39 +14,12 @@ use grip_io::clock::{Clock, ManualClock};
 use grip_io::ipc::{IpcError, IpcNode, SubscriberMode};
 use grip_msgs::{AudioBlock, GroundTruth, name_to_bytes, topics};
 
-/// Counts allocations of the test's own thread only (libtest's and other
-/// threads' allocations must not make the proof flaky).
-struct Counting;
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-thread_local! {
-    static COUNTED: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
-}
-
-fn count() {
-    if COUNTED.with(std::cell::Cell::get) {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-    }
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        count();
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        count();
-        unsafe { System.realloc(p, l, n) }
-    }
-}
-
 #[global_allocator]
-static A: Counting = Counting;
+static A: grip_testkit::CountingAlloc = grip_testkit::CountingAlloc;
 
+/// This thread's allocations so far (other threads' are not counted).
 fn allocs() -> usize {
-    ALLOCS.load(Ordering::SeqCst)
+    grip_testkit::thread_allocations() as usize
 }
 
 /// Sums samples (so the work is not optimised away), allocates nothing.
@@ -109,7 +80,6 @@ fn drive<S: grip_audio_acq::Source>(
 // One test function only, so no other test thread allocates meanwhile.
 #[test]
 fn acquisition_loop_allocates_nothing() {
-    COUNTED.with(|c| c.set(true));
     // --- wav, looped, 4096-sample blocks over a 10 000-sample file
     let samples: Vec<i16> = (0..10_000).map(|i| (i % 1000) as i16).collect();
     let src = WavSource::new(samples, 44_100, true, ManualClock::new(0), 200_000_000);

@@ -528,40 +528,13 @@ mod tests {
     use grip_arte::mlp::LmConfig;
     use grip_arte::model::{ClassifierSpec, fit};
     use grip_physics::Road;
-    use std::alloc::{GlobalAlloc, Layout, System};
-    use std::cell::Cell;
 
-    // Counts allocations of the current thread only, so the other tests of
-    // this binary running in parallel do not disturb the count.
-    struct Counting;
-    thread_local! {
-        static ALLOCS: Cell<u64> = const { Cell::new(0) };
-    }
-    fn bump() {
-        let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
-    }
-    // SAFETY: forwards to the system allocator unchanged; the counter is a
-    // const-initialised thread-local without destructor (no allocation).
-    unsafe impl GlobalAlloc for Counting {
-        unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-            bump();
-            // SAFETY: same contract as the caller's.
-            unsafe { System.alloc(l) }
-        }
-        unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-            // SAFETY: same contract as the caller's.
-            unsafe { System.dealloc(p, l) }
-        }
-        unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-            bump();
-            // SAFETY: same contract as the caller's.
-            unsafe { System.realloc(p, l, n) }
-        }
-    }
+    // Counts allocations per thread, so the other tests of this binary
+    // running in parallel do not disturb the count.
     #[global_allocator]
-    static A: Counting = Counting;
+    static A: grip_testkit::CountingAlloc = grip_testkit::CountingAlloc;
     fn allocs() -> u64 {
-        ALLOCS.with(Cell::get)
+        grip_testkit::thread_allocations()
     }
 
     fn roads() -> RoadCatalogue {
