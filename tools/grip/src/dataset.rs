@@ -407,32 +407,25 @@ mod tests {
         assert_eq!(ds.entries[0].speed_kmh, Some(10.0));
         assert_eq!(ds.entries[1].speed_kmh, Some(20.0));
         assert_eq!(ds.entries[2].speed_kmh, None);
-        std::fs::write(
-            d.path().join("manifest.csv"),
-            "file,speed_kmh\nasphalt/a1.wav,fast\n",
-        )
-        .unwrap();
-        let e = format!("{:#}", Dataset::scan(d.path()).unwrap_err());
+        // The scan error for this manifest text.
+        let scan_err = |manifest: &str| {
+            std::fs::write(d.path().join("manifest.csv"), manifest).unwrap();
+            format!("{:#}", Dataset::scan(d.path()).unwrap_err())
+        };
+        let e = scan_err("file,speed_kmh\nasphalt/a1.wav,fast\n");
         assert!(
             e.contains("speed_kmh `fast`") && e.contains("manifest.csv line 2"),
             "{e}"
         );
 
-        std::fs::write(
-            d.path().join("manifest.csv"),
-            "file,class\nasphalt/a1.wav,gravel\n",
-        )
-        .unwrap();
-        let e = format!("{:#}", Dataset::scan(d.path()).unwrap_err());
+        let e = scan_err("file,class\nasphalt/a1.wav,gravel\n");
         assert!(
             e.contains("labelled `gravel`") && e.contains("manifest.csv line 2"),
             "{e}"
         );
-        std::fs::write(d.path().join("manifest.csv"), "file\nasphalt/nope.wav\n").unwrap();
-        let e = format!("{:#}", Dataset::scan(d.path()).unwrap_err());
+        let e = scan_err("file\nasphalt/nope.wav\n");
         assert!(e.contains("nope.wav"), "{e}");
-        std::fs::write(d.path().join("manifest.csv"), "path\nasphalt/a1.wav\n").unwrap();
-        let e = format!("{:#}", Dataset::scan(d.path()).unwrap_err());
+        let e = scan_err("path\nasphalt/a1.wav\n");
         assert!(e.contains("no `file` column"), "{e}");
     }
 

@@ -44,12 +44,12 @@ pub(crate) fn dim(n_mel: usize, fixed_bands: bool) -> usize {
 }
 
 pub(crate) fn names(n_mel: usize, fixed_bands: bool) -> Vec<String> {
-    let fixed = FIXED_BANDS.iter().map(|b| b.2.to_string());
+    let fixed = FIXED_BANDS.iter().filter(|_| fixed_bands);
     (1..=n_mel)
         .map(|i| format!("mel_{i}"))
         .chain((1..=N_GROUPS).map(|i| format!("mel_std_{i}")))
         .chain(SCALARS.iter().map(|s| (*s).to_string()))
-        .chain(fixed.take(if fixed_bands { FIXED_BANDS.len() } else { 0 }))
+        .chain(fixed.map(|b| b.2.to_string()))
         .collect()
 }
 

@@ -352,21 +352,16 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     let rate = dataset_rate(&ds)?;
     let mut model_cfg = FeatureConfig::new(rate, set);
     model_cfg.frame_s = args.frame;
-    if let Some(exponent) = args.speed_norm {
-        if set != FeatureSet::Rich {
-            bail!("--speed-norm: speed normalisation is defined for --features rich only");
-        }
-        model_cfg.speed_norm = Some(SpeedNorm {
-            ref_kmh: args.speed_ref,
-            exponent,
-        });
-    }
-    if args.fixed_bands {
-        if set != FeatureSet::Rich {
-            bail!("--fixed-bands: the fixed-band features are defined for --features rich only");
-        }
-        model_cfg.fixed_bands = true;
-    }
+    model_cfg.speed_norm = args.speed_norm.map(|exponent| SpeedNorm {
+        ref_kmh: args.speed_ref,
+        exponent,
+    });
+    model_cfg.fixed_bands = args.fixed_bands;
+    // The feature config's own validation refuses both options for the
+    // paper sets (and bad exponents or reference speeds).
+    model_cfg
+        .validate()
+        .context("--features / --speed-norm / --speed-ref / --fixed-bands")?;
     // Paper7: extract Paper20; the pruning runs in `fit` on each training set.
     let extract_cfg = if set == FeatureSet::Paper7 {
         FeatureConfig {
