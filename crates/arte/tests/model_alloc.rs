@@ -1,4 +1,5 @@
-//! `Predictor::predict_proba` allocates nothing (counting global allocator).
+//! `Predictor::predict_proba` allocates nothing (counting global allocator,
+//! this thread's allocations: the harness's main thread may allocate meanwhile).
 
 use grip_arte::eval::Samples;
 use grip_arte::features::{FeatureConfig, FeatureSet};
@@ -42,12 +43,12 @@ fn predict_proba_allocates_nothing() {
         let (model, _) = fit(&classes, &cfg, &spec, &s).unwrap();
         let mut p = model.predictor();
         let mut out = [0.0; 3];
-        let before = grip_testkit::total_allocations();
+        let before = grip_testkit::thread_allocations();
         let mut sum = 0;
         for i in 0..s.len() {
             sum += p.predict_proba(s.row(i), &mut out).unwrap();
         }
-        let after = grip_testkit::total_allocations();
+        let after = grip_testkit::thread_allocations();
         assert_eq!(
             after - before,
             0,

@@ -1,6 +1,8 @@
 //! Allocation-free proof: a counting global allocator; 10 000 `step`s of each
 //! controller (with and without road knowledge, through `AnyController`) and
 //! 10 000 `MetricsAccumulator::push`es allocate nothing after construction.
+//! Counted on this (the only working) thread: the test harness's main thread
+//! may allocate while the test runs and must not count.
 
 use grip_physics::VehicleParams;
 use grip_tcs::{
@@ -27,7 +29,7 @@ fn steps_allocate_nothing() {
     let mut acc = MetricsAccumulator::new(&v);
     let mut sink = 0.0;
 
-    let before = grip_testkit::total_allocations();
+    let before = grip_testkit::thread_allocations();
     for c in controllers.iter_mut() {
         for k in 0..10_000 {
             let t = k as f64 * 1e-3;
@@ -54,7 +56,7 @@ fn steps_allocate_nothing() {
         c.reset();
     }
     let m = acc.finish();
-    let after = grip_testkit::total_allocations();
+    let after = grip_testkit::thread_allocations();
     assert_eq!(after - before, 0, "allocations during 30 000 steps");
     assert!(sink.is_finite() && m.samples == 30_000);
 }
