@@ -64,6 +64,10 @@ struct DelayArgs {
     /// A detection counts once the new road persists this long (s).
     #[arg(long, default_value_t = 0.2)]
     hold: f64,
+    /// Confidence from which a controller uses a decision (the controllers'
+    /// `arte.min_confidence`; default: its shipped value).
+    #[arg(long, default_value_t = grip_tcs::ArteUse::default().min_confidence)]
+    min_confidence: f64,
 }
 
 #[derive(clap::Args)]
@@ -584,7 +588,7 @@ fn synth(a: SynthArgs) -> Result<()> {
     Ok(())
 }
 
-fn delay(a: DelayArgs) -> Result<()> {
+fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
     use grip_arte::model::{Model, Predictor};
     use grip_arte::stream::{
         Smoothing, StreamConfig, StreamEstimator, detection_delays, percentile,
@@ -615,6 +619,20 @@ fn delay(a: DelayArgs) -> Result<()> {
     // Switches of the smoothed decision to a road that is not the true one
     // at that moment, and the audio time they were counted over.
     let (mut false_near, mut false_inside, mut audio_s) = (0usize, 0usize, 0.0f64);
+    if !(0.0..=1.0).contains(&a.min_confidence) {
+        bail!("--min-confidence {}: must lie in [0, 1]", a.min_confidence);
+    }
+    // Peak friction of each class from roads.toml, to tell optimistic
+    // mistakes from cautious ones (only if every class is a road there).
+    let roads = grip_config::ConfigDir::new(config_dir)
+        .roads()
+        .with_context(|| "reading the road catalogue (--config-dir)")?;
+    let mu_peak: Vec<f64> = classes
+        .iter()
+        .map(|c| roads.get(c).map(|r| r.mu_peak()))
+        .collect::<Option<_>>()
+        .unwrap_or_default();
+    let mut used = KnowledgeUse::default();
     let mut conf = grip_arte::eval::Confusion::new(classes.clone());
     let mut conf_raw = grip_arte::eval::Confusion::new(classes.clone());
     let block = 1024;
@@ -631,12 +649,14 @@ fn delay(a: DelayArgs) -> Result<()> {
             );
         }
         let mut dec: Vec<(f64, usize)> = Vec::new();
+        let mut confidence: Vec<f64> = Vec::new();
         let mut raw: Vec<(f64, f64, usize)> = Vec::new();
         let fs = f64::from(fcfg.sample_rate);
         for (bi, b) in audio.samples.chunks(block).enumerate() {
             est.set_speed(r.speed_at((bi * block) as f64 / fs).map(|v| v / 3.6));
             est.push(b, |d| {
                 dec.push((d.t_end, d.class));
+                confidence.push(d.probs.get(d.class).copied().unwrap_or(0.0));
                 raw.push((d.t_start, d.t_end, d.raw_class));
             });
         }
@@ -651,6 +671,14 @@ fn delay(a: DelayArgs) -> Result<()> {
                 conf_raw.add(rc, seg.2);
             }
         }
+        used.add(
+            &dec,
+            &confidence,
+            &r.segments,
+            &mu_peak,
+            a.min_confidence,
+            a.hold,
+        );
         let (near, inside) = count_false_switches(&dec, &r.segments, a.hold);
         false_near += near;
         false_inside += inside;
@@ -724,6 +752,56 @@ fn delay(a: DelayArgs) -> Result<()> {
             share(0.2)
         );
     }
+    if used.decisions > 0 {
+        let pc = |n: usize, of: usize| 100.0 * n as f64 / of.max(1) as f64;
+        let wrong = used.used - used.used_right;
+        println!(
+            "what a controller with min_confidence {} is given: {:.1} % of the {} decisions \
+             (the rest falls back to no ARTE); {:.2} % of those name the true road at the decision's time; \
+             a wrong road is in use {:.2} % of the time ({:.2} % within {} s after a true change, \
+             {:.2} % elsewhere)",
+            a.min_confidence,
+            pc(used.used, used.decisions),
+            used.decisions,
+            pc(used.used_right, used.used),
+            pc(wrong, used.decisions),
+            pc(used.used_wrong_near, used.decisions),
+            a.hold,
+            pc(wrong - used.used_wrong_near, used.decisions),
+        );
+        let bins: Vec<String> = CONFIDENCE_BINS
+            .iter()
+            .zip(used.bins)
+            .enumerate()
+            .filter(|(_, (_, (n, _)))| *n > 0)
+            .map(|(i, (lo, (n, right)))| {
+                let hi = CONFIDENCE_BINS
+                    .get(i + 1)
+                    .map_or("1".to_string(), |h| format!("{h}"));
+                format!(
+                    "{lo}-{hi}: {:.1} % of decisions, {:.2} % right",
+                    pc(n, used.decisions),
+                    pc(right, n)
+                )
+            })
+            .collect();
+        println!(
+            "calibration (confidence bin: share, accuracy): {}",
+            bins.join("; ")
+        );
+        if mu_peak.is_empty() {
+            println!(
+                "(a class of the model is not a road of the catalogue: optimistic and cautious mistakes not told apart)"
+            );
+        } else {
+            println!(
+                "of the wrong road in use: {:.2} % of the time a road with more peak friction than the true one \
+                 (optimistic: the controller expects grip that is not there), {:.2} % one with less (cautious)",
+                pc(used.used_wrong_optimistic, used.decisions),
+                pc(wrong - used.used_wrong_optimistic, used.decisions),
+            );
+        }
+    }
     if conf.total() > 0 {
         let (m, mr) = (conf.metrics(), conf_raw.metrics());
         println!(
@@ -759,12 +837,7 @@ fn count_false_switches<T>(
     let (mut near, mut inside) = (0, 0);
     for w in dec.windows(2) {
         let (t, c) = w[1];
-        let Some((i, seg)) = segments
-            .iter()
-            .enumerate()
-            .find(|(_, s)| t >= s.0 && t < s.1)
-            .or(segments.iter().enumerate().last())
-        else {
+        let Some((i, seg)) = segment_at(segments, t) else {
             continue;
         };
         if c != w[0].1 && c != seg.2 {
@@ -776,6 +849,81 @@ fn count_false_switches<T>(
         }
     }
     (near, inside)
+}
+
+/// The segment `(t_start, t_end, class, ..)` holding time `t`, and its
+/// index; past the end, the last one; `None` without segments.
+type Seg<T> = (f64, f64, usize, T);
+fn segment_at<T>(segments: &[Seg<T>], t: f64) -> Option<(usize, &Seg<T>)> {
+    segments
+        .iter()
+        .enumerate()
+        .find(|(_, s)| t >= s.0 && t < s.1)
+        .or(segments.iter().enumerate().last())
+}
+
+/// What a controller that uses decisions of at least a minimum confidence
+/// is given, counted over every decision against the true road at the
+/// decision's time (`t_end`).
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+struct KnowledgeUse {
+    /// Decisions counted.
+    decisions: usize,
+    /// Of them, confident enough to be used.
+    used: usize,
+    /// Used and naming the true road.
+    used_right: usize,
+    /// Used, naming another road, within `near_s` after a true change.
+    used_wrong_near: usize,
+    /// Used, naming a road with a higher peak friction than the true one
+    /// (the controller expects grip the road does not have).
+    used_wrong_optimistic: usize,
+    /// Per confidence bin ([`CONFIDENCE_BINS`]): (decisions, right).
+    bins: [(usize, usize); CONFIDENCE_BINS.len()],
+}
+
+/// Lower edges of the confidence bins of the calibration report.
+const CONFIDENCE_BINS: [f64; 5] = [0.0, 0.6, 0.8, 0.9, 0.99];
+
+impl KnowledgeUse {
+    /// Adds one recording's smoothed decisions `(t_end, class)` with their
+    /// confidences, against its segments `(t_start, t_end, class, ..)`;
+    /// `mu_peak[class]` is each class's peak friction (empty: unknown).
+    fn add<T>(
+        &mut self,
+        dec: &[(f64, usize)],
+        confidence: &[f64],
+        segments: &[(f64, f64, usize, T)],
+        mu_peak: &[f64],
+        min_confidence: f64,
+        near_s: f64,
+    ) {
+        for (&(t, c), &p) in dec.iter().zip(confidence) {
+            let Some((i, seg)) = segment_at(segments, t) else {
+                continue;
+            };
+            self.decisions += 1;
+            let b = CONFIDENCE_BINS.iter().rposition(|&lo| p >= lo).unwrap_or(0);
+            self.bins[b].0 += 1;
+            self.bins[b].1 += usize::from(c == seg.2);
+            if p < min_confidence {
+                continue;
+            }
+            self.used += 1;
+            if c == seg.2 {
+                self.used_right += 1;
+                continue;
+            }
+            if i > 0 && t - seg.0 <= near_s {
+                self.used_wrong_near += 1;
+            }
+            if let (Some(used), Some(truth)) = (mu_peak.get(c), mu_peak.get(seg.2))
+                && used > truth
+            {
+                self.used_wrong_optimistic += 1;
+            }
+        }
+    }
 }
 
 /// Percentile `p` of the pooled values, as a 95 % interval by resampling
@@ -802,10 +950,10 @@ fn bootstrap_percentile(groups: &[Vec<f64>], p: f64, n: usize, seed: u64) -> Opt
     Some((percentile(&stats, 2.5)?, percentile(&stats, 97.5)?))
 }
 
-pub fn run(_ctx: &Ctx, args: Args) -> Result<()> {
+pub fn run(ctx: &Ctx, args: Args) -> Result<()> {
     match args.cmd {
         DatasetCmd::Synth(a) => synth(a),
-        DatasetCmd::Delay(a) => delay(a),
+        DatasetCmd::Delay(a) => delay(a, &ctx.config_dir),
     }
 }
 
@@ -850,6 +998,46 @@ mod tests {
         assert_eq!(count_false_switches(&dec, &segs, 0.2), (0, 2));
         assert_eq!(count_false_switches(&dec, &segs, 0.6), (1, 1));
         assert_eq!(count_false_switches(&dec[..1], &segs, 0.2), (0, 0));
+    }
+
+    #[test]
+    fn knowledge_use_counts_confident_decisions_against_the_true_road() {
+        // road 0 until 1 s, then road 1
+        let segs = [(0.0, 1.0, 0usize, ()), (1.0, 2.0, 1usize, ())];
+        let dec = [
+            (0.5, 0), // right, confident
+            (0.6, 1), // wrong, not confident: not used
+            (0.9, 1), // wrong, confident, before the change: elsewhere
+            (1.1, 0), // wrong, confident, 0.1 s after the change: near
+            (1.5, 0), // wrong, confident, 0.5 s after it: elsewhere
+            (1.6, 1), // right, confident
+            (2.5, 1), // past the end: the last segment's road
+        ];
+        let confidence = [0.9, 0.5, 0.7, 0.8, 0.6, 0.99, 0.6];
+        // road 0 grips more than road 1: hearing 0 on 1 is optimistic
+        let mu_peak = [1.0, 0.5];
+        let mut u = KnowledgeUse::default();
+        u.add(&dec, &confidence, &segs, &mu_peak, 0.6, 0.2);
+        assert_eq!(
+            u,
+            KnowledgeUse {
+                decisions: 7,
+                used: 6,
+                used_right: 3,
+                used_wrong_near: 1,
+                used_wrong_optimistic: 2,
+                // bins 0-0.6, 0.6-0.8, 0.8-0.9, 0.9-0.99, 0.99-1
+                bins: [(1, 0), (3, 1), (1, 0), (1, 1), (1, 1)],
+            }
+        );
+        // unknown frictions: no optimistic count
+        let mut n = KnowledgeUse::default();
+        n.add(&dec, &confidence, &segs, &[], 0.6, 0.2);
+        assert_eq!((n.used, n.used_wrong_optimistic), (6, 0));
+        // no segments: nothing counted
+        let mut e = KnowledgeUse::default();
+        e.add::<()>(&dec, &confidence, &[], &mu_peak, 0.6, 0.2);
+        assert_eq!(e.decisions, 0);
     }
 
     #[test]
