@@ -56,6 +56,13 @@ pub mod qos {
         max_buffer: 1024,
         history: 0,
     };
+    /// The CAN log (every frame on the bus, ~3.2 kHz in a drive): 4096
+    /// frames ≈ 1.3 s of slack for the recorder, as a 1 kHz topic has with
+    /// [`DEFAULT`].
+    pub const CAN_LOG: TopicQos = TopicQos {
+        max_buffer: 4096,
+        ..DEFAULT
+    };
     /// Subscriber buffer of a "latest value wins" subscriber.
     pub const LATEST_BUFFER: usize = 1;
     /// Listeners/notifiers of the sim-bus wake-up event.
@@ -65,6 +72,8 @@ pub mod qos {
     pub fn for_topic(topic: &str) -> TopicQos {
         if topic == grip_msgs::topics::AUDIO {
             AUDIO
+        } else if topic == grip_msgs::topics::CAN_LOG {
+            CAN_LOG
         } else if topic.starts_with(grip_msgs::topics::SIM_BUS_PREFIX) {
             SIM_BUS
         } else {

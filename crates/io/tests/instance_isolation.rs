@@ -11,6 +11,7 @@ use grip_io::ipc::{INSTANCE_ENV, IpcNode, SubscriberMode};
 use grip_msgs::GroundTruth;
 
 const ROLE: &str = "GRIP_IO_INSTANCE_ROLE";
+const WAIT: &str = "GRIP_IO_INSTANCE_WAIT_MS";
 
 fn child(role: &str) {
     let (kind, topic) = role.split_once(':').expect("role kind:topic");
@@ -31,8 +32,11 @@ fn child(role: &str) {
             let s = node
                 .subscriber::<GroundTruth>(topic, SubscriberMode::Deep)
                 .unwrap();
+            // how long to listen: short where nothing may arrive, long
+            // where something must (a loaded machine may be slow)
+            let wait_ms: u64 = std::env::var(WAIT).unwrap().parse().unwrap();
             let t0 = Instant::now();
-            while t0.elapsed() < Duration::from_millis(800) {
+            while t0.elapsed() < Duration::from_millis(wait_ms) {
                 if let Some(g) = s.recv().unwrap() {
                     println!("got {}", g.seq);
                     return;
@@ -45,9 +49,10 @@ fn child(role: &str) {
     }
 }
 
-fn run(role: &str, instance: &str) -> std::process::Child {
+fn run(role: &str, instance: &str, wait_ms: u64) -> std::process::Child {
     Command::new(std::env::current_exe().unwrap())
         .env(ROLE, role)
+        .env(WAIT, wait_ms.to_string())
         .env(INSTANCE_ENV, instance)
         .stdout(Stdio::piped())
         .spawn()
@@ -80,13 +85,13 @@ fn grip_instance_separates_namespaces() {
     let pid = std::process::id();
     let topic = format!("grip/test/instance_{pid}");
     let (a, b) = (format!("isoA{pid}"), format!("isoB{pid}"));
-    let mut publisher = run(&format!("pub:{topic}"), &a);
+    let mut publisher = run(&format!("pub:{topic}"), &a, 0);
     assert_eq!(first_line(&mut publisher), "ready");
 
-    let mut other = run(&format!("sub:{topic}"), &b);
+    let mut other = run(&format!("sub:{topic}"), &b, 800);
     let seen_by_other = first_line(&mut other);
     other.wait().unwrap();
-    let mut same = run(&format!("sub:{topic}"), &a);
+    let mut same = run(&format!("sub:{topic}"), &a, 10_000);
     let seen_by_same = first_line(&mut same);
     same.wait().unwrap();
     publisher.kill().unwrap();

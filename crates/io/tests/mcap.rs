@@ -258,21 +258,23 @@ fn writer_flushes_by_itself_after_the_interval() {
     let mut w = McapWriter::create(
         &path,
         McapWriterOptions {
-            flush_interval: Duration::from_millis(50),
+            flush_interval: Duration::from_millis(500),
             ..McapWriterOptions::default()
         },
     )
     .unwrap();
     w.write(topics::CYCLE, &cyc[0]).unwrap();
-    std::thread::sleep(Duration::from_millis(60));
+    std::thread::sleep(Duration::from_millis(550));
     w.write(topics::CYCLE, &cyc[1]).unwrap(); // triggers the flush
+    // just flushed: not due again for another interval (checked before the
+    // slow read below, so a stalled machine cannot make it due)
+    assert!(!w.maybe_flush().unwrap());
     let (m, _) = McapLog::open(&path).unwrap().messages().unwrap();
     assert_eq!(
         m.len(),
         2,
         "both records must be on disk after the timed flush"
     );
-    assert!(!w.maybe_flush().unwrap());
 }
 
 #[test]

@@ -12,7 +12,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use grip_io::can::{CanBus, SimBus};
-use grip_io::ipc::{IpcNode, SubscriberMode, cleanup_dead_nodes};
+use grip_io::ipc::{INSTANCE_ENV, IpcNode, SubscriberMode, cleanup_dead_nodes};
 use grip_msgs::{CanFrame, GroundTruth};
 
 const ENV: &str = "GRIP_IO_CHILD";
@@ -133,6 +133,11 @@ fn main() {
         child(&role);
         return;
     }
+    // An iceoryx2 namespace of its own (the children inherit it): another
+    // test process creating a node cleans up dead nodes of its namespace,
+    // and could take the killed child before this test looks for it.
+    // SAFETY: single-threaded here, before any iceoryx2 use.
+    unsafe { std::env::set_var(INSTANCE_ENV, format!("mp{}", std::process::id())) };
     harness::run_tests(&[
         ("echo_between_processes", echo_between_processes),
         (

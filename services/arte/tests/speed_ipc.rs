@@ -207,6 +207,11 @@ fn cycle_records_over_iceoryx2_give_the_estimator_its_speed() {
             audio.publish(blk.next().unwrap()).unwrap();
             std::thread::sleep(Duration::from_millis(23));
         }
+        // Let the service take this phase's last block before the next
+        // phase changes the speed: a block taken late would be counted
+        // with the next phase's speed (a loaded machine delays an ordinary
+        // thread by tens of ms).
+        std::thread::sleep(Duration::from_millis(500));
     };
     // A: no record at all
     send(10);

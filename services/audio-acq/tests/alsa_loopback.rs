@@ -41,7 +41,9 @@ fn section(device: &str) -> AlsaSection {
         channels: 1,
         channel: 0,
         period_frames: 512,
-        buffer_frames: 4096,
+        // 0.37 s: the capture thread of the emulated VM must not overrun in
+        // the 2 s of the first check (the stall check sizes itself from it)
+        buffer_frames: 16384,
         wait_timeout_ms: 500,
     }
 }

@@ -25,8 +25,8 @@ pub struct RecorderConfig {
     /// (10 ..= 1000: a crash loses at most this much).
     pub flush_interval_ms: u64,
     /// Sleep of the receive thread when every subscriber was empty, ms
-    /// (1 ..= 100). The deep subscribers hold 1024 samples (the CAN log,
-    /// ~3.2 kHz, thus ~300 ms), so this must stay far below that.
+    /// (1 ..= 100). The deep subscribers hold 1024 samples (4096 of the
+    /// CAN log, ~3.2 kHz, thus ~1.3 s), so this must stay far below that.
     pub poll_interval_ms: u64,
     /// Messages the queue between receiving and writing holds (1024 ..=
     /// 4194304). When the writer falls this far behind, new messages are

@@ -61,7 +61,7 @@ fn records_everything_counts_gaps_and_finishes_on_sigterm() {
         std::thread::sleep(Duration::from_millis(20));
     }
 
-    // 2000 cycle records at ~2 kHz with two holes (seq 500 and 1500..1502)
+    // 2000 cycle records at ~1 kHz with two holes (seq 500 and 1500..1502)
     let holes = |s: u64| s == 500 || (1500..1503).contains(&s);
     let mut sent_cycles = 0u64;
     for s in 0..2000u64 {
@@ -96,7 +96,9 @@ fn records_everything_counts_gaps_and_finishes_on_sigterm() {
             a.samples[..16].copy_from_slice(&[7; 16]);
             audio.publish(&a).unwrap();
         }
-        if s % 4 == 3 {
+        // at most ~1 kHz: the recorder's 1024-deep buffers then hold about
+        // a second of what it has not taken yet (a loaded machine may stall it)
+        if s % 2 == 1 {
             std::thread::sleep(Duration::from_millis(2));
         }
     }

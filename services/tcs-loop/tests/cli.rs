@@ -135,7 +135,8 @@ fn ready_then_clean_exit_on_sigterm() {
     // the helper feeds the watchdog at half WATCHDOG_USEC while the loop runs
     let t1 = Instant::now();
     let mut pings = 0;
-    while t1.elapsed() < Duration::from_millis(600) {
+    // 2 s (about 10 pings expected): a loaded machine may delay a few
+    while t1.elapsed() < Duration::from_secs(2) {
         if let Ok(n) = sock.recv(&mut buf)
             && String::from_utf8_lossy(&buf[..n])
                 .lines()
@@ -144,10 +145,7 @@ fn ready_then_clean_exit_on_sigterm() {
             pings += 1;
         }
     }
-    assert!(
-        pings >= 3,
-        "{pings} WATCHDOG=1 in 0.6 s at a 0.2 s watchdog"
-    );
+    assert!(pings >= 3, "{pings} WATCHDOG=1 in 2 s at a 0.2 s watchdog");
     // SAFETY: plain kill(2) on our child's pid.
     unsafe { libc_kill(child.0.id() as i32, 15) };
     let status = child.0.wait().unwrap();
