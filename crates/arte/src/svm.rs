@@ -565,7 +565,12 @@ pub struct PairModel {
 }
 
 /// Multi-class one-vs-one SVM.
+///
+/// Serialised as its stored fields; deserialising goes through
+/// [`SvmStored`] and rebuilds the derived dimension-major copy of the
+/// support vectors, so every `Svm` value has it from construction on.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(from = "SvmStored")]
 pub struct Svm {
     kernel: Kernel,
     dim: usize,
@@ -573,22 +578,51 @@ pub struct Svm {
     /// Support vectors, row-major, `dim` columns.
     sv: Vec<f64>,
     pairs: Vec<PairModel>,
-    /// The support vectors dimension-major (prediction only; not stored).
+    /// The support vectors transposed (`dim` rows of `n_sv`), so the kernel
+    /// loop runs across support vectors with contiguous loads. Derived from
+    /// `sv` (private, never changed after construction) by [`by_dim`];
+    /// not serialised.
     #[serde(skip)]
-    sv_by_dim: SvByDim,
+    sv_by_dim: Vec<f64>,
 }
 
-/// The support vectors transposed (`dim` rows of `n_sv`), built once by
-/// [`Svm::scratch`] so the kernel loop runs across support vectors with
-/// contiguous loads. Derived from `sv`, which is private and never
-/// changes after construction; not serialised, and ignored by `==`.
-#[derive(Clone, Debug, Default)]
-struct SvByDim(std::sync::OnceLock<Vec<f64>>);
+/// The stored fields of an [`Svm`] (same names and order as its
+/// serialised form), for deserialising.
+#[derive(Deserialize)]
+struct SvmStored {
+    kernel: Kernel,
+    dim: usize,
+    n_classes: usize,
+    sv: Vec<f64>,
+    pairs: Vec<PairModel>,
+}
 
-impl PartialEq for SvByDim {
-    fn eq(&self, _: &Self) -> bool {
-        true
+impl From<SvmStored> for Svm {
+    fn from(s: SvmStored) -> Self {
+        Self {
+            sv_by_dim: by_dim(&s.sv, s.dim),
+            kernel: s.kernel,
+            dim: s.dim,
+            n_classes: s.n_classes,
+            sv: s.sv,
+            pairs: s.pairs,
+        }
     }
+}
+
+/// Row-major `sv` (`dim` columns) transposed to dimension-major. A length
+/// that is not a multiple of `dim` (a corrupt file, refused afterwards by
+/// [`Svm::validate`]) leaves the remainder out.
+fn by_dim(sv: &[f64], dim: usize) -> Vec<f64> {
+    let dim = dim.max(1);
+    let n = sv.len() / dim;
+    let mut t = vec![0.0; n * dim];
+    for (i, row) in sv.chunks_exact(dim).enumerate() {
+        for (j, &v) in row.iter().enumerate() {
+            t[j * n + i] = v;
+        }
+    }
+    t
 }
 
 /// SVM training settings.
@@ -836,9 +870,9 @@ impl Svm {
                 kernel: cfg.kernel,
                 dim,
                 n_classes,
+                sv_by_dim: by_dim(&sv, dim),
                 sv,
                 pairs,
-                sv_by_dim: SvByDim::default(),
             },
             report,
         ))
@@ -921,16 +955,6 @@ impl Svm {
     /// Buffers sized for this model.
     pub fn scratch(&self) -> SvmScratch {
         let k = self.n_classes;
-        let n = self.n_sv();
-        self.sv_by_dim.0.get_or_init(|| {
-            let mut t = vec![0.0; self.sv.len()];
-            for (i, row) in self.sv.chunks_exact(self.dim.max(1)).enumerate() {
-                for (j, &v) in row.iter().enumerate() {
-                    t[j * n + i] = v;
-                }
-            }
-            t
-        });
         SvmScratch {
             kvals: vec![0.0; self.n_sv()],
             r: vec![0.0; k * k],
@@ -940,26 +964,17 @@ impl Svm {
         }
     }
 
-    /// `K(sv_i, x)` for every support vector into `s.kvals`. With the
-    /// dimension-major copy made by [`Svm::scratch`], each `|sv_i − x|²`
-    /// (or `sv_i·x`) is summed over the dimensions in the same order as
+    /// `K(sv_i, x)` for every support vector into `s.kvals`. From the
+    /// dimension-major copy of the support vectors: each `|sv_i − x|²` (or
+    /// `sv_i·x`) is summed over the dimensions in the same order as
     /// [`Kernel::eval`], so it is the same number; the loop runs across
     /// support vectors (contiguous, vectorised). The RBF `exp` is
     /// [`exp_in_range`] (a few ulp; `f64::exp` outside its range). On
     /// x86-64 CPUs with AVX2 the same code is compiled for AVX2 (four f64
     /// per instruction) and chosen at run time.
     fn kernel_values(&self, x: &[f64], s: &mut SvmScratch) {
-        let Some(by_dim) = self.sv_by_dim.0.get() else {
-            // A scratch made by another (equal-shaped) model: row-major path.
-            for (kv, v) in s
-                .kvals
-                .iter_mut()
-                .zip(self.sv.chunks_exact(self.dim.max(1)))
-            {
-                *kv = self.kernel.eval(v, x);
-            }
-            return;
-        };
+        let by_dim = &self.sv_by_dim;
+        debug_assert_eq!(s.kvals.len(), self.n_sv(), "a scratch of another model");
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked on the line above),
