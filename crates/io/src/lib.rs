@@ -9,6 +9,8 @@
 //! - [`rt`]: SCHED_FIFO, mlockall, affinity, cpu_dma_latency, periodic
 //!   timer with latency statistics.
 //! - [`clock`]: injected monotonic time (real and manual).
+//! - [`systemd`]: `sd_notify` readiness/status/stopping and the
+//!   heartbeat-gated watchdog every service uses.
 //!
 //! See `crates/io/README.md` for the protocol tables and measured figures.
 
@@ -17,3 +19,4 @@ pub mod clock;
 pub mod ipc;
 pub mod mcaplog;
 pub mod rt;
+pub mod systemd;

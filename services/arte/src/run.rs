@@ -140,7 +140,7 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
     let deadline = opts
         .run_for
         .map(|s| clock.now_ns() + (s.max(0.0) * 1e9) as u64);
-    svc::notify_ready(&format!(
+    grip_io::systemd::notify_ready(&format!(
         "estimating: {} classes at {rate} Hz from {}",
         classes.len(),
         topics::AUDIO
@@ -175,7 +175,7 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
             clock.sleep_until_ns(now + poll_ns);
         }
     }
-    svc::notify_stopping();
+    grip_io::systemd::notify_stopping();
     done.store(true, Ordering::Relaxed);
     let _ = helper.join();
     drop(rt);

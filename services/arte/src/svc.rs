@@ -1,33 +1,16 @@
-//! Service plumbing outside the real-time loop: systemd notification and the
-//! non-real-time helper thread (watchdog pings while the loop's heartbeat
-//! advances; log lines on transitions, never per block).
+//! Service plumbing outside the real-time loop: the non-real-time helper
+//! thread (`WATCHDOG=1` through [`grip_io::systemd::Watchdog`] while the
+//! loop's heartbeat advances; log lines on transitions, never per block).
+//! `READY=1`, `STATUS=` and `STOPPING=1` come from [`grip_io::systemd`] too.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use sd_notify::NotifyState;
+use grip_io::systemd::{Watchdog, WatchdogPoll};
 
 use crate::ArteStats;
-
-/// `READY=1` plus a `STATUS=` line (no-op without `NOTIFY_SOCKET`).
-pub fn notify_ready(status: &str) {
-    if let Err(e) = sd_notify::notify(false, &[NotifyState::Ready, NotifyState::Status(status)]) {
-        tracing::warn!("sd_notify READY failed: {e}");
-    }
-}
-
-/// `STOPPING=1` (no-op without `NOTIFY_SOCKET`).
-pub fn notify_stopping() {
-    let _ = sd_notify::notify(false, &[NotifyState::Stopping]);
-}
-
-/// The watchdog period from `WATCHDOG_USEC`, if set.
-pub fn watchdog_period() -> Option<Duration> {
-    let mut usec = 0u64;
-    sd_notify::watchdog_enabled(false, &mut usec).then(|| Duration::from_micros(usec))
-}
 
 /// Spawns the helper thread (before the caller switches to SCHED_FIFO).
 /// Every 50 ms (or half the watchdog period if shorter) it sends
@@ -210,14 +193,8 @@ fn log_speed(ev: SpeedEvent, speed_normalised: bool) {
 }
 
 fn helper(s: &ArteStats, model_rate: u32, speed_normalised: bool, done: &AtomicBool) {
-    let wd = watchdog_period().map(|p| p / 2);
-    let tick = wd
-        .map_or(Duration::from_millis(50), |h| {
-            h.min(Duration::from_millis(50))
-        })
-        .max(Duration::from_millis(1));
-    let mut last_ping = Instant::now();
-    let mut beat_at_ping = s.heartbeat.load(Ordering::Relaxed);
+    let mut wd = Watchdog::from_env(s.heartbeat.load(Ordering::Relaxed));
+    let tick = wd.tick();
     let mut blocks = 0u64;
     let mut blocks_changed = Instant::now();
     let mut audio_stale = false;
@@ -235,19 +212,11 @@ fn helper(s: &ArteStats, model_rate: u32, speed_normalised: bool, done: &AtomicB
     while !done.load(Ordering::Relaxed) {
         std::thread::sleep(tick);
         let beat = s.heartbeat.load(Ordering::Relaxed);
-        if let Some(half) = wd
-            && last_ping.elapsed() >= half
-        {
-            if beat != beat_at_ping {
-                let _ = sd_notify::notify(false, &[NotifyState::Watchdog]);
-                beat_at_ping = beat;
-            } else {
-                tracing::warn!(
-                    heartbeat = beat,
-                    "arte loop heartbeat stalled: watchdog not fed"
-                );
-            }
-            last_ping = Instant::now();
+        if wd.poll(beat, Instant::now()) == WatchdogPoll::Stalled {
+            tracing::warn!(
+                heartbeat = beat,
+                "arte loop heartbeat stalled: watchdog not fed"
+            );
         }
         let b = s.blocks.load(Ordering::Relaxed);
         if b != blocks {

@@ -226,7 +226,7 @@ fn serve<S: Source>(
         cfg.audio.sample_rate,
         topics::AUDIO
     );
-    svc::notify_ready(&format!("capturing: {what}"));
+    grip_io::systemd::notify_ready(&format!("capturing: {what}"));
     let mut ended = false;
     let res = loop {
         if stop.load(Ordering::Relaxed) {
@@ -246,7 +246,7 @@ fn serve<S: Source>(
             Err(e) => break Err(e),
         }
     };
-    svc::notify_stopping();
+    grip_io::systemd::notify_stopping();
     done.store(true, Ordering::Relaxed);
     let _ = helper.join();
     drop(rt);

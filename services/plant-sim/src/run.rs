@@ -156,7 +156,7 @@ pub fn run(
     let clock = MonotonicClock;
     let period_ns = (1e9 / cfg.rate_hz).round() as u64;
     let mut timer = PeriodicTimer::new(clock, period_ns);
-    svc::notify_ready(&format!(
+    grip_io::systemd::notify_ready(&format!(
         "holding scenario {} (start on {:?}), bus {:?}",
         sim.scenario().name,
         cfg.start_on,
@@ -175,7 +175,7 @@ pub fn run(
             break;
         }
     }
-    svc::notify_stopping();
+    grip_io::systemd::notify_stopping();
     done.store(true, Ordering::Relaxed);
     let _ = helper.join();
     let h = timer.histogram();

@@ -1,32 +1,16 @@
-//! Service plumbing outside the real-time loop: systemd notification and the
-//! non-real-time helper thread (watchdog pings while the heartbeat advances;
-//! transition logging, never per cycle).
+//! Service plumbing outside the real-time loop: the non-real-time helper
+//! thread (`WATCHDOG=1` through [`grip_io::systemd::Watchdog`] while the
+//! heartbeat advances; transition logging, never per cycle). `READY=1`,
+//! `STATUS=` and `STOPPING=1` come from [`grip_io::systemd`] too.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use sd_notify::NotifyState;
+use grip_io::systemd::{Watchdog, WatchdogPoll, notify_status};
 
 use crate::sim::PlantStatus;
-
-/// `READY=1` plus a `STATUS=` line (no-op without `NOTIFY_SOCKET`).
-pub fn notify_ready(status: &str) {
-    if let Err(e) = sd_notify::notify(false, &[NotifyState::Ready, NotifyState::Status(status)]) {
-        tracing::warn!("sd_notify READY failed: {e}");
-    }
-}
-
-/// A `STATUS=` line.
-pub fn notify_status(status: &str) {
-    let _ = sd_notify::notify(false, &[NotifyState::Status(status)]);
-}
-
-/// `STOPPING=1`.
-pub fn notify_stopping() {
-    let _ = sd_notify::notify(false, &[NotifyState::Stopping]);
-}
 
 /// Spawns the helper thread (before the caller goes SCHED_FIFO). Every
 /// 50 ms (or half the watchdog period if shorter) it pings the watchdog if
@@ -42,28 +26,9 @@ pub fn spawn_helper(
         .spawn(move || helper(&status, &done))
 }
 
-/// The watchdog period from `WATCHDOG_USEC`, if set. As
-/// `sd_watchdog_enabled(3)`: when `WATCHDOG_PID` is set it must be this
-/// process; unlike sd-notify 0.4 it need not be set.
-pub fn watchdog_period() -> Option<Duration> {
-    let usec: u64 = std::env::var("WATCHDOG_USEC").ok()?.trim().parse().ok()?;
-    if let Ok(pid) = std::env::var("WATCHDOG_PID")
-        && pid.trim().parse::<u32>().ok() != Some(std::process::id())
-    {
-        return None;
-    }
-    (usec > 0).then(|| Duration::from_micros(usec))
-}
-
 fn helper(s: &PlantStatus, done: &AtomicBool) {
-    let wd = watchdog_period().map(|p| p / 2);
-    let tick = wd
-        .map_or(Duration::from_millis(50), |h| {
-            h.min(Duration::from_millis(50))
-        })
-        .max(Duration::from_millis(1));
-    let mut last_ping = Instant::now();
-    let mut beat_at_ping = s.heartbeat.load(Ordering::Relaxed);
+    let mut wd = Watchdog::from_env(s.heartbeat.load(Ordering::Relaxed));
+    let tick = wd.tick();
     let mut phase = s.phase.load(Ordering::Relaxed);
     let mut timed_out = s.cmd_timed_out.load(Ordering::Relaxed);
     let mut faults = 0u64;
@@ -72,19 +37,11 @@ fn helper(s: &PlantStatus, done: &AtomicBool) {
     while !done.load(Ordering::Relaxed) {
         std::thread::sleep(tick);
         let beat = s.heartbeat.load(Ordering::Relaxed);
-        if let Some(half) = wd
-            && last_ping.elapsed() >= half
-        {
-            if beat != beat_at_ping {
-                let _ = sd_notify::notify(false, &[NotifyState::Watchdog]);
-                beat_at_ping = beat;
-            } else {
-                tracing::warn!(
-                    heartbeat = beat,
-                    "plant loop heartbeat stalled: watchdog not fed"
-                );
-            }
-            last_ping = Instant::now();
+        if wd.poll(beat, Instant::now()) == WatchdogPoll::Stalled {
+            tracing::warn!(
+                heartbeat = beat,
+                "plant loop heartbeat stalled: watchdog not fed"
+            );
         }
         let p = s.phase.load(Ordering::Relaxed);
         if p != phase {

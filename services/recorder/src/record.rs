@@ -13,8 +13,8 @@ use std::time::{Duration, Instant};
 use grip_config::{ConfigDir, ConfigError};
 use grip_io::ipc::{IpcError, IpcNode, PeerReport, Subscriber, SubscriberMode};
 use grip_io::mcaplog::{McapLogError, McapWriter, RunInfo, sha256_hex};
+use grip_io::systemd::{self, Watchdog, WatchdogPoll};
 use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
-use sd_notify::NotifyState;
 
 use crate::config::RecorderConfig;
 use crate::stats::{RecvStats, TopicStats};
@@ -558,20 +558,10 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         }
     }
 
-    let _ = sd_notify::notify(
-        false,
-        &[
-            NotifyState::Ready,
-            NotifyState::Status(&format!("recording to {}", path.display())),
-        ],
-    );
+    systemd::notify_ready(&format!("recording to {}", path.display()));
     tracing::info!(file = %path.display(), git = GIT_REV, "recorder ready");
 
-    let mut usec = 0u64;
-    let wd_half =
-        sd_notify::watchdog_enabled(false, &mut usec).then(|| Duration::from_micros(usec / 2));
-    let mut last_ping = Instant::now();
-    let mut beat_at_ping = 0u64;
+    let mut wd = Watchdog::from_env(rx_beat.load(Ordering::Relaxed));
     let mut summary = Summary {
         path: path.clone(),
         ..Summary::default()
@@ -582,7 +572,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         if !stopping && stop.load(Ordering::Relaxed) {
             stopping = true;
             rx_stop.store(true, Ordering::Relaxed);
-            let _ = sd_notify::notify(false, &[NotifyState::Stopping]);
+            systemd::notify_stopping();
         }
         match rx.recv_timeout(Duration::from_millis(100)) {
             Ok(m) => {
@@ -609,16 +599,13 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
             }
             Err(RecvTimeoutError::Disconnected) => break,
         }
-        if let Some(half) = wd_half
-            && last_ping.elapsed() >= half
-        {
-            // fed only while both the receive thread and this loop advance
-            let beat = rx_beat.load(Ordering::Relaxed);
-            if beat != beat_at_ping {
-                let _ = sd_notify::notify(false, &[NotifyState::Watchdog]);
-                beat_at_ping = beat;
-            }
-            last_ping = Instant::now();
+        // fed only while both the receive thread and this loop advance
+        let beat = rx_beat.load(Ordering::Relaxed);
+        if wd.poll(beat, Instant::now()) == WatchdogPoll::Stalled {
+            tracing::warn!(
+                heartbeat = beat,
+                "recorder receive thread stalled: watchdog not fed"
+            );
         }
     }
     summary.recv = handle.join().unwrap_or_default();

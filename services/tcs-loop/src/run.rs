@@ -191,7 +191,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
     let end_ns = opts
         .run_for_s
         .map(|s| clock.now_ns() + (s.max(0.0) * 1e9) as u64);
-    svc::notify_ready(&format!(
+    grip_io::systemd::notify_ready(&format!(
         "{} arte={} at {rate} Hz, bus {:?}",
         kind,
         if cfg.own.arte { "on" } else { "off" },
@@ -209,7 +209,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
             break;
         }
     }
-    svc::notify_stopping();
+    grip_io::systemd::notify_stopping();
     lp.shutdown(clock.now_ns(), &mut bus, &mut sink);
     done.store(true, Ordering::Relaxed);
     let _ = helper.join();

@@ -1,41 +1,17 @@
-//! Service plumbing outside the real-time loop: systemd notification and the
-//! non-real-time helper thread (watchdog pings while the loop's heartbeat
-//! advances; logging of state transitions, never per cycle).
+//! Service plumbing outside the real-time loop: the non-real-time helper
+//! thread (`WATCHDOG=1` through [`grip_io::systemd::Watchdog`] while the
+//! loop's heartbeat advances; logging of state transitions, never per
+//! cycle). `READY=1`, `STATUS=` and `STOPPING=1` come from
+//! [`grip_io::systemd`] too.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use sd_notify::NotifyState;
+use grip_io::systemd::{Watchdog, WatchdogPoll};
 
 use crate::cycle::SharedStatus;
-
-/// `READY=1` plus a `STATUS=` line (no-op without `NOTIFY_SOCKET`).
-pub fn notify_ready(status: &str) {
-    if let Err(e) = sd_notify::notify(false, &[NotifyState::Ready, NotifyState::Status(status)]) {
-        tracing::warn!("sd_notify READY failed: {e}");
-    }
-}
-
-/// `STOPPING=1` (no-op without `NOTIFY_SOCKET`).
-pub fn notify_stopping() {
-    let _ = sd_notify::notify(false, &[NotifyState::Stopping]);
-}
-
-/// The watchdog period from `WATCHDOG_USEC`, if systemd (or `grip drive`)
-/// set one. As `sd_watchdog_enabled(3)`: when `WATCHDOG_PID` is set it must
-/// be this process (sd-notify 0.4 also requires it to be set at all; we do
-/// not, so a manager that sets only `WATCHDOG_USEC` works too).
-pub fn watchdog_period() -> Option<Duration> {
-    let usec: u64 = std::env::var("WATCHDOG_USEC").ok()?.trim().parse().ok()?;
-    if let Ok(pid) = std::env::var("WATCHDOG_PID")
-        && pid.trim().parse::<u32>().ok() != Some(std::process::id())
-    {
-        return None;
-    }
-    (usec > 0).then(|| Duration::from_micros(usec))
-}
 
 /// Spawns the helper thread (call it *before* the calling thread switches to
 /// SCHED_FIFO so the helper stays SCHED_OTHER). It wakes every 50 ms (or at
@@ -56,14 +32,8 @@ pub fn spawn_helper(
 }
 
 fn helper(s: &SharedStatus, arte: bool, done: &AtomicBool) {
-    let wd = watchdog_period().map(|p| p / 2);
-    let tick = wd
-        .map_or(Duration::from_millis(50), |h| {
-            h.min(Duration::from_millis(50))
-        })
-        .max(Duration::from_millis(1));
-    let mut last_ping = Instant::now();
-    let mut beat_at_ping = s.heartbeat.load(Ordering::Relaxed);
+    let mut wd = Watchdog::from_env(s.heartbeat.load(Ordering::Relaxed));
+    let tick = wd.tick();
     let mut safe = s.safe_state.load(Ordering::Relaxed);
     let mut road_n = 0u64;
     let mut road_changed = Instant::now();
@@ -75,20 +45,11 @@ fn helper(s: &SharedStatus, arte: bool, done: &AtomicBool) {
     while !done.load(Ordering::Relaxed) {
         std::thread::sleep(tick);
         let beat = s.heartbeat.load(Ordering::Relaxed);
-        if let Some(half) = wd
-            && last_ping.elapsed() >= half
-        {
-            if beat != beat_at_ping {
-                let _ = sd_notify::notify(false, &[NotifyState::Watchdog]);
-                beat_at_ping = beat;
-                last_ping = Instant::now();
-            } else {
-                tracing::warn!(
-                    heartbeat = beat,
-                    "control loop heartbeat stalled: watchdog not fed"
-                );
-                last_ping = Instant::now();
-            }
+        if wd.poll(beat, Instant::now()) == WatchdogPoll::Stalled {
+            tracing::warn!(
+                heartbeat = beat,
+                "control loop heartbeat stalled: watchdog not fed"
+            );
         }
         let now_safe = s.safe_state.load(Ordering::Relaxed);
         if now_safe != safe {
