@@ -294,36 +294,16 @@ pub struct Audio {
 }
 
 /// Reads a WAV file (PCM 8/16/24/32-bit integer or 32-bit float, any
-/// channel count, averaged to mono).
+/// channel count, averaged to mono; [`crate::wav`] decodes it) at its own
+/// rate, and hashes its bytes.
 pub fn read_wav(path: &Path) -> Result<Audio> {
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
     let sha256 = sha256_hex(&bytes);
-    let mut rdr = hound::WavReader::new(std::io::Cursor::new(&bytes))
-        .with_context(|| format!("{} is not a readable WAV file", path.display()))?;
-    let spec = rdr.spec();
-    let ch = usize::from(spec.channels.max(1));
-    let interleaved: Vec<f32> = match spec.sample_format {
-        hound::SampleFormat::Float => rdr
-            .samples::<f32>()
-            .collect::<Result<_, _>>()
-            .with_context(|| format!("{}: bad float sample data", path.display()))?,
-        hound::SampleFormat::Int => {
-            let scale = 1.0 / (1u64 << (spec.bits_per_sample.clamp(1, 32) - 1)) as f32;
-            rdr.samples::<i32>()
-                .map(|s| s.map(|v| v as f32 * scale))
-                .collect::<Result<_, _>>()
-                .with_context(|| {
-                    format!("{}: bad integer sample data (truncated?)", path.display())
-                })?
-        }
-    };
-    let samples = interleaved
-        .chunks(ch)
-        .map(|c| c.iter().sum::<f32>() / c.len() as f32)
-        .collect();
+    let a = crate::wav::decode_mono(&bytes)
+        .with_context(|| format!("reading WAV file {}", path.display()))?;
     Ok(Audio {
-        sample_rate: spec.sample_rate,
-        samples,
+        sample_rate: a.sample_rate,
+        samples: a.samples,
         sha256,
     })
 }
@@ -462,7 +442,7 @@ mod tests {
             .unwrap();
         let e = format!("{:#}", read_wav(&bad.path).unwrap_err());
         assert!(
-            e.contains("bad.wav") && e.contains("not a readable WAV"),
+            e.contains("bad.wav") && e.contains("not a valid WAV"),
             "{e}"
         );
         let e = format!(

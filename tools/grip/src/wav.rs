@@ -59,12 +59,26 @@ pub fn read_mono_at(path: &Path, rate: u32) -> Result<Audio> {
     Ok(a)
 }
 
+/// Decodes WAV file bytes already in memory (`grip train` hashes them
+/// too), as mono at the file's own rate; errors as [`read_mono`]'s,
+/// without the path (the caller adds it).
+pub fn decode_mono(bytes: &[u8]) -> Result<Audio> {
+    decode(hound::WavReader::new(std::io::Cursor::new(bytes)).map_err(open_error)?)
+}
+
 fn read_inner(path: &Path) -> Result<Audio> {
-    let mut reader = hound::WavReader::open(path).map_err(|e| match e {
+    decode(hound::WavReader::open(path).map_err(open_error)?)
+}
+
+fn open_error(e: hound::Error) -> anyhow::Error {
+    match e {
         hound::Error::IoError(io) => anyhow::anyhow!("{io}"),
         hound::Error::FormatError(m) => anyhow::anyhow!("not a valid WAV file: {m}"),
         other => anyhow::anyhow!("not a readable WAV file: {other}"),
-    })?;
+    }
+}
+
+fn decode<R: std::io::Read>(mut reader: hound::WavReader<R>) -> Result<Audio> {
     let spec = reader.spec();
     let ch = spec.channels;
     if ch == 0 {
