@@ -255,42 +255,43 @@ mod tests {
 
     #[test]
     fn fed_at_half_period_only_when_the_beat_advanced() {
+        use WatchdogPoll::{Fed, NotDue, Stalled};
         let t0 = Instant::now();
-        let at = |v: u64| t0 + ms(v);
         let mut w = Watchdog::new(Some(ms(200)), 7, t0);
-        // not due before half the period, however the beat moves
-        assert_eq!(w.poll(8, at(0)), WatchdogPoll::NotDue);
-        assert_eq!(w.poll(9, at(99)), WatchdogPoll::NotDue);
-        // due at 100 ms, beat 7 → 10: fed
-        assert_eq!(w.poll(10, at(100)), WatchdogPoll::Fed);
-        // next due 100 ms after that ping, not after the previous due time
-        assert_eq!(w.poll(11, at(150)), WatchdogPoll::NotDue);
-        assert_eq!(w.poll(11, at(199)), WatchdogPoll::NotDue);
-        assert_eq!(w.poll(11, at(230)), WatchdogPoll::Fed);
-        // the beat stops at 11: stalled at the next due time, nothing sent
-        assert_eq!(w.poll(11, at(300)), WatchdogPoll::NotDue);
-        assert_eq!(w.poll(11, at(330)), WatchdogPoll::Stalled);
-        // a stall report also restarts the half period
-        assert_eq!(w.poll(11, at(400)), WatchdogPoll::NotDue);
-        assert_eq!(w.poll(11, at(430)), WatchdogPoll::Stalled);
-        // the beat moves again: fed at the next due time
-        assert_eq!(w.poll(12, at(500)), WatchdogPoll::NotDue);
-        assert_eq!(w.poll(12, at(530)), WatchdogPoll::Fed);
+        // (heartbeat, time in ms, expected), in order
+        let steps = [
+            // not due before half the period, however the beat moves
+            (8, 0, NotDue),
+            (9, 99, NotDue),
+            // due at 100 ms, beat 7 → 10: fed
+            (10, 100, Fed),
+            // next due 100 ms after that ping, not after the previous due time
+            (11, 150, NotDue),
+            (11, 199, NotDue),
+            (11, 230, Fed),
+            // the beat stops at 11: stalled at the next due time, nothing sent
+            (11, 300, NotDue),
+            (11, 330, Stalled),
+            // a stall report also restarts the half period
+            (11, 400, NotDue),
+            (11, 430, Stalled),
+            // the beat moves again: fed at the next due time
+            (12, 500, NotDue),
+            (12, 530, Fed),
+        ];
+        for (beat, t, want) in steps {
+            assert_eq!(w.poll(beat, t0 + ms(t)), want, "beat {beat} at {t} ms");
+        }
     }
 
     #[test]
-    fn first_ping_needs_the_beat_to_pass_its_start_value() {
+    fn first_ping_needs_the_beat_to_leave_its_start_value_any_way() {
         let t0 = Instant::now();
-        let mut w = Watchdog::new(Some(ms(100)), 5, t0);
-        assert_eq!(w.poll(5, t0 + ms(50)), WatchdogPoll::Stalled);
-        assert_eq!(w.poll(6, t0 + ms(100)), WatchdogPoll::Fed);
-    }
-
-    #[test]
-    fn any_change_counts_including_wraparound() {
-        let t0 = Instant::now();
-        let mut w = Watchdog::new(Some(ms(100)), u64::MAX, t0);
-        assert_eq!(w.poll(0, t0 + ms(50)), WatchdogPoll::Fed);
+        let mut w = Watchdog::new(Some(ms(100)), u64::MAX - 1, t0);
+        assert_eq!(w.poll(u64::MAX - 1, t0 + ms(50)), WatchdogPoll::Stalled);
+        assert_eq!(w.poll(u64::MAX, t0 + ms(100)), WatchdogPoll::Fed);
+        // a wrapped counter has still moved
+        assert_eq!(w.poll(0, t0 + ms(150)), WatchdogPoll::Fed);
     }
 
     #[test]
