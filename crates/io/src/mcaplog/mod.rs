@@ -18,7 +18,10 @@
 //! Never write MCAP from a real-time thread: a write may compress a chunk
 //! (~0.25 ms lz4) or fsync.
 
+mod damage;
 pub mod json;
+
+pub use damage::first_damage;
 
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
@@ -498,8 +501,11 @@ pub struct LogAttachment {
 /// A whole MCAP file in memory.
 #[derive(Debug)]
 pub struct McapLog {
+    /// The file's bytes up to the first damage ([`first_damage`]).
     data: Vec<u8>,
     path: PathBuf,
+    /// Where and why the file was cut short on opening.
+    damage: Option<String>,
 }
 
 fn decode(schema: &str, data: &[u8]) -> Result<Option<LogMessage>, String> {
@@ -524,14 +530,25 @@ fn decode(schema: &str, data: &[u8]) -> Result<Option<LogMessage>, String> {
 }
 
 impl McapLog {
-    /// Reads `path` into memory.
+    /// Reads `path` into memory, up to its first damaged record or chunk
+    /// (a crash-truncated tail, an implausible chunk header, a chunk whose
+    /// CRC fails): what follows is not read, and [`ReadReport::truncated`]
+    /// says where and why.
     pub fn open(path: impl AsRef<Path>) -> Result<Self, McapLogError> {
         let path = path.as_ref().to_path_buf();
-        let data = std::fs::read(&path).map_err(|source| McapLogError::Io {
+        let mut data = std::fs::read(&path).map_err(|source| McapLogError::Io {
             path: path.clone(),
             source,
         })?;
-        Ok(Self { data, path })
+        let damage = if data.starts_with(mcap::MAGIC) {
+            first_damage(&data).map(|(off, why)| {
+                data.truncate(off);
+                format!("read up to byte {off}: {why}")
+            })
+        } else {
+            None
+        };
+        Ok(Self { data, path, damage })
     }
 
     /// Calls `f` for every grip message in file order. Stops quietly at a
@@ -584,7 +601,9 @@ impl McapLog {
                 }
             }
         }
-        if rep.truncated.is_none() && mcap::read::footer(&self.data).is_err() {
+        if let Some(d) = &self.damage {
+            rep.truncated = Some(d.clone());
+        } else if rep.truncated.is_none() && mcap::read::footer(&self.data).is_err() {
             rep.truncated = Some("no footer: the writer did not finish (crash?)".into());
         }
         Ok(rep)

@@ -51,147 +51,11 @@ pub struct DriveLog {
     pub attachments: BTreeMap<String, Vec<u8>>,
 }
 
-/// A temporary file removed on drop.
-struct TempCopy(PathBuf);
-
-impl TempCopy {
-    fn new(data: &[u8]) -> std::io::Result<Self> {
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| d.subsec_nanos())
-            .unwrap_or(0);
-        let p = std::env::temp_dir().join(format!(
-            "grip-inspect-{}-{nanos:x}.mcap",
-            std::process::id()
-        ));
-        std::fs::write(&p, data)?;
-        Ok(Self(p))
-    }
-}
-
-impl Drop for TempCopy {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.0);
-    }
-}
-
-/// Largest uncompressed chunk accepted (the recorder writes 512 KiB chunks).
-const MAX_CHUNK: u64 = 1 << 30;
-
-fn u64_at(d: &[u8], at: usize) -> Option<u64> {
-    Some(u64::from_le_bytes(d.get(at..at + 8)?.try_into().ok()?))
-}
-
-fn u32_at(d: &[u8], at: usize) -> Option<u32> {
-    Some(u32::from_le_bytes(d.get(at..at + 4)?.try_into().ok()?))
-}
-
-/// Walks the top-level MCAP records and returns where a safe read must
-/// stop, with the reason: the first record whose length runs past the end
-/// of the file (a crash-truncated tail), the first Chunk whose header is
-/// implausible (uncompressed size over 1 GiB, or an uncompressed chunk whose
-/// sizes disagree), or the first Chunk whose CRC does not match its
-/// decompressed content (checked with the mcap crate's reader, which
-/// validates a chunk before it parses a record of it). `None`: the file
-/// reads as a whole.
-pub fn first_bad_chunk(d: &[u8]) -> Option<(usize, String)> {
-    const MAGIC_LEN: usize = 8;
-    let mut at = MAGIC_LEN;
-    let mut chunks = Vec::new();
-    let mut stop = None;
-    while at + 9 <= d.len() {
-        let op = d[at];
-        let Some(len) = u64_at(d, at + 1) else { break };
-        let body = at + 9;
-        let end = usize::try_from(len).ok().and_then(|l| body.checked_add(l));
-        let Some(end) = end.filter(|e| *e <= d.len()) else {
-            stop = Some((
-                at,
-                format!("record at byte {at} runs past the end of the file"),
-            ));
-            break;
-        };
-        if op == 0x06 {
-            let hdr = (|| {
-                let usize_ = u64_at(d, body + 16)?;
-                let clen = u32_at(d, body + 28)? as usize;
-                let comp = d.get(body + 32..body + 32 + clen)?;
-                let rec_len = u64_at(d, body + 32 + clen)?;
-                Some((usize_, comp.is_empty(), rec_len))
-            })();
-            match hdr {
-                None => {
-                    stop = Some((at, "unreadable chunk header".to_owned()));
-                    break;
-                }
-                Some((u, _, _)) if u > MAX_CHUNK => {
-                    stop = Some((at, format!("chunk claims {u} bytes uncompressed")));
-                    break;
-                }
-                Some((u, true, r)) if u != r => {
-                    stop = Some((at, format!("uncompressed chunk of {r} bytes claims {u}")));
-                    break;
-                }
-                _ => chunks.push(at),
-            }
-        }
-        at = end;
-    }
-    // CRC of every chunk before the stop point
-    let limit = stop.as_ref().map_or(d.len(), |s| s.0);
-    let data = &d[..limit];
-    let mut r = mcap::sans_io::LinearReader::new_with_options(
-        mcap::sans_io::LinearReaderOptions::default()
-            .with_skip_end_magic(true)
-            .with_prevalidate_chunk_crcs(true)
-            .with_record_length_limit(data.len()),
-    );
-    let mut fed = 0usize;
-    while let Some(ev) = r.next_event() {
-        match ev {
-            Ok(mcap::sans_io::LinearReadEvent::ReadRequest(n)) => {
-                let n = n.min(data.len() - fed);
-                if n == 0 {
-                    break;
-                }
-                r.insert(n).copy_from_slice(&data[fed..fed + n]);
-                r.notify_read(n);
-                fed += n;
-            }
-            Ok(mcap::sans_io::LinearReadEvent::Record { .. }) => {}
-            Err(e) => {
-                let bad = chunks.iter().rev().find(|&&c| c < fed).copied();
-                return match bad {
-                    Some(c) => Some((c, format!("chunk at byte {c} is corrupt: {e}"))),
-                    None => Some((MAGIC_LEN.min(d.len()), format!("{e}"))),
-                };
-            }
-        }
-    }
-    stop
-}
-
 impl DriveLog {
     /// Reads `path`. A file that is not MCAP, or unreadable, is an error; a
     /// truncated one reads up to the damage (see `report.truncated`).
     pub fn load(path: &Path) -> anyhow::Result<Self> {
-        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-        // Corrupt lengths inside a chunk make the mcap reader (0.26) reserve
-        // absurd buffers and abort the process: find the first damaged record
-        // or chunk (CRC) and read only what precedes it, from a temporary copy.
-        let bad = first_bad_chunk(&bytes);
-        let tmp;
-        let open_path = match &bad {
-            Some((off, _)) => {
-                tmp = TempCopy::new(&bytes[..*off])
-                    .with_context(|| format!("copying the readable part of {}", path.display()))?;
-                tmp.0.as_path()
-            }
-            None => path,
-        };
-        drop(bytes);
-        let log =
-            McapLog::open(open_path).with_context(|| format!("reading {}", path.display()))?;
+        let log = McapLog::open(path).with_context(|| format!("reading {}", path.display()))?;
         let mut me = DriveLog {
             path: path.to_path_buf(),
             ..Self::default()
@@ -215,9 +79,6 @@ impl DriveLog {
             })
             .with_context(|| format!("reading {}", path.display()))?;
         me.report = report;
-        if let Some((off, why)) = bad {
-            me.report.truncated = Some(format!("read up to byte {off}: {why}"));
-        }
         for (name, map) in log.metadata().unwrap_or_default() {
             match name.as_str() {
                 "grip.run" => me.run = map,
