@@ -1,10 +1,12 @@
 //! CAN: the inverter protocol ([`protocol`]) and the transports behind one
 //! trait ([`CanBus`]): Linux SocketCAN ([`SocketCanBus`]) and a simulated
-//! bus over iceoryx2 ([`SimBus`]) that carries the very same 8-byte frames.
+//! bus over iceoryx2 ([`SimBus`]) that carries the very same 8-byte frames;
+//! [`MemBus`], in-process queues, for single-threaded tests and replay.
 //! [`open_bus`] picks one per [`CanBusConfig`]; `auto` takes SocketCAN when
 //! the interface exists and the kernel has AF_CAN, else the simulated bus,
 //! and logs which and why.
 
+mod mem;
 pub mod protocol;
 mod sim;
 mod socket;
@@ -12,6 +14,7 @@ mod socket;
 use core::time::Duration;
 
 pub use grip_msgs::CanFrame;
+pub use mem::{FrameQueue, MEM_BUS_CAPACITY, MemBus, frame_queue};
 pub use sim::SimBus;
 pub use socket::{SocketCanBus, af_can_available, interface_exists};
 

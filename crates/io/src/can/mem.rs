@@ -1,0 +1,133 @@
+//! [`MemBus`]: an in-process CAN bus for single-threaded tests and offline
+//! replay of a service's cycle function, with no kernel, no iceoryx2 and no
+//! other process. A participant reads its `rx` queue and writes its `tx`
+//! queue; the test (or [`MemBus::pair`]'s other end) feeds and drains them.
+//! Queues are preallocated (65 536 frames), so `send` and `try_recv`
+//! allocate nothing while under that capacity (the services' no-allocation
+//! tests rely on it). Not `Send`: one thread only.
+
+use std::cell::RefCell;
+use std::collections::VecDeque;
+use std::rc::Rc;
+
+use core::time::Duration;
+
+use super::{BusKind, CanBus, CanError};
+use grip_msgs::{CanFrame, can_dir};
+
+/// A frame queue shared between a [`MemBus`] and its feeder.
+pub type FrameQueue = Rc<RefCell<VecDeque<CanFrame>>>;
+
+/// Frames a queue holds before it would have to grow.
+pub const MEM_BUS_CAPACITY: usize = 1 << 16;
+
+/// A new preallocated queue.
+pub fn frame_queue() -> FrameQueue {
+    Rc::new(RefCell::new(VecDeque::with_capacity(MEM_BUS_CAPACITY)))
+}
+
+/// One participant of an in-process bus: reads `rx`, writes `tx`.
+#[derive(Clone)]
+pub struct MemBus {
+    /// What this participant receives (fed by the test or the other end).
+    pub rx: FrameQueue,
+    /// What this participant sent.
+    pub tx: FrameQueue,
+}
+
+impl Default for MemBus {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl MemBus {
+    /// A participant whose queues the caller feeds and reads directly.
+    pub fn new() -> Self {
+        Self {
+            rx: frame_queue(),
+            tx: frame_queue(),
+        }
+    }
+
+    /// Two participants wired to each other (one's `tx` is the other's `rx`).
+    pub fn pair() -> (Self, Self) {
+        let (a, b) = (frame_queue(), frame_queue());
+        (
+            Self {
+                rx: a.clone(),
+                tx: b.clone(),
+            },
+            Self { rx: b, tx: a },
+        )
+    }
+
+    /// Queues `f` for this participant to receive.
+    pub fn inject(&self, f: CanFrame) {
+        self.rx.borrow_mut().push_back(f);
+    }
+
+    /// Everything this participant sent since the last call, in order.
+    pub fn take_sent(&self) -> Vec<CanFrame> {
+        self.tx.borrow_mut().drain(..).collect()
+    }
+
+    /// Forgets what this participant sent.
+    pub fn clear_sent(&self) {
+        self.tx.borrow_mut().clear();
+    }
+}
+
+impl CanBus for MemBus {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), CanError> {
+        self.tx.borrow_mut().push_back(*frame);
+        Ok(())
+    }
+    /// The next queued frame, marked as received.
+    fn try_recv(&mut self) -> Result<Option<CanFrame>, CanError> {
+        Ok(self.rx.borrow_mut().pop_front().map(|mut f| {
+            f.direction = can_dir::RX;
+            f
+        }))
+    }
+    /// As [`MemBus::try_recv`]: nobody else can fill the queue meanwhile.
+    fn recv_timeout(&mut self, _: Duration) -> Result<Option<CanFrame>, CanError> {
+        self.try_recv()
+    }
+    fn kind(&self) -> BusKind {
+        BusKind::Sim
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_pair_carries_frames_both_ways_in_order_marked_received() {
+        let (mut a, mut b) = MemBus::pair();
+        for id in [0x100, 0x101] {
+            a.send(&CanFrame::new(id, &[1, 2])).unwrap();
+        }
+        b.send(&CanFrame::new(0x200, &[3])).unwrap();
+        let got: Vec<_> = std::iter::from_fn(|| b.try_recv().unwrap()).collect();
+        assert_eq!(got.iter().map(|f| f.id).collect::<Vec<_>>(), [0x100, 0x101]);
+        assert!(got.iter().all(|f| f.direction == can_dir::RX));
+        assert_eq!(a.recv_timeout(Duration::ZERO).unwrap().unwrap().id, 0x200);
+        assert_eq!(a.try_recv().unwrap(), None);
+    }
+
+    #[test]
+    fn injected_frames_are_received_and_sent_ones_taken() {
+        let mut m = MemBus::new();
+        m.inject(CanFrame::new(0x10, &[]));
+        assert_eq!(m.try_recv().unwrap().unwrap().id, 0x10);
+        m.send(&CanFrame::new(0x20, &[])).unwrap();
+        m.send(&CanFrame::new(0x21, &[])).unwrap();
+        assert_eq!(m.take_sent().len(), 2);
+        assert!(m.take_sent().is_empty());
+        m.send(&CanFrame::new(0x22, &[])).unwrap();
+        m.clear_sent();
+        assert!(m.take_sent().is_empty());
+    }
+}
