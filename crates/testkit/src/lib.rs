@@ -1,5 +1,6 @@
 //! Test support shared by grip's crates; a dev-dependency only, never
-//! linked into a service or tool.
+//! linked into a service or tool. [`svc`] runs a service binary from its
+//! own tests; the rest of this page is the counting allocator.
 //!
 //! [`CountingAlloc`] is the global allocator of every "hot loop allocates
 //! nothing" test: it forwards to the system allocator and counts
@@ -22,6 +23,8 @@
 //! let n = grip_testkit::allocations(|| hot_loop());
 //! assert_eq!(n, 0);
 //! ```
+
+pub mod svc;
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;

@@ -2,51 +2,30 @@
 //! field, reason), exit 1; `READY=1` on `NOTIFY_SOCKET`; `--exit-at-end`
 //! exits 0 at the scenario's end; SIGTERM exits 0.
 
-use std::io::Read;
-use std::os::unix::net::UnixDatagram;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
+
+use grip_testkit::svc::{NotifySocket, Service, strip_rt};
 
 const BIN: &str = env!("CARGO_BIN_EXE_plant-sim");
 
-fn config_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config")
-}
-
+/// The shipped configuration plant-sim reads, without the real-time set-up.
 fn copy_config() -> tempfile::TempDir {
-    let t = tempfile::tempdir().unwrap();
-    for f in ["vehicle.toml", "can.toml", "roads.toml"] {
-        std::fs::copy(config_dir().join(f), t.path().join(f)).unwrap();
-    }
-    std::fs::create_dir(t.path().join("scenarios")).unwrap();
-    std::fs::create_dir(t.path().join("roads")).unwrap();
-    std::fs::copy(
-        config_dir().join("scenarios/paper.toml"),
-        t.path().join("scenarios/paper.toml"),
-    )
-    .unwrap();
-    for e in std::fs::read_dir(config_dir().join("roads")).unwrap() {
-        let e = e.unwrap();
-        std::fs::copy(e.path(), t.path().join("roads").join(e.file_name())).unwrap();
-    }
-    // the shipped file without the real-time set-up
-    let text = std::fs::read_to_string(config_dir().join("plant-sim.toml")).unwrap();
-    let cut = text.find("[rt]").unwrap();
-    std::fs::write(t.path().join("plant-sim.toml"), &text[..cut]).unwrap();
+    let t = grip_testkit::svc::copy_config(&[
+        "vehicle.toml",
+        "can.toml",
+        "roads.toml",
+        "roads",
+        "scenarios/paper.toml",
+        "plant-sim.toml",
+    ]);
+    strip_rt(&t.path().join("plant-sim.toml"));
     t
 }
 
 fn run(args: &[&str]) -> (i32, String) {
-    let out = Command::new(BIN)
-        .args(args)
-        .env("GRIP_INSTANCE", format!("ps-cli-{}", std::process::id()))
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    let instance = format!("ps-cli-{}", std::process::id());
+    grip_testkit::svc::run(BIN, &instance, args)
 }
 
 #[test]
@@ -87,101 +66,44 @@ fn bad_config_names_file_field_reason() {
     assert_eq!(code, 2);
 }
 
-fn wait_ready(sock: &UnixDatagram) -> bool {
-    let t0 = Instant::now();
-    let mut buf = [0u8; 512];
-    while t0.elapsed() < Duration::from_secs(20) {
-        if let Ok(n) = sock.recv(&mut buf)
-            && String::from_utf8_lossy(&buf[..n])
-                .lines()
-                .any(|l| l == "READY=1")
-        {
-            return true;
-        }
-    }
-    false
-}
-
-/// Kills the child if the test fails before it ends.
-struct KillOnDrop(std::process::Child);
-impl Drop for KillOnDrop {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-unsafe extern "C" {
-    #[link_name = "kill"]
-    fn libc_kill(pid: i32, sig: i32) -> i32;
-}
-
 #[test]
 fn ready_then_exit_at_end_and_sigterm() {
     let t = copy_config();
     let dir = t.path().to_str().unwrap();
-    let sock_path = t.path().join("notify.sock");
-    let sock = UnixDatagram::bind(&sock_path).unwrap();
-    sock.set_read_timeout(Some(Duration::from_millis(200)))
-        .unwrap();
+    let sock = NotifySocket::bind(t.path());
+    let ready = || sock.wait_for("READY=1", Duration::from_secs(20));
 
     // immediate start, exits by itself after 2.4 s + 0.1 s
     let t0 = Instant::now();
-    let child = Command::new(BIN)
-        .args([
-            "--config-dir",
-            dir,
-            "--start-on",
-            "immediate",
-            "--exit-at-end",
-        ])
-        .env("NOTIFY_SOCKET", &sock_path)
-        .env("GRIP_INSTANCE", format!("ps-ready-{}", std::process::id()))
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut child = KillOnDrop(child);
-    assert!(wait_ready(&sock), "no READY=1");
-    let status = child.0.wait().unwrap();
-    let mut err = String::new();
-    child
-        .0
-        .stderr
-        .take()
-        .unwrap()
-        .read_to_string(&mut err)
-        .unwrap();
+    let mut cmd = Command::new(BIN);
+    cmd.args([
+        "--config-dir",
+        dir,
+        "--start-on",
+        "immediate",
+        "--exit-at-end",
+    ])
+    .env("NOTIFY_SOCKET", sock.path())
+    .env("GRIP_INSTANCE", format!("ps-ready-{}", std::process::id()));
+    let mut child = Service::spawn(cmd);
+    assert!(ready(), "no READY=1");
+    let (status, err) = child.wait();
     assert_eq!(status.code(), Some(0), "{err}");
     assert!(err.contains("finished=true"), "{err}");
     assert!(t0.elapsed() >= Duration::from_millis(2500), "real time");
 
     // signal start: without SIGUSR1 (and commands) it holds; SIGTERM → 0
-    let child = Command::new(BIN)
-        .args(["--config-dir", dir, "--exit-at-end"])
-        .env("NOTIFY_SOCKET", &sock_path)
-        .env("GRIP_INSTANCE", format!("ps-ready2-{}", std::process::id()))
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut child = KillOnDrop(child);
-    assert!(wait_ready(&sock), "no READY=1");
+    let mut cmd = Command::new(BIN);
+    cmd.args(["--config-dir", dir, "--exit-at-end"])
+        .env("NOTIFY_SOCKET", sock.path())
+        .env("GRIP_INSTANCE", format!("ps-ready2-{}", std::process::id()));
+    let mut child = Service::spawn(cmd);
+    assert!(ready(), "no READY=1");
     std::thread::sleep(Duration::from_millis(300));
-    // SAFETY: kill(2) on our child.
-    unsafe { libc_kill(child.0.id() as i32, 10) }; // SIGUSR1: no commands, so it keeps holding
+    child.signal(10); // SIGUSR1: no commands, so it keeps holding
     std::thread::sleep(Duration::from_millis(300));
-    // SAFETY: kill(2) on our child.
-    unsafe { libc_kill(child.0.id() as i32, 15) };
-    let status = child.0.wait().unwrap();
-    let mut err = String::new();
-    child
-        .0
-        .stderr
-        .take()
-        .unwrap()
-        .read_to_string(&mut err)
-        .unwrap();
+    child.signal(15);
+    let (status, err) = child.wait();
     assert_eq!(status.code(), Some(0), "{err}");
     assert!(err.contains("finished=false"), "{err}");
     assert!(err.contains("scenario_time_s=0"), "held: {err}");
