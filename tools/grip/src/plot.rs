@@ -64,6 +64,144 @@ pub fn runs<T: Clone + PartialEq>(xs: &[T]) -> Vec<(usize, usize, T)> {
     out
 }
 
+/// A drawing area of a PNG figure.
+pub type Area<'a> =
+    plotters::drawing::DrawingArea<plotters::backend::BitMapBackend<'a>, plotters::coord::Shift>;
+
+/// What drawing a figure returns.
+pub type PlotResult = Result<(), Box<dyn std::error::Error>>;
+
+/// A coloured stretch of time `[t0, t1)` behind a panel (a road) or in an
+/// estimate strip, with its label.
+pub struct Band {
+    /// Start (s).
+    pub t0: f64,
+    /// End (s).
+    pub t1: f64,
+    /// Fill colour (full strength; panels draw it pale).
+    pub colour: plotters::style::RGBColor,
+    /// Written at the band's start when the panel labels its roads.
+    pub label: String,
+}
+
+/// A time series of a panel: its legend label, colour and (t, y) points.
+pub struct Line<'a> {
+    /// Legend label.
+    pub label: &'a str,
+    /// Colour.
+    pub colour: plotters::style::RGBColor,
+    /// The samples; non-finite values are left out, the rest clamped to
+    /// the panel's y range; at most about 3000 are drawn.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// A panel over `[0, t_end]` s: the road `bands` drawn pale behind (their
+/// labels written if `label_roads`), the `lines` on top, a legend at the
+/// upper right. Shared by `grip sim` and `grip inspect`/`drive` figures.
+#[allow(clippy::too_many_arguments)]
+pub fn road_panel(
+    area: &Area<'_>,
+    t_end: f64,
+    caption: &str,
+    x_desc: &str,
+    (y_lo, y_hi): (f64, f64),
+    bands: &[Band],
+    label_roads: bool,
+    lines: &[Line<'_>],
+) -> PlotResult {
+    use plotters::prelude::*;
+    let t_end = t_end.max(1e-3);
+    let mut chart = ChartBuilder::on(area)
+        .margin(8)
+        .caption(caption, ("sans-serif", 20))
+        .x_label_area_size(34)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..t_end, y_lo..y_hi)?;
+    for b in bands {
+        chart.draw_series(std::iter::once(Rectangle::new(
+            [(b.t0, y_lo), (b.t1, y_hi)],
+            b.colour.mix(0.25).filled(),
+        )))?;
+        if label_roads {
+            chart.draw_series(std::iter::once(Text::new(
+                b.label.clone(),
+                (b.t0 + 0.005 * t_end, y_hi - 0.03 * (y_hi - y_lo)),
+                ("sans-serif", 15).into_font().color(&BLACK),
+            )))?;
+        }
+    }
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(x_desc)
+        .label_style(("sans-serif", 15))
+        .axis_desc_style(("sans-serif", 15))
+        .draw()?;
+    for line in lines {
+        let c = line.colour;
+        let step = (line.points.len() / 3000).max(1);
+        chart
+            .draw_series(LineSeries::new(
+                line.points
+                    .iter()
+                    .step_by(step)
+                    .filter(|(_, y)| y.is_finite())
+                    .map(|&(t, y)| (t, y.clamp(y_lo, y_hi))),
+                c.stroke_width(2),
+            ))?
+            .label(line.label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .margin(8)
+        .label_font(("sans-serif", 15))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()?;
+    Ok(())
+}
+
+/// A strip over `[0, t_end]` s of the estimated road: `spans` filled with
+/// their colour (`None`: white, no estimate), `marks` as black ticks along
+/// the bottom (e.g. cycles where the controller ignored the estimate).
+pub fn estimate_strip(
+    area: &Area<'_>,
+    t_end: f64,
+    caption: &str,
+    spans: &[(f64, f64, Option<plotters::style::RGBColor>)],
+    marks: &[(f64, f64)],
+) -> PlotResult {
+    use plotters::prelude::*;
+    let t_end = t_end.max(1e-3);
+    let mut chart = ChartBuilder::on(area)
+        .margin_left(8)
+        .margin_right(8)
+        .x_label_area_size(0)
+        .y_label_area_size(60)
+        .caption(caption, ("sans-serif", 15))
+        .build_cartesian_2d(0.0..t_end, 0.0..1.0)?;
+    for &(t0, t1, colour) in spans {
+        let fill = colour.map_or(WHITE.filled(), |c| c.mix(0.85).filled());
+        chart.draw_series(std::iter::once(Rectangle::new(
+            [(t0.max(0.0), 0.0), (t1.min(t_end), 1.0)],
+            fill,
+        )))?;
+    }
+    for &(t0, t1) in marks {
+        chart.draw_series(std::iter::once(Rectangle::new(
+            [(t0, 0.0), (t1, 0.15)],
+            BLACK.filled(),
+        )))?;
+    }
+    chart.draw_series(std::iter::once(Rectangle::new(
+        [(0.0, 0.0), (t_end, 1.0)],
+        BLACK.stroke_width(1),
+    )))?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use plotters::prelude::*;

@@ -40,12 +40,11 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     }
     if let Some(dir) = &args.plot {
         let title = format!(
-            "grip drive: {} {} ARTE {}, scenario {}",
+            "grip drive: {}, ARTE {}, scenario {}",
             log.run
                 .get("controller")
                 .map_or("?", String::as_str)
                 .to_uppercase(),
-            "",
             log.run.get("arte").map_or("?", String::as_str),
             log.run.get("scenario").map_or("?", String::as_str)
         );

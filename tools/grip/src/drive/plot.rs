@@ -6,20 +6,18 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::anyhow;
-use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::log::DriveLog;
 use super::summary::Percentiles;
-use crate::plot::{init_fonts, road_colour, runs};
+use crate::plot::{
+    Area, Band, Line, PlotResult as Res, estimate_strip, init_fonts, road_colour, road_panel, runs,
+};
 
 const W: u32 = 1600;
 const PANEL_H: u32 = 330;
 const STRIP_H: u32 = 80;
 const TITLE_H: u32 = 50;
-
-type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
-type Res = Result<(), Box<dyn std::error::Error>>;
 
 struct Series {
     t: Vec<f64>,
@@ -82,108 +80,79 @@ fn range(xs: impl Iterator<Item = f64>) -> (f64, f64) {
     (lo - 0.05 * span, hi + 0.08 * span)
 }
 
+/// The true-road bands of `s` (colours by name, else by sorted position).
+fn bands(s: &Series) -> Vec<Band> {
+    let t_end = s.t.last().copied().unwrap_or(1.0);
+    let mut names = s.road.clone();
+    names.sort();
+    names.dedup();
+    runs(&s.road)
+        .into_iter()
+        .map(|(a, b, road)| {
+            let idx = names.iter().position(|n| *n == road).unwrap_or(0);
+            Band {
+                t0: s.t[a],
+                t1: s.t.get(b).copied().unwrap_or(t_end),
+                colour: road_colour(&road, idx),
+                label: road,
+            }
+        })
+        .collect()
+}
+
+/// A panel of `s` with its road bands and `lines` (label, times, values, colour).
 fn panel(
     area: &Area<'_>,
     s: &Series,
     caption: &str,
-    (y_lo, y_hi): (f64, f64),
+    y: (f64, f64),
     label_roads: bool,
     lines: &[(&str, &[f64], &[f64], RGBColor)],
 ) -> Res {
-    let t_end = s.t.last().copied().unwrap_or(1.0).max(1e-3);
-    let mut chart = ChartBuilder::on(area)
-        .margin(8)
-        .caption(caption, ("sans-serif", 20))
-        .x_label_area_size(34)
-        .y_label_area_size(60)
-        .build_cartesian_2d(0.0..t_end, y_lo..y_hi)?;
-    let names: Vec<String> = {
-        let mut n = s.road.clone();
-        n.sort();
-        n.dedup();
-        n
-    };
-    for (a, b, road) in runs(&s.road) {
-        let idx = names.iter().position(|n| *n == road).unwrap_or(0);
-        let ta = s.t[a];
-        let tb = s.t.get(b).copied().unwrap_or(t_end);
-        chart.draw_series(std::iter::once(Rectangle::new(
-            [(ta, y_lo), (tb, y_hi)],
-            road_colour(&road, idx).mix(0.25).filled(),
-        )))?;
-        if label_roads {
-            chart.draw_series(std::iter::once(Text::new(
-                road.clone(),
-                (ta + 0.005 * t_end, y_hi - 0.03 * (y_hi - y_lo)),
-                ("sans-serif", 15).into_font().color(&BLACK),
-            )))?;
-        }
-    }
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .x_desc("t (s, from the first ground-truth sample)")
-        .label_style(("sans-serif", 15))
-        .axis_desc_style(("sans-serif", 15))
-        .draw()?;
-    for (label, ts, ys, colour) in lines {
-        let c = *colour;
-        let step = (ts.len() / 3000).max(1);
-        chart
-            .draw_series(LineSeries::new(
-                (0..ts.len().min(ys.len()))
-                    .step_by(step)
-                    .filter(|&k| ys[k].is_finite())
-                    .map(|k| (ts[k], ys[k].clamp(y_lo, y_hi))),
-                c.stroke_width(2),
-            ))?
-            .label(*label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
-    }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .margin(8)
-        .label_font(("sans-serif", 15))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()?;
-    Ok(())
+    let lines: Vec<Line<'_>> = lines
+        .iter()
+        .map(|&(label, ts, ys, colour)| Line {
+            label,
+            colour,
+            points: ts.iter().copied().zip(ys.iter().copied()).collect(),
+        })
+        .collect();
+    road_panel(
+        area,
+        s.t.last().copied().unwrap_or(1.0),
+        caption,
+        "t (s, from the first ground-truth sample)",
+        y,
+        &bands(s),
+        label_roads,
+        &lines,
+    )
 }
 
+/// ARTE's estimates as a strip (colours as the road bands).
 fn strip(area: &Area<'_>, s: &Series) -> Res {
-    let t_end = s.t.last().copied().unwrap_or(1.0).max(1e-3);
-    let mut chart = ChartBuilder::on(area)
-        .margin_left(8)
-        .margin_right(8)
-        .x_label_area_size(0)
-        .y_label_area_size(60)
-        .caption(
-            "ARTE estimate (from the frame's start to its publication; white: no class)",
-            ("sans-serif", 15),
-        )
-        .build_cartesian_2d(0.0..t_end, 0.0..1.0)?;
     let mut names: Vec<String> = s.road.clone();
     names.extend(s.est.iter().map(|e| e.2.clone()));
     names.sort();
     names.dedup();
-    for (t0, t1, name) in &s.est {
-        let fill = if name.is_empty() {
-            WHITE.filled()
-        } else {
-            let idx = names.iter().position(|n| n == name).unwrap_or(0);
-            road_colour(name, idx).mix(0.85).filled()
-        };
-        chart.draw_series(std::iter::once(Rectangle::new(
-            [(t0.max(0.0), 0.0), (t1.min(t_end), 1.0)],
-            fill,
-        )))?;
-    }
-    chart.draw_series(std::iter::once(Rectangle::new(
-        [(0.0, 0.0), (t_end, 1.0)],
-        BLACK.stroke_width(1),
-    )))?;
-    Ok(())
+    let spans: Vec<_> = s
+        .est
+        .iter()
+        .map(|(t0, t1, name)| {
+            let colour = (!name.is_empty()).then(|| {
+                let idx = names.iter().position(|n| n == name).unwrap_or(0);
+                road_colour(name, idx)
+            });
+            (*t0, *t1, colour)
+        })
+        .collect();
+    estimate_strip(
+        area,
+        s.t.last().copied().unwrap_or(1.0),
+        "ARTE estimate (from the frame's start to its publication; white: no class)",
+        &spans,
+        &[],
+    )
 }
 
 fn drive_png(path: &Path, log: &DriveLog, r: f64, title: &str) -> Res {

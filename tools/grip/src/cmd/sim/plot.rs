@@ -6,10 +6,11 @@
 use std::path::Path;
 
 use grip_sim::{RunResult, SimSetup, Trace};
-use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::plot::{road_colour, runs};
+use crate::plot::{
+    Area, Band, Line, PlotResult as Res, estimate_strip, road_colour, road_panel, runs,
+};
 
 const W: u32 = 1900;
 const PANEL_H: u32 = 330;
@@ -33,8 +34,6 @@ fn finite_max(xs: impl Iterator<Item = f64>) -> f64 {
 fn finite_min(xs: impl Iterator<Item = f64>) -> f64 {
     xs.filter(|x| x.is_finite()).fold(f64::INFINITY, f64::min)
 }
-
-type Res = Result<(), Box<dyn std::error::Error>>;
 
 /// Draw one figure for `runs` (one run per controller, same seed) to `path`.
 pub fn figure(path: &Path, setup: &SimSetup, runs_in: &[&RunResult], title: &str) -> Res {
@@ -179,110 +178,76 @@ pub fn figure(path: &Path, setup: &SimSetup, runs_in: &[&RunResult], title: &str
 }
 
 #[allow(clippy::type_complexity)]
+/// A panel of one run: true-road bands (catalogue colours) and `series`
+/// (label, values per trace sample, colour).
 fn panel(
-    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    area: &Area<'_>,
     setup: &SimSetup,
     tr: &Trace,
     caption: &str,
-    (y_lo, y_hi): (f64, f64),
+    y: (f64, f64),
     label_roads: bool,
     series: &[(&str, &Vec<f64>, RGBColor)],
 ) -> Res {
     let dt = setup.dt();
-    let t_end = t_at(tr, tr.len(), dt);
-    let mut chart = ChartBuilder::on(area)
-        .margin(8)
-        .caption(caption, ("sans-serif", 20))
-        .x_label_area_size(34)
-        .y_label_area_size(60)
-        .build_cartesian_2d(0.0..t_end, y_lo..y_hi)?;
-    // Road bands.
-    for (a, b, road) in runs(&tr.true_road) {
-        let i = road as usize;
-        let name = setup.roads().by_index(i).map_or("?", |r| r.name());
-        let c = road_colour(name, i);
-        chart.draw_series(std::iter::once(Rectangle::new(
-            [(t_at(tr, a, dt), y_lo), (t_at(tr, b, dt), y_hi)],
-            c.mix(0.25).filled(),
-        )))?;
-        if label_roads {
-            let label = setup.roads().by_index(i).map_or("?", |r| r.name());
-            chart.draw_series(std::iter::once(Text::new(
-                label.to_owned(),
-                (t_at(tr, a, dt) + 0.01 * t_end, y_hi - 0.02 * (y_hi - y_lo)),
-                ("sans-serif", 15).into_font().color(&BLACK),
-            )))?;
-        }
-    }
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .x_desc("t (s)")
-        .label_style(("sans-serif", 15))
-        .axis_desc_style(("sans-serif", 15))
-        .draw()?;
-    // At most ~2000 points per series.
-    let step = (tr.len() / 2000).max(1);
-    for (label, ys, colour) in series {
-        let c = *colour;
-        chart
-            .draw_series(LineSeries::new(
-                (0..tr.len())
-                    .step_by(step)
-                    .filter(|&k| ys[k].is_finite())
-                    .map(|k| (tr.t[k], ys[k].clamp(y_lo, y_hi))),
-                c.stroke_width(2),
-            ))?
-            .label(*label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
-    }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .margin(8)
-        .label_font(("sans-serif", 15))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()?;
-    Ok(())
+    let bands: Vec<Band> = runs(&tr.true_road)
+        .into_iter()
+        .map(|(a, b, road)| {
+            let i = road as usize;
+            let name = setup.roads().by_index(i).map_or("?", |r| r.name());
+            Band {
+                t0: t_at(tr, a, dt),
+                t1: t_at(tr, b, dt),
+                colour: road_colour(name, i),
+                label: name.to_owned(),
+            }
+        })
+        .collect();
+    let lines: Vec<Line<'_>> = series
+        .iter()
+        .map(|&(label, ys, colour)| Line {
+            label,
+            colour,
+            points: tr.t.iter().copied().zip(ys.iter().copied()).collect(),
+        })
+        .collect();
+    road_panel(
+        area,
+        t_at(tr, tr.len(), dt),
+        caption,
+        "t (s)",
+        y,
+        &bands,
+        label_roads,
+        &lines,
+    )
 }
 
-fn strip(area: &DrawingArea<BitMapBackend<'_>, Shift>, setup: &SimSetup, tr: &Trace) -> Res {
+/// The estimated road of one run, with black ticks where the controller
+/// ignored the knowledge.
+fn strip(area: &Area<'_>, setup: &SimSetup, tr: &Trace) -> Res {
     let dt = setup.dt();
-    let t_end = t_at(tr, tr.len(), dt);
-    let mut chart = ChartBuilder::on(area)
-        .margin_left(8)
-        .margin_right(8)
-        .x_label_area_size(0)
-        .y_label_area_size(60)
-        .caption("ARTE estimate", ("sans-serif", 15))
-        .build_cartesian_2d(0.0..t_end, 0.0..1.0)?;
-    for (a, b, est) in runs(&tr.est_road) {
-        let fill = match est {
-            Some(i) => {
+    let spans: Vec<_> = runs(&tr.est_road)
+        .into_iter()
+        .map(|(a, b, est)| {
+            let colour = est.map(|i| {
                 let i = i as usize;
                 let name = setup.roads().by_index(i).map_or("?", |r| r.name());
-                road_colour(name, i).mix(0.85).filled()
-            }
-            None => WHITE.filled(),
-        };
-        chart.draw_series(std::iter::once(Rectangle::new(
-            [(t_at(tr, a, dt), 0.0), (t_at(tr, b, dt), 1.0)],
-            fill,
-        )))?;
-    }
-    // Cycles where the controller ignored the knowledge: a black tick row.
-    for (a, b, used) in runs(&tr.used_arte) {
-        if !used {
-            chart.draw_series(std::iter::once(Rectangle::new(
-                [(t_at(tr, a, dt), 0.0), (t_at(tr, b, dt), 0.15)],
-                BLACK.filled(),
-            )))?;
-        }
-    }
-    chart.draw_series(std::iter::once(Rectangle::new(
-        [(0.0, 0.0), (t_end, 1.0)],
-        BLACK.stroke_width(1),
-    )))?;
-    Ok(())
+                road_colour(name, i)
+            });
+            (t_at(tr, a, dt), t_at(tr, b, dt), colour)
+        })
+        .collect();
+    let ignored: Vec<_> = runs(&tr.used_arte)
+        .into_iter()
+        .filter(|(_, _, used)| !used)
+        .map(|(a, b, _)| (t_at(tr, a, dt), t_at(tr, b, dt)))
+        .collect();
+    estimate_strip(
+        area,
+        t_at(tr, tr.len(), dt),
+        "ARTE estimate",
+        &spans,
+        &ignored,
+    )
 }
