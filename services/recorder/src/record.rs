@@ -562,6 +562,9 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
     tracing::info!(file = %path.display(), git = GIT_REV, "recorder ready");
 
     let mut wd = Watchdog::from_env(rx_beat.load(Ordering::Relaxed));
+    // the longest wait for a message: the watchdog is polled at least this
+    // often (half its period, at most 50 ms), so a short WatchdogSec works
+    let wait = wd.tick();
     let mut summary = Summary {
         path: path.clone(),
         ..Summary::default()
@@ -574,7 +577,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
             rx_stop.store(true, Ordering::Relaxed);
             systemd::notify_stopping();
         }
-        match rx.recv_timeout(Duration::from_millis(100)) {
+        match rx.recv_timeout(wait) {
             Ok(m) => {
                 depth.fetch_sub(1, Ordering::Relaxed);
                 if !failed {
