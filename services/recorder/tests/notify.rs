@@ -19,7 +19,7 @@ fn ready_watchdog_at_half_a_short_period_and_clean_stop() {
         .arg(dir.path().join("idle.mcap"))
         .env("NOTIFY_SOCKET", sock.path())
         // 60 ms: a ping every 30 ms is due; a writer loop that waited
-        // 100 ms for messages could send at most 20 in 2 s
+        // 100 ms for messages could send at most about 20 in 2 s
         .env("WATCHDOG_USEC", "60000")
         .env(
             "GRIP_INSTANCE",
@@ -32,7 +32,7 @@ fn ready_watchdog_at_half_a_short_period_and_clean_stop() {
     );
     // about 66 expected; a loaded machine may delay some
     let pings = sock.count("WATCHDOG=1", Duration::from_secs(2));
-    assert!(pings >= 30, "{pings} WATCHDOG=1 in 2 s at a 60 ms watchdog");
+    assert!(pings >= 25, "{pings} WATCHDOG=1 in 2 s at a 60 ms watchdog");
     child.signal(15);
     let (status, err) = child.wait();
     assert_eq!(status.code(), Some(0), "{err}");
