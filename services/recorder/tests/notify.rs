@@ -34,6 +34,10 @@ fn ready_watchdog_at_half_a_short_period_and_clean_stop() {
     let pings = sock.count("WATCHDOG=1", Duration::from_secs(2));
     assert!(pings >= 25, "{pings} WATCHDOG=1 in 2 s at a 60 ms watchdog");
     child.signal(15);
+    assert!(
+        sock.wait_for("STOPPING=1", Duration::from_secs(10)),
+        "no STOPPING=1 after SIGTERM"
+    );
     let (status, err) = child.wait();
     assert_eq!(status.code(), Some(0), "{err}");
 }
