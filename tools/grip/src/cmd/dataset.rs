@@ -64,10 +64,10 @@ struct DelayArgs {
     /// A detection counts once the new road persists this long (s).
     #[arg(long, default_value_t = 0.2)]
     hold: f64,
-    /// Confidence from which a controller uses a decision (the controllers'
-    /// `arte.min_confidence`; default: its shipped value).
-    #[arg(long, default_value_t = grip_tcs::ArteUse::default().min_confidence)]
-    min_confidence: f64,
+    /// Confidence from which a controller uses a decision; default: the
+    /// controllers' `arte.min_confidence` in `<config-dir>/controllers.toml`.
+    #[arg(long)]
+    min_confidence: Option<f64>,
 }
 
 #[derive(clap::Args)]
@@ -619,12 +619,21 @@ fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
     // Switches of the smoothed decision to a road that is not the true one
     // at that moment, and the audio time they were counted over.
     let (mut false_near, mut false_inside, mut audio_s) = (0usize, 0usize, 0.0f64);
-    if !(0.0..=1.0).contains(&a.min_confidence) {
-        bail!("--min-confidence {}: must lie in [0, 1]", a.min_confidence);
+    let cfg_dir = grip_config::ConfigDir::new(config_dir);
+    // The gate a controller applies: the configured one, or --min-confidence
+    // checked by the same rule.
+    let mut gate = grip_config::load_controllers(cfg_dir.file("controllers.toml"))
+        .context("reading the controllers' configuration (--config-dir)")?
+        .arte;
+    if let Some(m) = a.min_confidence {
+        gate.min_confidence = m;
+        gate.validate()
+            .map_err(|e| anyhow::anyhow!("--min-confidence: {e}"))?;
     }
+    let min_confidence = gate.min_confidence;
     // Peak friction of each class from roads.toml, to tell optimistic
     // mistakes from cautious ones (only if every class is a road there).
-    let roads = grip_config::ConfigDir::new(config_dir)
+    let roads = cfg_dir
         .roads()
         .with_context(|| "reading the road catalogue (--config-dir)")?;
     let mu_peak: Vec<f64> = classes
@@ -676,7 +685,7 @@ fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
             &confidence,
             &r.segments,
             &mu_peak,
-            a.min_confidence,
+            min_confidence,
             a.hold,
         );
         let (near, inside) = count_false_switches(&dec, &r.segments, a.hold);
@@ -760,7 +769,7 @@ fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
              (the rest falls back to no ARTE); {:.2} % of those name the true road at the decision's time; \
              a wrong road is in use {:.2} % of the time ({:.2} % within {} s after a true change, \
              {:.2} % elsewhere)",
-            a.min_confidence,
+            min_confidence,
             pc(used.used, used.decisions),
             used.decisions,
             pc(used.used_right, used.used),
