@@ -79,6 +79,12 @@ pub trait RoadEstimator {
     ) -> Option<Estimate>;
     /// Short name for reports (`confusion`, `acoustic`, ...).
     fn name(&self) -> &str;
+    /// What the estimator recorded about the run since the last reset, if
+    /// it records anything ([`crate::InLoopProbe`] does); taken once, at the
+    /// end of every ARTE run, into [`crate::RunResult::inloop`].
+    fn take_stats(&mut self) -> Option<crate::InLoopStats> {
+        None
+    }
 }
 
 /// `config/arte.toml`: the road-knowledge rule and the confusion-matrix source.
