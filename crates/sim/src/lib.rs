@@ -38,11 +38,10 @@ pub mod variant;
 pub use acoustic::{AcousticArte, AcousticConfig, SoundAs};
 pub use batch::{Job, run_batch};
 pub use estimator::{
-    ArteConfig, ConfusionArte, ConfusionConfig, Estimate, KnowledgeConfig, PerfectArte,
-    RoadEstimator,
+    ArteConfig, ConfusionArte, ConfusionConfig, Estimate, PerfectArte, RoadEstimator,
 };
 pub use probe::{InLoopProbe, InLoopStats};
-pub use setup::{RoadInfo, SimSetup};
+pub use setup::SimSetup;
 pub use sim::{ArteStats, RunResult, Sim, run};
 pub use trace::Trace;
 pub use variant::{UnknownVariant, Variant};

@@ -31,14 +31,14 @@ fn no_variant_slips_on_asphalt_at_low_demand() {
         roads.len(),
     )
     .unwrap();
-    let (controllers, arte) = common::controllers_and_arte();
+    let (controllers, _) = common::controllers_and_arte();
     let setup = SimSetup::new(
         *reference.vehicle(),
         *reference.sensors(),
         roads,
         scenario,
         controllers,
-        &arte.knowledge,
+        &grip_tcs::KnowledgeConfig::default(),
     )
     .unwrap();
     for v in Variant::ALL {

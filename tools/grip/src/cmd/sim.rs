@@ -20,7 +20,6 @@ use grip_sim::{
     AcousticArte, AcousticConfig, ArteConfig, ConfusionArte, InLoopProbe, InLoopStats, Job,
     PerfectArte, RoadEstimator, RunResult, SimSetup, Variant, run_batch,
 };
-use grip_tcs::ControllersConfig;
 
 use super::Ctx;
 
@@ -109,26 +108,14 @@ pub fn load(
     let roads = dir.roads()?;
     let scenario_path = dir.scenario_path(scenario);
     let scenario = dir.scenario_with(scenario, &roads)?;
-    // grip_config::controllers is not exported yet (see requests.md); this is
-    // what its parse_controllers does.
-    let cpath = dir.file("controllers.toml");
-    let controllers: ControllersConfig = parse_toml(&cpath, &read_file(&cpath)?)?;
-    controllers
-        .validate()
-        .map_err(|e| ConfigError::invalid(&cpath, "", e))?;
+    let controllers = grip_config::load_controllers(dir.file("controllers.toml"))?;
+    let knowledge = dir.knowledge(&roads)?;
     let apath = arte_config.map_or_else(|| dir.file("arte.toml"), Path::to_owned);
     let arte: ArteConfig = parse_toml(&apath, &read_file(&apath)?)?;
     arte.validate(&roads)
         .map_err(|e| ConfigError::new(&apath, e.field(), reason_of(&e)))?;
-    let setup = SimSetup::new(
-        vehicle,
-        sensors,
-        roads,
-        scenario,
-        controllers,
-        &arte.knowledge,
-    )
-    .map_err(|e| anyhow::anyhow!("{}: {e}", scenario_path.display()))?;
+    let setup = SimSetup::new(vehicle, sensors, roads, scenario, controllers, &knowledge)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", scenario_path.display()))?;
     Ok(Loaded {
         setup,
         arte,
