@@ -114,7 +114,7 @@ impl ArteConfig {
 #[serde(deny_unknown_fields)]
 pub struct KnowledgeConfig {
     /// MTTE relaxation factor α per road name, in (0, 1]; a road not listed
-    /// gets α = 1 − λ_opt(road) (MODELS.md §3).
+    /// gets α = 1 − λ_opt(road) (crates/tcs/README.md, "MTTE").
     #[serde(default)]
     pub alpha: BTreeMap<String, f64>,
 }

@@ -111,7 +111,7 @@ pub fn load(
     let roads = dir.roads()?;
     let scenario_path = dir.scenario_path(scenario);
     let scenario = dir.scenario_with(scenario, &roads)?;
-    // grip_config::controllers is not exported yet (see requests.md); this is
+    // grip_config::controllers is not exported yet; this is
     // what its parse_controllers does.
     let cpath = dir.file("controllers.toml");
     let controllers: ControllersConfig = parse_toml(&cpath, &read_file(&cpath)?)?;
