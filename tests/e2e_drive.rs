@@ -152,7 +152,7 @@ fn drive_records_every_cycle_frame_and_estimate() {
         "grip drive failed ({}):\n{stderr}\n{stdout}",
         res.status
     );
-    assert!(stdout.contains("metrics (MODELS.md §4"), "{stdout}");
+    assert!(stdout.contains("metrics (grip_tcs::metrics"), "{stdout}");
 
     let r = read(&out);
     recorder_lost_nothing(&r.recorder);

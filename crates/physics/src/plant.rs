@@ -1,4 +1,4 @@
-//! The quarter-vehicle plant (MODELS.md §1): one driven wheel carrying M/n,
+//! The quarter-vehicle plant (README.md, "Plant"): one driven wheel carrying M/n,
 //! a first-order motor lag, the tyre force from the road's mu-lambda curve and
 //! the driving resistance.
 //!

@@ -1,9 +1,9 @@
-//! Vehicle parameters (MODELS.md §1, paper Table IV).
+//! Vehicle parameters (paper Table IV; README.md, "Plant").
 
 use crate::validate::{self, InvalidField};
 
 /// Parameters of the vehicle and its driven wheel. Defaults are the paper's
-/// Table IV plus MODELS.md §1.
+/// Table IV plus the choices in README.md, "Plant" (n = 4 driven wheels).
 ///
 /// Deserialises from TOML (`[vehicle]` in `config/vehicle.toml`); a missing
 /// field takes its default, an unknown one is an error. Call
@@ -109,7 +109,7 @@ mod tests {
     fn defaults_are_valid_and_match_models_md() {
         let p = VehicleParams::default();
         p.validate().unwrap();
-        // MODELS.md: N = M g / 4 = 3433 N; snow carries 0.19 * N * r = 183 N m.
+        // README.md, "Plant": N = M g / 4 = 3433 N; snow carries 0.19 * N * r = 183 N m.
         assert!((p.normal_force() - 3433.5).abs() < 0.1);
         assert!((0.19 * p.normal_force() * p.r - 182.7).abs() < 0.5);
     }

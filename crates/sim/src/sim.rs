@@ -70,7 +70,7 @@ pub struct RunResult {
     pub variant: Variant,
     /// The run seed.
     pub seed: u64,
-    /// The metrics of MODELS.md §4 (`grip_tcs::metrics`).
+    /// The metrics (`grip_tcs::metrics`).
     pub metrics: Metrics,
     /// Road-estimator statistics.
     pub arte: ArteStats,
