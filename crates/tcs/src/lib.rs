@@ -6,6 +6,7 @@
 pub mod analysis;
 pub mod any;
 pub mod filters;
+pub mod fusion;
 pub mod fuzzy;
 pub mod knowledge;
 pub mod metrics;
@@ -13,15 +14,20 @@ pub mod mfc;
 pub mod mtte;
 pub mod observer;
 pub mod params;
+pub mod preview;
+pub mod road_aware;
 pub mod slip_control;
 pub mod types;
 
 pub use any::{AnyController, ControllerKind, UnknownController};
+pub use fusion::{FusionParams, RoadBelief};
 pub use knowledge::{KnowledgeConfig, RoadInfo, RoadTable};
 pub use metrics::{Metrics, MetricsAccumulator, Sample};
 pub use mfc::Mfc;
 pub use mtte::Mtte;
 pub use params::{ArteUse, ControllersConfig, LoopParams, MfcParams, MtteParams, SrcParams};
+pub use preview::{PREVIEW_CAPACITY, PreviewQueue, PreviewView, RoadAhead};
+pub use road_aware::{Guidance, PreviewParams, RoadAware};
 pub use slip_control::Src;
 pub use types::{ControlOutput, Controller, Measurement, RoadKnowledge};
 
