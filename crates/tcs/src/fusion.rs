@@ -54,6 +54,10 @@ pub struct FusionParams {
     /// Largest confidence taken from one acoustic decision (an overconfident
     /// classifier cannot outvote the wheel).
     pub max_acoustic_confidence: f64,
+    /// Largest lead of the best road's slip evidence over another's, nats:
+    /// evidence gathered on one road must not outlast the change to the
+    /// next by more than `tau_forget_s · ln(max_evidence / prior ratio)`.
+    pub max_evidence: f64,
 }
 
 impl Default for FusionParams {
@@ -65,6 +69,7 @@ impl Default for FusionParams {
             sigma_mu: 0.05,
             sigma_lambda: 0.004,
             max_acoustic_confidence: 0.97,
+            max_evidence: 10.0,
         }
     }
 }
@@ -196,6 +201,13 @@ impl RoadBelief {
                 if ll.is_finite() {
                     self.evidence[i] += self.p.weight * ll;
                 }
+            }
+            let best = self.evidence[..self.n]
+                .iter()
+                .copied()
+                .fold(f64::NEG_INFINITY, f64::max);
+            for e in &mut self.evidence[..self.n] {
+                *e = (*e - best).max(-self.p.max_evidence);
             }
         }
         self.normalise();

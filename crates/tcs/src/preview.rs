@@ -10,8 +10,8 @@
 //!
 //! - `x_from` when it carries less than the road before it (cautious: the
 //!   change lies somewhere in the frame, so assume its earliest point), or
-//! - `x_to` when it carries more (the earlier, grippier road is kept until
-//!   the latest point the change can lie at).
+//! - the middle of the stretch when it carries more (the decision goes to
+//!   the new road once about half its frame is on it).
 //!
 //! Decisions for the road already last in the queue refresh its confidence.
 //! [`PreviewQueue::view`] at the wheel's odometer `x` gives the road under
@@ -42,6 +42,8 @@ pub struct RoadAhead {
     pub confidence: f64,
     /// Time of the latest decision for it, s (its frame's end).
     pub stamp: f64,
+    /// Decisions in a row that named it.
+    pub hits: u32,
 }
 
 /// What [`PreviewQueue::view`] returns.
@@ -67,6 +69,7 @@ const EMPTY: RoadAhead = RoadAhead {
     x_start: f64::NEG_INFINITY,
     confidence: 0.0,
     stamp: f64::NEG_INFINITY,
+    hits: 0,
 };
 
 impl Default for PreviewQueue {
@@ -138,9 +141,10 @@ impl PreviewQueue {
         {
             last.confidence = confidence;
             last.stamp = stamp;
+            last.hits = last.hits.saturating_add(1);
             return;
         }
-        let mut x_start = if carries_less { lo } else { hi };
+        let mut x_start = if carries_less { lo } else { 0.5 * (lo + hi) };
         // Keep the queue ordered: a road cannot begin before one heard earlier.
         // A cautious (earlier) start moves the previous entries that now lie
         // behind it out of the way: they are replaced by this road.
@@ -167,6 +171,7 @@ impl PreviewQueue {
             x_start,
             confidence,
             stamp,
+            hits: 1,
         };
         self.len += 1;
     }
@@ -203,8 +208,8 @@ mod tests {
         let mut q = PreviewQueue::new();
         assert_eq!(q.view(0.0), PreviewView::default());
         q.push(0, 0.9, 0.1, 0.0, 0.5, false);
-        // grippier-or-equal start at the frame end
-        let v = q.view(0.5);
+        // grippier-or-equal start at the frame's middle
+        let v = q.view(0.25);
         assert_eq!(v.here.unwrap().road, 0);
         assert!(v.next.is_none());
         q.push(2, 0.8, 0.2, 0.5, 1.0, true); // snow: begins at the frame start
@@ -222,18 +227,19 @@ mod tests {
         q.push(0, 0.95, 0.125, 0.1 + lead, 0.4 + lead, false);
         assert_eq!(q.len(), 1, "same road refreshes");
         assert_eq!(q.entries()[0].confidence, 0.95);
+        assert_eq!(q.entries()[0].hits, 2);
         q.push(2, 0.8, 0.2, 1.0 + lead, 1.3 + lead, true);
         q.push(1, 0.7, 0.3, 2.0 + lead, 2.3 + lead, false);
         let v = q.view(1.0);
         assert!(v.here.is_none(), "nothing has reached the wheel yet");
         let (n, d) = v.next.unwrap();
         assert_eq!(n.road, 0);
-        assert!((d - (lead + 0.3 - 1.0)).abs() < 1e-12);
+        assert!((d - (lead + 0.15 - 1.0)).abs() < 1e-12);
         let v = q.view(3.9);
         assert_eq!(v.here.unwrap().road, 2);
         let (n, d) = v.next.unwrap();
         assert_eq!(n.road, 1);
-        assert!((d - (2.3 + lead - 3.9)).abs() < 1e-12, "{d}");
+        assert!((d - (2.15 + lead - 3.9)).abs() < 1e-12, "{d}");
     }
 
     #[test]
@@ -249,12 +255,12 @@ mod tests {
     #[test]
     fn cautious_start_replaces_entries_behind_it() {
         let mut q = PreviewQueue::new();
-        q.push(0, 0.9, 0.0, 0.0, 1.0, false); // starts at 1.0
-        q.push(3, 0.9, 0.1, 1.5, 2.0, false); // stone starts at 2.0
+        q.push(0, 0.9, 0.0, 0.0, 1.0, false); // starts at 0.5
+        q.push(3, 0.9, 0.1, 1.5, 2.5, false); // stone starts at 2.0
         q.push(2, 0.9, 0.2, 1.8, 2.3, true); // snow may start at 1.8: before stone
         let e = q.entries();
         assert_eq!(e.len(), 2);
-        assert_eq!((e[0].road, e[0].x_start), (0, 1.0));
+        assert_eq!((e[0].road, e[0].x_start), (0, 0.5));
         assert_eq!((e[1].road, e[1].x_start), (2, 1.8));
     }
 

@@ -60,6 +60,11 @@ pub struct Args {
     /// ARTE configuration (default: <config-dir>/arte.toml).
     #[arg(long)]
     arte_config: Option<PathBuf>,
+    /// Vehicle and sensors (default: <config-dir>/vehicle.toml); e.g.
+    /// config/vehicles/front-mic.toml (microphone one wheelbase ahead of the
+    /// driven rear wheel: the ARTE variants get a preview of the road).
+    #[arg(long)]
+    vehicle: Option<PathBuf>,
     /// `--arte acoustic`: the ARTE model file (default: <config-dir>/models/default.model).
     #[arg(long)]
     model: Option<PathBuf>,
@@ -102,9 +107,13 @@ pub fn load(
     config_dir: &Path,
     scenario: &str,
     arte_config: Option<&Path>,
+    vehicle: Option<&Path>,
 ) -> anyhow::Result<Loaded> {
     let dir = ConfigDir::new(config_dir);
-    let (vehicle, sensors) = dir.vehicle()?;
+    let (vehicle, sensors) = match vehicle {
+        Some(p) => grip_config::load_vehicle(p)?,
+        None => dir.vehicle()?,
+    };
     let roads = dir.roads()?;
     let scenario_path = dir.scenario_path(scenario);
     let scenario = dir.scenario_with(scenario, &roads)?;
@@ -131,7 +140,12 @@ fn reason_of(e: &grip_sim::SimError) -> String {
 
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     let variants = Variant::parse_list(&args.variants)?;
-    let mut loaded = load(&ctx.config_dir, &args.scenario, args.arte_config.as_deref())?;
+    let mut loaded = load(
+        &ctx.config_dir,
+        &args.scenario,
+        args.arte_config.as_deref(),
+        args.vehicle.as_deref(),
+    )?;
     if let Some(h) = args.max_substep {
         loaded.setup.set_max_substep(h).context("--max-substep")?;
     }
