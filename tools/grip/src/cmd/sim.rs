@@ -22,6 +22,7 @@ use grip_sim::{
 };
 
 use super::Ctx;
+use super::snr::{Snr, parse_snr};
 
 /// Hold (s) of the "stable" detection delay: the ARTE crate's definition
 /// (`grip_arte::stream::detection_delays`, `grip dataset delay`).
@@ -69,8 +70,9 @@ pub struct Args {
     #[arg(long)]
     model: Option<PathBuf>,
     /// `--arte acoustic`: rain and passing-car noise mixed into the audio at
-    /// this SNR in dB, or `off` for clean road sound. Default 10 dB: the
-    /// condition the shipped models are trained and evaluated at.
+    /// this SNR in dB (-30..=80), or `off` for clean road sound (a range
+    /// A..B, which `grip dataset synth` takes, is refused). Default 10 dB:
+    /// the condition the shipped models are trained and evaluated at.
     #[arg(long, default_value = "10", allow_hyphen_values = true, value_parser = parse_snr)]
     snr_db: Snr,
     /// `--arte acoustic`: what roads without a synthesiser model sound like,
@@ -271,28 +273,6 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `--snr-db`: a level in dB or no noise.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Snr {
-    /// Clean road sound.
-    Off,
-    /// Rain and passing cars at this SNR, dB.
-    Db(f64),
-}
-
-fn parse_snr(s: &str) -> Result<Snr, String> {
-    if s.eq_ignore_ascii_case("off") {
-        return Ok(Snr::Off);
-    }
-    let x: f64 = s
-        .parse()
-        .map_err(|_| format!("`{s}` is neither a number of dB nor `off`"))?;
-    if !(-30.0..=80.0).contains(&x) {
-        return Err(format!("{x} dB is outside -30..=80"));
-    }
-    Ok(Snr::Db(x))
-}
-
 /// The acoustic source: model, chain settings, and a one-line description.
 struct AcousticSetup {
     model: Model,
@@ -316,8 +296,12 @@ fn load_acoustic(ctx: &Ctx, args: &Args, setup: &SimSetup) -> anyhow::Result<Aco
     })?;
     let model = Model::from_bytes(&bytes).with_context(|| format!("{}", path.display()))?;
     let mut config = AcousticConfig::default();
-    if let Snr::Db(snr) = args.snr_db {
-        config = config.with_noise_snr(snr);
+    match args.snr_db {
+        Snr::Off => {}
+        Snr::Db(snr) => config = config.with_noise_snr(snr),
+        Snr::Range(a, b) => anyhow::bail!(
+            "--snr-db {a}..{b}: grip sim runs every variant at one condition; give one level in dB or `off`"
+        ),
     }
     if let Some(spec) = &args.sound_as {
         config
