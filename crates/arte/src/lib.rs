@@ -15,7 +15,9 @@
 //! - `mlp`, `svm`: classifiers (Levenberg-Marquardt MLP, SMO SVM).
 //! - `model`: the versioned, checksummed model file, standardisation inside.
 //! - `eval`: cross-validation by recording, confusion matrices, macro-F1.
+//! - `calib`: confidence calibration of the stream's decisions, ECE, reliability.
 
+pub mod calib;
 pub mod eval;
 pub mod features;
 pub mod mlp;

@@ -206,6 +206,11 @@ pub struct ChangeEval {
     pub smoothed: Confusion,
     /// Single-frame decisions of the same frames.
     pub single_frame: Confusion,
+    /// Every decision's confidence (with a segment at its `t_end`) ...
+    pub confidence: Vec<f64>,
+    /// ... and whether it named the true road at that time (the pairs a
+    /// reliability table and the ECE are computed from).
+    pub right: Vec<bool>,
 }
 
 impl ChangeEval {
@@ -226,6 +231,8 @@ impl ChangeEval {
             used: KnowledgeUse::default(),
             smoothed: Confusion::new(classes.clone()),
             single_frame: Confusion::new(classes),
+            confidence: Vec::new(),
+            right: Vec::new(),
         }
     }
 
@@ -234,6 +241,12 @@ impl ChangeEval {
     pub fn add_recording<T>(&mut self, decisions: &[Judged], segments: &[Seg<T>], duration_s: f64) {
         let dec: Vec<(f64, usize)> = decisions.iter().map(|d| (d.t_end, d.class)).collect();
         let confidence: Vec<f64> = decisions.iter().map(|d| d.confidence).collect();
+        for d in decisions {
+            if let Some((_, seg)) = segment_at(segments, d.t_end) {
+                self.confidence.push(d.confidence);
+                self.right.push(d.class == seg.2);
+            }
+        }
         // Accuracy over decisions whose frame lies inside one segment.
         for d in decisions {
             if let Some(seg) = segments

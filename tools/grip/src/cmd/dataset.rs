@@ -591,7 +591,7 @@ fn synth(a: SynthArgs) -> Result<()> {
 fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
     use grip_arte::model::{Model, Predictor};
     use grip_arte::stream::{Smoothing, StreamConfig, StreamEstimator};
-    use grip_arte::stream_eval::{ChangeEval, Judged};
+    use grip_arte::stream_eval::ChangeEval;
     let bytes = std::fs::read(&a.model)
         .with_context(|| format!("reading model file {}", a.model.display()))?;
     let model =
@@ -611,7 +611,20 @@ fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
         hop_s: a.hop,
         smoothing,
     };
+    let calibration = model.calibration().map(|c| c.map.describe());
     let mut est = StreamEstimator::new(Predictor::new(model), &fcfg, &scfg)?;
+    match &calibration {
+        None => println!(
+            "model {} has no confidence calibration (format v1): the confidence is the raw smoothed posterior",
+            a.model.display()
+        ),
+        Some(c) if est.calibration_mismatch() => println!(
+            "confidence calibration: {c}, but fitted for other stream settings than hop {} s, {smoothing:?}: \
+             the confidence is not calibrated for these",
+            a.hop
+        ),
+        Some(c) => println!("confidence calibration: {c}"),
+    }
     let cfg_dir = grip_config::ConfigDir::new(config_dir);
     // The gate a controller applies: the configured one, or --min-confidence
     // checked by the same rule.
@@ -635,34 +648,12 @@ fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
         .collect::<Option<_>>()
         .unwrap_or_default();
     let mut ev = ChangeEval::new(classes.clone(), mu_peak, min_confidence, a.hold);
-    let block = 1024;
     let pb = ProgressBar::new(recs.len() as u64);
     for r in &recs {
-        let audio = wav::read_mono_at(&r.path, fcfg.sample_rate)?;
-        est.reset();
-        if est.speed_normalised() && r.segments.iter().any(|s| s.3.is_none()) {
-            bail!(
-                "{}: a segment of {} has no speed_kmh; the model {} is speed-normalised and needs the vehicle speed",
-                a.dir.join("segments.csv").display(),
-                r.path.display(),
-                a.model.display()
-            );
-        }
-        let mut dec: Vec<Judged> = Vec::new();
-        let fs = f64::from(fcfg.sample_rate);
-        for (bi, b) in audio.samples.chunks(block).enumerate() {
-            est.set_speed(r.speed_at((bi * block) as f64 / fs).map(|v| v / 3.6));
-            est.push(b, |d| {
-                dec.push(Judged {
-                    t_start: d.t_start,
-                    t_end: d.t_end,
-                    class: d.class,
-                    raw_class: d.raw_class,
-                    confidence: d.probs.get(d.class).copied().unwrap_or(0.0),
-                });
-            });
-        }
-        ev.add_recording(&dec, &r.segments, audio.samples.len() as f64 / fs);
+        let (dec, duration_s) =
+            super::calibrate::stream_recording(&mut est, r, fcfg.sample_rate, &a.dir)
+                .with_context(|| format!("model {}", a.model.display()))?;
+        ev.add_recording(&dec, &r.segments, duration_s);
         pb.inc(1);
     }
     pb.finish_and_clear();
@@ -760,6 +751,15 @@ fn print_delay_report(
         println!(
             "calibration (confidence bin: share, accuracy): {}",
             bins.join("; ")
+        );
+        println!(
+            "confidence against the true road at each decision's time: {}",
+            super::calibrate::summary_line(&ev.confidence, &ev.right)
+        );
+        println!(
+            "reliability ({} equal-width bins):\n\n{}",
+            super::calibrate::ECE_BINS,
+            super::calibrate::reliability(&ev.confidence, &ev.right).to_markdown()
         );
         if ev.mu_peak_known() {
             println!(
