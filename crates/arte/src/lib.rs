@@ -10,15 +10,20 @@
 //!   richer set, `FeatureConfig`, and the `FeatureExtractor` (plan once, reuse).
 //! - `select`: pruning by least intra-class variance, Kullback-Leibler report.
 //! - `stream`: the streaming estimator (blocks in, a decision per hop).
+//! - `stream_eval`: its evaluation on road-change recordings (false switches,
+//!   what a gated controller is given, bootstrap intervals).
 //! - `mlp`, `svm`: classifiers (Levenberg-Marquardt MLP, SMO SVM).
 //! - `model`: the versioned, checksummed model file, standardisation inside.
 //! - `eval`: cross-validation by recording, confusion matrices, macro-F1.
+//! - `calib`: confidence calibration of the stream's decisions, ECE, reliability.
 
+pub mod calib;
 pub mod eval;
 pub mod features;
 pub mod mlp;
 pub mod model;
 pub mod select;
 pub mod stream;
+pub mod stream_eval;
 pub mod svm;
 pub mod synth;

@@ -1,12 +1,21 @@
 //! The ARTE model file: classes, feature config, standardiser, classifier
 //! and training metadata in one versioned, checksummed file.
 //!
-//! Format (version 1):
+//! Format (versions 1 and 2):
 //!
 //! ```text
-//! GRIP-ARTE-MODEL v1 sha256=<64 lower-case hex digits of the payload>\n
+//! GRIP-ARTE-MODEL v2 sha256=<64 lower-case hex digits of the payload>\n
 //! <payload: compact JSON of `Model`>
 //! ```
+//!
+//! Version 2 adds one field at the end of the payload, `calibration` (a
+//! [`StreamCalibration`]: the map from the streaming estimator's smoothed
+//! posterior to a calibrated confidence, and what it was fitted on); a
+//! version 2 file must have it. A model without calibration is written as
+//! version 1, exactly as before calibration existed, and version 1 files
+//! load with no calibration: [`Model::calibration`] is `None`, the
+//! streaming estimator then reports the raw smoothed posterior (identity),
+//! and callers can say so. Any other version is refused, naming it.
 //!
 //! The checksum covers the payload bytes exactly as stored. Floats are
 //! written by `serde_json` in shortest round-trip form and parsed with its
@@ -31,6 +40,7 @@
 use grip_digest::sha256_hex;
 use serde::{Deserialize, Serialize};
 
+use crate::calib::{CalibError, StreamCalibration};
 use crate::eval::{Confusion, Metrics, Samples, holdout_groups, stratified_group_kfold};
 use crate::features::{FeatureConfig, FeatureError, FeatureSet, N_PAPER20};
 use crate::mlp::{LmConfig, LmReport, Mlp, MlpError, MlpScratch, stratified_subsample, train_lm};
@@ -39,8 +49,11 @@ use crate::svm::{Kernel, Svm, SvmConfig, SvmError, SvmReport, SvmScratch};
 
 /// File magic, first token of the header line.
 pub const MAGIC: &str = "GRIP-ARTE-MODEL";
-/// The format version this code writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
+/// The newest format version this code writes and reads (a model with a
+/// confidence calibration).
+pub const FORMAT_VERSION: u32 = 2;
+/// The format of a model without calibration (read and written as before).
+pub const FORMAT_VERSION_UNCALIBRATED: u32 = 1;
 
 /// Errors of model files, fitting and prediction.
 #[derive(Debug, thiserror::Error)]
@@ -50,7 +63,7 @@ pub enum ModelError {
     NotAModel(String),
     /// Header names a version this code does not know.
     #[error(
-        "model format version {found} is not supported (this build reads version {FORMAT_VERSION})"
+        "model format version {found} is not supported (this build reads versions {FORMAT_VERSION_UNCALIBRATED} and {FORMAT_VERSION})"
     )]
     UnknownVersion {
         /// Version found.
@@ -77,6 +90,9 @@ pub enum ModelError {
         /// Why.
         reason: String,
     },
+    /// Confidence calibration invalid.
+    #[error("model field `calibration`: {0}")]
+    Calib(#[from] CalibError),
     /// Feature config invalid.
     #[error("model field `feature_config`: {0}")]
     Features(#[from] FeatureError),
@@ -248,6 +264,9 @@ pub struct Model {
     classifier: Classifier,
     /// Training metadata.
     pub meta: TrainingMeta,
+    /// Confidence calibration of the streaming estimator (format v2 only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    calibration: Option<StreamCalibration>,
 }
 
 impl Model {
@@ -260,12 +279,13 @@ impl Model {
         meta: TrainingMeta,
     ) -> Result<Self, ModelError> {
         let m = Self {
-            version: FORMAT_VERSION,
+            version: FORMAT_VERSION_UNCALIBRATED,
             classes,
             feature_config,
             standardiser,
             classifier,
             meta,
+            calibration: None,
         };
         m.validate()?;
         Ok(m)
@@ -291,14 +311,66 @@ impl Model {
     pub fn dim(&self) -> usize {
         self.standardiser.mean.len()
     }
+    /// The streaming estimator's confidence calibration; `None` for a model
+    /// without one (a version 1 file): the stream's confidence is then the
+    /// raw smoothed posterior.
+    pub fn calibration(&self) -> Option<&StreamCalibration> {
+        self.calibration.as_ref()
+    }
+    /// The file format version this model is written in (1 without
+    /// calibration, 2 with).
+    pub fn format_version(&self) -> u32 {
+        self.version
+    }
+    /// This model with `calibration` (or without, for `None`); the format
+    /// version follows. The classifier and everything else are unchanged.
+    pub fn with_calibration(
+        mut self,
+        calibration: Option<StreamCalibration>,
+    ) -> Result<Self, ModelError> {
+        self.version = if calibration.is_some() {
+            FORMAT_VERSION
+        } else {
+            FORMAT_VERSION_UNCALIBRATED
+        };
+        self.calibration = calibration;
+        self.validate()?;
+        Ok(self)
+    }
 
     /// Checks every cross-field invariant.
     pub fn validate(&self) -> Result<(), ModelError> {
         let mm = |field, reason: String| Err(ModelError::Mismatch { field, reason });
-        if self.version != FORMAT_VERSION {
-            return Err(ModelError::UnknownVersion {
-                found: self.version.to_string(),
-            });
+        match (self.version, &self.calibration) {
+            (FORMAT_VERSION_UNCALIBRATED, None) => {}
+            (FORMAT_VERSION, Some(c)) => {
+                c.map.validate()?;
+                if !(c.stream.hop_s.is_finite() && c.stream.hop_s > 0.0) {
+                    return mm(
+                        "calibration.stream.hop_s",
+                        format!("{} is not a positive time", c.stream.hop_s),
+                    );
+                }
+            }
+            (FORMAT_VERSION_UNCALIBRATED, Some(_)) => {
+                return mm(
+                    "calibration",
+                    format!(
+                        "present in a version {FORMAT_VERSION_UNCALIBRATED} model; calibration needs version {FORMAT_VERSION}"
+                    ),
+                );
+            }
+            (FORMAT_VERSION, None) => {
+                return mm(
+                    "calibration",
+                    format!("missing; a version {FORMAT_VERSION} model carries one"),
+                );
+            }
+            (v, _) => {
+                return Err(ModelError::UnknownVersion {
+                    found: v.to_string(),
+                });
+            }
         }
         if self.classes.len() < 2 {
             return mm(
@@ -365,7 +437,8 @@ impl Model {
     pub fn to_bytes(&self) -> Result<Vec<u8>, ModelError> {
         let payload = serde_json::to_vec(self).map_err(|e| ModelError::Json(e.to_string()))?;
         let mut out = format!(
-            "{MAGIC} v{FORMAT_VERSION} sha256={}\n",
+            "{MAGIC} v{} sha256={}\n",
+            self.version,
             sha256_hex(&payload)
         )
         .into_bytes();
@@ -392,11 +465,15 @@ impl Model {
             )));
         }
         let ver = tok.next().unwrap_or("");
-        if ver != format!("v{FORMAT_VERSION}") {
-            return Err(ModelError::UnknownVersion {
-                found: ver.trim_start_matches('v').to_string(),
-            });
-        }
+        let header_version = match ver {
+            "v1" => FORMAT_VERSION_UNCALIBRATED,
+            "v2" => FORMAT_VERSION,
+            _ => {
+                return Err(ModelError::UnknownVersion {
+                    found: ver.trim_start_matches('v').to_string(),
+                });
+            }
+        };
         let expected = tok
             .next()
             .and_then(|t| t.strip_prefix("sha256="))
@@ -412,6 +489,15 @@ impl Model {
         let m: Model =
             serde_json::from_slice(payload).map_err(|e| ModelError::Json(e.to_string()))?;
         m.validate()?;
+        if m.version != header_version {
+            return Err(ModelError::Mismatch {
+                field: "version",
+                reason: format!(
+                    "the header says version {header_version}, the payload {}",
+                    m.version
+                ),
+            });
+        }
         Ok(m)
     }
 

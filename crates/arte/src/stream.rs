@@ -24,6 +24,17 @@
 //! time constants. The `floor` bounds how much one overconfident frame can
 //! veto a state, so the filter can always recover within a few hops.
 //!
+//! **Calibration.** The filter's posterior of the decided road is
+//! overconfident (overlapping frames are not independent evidence). If the
+//! classifier carries a confidence calibration ([`Classify::calibration`];
+//! a model file of format v2 does, see [`crate::calib`]), each decision's
+//! reported probabilities are calibrated: the decided road gets
+//! `c = map(p)`, the other roads share `1 − c` in proportion to their
+//! posteriors. The filter itself runs on the uncalibrated posterior (so the
+//! decisions, their class and timing, do not change), which the decision
+//! also carries (`posterior`). Without calibration the reported
+//! probabilities are the posterior itself.
+//!
 //! Time stamps: samples are counted from the first sample pushed; a decision's
 //! frame spans [t_end − frame_s, t_end], and t_end is also the moment the
 //! decision becomes available (the hop boundary).
@@ -45,6 +56,11 @@ pub trait Classify {
     /// Class probabilities of one feature vector into `out` (length
     /// `n_classes`, summing to 1). Must not allocate.
     fn predict_proba(&mut self, x: &[f64], out: &mut [f64]);
+    /// The confidence calibration of the smoothed decisions, if any (see
+    /// the module docs); none by default.
+    fn calibration(&self) -> Option<&crate::calib::StreamCalibration> {
+        None
+    }
 }
 
 impl Classify for crate::model::Predictor {
@@ -62,6 +78,9 @@ impl Classify for crate::model::Predictor {
             let k = out.len().max(1) as f64;
             out.fill(1.0 / k);
         }
+    }
+    fn calibration(&self) -> Option<&crate::calib::StreamCalibration> {
+        self.model().calibration()
     }
 }
 
@@ -140,8 +159,16 @@ pub struct Decision<'a> {
     pub t_end: f64,
     /// Most probable class after smoothing (ties: lower index).
     pub class: usize,
-    /// Smoothed class probabilities.
+    /// What the controller is given: the smoothed class probabilities,
+    /// calibrated if the classifier carries a calibration (then
+    /// `probs[class]` is the calibrated confidence and the other roads
+    /// share the rest in proportion to their posteriors).
     pub probs: &'a [f64],
+    /// `probs[class]`: the confidence of the decision.
+    pub confidence: f64,
+    /// The smoothing filter's own posterior (before calibration; equal to
+    /// `probs` without calibration).
+    pub posterior: &'a [f64],
     /// Most probable class of this frame alone.
     pub raw_class: usize,
     /// The classifier's probabilities for this frame alone.
@@ -166,6 +193,7 @@ pub struct StreamEstimator<C> {
     features: Vec<f64>,
     raw: Vec<f64>,
     post: Vec<f64>,
+    out: Vec<f64>,
     started: bool,
 }
 
@@ -251,6 +279,7 @@ impl<C: Classify> StreamEstimator<C> {
             features: vec![0.0; dim],
             raw: vec![1.0 / k as f64; k],
             post: vec![1.0 / k as f64; k],
+            out: vec![1.0 / k as f64; k],
             started: false,
         })
     }
@@ -277,6 +306,20 @@ impl<C: Classify> StreamEstimator<C> {
     /// Allocates nothing.
     pub fn set_speed(&mut self, speed_mps: Option<f64>) {
         self.extractor.set_speed(speed_mps);
+    }
+
+    /// The classifier's confidence calibration, if any.
+    pub fn calibration(&self) -> Option<&crate::calib::StreamCalibration> {
+        self.classifier.calibration()
+    }
+
+    /// Whether the classifier's calibration was fitted with other stream
+    /// settings (hop, smoothing) than this estimator's: its confidence is
+    /// then not calibrated for them. `false` without calibration.
+    pub fn calibration_mismatch(&self) -> bool {
+        self.classifier
+            .calibration()
+            .is_some_and(|c| c.stream != self.cfg)
     }
 
     /// Whether the features depend on the vehicle speed ([`Self::set_speed`]).
@@ -387,13 +430,38 @@ impl<C: Classify> StreamEstimator<C> {
                 }
             }
         }
+        let class = argmax(&self.post);
+        let p = self.post[class];
+        let confidence = match self.classifier.calibration() {
+            None => {
+                self.out.copy_from_slice(&self.post);
+                p
+            }
+            Some(cal) => {
+                let c = cal.map.apply(p);
+                let rest = 1.0 - p;
+                let others = (k - 1).max(1) as f64;
+                for (j, (o, &q)) in self.out.iter_mut().zip(&self.post).enumerate() {
+                    *o = if j == class {
+                        c
+                    } else if rest > 0.0 {
+                        q * (1.0 - c) / rest
+                    } else {
+                        (1.0 - c) / others
+                    };
+                }
+                c
+            }
+        };
         let t_end = self.total as f64 / self.fs;
         let d = Decision {
             seq: self.seq,
             t_start: t_end - self.frame_len as f64 / self.fs,
             t_end,
-            class: argmax(&self.post),
-            probs: &self.post,
+            class,
+            probs: &self.out,
+            confidence,
+            posterior: &self.post,
             raw_class: argmax(&self.raw),
             raw: &self.raw,
         };

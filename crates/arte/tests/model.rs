@@ -1,10 +1,13 @@
 //! Model files: round trip, refusal of corrupt/mismatched/unknown files, fitting.
 
+use grip_arte::calib::{Calibration, StreamCalibration};
 use grip_arte::eval::Samples;
 use grip_arte::features::{FeatureConfig, FeatureSet};
 use grip_arte::mlp::LmConfig;
 use grip_arte::model::{ClassifierSpec, Model, ModelError, cross_validate, fit};
+use grip_arte::stream::{StreamConfig, StreamEstimator};
 use grip_arte::svm::{Kernel, SvmConfig};
+use grip_arte::synth::{Segment, SynthConfig, render};
 use grip_digest::sha256_hex;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -183,14 +186,15 @@ fn corrupt_files_are_refused_with_the_reason() {
 fn unknown_versions_are_refused() {
     let m = &models()[0];
     let good = m.to_bytes().unwrap();
-    let mut v2 = b"GRIP-ARTE-MODEL v2".to_vec();
-    v2.extend_from_slice(&good["GRIP-ARTE-MODEL v1".len()..]);
-    let e = Model::from_bytes(&v2).unwrap_err();
+    let mut v3 = b"GRIP-ARTE-MODEL v3".to_vec();
+    v3.extend_from_slice(&good["GRIP-ARTE-MODEL v1".len()..]);
+    let e = Model::from_bytes(&v3).unwrap_err();
     assert!(
-        matches!(&e, ModelError::UnknownVersion { found } if found == "2"),
+        matches!(&e, ModelError::UnknownVersion { found } if found == "3"),
         "{e}"
     );
-    assert!(e.to_string().contains("version 2"), "{e}");
+    assert!(e.to_string().contains("version 3"), "{e}");
+    assert!(e.to_string().contains("versions 1 and 2"), "{e}");
 
     // Header v1 but the payload claims version 7.
     let mut j = payload_json(m);
@@ -320,4 +324,199 @@ fn paper7_fit_prunes_paper20_rows_on_the_training_set() {
         );
     }
     assert!(m.evaluate(&s).unwrap().metrics().accuracy > 0.95);
+}
+
+fn calibrations() -> Vec<StreamCalibration> {
+    [
+        Calibration::Temperature { t: 2.0114 },
+        Calibration::Platt {
+            a: 0.6371,
+            b: -0.8078,
+        },
+        Calibration::Isotonic {
+            x: vec![0.31, 0.6, 0.9, 0.998_878_1],
+            y: vec![0.05, 0.55, 0.8, 0.987_654_321],
+        },
+    ]
+    .into_iter()
+    .map(|map| StreamCalibration {
+        map,
+        stream: StreamConfig::default(),
+        notes: vec!["test".into()],
+    })
+    .collect()
+}
+
+/// Decisions of a stream estimator over a few seconds of synthetic audio:
+/// (class, probabilities as bits, confidence as bits).
+fn stream_outputs(m: &Model) -> Vec<(usize, Vec<u64>, u64)> {
+    let audio = render(
+        &SynthConfig::default(),
+        3,
+        &[
+            Segment {
+                road: 0,
+                speed_mps: 5.0,
+                duration_s: 1.0,
+            },
+            Segment {
+                road: 2,
+                speed_mps: 5.0,
+                duration_s: 1.0,
+            },
+        ],
+    )
+    .unwrap();
+    let mut est =
+        StreamEstimator::new(m.predictor(), m.feature_config(), &StreamConfig::default()).unwrap();
+    let mut out = Vec::new();
+    est.push(&audio, |d| {
+        out.push((
+            d.class,
+            d.probs.iter().map(|p| p.to_bits()).collect(),
+            d.confidence.to_bits(),
+        ));
+    });
+    out
+}
+
+#[test]
+fn calibration_round_trip_is_exact() {
+    let m = models().remove(0);
+    let plain = m.to_bytes().unwrap();
+    for cal in calibrations() {
+        let c = m.clone().with_calibration(Some(cal.clone())).unwrap();
+        assert_eq!(c.format_version(), 2);
+        let bytes = c.to_bytes().unwrap();
+        assert!(bytes.starts_with(b"GRIP-ARTE-MODEL v2 sha256="));
+        let back = Model::from_bytes(&bytes).unwrap();
+        assert_eq!(back, c);
+        assert_eq!(back.calibration(), Some(&cal));
+        assert_eq!(
+            back.to_bytes().unwrap(),
+            bytes,
+            "re-serialised bytes differ"
+        );
+        // The mapping is bit for bit the same ...
+        let map = &back.calibration().unwrap().map;
+        for i in 0..=1000 {
+            let p = f64::from(i) / 1000.0;
+            assert_eq!(map.apply(p).to_bits(), cal.map.apply(p).to_bits(), "{p}");
+        }
+        // ... and so is what the stream reports.
+        let (a, b) = (stream_outputs(&c), stream_outputs(&back));
+        assert!(a.len() > 50);
+        assert_eq!(a, b);
+        // Removing the calibration gives back the version 1 file byte for
+        // byte: the classifier part is untouched.
+        assert_eq!(
+            back.with_calibration(None).unwrap().to_bytes().unwrap(),
+            plain
+        );
+    }
+}
+
+#[test]
+fn version_1_files_load_without_calibration() {
+    let m = models().remove(0);
+    let v1 = m.to_bytes().unwrap();
+    assert!(v1.starts_with(b"GRIP-ARTE-MODEL v1 sha256="));
+    let back = Model::from_bytes(&v1).unwrap();
+    assert_eq!(back.format_version(), 1);
+    assert!(back.calibration().is_none());
+    assert!(
+        !payload_json(&back)
+            .as_object()
+            .unwrap()
+            .contains_key("calibration")
+    );
+    // Without calibration the stream reports the filter's posterior itself.
+    let mut est = StreamEstimator::new(
+        back.predictor(),
+        back.feature_config(),
+        &StreamConfig::default(),
+    )
+    .unwrap();
+    let audio = render(
+        &SynthConfig::default(),
+        4,
+        &[Segment {
+            road: 1,
+            speed_mps: 5.0,
+            duration_s: 0.5,
+        }],
+    )
+    .unwrap();
+    let mut n = 0;
+    est.push(&audio, |d| {
+        assert_eq!(d.probs, d.posterior);
+        assert_eq!(d.confidence, d.posterior[d.class]);
+        n += 1;
+    });
+    assert!(n > 10);
+}
+
+#[test]
+fn calibration_and_version_must_agree() {
+    let m = models().remove(0);
+    let cal = calibrations().remove(0);
+    let c = m.clone().with_calibration(Some(cal)).unwrap();
+    // A version 2 header over a payload without calibration.
+    let mut j = payload_json(&m);
+    j["version"] = 2.into();
+    let payload = serde_json::to_vec(&j).unwrap();
+    let mut f = format!("GRIP-ARTE-MODEL v2 sha256={}\n", sha256_hex(&payload)).into_bytes();
+    f.extend_from_slice(&payload);
+    let e = Model::from_bytes(&f).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ModelError::Mismatch {
+                field: "calibration",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    // A calibration in a version 1 payload.
+    let mut j = payload_json(&c);
+    j["version"] = 1.into();
+    let e = Model::from_bytes(&with_payload(&serde_json::to_vec(&j).unwrap())).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ModelError::Mismatch {
+                field: "calibration",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    // A version 2 payload under a version 1 header.
+    let e = Model::from_bytes(&with_payload(
+        &serde_json::to_vec(&payload_json(&c)).unwrap(),
+    ))
+    .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ModelError::Mismatch {
+                field: "version",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    // A calibration that falls is refused, naming the field.
+    let mut j = payload_json(&c);
+    j["calibration"]["map"] = serde_json::json!({"platt": {"a": -1.0, "b": 0.0}});
+    let payload = serde_json::to_vec(&j).unwrap();
+    let mut f = format!("GRIP-ARTE-MODEL v2 sha256={}\n", sha256_hex(&payload)).into_bytes();
+    f.extend_from_slice(&payload);
+    let e = Model::from_bytes(&f).unwrap_err();
+    assert!(matches!(e, ModelError::Calib(_)), "{e}");
+    assert!(
+        e.to_string().contains("calibration") && e.to_string().contains("`a`"),
+        "{e}"
+    );
 }

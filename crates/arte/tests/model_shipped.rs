@@ -63,3 +63,40 @@ fn shipped_models_load_and_classify() {
         }
     }
 }
+
+/// The default model carries the streaming estimator's confidence
+/// calibration (format v2, added by `grip calibrate`, crate README
+/// "Confidence calibration"); the paper model has none (format v1).
+/// Without the calibration the default model is, byte for byte, the file
+/// `grip train` wrote on 2026-11-22 (SHA-256 below): calibrating did not
+/// touch the classifier.
+#[test]
+fn default_model_is_calibrated_and_its_classifier_unchanged() {
+    use grip_arte::calib::Calibration;
+    use grip_arte::stream::StreamConfig;
+    use grip_digest::sha256_hex;
+    let (m, _) = load("default.model");
+    assert_eq!(m.format_version(), 2);
+    let cal = m.calibration().expect("default.model has a calibration");
+    assert!(
+        matches!(cal.map, Calibration::Isotonic { .. }),
+        "{:?}",
+        cal.map
+    );
+    assert_eq!(cal.stream, StreamConfig::default());
+    // Monotone, within [0, 1], and lower than the saturated posterior.
+    let mut prev = 0.0;
+    for i in 0..=10_000 {
+        let c = cal.map.apply(f64::from(i) / 10_000.0);
+        assert!((0.0..=1.0).contains(&c) && c >= prev, "{i}: {c}");
+        prev = c;
+    }
+    assert!(cal.map.apply(0.9988) < 0.99);
+    let uncalibrated = m.with_calibration(None).unwrap().to_bytes().unwrap();
+    assert_eq!(
+        sha256_hex(&uncalibrated),
+        "3cf6e23de86a448ea51461cee4c316c4125a69c7d3098022627a71e48d901891"
+    );
+    let (p, _) = load("paper.model");
+    assert_eq!((p.format_version(), p.calibration()), (1, None));
+}

@@ -229,3 +229,99 @@ fn detection_delay_definition() {
     assert_eq!(percentile(&[0.1, inf, inf], 90.0), Some(inf));
     assert_eq!(percentile(&[0.1, 0.2, inf], 75.0), Some(inf));
 }
+
+/// A three-class toy classifier with a calibration: frames say class 0
+/// with 0.7, then class 2 with 0.8.
+struct Calibrated {
+    dim: usize,
+    n: usize,
+    cal: Option<grip_arte::calib::StreamCalibration>,
+}
+
+impl Classify for Calibrated {
+    fn n_classes(&self) -> usize {
+        3
+    }
+    fn n_features(&self) -> usize {
+        self.dim
+    }
+    fn predict_proba(&mut self, _x: &[f64], out: &mut [f64]) {
+        self.n += 1;
+        let q = if self.n <= 20 {
+            [0.7, 0.2, 0.1]
+        } else {
+            [0.1, 0.1, 0.8]
+        };
+        out.copy_from_slice(&q);
+    }
+    fn calibration(&self) -> Option<&grip_arte::calib::StreamCalibration> {
+        self.cal.as_ref()
+    }
+}
+
+#[test]
+fn calibration_maps_the_decided_roads_posterior_and_leaves_the_decision() {
+    use grip_arte::calib::{Calibration, StreamCalibration};
+    let f = fcfg();
+    let dim = FeatureExtractor::new(&f).unwrap().dim();
+    let map = Calibration::Platt { a: 0.5, b: -0.5 };
+    let cal = StreamCalibration {
+        map: map.clone(),
+        stream: StreamConfig::default(),
+        notes: vec![],
+    };
+    let x = tone(500.0, 44_100, 0);
+    let collect = |cal: Option<StreamCalibration>| {
+        let c = Calibrated { dim, n: 0, cal };
+        let mut s = StreamEstimator::new(c, &f, &StreamConfig::default()).unwrap();
+        let mut out = Vec::new();
+        s.push(&x, |d| {
+            out.push((
+                d.class,
+                d.confidence,
+                d.probs.to_vec(),
+                d.posterior.to_vec(),
+            ))
+        });
+        out
+    };
+    let plain = collect(None);
+    let calibrated = collect(Some(cal.clone()));
+    assert_eq!(plain.len(), calibrated.len());
+    assert!(plain.iter().any(|d| d.0 == 0) && plain.iter().any(|d| d.0 == 2));
+    for (u, c) in plain.iter().zip(&calibrated) {
+        // Same decision, same filter state.
+        assert_eq!(u.0, c.0);
+        assert_eq!(u.3, c.3);
+        assert_eq!(u.2, u.3, "without calibration probs are the posterior");
+        let p = u.3[u.0];
+        assert_eq!(u.1, p);
+        // The decided road's confidence is the map of its posterior ...
+        assert_eq!(c.1, map.apply(p));
+        assert_eq!(c.2[c.0], c.1);
+        // ... the others share the rest in proportion to their posteriors.
+        assert!((c.2.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        for j in 0..3 {
+            if j != c.0 {
+                let want = u.3[j] * (1.0 - c.1) / (1.0 - p);
+                assert!((c.2[j] - want).abs() < 1e-12, "{j}: {} vs {want}", c.2[j]);
+            }
+        }
+        // The map lowers an overconfident posterior here.
+        assert!(c.1 < p, "{} >= {p}", c.1);
+    }
+    // A calibration fitted for other stream settings is flagged.
+    let other = StreamConfig {
+        hop_s: 0.05,
+        ..StreamConfig::default()
+    };
+    let c = Calibrated {
+        dim,
+        n: 0,
+        cal: Some(cal),
+    };
+    let s = StreamEstimator::new(c, &f, &other).unwrap();
+    assert!(s.calibration_mismatch());
+    let s = StreamEstimator::new(Centroid::new(&f), &f, &other).unwrap();
+    assert!(!s.calibration_mismatch() && s.calibration().is_none());
+}

@@ -1,6 +1,7 @@
 //! The streaming estimator, the feature extractor, a real model's predictor
 //! and the streaming synthesiser allocate nothing after construction.
 
+use grip_arte::calib::{Calibration, StreamCalibration};
 use grip_arte::eval::Samples;
 use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet, SpeedNorm};
 use grip_arte::mlp::LmConfig;
@@ -65,37 +66,57 @@ fn hot_paths_allocate_nothing() {
             val_fraction: 0.0,
         };
         let (model, _) = fit(&classes, &fcfg, &spec, &train).unwrap();
-        let mut est =
-            StreamEstimator::new(Predictor::new(model), &fcfg, &StreamConfig::default()).unwrap();
+        // Without and with a confidence calibration (a model file v1 and v2).
+        let isotonic = StreamCalibration {
+            map: Calibration::Isotonic {
+                x: (0..40).map(|i| 0.3 + 0.0175 * f64::from(i)).collect(),
+                y: (0..40).map(|i| 0.2 + 0.02 * f64::from(i)).collect(),
+            },
+            stream: StreamConfig::default(),
+            notes: vec![],
+        };
+        for cal in [None, Some(isotonic)] {
+            let calibrated = cal.is_some();
+            let model = model.clone().with_calibration(cal).unwrap();
+            let mut est =
+                StreamEstimator::new(Predictor::new(model), &fcfg, &StreamConfig::default())
+                    .unwrap();
 
-        let mut block = vec![0f32; 1024];
-        let mut out = vec![0.0; ex.dim()];
-        // Warm up (first decision, first road change).
-        synth.fill(0, 8.0, &mut block);
-        est.push(&block, |_| {});
-        let before = allocs();
-        let mut n = 0;
-        let mut seen = 0u64;
-        for i in 0..200 {
-            let road = if i < 100 { 0 } else { 3 };
-            let v = 5.0 + i as f64 * 0.02;
-            synth.fill(road, v, &mut block);
-            // The speed changes every block, over a range wide enough to
-            // rebuild the speed-normalised filter banks at every extreme.
-            let speed = [0.1, v, 70.0, 2.0 + 0.3 * i as f64][i % 4];
-            est.set_speed(Some(speed));
-            ex.set_speed(Some(speed));
-            n += est.push(&block, |d| seen = d.seq);
-            ex.extract(&block, &mut out).unwrap();
+            let mut block = vec![0f32; 1024];
+            let mut out = vec![0.0; ex.dim()];
+            // Warm up (first decision, first road change).
+            synth.fill(0, 8.0, &mut block);
+            est.push(&block, |_| {});
+            let before = allocs();
+            let mut n = 0;
+            let mut seen = 0u64;
+            let mut top = 0.0f64;
+            for i in 0..200 {
+                let road = if i < 100 { 0 } else { 3 };
+                let v = 5.0 + i as f64 * 0.02;
+                synth.fill(road, v, &mut block);
+                // The speed changes every block, over a range wide enough to
+                // rebuild the speed-normalised filter banks at every extreme.
+                let speed = [0.1, v, 70.0, 2.0 + 0.3 * i as f64][i % 4];
+                est.set_speed(Some(speed));
+                ex.set_speed(Some(speed));
+                n += est.push(&block, |d| {
+                    seen = d.seq;
+                    top = top.max(d.confidence);
+                });
+                ex.extract(&block, &mut out).unwrap();
+            }
+            let after = allocs();
+            assert!(n > 80, "{n} decisions");
+            assert!(seen > 80);
+            // The calibration was applied: its values end at 0.98.
+            assert_eq!(calibrated, top <= 0.98 + 1e-12, "highest confidence {top}");
+            assert_eq!(
+                after - before,
+                0,
+                "{set:?} (speed norm {speed_norm:?}, fixed bands {fixed_bands}, calibrated {calibrated}): {} allocations in the hot loop",
+                after - before
+            );
         }
-        let after = allocs();
-        assert!(n > 80, "{n} decisions");
-        assert!(seen > 80);
-        assert_eq!(
-            after - before,
-            0,
-            "{set:?} (speed norm {speed_norm:?}, fixed bands {fixed_bands}): {} allocations in the hot loop",
-            after - before
-        );
     }
 }

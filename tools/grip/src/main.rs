@@ -33,7 +33,9 @@ enum Command {
     /// Linear analysis: transfer functions, the K_MFC bound and Vinnicombe nu-gaps.
     Analyze(cmd::analyze::Args),
     /// Train an ARTE road classifier on a labelled WAV dataset (CV by recording, model file).
-    Train(cmd::train::Args),
+    Train(Box<cmd::train::Args>),
+    /// Fit the streaming estimator's confidence calibration of a model on road-change recordings.
+    Calibrate(cmd::calibrate::Args),
     /// Classify a WAV recording frame by frame with an ARTE model.
     Classify(cmd::classify::Args),
     /// Labelled datasets: `grip dataset synth` writes synthetic tyre-road recordings.
@@ -62,7 +64,8 @@ fn main() -> std::process::ExitCode {
         Command::Roads(a) => cmd::roads::run(&ctx, a),
         Command::Sim(a) => cmd::sim::run(&ctx, a),
         Command::Analyze(a) => cmd::analyze::run(&ctx, a),
-        Command::Train(a) => cmd::train::run(&ctx, a),
+        Command::Train(a) => cmd::train::run(&ctx, *a),
+        Command::Calibrate(a) => cmd::calibrate::run(&ctx, a),
         Command::Classify(a) => cmd::classify::run(&ctx, a),
         Command::Dataset(a) => cmd::dataset::run(&ctx, a),
         Command::Features(a) => cmd::features::run(&ctx, a),

@@ -586,9 +586,8 @@ fn synth(a: SynthArgs) -> Result<()> {
 
 fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
     use grip_arte::model::{Model, Predictor};
-    use grip_arte::stream::{
-        Smoothing, StreamConfig, StreamEstimator, detection_delays, percentile,
-    };
+    use grip_arte::stream::{Smoothing, StreamConfig, StreamEstimator};
+    use grip_arte::stream_eval::ChangeEval;
     let bytes = std::fs::read(&a.model)
         .with_context(|| format!("reading model file {}", a.model.display()))?;
     let model =
@@ -608,13 +607,20 @@ fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
         hop_s: a.hop,
         smoothing,
     };
+    let calibration = model.calibration().map(|c| c.map.describe());
     let mut est = StreamEstimator::new(Predictor::new(model), &fcfg, &scfg)?;
-    let (mut delays, mut missed, mut n_changes) = (Vec::new(), 0usize, 0usize);
-    // Per recording: its changes' delays (missed = ∞), for the bootstrap.
-    let mut per_rec: Vec<Vec<f64>> = Vec::with_capacity(recs.len());
-    // Switches of the smoothed decision to a road that is not the true one
-    // at that moment, and the audio time they were counted over.
-    let (mut false_near, mut false_inside, mut audio_s) = (0usize, 0usize, 0.0f64);
+    match &calibration {
+        None => println!(
+            "model {} has no confidence calibration (format v1): the confidence is the raw smoothed posterior",
+            a.model.display()
+        ),
+        Some(c) if est.calibration_mismatch() => println!(
+            "confidence calibration: {c}, but fitted for other stream settings than hop {} s, {smoothing:?}: \
+             the confidence is not calibrated for these",
+            a.hop
+        ),
+        Some(c) => println!("confidence calibration: {c}"),
+    }
     let cfg_dir = grip_config::ConfigDir::new(config_dir);
     // The gate a controller applies: the configured one, or --min-confidence
     // checked by the same rule.
@@ -637,129 +643,77 @@ fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
         .map(|c| roads.get(c).map(|r| r.mu_peak()))
         .collect::<Option<_>>()
         .unwrap_or_default();
-    let mut used = KnowledgeUse::default();
-    let mut conf = grip_arte::eval::Confusion::new(classes.clone());
-    let mut conf_raw = grip_arte::eval::Confusion::new(classes.clone());
-    let block = 1024;
+    let mut ev = ChangeEval::new(classes.clone(), mu_peak, min_confidence, a.hold);
     let pb = ProgressBar::new(recs.len() as u64);
     for r in &recs {
-        let audio = wav::read_mono_at(&r.path, fcfg.sample_rate)?;
-        est.reset();
-        if est.speed_normalised() && r.segments.iter().any(|s| s.3.is_none()) {
-            bail!(
-                "{}: a segment of {} has no speed_kmh; the model {} is speed-normalised and needs the vehicle speed",
-                a.dir.join("segments.csv").display(),
-                r.path.display(),
-                a.model.display()
-            );
-        }
-        let mut dec: Vec<(f64, usize)> = Vec::new();
-        let mut confidence: Vec<f64> = Vec::new();
-        let mut raw: Vec<(f64, f64, usize)> = Vec::new();
-        let fs = f64::from(fcfg.sample_rate);
-        for (bi, b) in audio.samples.chunks(block).enumerate() {
-            est.set_speed(r.speed_at((bi * block) as f64 / fs).map(|v| v / 3.6));
-            est.push(b, |d| {
-                dec.push((d.t_end, d.class));
-                confidence.push(d.probs.get(d.class).copied().unwrap_or(0.0));
-                raw.push((d.t_start, d.t_end, d.raw_class));
-            });
-        }
-        // Accuracy over decisions whose frame lies inside one segment.
-        for (&(t_end, c), &(t0, _, rc)) in dec.iter().zip(&raw) {
-            if let Some(seg) = r
-                .segments
-                .iter()
-                .find(|s| t0 >= s.0 - 1e-9 && t_end <= s.1 + 1e-9)
-            {
-                conf.add(c, seg.2);
-                conf_raw.add(rc, seg.2);
-            }
-        }
-        used.add(
-            &dec,
-            &confidence,
-            &r.segments,
-            &mu_peak,
-            min_confidence,
-            a.hold,
-        );
-        let (near, inside) = count_false_switches(&dec, &r.segments, a.hold);
-        false_near += near;
-        false_inside += inside;
-        audio_s += audio.samples.len() as f64 / fs;
-        let changes: Vec<(f64, usize)> = r.segments.iter().map(|s| (s.0, s.2)).collect();
-        let end = r.segments.last().map_or(0.0, |s| s.1);
-        let mut mine = Vec::new();
-        for d in detection_delays(&dec, &changes, end, a.hold)
-            .into_iter()
-            .skip(1)
-        {
-            n_changes += 1;
-            match d {
-                Some(v) => delays.push(v),
-                None => missed += 1,
-            }
-            mine.push(d.unwrap_or(f64::INFINITY));
-        }
-        per_rec.push(mine);
+        let (dec, duration_s) =
+            super::calibrate::stream_recording(&mut est, r, fcfg.sample_rate, &a.dir)
+                .with_context(|| format!("model {}", a.model.display()))?;
+        ev.add_recording(&dec, &r.segments, duration_s);
         pb.inc(1);
     }
     pb.finish_and_clear();
+    print_delay_report(&a, &ev, smoothing, recs.len(), min_confidence);
+    Ok(())
+}
+
+/// Prints what `grip dataset delay` measured.
+fn print_delay_report(
+    a: &DelayArgs,
+    ev: &grip_arte::stream_eval::ChangeEval,
+    smoothing: grip_arte::stream::Smoothing,
+    n_recordings: usize,
+    min_confidence: f64,
+) {
+    use grip_arte::stream::percentile;
+    use grip_arte::stream_eval::{CONFIDENCE_BINS, bootstrap_percentile};
     let ms = |v: Option<f64>| match v {
         None => "-".to_string(),
         Some(v) if v.is_finite() => format!("{:.0} ms", v * 1000.0),
         Some(_) => "missed".to_string(),
     };
+    let (n_changes, missed) = (ev.n_changes, ev.missed);
     // Percentiles over all changes: a missed change counts as longer than any.
-    let mut all = delays.clone();
-    all.extend(std::iter::repeat_n(f64::INFINITY, missed));
+    let all = ev.all_delays();
     println!(
         "{} recordings, {n_changes} road changes, hop {} s, smoothing {:?}, hold {} s",
-        recs.len(),
-        a.hop,
-        smoothing,
-        a.hold
+        n_recordings, a.hop, smoothing, a.hold
     );
     println!(
         "detection delay over all {n_changes} changes (a missed one counts as longer than any): \
          p50 {}, p95 {}; max of the detected {}; missed {missed}",
         ms(percentile(&all, 50.0)),
         ms(percentile(&all, 95.0)),
-        ms(percentile(&delays, 100.0))
+        ms(percentile(&ev.delays, 100.0))
     );
-    if let Some((lo, hi)) = bootstrap_percentile(&per_rec, 95.0, 2000, 1) {
+    if let Some((lo, hi)) = bootstrap_percentile(&ev.per_recording, 95.0, 2000, 1) {
         println!(
             "p95 95 % interval (bootstrap over recordings, 2000 resamples): {} - {}",
             ms(Some(lo)),
             ms(Some(hi))
         );
     }
-    if audio_s > 0.0 {
-        let per_min = |n: usize| n as f64 * 60.0 / audio_s;
+    if let Some((inside, near)) = ev.false_switches_per_minute() {
         println!(
             "false switches (the smoothed decision changes to a road that is not the true one): \
-             {:.2} per minute of audio inside segments ({false_inside}), \
-             {:.2} per minute within {} s after a true change ({false_near})",
-            per_min(false_inside),
-            per_min(false_near),
-            a.hold
+             {:.2} per minute of audio inside segments ({}), \
+             {:.2} per minute within {} s after a true change ({})",
+            inside, ev.false_inside, near, a.hold, ev.false_near
         );
     }
-    if n_changes > 0 {
-        let share = |lim: f64| {
-            100.0 * delays.iter().filter(|&&d| d <= lim).count() as f64 / n_changes as f64
-        };
+    if let (Some(w100), Some(w150), Some(w200)) = (
+        ev.percent_within(0.1),
+        ev.percent_within(0.15),
+        ev.percent_within(0.2),
+    ) {
         println!(
-            "detected within 100 ms: {:.1} %, within 150 ms: {:.1} %, within 200 ms: {:.1} % of the changes",
-            share(0.1),
-            share(0.15),
-            share(0.2)
+            "detected within 100 ms: {w100:.1} %, within 150 ms: {w150:.1} %, within 200 ms: {w200:.1} % of the changes"
         );
     }
+    let used = &ev.used;
     if used.decisions > 0 {
         let pc = |n: usize, of: usize| 100.0 * n as f64 / of.max(1) as f64;
-        let wrong = used.used - used.used_right;
+        let wrong = used.used_wrong();
         println!(
             "what a controller with min_confidence {} is given: {:.1} % of the {} decisions \
              (the rest falls back to no ARTE); {:.2} % of those name the true road at the decision's time; \
@@ -794,19 +748,29 @@ fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
             "calibration (confidence bin: share, accuracy): {}",
             bins.join("; ")
         );
-        if mu_peak.is_empty() {
-            println!(
-                "(a class of the model is not a road of the catalogue: optimistic and cautious mistakes not told apart)"
-            );
-        } else {
+        println!(
+            "confidence against the true road at each decision's time: {}",
+            super::calibrate::summary_line(&ev.confidence, &ev.right)
+        );
+        println!(
+            "reliability ({} equal-width bins):\n\n{}",
+            super::calibrate::ECE_BINS,
+            super::calibrate::reliability(&ev.confidence, &ev.right).to_markdown()
+        );
+        if ev.mu_peak_known() {
             println!(
                 "of the wrong road in use: {:.2} % of the time a road with more peak friction than the true one \
                  (optimistic: the controller expects grip that is not there), {:.2} % one with less (cautious)",
                 pc(used.used_wrong_optimistic, used.decisions),
                 pc(wrong - used.used_wrong_optimistic, used.decisions),
             );
+        } else {
+            println!(
+                "(a class of the model is not a road of the catalogue: optimistic and cautious mistakes not told apart)"
+            );
         }
     }
+    let (conf, conf_raw) = (&ev.smoothed, &ev.single_frame);
     if conf.total() > 0 {
         let (m, mr) = (conf.metrics(), conf_raw.metrics());
         println!(
@@ -825,134 +789,6 @@ fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
             println!("{}", conf_raw.to_markdown());
         }
     }
-    Ok(())
-}
-
-/// Smoothed decisions `(t_end, class)` in time order that differ from the
-/// previous decision and name a road other than the true one at `t_end`
-/// (segments `(t_start, t_end, class, ..)`). A switch to the right road,
-/// late or not, is not counted; nor is the first decision. Returned as
-/// (within `near_s` after a true change, i.e. on the way from the old road
-/// to the new one; elsewhere).
-fn count_false_switches<T>(
-    dec: &[(f64, usize)],
-    segments: &[(f64, f64, usize, T)],
-    near_s: f64,
-) -> (usize, usize) {
-    let (mut near, mut inside) = (0, 0);
-    for w in dec.windows(2) {
-        let (t, c) = w[1];
-        let Some((i, seg)) = segment_at(segments, t) else {
-            continue;
-        };
-        if c != w[0].1 && c != seg.2 {
-            if i > 0 && t - seg.0 <= near_s {
-                near += 1;
-            } else {
-                inside += 1;
-            }
-        }
-    }
-    (near, inside)
-}
-
-/// The segment `(t_start, t_end, class, ..)` holding time `t`, and its
-/// index; past the end, the last one; `None` without segments.
-type Seg<T> = (f64, f64, usize, T);
-fn segment_at<T>(segments: &[Seg<T>], t: f64) -> Option<(usize, &Seg<T>)> {
-    segments
-        .iter()
-        .enumerate()
-        .find(|(_, s)| t >= s.0 && t < s.1)
-        .or(segments.iter().enumerate().last())
-}
-
-/// What a controller that uses decisions of at least a minimum confidence
-/// is given, counted over every decision against the true road at the
-/// decision's time (`t_end`).
-#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
-struct KnowledgeUse {
-    /// Decisions counted.
-    decisions: usize,
-    /// Of them, confident enough to be used.
-    used: usize,
-    /// Used and naming the true road.
-    used_right: usize,
-    /// Used, naming another road, within `near_s` after a true change.
-    used_wrong_near: usize,
-    /// Used, naming a road with a higher peak friction than the true one
-    /// (the controller expects grip the road does not have).
-    used_wrong_optimistic: usize,
-    /// Per confidence bin ([`CONFIDENCE_BINS`]): (decisions, right).
-    bins: [(usize, usize); CONFIDENCE_BINS.len()],
-}
-
-/// Lower edges of the confidence bins of the calibration report.
-const CONFIDENCE_BINS: [f64; 5] = [0.0, 0.6, 0.8, 0.9, 0.99];
-
-impl KnowledgeUse {
-    /// Adds one recording's smoothed decisions `(t_end, class)` with their
-    /// confidences, against its segments `(t_start, t_end, class, ..)`;
-    /// `mu_peak[class]` is each class's peak friction (empty: unknown).
-    fn add<T>(
-        &mut self,
-        dec: &[(f64, usize)],
-        confidence: &[f64],
-        segments: &[(f64, f64, usize, T)],
-        mu_peak: &[f64],
-        min_confidence: f64,
-        near_s: f64,
-    ) {
-        for (&(t, c), &p) in dec.iter().zip(confidence) {
-            let Some((i, seg)) = segment_at(segments, t) else {
-                continue;
-            };
-            self.decisions += 1;
-            let b = CONFIDENCE_BINS.iter().rposition(|&lo| p >= lo).unwrap_or(0);
-            self.bins[b].0 += 1;
-            self.bins[b].1 += usize::from(c == seg.2);
-            if p < min_confidence {
-                continue;
-            }
-            self.used += 1;
-            if c == seg.2 {
-                self.used_right += 1;
-                continue;
-            }
-            if i > 0 && t - seg.0 <= near_s {
-                self.used_wrong_near += 1;
-            }
-            if let (Some(used), Some(truth)) = (mu_peak.get(c), mu_peak.get(seg.2))
-                && used > truth
-            {
-                self.used_wrong_optimistic += 1;
-            }
-        }
-    }
-}
-
-/// Percentile `p` of the pooled values, as a 95 % interval by resampling
-/// the groups (recordings) with replacement `n` times (seeded, so the
-/// interval is reproducible). `None` without values.
-fn bootstrap_percentile(groups: &[Vec<f64>], p: f64, n: usize, seed: u64) -> Option<(f64, f64)> {
-    use grip_arte::stream::percentile;
-    use rand::{Rng, SeedableRng};
-    if groups.iter().all(Vec::is_empty) {
-        return None;
-    }
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let mut stats = Vec::with_capacity(n);
-    let mut pool = Vec::new();
-    for _ in 0..n {
-        pool.clear();
-        for _ in 0..groups.len() {
-            pool.extend_from_slice(&groups[rng.random_range(0..groups.len())]);
-        }
-        if let Some(v) = percentile(&pool, p) {
-            stats.push(v);
-        }
-    }
-    Some((percentile(&stats, 2.5)?, percentile(&stats, 97.5)?))
 }
 
 pub fn run(ctx: &Ctx, args: Args) -> Result<()> {
@@ -984,88 +820,6 @@ mod tests {
             roads: None,
             sample_rate: 44_100,
         }
-    }
-
-    #[test]
-    fn false_switches_count_only_switches_to_a_wrong_road() {
-        // Road 0 until 1 s, then road 1.
-        let segs = [(0.0, 1.0, 0, ()), (1.0, 2.0, 1, ())];
-        let dec = [
-            (0.2, 0),
-            (0.4, 2), // wrong switch
-            (0.6, 0), // back to the right road: not counted
-            (0.8, 0),
-            (1.05, 0), // late, but no switch
-            (1.1, 1),  // right switch
-            (1.5, 0),  // wrong switch
-            (1.9, 0),
-        ];
-        assert_eq!(count_false_switches(&dec, &segs, 0.2), (0, 2));
-        assert_eq!(count_false_switches(&dec, &segs, 0.6), (1, 1));
-        assert_eq!(count_false_switches(&dec[..1], &segs, 0.2), (0, 0));
-    }
-
-    #[test]
-    fn knowledge_use_counts_confident_decisions_against_the_true_road() {
-        // road 0 until 1 s, then road 1
-        let segs = [(0.0, 1.0, 0usize, ()), (1.0, 2.0, 1usize, ())];
-        let dec = [
-            (0.5, 0), // right, confident
-            (0.6, 1), // wrong, not confident: not used
-            (0.9, 1), // wrong, confident, before the change: elsewhere
-            (1.1, 0), // wrong, confident, 0.1 s after the change: near
-            (1.5, 0), // wrong, confident, 0.5 s after it: elsewhere
-            (1.6, 1), // right, confident
-            (2.5, 1), // past the end: the last segment's road
-        ];
-        let confidence = [0.9, 0.5, 0.7, 0.8, 0.6, 0.99, 0.6];
-        // road 0 grips more than road 1: hearing 0 on 1 is optimistic
-        let mu_peak = [1.0, 0.5];
-        let mut u = KnowledgeUse::default();
-        u.add(&dec, &confidence, &segs, &mu_peak, 0.6, 0.2);
-        assert_eq!(
-            u,
-            KnowledgeUse {
-                decisions: 7,
-                used: 6,
-                used_right: 3,
-                used_wrong_near: 1,
-                used_wrong_optimistic: 2,
-                // bins 0-0.6, 0.6-0.8, 0.8-0.9, 0.9-0.99, 0.99-1
-                bins: [(1, 0), (3, 1), (1, 0), (1, 1), (1, 1)],
-            }
-        );
-        // unknown frictions: no optimistic count
-        let mut n = KnowledgeUse::default();
-        n.add(&dec, &confidence, &segs, &[], 0.6, 0.2);
-        assert_eq!((n.used, n.used_wrong_optimistic), (6, 0));
-        // no segments: nothing counted
-        let mut e = KnowledgeUse::default();
-        e.add::<()>(&dec, &confidence, &[], &mu_peak, 0.6, 0.2);
-        assert_eq!(e.decisions, 0);
-    }
-
-    #[test]
-    fn bootstrap_interval_brackets_the_percentile_and_is_reproducible() {
-        let groups: Vec<Vec<f64>> = (0..40)
-            .map(|i| {
-                (0..4)
-                    .map(|j| 0.08 + 0.001 * f64::from(i * 4 + j))
-                    .collect()
-            })
-            .collect();
-        let pooled: Vec<f64> = groups.iter().flatten().copied().collect();
-        let p95 = grip_arte::stream::percentile(&pooled, 95.0).unwrap();
-        let (lo, hi) = bootstrap_percentile(&groups, 95.0, 500, 7).unwrap();
-        assert!(lo <= p95 && p95 <= hi && lo < hi, "{lo} {p95} {hi}");
-        assert_eq!(bootstrap_percentile(&groups, 95.0, 500, 7), Some((lo, hi)));
-        // A set where most changes are missed: the interval reaches ∞.
-        let missed = vec![vec![f64::INFINITY, 0.1], vec![f64::INFINITY]];
-        assert_eq!(
-            bootstrap_percentile(&missed, 95.0, 100, 1).map(|x| x.1),
-            Some(f64::INFINITY)
-        );
-        assert_eq!(bootstrap_percentile(&[vec![], vec![]], 95.0, 10, 1), None);
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! One module per subcommand.
 
 pub mod analyze;
+pub mod calibrate;
 pub mod classify;
 pub mod dataset;
 pub mod drive;

@@ -115,6 +115,14 @@ pub struct Args {
     /// Use only these class folders (comma separated), in training and held-out data.
     #[arg(long, value_delimiter = ',')]
     pub classes: Vec<String>,
+    /// Road-change recordings (from `grip dataset synth --changes`) to fit
+    /// the streaming estimator's confidence calibration on, after training
+    /// (repeatable; other seeds than the training and the evaluation sets).
+    /// Without it the model carries no calibration (format v1).
+    #[arg(long)]
+    pub calib_data: Vec<PathBuf>,
+    #[command(flatten)]
+    pub calib: super::calibrate::FitArgs,
 }
 
 impl Args {
@@ -161,6 +169,12 @@ impl Args {
             s.push_str(" --fixed-bands");
         }
         let _ = write!(s, " --profile {}", self.profile);
+        if !self.calib_data.is_empty() {
+            for d in &self.calib_data {
+                let _ = write!(s, " --calib-data {}", d.display());
+            }
+            let _ = write!(s, " {}", self.calib.command_line());
+        }
         s
     }
 }
@@ -543,6 +557,16 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
             print_eval(&mut report, &e.what.clone(), &e);
         }
     }
+    if !args.calib_data.is_empty() {
+        let (cal, rep) = super::calibrate::fit_calibration(
+            &model,
+            &args.calib_data,
+            &args.calib,
+            &args.command_line(),
+        )?;
+        report.push_str(&rep);
+        model = model.with_calibration(Some(cal))?;
+    }
     Ok((model, report))
 }
 
@@ -661,6 +685,95 @@ mod tests {
             let back = Model::from_bytes(&ba).unwrap();
             assert_eq!(back, a);
         }
+    }
+
+    /// Two change recordings (asphalt, gravel, snow segments) at 16 kHz.
+    fn make_changes(dir: &Path) {
+        let cfg = SynthConfig {
+            sample_rate: 16_000,
+            noise: None,
+        };
+        std::fs::create_dir_all(dir).unwrap();
+        let mut csv = String::from("file,t_start,t_end,road,speed_kmh,seed,noise,snr_db\n");
+        for k in 0..2u64 {
+            let roads = ["asphalt", "gravel", "snow"];
+            let segs: Vec<Segment> = roads
+                .iter()
+                .map(|r| Segment {
+                    road: ROADS.iter().position(|n| n == r).unwrap(),
+                    speed_mps: 4.0,
+                    duration_s: 0.6,
+                })
+                .collect();
+            let x = render(&cfg, 900 + k, &segs).unwrap();
+            let name = format!("c{k}.wav");
+            grip_io::wav::write_mono_i16(&dir.join(&name), 16_000, &x).unwrap();
+            for (i, r) in roads.iter().enumerate() {
+                let t = 0.6 * i as f64;
+                csv.push_str(&format!("{name},{t},{},{r},14.4,,,\n", t + 0.6));
+            }
+        }
+        std::fs::write(dir.join("segments.csv"), csv).unwrap();
+    }
+
+    #[test]
+    fn training_with_calib_data_stores_a_calibration_and_keeps_the_classifier() {
+        let d = tempfile::tempdir().unwrap();
+        let data = d.path().join("data");
+        make_dataset(&data);
+        let changes = d.path().join("changes");
+        make_changes(&changes);
+        let base = [
+            "t",
+            "--data",
+            data.to_str().unwrap(),
+            "--folds",
+            "0",
+            "--date",
+            "2026-01-01",
+            "--hop",
+            "0.05",
+            "--classifier",
+            "mlp",
+            "--features",
+            "paper7",
+        ];
+        let plain = train(d.path(), &Cli::parse_from(base).args).unwrap().0;
+        assert_eq!(plain.format_version(), 1);
+        let mut argv = base.to_vec();
+        argv.extend_from_slice(&["--calib-data", changes.to_str().unwrap()]);
+        argv.extend_from_slice(&["--calib-method", "platt"]);
+        let args = Cli::parse_from(&argv).args;
+        let (a, report) = train(d.path(), &args).unwrap();
+        let (b, _) = train(d.path(), &args).unwrap();
+        assert_eq!(a.to_bytes().unwrap(), b.to_bytes().unwrap());
+        assert_eq!(a.format_version(), 2);
+        let cal = a.calibration().unwrap();
+        assert!(
+            matches!(cal.map, grip_arte::calib::Calibration::Platt { .. }),
+            "{:?}",
+            cal.map
+        );
+        assert!(report.contains("ECE (10 equal-width bins)"), "{report}");
+        assert!(report.contains("| confidence | decisions |"), "{report}");
+        assert!(
+            a.meta.command.contains("--calib-data"),
+            "{}",
+            a.meta.command
+        );
+        // The classifier is the one trained without --calib-data.
+        assert_eq!(a.classifier(), plain.classifier());
+        assert_eq!(a.standardiser(), plain.standardiser());
+        let back = Model::from_bytes(&a.to_bytes().unwrap()).unwrap();
+        assert_eq!(back, a);
+        // A calibration folder that is not one is a clear error.
+        let mut argv = base.to_vec();
+        argv.extend_from_slice(&["--calib-data", data.to_str().unwrap()]);
+        let e = format!(
+            "{:#}",
+            train(d.path(), &Cli::parse_from(&argv).args).unwrap_err()
+        );
+        assert!(e.contains("segments.csv"), "{e}");
     }
 
     #[test]
