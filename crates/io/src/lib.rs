@@ -11,6 +11,9 @@
 //! - [`clock`]: injected monotonic time (real and manual).
 //! - [`systemd`]: `sd_notify` readiness/status/stopping and the
 //!   heartbeat-gated watchdog every service uses.
+//! - [`service`]: the skeleton of every service's `main` (tracing,
+//!   signals, exit codes, its own TOML) and its helper thread
+//!   ([`service::monitor`]).
 //!
 //! See `crates/io/README.md` for the protocol tables and measured figures.
 
@@ -19,4 +22,5 @@ pub mod clock;
 pub mod ipc;
 pub mod mcaplog;
 pub mod rt;
+pub mod service;
 pub mod systemd;
