@@ -9,7 +9,11 @@ use grip_io::clock::{Clock, MonotonicClock};
 use grip_io::ipc::{IpcNode, SubscriberMode};
 use grip_msgs::{AudioBlock, CycleRecord, RoadEstimate, topics};
 
-use crate::{ArteConfig, ArteError, ArteLoop, ArteStats, load_model, road_table, svc};
+use grip_io::service::ServiceConfig;
+
+use crate::{
+    ArteCounters, ArteError, ArteLoop, ArteServiceConfig, load_model, monitor, road_table,
+};
 
 /// Command-line choices.
 #[derive(Debug, Clone, Default)]
@@ -49,7 +53,7 @@ pub struct Prepared {
     /// The config file used.
     pub config_file: PathBuf,
     /// Its contents.
-    pub cfg: ArteConfig,
+    pub cfg: ArteServiceConfig,
     /// The model file used.
     pub model_path: PathBuf,
     /// The loop, ready to run.
@@ -69,11 +73,8 @@ fn resolve(dir: &Path, p: &Path) -> PathBuf {
 /// Loads config, model and road catalogue and builds the loop; every
 /// start-up error names its file.
 pub fn prepare(opts: &Options) -> Result<Prepared, ArteError> {
-    let config_file = opts
-        .config
-        .clone()
-        .unwrap_or_else(|| opts.config_dir.join("arte-svc.toml"));
-    let cfg = ArteConfig::load(&config_file)?;
+    let config_file = ArteServiceConfig::path(&opts.config_dir, opts.config.as_deref());
+    let cfg = ArteServiceConfig::load(&config_file)?;
     let model_path = match &opts.model {
         Some(p) => p.clone(),
         None => resolve(&opts.config_dir, &cfg.model),
@@ -124,9 +125,9 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
     // the newest cycle record is all that matters (1 kHz, one per ms)
     let cycles = node.subscriber::<CycleRecord>(topics::CYCLE, SubscriberMode::Latest)?;
     let mut publisher = node.publisher::<RoadEstimate>(topics::ROAD)?;
-    let stats = Arc::new(ArteStats::default());
+    let stats = Arc::new(ArteCounters::default());
     let done = Arc::new(AtomicBool::new(false));
-    let helper = svc::spawn_helper(
+    let helper = monitor::spawn_helper(
         Arc::clone(&stats),
         rate,
         lp.speed_normalised(),

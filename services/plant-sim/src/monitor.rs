@@ -10,6 +10,7 @@ use std::time::Instant;
 
 use grip_io::service::monitor::{self, Changed, Count, Monitor};
 use grip_io::systemd::notify_status;
+use grip_io::warn_if_grew;
 
 use crate::cycle::PlantStatus;
 
@@ -79,11 +80,15 @@ impl Monitor for PlantMonitor {
 
     fn report(&mut self, _now: Instant) {
         let s = &self.s;
-        self.faults.warn_if_grew(
+        warn_if_grew!(
+            self.faults,
             s.faults_total.load(Ordering::Relaxed),
-            "inverter: CAN E2E faults on TorqueCommand",
+            "inverter: CAN E2E faults on TorqueCommand"
         );
-        self.io_errors
-            .warn_if_grew(s.io_errors.load(Ordering::Relaxed), "CAN / publish errors");
+        warn_if_grew!(
+            self.io_errors,
+            s.io_errors.load(Ordering::Relaxed),
+            "CAN / publish errors"
+        );
     }
 }

@@ -9,6 +9,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use grip_io::service::monitor::{self, Changed, Count, Flow, FlowEvent, Monitor};
+use grip_io::warn_if_grew;
 
 use crate::cycle::SharedStatus;
 
@@ -83,13 +84,20 @@ impl Monitor for TcsMonitor {
 
     fn report(&mut self, _now: Instant) {
         let s = &self.s;
-        self.faults
-            .warn_if_grew(s.faults_total.load(Ordering::Relaxed), "CAN E2E faults");
-        self.bus_errors.warn_if_grew(
-            s.bus_errors.load(Ordering::Relaxed),
-            "CAN bus send/receive errors",
+        warn_if_grew!(
+            self.faults,
+            s.faults_total.load(Ordering::Relaxed),
+            "CAN E2E faults"
         );
-        self.misses
-            .warn_if_grew(s.deadline_misses.load(Ordering::Relaxed), "deadline misses");
+        warn_if_grew!(
+            self.bus_errors,
+            s.bus_errors.load(Ordering::Relaxed),
+            "CAN bus send/receive errors"
+        );
+        warn_if_grew!(
+            self.misses,
+            s.deadline_misses.load(Ordering::Relaxed),
+            "deadline misses"
+        );
     }
 }

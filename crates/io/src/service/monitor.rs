@@ -11,7 +11,7 @@
 //! block: the loops only store counters in atomics.
 //!
 //! The pieces a service's monitor is made of: [`Count`] (a counter that
-//! grew → a warning with its total and the new ones), [`Flow`] (a stream
+//! grew → [`warn_if_grew!`](crate::warn_if_grew) logs its total and the new ones), [`Flow`] (a stream
 //! that stopped for a while / started / came back) and [`Changed`] (a
 //! state that changed).
 
@@ -21,6 +21,9 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use crate::systemd::{Watchdog, WatchdogPoll};
+
+#[doc(hidden)]
+pub use tracing;
 
 /// What a service's helper thread watches (its loop's shared counters).
 pub trait Monitor: Send + 'static {
@@ -95,14 +98,20 @@ impl Count {
         let last = std::mem::replace(&mut self.last, now);
         (now > last).then(|| now - last)
     }
+}
 
-    /// [`Self::grew`], and if it did, a warning `what` with `total` (now)
-    /// and `new` (since the last line).
-    pub fn warn_if_grew(&mut self, now: u64, what: &str) {
-        if let Some(new) = self.grew(now) {
-            tracing::warn!(total = now, new, "{what}");
+/// `warn_if_grew!(count, now, "what")`: [`Count::grew`], and if it did, a
+/// `tracing` warning `what` with `total = now` and `new` (since the last
+/// line). A macro so that the line's target is the calling service's
+/// module (log filters such as `RUST_LOG=grip_tcs_loop=warn` keep working).
+#[macro_export]
+macro_rules! warn_if_grew {
+    ($count:expr, $now:expr, $what:literal) => {{
+        let now: u64 = $now;
+        if let Some(new) = $count.grew(now) {
+            $crate::service::monitor::tracing::warn!(total = now, new, $what);
         }
-    }
+    }};
 }
 
 /// A stream followed by its message counter: did it start, stop for
@@ -206,6 +215,15 @@ mod tests {
         assert_eq!(c.grew(2), None);
         assert_eq!(c.last(), 2);
         assert_eq!(c.grew(5), Some(3));
+    }
+
+    #[test]
+    fn warn_if_grew_follows_the_counter() {
+        let mut c = Count::new(1);
+        crate::warn_if_grew!(c, 5, "x grew");
+        assert_eq!(c.last(), 5);
+        crate::warn_if_grew!(c, 2, "x grew");
+        assert_eq!(c.grew(3), Some(1));
     }
 
     #[test]
