@@ -7,13 +7,14 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use grip_io::clock::{MonotonicClock, monotonic_now_ns};
 use grip_io::ipc::{IpcNode, SubscriberMode};
+use grip_io::service::ServiceConfig;
 use grip_msgs::{AudioBlock, GroundTruth, topics};
 
 use crate::alsa_src::{AlsaPcm, AlsaSource};
 use crate::config::{AcqConfig, AlsaSection, SourceKind, WavSection};
 use crate::synth::SynthSource;
 use crate::wav::{WavSource, read_mono_i16};
-use crate::{AcqError, AcqLoop, AcqStatus, Source, Step, svc};
+use crate::{AcqError, AcqLoop, AcqStatus, Source, Step, monitor};
 
 /// A paced source that falls further behind than this drops its backlog
 /// (counted as an xrun), as a capture device with a 200 ms buffer would.
@@ -54,10 +55,7 @@ pub struct RunSummary {
 
 /// The effective configuration: file plus command-line overrides, validated.
 pub fn effective_config(opts: &Options) -> Result<(PathBuf, AcqConfig), AcqError> {
-    let file = opts
-        .config
-        .clone()
-        .unwrap_or_else(|| opts.config_dir.join("audio-acq.toml"));
+    let file = AcqConfig::path(&opts.config_dir, opts.config.as_deref());
     let mut cfg = AcqConfig::load(&file)?;
     if let Some(s) = opts.source {
         cfg.audio.source = s;
@@ -203,7 +201,7 @@ fn serve<S: Source>(
     stop: Arc<AtomicBool>,
 ) -> Result<RunSummary, AcqError> {
     let done = Arc::new(AtomicBool::new(false));
-    let helper = svc::spawn_helper(
+    let helper = monitor::spawn_helper(
         Arc::clone(&status),
         cfg.audio.source == SourceKind::Synth,
         Arc::clone(&done),
