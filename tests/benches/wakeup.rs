@@ -153,7 +153,7 @@ fn main() {
     let plant = {
         let stop = Arc::clone(&plant_stop);
         let opts = grip_plant_sim::Options {
-            config_dir: config_dir.clone(),
+            config: grip_io::service::ConfigArgs::in_dir(&config_dir),
             start_on: Some(grip_plant_sim::StartOn::Immediate),
             ..Default::default()
         };
@@ -169,7 +169,7 @@ fn main() {
     eprintln!("tcs-loop: {secs} s at the configured rate ...");
     let tcs = {
         let opts = grip_tcs_loop::Options {
-            config_dir: config_dir.clone(),
+            config: grip_io::service::ConfigArgs::in_dir(&config_dir),
             run_for_s: Some(secs as f64),
             ..Default::default()
         };

@@ -43,8 +43,7 @@ struct Args {
 fn main() -> ExitCode {
     let args = Args::parse();
     let opts = Options {
-        config_dir: args.config.config_dir,
-        config: args.config.config,
+        config: args.config,
         model: args.model,
         run_for: args.run_for,
     };

@@ -9,7 +9,7 @@ use grip_io::clock::{Clock, MonotonicClock};
 use grip_io::ipc::{IpcNode, SubscriberMode};
 use grip_msgs::{AudioBlock, CycleRecord, RoadEstimate, topics};
 
-use grip_io::service::ServiceConfig;
+use grip_io::service::{ConfigArgs, ServiceConfig};
 
 use crate::{
     ArteCounters, ArteError, ArteLoop, ArteServiceConfig, load_model, monitor, road_table,
@@ -18,10 +18,8 @@ use crate::{
 /// Command-line choices.
 #[derive(Debug, Clone, Default)]
 pub struct Options {
-    /// Shared configuration directory (`roads.toml`, `models/`).
-    pub config_dir: PathBuf,
-    /// The service's TOML (default `<config_dir>/arte-svc.toml`).
-    pub config: Option<PathBuf>,
+    /// `--config-dir` and `--config`.
+    pub config: ConfigArgs,
     /// Model file override (as given: relative to the working directory).
     pub model: Option<PathBuf>,
     /// Stop by itself after this many seconds.
@@ -73,14 +71,14 @@ fn resolve(dir: &Path, p: &Path) -> PathBuf {
 /// Loads config, model and road catalogue and builds the loop; every
 /// start-up error names its file.
 pub fn prepare(opts: &Options) -> Result<Prepared, ArteError> {
-    let config_file = ArteServiceConfig::path(&opts.config_dir, opts.config.as_deref());
+    let config_file = opts.config.own_file::<ArteServiceConfig>();
     let cfg = ArteServiceConfig::load(&config_file)?;
     let model_path = match &opts.model {
         Some(p) => p.clone(),
-        None => resolve(&opts.config_dir, &cfg.model),
+        None => resolve(&opts.config.config_dir, &cfg.model),
     };
     let model = load_model(&model_path)?;
-    let roads_file = opts.config_dir.join("roads.toml");
+    let roads_file = opts.config.config_dir.join("roads.toml");
     let roads = grip_config::load_roads(&roads_file)?;
     let table = road_table(model.classes(), &roads, &model_path, &roads_file)?;
     let lp = ArteLoop::from_model(

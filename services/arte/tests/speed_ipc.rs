@@ -156,8 +156,10 @@ fn cycle_records_over_iceoryx2_give_the_estimator_its_speed() {
     )
     .unwrap();
     let opts = Options {
-        config_dir: config_dir(),
-        config: Some(cfg),
+        config: grip_io::service::ConfigArgs {
+            config_dir: config_dir(),
+            config: Some(cfg),
+        },
         model: None,
         run_for: Some(60.0), // a backstop; stopped below
     };

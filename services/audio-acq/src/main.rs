@@ -52,8 +52,7 @@ struct Args {
 fn main() -> ExitCode {
     let args = Args::parse();
     let opts = Options {
-        config_dir: args.config.config_dir,
-        config: args.config.config,
+        config: args.config,
         source: args.source,
         device: args.device,
         wav: args.wav,

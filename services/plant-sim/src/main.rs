@@ -59,8 +59,7 @@ struct Args {
 fn main() -> ExitCode {
     let args = Args::parse();
     let opts = Options {
-        config_dir: args.config.config_dir,
-        config: args.config.config,
+        config: args.config,
         scenario: args.scenario,
         seed: args.seed,
         exit_at_end: args.exit_at_end,

@@ -11,7 +11,7 @@ use grip_io::can::{CanBus, CanBusConfig, CanError, open_bus};
 use grip_io::clock::MonotonicClock;
 use grip_io::ipc::{IpcError, IpcNode, Publisher};
 use grip_io::rt::{self, PeriodicTimer};
-use grip_io::service::{ServiceConfig, load_can};
+use grip_io::service::{ConfigArgs, ServiceConfig, load_can};
 use grip_msgs::{GroundTruth, topics};
 
 use crate::config::{PlantSimConfig, StartOn};
@@ -21,10 +21,8 @@ use crate::monitor;
 /// Command-line choices (see `main.rs`).
 #[derive(Debug, Clone, Default)]
 pub struct Options {
-    /// Shared configuration directory.
-    pub config_dir: PathBuf,
-    /// The service's own TOML (default `<config_dir>/plant-sim.toml`).
-    pub config: Option<PathBuf>,
+    /// `--config-dir` and `--config`.
+    pub config: ConfigArgs,
     /// `--scenario NAME|PATH`.
     pub scenario: Option<String>,
     /// `--seed`.
@@ -62,8 +60,8 @@ pub enum RunError {
 
 /// Everything a run reads, loaded and validated, overrides applied.
 pub fn load(opts: &Options) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), RunError> {
-    let dir = ConfigDir::new(&opts.config_dir);
-    let own_path = PlantSimConfig::path(&opts.config_dir, opts.config.as_deref());
+    let dir = ConfigDir::new(&opts.config.config_dir);
+    let own_path = opts.config.own_file::<PlantSimConfig>();
     let mut cfg = PlantSimConfig::load(&own_path)?;
     if let Some(s) = &opts.scenario {
         cfg.scenario = s.clone();

@@ -49,8 +49,7 @@ fn parse_kv(s: &str) -> Result<(String, String), String> {
 fn main() -> ExitCode {
     let args = Args::parse();
     let opts = Options {
-        config_dir: args.config.config_dir,
-        config: args.config.config,
+        config: args.config,
         out: args.out,
         meta: args.meta,
     };

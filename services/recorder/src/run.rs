@@ -11,7 +11,7 @@ use std::sync::mpsc::sync_channel;
 use grip_config::ConfigError;
 use grip_io::ipc::IpcError;
 use grip_io::mcaplog::{McapLogError, McapWriter, RunInfo, sha256_hex};
-use grip_io::service::ServiceConfig;
+use grip_io::service::{ConfigArgs, ServiceConfig};
 use grip_io::systemd;
 use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
 
@@ -24,10 +24,8 @@ pub const GIT_REV: &str = env!("GRIP_GIT_REV");
 /// Command-line choices (see `main.rs`).
 #[derive(Debug, Clone, Default)]
 pub struct Options {
-    /// Shared configuration directory (attached and hashed).
-    pub config_dir: PathBuf,
-    /// The service's own TOML (default `<config_dir>/recorder.toml`).
-    pub config: Option<PathBuf>,
+    /// `--config-dir` and `--config`.
+    pub config: ConfigArgs,
     /// Output file (default: `<out_dir>/grip-<unix s>-<pid>.mcap`).
     pub out: Option<PathBuf>,
     /// Extra `grip.run` metadata (scenario, controller, ...).
@@ -185,7 +183,7 @@ pub fn default_out(dir: &Path) -> PathBuf {
 /// records; on stop drains what is queued, writes the `grip.recorder`
 /// summary metadata and finishes the file.
 pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> {
-    let own = RecorderConfig::path(&opts.config_dir, opts.config.as_deref());
+    let own = opts.config.own_file::<RecorderConfig>();
     let cfg = RecorderConfig::load(&own)?;
     let path = match &opts.out {
         Some(p) => p.clone(),
@@ -208,7 +206,12 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
             other => tracing::warn!(topic = other, "topic not known to the recorder"),
         }
     }
-    write_run_info(&mut w, &opts.config_dir, cfg.attach_max_bytes, &opts.meta)?;
+    write_run_info(
+        &mut w,
+        &opts.config.config_dir,
+        cfg.attach_max_bytes,
+        &opts.meta,
+    )?;
     w.flush()?;
 
     let (q, rx, depth, high) = queue(cfg.queue_capacity);

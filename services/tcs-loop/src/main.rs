@@ -59,8 +59,7 @@ struct Args {
 fn main() -> ExitCode {
     let args = Args::parse();
     let opts = Options {
-        config_dir: args.config.config_dir,
-        config: args.config.config,
+        config: args.config,
         controller: args.controller,
         arte: args.arte.map(|a| a == OnOff::On),
         run_for_s: args.run_for,

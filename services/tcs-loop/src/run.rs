@@ -11,7 +11,7 @@ use grip_io::can::{CanBus, CanBusConfig, CanError, open_bus};
 use grip_io::clock::{Clock, MonotonicClock};
 use grip_io::ipc::{IpcError, IpcNode, SubscriberMode};
 use grip_io::rt::{self, LatencyHistogram, PeriodicTimer};
-use grip_io::service::{ServiceConfig, load_can};
+use grip_io::service::{ConfigArgs, ServiceConfig, load_can};
 use grip_msgs::{CanFrame, CycleRecord, RoadEstimate, topics};
 use grip_tcs::ControllerKind;
 
@@ -23,10 +23,8 @@ use crate::ports::{IpcRoad, IpcSink};
 /// Command-line choices (see `main.rs` for the flags).
 #[derive(Debug, Clone, Default)]
 pub struct Options {
-    /// Shared configuration directory (`controllers.toml`, `vehicle.toml`, `can.toml`).
-    pub config_dir: PathBuf,
-    /// The service's own TOML (default `<config_dir>/tcs-loop.toml`).
-    pub config: Option<PathBuf>,
+    /// `--config-dir` and `--config`.
+    pub config: ConfigArgs,
     /// `--controller` override.
     pub controller: Option<ControllerKind>,
     /// `--arte on|off` override.
@@ -100,8 +98,8 @@ pub struct LoadedConfig {
 
 /// Loads and validates every file the service needs, applying the overrides.
 pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
-    let dir = ConfigDir::new(&opts.config_dir);
-    let own_path = TcsLoopConfig::path(&opts.config_dir, opts.config.as_deref());
+    let dir = ConfigDir::new(&opts.config.config_dir);
+    let own_path = opts.config.own_file::<TcsLoopConfig>();
     let mut own = TcsLoopConfig::load(&own_path)?;
     if let Some(k) = opts.controller {
         own.controller = k.as_str().to_owned();

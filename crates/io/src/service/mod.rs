@@ -113,7 +113,7 @@ pub fn init_tracing() {
 /// The configuration options of every service's command line (flatten
 /// them into the service's `clap` arguments; the service names its own
 /// file's default in the help with `mut_arg("config", ...)`).
-#[derive(Debug, Clone, PartialEq, Eq, clap::Args)]
+#[derive(Debug, Clone, Default, PartialEq, Eq, clap::Args)]
 pub struct ConfigArgs {
     /// Shared configuration directory.
     #[arg(long, default_value = "config")]
@@ -121,6 +121,22 @@ pub struct ConfigArgs {
     /// The service's TOML (default: a file in <config-dir> named for the service).
     #[arg(long)]
     pub config: Option<PathBuf>,
+}
+
+impl ConfigArgs {
+    /// The configuration directory `dir` (`--config-dir`) without `--config`.
+    pub fn in_dir(dir: impl Into<PathBuf>) -> Self {
+        Self {
+            config_dir: dir.into(),
+            config: None,
+        }
+    }
+
+    /// The service's own TOML: `--config`, else [`ServiceConfig::FILE_NAME`]
+    /// in `--config-dir`.
+    pub fn own_file<C: ServiceConfig>(&self) -> PathBuf {
+        C::path(&self.config_dir, self.config.as_deref())
+    }
 }
 
 /// A service's own TOML file: read, parsed (unknown fields refused, errors
