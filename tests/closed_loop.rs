@@ -278,7 +278,7 @@ fn live_loop_matches_the_offline_simulator() {
         roads,
         sc,
         controllers,
-        &grip_sim::KnowledgeConfig::default(),
+        &grip_tcs::KnowledgeConfig::default(),
     )
     .unwrap();
     for kind in ControllerKind::ALL {

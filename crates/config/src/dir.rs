@@ -90,6 +90,26 @@ impl ConfigDir {
         crate::load_roads(self.roads_path())
     }
 
+    /// The file holding the road-knowledge overrides (`[knowledge]` of the
+    /// arte service's configuration).
+    pub fn knowledge_path(&self) -> PathBuf {
+        self.file(crate::knowledge::KNOWLEDGE_FILE)
+    }
+
+    /// The road-knowledge rule of this directory: `roads` with the
+    /// `[knowledge]` overrides of [`ConfigDir::knowledge_path`].
+    pub fn road_table(&self, roads: &RoadCatalogue) -> Result<grip_tcs::RoadTable, ConfigError> {
+        crate::load_road_table(self.knowledge_path(), roads)
+    }
+
+    /// The `[knowledge]` overrides of this directory, validated against `roads`.
+    pub fn knowledge(
+        &self,
+        roads: &RoadCatalogue,
+    ) -> Result<grip_tcs::KnowledgeConfig, ConfigError> {
+        crate::load_knowledge(self.knowledge_path(), roads)
+    }
+
     /// Load scenario `name_or_path` (see [`ConfigDir::scenario_path`]),
     /// resolving road names against `roads.toml` of this directory.
     pub fn scenario(&self, name_or_path: &str) -> Result<Scenario, ConfigError> {

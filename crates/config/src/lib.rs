@@ -16,6 +16,7 @@
 pub mod controllers;
 pub mod dir;
 pub mod error;
+pub mod knowledge;
 pub mod roads;
 pub mod scenario;
 pub mod vehicle;
@@ -23,6 +24,7 @@ pub mod vehicle;
 pub use controllers::load_controllers;
 pub use dir::ConfigDir;
 pub use error::{ConfigError, line_of, parse_toml, read_file};
+pub use knowledge::{load_knowledge, load_road_table, parse_knowledge};
 pub use roads::{load_roads, parse_roads};
 pub use scenario::{load_scenario, parse_scenario};
 pub use vehicle::{load_vehicle, parse_vehicle};

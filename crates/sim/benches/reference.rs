@@ -28,7 +28,7 @@ fn setup() -> (SimSetup, ConfusionArte) {
         roads,
         scenario,
         controllers,
-        &arte.knowledge,
+        &grip_tcs::KnowledgeConfig::default(),
     )
     .expect("setup");
     (setup, est)

@@ -44,13 +44,15 @@ impl Job {
 }
 
 /// Run `jobs` on `threads` worker threads (at least 1). `make_estimator`
-/// builds one estimator per thread; `on_done` is called after each job (for
-/// a progress bar; from the worker threads). Results come back in job order.
+/// builds one estimator per thread (wrap it in [`crate::InLoopProbe`] to get
+/// [`RunResult::inloop`]); `on_done` is called after each job (for a
+/// progress bar; from the worker threads). Results come back in job order;
+/// the first error (of `make_estimator` or of a run's setup) stops the batch.
 pub fn run_batch(
     setup: &SimSetup,
     jobs: &[Job],
     threads: usize,
-    make_estimator: &(dyn Fn() -> Box<dyn RoadEstimator> + Sync),
+    make_estimator: &(dyn Fn() -> Result<Box<dyn RoadEstimator>, SimError> + Sync),
     on_done: &(dyn Fn(&RunResult) + Sync),
 ) -> Result<Vec<RunResult>, SimError> {
     let threads = threads.clamp(1, jobs.len().max(1));
@@ -58,7 +60,19 @@ pub fn run_batch(
     let results: Mutex<Vec<Option<Result<RunResult, SimError>>>> =
         Mutex::new((0..jobs.len()).map(|_| None).collect());
     let worker = || {
-        let mut est = make_estimator();
+        let mut est = match make_estimator() {
+            Ok(e) => e,
+            Err(e) => {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                if i < jobs.len()
+                    && let Ok(mut g) = results.lock()
+                {
+                    g[i] = Some(Err(e));
+                }
+                next.store(jobs.len(), Ordering::Relaxed);
+                return;
+            }
+        };
         loop {
             let i = next.fetch_add(1, Ordering::Relaxed);
             let Some(job) = jobs.get(i) else { break };

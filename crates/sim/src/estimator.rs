@@ -79,15 +79,20 @@ pub trait RoadEstimator {
     ) -> Option<Estimate>;
     /// Short name for reports (`confusion`, `acoustic`, ...).
     fn name(&self) -> &str;
+    /// What the estimator recorded about the run since the last reset, if
+    /// it records anything ([`crate::InLoopProbe`] does); taken once, at the
+    /// end of every ARTE run, into [`crate::RunResult::inloop`].
+    fn take_stats(&mut self) -> Option<crate::InLoopStats> {
+        None
+    }
 }
 
-/// `config/arte.toml`: the road-knowledge rule and the confusion-matrix source.
+/// `config/arte.toml`: the confusion-matrix source of `grip sim` (the
+/// road-knowledge rule is `grip_tcs::knowledge`, configured in the arte
+/// service's `[knowledge]`, so that a drive and a simulation share it).
 #[derive(Debug, Clone, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ArteConfig {
-    /// `[knowledge]`: how an estimate becomes [`grip_tcs::RoadKnowledge`].
-    #[serde(default)]
-    pub knowledge: KnowledgeConfig,
     /// `[confusion]`: the confusion-matrix estimator.
     pub confusion: ConfusionConfig,
 }
@@ -97,47 +102,13 @@ impl ArteConfig {
     /// `config/arte.toml` as shipped).
     pub fn paper() -> Self {
         Self {
-            knowledge: KnowledgeConfig::default(),
             confusion: ConfusionConfig::paper_table_ii(),
         }
     }
 
     /// Check against the catalogue the names refer to.
     pub fn validate(&self, roads: &RoadCatalogue) -> Result<(), SimError> {
-        self.knowledge.validate(roads)?;
         self.confusion.validate(roads)
-    }
-}
-
-/// `[knowledge]`.
-#[derive(Debug, Clone, PartialEq, Default, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct KnowledgeConfig {
-    /// MTTE relaxation factor α per road name, in (0, 1]; a road not listed
-    /// gets α = 1 − λ_opt(road) (MODELS.md §3).
-    #[serde(default)]
-    pub alpha: BTreeMap<String, f64>,
-}
-
-impl KnowledgeConfig {
-    /// Names exist, values in (0, 1].
-    pub fn validate(&self, roads: &RoadCatalogue) -> Result<(), SimError> {
-        for (name, &a) in &self.alpha {
-            let field = format!("knowledge.alpha.{name}");
-            if roads.index_of(name).is_none() {
-                return Err(SimError::invalid(
-                    field,
-                    format!("unknown road `{name}` (known: {})", roads.names()),
-                ));
-            }
-            if !(a.is_finite() && a > 0.0 && a <= 1.0) {
-                return Err(SimError::invalid(
-                    field,
-                    format!("must be in (0, 1] (got {a})"),
-                ));
-            }
-        }
-        Ok(())
     }
 }
 
@@ -713,11 +684,5 @@ mod tests {
         let mut c = ConfusionConfig::paper_table_ii();
         c.map.insert("ice".into(), "tarmac".into());
         assert_eq!(c.validate(&roads).unwrap_err().field(), "confusion.map.ice");
-        let mut k = KnowledgeConfig::default();
-        k.alpha.insert("snow".into(), 1.5);
-        assert_eq!(
-            k.validate(&roads).unwrap_err().field(),
-            "knowledge.alpha.snow"
-        );
     }
 }

@@ -13,8 +13,10 @@
 //!   nothing); [`run`] drives it to the end.
 //! - [`RoadEstimator`]: the road-estimate source the loop asks every cycle.
 //!   [`ConfusionArte`] implements it with a seeded confusion matrix (the
-//!   paper's Table II by default); the acoustic source lives outside this
-//!   crate (it implements the same trait).
+//!   paper's Table II by default), [`PerfectArte`] with the true road, and
+//!   [`AcousticArte`] with the real acoustic chain of grip-arte (synthetic
+//!   tyre-road audio through the streaming estimator). [`InLoopProbe`]
+//!   wraps any of them and records decisions and delays ([`InLoopStats`]).
 //! - [`SimSetup`]: vehicle, sensors, roads, scenario, controllers and the
 //!   road-knowledge rule, validated once.
 //! - [`batch::run_batch`]: many (variant, seed) runs on worker threads,
@@ -23,20 +25,23 @@
 //!
 //! See `README.md` in this crate for the design and the results.
 
+pub mod acoustic;
 pub mod batch;
 pub mod estimator;
+pub mod probe;
 pub mod report;
 pub mod setup;
 pub mod sim;
 pub mod trace;
 pub mod variant;
 
+pub use acoustic::{AcousticArte, AcousticConfig, SoundAs};
 pub use batch::{Job, run_batch};
 pub use estimator::{
-    ArteConfig, ConfusionArte, ConfusionConfig, Estimate, KnowledgeConfig, PerfectArte,
-    RoadEstimator,
+    ArteConfig, ConfusionArte, ConfusionConfig, Estimate, PerfectArte, RoadEstimator,
 };
-pub use setup::{RoadInfo, SimSetup};
+pub use probe::{InLoopProbe, InLoopStats};
+pub use setup::SimSetup;
 pub use sim::{ArteStats, RunResult, Sim, run};
 pub use trace::Trace;
 pub use variant::{UnknownVariant, Variant};

@@ -1,21 +1,10 @@
 //! [`SimSetup`]: everything a run needs, validated once.
 
 use grip_physics::{RoadCatalogue, Scenario, SensorParams, VehicleParams, plant};
-use grip_tcs::{ControllersConfig, RoadKnowledge};
+use grip_tcs::{ControllersConfig, KnowledgeConfig, RoadKnowledge, RoadTable};
 
 use crate::SimError;
-use crate::estimator::{Estimate, KnowledgeConfig};
-
-/// What ARTE's road table gives the controller for one catalogue road.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RoadInfo {
-    /// Optimal slip of the road's mu-lambda curve.
-    pub lambda_opt: f64,
-    /// Peak friction coefficient.
-    pub mu_peak: f64,
-    /// MTTE relaxation factor: configured, or 1 − λ_opt.
-    pub alpha: f64,
-}
+use crate::estimator::Estimate;
 
 /// Vehicle, sensors, roads, scenario, controller parameters and the
 /// road-knowledge rule of a simulation; immutable once built, shared by all
@@ -27,7 +16,7 @@ pub struct SimSetup {
     roads: RoadCatalogue,
     scenario: Scenario,
     controllers: ControllersConfig,
-    road_info: Vec<RoadInfo>,
+    road_table: RoadTable,
     max_substep: f64,
     dt: f64,
     cycles: usize,
@@ -55,7 +44,8 @@ impl SimSetup {
         controllers
             .validate()
             .map_err(|e| SimError::from_field("controllers", e))?;
-        knowledge.validate(&roads)?;
+        let road_table =
+            RoadTable::new(&roads, knowledge).map_err(|e| SimError::from_field("knowledge", e))?;
         for (i, s) in scenario.segments.iter().enumerate() {
             let ok = roads
                 .by_index(s.road)
@@ -80,28 +70,13 @@ impl SimSetup {
                 format!("gives {cycles_f} controller cycles at dt = {dt} s (need 1 ..= 1e9)"),
             ));
         }
-        let road_info = roads
-            .iter()
-            .map(|r| {
-                let lambda_opt = r.lambda_opt();
-                RoadInfo {
-                    lambda_opt,
-                    mu_peak: r.mu_peak(),
-                    alpha: knowledge
-                        .alpha
-                        .get(r.name())
-                        .copied()
-                        .unwrap_or(1.0 - lambda_opt),
-                }
-            })
-            .collect();
         Ok(Self {
             vehicle,
             sensors,
             roads,
             scenario,
             controllers,
-            road_info,
+            road_table,
             max_substep: plant::DEFAULT_MAX_SUBSTEP,
             dt,
             cycles: cycles_f as usize,
@@ -149,9 +124,9 @@ impl SimSetup {
     pub fn controllers(&self) -> &ControllersConfig {
         &self.controllers
     }
-    /// Per catalogue road: λ_opt, mu_peak, α.
-    pub fn road_info(&self) -> &[RoadInfo] {
-        &self.road_info
+    /// The road-knowledge rule: per catalogue road λ_opt, μ_peak, α.
+    pub fn road_table(&self) -> &RoadTable {
+        &self.road_table
     }
     /// Plant sub-step bound, s.
     pub fn max_substep(&self) -> f64 {
@@ -171,25 +146,11 @@ impl SimSetup {
     }
 
     /// The road knowledge an estimate gives at time `t`: the estimated road's
-    /// λ_opt, mu_peak and α from the catalogue, the estimate's confidence, and
+    /// λ_opt, mu_peak and α ([`RoadTable`]), the estimate's confidence, and
     /// age `t − t_stamp`. An index outside the catalogue gives NaN values,
     /// which the controllers' fallback rule rejects.
     pub fn knowledge(&self, est: &Estimate, t: f64) -> RoadKnowledge {
-        let info = self
-            .road_info
-            .get(est.road_index)
-            .copied()
-            .unwrap_or(RoadInfo {
-                lambda_opt: f64::NAN,
-                mu_peak: f64::NAN,
-                alpha: f64::NAN,
-            });
-        RoadKnowledge {
-            lambda_opt: info.lambda_opt,
-            mu_peak: info.mu_peak,
-            alpha: info.alpha,
-            confidence: est.confidence,
-            age: t - est.t_stamp,
-        }
+        self.road_table
+            .knowledge(est.road_index, est.confidence, t - est.t_stamp)
     }
 }

@@ -20,6 +20,7 @@ use grip_physics::{Plant, PlantState, Sensors};
 use grip_tcs::{AnyController, Controller, Measurement, Metrics, MetricsAccumulator, Sample};
 
 use crate::estimator::{Estimate, RoadEstimator};
+use crate::probe::InLoopStats;
 use crate::setup::SimSetup;
 use crate::trace::Trace;
 use crate::variant::Variant;
@@ -79,6 +80,10 @@ pub struct RunResult {
     pub non_finite_cycles: u64,
     /// The time series, when recorded.
     pub trace: Option<Trace>,
+    /// What the estimator recorded about this run
+    /// ([`RoadEstimator::take_stats`]; ARTE variants with a recording
+    /// estimator such as [`crate::InLoopProbe`], else `None`).
+    pub inloop: Option<InLoopStats>,
 }
 
 /// One closed-loop run in progress. Build with [`Sim::new`], call
@@ -112,8 +117,9 @@ impl std::fmt::Debug for Sim<'_> {
 }
 
 impl<'a> Sim<'a> {
-    /// A run of `variant` with `seed` on `setup`. The estimator is reset
-    /// with a sub-seed of `seed` (it is only consulted by ARTE variants).
+    /// A run of `variant` with `seed` on `setup`. ARTE variants reset the
+    /// estimator with a sub-seed of `seed`; other variants never consult it
+    /// (so a costly reset, such as the acoustic chain's, is skipped).
     /// With `record_trace` the trace is preallocated for the whole run.
     pub fn new(
         setup: &'a SimSetup,
@@ -133,7 +139,9 @@ impl<'a> Sim<'a> {
         let controller =
             AnyController::new(variant.kind, setup.controllers(), &vehicle, setup.dt())
                 .map_err(|e| SimError::from_field("controllers", e))?;
-        estimator.reset(sub_seed(seed, ARTE_STREAM));
+        if variant.arte {
+            estimator.reset(sub_seed(seed, ARTE_STREAM));
+        }
         Ok(Self {
             setup,
             variant,
@@ -253,6 +261,11 @@ impl<'a> Sim<'a> {
     /// Run the remaining cycles and return the result.
     pub fn finish(mut self) -> RunResult {
         while self.step() {}
+        let inloop = if self.variant.arte {
+            self.estimator.take_stats()
+        } else {
+            None
+        };
         RunResult {
             variant: self.variant,
             seed: self.seed,
@@ -261,6 +274,7 @@ impl<'a> Sim<'a> {
             final_state: *self.plant.state(),
             non_finite_cycles: self.non_finite,
             trace: self.trace,
+            inloop,
         }
     }
 }

@@ -31,14 +31,14 @@ fn no_variant_slips_on_asphalt_at_low_demand() {
         roads.len(),
     )
     .unwrap();
-    let (controllers, arte) = common::controllers_and_arte();
+    let (controllers, _) = common::controllers_and_arte();
     let setup = SimSetup::new(
         *reference.vehicle(),
         *reference.sensors(),
         roads,
         scenario,
         controllers,
-        &arte.knowledge,
+        &grip_tcs::KnowledgeConfig::default(),
     )
     .unwrap();
     for v in Variant::ALL {
@@ -97,7 +97,8 @@ fn arte_raises_src_traction_over_20_seeds() {
     let seeds: Vec<u64> = (1..=20).collect();
     let variants = [Variant::ALL[1], Variant::ALL[4]];
     let jobs = Job::grid(&variants, &seeds, false);
-    let make = move || -> Box<dyn RoadEstimator> { Box::new(est.clone()) };
+    let make =
+        move || -> Result<Box<dyn RoadEstimator>, grip_sim::SimError> { Ok(Box::new(est.clone())) };
     let results = run_batch(&setup, &jobs, 2, &make, &|_| {}).unwrap();
     let s = summarize(&results);
     let accel = |i: usize| s[i].stat("mean_accel").unwrap().mean;

@@ -9,7 +9,8 @@ use grip_sim::{Job, RoadEstimator, RunResult, Trace, Variant, run_batch};
 fn batch(seeds: &[u64], threads: usize) -> Vec<RunResult> {
     let (setup, est) = common::reference();
     let jobs = Job::grid(&Variant::ALL, seeds, false);
-    let make = move || -> Box<dyn RoadEstimator> { Box::new(est.clone()) };
+    let make =
+        move || -> Result<Box<dyn RoadEstimator>, grip_sim::SimError> { Ok(Box::new(est.clone())) };
     run_batch(&setup, &jobs, threads, &make, &|_| {}).unwrap()
 }
 

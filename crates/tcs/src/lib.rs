@@ -7,6 +7,7 @@ pub mod analysis;
 pub mod any;
 pub mod filters;
 pub mod fuzzy;
+pub mod knowledge;
 pub mod metrics;
 pub mod mfc;
 pub mod mtte;
@@ -16,6 +17,7 @@ pub mod slip_control;
 pub mod types;
 
 pub use any::{AnyController, ControllerKind, UnknownController};
+pub use knowledge::{KnowledgeConfig, RoadInfo, RoadTable};
 pub use metrics::{Metrics, MetricsAccumulator, Sample};
 pub use mfc::Mfc;
 pub use mtte::Mtte;

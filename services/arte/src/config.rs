@@ -60,6 +60,10 @@ pub struct ArteServiceConfig {
     /// Model file (`--model` overrides); relative to the configuration directory.
     #[serde(default = "default_model")]
     pub model: PathBuf,
+    /// `[knowledge]`: per-road overrides of the road-knowledge rule
+    /// (`grip_tcs::knowledge`; also read by tcs-loop and `grip sim`).
+    #[serde(default)]
+    pub knowledge: grip_tcs::KnowledgeConfig,
     /// Streaming estimator: `hop_s` and `smoothing`.
     #[serde(default)]
     pub stream: StreamConfig,
@@ -79,6 +83,7 @@ impl Default for ArteServiceConfig {
     fn default() -> Self {
         Self {
             model: default_model(),
+            knowledge: grip_tcs::KnowledgeConfig::default(),
             stream: StreamConfig::default(),
             input: InputSection::default(),
             rt: RtConfig::default(),

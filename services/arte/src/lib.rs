@@ -3,7 +3,7 @@
 //!
 //! - [`config`]: the `arte-svc.toml` file ([`ArteServiceConfig`]).
 //! - [`model`]: [`load_model`], [`road_table`]: the model file and the road
-//!   catalogue entry (λ_opt, μ_peak, α = 1 − λ_opt) of each of its classes,
+//!   catalogue entry (λ_opt, μ_peak, α from the road-knowledge rule) of each of its classes,
 //!   checked at start-up.
 //! - [`cycle`]: [`ArteLoop`], one call per audio block ([`ArteLoop::on_block`]):
 //!   sequence and time checks, S16 → f32, the vehicle speed handed to

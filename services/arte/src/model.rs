@@ -1,5 +1,6 @@
 //! The model file and the road catalogue entry (λ_opt, μ_peak,
-//! α = 1 − λ_opt) of each of its classes, checked at start-up.
+//! α from the one road-knowledge rule, `grip_tcs::knowledge`) of each of its
+//! classes, checked at start-up.
 
 use std::path::Path;
 
@@ -30,17 +31,20 @@ pub struct RoadInfo {
     pub lambda_opt: f64,
     /// Peak friction.
     pub mu_peak: f64,
-    /// MTTE relaxation factor α = 1 − λ_opt.
+    /// MTTE relaxation factor: `[knowledge] alpha` of the road, else 1 − λ_opt.
     pub alpha: f64,
 }
 
-/// The catalogue entry of every model class, in class order. Errors: more
+/// The catalogue entry of every model class, in class order, with λ_opt,
+/// μ_peak and α from the one road-knowledge rule `rule` (built from the same
+/// catalogue). Errors: more
 /// classes than `RoadEstimate` carries, a class name longer than
 /// `NAME_LEN` bytes, or a class not in the catalogue (named, with the
 /// catalogue's names and `roads_file`).
 pub fn road_table(
     classes: &[String],
     roads: &RoadCatalogue,
+    rule: &grip_tcs::RoadTable,
     model_path: &Path,
     roads_file: &Path,
 ) -> Result<Vec<RoadInfo>, ArteError> {
@@ -62,18 +66,19 @@ pub fn road_table(
                     "class name `{c}` is longer than {NAME_LEN} bytes"
                 )));
             }
-            let r = roads.get(c).ok_or_else(|| {
+            let i = roads.index_of(c).ok_or_else(|| {
                 err(format!(
                     "class `{c}` is not a road in the catalogue {} (roads: {})",
                     roads_file.display(),
                     roads.names()
                 ))
             })?;
+            let k = rule.info(i);
             Ok(RoadInfo {
                 name: grip_msgs::name_to_bytes(c),
-                lambda_opt: r.lambda_opt(),
-                mu_peak: r.mu_peak(),
-                alpha: 1.0 - r.lambda_opt(),
+                lambda_opt: k.lambda_opt,
+                mu_peak: k.mu_peak,
+                alpha: k.alpha,
             })
         })
         .collect()

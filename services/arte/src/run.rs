@@ -80,7 +80,9 @@ pub fn prepare(opts: &Options) -> Result<Prepared, ArteError> {
     let model = load_model(&model_path)?;
     let roads_file = opts.config.config_dir.join("roads.toml");
     let roads = grip_config::load_roads(&roads_file)?;
-    let table = road_table(model.classes(), &roads, &model_path, &roads_file)?;
+    let rule = grip_tcs::RoadTable::new(&roads, &cfg.knowledge)
+        .map_err(|e| grip_config::ConfigError::invalid(&config_file, "knowledge", e))?;
+    let table = road_table(model.classes(), &roads, &rule, &model_path, &roads_file)?;
     let lp = ArteLoop::from_model(
         &model,
         &cfg.stream,

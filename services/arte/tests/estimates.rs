@@ -259,9 +259,11 @@ fn model_and_class_errors_name_the_file_and_class() {
     // a class the catalogue does not have
     let roads = grip_config::load_roads(config_dir().join("roads.toml")).unwrap();
     let classes = vec!["asphalt".to_string(), "lava".to_string()];
+    let rule = grip_tcs::RoadTable::new(&roads, &Default::default()).unwrap();
     let e = road_table(
         &classes,
         &roads,
+        &rule,
         std::path::Path::new("m.model"),
         std::path::Path::new("roads.toml"),
     )

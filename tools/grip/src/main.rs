@@ -5,7 +5,6 @@
 
 use clap::{Parser, Subcommand};
 
-mod acoustic;
 mod cmd;
 mod dataset;
 mod drive;

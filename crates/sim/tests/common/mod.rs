@@ -31,16 +31,9 @@ pub fn reference() -> (SimSetup, ConfusionArte) {
     let roads = dir.roads().unwrap();
     let scenario = dir.scenario_with("paper", &roads).unwrap();
     let (controllers, arte) = controllers_and_arte();
+    let knowledge = dir.knowledge(&roads).unwrap();
     arte.validate(&roads).unwrap();
     let est = ConfusionArte::new(&arte.confusion, &roads).unwrap();
-    let setup = SimSetup::new(
-        vehicle,
-        sensors,
-        roads,
-        scenario,
-        controllers,
-        &arte.knowledge,
-    )
-    .unwrap();
+    let setup = SimSetup::new(vehicle, sensors, roads, scenario, controllers, &knowledge).unwrap();
     (setup, est)
 }

@@ -59,9 +59,13 @@ pub fn train_model(recordings: usize) -> Model {
 pub fn roads_for(model: &Model) -> Vec<RoadInfo> {
     let dir = config_dir();
     let roads = grip_config::load_roads(dir.join("roads.toml")).unwrap();
+    let rule = grip_config::ConfigDir::new(&dir)
+        .road_table(&roads)
+        .unwrap();
     road_table(
         model.classes(),
         &roads,
+        &rule,
         Path::new("test.model"),
         &dir.join("roads.toml"),
     )

@@ -9,8 +9,6 @@ mod plot;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use anyhow::Context;
@@ -19,12 +17,11 @@ use grip_arte::stream::{Smoothing, percentile};
 use grip_config::{ConfigDir, ConfigError, parse_toml, read_file};
 use grip_sim::report::{self, format_paper_comparison, format_relative, format_table, summarize};
 use grip_sim::{
-    ArteConfig, ConfusionArte, Job, PerfectArte, RoadEstimator, RunResult, Sim, SimSetup, Variant,
+    AcousticArte, AcousticConfig, ArteConfig, ConfusionArte, InLoopProbe, InLoopStats, Job,
+    PerfectArte, RoadEstimator, RunResult, SimSetup, Variant, run_batch,
 };
-use grip_tcs::ControllersConfig;
 
 use super::Ctx;
-use crate::acoustic::{AcousticArte, AcousticConfig, InLoopProbe, InLoopStats};
 
 /// Hold (s) of the "stable" detection delay: the ARTE crate's definition
 /// (`grip_arte::stream::detection_delays`, `grip dataset delay`).
@@ -111,26 +108,14 @@ pub fn load(
     let roads = dir.roads()?;
     let scenario_path = dir.scenario_path(scenario);
     let scenario = dir.scenario_with(scenario, &roads)?;
-    // grip_config::controllers is not exported yet (see requests.md); this is
-    // what its parse_controllers does.
-    let cpath = dir.file("controllers.toml");
-    let controllers: ControllersConfig = parse_toml(&cpath, &read_file(&cpath)?)?;
-    controllers
-        .validate()
-        .map_err(|e| ConfigError::invalid(&cpath, "", e))?;
+    let controllers = grip_config::load_controllers(dir.file("controllers.toml"))?;
+    let knowledge = dir.knowledge(&roads)?;
     let apath = arte_config.map_or_else(|| dir.file("arte.toml"), Path::to_owned);
     let arte: ArteConfig = parse_toml(&apath, &read_file(&apath)?)?;
     arte.validate(&roads)
         .map_err(|e| ConfigError::new(&apath, e.field(), reason_of(&e)))?;
-    let setup = SimSetup::new(
-        vehicle,
-        sensors,
-        roads,
-        scenario,
-        controllers,
-        &arte.knowledge,
-    )
-    .map_err(|e| anyhow::anyhow!("{}: {e}", scenario_path.display()))?;
+    let setup = SimSetup::new(vehicle, sensors, roads, scenario, controllers, &knowledge)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", scenario_path.display()))?;
     Ok(Loaded {
         setup,
         arte,
@@ -175,19 +160,19 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     };
     let probe_frame_s = acoustic.as_ref().map_or(frame_s, |a| a.frame_s);
     let cycles = setup.cycles();
-    let make = |/* per worker */| -> anyhow::Result<InLoopProbe> {
+    let make = |/* per worker */| -> Result<Box<dyn RoadEstimator>, grip_sim::SimError> {
         let inner: Box<dyn RoadEstimator> = match (&acoustic, source) {
             (Some(a), _) => Box::new(AcousticArte::new(&a.model, setup.roads(), &a.config)?),
             (None, ArteSource::Perfect) => Box::new(PerfectArte::new(frame_s)),
             (None, _) => Box::new(confusion.clone()),
         };
-        Ok(InLoopProbe::new(
+        Ok(Box::new(InLoopProbe::new(
             inner,
             probe_frame_s,
             cycles,
             HOLD_S,
             setup.roads().len(),
-        ))
+        )))
     };
     let source_text = match &acoustic {
         Some(a) => a.describe.clone(),
@@ -214,7 +199,9 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let started = Instant::now();
-    let (results, inloop) = run_probed(setup, &jobs, threads, frame_s, &make, &|| bar.inc(1))?;
+    let results = run_batch(setup, &jobs, threads, &make, &|_| bar.inc(1))
+        .map_err(|e| anyhow::anyhow!("simulation: {e}"))?;
+    let inloop: Vec<Option<InLoopStats>> = results.iter().map(|r| r.inloop.clone()).collect();
     let wall = started.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
@@ -319,7 +306,9 @@ fn load_acoustic(ctx: &Ctx, args: &Args, setup: &SimSetup) -> anyhow::Result<Aco
         config = config.with_noise_snr(snr);
     }
     if let Some(spec) = &args.sound_as {
-        config.parse_sound_as(spec)?;
+        config
+            .parse_sound_as(spec)
+            .map_err(|e| anyhow::anyhow!("--sound-as: {e}"))?;
     }
     let chain = AcousticArte::new(&model, setup.roads(), &config)
         .with_context(|| format!("acoustic ARTE with model {}", path.display()))?;
@@ -369,108 +358,6 @@ fn load_acoustic(ctx: &Ctx, args: &Args, setup: &SimSetup) -> anyhow::Result<Aco
         config,
         describe,
     })
-}
-
-type ProbedResults = (Vec<RunResult>, Vec<Option<InLoopStats>>);
-
-/// Run `jobs` on `threads` workers like `grip_sim::run_batch` (one estimator
-/// per worker, reset per job by the simulator with the job's seed, so the
-/// output is the same for any thread count), keeping each run's in-loop
-/// statistics from the probe. Results in job order.
-fn run_probed(
-    setup: &SimSetup,
-    jobs: &[Job],
-    threads: usize,
-    frame_s: f64,
-    make: &(dyn Fn() -> anyhow::Result<InLoopProbe> + Sync),
-    on_done: &(dyn Fn() + Sync),
-) -> anyhow::Result<ProbedResults> {
-    type Slot = Option<anyhow::Result<(RunResult, Option<InLoopStats>)>>;
-    let threads = threads.clamp(1, jobs.len().max(1));
-    let next = AtomicUsize::new(0);
-    let slots: Mutex<Vec<Slot>> = Mutex::new((0..jobs.len()).map(|_| None).collect());
-    let store = |i: usize, r: anyhow::Result<(RunResult, Option<InLoopStats>)>| {
-        if let Ok(mut g) = slots.lock() {
-            g[i] = Some(r);
-        }
-    };
-    let worker = || {
-        let mut probe = match make() {
-            Ok(p) => p,
-            Err(e) => {
-                let i = next.fetch_add(1, Ordering::Relaxed);
-                if i < jobs.len() {
-                    store(i, Err(e));
-                }
-                next.store(jobs.len(), Ordering::Relaxed);
-                return;
-            }
-        };
-        // Variants without ARTE never ask the estimator; they get a stand-in
-        // so that the (possibly costly) reset of the real one is skipped.
-        let mut idle = PerfectArte::new(frame_s);
-        loop {
-            let i = next.fetch_add(1, Ordering::Relaxed);
-            let Some(job) = jobs.get(i) else { break };
-            let est: &mut dyn RoadEstimator = if job.variant.arte {
-                &mut probe
-            } else {
-                &mut idle
-            };
-            let r = Sim::new(setup, job.variant, job.seed, est, job.keep_trace)
-                .map(Sim::finish)
-                .map(|r| {
-                    let stats = if job.variant.arte {
-                        probe.take_stats()
-                    } else {
-                        None
-                    };
-                    (r, stats)
-                })
-                .map_err(|e| anyhow::anyhow!("simulation setup: {e}"));
-            let failed = r.is_err();
-            store(i, r);
-            on_done();
-            if failed {
-                next.store(jobs.len(), Ordering::Relaxed);
-                break;
-            }
-        }
-    };
-    if threads == 1 {
-        worker();
-    } else {
-        std::thread::scope(|s| {
-            for _ in 0..threads {
-                s.spawn(worker);
-            }
-        });
-    }
-    let slots = slots
-        .into_inner()
-        .map_err(|_| anyhow::anyhow!("a simulation worker thread panicked"))?;
-    let mut results = Vec::with_capacity(jobs.len());
-    let mut stats = Vec::with_capacity(jobs.len());
-    let mut first_err = None;
-    for slot in slots {
-        match slot {
-            Some(Ok((r, s))) => {
-                results.push(r);
-                stats.push(s);
-            }
-            Some(Err(e)) => {
-                first_err.get_or_insert(e);
-            }
-            None => {}
-        }
-    }
-    if let Some(e) = first_err {
-        return Err(e);
-    }
-    if results.len() != jobs.len() {
-        anyhow::bail!("a simulation job did not run (a worker panicked)");
-    }
-    Ok((results, stats))
 }
 
 /// Pooled in-loop statistics of some runs.

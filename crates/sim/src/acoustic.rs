@@ -1,6 +1,6 @@
 //! The acoustic road estimator in the offline loop (`grip sim --arte acoustic`).
 //!
-//! [`AcousticArte`] implements [`grip_sim::RoadEstimator`] with the real ARTE
+//! [`AcousticArte`] implements [`RoadEstimator`] with the real ARTE
 //! chain instead of a confusion matrix. Every controller cycle `[t, t + dt)`:
 //!
 //! 1. the plant's true road (catalogue index) is mapped to a road of the
@@ -33,20 +33,16 @@
 //! allocator); [`RoadEstimator::reset`] rebuilds the synthesiser from the
 //! seed (a new car, tyre and microphone per seed, drawn by the
 //! synthesiser) and clears the stream, so a run is a function of its seed.
-//!
-//! [`InLoopProbe`] wraps any estimator and records its decisions and the true
-//! road changes of a run, for the in-loop accuracy and detection delays
-//! `grip sim` reports; it allocates nothing per cycle either (buffers sized
-//! to the run's cycle count).
 
 use std::collections::BTreeMap;
 
-use anyhow::{Context, bail};
 use grip_arte::model::{Model, Predictor};
-use grip_arte::stream::{StreamConfig, StreamEstimator, detection_delays};
+use grip_arte::stream::{StreamConfig, StreamEstimator};
 use grip_arte::synth::{self, NoiseConfig, RoadAudioSynth, SynthConfig};
 use grip_physics::RoadCatalogue;
-use grip_sim::{Estimate, RoadEstimator};
+
+use crate::SimError;
+use crate::estimator::{Estimate, RoadEstimator};
 
 /// Synthesiser road index that has no tyre-road sound (out of range on
 /// purpose: `RoadAudioSynth::fill` then renders vehicle and microphone only).
@@ -115,10 +111,13 @@ impl AcousticConfig {
 
     /// Parse `ROAD=SOUND[,ROAD=SOUND...]` (SOUND: a synthesiser road or
     /// `silence`) into `sound_as`, replacing entries of the same road.
-    pub fn parse_sound_as(&mut self, spec: &str) -> anyhow::Result<()> {
+    pub fn parse_sound_as(&mut self, spec: &str) -> Result<(), SimError> {
         for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
             let Some((road, sound)) = item.split_once('=') else {
-                bail!("--sound-as: `{item}` is not ROAD=SOUND");
+                return Err(SimError::invalid(
+                    "sound_as",
+                    format!("`{item}` is not ROAD=SOUND"),
+                ));
             };
             let (road, sound) = (road.trim(), sound.trim());
             let sound = if sound == "silence" {
@@ -172,19 +171,26 @@ impl AcousticArte {
     /// or road) when a model class is not a catalogue road, a `sound_as`
     /// entry names an unknown road or sound, or the model's sample rate is
     /// outside the synthesiser's range.
-    pub fn new(model: &Model, roads: &RoadCatalogue, cfg: &AcousticConfig) -> anyhow::Result<Self> {
+    pub fn new(
+        model: &Model,
+        roads: &RoadCatalogue,
+        cfg: &AcousticConfig,
+    ) -> Result<Self, SimError> {
         let class_road = model
             .classes()
             .iter()
             .map(|c| {
-                roads.index_of(c).with_context(|| {
-                    format!(
-                        "model class `{c}` is not a road of the catalogue (roads: {})",
-                        roads.names()
+                roads.index_of(c).ok_or_else(|| {
+                    SimError::invalid(
+                        "model.classes",
+                        format!(
+                            "model class `{c}` is not a road of the catalogue (roads: {})",
+                            roads.names()
+                        ),
                     )
                 })
             })
-            .collect::<anyhow::Result<Vec<_>>>()?;
+            .collect::<Result<Vec<_>, _>>()?;
         for (road, sound) in &cfg.sound_as {
             // Entries for roads this catalogue lacks are harmless defaults
             // (the shipped map names asphalt_mf and gravel_table); a sound
@@ -192,10 +198,13 @@ impl AcousticArte {
             if let SoundAs::Road(s) = sound
                 && synth::road_index(s).is_none()
             {
-                bail!(
-                    "sound of road `{road}`: `{s}` is not a synthesiser road (known: {}, or silence)",
-                    synth::ROADS.join(", ")
-                );
+                return Err(SimError::invalid(
+                    format!("sound_as.{road}"),
+                    format!(
+                        "`{s}` is not a synthesiser road (known: {}, or silence)",
+                        synth::ROADS.join(", ")
+                    ),
+                ));
             }
         }
         let synth_road = roads
@@ -211,9 +220,10 @@ impl AcousticArte {
             sample_rate: fcfg.sample_rate,
             noise: cfg.noise.clone(),
         };
-        let synth = RoadAudioSynth::new(&synth_cfg, 0).context("acoustic ARTE synthesiser")?;
+        let synth = RoadAudioSynth::new(&synth_cfg, 0)
+            .map_err(|e| SimError::invalid("acoustic.synthesiser", e.to_string()))?;
         let stream = StreamEstimator::new(Predictor::new(model.clone()), fcfg, &cfg.stream)
-            .context("acoustic ARTE stream estimator")?;
+            .map_err(|e| SimError::invalid("acoustic.stream", e.to_string()))?;
         let fs = f64::from(fcfg.sample_rate);
         let block = ((MAX_BLOCK_S * fs).ceil() as usize).max(1);
         let next_decision = stream.frame_len() as u64;
@@ -356,172 +366,8 @@ impl RoadEstimator for AcousticArte {
     }
 }
 
-/// What an estimator did in one run, as seen from the loop.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct InLoopStats {
-    /// Decisions received.
-    pub decisions: u64,
-    /// Decisions equal to the true road of the cycle they arrived in.
-    pub correct: u64,
-    /// Decisions whose whole analysis frame lay on one road.
-    pub single_road: u64,
-    /// Of those, correct.
-    pub single_road_correct: u64,
-    /// Per true road change (not the start): time from the change to the
-    /// first decision of the new road, s (`None`: none before the next change
-    /// or the end).
-    pub first_delays: Vec<Option<f64>>,
-    /// The same with the decision required to hold for `hold_s` (the ARTE
-    /// crate's detection-delay definition, `stream::detection_delays`).
-    pub stable_delays: Vec<Option<f64>>,
-    /// In-loop confusion counts, `confusion[estimated][true]` (catalogue
-    /// indices; rows estimated, columns true: the paper's Table II layout),
-    /// over every decision against the true road of its arrival cycle.
-    pub confusion: Vec<Vec<u64>>,
-}
-
-/// Records an estimator's decisions and the true road changes of a run
-/// (see [`InLoopStats`]); forwards everything to the wrapped estimator.
-pub struct InLoopProbe {
-    inner: Box<dyn RoadEstimator>,
-    frame_s: f64,
-    hold_s: f64,
-    decisions: Vec<(f64, usize)>,
-    changes: Vec<(f64, usize)>,
-    correct: u64,
-    single_road: u64,
-    single_road_correct: u64,
-    last_road: Option<usize>,
-    last_change: f64,
-    end: f64,
-    /// Row-major n × n, `[estimated * n + true]`.
-    confusion: Vec<u64>,
-    n_roads: usize,
-}
-
-impl std::fmt::Debug for InLoopProbe {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("InLoopProbe")
-            .field("inner", &self.inner.name())
-            .field("decisions", &self.decisions.len())
-            .finish_non_exhaustive()
-    }
-}
-
-impl InLoopProbe {
-    /// Wrap `inner` whose decisions analyse frames of `frame_s`; room for
-    /// `cycles` cycles (at most one decision and one change per cycle, so
-    /// recording never allocates); stable detection needs `hold_s`; the
-    /// catalogue has `n_roads` roads (larger indices are not counted in the
-    /// confusion matrix).
-    pub fn new(
-        inner: Box<dyn RoadEstimator>,
-        frame_s: f64,
-        cycles: usize,
-        hold_s: f64,
-        n_roads: usize,
-    ) -> Self {
-        Self {
-            inner,
-            frame_s,
-            hold_s,
-            decisions: Vec::with_capacity(cycles),
-            changes: Vec::with_capacity(cycles),
-            correct: 0,
-            single_road: 0,
-            single_road_correct: 0,
-            last_road: None,
-            last_change: f64::NEG_INFINITY,
-            end: 0.0,
-            confusion: vec![0; n_roads * n_roads],
-            n_roads,
-        }
-    }
-
-    /// The statistics of the run since the last reset, or `None` when the
-    /// estimator was never asked (a variant without ARTE).
-    pub fn take_stats(&mut self) -> Option<InLoopStats> {
-        self.last_road?;
-        let first = detection_delays(&self.decisions, &self.changes, self.end, 0.0);
-        let stable = detection_delays(&self.decisions, &self.changes, self.end, self.hold_s);
-        Some(InLoopStats {
-            decisions: self.decisions.len() as u64,
-            correct: self.correct,
-            single_road: self.single_road,
-            single_road_correct: self.single_road_correct,
-            first_delays: first,
-            stable_delays: stable,
-            confusion: self
-                .confusion
-                .chunks(self.n_roads.max(1))
-                .map(<[u64]>::to_vec)
-                .collect(),
-        })
-    }
-}
-
-impl RoadEstimator for InLoopProbe {
-    fn reset(&mut self, seed: u64) {
-        self.inner.reset(seed);
-        self.decisions.clear();
-        self.changes.clear();
-        self.correct = 0;
-        self.single_road = 0;
-        self.single_road_correct = 0;
-        self.last_road = None;
-        self.last_change = f64::NEG_INFINITY;
-        self.end = 0.0;
-        self.confusion.fill(0);
-    }
-
-    fn update(
-        &mut self,
-        t: f64,
-        dt: f64,
-        true_road_index: usize,
-        speed_mps: f64,
-    ) -> Option<Estimate> {
-        match self.last_road {
-            Some(r) if r != true_road_index => {
-                if self.changes.len() < self.changes.capacity() {
-                    self.changes.push((t, true_road_index));
-                }
-                self.last_change = t;
-            }
-            None => self.last_road = Some(true_road_index),
-            _ => {}
-        }
-        self.last_road = Some(true_road_index);
-        self.end = t + dt;
-        let e = self.inner.update(t, dt, true_road_index, speed_mps)?;
-        if self.decisions.len() < self.decisions.capacity() {
-            self.decisions.push((e.t_stamp, e.road_index));
-        }
-        let ok = e.road_index == true_road_index;
-        if e.road_index < self.n_roads
-            && true_road_index < self.n_roads
-            && let Some(c) = self
-                .confusion
-                .get_mut(e.road_index * self.n_roads + true_road_index)
-        {
-            *c += 1;
-        }
-        self.correct += u64::from(ok);
-        // Frame [t_stamp − frame_s, t_stamp] on one road: no change after its start.
-        if self.last_change <= e.t_stamp - self.frame_s + 1e-9 {
-            self.single_road += 1;
-            self.single_road_correct += u64::from(ok);
-        }
-        Some(e)
-    }
-
-    fn name(&self) -> &str {
-        self.inner.name()
-    }
-}
-
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use grip_arte::eval::Samples;
     use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet};
@@ -537,7 +383,7 @@ mod tests {
         grip_testkit::thread_allocations()
     }
 
-    fn roads() -> RoadCatalogue {
+    pub(crate) fn roads() -> RoadCatalogue {
         RoadCatalogue::new(vec![
             Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap(),
             Road::burckhardt("gravel", 0.6212, 20.80, 0.0712).unwrap(),
@@ -550,7 +396,7 @@ mod tests {
 
     /// A small real model (asphalt vs snow vs stone, Rich features, MLP),
     /// trained on synthetic frames in a few seconds.
-    fn tiny_model() -> Model {
+    pub(crate) fn tiny_model() -> Model {
         let fcfg = FeatureConfig::new(44_100, FeatureSet::Rich);
         let mut ex = FeatureExtractor::new(&fcfg).unwrap();
         let mut train = Samples::new(ex.dim());
@@ -581,7 +427,7 @@ mod tests {
     }
 
     /// Drive the estimator like the simulator: 1 kHz cycles, road by time.
-    fn drive(
+    pub(crate) fn drive(
         e: &mut dyn RoadEstimator,
         seed: u64,
         plan: &[(f64, usize)],
@@ -697,33 +543,5 @@ mod tests {
         let e = AcousticArte::new(&model, &roads(), &cfg).unwrap();
         assert_eq!(e.sound_of(4), Some("snow"));
         assert_eq!(e.sound_of(0), None);
-    }
-
-    #[test]
-    fn probe_counts_and_measures_delays() {
-        // Perfect source with 0.1 s frames: a change is seen at the next
-        // frame end; frames straddling a change are not single-road.
-        let mut p = InLoopProbe::new(Box::new(grip_sim::PerfectArte::new(0.1)), 0.1, 1000, 0.2, 3);
-        assert!(p.take_stats().is_none());
-        let plan = [(0.0, 0), (0.33, 2)];
-        let est = drive(&mut p, 1, &plan, 1.0);
-        assert_eq!(est.len(), 10);
-        let s = p.take_stats().unwrap();
-        assert_eq!(s.decisions, 10);
-        // The frame ending at 0.4 s arrives in the cycle [0.399, 0.4) on snow.
-        assert_eq!(s.correct, 10);
-        assert_eq!(s.single_road, 9);
-        assert_eq!(s.first_delays.len(), 1);
-        let d = s.first_delays[0].unwrap();
-        assert!((d - 0.07).abs() < 1e-6, "{d}");
-        assert_eq!(s.stable_delays[0], s.first_delays[0]);
-        assert_eq!(s.confusion, vec![vec![3, 0, 0], vec![0; 3], vec![0, 0, 7]]);
-        // Reset clears everything.
-        p.reset(2);
-        assert!(p.take_stats().is_none());
-        drive(&mut p, 1, &[(0.0, 1)], 0.3);
-        let s = p.take_stats().unwrap();
-        assert_eq!(s.confusion, vec![vec![0; 3], vec![0, 3, 0], vec![0; 3]]);
-        assert!(s.first_delays.is_empty());
     }
 }
