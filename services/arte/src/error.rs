@@ -41,6 +41,9 @@ pub enum ArteError {
     /// iceoryx2.
     #[error(transparent)]
     Ipc(#[from] grip_io::ipc::IpcError),
+    /// The helper thread could not be started.
+    #[error(transparent)]
+    Helper(#[from] grip_io::service::monitor::HelperError),
     /// Other start-up failure.
     #[error("{0}")]
     Other(String),

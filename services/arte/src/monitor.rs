@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use grip_io::service::monitor::{self, Count, Flow, FlowEvent, Monitor};
+use grip_io::service::monitor::{self, Count, Flow, FlowEvent, HelperError, Monitor};
 use grip_io::warn_if_grew;
 
 use crate::ArteCounters;
@@ -28,7 +28,7 @@ pub fn spawn_helper(
     model_rate: u32,
     speed_normalised: bool,
     done: Arc<AtomicBool>,
-) -> std::io::Result<JoinHandle<()>> {
+) -> Result<JoinHandle<()>, HelperError> {
     let m = ArteMonitor {
         blocks: Flow::new(0, Instant::now(), Duration::from_secs(1)),
         lost: Count::default(),

@@ -132,8 +132,7 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
         rate,
         lp.speed_normalised(),
         Arc::clone(&done),
-    )
-    .map_err(|e| ArteError::Other(format!("cannot start the helper thread: {e}")))?;
+    )?;
     let rt = grip_io::rt::apply(&cfg.rt);
     rt.log();
     let clock = MonotonicClock;

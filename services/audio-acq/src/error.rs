@@ -42,6 +42,9 @@ pub enum AcqError {
         /// alsa-lib's reason.
         reason: String,
     },
+    /// The helper thread could not be started.
+    #[error(transparent)]
+    Helper(#[from] grip_io::service::monitor::HelperError),
     /// The synthesiser refused its configuration.
     #[error("synth source: {0}")]
     Synth(String),

@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use grip_io::service::monitor::{self, Changed, Count, Flow, FlowEvent, Monitor};
+use grip_io::service::monitor::{self, Changed, Count, Flow, FlowEvent, HelperError, Monitor};
 use grip_io::warn_if_grew;
 
 use crate::AcqStatus;
@@ -23,7 +23,7 @@ pub fn spawn_helper(
     status: Arc<AcqStatus>,
     synth: bool,
     done: Arc<AtomicBool>,
-) -> std::io::Result<JoinHandle<()>> {
+) -> Result<JoinHandle<()>, HelperError> {
     let m = AcqMonitor {
         blocks: Flow::new(
             status.blocks.load(Ordering::Relaxed),

@@ -203,8 +203,7 @@ fn serve<S: Source>(
         Arc::clone(&status),
         cfg.audio.source == SourceKind::Synth,
         Arc::clone(&done),
-    )
-    .map_err(|e| AcqError::Synth(format!("cannot start the helper thread: {e}")))?;
+    )?;
     let rt = grip_io::rt::apply(&cfg.rt);
     rt.log();
     let mut lp = AcqLoop::new(

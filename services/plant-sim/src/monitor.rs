@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
-use grip_io::service::monitor::{self, Changed, Count, Monitor};
+use grip_io::service::monitor::{self, Changed, Count, HelperError, Monitor};
 use grip_io::systemd::notify_status;
 use grip_io::warn_if_grew;
 
@@ -22,7 +22,7 @@ use crate::cycle::PlantStatus;
 pub fn spawn_helper(
     status: Arc<PlantStatus>,
     done: Arc<AtomicBool>,
-) -> std::io::Result<JoinHandle<()>> {
+) -> Result<JoinHandle<()>, HelperError> {
     let m = PlantMonitor {
         phase: Changed::new(status.phase.load(Ordering::Relaxed)),
         timed_out: Changed::new(status.cmd_timed_out.load(Ordering::Relaxed)),

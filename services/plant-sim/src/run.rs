@@ -11,6 +11,7 @@ use grip_io::can::{CanBus, CanBusConfig, CanError, open_bus};
 use grip_io::clock::MonotonicClock;
 use grip_io::ipc::{IpcError, IpcNode, Publisher};
 use grip_io::rt::{self, PeriodicTimer};
+use grip_io::service::monitor::HelperError;
 use grip_io::service::{ConfigArgs, ServiceConfig, load_can};
 use grip_msgs::{GroundTruth, topics};
 
@@ -54,8 +55,8 @@ pub enum RunError {
     #[error(transparent)]
     Can(#[from] CanError),
     /// The helper thread could not be started.
-    #[error("cannot start the helper thread: {0}")]
-    Thread(std::io::Error),
+    #[error(transparent)]
+    Helper(#[from] HelperError),
 }
 
 /// Everything a run reads, loaded and validated, overrides applied.
@@ -135,8 +136,7 @@ pub fn run(
         published: 0,
     };
     let done = Arc::new(AtomicBool::new(false));
-    let helper =
-        monitor::spawn_helper(sim.status(), Arc::clone(&done)).map_err(RunError::Thread)?;
+    let helper = monitor::spawn_helper(sim.status(), Arc::clone(&done))?;
     let report = rt::apply(&cfg.rt);
     report.log();
 

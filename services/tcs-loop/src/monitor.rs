@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use grip_io::service::monitor::{self, Changed, Count, Flow, FlowEvent, Monitor};
+use grip_io::service::monitor::{self, Changed, Count, Flow, FlowEvent, HelperError, Monitor};
 use grip_io::warn_if_grew;
 
 use crate::cycle::SharedStatus;
@@ -25,7 +25,7 @@ pub fn spawn_helper(
     status: Arc<SharedStatus>,
     arte: bool,
     done: Arc<AtomicBool>,
-) -> std::io::Result<JoinHandle<()>> {
+) -> Result<JoinHandle<()>, HelperError> {
     let m = TcsMonitor {
         safe: Changed::new(status.safe_state.load(Ordering::Relaxed)),
         road: arte.then(|| Flow::new(0, Instant::now(), Duration::from_secs(1))),

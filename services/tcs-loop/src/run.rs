@@ -11,6 +11,7 @@ use grip_io::can::{CanBus, CanBusConfig, CanError, open_bus};
 use grip_io::clock::{Clock, MonotonicClock};
 use grip_io::ipc::{IpcError, IpcNode, SubscriberMode};
 use grip_io::rt::{self, LatencyHistogram, PeriodicTimer};
+use grip_io::service::monitor::HelperError;
 use grip_io::service::{ConfigArgs, ServiceConfig, load_can};
 use grip_msgs::{CanFrame, CycleRecord, RoadEstimate, topics};
 use grip_tcs::ControllerKind;
@@ -54,8 +55,8 @@ pub enum RunError {
     #[error(transparent)]
     Can(#[from] CanError),
     /// The helper thread could not be started.
-    #[error("cannot start the helper thread: {0}")]
-    Thread(std::io::Error),
+    #[error(transparent)]
+    Helper(#[from] HelperError),
 }
 
 /// What a run did.
@@ -167,8 +168,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
 
     // helper first, so it stays SCHED_OTHER and unpinned
     let done = Arc::new(AtomicBool::new(false));
-    let helper = monitor::spawn_helper(lp.status(), cfg.own.arte, Arc::clone(&done))
-        .map_err(RunError::Thread)?;
+    let helper = monitor::spawn_helper(lp.status(), cfg.own.arte, Arc::clone(&done))?;
     let report = rt::apply(&cfg.own.rt);
     report.log();
 

@@ -44,15 +44,22 @@ pub trait Monitor: Send + 'static {
 /// How often [`Monitor::report`] runs.
 pub const REPORT_INTERVAL: Duration = Duration::from_secs(1);
 
+/// The helper thread could not be started (a start-up error of the
+/// service).
+#[derive(Debug, thiserror::Error)]
+#[error("cannot start the helper thread: {0}")]
+pub struct HelperError(#[source] pub std::io::Error);
+
 /// Spawns the helper thread `name` running `monitor` until `done` is set.
 pub fn spawn(
     name: &str,
     monitor: impl Monitor,
     done: Arc<AtomicBool>,
-) -> std::io::Result<JoinHandle<()>> {
+) -> Result<JoinHandle<()>, HelperError> {
     std::thread::Builder::new()
         .name(name.into())
         .spawn(move || run(monitor, &done))
+        .map_err(HelperError)
 }
 
 fn run(mut m: impl Monitor, done: &AtomicBool) {
