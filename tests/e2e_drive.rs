@@ -27,7 +27,7 @@ use std::time::Duration;
 
 use grip_io::mcaplog::{LogMessage, McapLog, MetadataMap};
 use grip_msgs::{can_dir, topics};
-use support::{Svc, bin_dir, config_dir, field, instance};
+use support::{Svc, built_bin_dir, config_dir, field, instance};
 
 const READY: Duration = Duration::from_secs(60);
 
@@ -125,7 +125,7 @@ fn arte_accuracy(r: &Read) -> (u64, u64) {
 
 #[test]
 fn drive_records_every_cycle_frame_and_estimate() {
-    let bin = bin_dir();
+    let bin = built_bin_dir();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("drive.mcap");
     let res = Command::new(bin.join("grip"))
@@ -152,7 +152,7 @@ fn drive_records_every_cycle_frame_and_estimate() {
         "grip drive failed ({}):\n{stderr}\n{stdout}",
         res.status
     );
-    assert!(stdout.contains("metrics (MODELS.md §4"), "{stdout}");
+    assert!(stdout.contains("metrics (grip_tcs::metrics"), "{stdout}");
 
     let r = read(&out);
     recorder_lost_nothing(&r.recorder);
@@ -268,7 +268,7 @@ fn drive_records_every_cycle_frame_and_estimate() {
 /// finished, and the drive reports the interruption with a non-zero exit.
 #[test]
 fn interrupted_drive_stops_the_services_and_finishes_the_log() {
-    let bin = bin_dir();
+    let bin = built_bin_dir();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("int.mcap");
     let child = Command::new(bin.join("grip"))
@@ -480,7 +480,7 @@ fn copy_dir(from: &Path, to: &Path) {
 /// so the log is still finished.
 #[test]
 fn drive_names_the_service_that_did_not_come_up() {
-    let bin = bin_dir();
+    let bin = built_bin_dir();
     let tmp = tempfile::tempdir().unwrap();
     let cfg = tmp.path().join("config");
     copy_dir(&config_dir(), &cfg);

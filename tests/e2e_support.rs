@@ -34,16 +34,18 @@ pub fn config_dir() -> PathBuf {
         .unwrap_or_else(|| workspace().join("config"))
 }
 
-/// The directory with `grip` and the five service binaries (built on first use).
-pub fn bin_dir() -> PathBuf {
+/// The directory with `grip` and the five service binaries (built on first
+/// use): grip-io's [`grip_io::binaries::bin_dir`], the rule `grip drive`
+/// uses; unless `$GRIP_BIN_DIR` names it, the binaries are built there.
+pub fn built_bin_dir() -> PathBuf {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
-        if let Some(d) = std::env::var_os("GRIP_BIN_DIR").filter(|d| !d.is_empty()) {
-            return PathBuf::from(d);
+        let dir = grip_io::binaries::bin_dir().expect("locating the binaries");
+        if dir.from_env {
+            return dir.path;
         }
-        // target/<profile>/deps/<test binary>
-        let exe = std::env::current_exe().unwrap();
-        let profile_dir = exe.parent().unwrap().parent().unwrap().to_path_buf();
+        // target/<profile>/
+        let profile_dir = dir.path;
         let target_dir = profile_dir.parent().unwrap().to_path_buf();
         let profile = profile_dir
             .file_name()
@@ -123,7 +125,7 @@ impl Svc {
         notify
             .set_read_timeout(Some(Duration::from_millis(50)))
             .unwrap();
-        let mut child = Command::new(bin_dir().join(name))
+        let mut child = Command::new(built_bin_dir().join(name))
             .args(args)
             .env("GRIP_INSTANCE", instance)
             .env("NOTIFY_SOCKET", &sock)

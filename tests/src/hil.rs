@@ -58,18 +58,6 @@ pub fn vcan_iface() -> String {
         .unwrap_or_else(|| "vcan0".to_owned())
 }
 
-/// Where the service binaries are: `$GRIP_BIN_DIR`, else the profile folder
-/// this test binary was built into (`target/<profile>`, the parent of `deps/`).
-pub fn bin_dir() -> PathBuf {
-    if let Some(d) = env::var_os("GRIP_BIN_DIR").filter(|d| !d.is_empty()) {
-        return PathBuf::from(d);
-    }
-    env::current_exe()
-        .ok()
-        .and_then(|exe| exe.parent()?.parent().map(Path::to_path_buf))
-        .unwrap_or_else(|| workspace_dir().join("target/debug"))
-}
-
 /// The workspace's configuration folder: `$GRIP_CONFIG_DIR`, else `<workspace>/config`.
 pub fn config_dir() -> PathBuf {
     env::var_os("GRIP_CONFIG_DIR")
@@ -93,8 +81,12 @@ pub fn out_dir(sub: &str) -> anyhow::Result<PathBuf> {
 }
 
 /// The path of a built service binary, or an error saying how to build it.
+/// The folder is grip-io's [`grip_io::binaries::bin_dir`] (the one `grip
+/// drive` uses): `$GRIP_BIN_DIR`, else `target/<profile>/`, the parent of
+/// this test binary's `deps/`.
 pub fn service_bin(name: &str) -> anyhow::Result<PathBuf> {
-    let p = bin_dir().join(name);
+    let dir = grip_io::binaries::bin_dir()?.path;
+    let p = dir.join(name);
     if p.is_file() {
         Ok(p)
     } else {
@@ -102,7 +94,7 @@ pub fn service_bin(name: &str) -> anyhow::Result<PathBuf> {
             "service binary {} not found (GRIP_BIN_DIR={}); tools/hil/run builds \
              the workspace's service binaries, or run `cargo build --bin {name}`",
             p.display(),
-            bin_dir().display()
+            dir.display()
         )
     }
 }

@@ -1,4 +1,4 @@
-//! grip-arte: acoustic road-type estimation (MODELS.md §5, paper §II).
+//! grip-arte: acoustic road-type estimation (paper §II; the crate README).
 //!
 //! Pure: no file, clock or thread I/O. Reading WAV files and writing model
 //! files happens in the callers (`grip`, the `arte` service); this crate

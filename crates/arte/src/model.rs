@@ -28,8 +28,8 @@
 //! extractor computes exactly the selected columns), so a model needs no
 //! separate selection field.
 
+use grip_digest::sha256_hex;
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 
 use crate::eval::{Confusion, Metrics, Samples, holdout_groups, stratified_group_kfold};
 use crate::features::{FeatureConfig, FeatureError, FeatureSet, N_PAPER20};
@@ -248,15 +248,6 @@ pub struct Model {
     classifier: Classifier,
     /// Training metadata.
     pub meta: TrainingMeta,
-}
-
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
-/// Lower-case hex SHA-256 of `bytes`.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    hex(&Sha256::digest(bytes))
 }
 
 impl Model {

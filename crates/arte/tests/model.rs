@@ -3,8 +3,9 @@
 use grip_arte::eval::Samples;
 use grip_arte::features::{FeatureConfig, FeatureSet};
 use grip_arte::mlp::LmConfig;
-use grip_arte::model::{ClassifierSpec, Model, ModelError, cross_validate, fit, sha256_hex};
+use grip_arte::model::{ClassifierSpec, Model, ModelError, cross_validate, fit};
 use grip_arte::svm::{Kernel, SvmConfig};
+use grip_digest::sha256_hex;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};

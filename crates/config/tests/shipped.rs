@@ -65,7 +65,7 @@ fn shipped_config_loads() {
     ] {
         assert!(roads.get(name).is_some(), "missing road {name}");
     }
-    // MODELS.md's printed optima.
+    // the printed optima (crates/physics/README.md, "The catalogue").
     let a = roads.get("asphalt").unwrap();
     assert!((a.lambda_opt() - 0.170).abs() < 0.0015 && (a.mu_peak() - 1.17).abs() < 0.006);
     // The gravel fit reproduces what it was fitted to.

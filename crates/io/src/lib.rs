@@ -1,6 +1,6 @@
 //! grip-io: every adapter between the pure grip crates and the outside
 //! world. This is the only crate that touches SocketCAN, iceoryx2 ports,
-//! MCAP files or the OS scheduler.
+//! MCAP and WAV files or the OS scheduler.
 //!
 //! - [`can`]: the inverter protocol (`config/inverter.dbc`) with E2E
 //!   protection, and the CAN transports (SocketCAN, simulated bus over iceoryx2).
@@ -14,9 +14,14 @@
 //! - [`service`]: the skeleton of every service's `main` (tracing,
 //!   signals, exit codes, its own TOML) and its helper thread
 //!   ([`service::monitor`]).
+//! - [`wav`]: WAV reading (mixdown, resampling) and writing, for the CLI and
+//!   audio-acq's file source.
+//! - [`binaries`]: where the service binaries are (`$GRIP_BIN_DIR` or beside
+//!   the running executable), for `grip drive` and the workspace tests.
 //!
 //! See `crates/io/README.md` for the protocol tables and measured figures.
 
+pub mod binaries;
 pub mod can;
 pub mod clock;
 pub mod ipc;
@@ -24,3 +29,4 @@ pub mod mcaplog;
 pub mod rt;
 pub mod service;
 pub mod systemd;
+pub mod wav;

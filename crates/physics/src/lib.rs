@@ -2,7 +2,7 @@
 //! quarter-vehicle plant with motor lag and driving resistance, sensors with
 //! quantisation, noise and delay, and scenarios. Pure: no I/O, no clock.
 //!
-//! See `README.md` in this crate and MODELS.md §1-§2 for the equations.
+//! See `README.md` in this crate ("Plant", "Roads") for the equations.
 
 pub mod plant;
 pub mod road;

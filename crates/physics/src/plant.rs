@@ -1,4 +1,4 @@
-//! The quarter-vehicle plant (MODELS.md §1): one driven wheel carrying M/n,
+//! The quarter-vehicle plant (README.md, "Plant"): one driven wheel carrying M/n,
 //! a first-order motor lag, the tyre force from the road's mu-lambda curve and
 //! the driving resistance.
 //!
@@ -206,7 +206,7 @@ impl Plant {
         let weight = p.mass * crate::G;
         let env = Env {
             road,
-            n_force: weight * cos_t / p.n_driven,
+            n_force: p.driven_load_share * weight * cos_t / p.n_driven,
             f_roll: p.c_rr * weight * cos_t,
             f_grade: weight * sin_t,
             k_aero: 0.5 * p.rho * p.c_d_a,

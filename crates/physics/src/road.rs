@@ -1,5 +1,5 @@
 //! Roads: friction-vs-slip (mu-lambda) curves and the road catalogue
-//! (MODELS.md §2).
+//! (README.md, "Roads").
 //!
 //! Every curve is defined for driving slip λ >= 0 and extended odd-symmetrically
 //! to braking (λ < 0): mu(-λ) = -mu(λ), so dmu/dλ is even.
@@ -544,7 +544,7 @@ mod tests {
 
     #[test]
     fn burckhardt_closed_forms_match_models_md() {
-        // MODELS.md §2 table: (c1, c2, c3, λ_opt, mu_peak) to the printed precision.
+        // README.md's catalogue table: (c1, c2, c3, λ_opt, mu_peak) to the printed precision.
         let cases = [
             ("asphalt", 1.2801, 23.99, 0.52, 0.170, 1.17),
             ("stone", 1.3713, 6.4565, 0.6691, 0.400, 1.00),

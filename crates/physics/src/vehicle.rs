@@ -1,9 +1,9 @@
-//! Vehicle parameters (MODELS.md §1, paper Table IV).
+//! Vehicle parameters (paper Table IV; README.md, "Plant").
 
 use crate::validate::{self, InvalidField};
 
 /// Parameters of the vehicle and its driven wheel. Defaults are the paper's
-/// Table IV plus MODELS.md §1.
+/// Table IV plus the choices in README.md, "Plant" (n = 4 driven wheels).
 ///
 /// Deserialises from TOML (`[vehicle]` in `config/vehicle.toml`); a missing
 /// field takes its default, an unknown one is an error. Call
@@ -34,6 +34,19 @@ pub struct VehicleParams {
     pub v_eps: f64,
     /// Motor torque limit, N m (|T| is clamped to this).
     pub torque_max: f64,
+    /// Share of the vehicle's weight carried by the driven wheels together,
+    /// (0, 1]: the driven wheel's normal force is N = share · M g / n. 1
+    /// (default: every wheel driven, n = 4, the paper's set-up) gives
+    /// N = M g / n; a rear-driven car with n = 2 and 50 % on the rear axle
+    /// has 0.5.
+    pub driven_load_share: f64,
+    /// Where the microphone hears the road, m along the path ahead of the
+    /// driven (controlled) wheel's contact patch: 0 (default) = at the
+    /// driven wheel, the paper's set-up; a front-wheel-arch microphone on a
+    /// rear-driven car hears the road one wheelbase ahead. Not used by the
+    /// plant; the simulator, plant-sim's ground truth, audio-acq's synthetic
+    /// source and the preview queue of the controllers use it.
+    pub mic_lead_m: f64,
 }
 
 impl Default for VehicleParams {
@@ -50,6 +63,8 @@ impl Default for VehicleParams {
             c_d_a: 0.7,
             v_eps: 0.1,
             torque_max: 1000.0,
+            driven_load_share: 1.0,
+            mic_lead_m: 0.0,
         }
     }
 }
@@ -59,9 +74,10 @@ impl VehicleParams {
     pub fn mass_share(&self) -> f64 {
         self.mass / self.n_driven
     }
-    /// Normal force on the driven wheel, N = M g / n.
+    /// Normal force on the driven wheel, N = share · M g / n
+    /// ([`VehicleParams::driven_load_share`]; M g / n by default).
     pub fn normal_force(&self) -> f64 {
-        self.mass * crate::G / self.n_driven
+        self.driven_load_share * self.mass * crate::G / self.n_driven
     }
     /// Inertia of the vehicle share reflected to the wheel, J_w + (M/n) r^2 (paper eq. 2).
     pub fn j_model(&self) -> f64 {
@@ -97,6 +113,13 @@ impl VehicleParams {
         validate::non_negative("c_d_a", self.c_d_a)?;
         validate::positive("v_eps", self.v_eps)?;
         validate::positive("torque_max", self.torque_max)?;
+        if !(self.driven_load_share > 0.0 && self.driven_load_share <= 1.0) {
+            return Err(InvalidField::new(
+                "driven_load_share",
+                format!("must be in (0, 1] (got {})", self.driven_load_share),
+            ));
+        }
+        validate::in_range("mic_lead_m", self.mic_lead_m, 0.0, 20.0)?;
         Ok(())
     }
 }
@@ -109,7 +132,7 @@ mod tests {
     fn defaults_are_valid_and_match_models_md() {
         let p = VehicleParams::default();
         p.validate().unwrap();
-        // MODELS.md: N = M g / 4 = 3433 N; snow carries 0.19 * N * r = 183 N m.
+        // README.md, "Plant": N = M g / 4 = 3433 N; snow carries 0.19 * N * r = 183 N m.
         assert!((p.normal_force() - 3433.5).abs() < 0.1);
         assert!((0.19 * p.normal_force() * p.r - 182.7).abs() < 0.5);
     }
@@ -117,7 +140,10 @@ mod tests {
     #[test]
     fn bad_values_fail_with_the_field_named() {
         type Mutation = fn(&mut VehicleParams);
-        let cases: [(&str, Mutation); 6] = [
+        let cases: [(&str, Mutation); 9] = [
+            ("driven_load_share", |p| p.driven_load_share = 0.0),
+            ("driven_load_share", |p| p.driven_load_share = f64::NAN),
+            ("mic_lead_m", |p| p.mic_lead_m = -1.0),
             ("mass", |p| p.mass = -5.0),
             ("mass", |p| p.mass = f64::NAN),
             ("r", |p| p.r = 0.0),

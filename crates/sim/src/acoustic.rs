@@ -266,6 +266,7 @@ impl AcousticArte {
     fn flush(&mut self, t0: f64) -> Option<Estimate> {
         let (road, speed) = self.pending.take()?;
         let mut out = None;
+        let frame_s = self.frame_s;
         let Self {
             synth,
             stream,
@@ -292,6 +293,7 @@ impl AcousticArte {
                         road_index,
                         confidence: d.probs.get(d.class).copied().unwrap_or(0.0),
                         t_stamp: t0 + d.t_end,
+                        frame_s,
                     });
                 }
             });

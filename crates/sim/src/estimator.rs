@@ -58,6 +58,9 @@ pub struct Estimate {
     pub confidence: f64,
     /// Time the decision became available (end of its frame), s.
     pub t_stamp: f64,
+    /// Length of audio the decision analysed (its frame), s: the decision
+    /// describes the road heard over `[t_stamp − frame_s, t_stamp]`.
+    pub frame_s: f64,
 }
 
 /// A road-estimate source, called by the simulator once per controller cycle.
@@ -444,6 +447,7 @@ impl RoadEstimator for ConfusionArte {
             road_index,
             confidence,
             t_stamp: t_end,
+            frame_s: self.frame_s,
         })
     }
 
@@ -498,6 +502,7 @@ impl RoadEstimator for PerfectArte {
             road_index: true_road_index,
             confidence: 1.0,
             t_stamp: t_end,
+            frame_s: self.frame_s,
         })
     }
 

@@ -1,4 +1,4 @@
-//! grip-sim: the offline closed-loop simulator (MODELS.md §1, §3, §4).
+//! grip-sim: the offline closed-loop simulator (see README.md in this crate).
 //!
 //! One run couples, per controller cycle (default 1 kHz):
 //!

@@ -62,6 +62,15 @@ impl SimSetup {
                 ));
             }
         }
+        if vehicle.mic_lead_m > 0.0 && scenario.segments_by == grip_physics::SegmentMode::Time {
+            return Err(SimError::invalid(
+                "scenario.segments_by",
+                format!(
+                    "scenario `{}` is in time segments, which cannot say where a road begins before the wheel gets there; the microphone is {} m ahead of the driven wheel (vehicle.mic_lead_m): use a scenario in distance segments (segments_by = \"distance\"), or mic_lead_m = 0",
+                    scenario.name, vehicle.mic_lead_m
+                ),
+            ));
+        }
         let dt = controllers.loop_.dt();
         let cycles_f = (scenario.duration / dt).round();
         if !(1.0..=1e9).contains(&cycles_f) {

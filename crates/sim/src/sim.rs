@@ -17,9 +17,11 @@
 //! to t, never on the road ahead.
 
 use grip_physics::{Plant, PlantState, Sensors};
-use grip_tcs::{AnyController, Controller, Measurement, Metrics, MetricsAccumulator, Sample};
+use grip_tcs::{
+    AnyController, Controller, Measurement, Metrics, MetricsAccumulator, RoadAware, Sample,
+};
 
-use crate::estimator::{Estimate, RoadEstimator};
+use crate::estimator::RoadEstimator;
 use crate::probe::InLoopStats;
 use crate::setup::SimSetup;
 use crate::trace::Trace;
@@ -70,7 +72,7 @@ pub struct RunResult {
     pub variant: Variant,
     /// The run seed.
     pub seed: u64,
-    /// The metrics of MODELS.md §4 (`grip_tcs::metrics`).
+    /// The metrics (`grip_tcs::metrics`).
     pub metrics: Metrics,
     /// Road-estimator statistics.
     pub arte: ArteStats,
@@ -97,7 +99,10 @@ pub struct Sim<'a> {
     plant: Plant,
     sensors: Sensors,
     controller: AnyController,
-    latest: Option<Estimate>,
+    aware: Option<RoadAware>,
+    x_odo: f64,
+    /// The estimator's clock minus the run's (the pre-roll, s).
+    t_pre: f64,
     metrics: MetricsAccumulator,
     trace: Option<Trace>,
     arte: ArteStats,
@@ -139,8 +144,29 @@ impl<'a> Sim<'a> {
         let controller =
             AnyController::new(variant.kind, setup.controllers(), &vehicle, setup.dt())
                 .map_err(|e| SimError::from_field("controllers", e))?;
+        let mut aware = if variant.arte {
+            let c = setup.controllers();
+            Some(
+                RoadAware::new(
+                    setup.roads(),
+                    setup.road_table().clone(),
+                    &vehicle,
+                    c.arte,
+                    c.preview,
+                    c.fusion,
+                    setup.dt(),
+                )
+                .map_err(|e| SimError::from_field("controllers", e))?,
+            )
+        } else {
+            None
+        };
+        let mut t_pre = 0.0;
         if variant.arte {
             estimator.reset(sub_seed(seed, ARTE_STREAM));
+            if let Some(a) = aware.as_mut() {
+                t_pre = pre_roll(setup, estimator, a);
+            }
         }
         Ok(Self {
             setup,
@@ -150,7 +176,9 @@ impl<'a> Sim<'a> {
             plant,
             sensors,
             controller,
-            latest: None,
+            aware,
+            x_odo: 0.0,
+            t_pre,
             metrics: MetricsAccumulator::new(&vehicle),
             trace: record_trace.then(|| Trace::with_capacity(setup.cycles())),
             arte: ArteStats {
@@ -190,11 +218,6 @@ impl<'a> Sim<'a> {
         let demand = scenario.demand_at(t);
 
         let reading = self.sensors.sample(&s, dt);
-        let knowledge = if self.variant.arte {
-            self.latest.map(|e| setup.knowledge(&e, t))
-        } else {
-            None
-        };
         let m = Measurement {
             t,
             omega: reading.omega,
@@ -202,7 +225,16 @@ impl<'a> Sim<'a> {
             torque: reading.torque,
             demand,
         };
-        let out = self.controller.step(&m, knowledge.as_ref());
+        // The loop's own odometer, from what it measures.
+        let v_meas = reading.v.unwrap_or(setup.vehicle().r * reading.omega);
+        let guidance = self.aware.as_mut().map(|a| a.step(&m, self.x_odo));
+        let knowledge = guidance.and_then(|g| g.knowledge);
+        let mut out = self.controller.step(&m, knowledge.as_ref());
+        if let Some(g) = guidance
+            && g.torque_cap < out.torque_cmd
+        {
+            out.torque_cmd = g.torque_cap.max(0.0);
+        }
 
         let lambda = self.plant.slip_of(s.omega, s.v);
         let finite = s.omega.is_finite() && s.v.is_finite() && s.torque.is_finite();
@@ -233,24 +265,34 @@ impl<'a> Sim<'a> {
             tr.internal.push(out.internal);
             tr.true_road.push(road_idx as u32);
             tr.lambda_opt_true.push(road.lambda_opt());
-            tr.est_road
-                .push(knowledge.and(self.latest).map(|e| e.road_index as u32));
-            tr.confidence.push(
-                knowledge
-                    .and(self.latest)
-                    .map_or(f64::NAN, |e| e.confidence),
-            );
+            tr.est_road.push(guidance.map(|g| g.belief.0 as u32));
+            tr.confidence
+                .push(guidance.map_or(f64::NAN, |g| g.belief.1));
             tr.used_arte.push(out.used_arte);
         }
 
-        if self.variant.arte
-            && let Some(e) = self.estimator.update(t, dt, road_idx, s.v)
-        {
-            self.arte.frames += 1;
-            if e.road_index == road_idx {
-                self.arte.correct += 1;
+        if let Some(aware) = self.aware.as_mut() {
+            // The microphone hears the road `mic_lead_m` ahead of the wheel.
+            let mic_seg = scenario.segment_at(t, s.x + setup.vehicle().mic_lead_m);
+            let mic_road = scenario.segments[mic_seg].road;
+            if let Some(e) = self.estimator.update(t + self.t_pre, dt, mic_road, s.v) {
+                self.arte.frames += 1;
+                if e.road_index == mic_road {
+                    self.arte.correct += 1;
+                }
+                let stamp = e.t_stamp - self.t_pre;
+                let v = if v_meas.is_finite() {
+                    v_meas.max(0.0)
+                } else {
+                    0.0
+                };
+                let x_to = self.x_odo + v * (stamp - t).max(0.0);
+                let x_from = x_to - v * e.frame_s;
+                aware.decision(e.road_index, e.confidence, stamp, x_from, x_to);
             }
-            self.latest = Some(e);
+        }
+        if v_meas.is_finite() {
+            self.x_odo += v_meas.max(0.0) * dt;
         }
 
         self.plant.step(dt, out.torque_cmd, road, grade);
@@ -277,6 +319,41 @@ impl<'a> Sim<'a> {
             inloop,
         }
     }
+}
+
+/// With the microphone `mic_lead_m` ahead of the driven wheel, the road the
+/// wheel meets in its first `mic_lead_m` metres was heard before the run
+/// began. The pre-roll plays that approach: the car rolling at the
+/// scenario's initial speed until the wheel is at 0, the microphone hearing
+/// the scenario's first `mic_lead_m` metres, its decisions queued at their
+/// places. Returns the pre-roll's length (the estimator's clock is ahead of
+/// the run's by it); 0 without a lead.
+fn pre_roll(setup: &SimSetup, estimator: &mut dyn RoadEstimator, aware: &mut RoadAware) -> f64 {
+    let lead = aware.lead();
+    if lead <= 0.0 {
+        return 0.0;
+    }
+    let dt = setup.dt();
+    let v0 = setup.scenario().v0.max(1.0);
+    let n = (lead / v0 / dt).ceil() as usize;
+    let t_pre = n as f64 * dt;
+    let scenario = setup.scenario();
+    for k in 0..n {
+        let t = k as f64 * dt;
+        let x_wheel = v0 * (t - t_pre);
+        let mic_road = scenario.segments[scenario.segment_at(0.0, x_wheel + lead)].road;
+        if let Some(e) = estimator.update(t, dt, mic_road, v0) {
+            let x_to = v0 * (e.t_stamp - t_pre);
+            aware.decision(
+                e.road_index,
+                e.confidence,
+                e.t_stamp - t_pre,
+                x_to - v0 * e.frame_s,
+                x_to,
+            );
+        }
+    }
+    t_pre
 }
 
 /// Run `variant` with `seed` on `setup` from start to end, recording the

@@ -1,11 +1,12 @@
 //! grip-tcs: the three traction controllers (MFC, SRC with fuzzy optimal
-//! slip, MTTE), their observers and filters, the metrics of MODELS.md §4, and
+//! slip, MTTE), their observers and filters, the metrics (`metrics`), and
 //! the linear analysis (transfer functions, K_MFC bound, Vinnicombe nu-gap).
 //! Pure: no I/O, no clock; every `step` is allocation-free.
 
 pub mod analysis;
 pub mod any;
 pub mod filters;
+pub mod fusion;
 pub mod fuzzy;
 pub mod knowledge;
 pub mod metrics;
@@ -13,15 +14,20 @@ pub mod mfc;
 pub mod mtte;
 pub mod observer;
 pub mod params;
+pub mod preview;
+pub mod road_aware;
 pub mod slip_control;
 pub mod types;
 
 pub use any::{AnyController, ControllerKind, UnknownController};
+pub use fusion::{FusionParams, RoadBelief};
 pub use knowledge::{KnowledgeConfig, RoadInfo, RoadTable};
 pub use metrics::{Metrics, MetricsAccumulator, Sample};
 pub use mfc::Mfc;
 pub use mtte::Mtte;
 pub use params::{ArteUse, ControllersConfig, LoopParams, MfcParams, MtteParams, SrcParams};
+pub use preview::{PREVIEW_CAPACITY, PreviewQueue, PreviewView, RoadAhead};
+pub use road_aware::{Guidance, PreviewParams, RoadAware};
 pub use slip_control::Src;
 pub use types::{ControlOutput, Controller, Measurement, RoadKnowledge};
 

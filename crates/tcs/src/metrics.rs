@@ -1,4 +1,4 @@
-//! The metrics of MODELS.md §4: one definition for every caller (offline
+//! The metrics (README.md, "Metrics"): one definition for every caller (offline
 //! simulation, the live drive summary, MCAP inspection).
 //!
 //! Feed one [`Sample`] per control cycle to a [`MetricsAccumulator`], then

@@ -1,4 +1,4 @@
-//! MFC: Hori's model following control (MODELS.md §3, paper §III-A).
+//! MFC: Hori's model following control (paper §III-A; README.md, "MFC").
 //!
 //! ```text
 //! ω_M[k+1] = ω_M[k] + dt · T[k] / J_model          (model wheel: 1 / (J_model s))
@@ -13,7 +13,7 @@
 //! - ω_M starts at the first measured ω (the drive may start rolling).
 //! - The clamp to `[0, T_d]` drops Hori's model *addition* (when the wheel is
 //!   slower than the model the raw law would exceed the demand); a TCS here
-//!   only ever reduces the driver's demand (MODELS.md §3).
+//!   only ever reduces the driver's demand (README.md, "Controllers").
 //! - `T_d <= 0` (coasting, regeneration) is passed through; the model and
 //!   the filter keep running so that the next positive demand starts from a
 //!   consistent state.

@@ -1,5 +1,5 @@
 //! MTTE: maximum transmissible torque estimation (Yin, Oh, Hori, IEEE TIE
-//! 56(6), 2009; MODELS.md §3, paper §III-C). No chassis speed needed.
+//! 56(6), 2009; paper §III-C). No chassis speed needed.
 //!
 //! ```text
 //! F̂_d    = (LPF(T) − J_w dω/dt) / r                          (observer, τ_o = tau_obs)

@@ -1,4 +1,4 @@
-//! Driving-force observer shared by SRC and MTTE (MODELS.md §3).
+//! Driving-force observer shared by SRC and MTTE (README.md, "Driving-force observer").
 //!
 //! From the wheel equation `J_w dω/dt = T - r F_d` (F_d includes the rolling
 //! resistance, which no wheel-side observer can separate):

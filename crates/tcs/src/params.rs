@@ -11,7 +11,7 @@ use crate::types::RoadKnowledge;
 use grip_physics::InvalidField;
 use serde::Deserialize;
 
-fn positive(field: &str, v: f64) -> Result<(), InvalidField> {
+pub(crate) fn positive(field: &str, v: f64) -> Result<(), InvalidField> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
@@ -22,7 +22,7 @@ fn positive(field: &str, v: f64) -> Result<(), InvalidField> {
     }
 }
 
-fn non_negative(field: &str, v: f64) -> Result<(), InvalidField> {
+pub(crate) fn non_negative(field: &str, v: f64) -> Result<(), InvalidField> {
     if v.is_finite() && v >= 0.0 {
         Ok(())
     } else {
@@ -33,7 +33,7 @@ fn non_negative(field: &str, v: f64) -> Result<(), InvalidField> {
     }
 }
 
-fn in_range(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), InvalidField> {
+pub(crate) fn in_range(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), InvalidField> {
     if v.is_finite() && v >= lo && v <= hi {
         Ok(())
     } else {
@@ -272,6 +272,14 @@ pub struct ControllersConfig {
     /// `[loop]`
     #[serde(rename = "loop")]
     pub loop_: LoopParams,
+    /// `[preview]`: the torque the believed and the previewed road allow
+    /// (ARTE variants; `crate::road_aware`). Optional: defaults.
+    #[serde(default)]
+    pub preview: crate::road_aware::PreviewParams,
+    /// `[fusion]`: the road belief (ARTE variants; `crate::fusion`).
+    /// Optional: defaults.
+    #[serde(default)]
+    pub fusion: crate::fusion::FusionParams,
 }
 
 impl ControllersConfig {
@@ -283,6 +291,8 @@ impl ControllersConfig {
         self.mtte.validate().map_err(|e| e.prefixed("mtte"))?;
         self.arte.validate().map_err(|e| e.prefixed("arte"))?;
         self.loop_.validate().map_err(|e| e.prefixed("loop"))?;
+        self.preview.validate().map_err(|e| e.prefixed("preview"))?;
+        self.fusion.validate().map_err(|e| e.prefixed("fusion"))?;
         Ok(())
     }
 }

@@ -1,5 +1,5 @@
 //! SRC: slip ratio control with the fuzzy optimal-slip estimator
-//! (MODELS.md §3, paper §III-B).
+//! (paper §III-B; README.md, "SRC").
 //!
 //! ```text
 //! λ      = (r ω − V) / max(r ω, V, v_eps)                       (measured slip, clamped to [−1, 1])
@@ -87,7 +87,7 @@ impl Src {
         &self.params
     }
 
-    /// Measured slip with the plant's definition (MODELS.md §1), clamped to [−1, 1].
+    /// Measured slip with the plant's definition (crates/physics/README.md, "Plant"), clamped to [−1, 1].
     pub fn slip(&self, omega: f64, v: f64) -> f64 {
         let rw = self.r * omega;
         let l = (rw - v) / rw.max(v).max(self.v_eps);

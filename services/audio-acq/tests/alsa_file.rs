@@ -1,7 +1,7 @@
 //! The ALSA data path on a host without sound hardware: alsa-lib's
 //! user-space `file` plugin with an `infile` over a `null` slave captures a
 //! raw S16_LE file through the ordinary ALSA API
-//! (`/work/shared/notes/hil-vm.md`). Not paced in real time, so this checks
+//! (`ALSA_CONFIG_PATH=/usr/share/alsa/alsa.conf:EXTRA.conf`). Not paced in real time, so this checks
 //! the data path (open, hw/sw params, reads, channel selection, blocks), not
 //! timing; the loopback test in the HIL VM covers real capture. A missing
 //! device must be a clear error naming it and listing what exists.

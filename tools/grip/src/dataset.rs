@@ -28,7 +28,8 @@
 //! in order (class, then path): `class \0 relative/path \0 sha256(file) \n`.
 
 use anyhow::{Context, Result, bail};
-use grip_arte::model::sha256_hex;
+use grip_digest::sha256_hex;
+use grip_io::wav::{Audio, decode_mono};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -282,30 +283,14 @@ impl Dataset {
     }
 }
 
-/// A decoded WAV file: mono samples in [-1, 1] and the sample rate.
-#[derive(Clone, Debug)]
-pub struct Audio {
-    /// Sample rate (Hz).
-    pub sample_rate: u32,
-    /// Mono samples (channels averaged).
-    pub samples: Vec<f32>,
-    /// SHA-256 of the file bytes.
-    pub sha256: String,
-}
-
-/// Reads a WAV file (PCM 8/16/24/32-bit integer or 32-bit float, any
-/// channel count, averaged to mono; [`crate::wav`] decodes it) at its own
-/// rate, and hashes its bytes.
-pub fn read_wav(path: &Path) -> Result<Audio> {
+/// Reads a WAV file of a dataset (PCM 1..32-bit integer or 32-bit float,
+/// any channel count, averaged to mono; `grip_io::wav` decodes it) at its
+/// own rate, and the SHA-256 of its bytes (for the dataset hash): the file
+/// is read once for both.
+pub fn read_wav(path: &Path) -> Result<(Audio, String)> {
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
     let sha256 = sha256_hex(&bytes);
-    let a = crate::wav::decode_mono(&bytes)
-        .with_context(|| format!("reading WAV file {}", path.display()))?;
-    Ok(Audio {
-        sample_rate: a.sample_rate,
-        samples: a.samples,
-        sha256,
-    })
+    Ok((decode_mono(&bytes, path)?, sha256))
 }
 
 #[cfg(test)]
@@ -359,9 +344,13 @@ mod tests {
         );
         assert!(e.contains("no class folder `ice`"), "{e}");
         assert_eq!(ds.entries[0].rel, "asphalt/sub/z.wav");
-        let a = read_wav(&ds.entries[0].path).unwrap();
+        let (a, sha) = read_wav(&ds.entries[0].path).unwrap();
         assert_eq!((a.sample_rate, a.samples.len()), (8000, 100));
         assert!(a.samples.iter().all(|v| v.abs() <= 1.0));
+        assert_eq!(
+            sha,
+            sha256_hex(&std::fs::read(&ds.entries[0].path).unwrap())
+        );
     }
 
     #[test]

@@ -9,7 +9,6 @@ mod cmd;
 mod dataset;
 mod drive;
 mod plot;
-mod wav;
 
 #[derive(Parser)]
 #[command(

@@ -1,4 +1,4 @@
-//! Acoustic features of one analysis frame (MODELS.md §5, paper §II.C).
+//! Acoustic features of one analysis frame (paper §II.C; the crate README, "Features").
 //!
 //! Three sets, chosen by [`FeatureConfig::set`]:
 //! - [`FeatureSet::Paper20`]: 10 LPC, 5 power-spectrum and 5 real-cepstrum

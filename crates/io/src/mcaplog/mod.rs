@@ -32,7 +32,6 @@ use std::time::{Duration, Instant};
 use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate};
 pub use json::{JsonError, McapRecord};
 use mcap::records::MessageHeader;
-use sha2::{Digest, Sha256};
 
 /// MCAP errors.
 #[derive(Debug, thiserror::Error)]
@@ -121,15 +120,9 @@ pub struct RunInfo {
     pub extra: BTreeMap<String, String>,
 }
 
-/// Hex sha256 of `bytes`.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    let d = Sha256::digest(bytes);
-    let mut s = String::with_capacity(64);
-    for b in d {
-        s.push_str(&format!("{b:02x}"));
-    }
-    s
-}
+/// Hex sha256 of `bytes` (grip-digest's, the one digest of grip; kept here
+/// for the writers of [`RunInfo`]).
+pub use grip_digest::sha256_hex;
 
 /// The file under the mcap writer: a buffered writer; fsync happens in
 /// [`McapWriter::flush`] through a second handle, never behind mcap's back.

@@ -1,6 +1,6 @@
 //! ν-gaps between the plant each controller structure *assumes* (nominal)
 //! and the plant it *meets* on a road of the catalogue (uncertain), with and
-//! without ARTE (MODELS.md §4 item 6; paper §IV: MFC 0.0332 → 0.0127,
+//! without ARTE (paper §IV: MFC 0.0332 → 0.0127,
 //! SRC 0.91 → 0.28, MTTE 0.85 → 0.096). Definitions (also in the README,
 //! "Analysis"):
 //!

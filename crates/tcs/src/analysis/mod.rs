@@ -1,4 +1,4 @@
-//! Linear analysis (paper §III, MODELS.md §1 and §4 item 6): polynomials and
+//! Linear analysis (paper §III, and the ν-gaps of paper §IV): polynomials and
 //! SISO transfer functions, the paper's transfer functions for the configured
 //! vehicle (with the corrections documented in `crates/tcs/README.md`,
 //! section "Analysis"), the K_MFC bound (4), the Vinnicombe ν-gap and the

@@ -4,7 +4,7 @@
 //!
 //! - `m = M/n`: the vehicle mass carried by the driven wheel (paper: M; the
 //!   paper's Table IV values are per vehicle, the one-wheel model needs the
-//!   share, MODELS.md §1), `N = m g`.
+//!   share, crates/physics/README.md "Plant"), `N = m g`.
 //! - `J(λ) = J_w + m r² (1 − λ)`: the inertia felt at the wheel at a constant
 //!   slip λ (paper eq. 1); `J_model = J(0)` (eq. 2).
 //! - `K`: motor torque constant, N m/A ([`K_MOTOR`] = 1 N m/A, so a current

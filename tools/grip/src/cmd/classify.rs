@@ -7,7 +7,6 @@
 //! per road, the majority road and its share).
 
 use super::Ctx;
-use crate::dataset::read_wav;
 use anyhow::{Context, Result, bail};
 use grip_arte::features::FeatureExtractor;
 use grip_arte::model::Model;
@@ -104,7 +103,7 @@ pub fn run(ctx: &Ctx, args: Args) -> Result<()> {
         .clone()
         .unwrap_or_else(|| ctx.config_dir.join("models").join("default.model"));
     let model = load_model(&path)?;
-    let audio = read_wav(&args.file)?;
+    let audio = grip_io::wav::read_mono(&args.file)?;
     let rows = classify(
         &model,
         &audio.samples,

@@ -18,11 +18,12 @@
 //! dataset holds nothing but class folders.
 
 use super::Ctx;
-use crate::wav;
+use super::snr::{Snr, parse_snr};
 use anyhow::{Context, Result, bail};
 use grip_arte::synth::{
     NoiseConfig, ROADS, Segment, SnrScope, SynthConfig, render, render_scoped, road_index,
 };
+use grip_io::wav;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -96,10 +97,11 @@ struct SynthArgs {
     /// "random" (each recording draws one of none, rain, car, rain+car).
     #[arg(long, default_value = "none")]
     noise: String,
-    /// Signal-to-noise ratio over each recording (dB) when noise is mixed in:
-    /// a value, or "A..B" for a uniform draw per recording.
-    #[arg(long, default_value = "10", allow_hyphen_values = true)]
-    snr_db: String,
+    /// Signal-to-noise ratio over each recording (dB, -30..=80) when noise is
+    /// mixed in: a value, "A..B" for a uniform draw per recording, or "off"
+    /// (no noise: the same as --noise none).
+    #[arg(long, default_value = "10", allow_hyphen_values = true, value_parser = parse_snr)]
+    snr_db: Snr,
     /// Also write this many recordings with abrupt road changes (into --changes-out).
     #[arg(long, default_value_t = 0)]
     changes: usize,
@@ -275,23 +277,17 @@ fn parse_range(s: &str, what: &str) -> Result<(f64, f64)> {
     Ok((a, b))
 }
 
-fn parse_snr(s: &str) -> Result<(f64, f64)> {
-    let parse = |t: &str| {
-        t.trim()
-            .parse::<f64>()
-            .with_context(|| format!("--snr-db: `{t}` is not a number"))
-    };
-    let (a, b) = match s.split_once("..") {
-        Some((a, b)) => (parse(a)?, parse(b)?),
-        None => {
-            let v = parse(s)?;
-            (v, v)
+/// The SNR range (dB) a recording's level is drawn from; `off` is allowed
+/// only without noise (its level is then never used).
+fn snr_range(snr: Snr, noise: &str) -> Result<(f64, f64)> {
+    Ok(match snr {
+        Snr::Db(x) => (x, x),
+        Snr::Range(a, b) => (a, b),
+        Snr::Off if noise.trim() == "none" => (0.0, 0.0),
+        Snr::Off => {
+            bail!("--snr-db off means no noise, but --noise is `{noise}`; use --noise none")
         }
-    };
-    if !(a.is_finite() && b.is_finite() && a <= b && a >= -30.0 && b <= 80.0) {
-        bail!("--snr-db: `{s}` is not a value or range A..B within -30..80 dB");
-    }
-    Ok((a, b))
+    })
 }
 
 fn parse_noise(s: &str, snr_db: f64) -> Result<(Option<NoiseConfig>, String)> {
@@ -426,7 +422,7 @@ fn synth(a: SynthArgs) -> Result<()> {
     if !(a.duration > 0.0 && a.duration <= 3600.0) {
         bail!("--duration: {} s is outside (0, 3600]", a.duration);
     }
-    let (snr0, snr1) = parse_snr(&a.snr_db)?;
+    let (snr0, snr1) = snr_range(a.snr_db, &a.noise)?;
     let random_noise = a.noise.trim() == "random";
     let (noise, noise_label) = if random_noise {
         (None, String::new())
@@ -980,7 +976,7 @@ mod tests {
             speeds: "10-30".into(),
             speed_scale: "uniform".into(),
             noise: "rain,car".into(),
-            snr_db: "5..15".into(),
+            snr_db: Snr::Range(5.0, 15.0),
             changes: 2,
             changes_out: None,
             segment: "0.1-0.2".into(),
@@ -1129,9 +1125,14 @@ mod tests {
                 .to_string()
                 .contains("snow")
         );
-        assert_eq!(parse_snr("-5..10").unwrap(), (-5.0, 10.0));
-        assert_eq!(parse_snr("10").unwrap(), (10.0, 10.0));
-        assert!(parse_snr("10..5").is_err());
+        assert_eq!(
+            snr_range(Snr::Range(-5.0, 10.0), "rain").unwrap(),
+            (-5.0, 10.0)
+        );
+        assert_eq!(snr_range(Snr::Db(10.0), "car").unwrap(), (10.0, 10.0));
+        assert!(snr_range(Snr::Off, "none").is_ok());
+        let e = snr_range(Snr::Off, "rain,car").unwrap_err().to_string();
+        assert!(e.contains("--snr-db off") && e.contains("rain,car"), "{e}");
         let dir = tempfile::tempdir().unwrap();
         let classes = vec!["asphalt".to_string()];
         let e = read_changes(dir.path(), &classes).unwrap_err().to_string();

@@ -56,7 +56,8 @@ pub struct Args {
 }
 
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
-    let bin = drive::bin_dir()?;
+    // `$GRIP_BIN_DIR`, else beside the running `grip` (`target/<profile>/`)
+    let bin = grip_io::binaries::bin_dir()?.path;
     if !args.dry_run {
         drive::check_binaries(&bin)?;
     }

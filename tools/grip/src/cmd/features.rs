@@ -4,10 +4,10 @@
 
 use super::Ctx;
 use crate::dataset::Dataset;
-use crate::wav;
 use anyhow::{Context, Result, bail};
 use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet, N_PAPER20, Prefilter};
 use grip_arte::select::{kl_report, paper7_config, select_paper7, variance_ratios};
+use grip_io::wav;
 use std::io::Write;
 use std::path::PathBuf;
 

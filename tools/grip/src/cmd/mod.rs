@@ -8,6 +8,7 @@ pub mod features;
 pub mod inspect;
 pub mod roads;
 pub mod sim;
+pub mod snr;
 pub mod train;
 
 /// What every subcommand gets from the global options.

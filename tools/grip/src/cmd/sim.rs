@@ -22,6 +22,7 @@ use grip_sim::{
 };
 
 use super::Ctx;
+use super::snr::{Snr, parse_snr};
 
 /// Hold (s) of the "stable" detection delay: the ARTE crate's definition
 /// (`grip_arte::stream::detection_delays`, `grip dataset delay`).
@@ -60,12 +61,18 @@ pub struct Args {
     /// ARTE configuration (default: <config-dir>/arte.toml).
     #[arg(long)]
     arte_config: Option<PathBuf>,
+    /// Vehicle and sensors (default: <config-dir>/vehicle.toml); e.g.
+    /// config/vehicles/front-mic.toml (microphone one wheelbase ahead of the
+    /// driven rear wheel: the ARTE variants get a preview of the road).
+    #[arg(long)]
+    vehicle: Option<PathBuf>,
     /// `--arte acoustic`: the ARTE model file (default: <config-dir>/models/default.model).
     #[arg(long)]
     model: Option<PathBuf>,
     /// `--arte acoustic`: rain and passing-car noise mixed into the audio at
-    /// this SNR in dB, or `off` for clean road sound. Default 10 dB: the
-    /// condition the shipped models are trained and evaluated at.
+    /// this SNR in dB (-30..=80), or `off` for clean road sound (a range
+    /// A..B, which `grip dataset synth` takes, is refused). Default 10 dB:
+    /// the condition the shipped models are trained and evaluated at.
     #[arg(long, default_value = "10", allow_hyphen_values = true, value_parser = parse_snr)]
     snr_db: Snr,
     /// `--arte acoustic`: what roads without a synthesiser model sound like,
@@ -102,9 +109,13 @@ pub fn load(
     config_dir: &Path,
     scenario: &str,
     arte_config: Option<&Path>,
+    vehicle: Option<&Path>,
 ) -> anyhow::Result<Loaded> {
     let dir = ConfigDir::new(config_dir);
-    let (vehicle, sensors) = dir.vehicle()?;
+    let (vehicle, sensors) = match vehicle {
+        Some(p) => grip_config::load_vehicle(p)?,
+        None => dir.vehicle()?,
+    };
     let roads = dir.roads()?;
     let scenario_path = dir.scenario_path(scenario);
     let scenario = dir.scenario_with(scenario, &roads)?;
@@ -131,7 +142,12 @@ fn reason_of(e: &grip_sim::SimError) -> String {
 
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     let variants = Variant::parse_list(&args.variants)?;
-    let mut loaded = load(&ctx.config_dir, &args.scenario, args.arte_config.as_deref())?;
+    let mut loaded = load(
+        &ctx.config_dir,
+        &args.scenario,
+        args.arte_config.as_deref(),
+        args.vehicle.as_deref(),
+    )?;
     if let Some(h) = args.max_substep {
         loaded.setup.set_max_substep(h).context("--max-substep")?;
     }
@@ -257,28 +273,6 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `--snr-db`: a level in dB or no noise.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Snr {
-    /// Clean road sound.
-    Off,
-    /// Rain and passing cars at this SNR, dB.
-    Db(f64),
-}
-
-fn parse_snr(s: &str) -> Result<Snr, String> {
-    if s.eq_ignore_ascii_case("off") {
-        return Ok(Snr::Off);
-    }
-    let x: f64 = s
-        .parse()
-        .map_err(|_| format!("`{s}` is neither a number of dB nor `off`"))?;
-    if !(-30.0..=80.0).contains(&x) {
-        return Err(format!("{x} dB is outside -30..=80"));
-    }
-    Ok(Snr::Db(x))
-}
-
 /// The acoustic source: model, chain settings, and a one-line description.
 struct AcousticSetup {
     model: Model,
@@ -302,8 +296,12 @@ fn load_acoustic(ctx: &Ctx, args: &Args, setup: &SimSetup) -> anyhow::Result<Aco
     })?;
     let model = Model::from_bytes(&bytes).with_context(|| format!("{}", path.display()))?;
     let mut config = AcousticConfig::default();
-    if let Snr::Db(snr) = args.snr_db {
-        config = config.with_noise_snr(snr);
+    match args.snr_db {
+        Snr::Off => {}
+        Snr::Db(snr) => config = config.with_noise_snr(snr),
+        Snr::Range(a, b) => anyhow::bail!(
+            "--snr-db {a}..{b}: grip sim runs every variant at one condition; give one level in dB or `off`"
+        ),
     }
     if let Some(spec) = &args.sound_as {
         config

@@ -24,9 +24,10 @@ use grip_arte::eval::{Confusion, Samples};
 use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet, SpeedNorm};
 use grip_arte::mlp::{LmConfig, OutputKind};
 use grip_arte::model::{
-    ClassifierSpec, EvalSummary, FitReport, Model, cross_validate, fit, grid_search_svm, sha256_hex,
+    ClassifierSpec, EvalSummary, FitReport, Model, cross_validate, fit, grid_search_svm,
 };
 use grip_arte::svm::{Kernel, SvmConfig};
+use grip_digest::sha256_hex;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -215,7 +216,7 @@ pub fn extract_dataset(
     );
     pb.set_prefix(format!("features {}", ds.root.display()));
     for e in &ds.entries {
-        let audio = read_wav(&e.path)?;
+        let (audio, sha256) = read_wav(&e.path)?;
         if audio.sample_rate != cfg.sample_rate {
             bail!(
                 "{}: sample rate {} Hz, but the features are configured for {} Hz (all files of a dataset must share one rate)",
@@ -224,11 +225,7 @@ pub fn extract_dataset(
                 cfg.sample_rate
             );
         }
-        let _ = writeln!(
-            hash_input,
-            "{}\0{}\0{}",
-            ds.classes[e.class], e.rel, audio.sha256
-        );
+        let _ = writeln!(hash_input, "{}\0{}\0{}", ds.classes[e.class], e.rel, sha256);
         if audio.samples.len() < frame_len {
             bail!(
                 "{}: {} samples, shorter than one {:.3} s frame ({} samples)",
@@ -264,7 +261,7 @@ pub fn extract_dataset(
 /// Sample rate of the first file (all files are checked during extraction).
 fn dataset_rate(ds: &Dataset) -> Result<u32> {
     let first = ds.entries.first().context("dataset has no files")?;
-    Ok(read_wav(&first.path)?.sample_rate)
+    Ok(grip_io::wav::read_mono(&first.path)?.sample_rate)
 }
 
 /// Evaluates `model` on a held-out dataset folder (classes matched by name).

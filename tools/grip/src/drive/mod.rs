@@ -28,18 +28,6 @@ use self::log::DriveLog;
 use self::manager::{Env, Proc, describe_status};
 use self::services::Service;
 
-/// Directory holding the service binaries: `$GRIP_BIN_DIR`, else the
-/// directory of the running `grip` executable (`target/<profile>/`).
-pub fn bin_dir() -> anyhow::Result<PathBuf> {
-    if let Some(d) = std::env::var_os("GRIP_BIN_DIR").filter(|d| !d.is_empty()) {
-        return Ok(PathBuf::from(d));
-    }
-    let exe = std::env::current_exe().context("locating the grip executable")?;
-    exe.parent()
-        .map(Path::to_path_buf)
-        .context("the grip executable has no parent directory")
-}
-
 /// Checks that every service binary exists in `dir`.
 pub fn check_binaries(dir: &Path) -> anyhow::Result<()> {
     let missing: Vec<&str> = Service::START_ORDER

@@ -6,7 +6,7 @@
 //!   recorder's own counters (`grip.recorder`: received, queue drops);
 //! - loop timing from the `CycleRecord`s: wake-up latency and compute time
 //!   (p50/p99/max), deadline misses, safe-state cycles;
-//! - the metrics of MODELS.md §4 via `grip_tcs::MetricsAccumulator` (the
+//! - the metrics (`grip_tcs::metrics`) via `grip_tcs::MetricsAccumulator` (the
 //!   code the offline simulator uses) on the plant's ground truth over the
 //!   scenario window;
 //! - CAN: frames per message and direction, E2E rejections, the loop's
@@ -163,7 +163,7 @@ pub struct Summary {
     pub topics: Vec<TopicLine>,
     /// Loop timing.
     pub timing: Timing,
-    /// MODELS.md §4 metrics over the scenario window (None: no truth).
+    /// The `grip_tcs::metrics` metrics over the scenario window (None: no truth).
     pub metrics: Option<Metrics>,
     /// Scenario window, s from the first truth: (start, end).
     pub window: Option<(f64, f64)>,
@@ -571,7 +571,7 @@ impl Summary {
         if let (Some(m), Some((t0, t1))) = (&self.metrics, self.window) {
             let _ = writeln!(
                 o,
-                "\nmetrics (MODELS.md §4, ground truth, scenario window {t0:.3}-{t1:.3} s of the truth stream)"
+                "\nmetrics (grip_tcs::metrics, ground truth, scenario window {t0:.3}-{t1:.3} s of the truth stream)"
             );
             let _ = writeln!(
                 o,

@@ -1,0 +1,516 @@
+//! WAV files (hound underneath): the one reader and writer of grip. The
+//! `grip` CLI (`dataset`, `features`, `train`, `classify`) and audio-acq's
+//! file source (`WavSource`) read through it, `grip dataset synth` writes
+//! through it, so a recording decodes to the same samples offline and live.
+//!
+//! Reading:
+//! - PCM integer (1..=32 bit) and 32-bit float files; integers are scaled to
+//!   [−1, 1) by 2^(bits−1); non-finite float samples (NaN, ±∞) are read as 0.
+//! - Several channels are **mixed down** to mono by averaging.
+//! - A file at another sample rate is **resampled** to the rate asked for by
+//!   [`read_mono_at`] ([`resample`]); [`read_mono`] and [`decode_mono`] keep
+//!   the file's rate. The result, an [`Audio`], records the file's own rate
+//!   and channel count so callers can report them.
+//! - Every refusal is a [`WavError`] naming the file and the reason
+//!   ([`WavErrorKind`]): cannot open, not a WAV file, 0 channels, sample
+//!   rate 0, unsupported sample width, truncated or corrupt data.
+//!
+//! Writing: [`write_mono_i16`] writes 16-bit mono PCM, clamping to [−1, 1].
+//!
+//! The resampler lives here, beside the file reader, rather than in the
+//! pure DSP crate grip-arte: its only use is reading a file recorded at
+//! another rate (offline, or once at audio-acq's start-up; the live audio
+//! path never resamples, the arte service counts a rate mismatch instead),
+//! and grip-io depending on grip-arte for it would pull the feature and
+//! classifier crate (rustfft, nalgebra) into every service.
+
+use std::path::{Path, PathBuf};
+
+/// Mono audio decoded from a WAV file. `S` is the sample type: `f32` in
+/// [−1, 1] as read; a consumer that needs another format converts with
+/// [`Audio::map`] (audio-acq: S16).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Audio<S = f32> {
+    /// Sample rate of `samples`, Hz.
+    pub sample_rate: u32,
+    /// Mono samples (channels averaged).
+    pub samples: Vec<S>,
+    /// The file's own sample rate, Hz.
+    pub file_rate: u32,
+    /// The file's channel count (mixed down to mono).
+    pub file_channels: u16,
+}
+
+impl<S> Audio<S> {
+    /// Duration, s.
+    pub fn duration_s(&self) -> f64 {
+        self.samples.len() as f64 / f64::from(self.sample_rate)
+    }
+
+    /// The same audio with every sample converted by `f`.
+    pub fn map<T>(self, f: impl FnMut(S) -> T) -> Audio<T> {
+        Audio {
+            sample_rate: self.sample_rate,
+            samples: self.samples.into_iter().map(f).collect(),
+            file_rate: self.file_rate,
+            file_channels: self.file_channels,
+        }
+    }
+}
+
+/// A WAV file that cannot be read or written: the file and why.
+#[derive(Debug, thiserror::Error)]
+#[error("WAV file {}: {kind}", path.display())]
+pub struct WavError {
+    /// The file.
+    pub path: PathBuf,
+    /// Why.
+    pub kind: WavErrorKind,
+}
+
+/// Why a WAV file cannot be read or written.
+#[derive(Debug, thiserror::Error)]
+pub enum WavErrorKind {
+    /// The file does not open or its header cannot be read.
+    #[error("cannot open: {0}")]
+    Open(std::io::Error),
+    /// The bytes are not a WAV file (no RIFF/WAVE header, bad chunks).
+    #[error("not a valid WAV file: {0}")]
+    NotWav(&'static str),
+    /// hound refuses the file for another reason.
+    #[error("not a readable WAV file: {0}")]
+    Unreadable(hound::Error),
+    /// The header says 0 channels.
+    #[error("header says 0 channels")]
+    NoChannels,
+    /// The header says sample rate 0.
+    #[error("header says sample rate 0 Hz")]
+    NoSampleRate,
+    /// Integer PCM wider than 32 bits (or 0 bits).
+    #[error("unsupported PCM sample width {0} bits")]
+    IntWidth(u16),
+    /// Float samples other than 32-bit.
+    #[error("unsupported float sample width {0} bits (only 32)")]
+    FloatWidth(u16),
+    /// A sample could not be decoded.
+    #[error("truncated or corrupt after {got} of {expected} samples: {error}")]
+    Corrupt {
+        /// Samples decoded before the failure.
+        got: usize,
+        /// Samples the header announces.
+        expected: usize,
+        /// hound's reason.
+        error: hound::Error,
+    },
+    /// Fewer samples than the header announces.
+    #[error("truncated: {got} of {expected} samples present")]
+    Truncated {
+        /// Samples present.
+        got: usize,
+        /// Samples the header announces.
+        expected: usize,
+    },
+    /// The file holds no samples (for a caller that needs some).
+    #[error("has no samples")]
+    NoSamples,
+    /// Resampling to 0 Hz was asked for.
+    #[error("cannot resample to 0 Hz")]
+    ZeroTargetRate,
+    /// The file cannot be created.
+    #[error("cannot create: {0}")]
+    Create(hound::Error),
+    /// A sample or the header cannot be written.
+    #[error("cannot write: {0}")]
+    Write(hound::Error),
+}
+
+impl WavErrorKind {
+    /// This reason, for `path`.
+    pub fn at(self, path: &Path) -> WavError {
+        WavError {
+            path: path.to_owned(),
+            kind: self,
+        }
+    }
+
+    fn open(e: hound::Error) -> Self {
+        match e {
+            hound::Error::IoError(io) => Self::Open(io),
+            hound::Error::FormatError(m) => Self::NotWav(m),
+            other => Self::Unreadable(other),
+        }
+    }
+}
+
+/// Reads a WAV file as mono at its own sample rate.
+pub fn read_mono(path: &Path) -> Result<Audio, WavError> {
+    hound::WavReader::open(path)
+        .map_err(WavErrorKind::open)
+        .and_then(decode)
+        .map_err(|k| k.at(path))
+}
+
+/// Reads a WAV file as mono at `rate` Hz, resampling ([`resample`]) if the
+/// file has another rate.
+pub fn read_mono_at(path: &Path, rate: u32) -> Result<Audio, WavError> {
+    let mut a = read_mono(path)?;
+    if a.sample_rate != rate {
+        if rate == 0 {
+            return Err(WavErrorKind::ZeroTargetRate.at(path));
+        }
+        a.samples = resample(&a.samples, a.sample_rate, rate);
+        a.sample_rate = rate;
+    }
+    Ok(a)
+}
+
+/// Decodes the bytes of a WAV file already in memory (`grip train` hashes
+/// them too) as mono at the file's own rate; `path` names the file in errors.
+pub fn decode_mono(bytes: &[u8], path: &Path) -> Result<Audio, WavError> {
+    hound::WavReader::new(std::io::Cursor::new(bytes))
+        .map_err(WavErrorKind::open)
+        .and_then(decode)
+        .map_err(|k| k.at(path))
+}
+
+fn decode<R: std::io::Read>(mut reader: hound::WavReader<R>) -> Result<Audio, WavErrorKind> {
+    let spec = reader.spec();
+    let ch = spec.channels;
+    if ch == 0 {
+        return Err(WavErrorKind::NoChannels);
+    }
+    if spec.sample_rate == 0 {
+        return Err(WavErrorKind::NoSampleRate);
+    }
+    let expected = reader.len() as usize;
+    let mut inter: Vec<f32> = Vec::with_capacity(expected);
+    let corrupt = |got: usize, error: hound::Error| WavErrorKind::Corrupt {
+        got,
+        expected,
+        error,
+    };
+    match spec.sample_format {
+        hound::SampleFormat::Int => {
+            if !(1..=32).contains(&spec.bits_per_sample) {
+                return Err(WavErrorKind::IntWidth(spec.bits_per_sample));
+            }
+            let scale = 1.0 / (1u64 << (spec.bits_per_sample - 1)) as f64;
+            for s in reader.samples::<i32>() {
+                let v = s.map_err(|e| corrupt(inter.len(), e))?;
+                inter.push((f64::from(v) * scale) as f32);
+            }
+        }
+        hound::SampleFormat::Float => {
+            if spec.bits_per_sample != 32 {
+                return Err(WavErrorKind::FloatWidth(spec.bits_per_sample));
+            }
+            for s in reader.samples::<f32>() {
+                let v = s.map_err(|e| corrupt(inter.len(), e))?;
+                inter.push(if v.is_finite() { v } else { 0.0 });
+            }
+        }
+    }
+    if inter.len() < expected {
+        return Err(WavErrorKind::Truncated {
+            got: inter.len(),
+            expected,
+        });
+    }
+    let samples = if ch == 1 {
+        inter
+    } else {
+        inter
+            .chunks_exact(usize::from(ch))
+            .map(|f| f.iter().sum::<f32>() / f32::from(ch))
+            .collect()
+    };
+    Ok(Audio {
+        sample_rate: spec.sample_rate,
+        samples,
+        file_rate: spec.sample_rate,
+        file_channels: ch,
+    })
+}
+
+/// Writes 16-bit mono PCM at `rate`, clamping samples to [−1, 1].
+pub fn write_mono_i16(path: &Path, rate: u32, samples: &[f32]) -> Result<(), WavError> {
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: rate,
+        bits_per_sample: 16,
+        sample_format: hound::SampleFormat::Int,
+    };
+    let mut w =
+        hound::WavWriter::create(path, spec).map_err(|e| WavErrorKind::Create(e).at(path))?;
+    for &s in samples {
+        let v = (f64::from(s).clamp(-1.0, 1.0) * 32767.0).round() as i16;
+        w.write_sample(v)
+            .map_err(|e| WavErrorKind::Write(e).at(path))?;
+    }
+    w.finalize().map_err(|e| WavErrorKind::Write(e).at(path))
+}
+
+/// Band-limited resampling from `from` Hz to `to` Hz (windowed sinc,
+/// Blackman window, 32 zero crossings, cut-off 0.95 of the lower Nyquist
+/// frequency): each output sample is
+/// Σ_k x[k] · c · sinc(c (u − k)) · w((u − k)/W) at input position
+/// u = n · from/to, with cut-off c = 0.95 · min(1, to/from) (of the input
+/// Nyquist), Blackman window w over |u − k| < W = 32/c. Returns `x`
+/// unchanged when the rates are equal, either is 0, or `x` is empty.
+/// Allocates its output: offline and start-up use only.
+pub fn resample(x: &[f32], from: u32, to: u32) -> Vec<f32> {
+    if from == to || x.is_empty() || from == 0 || to == 0 {
+        return x.to_vec();
+    }
+    let ratio = f64::from(from) / f64::from(to);
+    let c = 0.95 * (1.0 / ratio).min(1.0);
+    let half = 32.0 / c;
+    let n_out = (x.len() as u64 * u64::from(to) / u64::from(from)) as usize;
+    let pi = std::f64::consts::PI;
+    (0..n_out)
+        .map(|n| {
+            let u = n as f64 * ratio;
+            let k0 = (u - half).ceil().max(0.0) as usize;
+            let k1 = ((u + half).floor() as usize).min(x.len() - 1);
+            let mut acc = 0.0;
+            for (k, &xk) in x.iter().enumerate().take(k1 + 1).skip(k0) {
+                let d = u - k as f64;
+                let s = if d.abs() < 1e-12 {
+                    1.0
+                } else {
+                    (pi * c * d).sin() / (pi * c * d)
+                };
+                let t = d / half; // in (−1, 1)
+                let w = 0.42 + 0.5 * (pi * t).cos() + 0.08 * (2.0 * pi * t).cos();
+                acc += f64::from(xk) * c * s * w;
+            }
+            acc as f32
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tone(rate: u32, f: f64, secs: f64) -> Vec<f32> {
+        (0..(f64::from(rate) * secs) as usize)
+            .map(|n| {
+                (0.5 * (2.0 * std::f64::consts::PI * f * n as f64 / f64::from(rate)).sin()) as f32
+            })
+            .collect()
+    }
+
+    fn write_spec<S: hound::Sample + Copy>(p: &Path, spec: hound::WavSpec, samples: &[S]) {
+        let mut w = hound::WavWriter::create(p, spec).unwrap();
+        for &s in samples {
+            w.write_sample(s).unwrap();
+        }
+        w.finalize().unwrap();
+    }
+
+    fn spec(channels: u16, rate: u32, bits: u16, float: bool) -> hound::WavSpec {
+        hound::WavSpec {
+            channels,
+            sample_rate: rate,
+            bits_per_sample: bits,
+            sample_format: if float {
+                hound::SampleFormat::Float
+            } else {
+                hound::SampleFormat::Int
+            },
+        }
+    }
+
+    #[test]
+    fn round_trip_16_bit() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.wav");
+        let x = tone(44_100, 440.0, 0.1);
+        write_mono_i16(&p, 44_100, &x).unwrap();
+        let a = read_mono(&p).unwrap();
+        assert_eq!(
+            (a.sample_rate, a.file_rate, a.file_channels),
+            (44_100, 44_100, 1)
+        );
+        assert_eq!(a.samples.len(), x.len());
+        for (u, v) in a.samples.iter().zip(&x) {
+            assert!((u - v).abs() < 1.0 / 32_000.0);
+        }
+        // the same bytes decoded in memory give the same audio
+        let b = decode_mono(&std::fs::read(&p).unwrap(), &p).unwrap();
+        assert_eq!(a, b);
+        assert!((a.duration_s() - 0.1).abs() < 1e-4);
+    }
+
+    #[test]
+    fn writing_clamps_to_full_scale() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("c.wav");
+        write_mono_i16(&p, 8000, &[2.0, -2.0, 0.5]).unwrap();
+        let raw: Vec<i16> = hound::WavReader::open(&p)
+            .unwrap()
+            .samples::<i16>()
+            .map(Result::unwrap)
+            .collect();
+        assert_eq!(raw, [32767, -32767, 16384]);
+    }
+
+    #[test]
+    fn stereo_is_mixed_down() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("s.wav");
+        let inter: Vec<i16> = (0..100i16).flat_map(|i| [i * 100, -i * 50]).collect();
+        write_spec(&p, spec(2, 44_100, 16, false), &inter);
+        let a = read_mono(&p).unwrap();
+        assert_eq!(a.file_channels, 2);
+        assert_eq!(a.samples.len(), 100);
+        for (i, &s) in a.samples.iter().enumerate() {
+            let expect = (i as f32 * 100.0 - i as f32 * 50.0) / 2.0 / 32_768.0;
+            assert!((s - expect).abs() < 1e-6, "{i}: {s} vs {expect}");
+        }
+    }
+
+    #[test]
+    fn integer_widths_scale_to_unit_range_and_non_finite_floats_read_as_zero() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("w24.wav");
+        write_spec(&p, spec(1, 8000, 24, false), &[-(1i32 << 23), 1 << 22, 0]);
+        assert_eq!(read_mono(&p).unwrap().samples, [-1.0, 0.5, 0.0]);
+        let p = dir.path().join("w8.wav");
+        write_spec(&p, spec(1, 8000, 8, false), &[-128i8, 64, 127]);
+        assert_eq!(read_mono(&p).unwrap().samples, [-1.0, 0.5, 127.0 / 128.0]);
+        let p = dir.path().join("nan.wav");
+        write_spec(
+            &p,
+            spec(1, 8000, 32, true),
+            &[0.25f32, f32::NAN, f32::INFINITY, -0.5],
+        );
+        assert_eq!(read_mono(&p).unwrap().samples, [0.25, 0.0, 0.0, -0.5]);
+    }
+
+    #[test]
+    fn other_rate_is_resampled() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("r.wav");
+        write_spec(&p, spec(1, 48_000, 32, true), &tone(48_000, 1000.0, 0.5));
+        let a = read_mono_at(&p, 44_100).unwrap();
+        assert_eq!((a.sample_rate, a.file_rate), (44_100, 48_000));
+        assert_eq!(a.samples.len(), 22_050);
+        // Compare with the ideal 1 kHz tone at 44.1 kHz away from the edges.
+        let ideal = tone(44_100, 1000.0, 0.5);
+        let err = a.samples[2000..20_000]
+            .iter()
+            .zip(&ideal[2000..20_000])
+            .map(|(u, v)| (u - v).abs())
+            .fold(0.0f32, f32::max);
+        assert!(err < 0.01, "max error {err}");
+        let e = read_mono_at(&p, 0).unwrap_err();
+        assert!(matches!(e.kind, WavErrorKind::ZeroTargetRate), "{e}");
+    }
+
+    #[test]
+    fn downsampling_removes_content_above_the_new_nyquist() {
+        let x = tone(44_100, 15_000.0, 0.5);
+        let y = resample(&x, 44_100, 16_000);
+        let rms = (y[1000..7000].iter().map(|v| v * v).sum::<f32>() / 6000.0).sqrt();
+        assert!(rms < 0.01, "15 kHz leaked into 16 kHz output: rms {rms}");
+        assert_eq!(resample(&x[..10], 44_100, 44_100), x[..10]);
+        assert_eq!(resample(&x[..10], 44_100, 0), x[..10]);
+    }
+
+    #[test]
+    fn map_converts_samples_and_keeps_the_rates() {
+        let a = Audio {
+            sample_rate: 8000,
+            samples: vec![0.5f32, -1.0],
+            file_rate: 16_000,
+            file_channels: 2,
+        };
+        let b = a.map(|s| (s * 2.0) as i32);
+        assert_eq!(b.samples, [1, -2]);
+        assert_eq!(
+            (b.sample_rate, b.file_rate, b.file_channels),
+            (8000, 16_000, 2)
+        );
+    }
+
+    #[test]
+    fn every_refusal_names_the_file_and_the_reason() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("cut.wav");
+        write_mono_i16(&p, 44_100, &tone(44_100, 440.0, 0.1)).unwrap();
+        let bytes = std::fs::read(&p).unwrap();
+        std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+        let e = read_mono(&p).unwrap_err();
+        assert!(
+            matches!(
+                e.kind,
+                WavErrorKind::Corrupt {
+                    got: 2194,
+                    expected: 4410,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        let e = e.to_string();
+        assert!(e.contains("cut.wav") && e.contains("truncated"), "{e}");
+        // the same in memory
+        let e = decode_mono(&bytes[..bytes.len() / 2], &p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("cut.wav") && e.contains("truncated"), "{e}");
+
+        let q = dir.path().join("notes.wav");
+        std::fs::write(&q, b"this is not audio at all, just text").unwrap();
+        let e = read_mono(&q).unwrap_err().to_string();
+        assert!(
+            e.contains("notes.wav") && e.contains("not a valid WAV"),
+            "{e}"
+        );
+
+        let e = read_mono(&dir.path().join("missing.wav"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("missing.wav") && e.contains("cannot open"),
+            "{e}"
+        );
+
+        // headers patched in a valid 16-bit mono file: fmt chunk fields at
+        // tag + 8 (format), + 10 (channels), + 12 (rate), + 22 (bits)
+        let z = dir.path().join("valid.wav");
+        write_mono_i16(&z, 8000, &[0.0; 4]).unwrap();
+        let valid = std::fs::read(&z).unwrap();
+        let fmt = valid.windows(4).position(|w| w == b"fmt ").unwrap();
+        let patched = |at: usize, bytes: &[u8]| {
+            let mut b = valid.clone();
+            b[fmt + at..fmt + at + bytes.len()].copy_from_slice(bytes);
+            b
+        };
+        // (hound refuses most of these itself; its reason is passed on)
+        let cases = [
+            ("zero_ch.wav", patched(10, &[0, 0]), "zero channels"),
+            (
+                "rate0.wav",
+                patched(12, &[0, 0, 0, 0, 0, 0, 0, 0]),
+                "sample rate 0 Hz",
+            ),
+            ("int40.wav", patched(22, &[40, 0]), "not a valid WAV file"),
+            ("float16.wav", patched(8, &[3, 0]), "not 32"),
+        ];
+        for (name, bytes, reason) in cases {
+            let e = decode_mono(&bytes, Path::new(name))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.starts_with(&format!("WAV file {name}: ")) && e.contains(reason),
+                "{e}"
+            );
+        }
+        let e = write_mono_i16(&dir.path().join("no/such/dir.wav"), 8000, &[0.0]).unwrap_err();
+        assert!(matches!(e.kind, WavErrorKind::Create(_)), "{e}");
+        assert!(e.to_string().contains("dir.wav"), "{e}");
+    }
+}

@@ -1,0 +1,372 @@
+//! Road belief: the acoustic estimate fused with what the wheel measures.
+//!
+//! Acoustics and slip fail in different places. Acoustics says nothing until
+//! a frame is decided, and nothing right for a surface it was never trained
+//! on (ice). Slip evidence is weak while the wheel transmits little (at small
+//! slip the μ-λ curves differ only in their initial slope, which sensor noise
+//! blurs), but a friction drop shows in the wheel within a few cycles. The
+//! belief over the catalogue's roads is
+//!
+//! ```text
+//!   b(r) ∝ p_ac(r) · exp(S(r))
+//! ```
+//!
+//! - `p_ac`: the acoustic posterior of the road under the wheel: the decided
+//!   road gets its (capped) confidence c, every other road (1 − c)/(K − 1);
+//!   uniform before any decision.
+//! - `S(r)`: slip evidence, a leaky sum (time constant `tau_forget_s`) of
+//!   `weight · log N(μ̂ − μ_r(λ); 0, σ_r²)` per cycle, with μ̂ from the
+//!   wheel's torque balance (a first-order driving-force observer,
+//!   μ̂ = (T − J_w dω/dt)/(N r)), λ measured from ω and V, and
+//!   σ_r² = σ_μ² + (μ_r'(λ) σ_λ)² (a steep curve is blurred by slip noise).
+//!   Only cycles with a chassis speed and a finite μ̂ count.
+//!
+//! A wheel that spins on a road the microphone took for snow drives S(ice)
+//! far above S(snow) within tens of cycles, so slip evidence overrides an
+//! acoustic estimate that the wheel contradicts; where the wheel says
+//! nothing (small slip, all curves alike) the acoustic posterior decides.
+//! The most probable road and its probability are what the controller is
+//! given. Allocation-free after construction.
+
+use grip_physics::{RoadCatalogue, VehicleParams};
+
+use crate::observer::DrivingForceObserver;
+use crate::types::Measurement;
+
+/// Roads the belief can hold (catalogue size limit).
+pub const MAX_BELIEF_ROADS: usize = 16;
+
+/// Parameters of [`RoadBelief`] (`[fusion]` of `controllers.toml`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FusionParams {
+    /// Observer filter time constant, s.
+    pub tau_obs_s: f64,
+    /// Forgetting time constant of the slip evidence, s.
+    pub tau_forget_s: f64,
+    /// Weight of one cycle's log-likelihood (cycles are correlated through
+    /// the observer's filter, so less than 1).
+    pub weight: f64,
+    /// Friction noise σ_μ.
+    pub sigma_mu: f64,
+    /// Slip noise σ_λ.
+    pub sigma_lambda: f64,
+    /// Largest confidence taken from one acoustic decision (an overconfident
+    /// classifier cannot outvote the wheel).
+    pub max_acoustic_confidence: f64,
+    /// Largest lead of the best road's slip evidence over another's, nats:
+    /// evidence gathered on one road must not outlast the change to the
+    /// next by more than `tau_forget_s · ln(max_evidence / prior ratio)`.
+    pub max_evidence: f64,
+}
+
+impl Default for FusionParams {
+    fn default() -> Self {
+        Self {
+            tau_obs_s: 0.01,
+            tau_forget_s: 0.05,
+            weight: 0.2,
+            sigma_mu: 0.05,
+            sigma_lambda: 0.004,
+            max_acoustic_confidence: 0.97,
+            max_evidence: 10.0,
+        }
+    }
+}
+
+impl FusionParams {
+    /// Ranges (NaN fails).
+    pub fn validate(&self) -> Result<(), grip_physics::InvalidField> {
+        use crate::params::{in_range, positive};
+        positive("tau_obs_s", self.tau_obs_s)?;
+        positive("tau_forget_s", self.tau_forget_s)?;
+        in_range("weight", self.weight, 0.0, 10.0)?;
+        positive("sigma_mu", self.sigma_mu)?;
+        in_range("sigma_lambda", self.sigma_lambda, 0.0, 1.0)?;
+        in_range(
+            "max_acoustic_confidence",
+            self.max_acoustic_confidence,
+            0.0,
+            1.0,
+        )?;
+        Ok(())
+    }
+}
+
+/// See the module docs.
+#[derive(Debug, Clone)]
+pub struct RoadBelief {
+    roads: RoadCatalogue,
+    n: usize,
+    p: FusionParams,
+    observer: DrivingForceObserver,
+    normal_force: f64,
+    r: f64,
+    v_eps: f64,
+    decay: f64,
+    evidence: [f64; MAX_BELIEF_ROADS],
+    belief: [f64; MAX_BELIEF_ROADS],
+    acoustic: Option<(usize, f64)>,
+    mu_hat: f64,
+    lambda: f64,
+    warm_up: u32,
+    cycles: u32,
+}
+
+impl RoadBelief {
+    /// A belief over `roads` (at most [`MAX_BELIEF_ROADS`]; more is an error
+    /// naming `roads`) for `vehicle` at sample time `dt` (s).
+    pub fn new(
+        roads: &RoadCatalogue,
+        vehicle: &VehicleParams,
+        p: FusionParams,
+        dt: f64,
+    ) -> Result<Self, grip_physics::InvalidField> {
+        p.validate()?;
+        if roads.is_empty() || roads.len() > MAX_BELIEF_ROADS {
+            return Err(grip_physics::InvalidField::new(
+                "roads",
+                format!(
+                    "the road belief holds 1..={MAX_BELIEF_ROADS} roads (the catalogue has {})",
+                    roads.len()
+                ),
+            ));
+        }
+        let n = roads.len();
+        let mut b = Self {
+            roads: roads.clone(),
+            n,
+            p,
+            observer: DrivingForceObserver::new(vehicle, p.tau_obs_s, dt),
+            normal_force: vehicle.normal_force(),
+            r: vehicle.r,
+            v_eps: vehicle.v_eps,
+            decay: (-dt / p.tau_forget_s).exp(),
+            evidence: [0.0; MAX_BELIEF_ROADS],
+            belief: [0.0; MAX_BELIEF_ROADS],
+            acoustic: None,
+            mu_hat: f64::NAN,
+            lambda: f64::NAN,
+            // The observer's filters start from zero: its μ̂ means nothing
+            // for the first few time constants.
+            warm_up: (3.0 * p.tau_obs_s / dt).ceil().clamp(1.0, 1e6) as u32,
+            cycles: 0,
+        };
+        b.normalise();
+        Ok(b)
+    }
+
+    /// Back to no knowledge (start of a drive).
+    pub fn reset(&mut self) {
+        self.observer.reset();
+        self.evidence = [0.0; MAX_BELIEF_ROADS];
+        self.acoustic = None;
+        self.mu_hat = f64::NAN;
+        self.lambda = f64::NAN;
+        self.cycles = 0;
+        self.normalise();
+    }
+
+    /// The acoustic estimate of the road under the wheel now (`None`: none).
+    pub fn set_acoustic(&mut self, road: Option<(usize, f64)>) {
+        self.acoustic = road.filter(|&(i, c)| i < self.n && c.is_finite());
+    }
+
+    /// One cycle of slip evidence from the measurement. Allocation-free.
+    pub fn step(&mut self, m: &Measurement) {
+        let f = self.observer.step(m.torque, m.omega);
+        let mu_hat = f / self.normal_force;
+        self.mu_hat = mu_hat;
+        for e in &mut self.evidence[..self.n] {
+            *e *= self.decay;
+        }
+        let lambda = match m.v {
+            Some(v) if v.is_finite() && m.omega.is_finite() => {
+                let rw = self.r * m.omega;
+                (rw - v) / rw.max(v).max(self.v_eps)
+            }
+            _ => f64::NAN,
+        };
+        self.lambda = lambda;
+        self.cycles = self.cycles.saturating_add(1);
+        if self.cycles > self.warm_up && lambda.is_finite() && mu_hat.is_finite() {
+            let s2l = self.p.sigma_lambda * self.p.sigma_lambda;
+            let s2m = self.p.sigma_mu * self.p.sigma_mu;
+            for (i, road) in self.roads.iter().enumerate().take(self.n) {
+                let mu = road.mu(lambda);
+                let slope = road.dmu_dlambda(lambda);
+                let s2 = s2m + slope * slope * s2l;
+                let d = mu_hat - mu;
+                let ll = -0.5 * d * d / s2 - 0.5 * s2.ln();
+                if ll.is_finite() {
+                    self.evidence[i] += self.p.weight * ll;
+                }
+            }
+            let best = self.evidence[..self.n]
+                .iter()
+                .copied()
+                .fold(f64::NEG_INFINITY, f64::max);
+            for e in &mut self.evidence[..self.n] {
+                *e = (*e - best).max(-self.p.max_evidence);
+            }
+        }
+        self.normalise();
+    }
+
+    fn normalise(&mut self) {
+        let n = self.n;
+        let (ac_road, ac_conf) = match self.acoustic {
+            Some((i, c)) => (Some(i), c.clamp(0.0, self.p.max_acoustic_confidence)),
+            None => (None, 0.0),
+        };
+        let other = if n > 1 {
+            (1.0 - ac_conf) / (n - 1) as f64
+        } else {
+            1.0
+        };
+        let mut max = f64::NEG_INFINITY;
+        for i in 0..n {
+            let prior = match ac_road {
+                Some(a) if a == i => ac_conf.max(other),
+                Some(_) => other,
+                None => 1.0 / n as f64,
+            };
+            let l = prior.max(1e-12).ln() + self.evidence[i];
+            self.belief[i] = l;
+            max = max.max(l);
+        }
+        let mut sum = 0.0;
+        for b in &mut self.belief[..n] {
+            *b = (*b - max).exp();
+            sum += *b;
+        }
+        for b in &mut self.belief[..n] {
+            *b /= sum;
+        }
+    }
+
+    /// Probability of each road (catalogue order).
+    pub fn probabilities(&self) -> &[f64] {
+        &self.belief[..self.n]
+    }
+
+    /// The most probable road and its probability.
+    pub fn best(&self) -> (usize, f64) {
+        let mut best = (0, f64::NEG_INFINITY);
+        for (i, &b) in self.belief[..self.n].iter().enumerate() {
+            if b > best.1 {
+                best = (i, b);
+            }
+        }
+        best
+    }
+
+    /// The latest μ̂ (observer) and measured λ (NaN without a speed).
+    pub fn measured(&self) -> (f64, f64) {
+        (self.mu_hat, self.lambda)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use grip_physics::Road;
+
+    fn roads() -> RoadCatalogue {
+        RoadCatalogue::new(vec![
+            Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap(),
+            Road::burckhardt("snow", 0.1946, 94.129, 0.0646).unwrap(),
+            Road::burckhardt("ice", 0.05, 306.39, 0.0).unwrap(),
+        ])
+        .unwrap()
+    }
+
+    /// Feed steady cycles at slip `lambda` with the torque a road with
+    /// friction `mu` transmits (wheel not accelerating relative to the car).
+    fn steady(b: &mut RoadBelief, lambda: f64, mu: f64, cycles: usize) {
+        let v = VehicleParams::default();
+        let speed = 5.0;
+        let omega = speed / (1.0 - lambda) / v.r;
+        let torque = mu * v.normal_force() * v.r;
+        for _ in 0..cycles {
+            b.step(&Measurement {
+                t: 0.0,
+                omega,
+                v: Some(speed),
+                torque,
+                demand: 300.0,
+            });
+        }
+    }
+
+    fn belief() -> RoadBelief {
+        RoadBelief::new(
+            &roads(),
+            &VehicleParams::default(),
+            FusionParams::default(),
+            1e-3,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn no_evidence_is_the_acoustic_posterior() {
+        let mut b = belief();
+        let p = b.probabilities();
+        assert!(p.iter().all(|&x| (x - 1.0 / 3.0).abs() < 1e-12));
+        b.set_acoustic(Some((1, 0.8)));
+        b.step(&Measurement {
+            v: None,
+            ..Default::default()
+        });
+        assert_eq!(b.best().0, 1);
+        assert!((b.best().1 - 0.8).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_spinning_wheel_overrides_a_confident_snow_estimate_on_ice() {
+        let mut b = belief();
+        b.set_acoustic(Some((1, 0.97)));
+        // Ice at 30 % slip transmits 0.05; snow would give 0.175.
+        let ice = Road::burckhardt("ice", 0.05, 306.39, 0.0).unwrap();
+        // 30 cycles of observer warm-up, then 50 ms of spin.
+        steady(&mut b, 0.3, ice.mu(0.3), 80);
+        let (best, p) = b.best();
+        assert_eq!(best, 2, "{:?}", b.probabilities());
+        assert!(p > 0.9, "{:?}", b.probabilities());
+    }
+
+    #[test]
+    fn traction_on_asphalt_rules_out_snow() {
+        let mut b = belief();
+        b.set_acoustic(Some((1, 0.9)));
+        let asphalt = Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap();
+        steady(&mut b, 0.02, asphalt.mu(0.02), 100);
+        assert_eq!(b.best().0, 0, "{:?}", b.probabilities());
+    }
+
+    #[test]
+    fn evidence_fades_and_reset_forgets() {
+        let mut b = belief();
+        let ice = Road::burckhardt("ice", 0.05, 306.39, 0.0).unwrap();
+        steady(&mut b, 0.3, ice.mu(0.3), 80);
+        assert_eq!(b.best().0, 2);
+        b.reset();
+        assert!((b.best().1 - 1.0 / 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn too_many_roads_is_an_error() {
+        let many: Vec<Road> = (0..17)
+            .map(|i| Road::burckhardt(&format!("r{i}"), 1.0, 20.0, 0.1).unwrap())
+            .collect();
+        let e = RoadBelief::new(
+            &RoadCatalogue::new(many).unwrap(),
+            &VehicleParams::default(),
+            FusionParams::default(),
+            1e-3,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "roads");
+    }
+}

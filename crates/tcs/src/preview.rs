@@ -1,0 +1,298 @@
+//! The road ahead: a fixed-capacity, allocation-free queue of road
+//! knowledge tied to places on the path.
+//!
+//! A microphone `lead` metres ahead of the driven wheel hears the road the
+//! wheel will reach after `lead` metres. Every acoustic decision covers one
+//! analysis frame, i.e. a stretch of path `[x_from, x_to]` in the *wheel's*
+//! path coordinate (the loop's odometer at the frame's start and end, plus
+//! the lead). When a decision names another road than the last one queued,
+//! the new road is queued as beginning at
+//!
+//! - `x_from` when it carries less than the road before it (cautious: the
+//!   change lies somewhere in the frame, so assume its earliest point), or
+//! - the middle of the stretch when it carries more (the decision goes to
+//!   the new road once about half its frame is on it).
+//!
+//! Decisions for the road already last in the queue refresh its confidence.
+//! [`PreviewQueue::view`] at the wheel's odometer `x` gives the road under
+//! the wheel (the last entry that begins at or before `x`) and the next one
+//! ahead with its distance. Entries the wheel has passed are dropped; when
+//! the queue is full the oldest upcoming entry is overwritten last-in wins
+//! (a decision stream that flickers faster than the capacity covers is
+//! counted in [`PreviewQueue::overflows`]).
+//!
+//! With `lead = 0` the road under the wheel is simply the latest decision
+//! (what the paper's set-up gives); nothing is ever ahead.
+//!
+//! Positions are `f64` metres from the start of the drive: at 1 mm
+//! resolution f64 is exact far beyond any drive (2^53 mm ≈ 9·10^12 m), so
+//! the queue needs no wrap handling.
+
+/// Entries the queue holds (the road under the wheel and those ahead).
+pub const PREVIEW_CAPACITY: usize = 32;
+
+/// One stretch of road: where it begins and what was heard.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RoadAhead {
+    /// Catalogue index of the road.
+    pub road: usize,
+    /// Wheel path position where it begins, m.
+    pub x_start: f64,
+    /// Confidence of the latest decision for it, [0, 1].
+    pub confidence: f64,
+    /// Time of the latest decision for it, s (its frame's end).
+    pub stamp: f64,
+    /// Decisions in a row that named it.
+    pub hits: u32,
+}
+
+/// What [`PreviewQueue::view`] returns.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PreviewView {
+    /// The road under the wheel (`None` before the first decision has been
+    /// reached).
+    pub here: Option<RoadAhead>,
+    /// The next road ahead and its distance from the wheel, m (> 0).
+    pub next: Option<(RoadAhead, f64)>,
+}
+
+/// See the module docs.
+#[derive(Debug, Clone)]
+pub struct PreviewQueue {
+    buf: [RoadAhead; PREVIEW_CAPACITY],
+    len: usize,
+    overflows: u64,
+}
+
+const EMPTY: RoadAhead = RoadAhead {
+    road: usize::MAX,
+    x_start: f64::NEG_INFINITY,
+    confidence: 0.0,
+    stamp: f64::NEG_INFINITY,
+    hits: 0,
+};
+
+impl Default for PreviewQueue {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl PreviewQueue {
+    /// An empty queue.
+    pub fn new() -> Self {
+        Self {
+            buf: [EMPTY; PREVIEW_CAPACITY],
+            len: 0,
+            overflows: 0,
+        }
+    }
+
+    /// Forget everything (start of a drive).
+    pub fn clear(&mut self) {
+        self.len = 0;
+        self.overflows = 0;
+    }
+
+    /// Entries held.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True when nothing is queued.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Entries lost because the queue was full.
+    pub fn overflows(&self) -> u64 {
+        self.overflows
+    }
+
+    /// The entries, ordered by `x_start`.
+    pub fn entries(&self) -> &[RoadAhead] {
+        &self.buf[..self.len]
+    }
+
+    /// A decision for `road` with `confidence` at time `stamp`, heard over
+    /// the wheel-path stretch `[x_from, x_to]` (m; `x_from <= x_to`).
+    /// `carries_less` says whether `road` transmits less than the last
+    /// queued road (decides which end of the stretch it begins at). Non-finite
+    /// positions are ignored. Allocation-free.
+    pub fn push(
+        &mut self,
+        road: usize,
+        confidence: f64,
+        stamp: f64,
+        x_from: f64,
+        x_to: f64,
+        carries_less: bool,
+    ) {
+        if !(x_from.is_finite() && x_to.is_finite()) {
+            return;
+        }
+        let (lo, hi) = if x_from <= x_to {
+            (x_from, x_to)
+        } else {
+            (x_to, x_from)
+        };
+        if let Some(last) = self.buf[..self.len].last_mut()
+            && last.road == road
+        {
+            last.confidence = confidence;
+            last.stamp = stamp;
+            last.hits = last.hits.saturating_add(1);
+            return;
+        }
+        let mut x_start = if carries_less { lo } else { 0.5 * (lo + hi) };
+        // Keep the queue ordered: a road cannot begin before one heard earlier.
+        // A cautious (earlier) start moves the previous entries that now lie
+        // behind it out of the way: they are replaced by this road.
+        while self.len > 0 && self.buf[self.len - 1].x_start >= x_start {
+            if carries_less {
+                self.len -= 1;
+            } else {
+                x_start = self.buf[self.len - 1].x_start;
+                break;
+            }
+        }
+        if self.len > 0 && self.buf[self.len - 1].x_start >= x_start {
+            // Same start as a (grippier) entry: this decision replaces it.
+            self.len -= 1;
+        }
+        if self.len == PREVIEW_CAPACITY {
+            // Full: drop the oldest entry (the road furthest behind).
+            self.buf.copy_within(1.., 0);
+            self.len -= 1;
+            self.overflows += 1;
+        }
+        self.buf[self.len] = RoadAhead {
+            road,
+            x_start,
+            confidence,
+            stamp,
+            hits: 1,
+        };
+        self.len += 1;
+    }
+
+    /// The road under the wheel at odometer `x` and the next one ahead;
+    /// drops entries the wheel has left behind. Allocation-free.
+    pub fn view(&mut self, x: f64) -> PreviewView {
+        // Index of the last entry beginning at or before x.
+        let here = self.buf[..self.len].iter().rposition(|e| e.x_start <= x);
+        if let Some(i) = here
+            && i > 0
+        {
+            self.buf.copy_within(i..self.len, 0);
+            self.len -= i;
+        }
+        let (here, first_ahead) = match here {
+            Some(_) => (Some(self.buf[0]), 1),
+            None => (None, 0),
+        };
+        let next = (first_ahead < self.len).then(|| {
+            let e = self.buf[first_ahead];
+            (e, e.x_start - x)
+        });
+        PreviewView { here, next }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lead_zero_gives_the_latest_decision() {
+        let mut q = PreviewQueue::new();
+        assert_eq!(q.view(0.0), PreviewView::default());
+        q.push(0, 0.9, 0.1, 0.0, 0.5, false);
+        // grippier-or-equal start at the frame's middle
+        let v = q.view(0.25);
+        assert_eq!(v.here.unwrap().road, 0);
+        assert!(v.next.is_none());
+        q.push(2, 0.8, 0.2, 0.5, 1.0, true); // snow: begins at the frame start
+        let v = q.view(1.0);
+        assert_eq!(v.here.unwrap().road, 2);
+        assert!(v.next.is_none());
+        assert_eq!(q.len(), 1, "passed entries are dropped");
+    }
+
+    #[test]
+    fn ordering_and_distance_ahead() {
+        let mut q = PreviewQueue::new();
+        let lead = 2.77;
+        q.push(0, 0.9, 0.1, 0.0 + lead, 0.3 + lead, false);
+        q.push(0, 0.95, 0.125, 0.1 + lead, 0.4 + lead, false);
+        assert_eq!(q.len(), 1, "same road refreshes");
+        assert_eq!(q.entries()[0].confidence, 0.95);
+        assert_eq!(q.entries()[0].hits, 2);
+        q.push(2, 0.8, 0.2, 1.0 + lead, 1.3 + lead, true);
+        q.push(1, 0.7, 0.3, 2.0 + lead, 2.3 + lead, false);
+        let v = q.view(1.0);
+        assert!(v.here.is_none(), "nothing has reached the wheel yet");
+        let (n, d) = v.next.unwrap();
+        assert_eq!(n.road, 0);
+        assert!((d - (lead + 0.15 - 1.0)).abs() < 1e-12);
+        let v = q.view(3.9);
+        assert_eq!(v.here.unwrap().road, 2);
+        let (n, d) = v.next.unwrap();
+        assert_eq!(n.road, 1);
+        assert!((d - (2.15 + lead - 3.9)).abs() < 1e-12, "{d}");
+    }
+
+    #[test]
+    fn change_exactly_at_a_cycle_boundary() {
+        let mut q = PreviewQueue::new();
+        q.push(0, 0.9, 0.0, 0.0, 0.0, false);
+        q.push(2, 0.9, 0.1, 5.0, 5.5, true);
+        // At x = 5.0 exactly the wheel is on the new road.
+        assert_eq!(q.view(4.999_999).here.unwrap().road, 0);
+        assert_eq!(q.view(5.0).here.unwrap().road, 2);
+    }
+
+    #[test]
+    fn cautious_start_replaces_entries_behind_it() {
+        let mut q = PreviewQueue::new();
+        q.push(0, 0.9, 0.0, 0.0, 1.0, false); // starts at 0.5
+        q.push(3, 0.9, 0.1, 1.5, 2.5, false); // stone starts at 2.0
+        q.push(2, 0.9, 0.2, 1.8, 2.3, true); // snow may start at 1.8: before stone
+        let e = q.entries();
+        assert_eq!(e.len(), 2);
+        assert_eq!((e[0].road, e[0].x_start), (0, 0.5));
+        assert_eq!((e[1].road, e[1].x_start), (2, 1.8));
+    }
+
+    #[test]
+    fn capacity_is_fixed_and_overflow_counted() {
+        let mut q = PreviewQueue::new();
+        for i in 0..(PREVIEW_CAPACITY + 5) {
+            let x = i as f64;
+            q.push(i % 2, 0.9, x, x, x + 0.5, i % 2 == 1);
+        }
+        assert_eq!(q.len(), PREVIEW_CAPACITY);
+        assert_eq!(q.overflows(), 5);
+        let e = q.entries();
+        assert!(e.windows(2).all(|w| w[0].x_start < w[1].x_start));
+    }
+
+    #[test]
+    fn long_drive_positions_stay_exact() {
+        // 1000 km of 1 mm steps is far inside f64's exact range; the queue
+        // compares positions only, so a long drive behaves like a short one.
+        let mut q = PreviewQueue::new();
+        let x0 = 1.0e6;
+        q.push(0, 0.9, 0.0, x0, x0, false);
+        q.push(2, 0.9, 0.1, x0 + 0.001, x0 + 0.002, true);
+        assert_eq!(q.view(x0 + 0.000_999).here.unwrap().road, 0);
+        assert_eq!(q.view(x0 + 0.001).here.unwrap().road, 2);
+    }
+
+    #[test]
+    fn non_finite_positions_are_ignored() {
+        let mut q = PreviewQueue::new();
+        q.push(0, 0.9, 0.0, f64::NAN, 1.0, false);
+        assert!(q.is_empty());
+    }
+}

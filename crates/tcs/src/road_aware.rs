@@ -1,0 +1,443 @@
+//! Road knowledge ahead of and under the wheel, for the "with ARTE"
+//! variants of all three controllers: the preview queue, the road belief,
+//! and the torque they allow. The same code runs in `grip sim` and in the
+//! live tcs-loop.
+//!
+//! Every cycle [`RoadAware::step`]:
+//!
+//! 1. looks up the road under the wheel and the next one ahead in the
+//!    [`PreviewQueue`] at the loop's odometer (acoustic decisions are
+//!    queued by [`RoadAware::decision`] at the place the microphone heard
+//!    them, `mic_lead_m` ahead of the wheel);
+//! 2. fuses the acoustic estimate of the road under the wheel with the
+//!    wheel's slip evidence ([`RoadBelief`]) while the decision stream is
+//!    alive (a decision within `[arte] max_age_s`);
+//! 3. hands the controller the [`RoadKnowledge`] of the most probable road
+//!    (its probability as the confidence, age 0: the belief is this
+//!    cycle's), which the controller's own fallback rule accepts or not;
+//! 4. and a torque cap: what the believed road transmits,
+//!    `cap_share · μ_peak · N · r` (the μ-λ curves are flat near their peaks,
+//!    so a cap below the peak holds the slip where μ reaches about that
+//!    share of μ_peak: nearly all the traction at much less slip); while the
+//!    measured slip is beyond `recover_slip_factor · λ_opt` (the wheel
+//!    spins) `recover_share · μ_peak · N · r` so that it regains grip; and,
+//!    when the next road ahead carries less and the wheel reaches it within
+//!    `horizon_s` (enough for the motor's lag), that road's cap already.
+//!    On a road that carries more, the cap is released when the wheel
+//!    arrives (the queue places a grippier road at the latest point it can
+//!    begin).
+//!
+//! The cap is applied as `T* = min(T*_controller, cap)`: the controllers
+//! stay as they are and still react to slip themselves (a TCS that is
+//! preconditioned, not replaced). The variants without ARTE never see this.
+
+use grip_physics::{InvalidField, RoadCatalogue, VehicleParams};
+use serde::Deserialize;
+
+use crate::fusion::{FusionParams, RoadBelief};
+use crate::knowledge::RoadTable;
+use crate::params::{ArteUse, in_range, positive};
+use crate::preview::{PreviewQueue, PreviewView};
+use crate::types::{Measurement, RoadKnowledge};
+
+/// `[preview]` of `controllers.toml`.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PreviewParams {
+    /// Torque cap on a believed road, share of its μ_peak · N · r, (0, 1.5].
+    pub cap_share: f64,
+    /// Cap while the wheel spins, share of μ_peak · N · r, (0, 1.5].
+    pub recover_share: f64,
+    /// The wheel spins when the measured slip exceeds this many λ_opt of
+    /// the believed road, >= 1.
+    pub recover_slip_factor: f64,
+    /// Longest look-ahead, s: a lower-friction road further than this (in
+    /// time at the current speed) is not acted on yet.
+    pub horizon_s: f64,
+    /// Time added to the motor lag's drop time as a margin for the
+    /// measurement delay and odometer error, s (>= 0).
+    pub lag_margin_s: f64,
+    /// Where in a decision's frame the road change is taken to lie, as a
+    /// share of the frame from its start, [0, 1]: 0 is the most cautious
+    /// (the earliest point); a classifier that switches once most of its
+    /// frame is on the new road puts the change before the middle.
+    pub change_at: f64,
+    /// Decisions in a row an acoustic road needs before it caps the torque
+    /// (ahead or under the wheel), >= 1: one stray frame of a noisy
+    /// classifier does not cost traction; the wheel's own evidence still acts.
+    pub min_hits: u32,
+    /// The slip the controller is told to aim at on a road: where μ reaches
+    /// this share of μ_peak on the rising side of the curve, (0, 1]. The
+    /// μ-λ curves are flat near their peaks (snow reaches 95 % of its peak
+    /// at half its λ_opt), so a share just below 1 gives nearly all the
+    /// traction at much less slip. 1: λ_opt itself.
+    pub slip_share: f64,
+}
+
+impl Default for PreviewParams {
+    fn default() -> Self {
+        Self {
+            cap_share: 0.95,
+            recover_share: 0.7,
+            recover_slip_factor: 1.5,
+            horizon_s: 1.0,
+            lag_margin_s: 0.02,
+            change_at: 0.0,
+            min_hits: 2,
+            slip_share: 0.95,
+        }
+    }
+}
+
+impl PreviewParams {
+    /// Ranges (NaN fails).
+    pub fn validate(&self) -> Result<(), InvalidField> {
+        in_range("cap_share", self.cap_share, 1e-3, 1.5)?;
+        in_range("recover_share", self.recover_share, 1e-3, 1.5)?;
+        in_range("recover_slip_factor", self.recover_slip_factor, 1.0, 100.0)?;
+        in_range("horizon_s", self.horizon_s, 0.0, 10.0)?;
+        in_range("lag_margin_s", self.lag_margin_s, 0.0, 1.0)?;
+        in_range("change_at", self.change_at, 0.0, 1.0)?;
+        in_range("slip_share", self.slip_share, 1e-3, 1.0)?;
+        if self.min_hits == 0 {
+            return Err(InvalidField::new("min_hits", "must be >= 1 (got 0)"));
+        }
+        Ok(())
+    }
+}
+
+/// What [`RoadAware::step`] gives for one cycle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Guidance {
+    /// The knowledge for the controller (the believed road).
+    pub knowledge: Option<RoadKnowledge>,
+    /// Catalogue index of the believed road and its probability.
+    pub belief: (usize, f64),
+    /// Torque the road allows, N m (`f64::INFINITY`: no cap).
+    pub torque_cap: f64,
+    /// The acoustic queue at the wheel: road under it and the next ahead
+    /// with its distance, m.
+    pub view: PreviewView,
+}
+
+/// See the module docs.
+#[derive(Debug, Clone)]
+pub struct RoadAware {
+    table: RoadTable,
+    /// Per road: the slip where μ = slip_share · μ_peak (rising side).
+    lambda_target: Vec<f64>,
+    belief: RoadBelief,
+    queue: PreviewQueue,
+    p: PreviewParams,
+    arte: ArteUse,
+    nr: f64,
+    r: f64,
+    tau_m: f64,
+    lead: f64,
+    last_decision: f64,
+}
+
+impl RoadAware {
+    /// For `roads` (with their knowledge `table`), `vehicle` (its
+    /// `mic_lead_m`, N and r), the controllers' `[arte]`, `[preview]` and
+    /// `[fusion]`, at sample time `dt`. Errors name the field.
+    pub fn new(
+        roads: &RoadCatalogue,
+        table: RoadTable,
+        vehicle: &VehicleParams,
+        arte: ArteUse,
+        preview: PreviewParams,
+        fusion: FusionParams,
+        dt: f64,
+    ) -> Result<Self, InvalidField> {
+        preview.validate().map_err(|e| e.prefixed("preview"))?;
+        positive("dt", dt)?;
+        let belief =
+            RoadBelief::new(roads, vehicle, fusion, dt).map_err(|e| e.prefixed("fusion"))?;
+        let lambda_target = roads
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                let info = table.info(i);
+                slip_at_share(
+                    |l| r.mu(l),
+                    info.lambda_opt,
+                    info.mu_peak,
+                    preview.slip_share,
+                )
+            })
+            .collect();
+        Ok(Self {
+            table,
+            lambda_target,
+            belief,
+            queue: PreviewQueue::new(),
+            p: preview,
+            arte,
+            nr: vehicle.normal_force() * vehicle.r,
+            r: vehicle.r,
+            tau_m: vehicle.tau_m,
+            lead: vehicle.mic_lead_m,
+            last_decision: f64::NEG_INFINITY,
+        })
+    }
+
+    /// Start of a drive.
+    pub fn reset(&mut self) {
+        self.belief.reset();
+        self.queue.clear();
+        self.last_decision = f64::NEG_INFINITY;
+    }
+
+    /// The microphone's lead, m.
+    pub fn lead(&self) -> f64 {
+        self.lead
+    }
+
+    /// An acoustic decision for catalogue road `road` with `confidence`,
+    /// available at `stamp` (s), heard while the loop's odometer went from
+    /// `x_from` to `x_to` (m; the lead is added here). Allocation-free.
+    pub fn decision(&mut self, road: usize, confidence: f64, stamp: f64, x_from: f64, x_to: f64) {
+        let new = self.table.info(road).mu_peak;
+        let last = self
+            .queue
+            .entries()
+            .last()
+            .map_or(f64::INFINITY, |e| self.table.info(e.road).mu_peak);
+        let carries_less = new < last || new.is_nan() || last.is_nan();
+        let x_from = x_from + self.p.change_at * (x_to - x_from);
+        self.queue.push(
+            road,
+            confidence,
+            stamp,
+            x_from + self.lead,
+            x_to + self.lead,
+            carries_less,
+        );
+        self.last_decision = stamp;
+    }
+
+    /// The command that brings the motor torque (first-order lag `tau_m`)
+    /// from `torque` down to `target` by the time the wheel arrives in
+    /// `t_arrive` s, as late as possible: full freedom (no cap) until the
+    /// drop with a zero command, `tau_m ln(torque / target)` plus the margin,
+    /// no longer fits; then the constant command that reaches `target` at
+    /// arrival (0 at the last moment), and `target` itself from arrival on.
+    fn approach(&self, torque: f64, demand: f64, target: f64, t_arrive: f64) -> f64 {
+        if self.tau_m <= 0.0 {
+            return if t_arrive <= self.p.lag_margin_s {
+                target
+            } else {
+                f64::INFINITY
+            };
+        }
+        // The most the motor may carry by then: what it has or what the
+        // driver asks for.
+        let high = torque.max(demand);
+        let t_drop = if high > target {
+            self.tau_m * (high / target.max(1e-9)).ln()
+        } else {
+            0.0
+        } + self.p.lag_margin_s;
+        if t_arrive > t_drop {
+            return f64::INFINITY;
+        }
+        if torque <= target || torque.is_nan() {
+            return target;
+        }
+        let t = (t_arrive - self.p.lag_margin_s).max(0.0);
+        let a = (-t / self.tau_m).exp();
+        if a >= 1.0 {
+            return 0.0;
+        }
+        ((target - torque * a) / (1.0 - a)).clamp(0.0, target)
+    }
+
+    /// One cycle at time `m.t` and odometer `x` (m). Allocation-free.
+    pub fn step(&mut self, m: &Measurement, x: f64) -> Guidance {
+        let view = self.queue.view(x);
+        let alive = m.t - self.last_decision <= self.arte.max_age_s;
+        self.belief
+            .set_acoustic(view.here.filter(|_| alive).map(|e| (e.road, e.confidence)));
+        self.belief.step(m);
+        let (road, prob) = self.belief.best();
+        let info = self.table.info(road);
+        let mut knowledge = info.knowledge(prob, 0.0);
+        if let Some(&l) = self.lambda_target.get(road) {
+            knowledge.lambda_opt = l;
+        }
+        let usable = self.arte.usable(Some(&knowledge)).is_some();
+        let mut cap = f64::INFINITY;
+        // What the microphone says of the road under the wheel caps too when
+        // it carries less than the believed road: the wheel's evidence may
+        // override acoustics only in the cautious direction.
+        if alive
+            && let Some(here) = view.here
+            && here.confidence >= self.arte.min_confidence
+            && here.hits >= self.p.min_hits
+        {
+            let h = self.table.info(here.road);
+            if h.mu_peak < info.mu_peak || !usable {
+                cap = self.p.cap_share * h.mu_peak * self.nr;
+            }
+        }
+        if usable {
+            let (_, lambda) = self.belief.measured();
+            let spinning = lambda > self.p.recover_slip_factor * info.lambda_opt;
+            let share = if spinning {
+                self.p.recover_share
+            } else {
+                self.p.cap_share
+            };
+            cap = cap.min(share * info.mu_peak * self.nr);
+        }
+        if alive && let Some((next, d)) = view.next {
+            let v = m.v.unwrap_or(self.r * m.omega).max(0.1);
+            let next_info = self.table.info(next.road);
+            let lower = next_info.mu_peak < if usable { info.mu_peak } else { f64::INFINITY };
+            let t_arrive = d / v;
+            if t_arrive <= self.p.horizon_s
+                && lower
+                && next.confidence >= self.arte.min_confidence
+                && next.hits >= self.p.min_hits
+            {
+                let target = self.p.cap_share * next_info.mu_peak * self.nr;
+                cap = cap.min(self.approach(m.torque, m.demand, target, t_arrive));
+            }
+        }
+        Guidance {
+            knowledge: Some(knowledge),
+            belief: (road, prob),
+            torque_cap: cap,
+            view,
+        }
+    }
+}
+
+/// The slip in (0, λ_opt] where `mu` reaches `share · mu_peak` (bisection;
+/// λ_opt when the share is 1 or the curve is odd).
+fn slip_at_share(mu: impl Fn(f64) -> f64, lambda_opt: f64, mu_peak: f64, share: f64) -> f64 {
+    if !(lambda_opt > 0.0 && mu_peak > 0.0 && share < 1.0) {
+        return lambda_opt;
+    }
+    let goal = share * mu_peak;
+    let (mut lo, mut hi) = (0.0, lambda_opt);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if mu(mid) < goal {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::knowledge::KnowledgeConfig;
+    use grip_physics::Road;
+
+    fn roads() -> RoadCatalogue {
+        RoadCatalogue::new(vec![
+            Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap(),
+            Road::burckhardt("snow", 0.1946, 94.129, 0.0646).unwrap(),
+        ])
+        .unwrap()
+    }
+
+    fn aware(lead: f64) -> RoadAware {
+        let roads = roads();
+        let v = VehicleParams {
+            mic_lead_m: lead,
+            ..Default::default()
+        };
+        RoadAware::new(
+            &roads,
+            RoadTable::new(&roads, &KnowledgeConfig::default()).unwrap(),
+            &v,
+            ArteUse::default(),
+            PreviewParams::default(),
+            FusionParams::default(),
+            1e-3,
+        )
+        .unwrap()
+    }
+
+    /// 5 m/s at 1 % slip with the torque `road` transmits there.
+    fn cruise(t: f64, road: usize) -> Measurement {
+        let lambda: f64 = 0.01;
+        let mu = roads()[road].mu(lambda);
+        Measurement {
+            t,
+            omega: 5.0 / (1.0 - lambda) / 0.28,
+            v: Some(5.0),
+            torque: mu * VehicleParams::default().normal_force() * 0.28,
+            demand: 300.0,
+        }
+    }
+
+    fn run(a: &mut RoadAware, t0: f64, x0: f64, road: usize, cycles: usize) -> Guidance {
+        let mut g = None;
+        for k in 0..cycles {
+            let t = t0 + k as f64 * 1e-3;
+            g = Some(a.step(&cruise(t, road), x0 + 5.0 * (t - t0)));
+        }
+        g.unwrap()
+    }
+
+    #[test]
+    fn snow_ahead_caps_the_torque_before_the_wheel_arrives() {
+        let mut a = aware(2.77);
+        a.decision(0, 0.95, 0.0, -2.77, 0.5); // asphalt from the start
+        a.decision(1, 0.95, 0.1, 0.5, 1.0); // snow from 0.5 + 2.77 m
+        a.decision(1, 0.95, 0.125, 0.6, 1.1); // heard twice: confirmed
+        let snow_cap = 0.95 * 0.19 * 3433.5 * 0.28;
+        // 0.1 s of cruising on asphalt up to x = 2.0 (1.27 m = 0.25 s ahead
+        // at 5 m/s): not yet.
+        let g = run(&mut a, 0.1, 1.5, 0, 100);
+        assert_eq!(g.belief.0, 0, "{g:?}");
+        assert_eq!(g.view.next.unwrap().0.road, 1);
+        assert!(g.torque_cap > 500.0, "{g:?}");
+        // At x = 2.4 (0.87 m = 0.17 s ahead) the motor (τ_m 50 ms) can still
+        // wait: 259 N m falls to snow's 183 N m in 17 ms with a zero command.
+        let g = run(&mut a, 0.2, 2.0, 0, 81);
+        assert!(g.torque_cap > 1000.0, "asphalt's own cap only: {g:?}");
+        // 0.02 m before the snow (4 ms): the command is at or below snow's cap.
+        a.decision(1, 0.95, 0.28, 1.0, 1.5); // the stream goes on
+        let g = run(&mut a, 0.281, 2.405, 0, 170);
+        assert!(g.torque_cap <= snow_cap + 1e-9, "{g:?}");
+        // On the snow the belief follows the acoustic estimate.
+        a.decision(1, 0.95, 0.3, 0.8, 1.3);
+        let g = run(&mut a, 0.3, 3.3, 1, 150);
+        assert_eq!(g.belief.0, 1, "{g:?}");
+        assert!((g.torque_cap - snow_cap).abs() < 5.0, "{g:?}");
+    }
+
+    #[test]
+    fn slip_target_at_a_share_of_the_peak() {
+        // The flat-peak table of the docs: snow 95 % at λ 0.029, asphalt at 0.100.
+        let r = roads();
+        for (i, want) in [(0, 0.100), (1, 0.029)] {
+            let l = slip_at_share(|l| r[i].mu(l), r[i].lambda_opt(), r[i].mu_peak(), 0.95);
+            assert!((l - want).abs() < 0.002, "{i}: {l}");
+            assert!((r[i].mu(l) - 0.95 * r[i].mu_peak()).abs() < 1e-9);
+        }
+        assert_eq!(slip_at_share(|l| l, 0.2, 0.2, 1.0), 0.2);
+    }
+
+    #[test]
+    fn a_dead_decision_stream_gives_no_acoustic_knowledge() {
+        let mut a = aware(0.0);
+        a.decision(1, 0.95, 0.0, 0.0, 0.5);
+        a.decision(1, 0.95, 0.0, 0.0, 0.5);
+        let g = run(&mut a, 0.01, 0.6, 1, 40);
+        assert_eq!(g.belief.0, 1);
+        assert!(g.torque_cap < 200.0, "{g:?}");
+        // No decision for 5 s: the acoustic prior is gone; on a road that
+        // neither curve rules out at 1 % slip the belief stays uncertain.
+        let g = run(&mut a, 5.0, 25.0, 1, 1);
+        assert!(g.belief.1 < 0.999, "{g:?}");
+    }
+}
