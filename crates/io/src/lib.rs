@@ -11,6 +11,9 @@
 //! - [`clock`]: injected monotonic time (real and manual).
 //! - [`systemd`]: `sd_notify` readiness/status/stopping and the
 //!   heartbeat-gated watchdog every service uses.
+//! - [`service`]: the skeleton of every service's `main` (tracing,
+//!   signals, exit codes, its own TOML) and its helper thread
+//!   ([`service::monitor`]).
 //! - [`wav`]: WAV reading (mixdown, resampling) and writing, for the CLI and
 //!   audio-acq's file source.
 //! - [`binaries`]: where the service binaries are (`$GRIP_BIN_DIR` or beside
@@ -24,5 +27,6 @@ pub mod clock;
 pub mod ipc;
 pub mod mcaplog;
 pub mod rt;
+pub mod service;
 pub mod systemd;
 pub mod wav;

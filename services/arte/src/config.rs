@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use grip_arte::stream::{Smoothing, StreamConfig};
 use grip_config::ConfigError;
 use grip_io::rt::RtConfig;
+use grip_io::service::{ServiceConfig, validate_rt};
 use serde::{Deserialize, Serialize};
 
 /// `[input]`: how audio blocks are taken from the topic.
@@ -55,7 +56,7 @@ impl Default for InputSection {
 /// The whole `arte-svc.toml`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct ArteConfig {
+pub struct ArteServiceConfig {
     /// Model file (`--model` overrides); relative to the configuration directory.
     #[serde(default = "default_model")]
     pub model: PathBuf,
@@ -78,7 +79,7 @@ fn default_model() -> PathBuf {
     PathBuf::from("models/default.model")
 }
 
-impl Default for ArteConfig {
+impl Default for ArteServiceConfig {
     fn default() -> Self {
         Self {
             model: default_model(),
@@ -90,21 +91,11 @@ impl Default for ArteConfig {
     }
 }
 
-impl ArteConfig {
-    /// Parses and validates `text`, the contents of `file`.
-    pub fn parse(file: &Path, text: &str) -> Result<Self, ConfigError> {
-        let c: Self = grip_config::parse_toml(file, text)?;
-        c.validate(file)?;
-        Ok(c)
-    }
-
-    /// Reads, parses and validates `file`.
-    pub fn load(file: &Path) -> Result<Self, ConfigError> {
-        Self::parse(file, &grip_config::read_file(file)?)
-    }
+impl ServiceConfig for ArteServiceConfig {
+    const FILE_NAME: &'static str = "arte-svc.toml";
 
     /// Range checks (the estimator checks hop and smoothing again when built).
-    pub fn validate(&self, file: &Path) -> Result<(), ConfigError> {
+    fn validate(&self, file: &Path) -> Result<(), ConfigError> {
         let bad = |field: &str, reason: String| Err(ConfigError::new(file, field, reason));
         if !(self.stream.hop_s > 0.0 && self.stream.hop_s <= 10.0) {
             return bad(
@@ -146,12 +137,7 @@ impl ArteConfig {
                 format!("{} s is outside (0, 10]", i.speed_timeout_s),
             );
         }
-        if let Some(p) = self.rt.fifo_priority
-            && !(1..=99).contains(&p)
-        {
-            return bad("rt.fifo_priority", format!("{p} is outside 1..=99"));
-        }
-        Ok(())
+        validate_rt(&self.rt, file)
     }
 }
 
@@ -172,7 +158,7 @@ fifo_priority = 50
 
     #[test]
     fn parses_and_defaults() {
-        let c = ArteConfig::parse(Path::new("a.toml"), GOOD).unwrap();
+        let c = ArteServiceConfig::parse(Path::new("a.toml"), GOOD).unwrap();
         assert_eq!(c.model, PathBuf::from("models/x.model"));
         assert_eq!(
             c.stream.smoothing,
@@ -183,15 +169,15 @@ fifo_priority = 50
         );
         assert_eq!(c.input.resync_gap_s, 0.2);
         assert_eq!(c.input.speed_timeout_s, 0.2);
-        let s = ArteConfig::parse(
+        let s = ArteServiceConfig::parse(
             Path::new("a.toml"),
             &GOOD.replace("[input]", "[input]\nspeed_timeout_s = 0.5"),
         )
         .unwrap();
         assert_eq!(s.input.speed_timeout_s, 0.5);
-        let d = ArteConfig::parse(Path::new("a.toml"), "").unwrap();
-        assert_eq!(d, ArteConfig::default());
-        let n = ArteConfig::parse(
+        let d = ArteServiceConfig::parse(Path::new("a.toml"), "").unwrap();
+        assert_eq!(d, ArteServiceConfig::default());
+        let n = ArteServiceConfig::parse(
             Path::new("a.toml"),
             "[stream]\nhop_s = 0.1\nsmoothing = \"none\"\n",
         )
@@ -201,15 +187,16 @@ fifo_priority = 50
 
     #[test]
     fn errors_name_the_field() {
-        let e = ArteConfig::parse(
+        let e = ArteServiceConfig::parse(
             Path::new("a.toml"),
             &GOOD.replace("stay = 0.9", "stay = 1.5"),
         )
         .unwrap_err();
         assert_eq!(e.field, "stream.smoothing.hmm.stay", "{e}");
-        let e = ArteConfig::parse(Path::new("a.toml"), &GOOD.replace("hop_s", "hops")).unwrap_err();
+        let e = ArteServiceConfig::parse(Path::new("a.toml"), &GOOD.replace("hop_s", "hops"))
+            .unwrap_err();
         assert!(e.field.starts_with("stream"), "{e}");
-        let e = ArteConfig::parse(
+        let e = ArteServiceConfig::parse(
             Path::new("a.toml"),
             &GOOD.replace("poll_interval_ms = 2.0", "poll_interval_ms = 0.0"),
         )
@@ -225,7 +212,7 @@ fifo_priority = 50
     fn speed_timeout_must_be_positive() {
         for bad in ["0.0", "-0.1", "nan", "inf", "11.0"] {
             let text = GOOD.replace("[input]", &format!("[input]\nspeed_timeout_s = {bad}"));
-            let e = ArteConfig::parse(Path::new("dir/arte-svc.toml"), &text).unwrap_err();
+            let e = ArteServiceConfig::parse(Path::new("dir/arte-svc.toml"), &text).unwrap_err();
             assert_eq!(e.field, "input.speed_timeout_s", "{bad}: {e}");
             let msg = e.to_string();
             assert!(
@@ -236,7 +223,7 @@ fifo_priority = 50
         }
         // a string is a type error naming the field, not a panic
         let text = GOOD.replace("[input]", "[input]\nspeed_timeout_s = \"fast\"");
-        let e = ArteConfig::parse(Path::new("a.toml"), &text).unwrap_err();
+        let e = ArteServiceConfig::parse(Path::new("a.toml"), &text).unwrap_err();
         assert!(e.to_string().contains("speed_timeout_s"), "{e}");
     }
 }

@@ -20,22 +20,18 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 
 use clap::Parser;
 use grip_arte_svc::{Options, run};
+use grip_io::service::{ConfigArgs, Service};
 
 /// grip ARTE service: road estimates on grip/arte/road from audio on grip/audio/block.
 #[derive(Debug, Parser)]
 #[command(name = "arte", version)]
+#[command(mut_arg("config", |a| a.help("The service's TOML (default: <config-dir>/arte-svc.toml)")))]
 struct Args {
-    /// Shared configuration directory.
-    #[arg(long, default_value = "config")]
-    config_dir: PathBuf,
-    /// The service's TOML (default: <config-dir>/arte-svc.toml).
-    #[arg(long)]
-    config: Option<PathBuf>,
+    #[command(flatten)]
+    config: ConfigArgs,
     /// Model file (default: the config's `model`, i.e. <config-dir>/models/default.model).
     #[arg(long)]
     model: Option<PathBuf>,
@@ -45,32 +41,11 @@ struct Args {
 }
 
 fn main() -> ExitCode {
-    tracing_subscriber::fmt()
-        .with_writer(std::io::stderr)
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .init();
     let args = Args::parse();
-    let stop = Arc::new(AtomicBool::new(false));
-    for sig in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
-        if let Err(e) = signal_hook::flag::register(sig, Arc::clone(&stop)) {
-            eprintln!("error: cannot install the handler for signal {sig}: {e}");
-            return ExitCode::from(1);
-        }
-    }
     let opts = Options {
-        config_dir: args.config_dir,
         config: args.config,
         model: args.model,
         run_for: args.run_for,
     };
-    match run(&opts, stop) {
-        Ok(_) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::from(1)
-        }
-    }
+    Service::new().run(|signals| run(&opts, signals.stop.clone()).map(drop))
 }

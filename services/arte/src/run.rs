@@ -9,15 +9,17 @@ use grip_io::clock::{Clock, MonotonicClock};
 use grip_io::ipc::{IpcNode, SubscriberMode};
 use grip_msgs::{AudioBlock, CycleRecord, RoadEstimate, topics};
 
-use crate::{ArteConfig, ArteError, ArteLoop, ArteStats, load_model, road_table, svc};
+use grip_io::service::{ConfigArgs, ServiceConfig};
+
+use crate::{
+    ArteCounters, ArteError, ArteLoop, ArteServiceConfig, load_model, monitor, road_table,
+};
 
 /// Command-line choices.
 #[derive(Debug, Clone, Default)]
 pub struct Options {
-    /// Shared configuration directory (`roads.toml`, `models/`).
-    pub config_dir: PathBuf,
-    /// The service's TOML (default `<config_dir>/arte-svc.toml`).
-    pub config: Option<PathBuf>,
+    /// `--config-dir` and `--config`.
+    pub config: ConfigArgs,
     /// Model file override (as given: relative to the working directory).
     pub model: Option<PathBuf>,
     /// Stop by itself after this many seconds.
@@ -49,7 +51,7 @@ pub struct Prepared {
     /// The config file used.
     pub config_file: PathBuf,
     /// Its contents.
-    pub cfg: ArteConfig,
+    pub cfg: ArteServiceConfig,
     /// The model file used.
     pub model_path: PathBuf,
     /// The loop, ready to run.
@@ -69,17 +71,14 @@ fn resolve(dir: &Path, p: &Path) -> PathBuf {
 /// Loads config, model and road catalogue and builds the loop; every
 /// start-up error names its file.
 pub fn prepare(opts: &Options) -> Result<Prepared, ArteError> {
-    let config_file = opts
-        .config
-        .clone()
-        .unwrap_or_else(|| opts.config_dir.join("arte-svc.toml"));
-    let cfg = ArteConfig::load(&config_file)?;
+    let config_file = opts.config.own_file::<ArteServiceConfig>();
+    let cfg = ArteServiceConfig::load(&config_file)?;
     let model_path = match &opts.model {
         Some(p) => p.clone(),
-        None => resolve(&opts.config_dir, &cfg.model),
+        None => resolve(&opts.config.config_dir, &cfg.model),
     };
     let model = load_model(&model_path)?;
-    let roads_file = opts.config_dir.join("roads.toml");
+    let roads_file = opts.config.config_dir.join("roads.toml");
     let roads = grip_config::load_roads(&roads_file)?;
     let rule = grip_tcs::RoadTable::new(&roads, &cfg.knowledge)
         .map_err(|e| grip_config::ConfigError::invalid(&config_file, "knowledge", e))?;
@@ -126,15 +125,14 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
     // the newest cycle record is all that matters (1 kHz, one per ms)
     let cycles = node.subscriber::<CycleRecord>(topics::CYCLE, SubscriberMode::Latest)?;
     let mut publisher = node.publisher::<RoadEstimate>(topics::ROAD)?;
-    let stats = Arc::new(ArteStats::default());
+    let stats = Arc::new(ArteCounters::default());
     let done = Arc::new(AtomicBool::new(false));
-    let helper = svc::spawn_helper(
+    let helper = monitor::spawn_helper(
         Arc::clone(&stats),
         rate,
         lp.speed_normalised(),
         Arc::clone(&done),
-    )
-    .map_err(|e| ArteError::Other(format!("cannot start the helper thread: {e}")))?;
+    )?;
     let rt = grip_io::rt::apply(&cfg.rt);
     rt.log();
     let clock = MonotonicClock;

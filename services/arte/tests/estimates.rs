@@ -9,7 +9,7 @@ use std::sync::atomic::Ordering;
 
 use common::*;
 use grip_arte::stream::StreamConfig;
-use grip_arte_svc::{ArteError, ArteLoop, ArteStats, EstimateSink, load_model, road_table};
+use grip_arte_svc::{ArteCounters, ArteError, ArteLoop, EstimateSink, load_model, road_table};
 use grip_io::clock::ManualClock;
 use grip_io::ipc::IpcError;
 use grip_msgs::RoadEstimate;
@@ -44,7 +44,7 @@ fn follow(
     let roads = roads_for(model);
     let k = model.classes().len();
     let clock = ManualClock::new(T0);
-    let stats = ArteStats::default();
+    let stats = ArteCounters::default();
     let mut sink = VecSink::default();
     let bl = blocks(
         seed,
@@ -177,7 +177,7 @@ fn gaps_discontinuities_and_wrong_rates() {
     let clock = ManualClock::new(T0);
     let mut lp =
         ArteLoop::from_model(&model, &StreamConfig::default(), roads, 0.2, clock.clone()).unwrap();
-    let stats = ArteStats::default();
+    let stats = ArteCounters::default();
     let mut sink = VecSink::default();
     let bl = blocks(7, &[("asphalt", 10.0, 2.0)], 1024, T0);
     // drop blocks 10 and 11 (lost in transport): counted, no restart (46 ms gap)

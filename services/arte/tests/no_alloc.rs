@@ -10,7 +10,7 @@ use std::sync::atomic::Ordering;
 
 use common::*;
 use grip_arte::stream::StreamConfig;
-use grip_arte_svc::{ArteLoop, ArteStats, EstimateSink};
+use grip_arte_svc::{ArteCounters, ArteLoop, EstimateSink};
 use grip_io::clock::ManualClock;
 use grip_io::ipc::{IpcError, IpcNode, SubscriberMode};
 use grip_msgs::{CycleRecord, RoadEstimate, topics};
@@ -66,7 +66,7 @@ fn arte_loop_allocates_nothing_per_block() {
         clock.clone(),
     )
     .unwrap();
-    let stats = ArteStats::default();
+    let stats = ArteCounters::default();
     let mut sink = CountSink::default();
     // the clock follows the blocks; a valid cycle record for the first 20
     // of every 40 blocks (then it goes stale after 0.2 s), an invalid one
@@ -114,7 +114,7 @@ fn arte_loop_allocates_nothing_per_block() {
         .subscriber::<CycleRecord>(topics::CYCLE, SubscriberMode::Latest)
         .unwrap();
     let tcs = node.publisher::<CycleRecord>(topics::CYCLE).unwrap();
-    let stats = ArteStats::default();
+    let stats = ArteCounters::default();
     // (a manual clock never goes back: a new one for this timeline)
     let clock = ManualClock::new(0);
     let mut lp =

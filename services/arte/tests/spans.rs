@@ -7,7 +7,7 @@ mod common;
 use common::Toy;
 use grip_arte::features::{FeatureConfig, FeatureSet};
 use grip_arte::stream::StreamConfig;
-use grip_arte_svc::{ArteLoop, ArteStats, EstimateSink, RoadInfo};
+use grip_arte_svc::{ArteCounters, ArteLoop, EstimateSink, RoadInfo};
 use grip_io::clock::ManualClock;
 use grip_io::ipc::IpcError;
 use grip_msgs::{AudioBlock, RoadEstimate, name_to_bytes};
@@ -49,7 +49,7 @@ proptest! {
             0.2,
             ManualClock::new(0),
         ).unwrap();
-        let stats = ArteStats::default();
+        let stats = ArteCounters::default();
         let mut sink = VecSink::default();
         let total = rate as usize / 2; // 0.5 s
         let mut sent = 0usize;

@@ -11,7 +11,7 @@ use std::sync::atomic::Ordering;
 
 use grip_arte::features::{FeatureConfig, FeatureSet, SpeedNorm};
 use grip_arte::stream::StreamConfig;
-use grip_arte_svc::{ArteLoop, ArteStats, EstimateSink, RoadInfo};
+use grip_arte_svc::{ArteCounters, ArteLoop, EstimateSink, RoadInfo};
 use grip_io::clock::ManualClock;
 use grip_io::ipc::IpcError;
 use grip_msgs::{AudioBlock, CycleRecord, RoadEstimate, name_to_bytes};
@@ -79,7 +79,7 @@ fn record(v: f64, valid: bool, stamp_ns: u64) -> CycleRecord {
     r
 }
 
-fn counts(s: &ArteStats) -> (u64, u64) {
+fn counts(s: &ArteCounters) -> (u64, u64) {
     (
         s.blocks_with_speed.load(Ordering::Relaxed),
         s.blocks_without_speed.load(Ordering::Relaxed),
@@ -91,7 +91,7 @@ fn fresh_valid_records_give_the_speed_stale_or_absent_give_none() {
     let fcfg = FeatureConfig::new(RATE, FeatureSet::Rich);
     let clock = ManualClock::new(T0);
     let mut lp = new_loop(&fcfg, &clock);
-    let stats = ArteStats::default();
+    let stats = ArteCounters::default();
     let mut sink = Count::default();
     let mut bl = Blocks(0);
     // no record yet
@@ -171,7 +171,7 @@ fn speed_timeout_is_configurable() {
     let fcfg = FeatureConfig::new(RATE, FeatureSet::Rich);
     let clock = ManualClock::new(T0);
     let mut lp = new_loop(&fcfg, &clock).with_speed_timeout(1.0);
-    let stats = ArteStats::default();
+    let stats = ArteCounters::default();
     lp.on_cycle(&record(20.0, true, T0), &stats);
     clock.set_ns(T0 + 999 * MS);
     assert_eq!(lp.current_speed(), Some(20.0));
@@ -186,7 +186,7 @@ fn speed_is_applied_across_estimator_restarts() {
     let fcfg = FeatureConfig::new(RATE, FeatureSet::Rich);
     let clock = ManualClock::new(T0);
     let mut lp = new_loop(&fcfg, &clock);
-    let stats = ArteStats::default();
+    let stats = ArteCounters::default();
     let mut sink = Count::default();
     let mut bl = Blocks(0);
     lp.on_cycle(&record(15.0, true, T0), &stats);
@@ -216,7 +216,7 @@ fn speed_normalised_follows_the_feature_config() {
     let mut lp = new_loop(&norm, &clock);
     assert!(lp.speed_normalised());
     // a speed-normalised loop runs with and without a speed
-    let stats = ArteStats::default();
+    let stats = ArteCounters::default();
     let mut sink = Count::default();
     let mut bl = Blocks(0);
     for k in 0..20 {

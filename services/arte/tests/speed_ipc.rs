@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 
 use common::*;
 use grip_arte::stream::StreamConfig;
-use grip_arte_svc::{ArteLoop, ArteStats, EstimateSink, Options, load_model};
+use grip_arte_svc::{ArteCounters, ArteLoop, EstimateSink, Options, load_model};
 use grip_io::clock::{ManualClock, monotonic_now_ns};
 use grip_io::ipc::{IpcError, IpcNode, SubscriberMode};
 use grip_msgs::{AudioBlock, CycleRecord, RoadEstimate, topics};
@@ -106,7 +106,7 @@ fn cycle_records_over_iceoryx2_give_the_estimator_its_speed() {
         let mut lp =
             ArteLoop::from_model(&model, &StreamConfig::default(), roads, 0.2, clock.clone())
                 .unwrap();
-        let stats = ArteStats::default();
+        let stats = ArteCounters::default();
         let bl = blocks(3, &[("asphalt", 12.0, 0.5)], 1024, t0);
         let mut blk = bl.iter();
         let mut step = |lp: &mut ArteLoop<_, _>| {
@@ -156,8 +156,10 @@ fn cycle_records_over_iceoryx2_give_the_estimator_its_speed() {
     )
     .unwrap();
     let opts = Options {
-        config_dir: config_dir(),
-        config: Some(cfg),
+        config: grip_io::service::ConfigArgs {
+            config_dir: config_dir(),
+            config: Some(cfg),
+        },
         model: None,
         run_for: Some(60.0), // a backstop; stopped below
     };

@@ -1,12 +1,13 @@
 //! `audio-acq.toml`: which source, block size, rate, device and real-time
 //! settings. Parsed with `grip_config::parse_toml` (unknown fields refused,
-//! errors name file, field and line) and range-checked by [`AcqConfig::validate`].
+//! errors name file, field and line) and range-checked by [`ServiceConfig::validate`].
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use grip_config::ConfigError;
 use grip_io::rt::RtConfig;
+use grip_io::service::{ServiceConfig, validate_rt};
 use serde::{Deserialize, Serialize};
 
 /// Where the audio comes from.
@@ -182,21 +183,11 @@ pub struct AcqConfig {
     pub rt: RtConfig,
 }
 
-impl AcqConfig {
-    /// Parses `text` (the contents of `file`) and validates it.
-    pub fn parse(file: &Path, text: &str) -> Result<Self, ConfigError> {
-        let c: Self = grip_config::parse_toml(file, text)?;
-        c.validate(file)?;
-        Ok(c)
-    }
-
-    /// Reads, parses and validates `file`.
-    pub fn load(file: &Path) -> Result<Self, ConfigError> {
-        Self::parse(file, &grip_config::read_file(file)?)
-    }
+impl ServiceConfig for AcqConfig {
+    const FILE_NAME: &'static str = "audio-acq.toml";
 
     /// Range checks; the error names `file`, the field and the reason.
-    pub fn validate(&self, file: &Path) -> Result<(), ConfigError> {
+    fn validate(&self, file: &Path) -> Result<(), ConfigError> {
         let bad = |field: &str, reason: String| Err(ConfigError::new(file, field, reason));
         let a = &self.audio;
         if !(8_000..=192_000).contains(&a.sample_rate) {
@@ -295,12 +286,7 @@ impl AcqConfig {
                 );
             }
         }
-        if let Some(p) = self.rt.fifo_priority
-            && !(1..=99).contains(&p)
-        {
-            return bad("rt.fifo_priority", format!("{p} is outside 1..=99"));
-        }
-        Ok(())
+        validate_rt(&self.rt, file)
     }
 }
 

@@ -20,22 +20,18 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 
 use clap::Parser;
 use grip_audio_acq::{Options, SourceKind, run};
+use grip_io::service::{ConfigArgs, Service};
 
 /// grip audio acquisition: blocks of mono PCM on topic grip/audio/block.
 #[derive(Debug, Parser)]
 #[command(name = "audio-acq", version)]
+#[command(mut_arg("config", |a| a.help("The service's TOML (default: <config-dir>/audio-acq.toml)")))]
 struct Args {
-    /// Shared configuration directory.
-    #[arg(long, default_value = "config")]
-    config_dir: PathBuf,
-    /// The service's TOML (default: <config-dir>/audio-acq.toml).
-    #[arg(long)]
-    config: Option<PathBuf>,
+    #[command(flatten)]
+    config: ConfigArgs,
     /// Source override.
     #[arg(long, value_enum)]
     source: Option<SourceKind>,
@@ -54,23 +50,8 @@ struct Args {
 }
 
 fn main() -> ExitCode {
-    tracing_subscriber::fmt()
-        .with_writer(std::io::stderr)
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .init();
     let args = Args::parse();
-    let stop = Arc::new(AtomicBool::new(false));
-    for sig in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
-        if let Err(e) = signal_hook::flag::register(sig, Arc::clone(&stop)) {
-            eprintln!("error: cannot install the handler for signal {sig}: {e}");
-            return ExitCode::from(1);
-        }
-    }
     let opts = Options {
-        config_dir: args.config_dir,
         config: args.config,
         source: args.source,
         device: args.device,
@@ -78,11 +59,5 @@ fn main() -> ExitCode {
         looped: args.once.then_some(false),
         run_for: args.run_for,
     };
-    match run(&opts, stop) {
-        Ok(_) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::from(1)
-        }
-    }
+    Service::new().run(|signals| run(&opts, signals.stop.clone()).map(drop))
 }

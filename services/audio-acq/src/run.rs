@@ -7,13 +7,14 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use grip_io::clock::{MonotonicClock, monotonic_now_ns};
 use grip_io::ipc::{IpcNode, SubscriberMode};
+use grip_io::service::{ConfigArgs, ServiceConfig};
 use grip_msgs::{AudioBlock, GroundTruth, topics};
 
 use crate::alsa_src::{AlsaPcm, AlsaSource};
 use crate::config::{AcqConfig, AlsaSection, SourceKind, WavSection};
 use crate::synth::SynthSource;
 use crate::wav::{WavSource, read_mono_i16};
-use crate::{AcqError, AcqLoop, AcqStatus, Source, Step, svc};
+use crate::{AcqError, AcqLoop, AcqStatus, Source, Step, monitor};
 
 /// A paced source that falls further behind than this drops its backlog
 /// (counted as an xrun), as a capture device with a 200 ms buffer would.
@@ -22,10 +23,8 @@ pub const PACER_SLACK_NS: u64 = 200_000_000;
 /// Command-line choices (each overrides the file).
 #[derive(Debug, Clone, Default)]
 pub struct Options {
-    /// Shared configuration directory.
-    pub config_dir: PathBuf,
-    /// The service's TOML (default `<config_dir>/audio-acq.toml`).
-    pub config: Option<PathBuf>,
+    /// `--config-dir` and `--config`.
+    pub config: ConfigArgs,
     /// Source override.
     pub source: Option<SourceKind>,
     /// ALSA device override (creates an `[alsa]` section with defaults if
@@ -54,10 +53,7 @@ pub struct RunSummary {
 
 /// The effective configuration: file plus command-line overrides, validated.
 pub fn effective_config(opts: &Options) -> Result<(PathBuf, AcqConfig), AcqError> {
-    let file = opts
-        .config
-        .clone()
-        .unwrap_or_else(|| opts.config_dir.join("audio-acq.toml"));
+    let file = opts.config.own_file::<AcqConfig>();
     let mut cfg = AcqConfig::load(&file)?;
     if let Some(s) = opts.source {
         cfg.audio.source = s;
@@ -145,7 +141,7 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, AcqError
             let w = cfg.wav.clone().ok_or_else(|| {
                 AcqError::Config(grip_config::ConfigError::new(&file, "wav", "missing"))
             })?;
-            let path = resolve(&opts.config_dir, &w.path);
+            let path = resolve(&opts.config.config_dir, &w.path);
             let audio = read_mono_i16(&path, rate)?;
             let what = format!(
                 "WAV {} ({} Hz, {} ch, {:.1} s, {})",
@@ -203,12 +199,11 @@ fn serve<S: Source>(
     stop: Arc<AtomicBool>,
 ) -> Result<RunSummary, AcqError> {
     let done = Arc::new(AtomicBool::new(false));
-    let helper = svc::spawn_helper(
+    let helper = monitor::spawn_helper(
         Arc::clone(&status),
         cfg.audio.source == SourceKind::Synth,
         Arc::clone(&done),
-    )
-    .map_err(|e| AcqError::Synth(format!("cannot start the helper thread: {e}")))?;
+    )?;
     let rt = grip_io::rt::apply(&cfg.rt);
     rt.log();
     let mut lp = AcqLoop::new(

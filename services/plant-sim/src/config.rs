@@ -5,8 +5,9 @@
 
 use std::path::Path;
 
-use grip_config::{ConfigError, parse_toml, read_file};
+use grip_config::ConfigError;
 use grip_io::rt::RtConfig;
+use grip_io::service::{ServiceConfig, validate_rt};
 
 /// What starts the scenario clock (the vehicle is held at its initial state
 /// before).
@@ -99,9 +100,22 @@ impl PlantSimConfig {
             rt: RtConfig::default(),
         }
     }
+}
 
-    /// Range checks; the error is (field, reason).
-    pub fn validate(&self) -> Result<(), (String, String)> {
+impl ServiceConfig for PlantSimConfig {
+    const FILE_NAME: &'static str = "plant-sim.toml";
+
+    /// Range checks (errors name `file` and the field).
+    fn validate(&self, file: &Path) -> Result<(), ConfigError> {
+        self.check()
+            .map_err(|(field, reason)| ConfigError::new(file, field, reason))?;
+        validate_rt(&self.rt, file)
+    }
+}
+
+impl PlantSimConfig {
+    /// The checks of the service's own fields: (field, reason).
+    fn check(&self) -> Result<(), (String, String)> {
         let num = |name: &str, v: f64, lo: f64, hi: f64| {
             if v.is_finite() && v >= lo && v <= hi {
                 Ok(())
@@ -125,31 +139,7 @@ impl PlantSimConfig {
                 format!("must be <= 100000 (got {})", self.start_commands),
             ));
         }
-        if let Some(p) = self.rt.fifo_priority
-            && !(1..=99).contains(&p)
-        {
-            return Err((
-                "rt.fifo_priority".into(),
-                format!("must be in 1..=99 (got {p}); leave it out to stay SCHED_OTHER"),
-            ));
-        }
-        if let Some(&c) = self.rt.cpus.iter().find(|&&c| c >= 1024) {
-            return Err(("rt.cpus".into(), format!("CPU {c} out of range 0..1024")));
-        }
         Ok(())
-    }
-
-    /// Parses and validates `text`, the contents of `file`.
-    pub fn parse(file: &Path, text: &str) -> Result<Self, ConfigError> {
-        let c: Self = parse_toml(file, text)?;
-        c.validate()
-            .map_err(|(field, reason)| ConfigError::new(file, field, reason))?;
-        Ok(c)
-    }
-
-    /// Reads, parses and validates `file`.
-    pub fn load(file: &Path) -> Result<Self, ConfigError> {
-        Self::parse(file, &read_file(file)?)
     }
 }
 

@@ -2,19 +2,20 @@
 //! scenario on the CAN bus, in real time.
 //!
 //! - [`config`]: `config/plant-sim.toml` ([`PlantSimConfig`], [`StartOn`]).
-//! - [`sim`]: [`PlantSim`], one cycle (`cycle(&tick, &clock, bus, truth)`),
-//!   drivable from tests with a manual clock.
+//! - [`cycle`]: [`PlantSim`], one cycle (`cycle(&tick, &clock, bus, truth)`
+//!   per [`PlantTick`]), drivable from tests with a manual clock.
 //! - [`run`]: the service: load config, open ports, real-time set-up,
 //!   periodic timer, `READY=1`, SIGUSR1 start, loop.
-//! - [`svc`]: systemd notification and the helper thread.
+//! - [`monitor`]: the non-real-time helper thread (watchdog, transitions
+//!   and counters logged), on [`grip_io::service::monitor`].
 //!
 //! See `services/README.md` ("tcs-loop / plant-sim").
 
 pub mod config;
+pub mod cycle;
+pub mod monitor;
 pub mod run;
-pub mod sim;
-pub mod svc;
 
 pub use config::{PlantSimConfig, StartOn};
+pub use cycle::{FAULT_CMD_TIMEOUT, NullTruth, Outcome, Phase, PlantSim, PlantTick, TruthSink};
 pub use run::{Options, RunError, run};
-pub use sim::{FAULT_CMD_TIMEOUT, NullTruth, Outcome, Phase, PlantSim, Tick, TruthSink};

@@ -29,24 +29,19 @@
 //! exits 0. Without it, it coasts until SIGTERM/SIGINT (exit 0). Fatal
 //! start-up error: one `error: ...` line on stderr, exit code 1.
 
-use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 
 use clap::Parser;
+use grip_io::service::{ConfigArgs, Service};
 use grip_plant_sim::{Options, StartOn, run};
 
 /// The grip plant simulator (inverter + vehicle + road on the CAN bus).
 #[derive(Debug, Parser)]
 #[command(name = "plant-sim", version)]
+#[command(mut_arg("config", |a| a.help("The service's TOML (default: <config-dir>/plant-sim.toml)")))]
 struct Args {
-    /// Shared configuration directory.
-    #[arg(long, default_value = "config")]
-    config_dir: PathBuf,
-    /// The service's TOML (default: <config-dir>/plant-sim.toml).
-    #[arg(long)]
-    config: Option<PathBuf>,
+    #[command(flatten)]
+    config: ConfigArgs,
     /// Scenario name (in <config-dir>/scenarios) or path to a scenario TOML.
     #[arg(long)]
     scenario: Option<String>,
@@ -62,41 +57,15 @@ struct Args {
 }
 
 fn main() -> ExitCode {
-    tracing_subscriber::fmt()
-        .with_writer(std::io::stderr)
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .init();
     let args = Args::parse();
-    let stop = Arc::new(AtomicBool::new(false));
-    let start = Arc::new(AtomicBool::new(false));
-    let regs = [
-        (signal_hook::consts::SIGTERM, &stop),
-        (signal_hook::consts::SIGINT, &stop),
-        (signal_hook::consts::SIGUSR1, &start),
-    ];
-    for (sig, flag) in regs {
-        if let Err(e) = signal_hook::flag::register(sig, Arc::clone(flag)) {
-            eprintln!("error: cannot install the handler for signal {sig}: {e}");
-            return ExitCode::from(1);
-        }
-    }
     let opts = Options {
-        config_dir: args.config_dir,
         config: args.config,
         scenario: args.scenario,
         seed: args.seed,
         exit_at_end: args.exit_at_end,
         start_on: args.start_on,
     };
-    match run(&opts, &stop, &start) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::from(1)
-        }
-    }
+    Service::new()
+        .with_start_signal()
+        .run(|signals| run(&opts, &signals.stop, &signals.start))
 }

@@ -6,24 +6,24 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use grip_config::{ConfigDir, ConfigError, parse_toml, read_file};
+use grip_config::{ConfigDir, ConfigError};
 use grip_io::can::{CanBus, CanBusConfig, CanError, open_bus};
 use grip_io::clock::MonotonicClock;
 use grip_io::ipc::{IpcError, IpcNode, Publisher};
 use grip_io::rt::{self, PeriodicTimer};
+use grip_io::service::monitor::HelperError;
+use grip_io::service::{ConfigArgs, ServiceConfig, load_can};
 use grip_msgs::{GroundTruth, topics};
 
 use crate::config::{PlantSimConfig, StartOn};
-use crate::sim::{Outcome, PlantSim, SimError, Tick, TruthSink};
-use crate::svc;
+use crate::cycle::{Outcome, PlantSim, PlantSimError, PlantTick, TruthSink};
+use crate::monitor;
 
 /// Command-line choices (see `main.rs`).
 #[derive(Debug, Clone, Default)]
 pub struct Options {
-    /// Shared configuration directory.
-    pub config_dir: PathBuf,
-    /// The service's own TOML (default `<config_dir>/plant-sim.toml`).
-    pub config: Option<PathBuf>,
+    /// `--config-dir` and `--config`.
+    pub config: ConfigArgs,
     /// `--scenario NAME|PATH`.
     pub scenario: Option<String>,
     /// `--seed`.
@@ -46,7 +46,7 @@ pub enum RunError {
         /// The file the parameter came from.
         file: PathBuf,
         /// The error.
-        source: SimError,
+        source: PlantSimError,
     },
     /// iceoryx2.
     #[error(transparent)]
@@ -55,27 +55,14 @@ pub enum RunError {
     #[error(transparent)]
     Can(#[from] CanError),
     /// The helper thread could not be started.
-    #[error("cannot start the helper thread: {0}")]
-    Thread(std::io::Error),
-}
-
-/// Reads `can.toml`.
-pub fn load_can(dir: &ConfigDir) -> Result<CanBusConfig, ConfigError> {
-    let path = dir.file("can.toml");
-    let c: CanBusConfig = parse_toml(&path, &read_file(&path)?)?;
-    if c.interface.trim().is_empty() {
-        return Err(ConfigError::new(&path, "interface", "must not be empty"));
-    }
-    Ok(c)
+    #[error(transparent)]
+    Helper(#[from] HelperError),
 }
 
 /// Everything a run reads, loaded and validated, overrides applied.
 pub fn load(opts: &Options) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), RunError> {
-    let dir = ConfigDir::new(&opts.config_dir);
-    let own_path = opts
-        .config
-        .clone()
-        .unwrap_or_else(|| dir.file("plant-sim.toml"));
+    let dir = ConfigDir::new(&opts.config.config_dir);
+    let own_path = opts.config.own_file::<PlantSimConfig>();
     let mut cfg = PlantSimConfig::load(&own_path)?;
     if let Some(s) = &opts.scenario {
         cfg.scenario = s.clone();
@@ -149,7 +136,7 @@ pub fn run(
         published: 0,
     };
     let done = Arc::new(AtomicBool::new(false));
-    let helper = svc::spawn_helper(sim.status(), Arc::clone(&done)).map_err(RunError::Thread)?;
+    let helper = monitor::spawn_helper(sim.status(), Arc::clone(&done))?;
     let report = rt::apply(&cfg.rt);
     report.log();
 
@@ -170,7 +157,8 @@ pub fn run(
             sim.request_start();
         }
         let t = timer.wait_next();
-        if sim.cycle(&Tick::from_timing(&t), &clock, &mut bus, &mut truth) == Outcome::Finished {
+        if sim.cycle(&PlantTick::from_timing(&t), &clock, &mut bus, &mut truth) == Outcome::Finished
+        {
             finished = true;
             break;
         }

@@ -15,7 +15,7 @@ use common::{LastTruth, MemBus, sim};
 use grip_io::can::protocol::{E2eSender, TorqueCommand};
 use grip_io::clock::{Clock, ManualClock};
 use grip_msgs::CanFrame;
-use grip_plant_sim::{Phase, PlantSimConfig, StartOn, Tick};
+use grip_plant_sim::{Phase, PlantSimConfig, PlantTick, StartOn};
 
 #[global_allocator]
 static A: grip_testkit::CountingAlloc = grip_testkit::CountingAlloc;
@@ -61,7 +61,7 @@ fn cycle_allocates_nothing_after_warm_up() {
             bus.inject(f);
             bus.inject(CanFrame::new(0x42, &[0; 3]));
         }
-        s.cycle(&Tick::at(now), &clock, bus, truth);
+        s.cycle(&PlantTick::at(now), &clock, bus, truth);
         bus.tx.borrow_mut().clear();
         clock.advance_ns(MS);
         k += 1;

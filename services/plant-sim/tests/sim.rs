@@ -10,7 +10,9 @@ use grip_io::can::protocol::{
 };
 use grip_io::clock::{Clock, ManualClock};
 use grip_msgs::CanFrame;
-use grip_plant_sim::{FAULT_CMD_TIMEOUT, Outcome, Phase, PlantSim, PlantSimConfig, StartOn, Tick};
+use grip_plant_sim::{
+    FAULT_CMD_TIMEOUT, Outcome, Phase, PlantSim, PlantSimConfig, PlantTick, StartOn,
+};
 
 const MS: u64 = 1_000_000;
 
@@ -49,9 +51,12 @@ impl Rig {
     /// One cycle; checks every frame sent with a tcs-side receiver.
     fn cycle(&mut self) -> (Outcome, Vec<CanFrame>) {
         let now = self.clock.now_ns();
-        let o = self
-            .sim
-            .cycle(&Tick::at(now), &self.clock, &mut self.bus, &mut self.truth);
+        let o = self.sim.cycle(
+            &PlantTick::at(now),
+            &self.clock,
+            &mut self.bus,
+            &mut self.truth,
+        );
         let sent = self.bus.take_sent();
         for f in &sent {
             match self.tcs_rx.receive(f, now) {
@@ -275,7 +280,7 @@ fn skipped_periods_advance_the_scenario_clock() {
     let mut r = Rig::new(&immediate());
     let now = r.clock.now_ns();
     r.sim.cycle(
-        &Tick {
+        &PlantTick {
             deadline_ns: now,
             skipped: 4,
         },

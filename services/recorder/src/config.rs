@@ -1,12 +1,13 @@
 //! `recorder.toml`: where logs go, MCAP options, queue bounds.
 //! Parsed with `grip_config::parse_toml` (unknown fields refused, errors name
-//! file, field and line) and range-checked by [`RecorderConfig::validate`].
+//! file, field and line) and range-checked by [`ServiceConfig::validate`].
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use grip_config::{ConfigError, parse_toml, read_file};
+use grip_config::ConfigError;
 use grip_io::mcaplog::{Compression, McapWriterOptions};
+use grip_io::service::ServiceConfig;
 use serde::Deserialize;
 
 /// The recorder's own configuration.
@@ -37,16 +38,11 @@ pub struct RecorderConfig {
     pub attach_max_bytes: u64,
 }
 
-impl RecorderConfig {
-    /// Reads and validates `path`.
-    pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let c: Self = parse_toml(path, &read_file(path)?)?;
-        c.validate(path)?;
-        Ok(c)
-    }
+impl ServiceConfig for RecorderConfig {
+    const FILE_NAME: &'static str = "recorder.toml";
 
     /// Range checks (errors name the file and field).
-    pub fn validate(&self, path: &Path) -> Result<(), ConfigError> {
+    fn validate(&self, path: &Path) -> Result<(), ConfigError> {
         let range = |field: &str, v: u64, lo: u64, hi: u64| {
             if (lo..=hi).contains(&v) {
                 Ok(())
@@ -68,7 +64,9 @@ impl RecorderConfig {
         }
         Ok(())
     }
+}
 
+impl RecorderConfig {
     /// MCAP writer options.
     pub fn writer_options(&self) -> McapWriterOptions {
         McapWriterOptions {
@@ -87,6 +85,7 @@ impl RecorderConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use grip_config::parse_toml;
 
     const GOOD: &str = r#"
 out_dir = "/var/log/grip"

@@ -3,18 +3,21 @@
 //! - [`config`]: `config/recorder.toml` ([`RecorderConfig`]).
 //! - [`stats`]: per-topic counters, gaps by sequence number (CAN: by alive
 //!   counter).
-//! - [`record`]: the receive thread, the bounded queue and the writer
-//!   ([`run`]).
+//! - [`cycle`]: the receive thread, the bounded queue and the writing loop.
+//! - [`run`]: the service: config, the log file and its run metadata,
+//!   `READY=1`, the loop until stopped, the summary.
+//! - [`monitor`]: publishers per topic and the watchdog's stall line (the
+//!   recorder has no helper thread: see the module).
 //!
 //! See `services/README.md` ("recorder / drive / inspect / systemd").
 
 pub mod config;
-pub mod record;
+pub mod cycle;
+pub mod monitor;
+pub mod run;
 pub mod stats;
 
 pub use config::RecorderConfig;
-pub use record::{
-    ConfigFile, GIT_REV, Msg, Options, RECORDED, RunError, Subscribers, Summary, config_files, run,
-    write_run_info,
-};
+pub use cycle::{Msg, RECORDED, Subscribers, Summary};
+pub use run::{ConfigFile, GIT_REV, Options, RunError, config_files, run, write_run_info};
 pub use stats::{CanCounterTracker, RecvStats, SeqTracker, TopicStats};

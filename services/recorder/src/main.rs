@@ -19,22 +19,18 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 
 use clap::Parser;
+use grip_io::service::{ConfigArgs, Service};
 use grip_recorder::{Options, run};
 
 /// The grip recorder (every topic to MCAP).
 #[derive(Debug, Parser)]
 #[command(name = "recorder", version)]
+#[command(mut_arg("config", |a| a.help("The service's TOML (default: <config-dir>/recorder.toml)")))]
 struct Args {
-    /// Shared configuration directory.
-    #[arg(long, default_value = "config")]
-    config_dir: PathBuf,
-    /// The service's TOML (default: <config-dir>/recorder.toml).
-    #[arg(long)]
-    config: Option<PathBuf>,
+    #[command(flatten)]
+    config: ConfigArgs,
     /// Output MCAP file.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -51,32 +47,11 @@ fn parse_kv(s: &str) -> Result<(String, String), String> {
 }
 
 fn main() -> ExitCode {
-    tracing_subscriber::fmt()
-        .with_writer(std::io::stderr)
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .init();
     let args = Args::parse();
-    let stop = Arc::new(AtomicBool::new(false));
-    for sig in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
-        if let Err(e) = signal_hook::flag::register(sig, Arc::clone(&stop)) {
-            eprintln!("error: cannot install the handler for signal {sig}: {e}");
-            return ExitCode::from(1);
-        }
-    }
     let opts = Options {
-        config_dir: args.config_dir,
         config: args.config,
         out: args.out,
         meta: args.meta,
     };
-    match run(&opts, &stop) {
-        Ok(_) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::from(1)
-        }
-    }
+    Service::new().run(|signals| run(&opts, &signals.stop).map(drop))
 }

@@ -6,8 +6,9 @@
 use std::path::Path;
 use std::str::FromStr;
 
-use grip_config::{ConfigError, parse_toml, read_file};
+use grip_config::ConfigError;
 use grip_io::rt::RtConfig;
+use grip_io::service::{ServiceConfig, validate_rt};
 use grip_tcs::ControllerKind;
 
 /// The service's own configuration file.
@@ -88,49 +89,25 @@ fn ms_to_ns(ms: f64) -> u64 {
     (ms * 1e6).round() as u64
 }
 
-/// Validates an `[rt]` table (shared with plant-sim's rules): priority 1..=99.
-pub fn validate_rt(rt: &RtConfig) -> Result<(), (String, String)> {
-    if let Some(p) = rt.fifo_priority
-        && !(1..=99).contains(&p)
-    {
-        return Err((
-            "rt.fifo_priority".into(),
-            format!("must be in 1..=99 (got {p}); leave it out to stay SCHED_OTHER"),
-        ));
-    }
-    if let Some(&c) = rt.cpus.iter().find(|&&c| c >= 1024) {
-        return Err(("rt.cpus".into(), format!("CPU {c} out of range 0..1024")));
-    }
-    Ok(())
-}
-
 impl TcsLoopConfig {
     /// The controller kind (errors name the field).
     pub fn controller_kind(&self) -> Result<ControllerKind, (String, String)> {
         ControllerKind::from_str(&self.controller)
             .map_err(|e| ("controller".to_owned(), e.to_string()))
     }
+}
 
-    /// Range checks; the error is (field, reason).
-    pub fn validate(&self) -> Result<(), (String, String)> {
-        self.controller_kind()?;
+impl ServiceConfig for TcsLoopConfig {
+    const FILE_NAME: &'static str = "tcs-loop.toml";
+
+    /// Range checks: the controller, `[safety]`, `[rt]`.
+    fn validate(&self, file: &Path) -> Result<(), ConfigError> {
+        let named = |(field, reason): (String, String)| ConfigError::new(file, field, reason);
+        self.controller_kind().map_err(named)?;
         self.safety
             .validate()
-            .map_err(|(f, r)| (format!("safety.{f}"), r))?;
-        validate_rt(&self.rt)
-    }
-
-    /// Parses and validates `text`, the contents of `file`.
-    pub fn parse(file: &Path, text: &str) -> Result<Self, ConfigError> {
-        let c: Self = parse_toml(file, text)?;
-        c.validate()
-            .map_err(|(field, reason)| ConfigError::new(file, field, reason))?;
-        Ok(c)
-    }
-
-    /// Reads, parses and validates `file`.
-    pub fn load(file: &Path) -> Result<Self, ConfigError> {
-        Self::parse(file, &read_file(file)?)
+            .map_err(|(f, r)| named((format!("safety.{f}"), r)))?;
+        validate_rt(&self.rt, file)
     }
 }
 

@@ -56,7 +56,7 @@ pub const MAX_RX_PER_CYCLE: usize = 64;
 
 /// When a cycle runs: its deadline and actual wake-up.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Tick {
+pub struct CycleTick {
     /// Nominal start of the cycle (the timer's absolute deadline), ns.
     pub deadline_ns: u64,
     /// When the thread actually woke, ns.
@@ -65,7 +65,7 @@ pub struct Tick {
     pub deadline_misses: u64,
 }
 
-impl Tick {
+impl CycleTick {
     /// From the periodic timer's report and its miss count.
     pub fn from_timing(t: &CycleTiming, deadline_misses: u64) -> Self {
         Self {
@@ -276,7 +276,7 @@ impl TcsLoop {
     /// Returns the published record. Allocation-free.
     pub fn cycle<B: CanBus, R: RoadSource, S: RecordSink, C: Clock>(
         &mut self,
-        tick: &Tick,
+        tick: &CycleTick,
         clock: &C,
         bus: &mut B,
         road: &mut R,

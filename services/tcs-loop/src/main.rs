@@ -25,12 +25,10 @@
 //! `Enable` cleared, exits 0. A bad configuration or a missing device: one
 //! `error: ...` line on stderr (file, field, reason), exit code 1.
 
-use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 
 use clap::Parser;
+use grip_io::service::{ConfigArgs, Service};
 use grip_tcs::ControllerKind;
 use grip_tcs_loop::{Options, run};
 
@@ -43,13 +41,10 @@ enum OnOff {
 /// The grip traction-control loop (CAN in/out, ARTE road estimates, cycle records).
 #[derive(Debug, Parser)]
 #[command(name = "tcs-loop", version)]
+#[command(mut_arg("config", |a| a.help("The service's TOML (default: <config-dir>/tcs-loop.toml)")))]
 struct Args {
-    /// Shared configuration directory.
-    #[arg(long, default_value = "config")]
-    config_dir: PathBuf,
-    /// The service's TOML (default: <config-dir>/tcs-loop.toml).
-    #[arg(long)]
-    config: Option<PathBuf>,
+    #[command(flatten)]
+    config: ConfigArgs,
     /// Controller override: mfc, src or mtte.
     #[arg(long)]
     controller: Option<ControllerKind>,
@@ -62,34 +57,12 @@ struct Args {
 }
 
 fn main() -> ExitCode {
-    tracing_subscriber::fmt()
-        .with_writer(std::io::stderr)
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .init();
     let args = Args::parse();
-    let stop = Arc::new(AtomicBool::new(false));
-    for sig in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
-        if let Err(e) = signal_hook::flag::register(sig, Arc::clone(&stop)) {
-            eprintln!("error: cannot install the handler for signal {sig}: {e}");
-            return ExitCode::from(1);
-        }
-    }
     let opts = Options {
-        config_dir: args.config_dir,
         config: args.config,
         controller: args.controller,
         arte: args.arte.map(|a| a == OnOff::On),
         run_for_s: args.run_for,
     };
-    match run(&opts, &stop) {
-        Ok(_) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::from(1)
-        }
-    }
+    Service::new().run(|signals| run(&opts, &signals.stop).map(drop))
 }

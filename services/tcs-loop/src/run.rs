@@ -6,26 +6,26 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use grip_config::{ConfigDir, ConfigError, load_controllers, parse_toml, read_file};
+use grip_config::{ConfigDir, ConfigError, load_controllers};
 use grip_io::can::{CanBus, CanBusConfig, CanError, open_bus};
 use grip_io::clock::{Clock, MonotonicClock};
 use grip_io::ipc::{IpcError, IpcNode, SubscriberMode};
 use grip_io::rt::{self, LatencyHistogram, PeriodicTimer};
+use grip_io::service::monitor::HelperError;
+use grip_io::service::{ConfigArgs, ServiceConfig, load_can};
 use grip_msgs::{CanFrame, CycleRecord, RoadEstimate, topics};
 use grip_tcs::ControllerKind;
 
 use crate::config::TcsLoopConfig;
-use crate::cycle::{LoopError, TcsLoop, Tick};
+use crate::cycle::{CycleTick, LoopError, TcsLoop};
+use crate::monitor;
 use crate::ports::{IpcRoad, IpcSink};
-use crate::svc;
 
 /// Command-line choices (see `main.rs` for the flags).
 #[derive(Debug, Clone, Default)]
 pub struct Options {
-    /// Shared configuration directory (`controllers.toml`, `vehicle.toml`, `can.toml`).
-    pub config_dir: PathBuf,
-    /// The service's own TOML (default `<config_dir>/tcs-loop.toml`).
-    pub config: Option<PathBuf>,
+    /// `--config-dir` and `--config`.
+    pub config: ConfigArgs,
     /// `--controller` override.
     pub controller: Option<ControllerKind>,
     /// `--arte on|off` override.
@@ -55,8 +55,8 @@ pub enum RunError {
     #[error(transparent)]
     Can(#[from] CanError),
     /// The helper thread could not be started.
-    #[error("cannot start the helper thread: {0}")]
-    Thread(std::io::Error),
+    #[error(transparent)]
+    Helper(#[from] HelperError),
 }
 
 /// What a run did.
@@ -97,23 +97,10 @@ pub struct LoadedConfig {
     pub own_path: PathBuf,
 }
 
-/// Reads `can.toml` (shared by tcs-loop and plant-sim).
-pub fn load_can(dir: &ConfigDir) -> Result<CanBusConfig, ConfigError> {
-    let path = dir.file("can.toml");
-    let c: CanBusConfig = parse_toml(&path, &read_file(&path)?)?;
-    if c.interface.trim().is_empty() {
-        return Err(ConfigError::new(&path, "interface", "must not be empty"));
-    }
-    Ok(c)
-}
-
 /// Loads and validates every file the service needs, applying the overrides.
 pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
-    let dir = ConfigDir::new(&opts.config_dir);
-    let own_path = opts
-        .config
-        .clone()
-        .unwrap_or_else(|| dir.file("tcs-loop.toml"));
+    let dir = ConfigDir::new(&opts.config.config_dir);
+    let own_path = opts.config.own_file::<TcsLoopConfig>();
     let mut own = TcsLoopConfig::load(&own_path)?;
     if let Some(k) = opts.controller {
         own.controller = k.as_str().to_owned();
@@ -181,8 +168,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
 
     // helper first, so it stays SCHED_OTHER and unpinned
     let done = Arc::new(AtomicBool::new(false));
-    let helper = svc::spawn_helper(lp.status(), cfg.own.arte, Arc::clone(&done))
-        .map_err(RunError::Thread)?;
+    let helper = monitor::spawn_helper(lp.status(), cfg.own.arte, Arc::clone(&done))?;
     let report = rt::apply(&cfg.own.rt);
     report.log();
 
@@ -203,7 +189,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
     while !stop.load(Ordering::Relaxed) {
         let t = timer.wait_next();
         late_1ms += u64::from(t.latency_ns > 1_000_000);
-        let tick = Tick::from_timing(&t, timer.deadline_misses());
+        let tick = CycleTick::from_timing(&t, timer.deadline_misses());
         lp.cycle(&tick, &clock, &mut bus, &mut road, &mut sink);
         if end_ns.is_some_and(|e| t.woke_ns >= e) {
             break;

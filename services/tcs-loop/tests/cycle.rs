@@ -12,7 +12,7 @@ use grip_io::clock::{Clock, ManualClock};
 use grip_msgs::{CanFrame, CycleRecord, NO_CLASS, RoadEstimate};
 use grip_physics::VehicleParams;
 use grip_tcs::{ControllerKind, ControllersConfig};
-use grip_tcs_loop::{NoRoad, SafetyConfig, TcsLoop, Tick};
+use grip_tcs_loop::{CycleTick, NoRoad, SafetyConfig, TcsLoop};
 
 const MS: u64 = 1_000_000;
 const T0: u64 = 1_000 * MS;
@@ -127,7 +127,7 @@ impl Rig {
         &mut self,
         road: &mut R,
     ) -> (CycleRecord, TorqueCommand) {
-        let tick = Tick::at(self.now());
+        let tick = CycleTick::at(self.now());
         let rec = *self
             .lp
             .cycle(&tick, &self.clock, &mut self.bus, road, &mut self.sink);
@@ -435,7 +435,7 @@ fn record_carries_timing_and_measurements() {
     r.run_ok(60);
     r.feed(true, true, true);
     let now = r.now();
-    let tick = Tick {
+    let tick = CycleTick {
         deadline_ns: now - 30_000,
         woke_ns: now,
         deadline_misses: 3,

@@ -17,7 +17,7 @@ use grip_io::clock::{Clock, ManualClock};
 use grip_msgs::{CanFrame, RoadEstimate};
 use grip_physics::VehicleParams;
 use grip_tcs::{ControllerKind, ControllersConfig};
-use grip_tcs_loop::{SafetyConfig, TcsLoop, Tick};
+use grip_tcs_loop::{CycleTick, SafetyConfig, TcsLoop};
 
 #[global_allocator]
 static A: grip_testkit::CountingAlloc = grip_testkit::CountingAlloc;
@@ -102,7 +102,7 @@ impl Rig {
             });
         }
         self.lp.cycle(
-            &Tick::at(now),
+            &CycleTick::at(now),
             &self.clock,
             &mut self.bus,
             &mut self.road,

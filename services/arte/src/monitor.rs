@@ -1,16 +1,17 @@
-//! Service plumbing outside the real-time loop: the non-real-time helper
-//! thread (`WATCHDOG=1` through [`grip_io::systemd::Watchdog`] while the
-//! loop's heartbeat advances; log lines on transitions, never per block).
-//! `READY=1`, `STATUS=` and `STOPPING=1` come from [`grip_io::systemd`] too.
+//! The non-real-time helper thread beside the arte loop (the loop through
+//! [`grip_io::service::monitor`]: `WATCHDOG=1` while the loop's heartbeat
+//! advances; log lines on transitions, never per block). `READY=1`,
+//! `STATUS=` and `STOPPING=1` come from [`grip_io::systemd`].
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use grip_io::systemd::{Watchdog, WatchdogPoll};
+use grip_io::service::monitor::{self, Count, Flow, FlowEvent, HelperError, Monitor};
+use grip_io::warn_if_grew;
 
-use crate::ArteStats;
+use crate::ArteCounters;
 
 /// Spawns the helper thread (before the caller switches to SCHED_FIFO).
 /// Every 50 ms (or half the watchdog period if shorter) it sends
@@ -23,14 +24,27 @@ use crate::ArteStats;
 /// none has come after 1 s of audio), info when it goes stale and when it
 /// returns, at most one stale line per [`SPEED_STALE_LOG_INTERVAL`].
 pub fn spawn_helper(
-    stats: Arc<ArteStats>,
+    stats: Arc<ArteCounters>,
     model_rate: u32,
     speed_normalised: bool,
     done: Arc<AtomicBool>,
-) -> std::io::Result<JoinHandle<()>> {
-    std::thread::Builder::new()
-        .name("arte-helper".into())
-        .spawn(move || helper(&stats, model_rate, speed_normalised, &done))
+) -> Result<JoinHandle<()>, HelperError> {
+    let m = ArteMonitor {
+        blocks: Flow::new(0, Instant::now(), Duration::from_secs(1)),
+        lost: Count::default(),
+        resets: Count::default(),
+        rate_bad: Count::default(),
+        xruns: Count::default(),
+        pub_err: Count::default(),
+        rx_err: Count::default(),
+        cycle_err: Count::default(),
+        bad_speeds: Count::default(),
+        speed_log: SpeedLog::new(),
+        s: stats,
+        model_rate,
+        speed_normalised,
+    };
+    monitor::spawn("arte-helper", m, done)
 }
 
 /// Shortest time between two "vehicle speed stale" lines.
@@ -192,117 +206,108 @@ fn log_speed(ev: SpeedEvent, speed_normalised: bool) {
     }
 }
 
-fn helper(s: &ArteStats, model_rate: u32, speed_normalised: bool, done: &AtomicBool) {
-    let mut wd = Watchdog::from_env(s.heartbeat.load(Ordering::Relaxed));
-    let tick = wd.tick();
-    let mut blocks = 0u64;
-    let mut blocks_changed = Instant::now();
-    let mut audio_stale = false;
-    let mut first_block = true;
-    let mut lost = 0u64;
-    let mut resets = 0u64;
-    let mut rate_bad = 0u64;
-    let mut xruns = 0u64;
-    let mut pub_err = 0u64;
-    let mut rx_err = 0u64;
-    let mut cycle_err = 0u64;
-    let mut bad_speeds = 0u64;
-    let mut speed_log = SpeedLog::new();
-    let mut last_report = Instant::now();
-    while !done.load(Ordering::Relaxed) {
-        std::thread::sleep(tick);
-        let beat = s.heartbeat.load(Ordering::Relaxed);
-        if wd.poll(beat, Instant::now()) == WatchdogPoll::Stalled {
-            tracing::warn!(
-                heartbeat = beat,
-                "arte loop heartbeat stalled: watchdog not fed"
-            );
-        }
-        let b = s.blocks.load(Ordering::Relaxed);
-        if b != blocks {
-            if first_block {
-                tracing::info!("first audio block received");
-                first_block = false;
-            } else if audio_stale {
-                tracing::info!(blocks = b, "audio blocks arriving again");
+struct ArteMonitor {
+    s: Arc<ArteCounters>,
+    model_rate: u32,
+    speed_normalised: bool,
+    blocks: Flow,
+    lost: Count,
+    resets: Count,
+    rate_bad: Count,
+    xruns: Count,
+    pub_err: Count,
+    rx_err: Count,
+    cycle_err: Count,
+    bad_speeds: Count,
+    speed_log: SpeedLog,
+}
+
+impl Monitor for ArteMonitor {
+    fn heartbeat(&self) -> u64 {
+        self.s.heartbeat.load(Ordering::Relaxed)
+    }
+
+    fn stalled(&self, heartbeat: u64) {
+        tracing::warn!(heartbeat, "arte loop heartbeat stalled: watchdog not fed");
+    }
+
+    fn tick(&mut self, now: Instant) {
+        let b = self.s.blocks.load(Ordering::Relaxed);
+        match self.blocks.update(b, now) {
+            Some(FlowEvent::Moving { first: true, .. }) => {
+                tracing::info!("first audio block received")
             }
-            audio_stale = false;
-            blocks = b;
-            blocks_changed = Instant::now();
-        } else if !audio_stale && blocks_changed.elapsed() >= Duration::from_secs(1) {
-            tracing::warn!(
+            Some(FlowEvent::Moving { .. }) => {
+                tracing::info!(blocks = b, "audio blocks arriving again")
+            }
+            Some(FlowEvent::Stopped) => tracing::warn!(
                 blocks = b,
                 "no audio block for 1 s (audio-acq dead, stalled or not started): no road estimates"
-            );
-            audio_stale = true;
+            ),
+            None => {}
         }
-        if last_report.elapsed() >= Duration::from_secs(1) {
-            last_report = Instant::now();
-            let v = s.lost_blocks.load(Ordering::Relaxed);
-            if v != lost {
-                tracing::warn!(
-                    total = v,
-                    new = v - lost,
-                    "audio blocks lost (sequence gaps)"
-                );
-                lost = v;
-            }
-            let v = s.resets.load(Ordering::Relaxed);
-            if v != resets {
-                tracing::warn!(total = v, "audio stream discontinuity: estimator restarted");
-                resets = v;
-            }
-            let v = s.rate_mismatch.load(Ordering::Relaxed);
-            if v != rate_bad {
-                if rate_bad == 0 {
-                    tracing::error!(
-                        audio_rate = s.bad_rate.load(Ordering::Relaxed),
-                        model_rate,
-                        "audio blocks at {} Hz but the model expects {model_rate} Hz: blocks REFUSED, no road estimates (set [audio] sample_rate in audio-acq.toml to {model_rate})",
-                        s.bad_rate.load(Ordering::Relaxed)
-                    );
-                }
-                rate_bad = v;
-            }
-            let v = s.xruns.load(Ordering::Relaxed);
-            if v != xruns {
-                if v > xruns {
-                    tracing::warn!(total = v, "audio-acq reports capture overruns");
-                }
-                xruns = v;
-            }
-            let v = s.publish_errors.load(Ordering::Relaxed);
-            if v != pub_err {
-                tracing::warn!(total = v, "publishing road estimates failed");
-                pub_err = v;
-            }
-            let v = s.receive_errors.load(Ordering::Relaxed);
-            if v != rx_err {
-                tracing::warn!(total = v, "receiving audio blocks failed");
-                rx_err = v;
-            }
-            let v = s.cycle_receive_errors.load(Ordering::Relaxed);
-            if v != cycle_err {
-                tracing::warn!(total = v, "receiving cycle records (vehicle speed) failed");
-                cycle_err = v;
-            }
-            let v = s.bad_speeds.load(Ordering::Relaxed);
-            if v != bad_speeds {
-                tracing::warn!(
-                    total = v,
-                    "cycle records with v_valid = 1 but a non-finite v: ignored"
-                );
-                bad_speeds = v;
-            }
-            if let Some(ev) = speed_log.update(
-                Instant::now(),
-                s.blocks_with_speed.load(Ordering::Relaxed),
-                s.blocks_without_speed.load(Ordering::Relaxed),
-                s.speed_fresh.load(Ordering::Relaxed),
-                f64::from_bits(s.last_speed_bits.load(Ordering::Relaxed)),
-            ) {
-                log_speed(ev, speed_normalised);
-            }
+    }
+
+    fn report(&mut self, now: Instant) {
+        let s = &self.s;
+        warn_if_grew!(
+            self.lost,
+            s.lost_blocks.load(Ordering::Relaxed),
+            "audio blocks lost (sequence gaps)"
+        );
+        warn_if_grew!(
+            self.resets,
+            s.resets.load(Ordering::Relaxed),
+            "audio stream discontinuity: estimator restarted"
+        );
+        let first_refusal = self.rate_bad.last() == 0;
+        if self
+            .rate_bad
+            .grew(s.rate_mismatch.load(Ordering::Relaxed))
+            .is_some()
+            && first_refusal
+        {
+            let model_rate = self.model_rate;
+            let audio_rate = s.bad_rate.load(Ordering::Relaxed);
+            tracing::error!(
+                audio_rate,
+                model_rate,
+                "audio blocks at {audio_rate} Hz but the model expects {model_rate} Hz: blocks REFUSED, no road estimates (set [audio] sample_rate in audio-acq.toml to {model_rate})",
+            );
+        }
+        warn_if_grew!(
+            self.xruns,
+            s.xruns.load(Ordering::Relaxed),
+            "audio-acq reports capture overruns"
+        );
+        warn_if_grew!(
+            self.pub_err,
+            s.publish_errors.load(Ordering::Relaxed),
+            "publishing road estimates failed"
+        );
+        warn_if_grew!(
+            self.rx_err,
+            s.receive_errors.load(Ordering::Relaxed),
+            "receiving audio blocks failed"
+        );
+        warn_if_grew!(
+            self.cycle_err,
+            s.cycle_receive_errors.load(Ordering::Relaxed),
+            "receiving cycle records (vehicle speed) failed"
+        );
+        warn_if_grew!(
+            self.bad_speeds,
+            s.bad_speeds.load(Ordering::Relaxed),
+            "cycle records with v_valid = 1 but a non-finite v: ignored"
+        );
+        if let Some(ev) = self.speed_log.update(
+            now,
+            s.blocks_with_speed.load(Ordering::Relaxed),
+            s.blocks_without_speed.load(Ordering::Relaxed),
+            s.speed_fresh.load(Ordering::Relaxed),
+            f64::from_bits(s.last_speed_bits.load(Ordering::Relaxed)),
+        ) {
+            log_speed(ev, self.speed_normalised);
         }
     }
 }

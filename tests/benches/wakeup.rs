@@ -2,8 +2,8 @@
 //! `cyclictest` on the same machine, in the same invocation.
 //!
 //! ```text
-//! cargo bench -p grip-tcs-loop --bench wakeup          # 60 s + 60 s
-//! GRIP_BENCH_SECS=10 cargo bench -p grip-tcs-loop --bench wakeup
+//! cargo bench -p grip-tests --bench wakeup          # 60 s + 60 s
+//! GRIP_BENCH_SECS=10 cargo bench -p grip-tests --bench wakeup
 //! ```
 //!
 //! 1. plant-sim's `run` (shipped `config/plant-sim.toml`: SCHED_FIFO 70,
@@ -146,14 +146,14 @@ fn main() {
         .with_writer(std::io::stderr)
         .with_env_filter(tracing_subscriber::EnvFilter::new("warn"))
         .init();
-    let config_dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../config");
+    let config_dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../config");
 
     // plant-sim for the whole benchmark
     let plant_stop = Arc::new(AtomicBool::new(false));
     let plant = {
         let stop = Arc::clone(&plant_stop);
         let opts = grip_plant_sim::Options {
-            config_dir: config_dir.clone(),
+            config: grip_io::service::ConfigArgs::in_dir(&config_dir),
             start_on: Some(grip_plant_sim::StartOn::Immediate),
             ..Default::default()
         };
@@ -169,7 +169,7 @@ fn main() {
     eprintln!("tcs-loop: {secs} s at the configured rate ...");
     let tcs = {
         let opts = grip_tcs_loop::Options {
-            config_dir: config_dir.clone(),
+            config: grip_io::service::ConfigArgs::in_dir(&config_dir),
             run_for_s: Some(secs as f64),
             ..Default::default()
         };

@@ -7,6 +7,7 @@ use grip_config::ConfigDir;
 use grip_io::can::SimBus;
 use grip_io::clock::{Clock, ManualClock};
 use grip_io::ipc::IpcNode;
+use grip_io::service::ServiceConfig;
 use grip_msgs::{GroundTruth, RoadEstimate};
 use grip_physics::{Plant, PlantState};
 use grip_plant_sim::{Outcome, Phase, PlantSim, PlantSimConfig, StartOn, TruthSink};
@@ -16,7 +17,7 @@ use grip_tcs_loop::{NullSink, RoadSource, TcsLoop, TcsLoopConfig};
 const MS: u64 = 1_000_000;
 
 fn dir() -> ConfigDir {
-    ConfigDir::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../config"))
+    ConfigDir::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../config"))
 }
 
 #[derive(Default)]
@@ -86,7 +87,7 @@ fn closed_loop(kind: ControllerKind, arte: bool) -> Outcome_ {
     for _ in 0..10_000 {
         let now = clock.now_ns();
         let o = plant.cycle(
-            &grip_plant_sim::Tick::at(now),
+            &grip_plant_sim::PlantTick::at(now),
             &clock,
             &mut bus_p,
             &mut truths,
@@ -106,7 +107,7 @@ fn closed_loop(kind: ControllerKind, arte: bool) -> Outcome_ {
             ..RoadEstimate::zeroed()
         });
         let rec = tcs.cycle(
-            &grip_tcs_loop::Tick::at(now),
+            &grip_tcs_loop::CycleTick::at(now),
             &clock,
             &mut bus_t,
             &mut road,

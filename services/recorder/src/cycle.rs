@@ -1,64 +1,23 @@
-//! The recorder: a receive thread drains every deep subscriber into a
-//! bounded queue (never blocking: a full queue drops and counts), and the
-//! writing thread (the caller of [`run`]) turns the queue into MCAP.
+//! The recorder's loop: a receive thread drains every deep subscriber into
+//! a bounded queue (never blocking: a full queue drops and counts), and
+//! the writing thread ([`write_loop`], the caller of [`crate::run`]) turns
+//! the queue into MCAP.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError, sync_channel};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use grip_config::{ConfigDir, ConfigError};
 use grip_io::ipc::{IpcError, IpcNode, PeerReport, Subscriber, SubscriberMode};
-use grip_io::mcaplog::{McapLogError, McapWriter, RunInfo, sha256_hex};
-use grip_io::systemd::{self, Watchdog, WatchdogPoll};
+use grip_io::mcaplog::{McapLogError, McapWriter};
+use grip_io::systemd::{Watchdog, WatchdogPoll};
 use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
 
-use crate::config::RecorderConfig;
+use crate::monitor::{self, PeerWatch};
 use crate::stats::{RecvStats, TopicStats};
-
-/// The grip revision this binary was built from (build.rs).
-pub const GIT_REV: &str = env!("GRIP_GIT_REV");
-
-/// Command-line choices (see `main.rs`).
-#[derive(Debug, Clone, Default)]
-pub struct Options {
-    /// Shared configuration directory (attached and hashed).
-    pub config_dir: PathBuf,
-    /// The service's own TOML (default `<config_dir>/recorder.toml`).
-    pub config: Option<PathBuf>,
-    /// Output file (default: `<out_dir>/grip-<unix s>-<pid>.mcap`).
-    pub out: Option<PathBuf>,
-    /// Extra `grip.run` metadata (scenario, controller, ...).
-    pub meta: Vec<(String, String)>,
-}
-
-/// Fatal errors.
-#[derive(Debug, thiserror::Error)]
-pub enum RunError {
-    /// Bad configuration.
-    #[error(transparent)]
-    Config(#[from] ConfigError),
-    /// iceoryx2.
-    #[error(transparent)]
-    Ipc(#[from] IpcError),
-    /// The MCAP file.
-    #[error(transparent)]
-    Mcap(#[from] McapLogError),
-    /// The output directory.
-    #[error("{path}: cannot create the log directory: {source}")]
-    OutDir {
-        /// Directory.
-        path: PathBuf,
-        /// Error.
-        source: std::io::Error,
-    },
-    /// A thread could not be started.
-    #[error("cannot start the receive thread: {0}")]
-    Thread(std::io::Error),
-}
 
 /// One message on its way to the file.
 #[derive(Debug, Clone)]
@@ -309,132 +268,11 @@ impl Summary {
     }
 }
 
-/// A file to attach: its name in the log, path, and whether it is a model.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ConfigFile {
-    /// Name in the log (relative to the config directory).
-    pub name: String,
-    /// Path on disk.
-    pub path: PathBuf,
-    /// Under `models/`.
-    pub model: bool,
-}
-
-/// The files of a configuration directory that describe a run: `*.toml`,
-/// `*.dbc`, `*.csv` at the top and in `roads/`, `scenarios/*.toml`,
-/// everything in `models/`. Sorted by name; unreadable directories are
-/// skipped.
-pub fn config_files(dir: &Path) -> Vec<ConfigFile> {
-    let mut out = Vec::new();
-    let mut scan = |sub: &str, exts: Option<&[&str]>, model: bool| {
-        let d = if sub.is_empty() {
-            dir.to_path_buf()
-        } else {
-            dir.join(sub)
-        };
-        let Ok(rd) = std::fs::read_dir(&d) else {
-            return;
-        };
-        for e in rd.flatten() {
-            let p = e.path();
-            if !p.is_file() {
-                continue;
-            }
-            let ext = p.extension().and_then(|e| e.to_str()).unwrap_or("");
-            if exts.is_some_and(|xs| !xs.contains(&ext)) {
-                continue;
-            }
-            let file = e.file_name().to_string_lossy().into_owned();
-            let name = if sub.is_empty() {
-                file
-            } else {
-                format!("{sub}/{file}")
-            };
-            out.push(ConfigFile {
-                name,
-                path: p,
-                model,
-            });
-        }
-    };
-    scan("", Some(&["toml", "dbc", "csv"]), false);
-    scan("roads", Some(&["toml", "csv"]), false);
-    scan("scenarios", Some(&["toml"]), false);
-    scan("models", None, true);
-    out.sort_by(|a, b| a.name.cmp(&b.name));
-    out
-}
-
-/// Writes `grip.run` (version, git revision, hashes, extras) and attaches
-/// the configuration files.
-pub fn write_run_info(
-    w: &mut McapWriter,
-    config_dir: &Path,
-    attach_max: u64,
-    meta: &[(String, String)],
-) -> Result<(), McapLogError> {
-    let mut info = RunInfo {
-        version: env!("CARGO_PKG_VERSION").into(),
-        git_revision: GIT_REV.into(),
-        ..RunInfo::default()
-    };
-    info.extra
-        .insert("config_dir".into(), config_dir.display().to_string());
-    for (k, v) in meta {
-        info.extra.insert(k.clone(), v.clone());
-    }
-    let mut attach = Vec::new();
-    for f in config_files(config_dir) {
-        let data = match std::fs::read(&f.path) {
-            Ok(d) => d,
-            Err(e) => {
-                tracing::warn!(file = %f.path.display(), error = %e, "cannot read config file; not attached");
-                continue;
-            }
-        };
-        let h = sha256_hex(&data);
-        if f.model {
-            info.model_hashes.insert(f.name.clone(), h);
-        } else {
-            info.config_hashes.insert(f.name.clone(), h);
-        }
-        if data.len() as u64 <= attach_max {
-            attach.push((f, data));
-        } else {
-            info.extra.insert(
-                format!("not_attached.{}", f.name),
-                format!("{} bytes > attach_max_bytes", data.len()),
-            );
-        }
-    }
-    w.write_run_info(&info)?;
-    for (f, data) in attach {
-        let media = match f.path.extension().and_then(|e| e.to_str()) {
-            Some("toml") => "application/toml",
-            Some("json") => "application/json",
-            Some("csv") => "text/csv",
-            Some("dbc") => "text/plain",
-            _ => "application/octet-stream",
-        };
-        w.attach_bytes(&f.name, media, &data)?;
-    }
-    Ok(())
-}
-
-/// Default log path in `dir`.
-pub fn default_out(dir: &Path) -> PathBuf {
-    let secs = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_secs())
-        .unwrap_or(0);
-    dir.join(format!("grip-{secs}-{}.mcap", std::process::id()))
-}
-
 /// Starts the receive thread: it creates the iceoryx2 node and the deep
 /// subscribers itself (iceoryx2 ports are not `Send`), reports the outcome
 /// through `ready`, then drains into the queue until `stop`, and finally
 /// drains once more.
-fn spawn_receiver(
+pub fn spawn_receiver(
     q: Queue,
     stop: Arc<AtomicBool>,
     poll: Duration,
@@ -460,36 +298,14 @@ fn spawn_receiver(
                     return stats;
                 }
             };
-            let mut last_peers = Instant::now();
-            let mut publishers: BTreeMap<&'static str, (usize, usize)> = BTreeMap::new();
+            let mut peers = PeerWatch::new(Instant::now());
             while !stop.load(Ordering::Relaxed) {
                 let n = receive_pass(&subs, &q, &mut stats, 4096);
                 heartbeat.fetch_add(1, Ordering::Relaxed);
                 if n == 0 {
                     std::thread::sleep(poll);
                 }
-                if last_peers.elapsed() >= Duration::from_secs(1) {
-                    last_peers = Instant::now();
-                    for (t, p) in subs.peers() {
-                        let prev = publishers.insert(t, (p.publishers, p.dead));
-                        if prev.is_some_and(|(np, nd)| np != p.publishers || nd != p.dead) {
-                            if p.dead > 0 {
-                                tracing::warn!(
-                                    topic = t,
-                                    publishers = p.publishers,
-                                    dead_nodes = p.dead,
-                                    "a peer of this topic died"
-                                );
-                            } else {
-                                tracing::info!(
-                                    topic = t,
-                                    publishers = p.publishers,
-                                    "publishers changed"
-                                );
-                            }
-                        }
-                    }
-                }
+                peers.poll(Instant::now(), || subs.peers());
             }
             // drain what is still waiting in the subscribers
             while receive_pass(&subs, &q, &mut stats, 4096) > 0 {}
@@ -497,91 +313,39 @@ fn spawn_receiver(
         })
 }
 
-/// Runs the recorder until `stop` (SIGTERM/SIGINT): opens the subscribers
-/// and the file, writes `grip.run` and the attachments, sends `READY=1`,
-/// records; on stop drains what is queued, writes the `grip.recorder`
-/// summary metadata and finishes the file.
-pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> {
-    let dir = ConfigDir::new(&opts.config_dir);
-    let own = opts
-        .config
-        .clone()
-        .unwrap_or_else(|| dir.file("recorder.toml"));
-    let cfg = RecorderConfig::load(&own)?;
-    let path = match &opts.out {
-        Some(p) => p.clone(),
-        None => {
-            std::fs::create_dir_all(&cfg.out_dir).map_err(|source| RunError::OutDir {
-                path: cfg.out_dir.clone(),
-                source,
-            })?;
-            default_out(&cfg.out_dir)
-        }
-    };
-    let mut w = McapWriter::create(&path, cfg.writer_options())?;
-    for t in grip_msgs::topics::ALL {
-        match t.0 {
-            x if x == topics::AUDIO => w.add_topic::<AudioBlock>(x)?,
-            x if x == topics::ROAD => w.add_topic::<RoadEstimate>(x)?,
-            x if x == topics::CYCLE => w.add_topic::<CycleRecord>(x)?,
-            x if x == topics::CAN_LOG => w.add_topic::<CanFrame>(x)?,
-            x if x == topics::TRUTH => w.add_topic::<GroundTruth>(x)?,
-            other => tracing::warn!(topic = other, "topic not known to the recorder"),
-        }
-    }
-    write_run_info(&mut w, &opts.config_dir, cfg.attach_max_bytes, &opts.meta)?;
-    w.flush()?;
-
-    let (q, rx, depth, high) = queue(cfg.queue_capacity);
-    let rx_stop = Arc::new(AtomicBool::new(false));
-    let rx_beat = Arc::new(AtomicU64::new(0));
-    let (ready_tx, ready_rx) = sync_channel(1);
-    let handle = spawn_receiver(
-        q,
-        Arc::clone(&rx_stop),
-        cfg.poll_interval(),
-        Arc::clone(&rx_beat),
-        ready_tx,
-    )
-    .map_err(RunError::Thread)?;
-    match ready_rx.recv() {
-        Ok(Ok(())) => {}
-        Ok(Err(e)) => {
-            let _ = handle.join();
-            return Err(RunError::Ipc(e));
-        }
-        Err(_) => {
-            let _ = handle.join();
-            return Err(RunError::Thread(std::io::Error::other(
-                "the receive thread ended before opening its subscribers",
-            )));
-        }
-    }
-
-    systemd::notify_ready(&format!("recording to {}", path.display()));
-    tracing::info!(file = %path.display(), git = GIT_REV, "recorder ready");
-
+/// The writing thread's loop: takes the queue into `w` until the receive
+/// thread is gone (after `stop`: it is told to stop, `STOPPING=1` is sent,
+/// what is queued is written). Polls the watchdog at least every 50 ms (half
+/// its period if shorter), fed only while both the receive thread
+/// (`rx_beat`) and this loop advance. Counts into `summary`; returns whether
+/// a write failed (the first failure ends writing, later messages are
+/// discarded and counted).
+pub fn write_loop(
+    rx: &Receiver<Msg>,
+    w: &mut McapWriter,
+    depth: &AtomicUsize,
+    stop: &AtomicBool,
+    rx_stop: &AtomicBool,
+    rx_beat: &AtomicU64,
+    summary: &mut Summary,
+) -> bool {
     let mut wd = Watchdog::from_env(rx_beat.load(Ordering::Relaxed));
     // the longest wait for a message: the watchdog is polled at least this
     // often (half its period, at most 50 ms), so a short WatchdogSec works
     let wait = wd.tick();
-    let mut summary = Summary {
-        path: path.clone(),
-        ..Summary::default()
-    };
     let mut failed = false;
     let mut stopping = false;
     loop {
         if !stopping && stop.load(Ordering::Relaxed) {
             stopping = true;
             rx_stop.store(true, Ordering::Relaxed);
-            systemd::notify_stopping();
+            grip_io::systemd::notify_stopping();
         }
         match rx.recv_timeout(wait) {
             Ok(m) => {
                 depth.fetch_sub(1, Ordering::Relaxed);
                 if !failed {
-                    match m.write_to(&mut w) {
+                    match m.write_to(w) {
                         Ok(()) => *summary.written.entry(m.topic()).or_default() += 1,
                         Err(e) => {
                             summary.write_errors += 1;
@@ -605,38 +369,8 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         // fed only while both the receive thread and this loop advance
         let beat = rx_beat.load(Ordering::Relaxed);
         if wd.poll(beat, Instant::now()) == WatchdogPoll::Stalled {
-            tracing::warn!(
-                heartbeat = beat,
-                "recorder receive thread stalled: watchdog not fed"
-            );
+            monitor::receive_stalled(beat);
         }
     }
-    summary.recv = handle.join().unwrap_or_default();
-    summary.queue_high_water = high.load(Ordering::Relaxed);
-    if !failed {
-        w.write_metadata("grip.recorder", &summary.metadata())?;
-        w.finish()?;
-    }
-    let total_rx: u64 = summary.recv.topics.values().map(|s| s.received).sum();
-    let total_w: u64 = summary.written.values().sum();
-    let gaps: u64 = summary.recv.topics.values().map(|s| s.seq.gaps).sum();
-    let dropped: u64 = summary.recv.topics.values().map(|s| s.queue_dropped).sum();
-    tracing::info!(
-        file = %path.display(),
-        received = total_rx,
-        written = total_w,
-        seq_gaps = gaps,
-        can_counter_gaps = summary.recv.can.gaps,
-        queue_dropped = dropped,
-        queue_high_water = summary.queue_high_water,
-        write_errors = summary.write_errors,
-        "recorder stopped"
-    );
-    if failed {
-        return Err(RunError::Mcap(McapLogError::Io {
-            path,
-            source: std::io::Error::other("a write failed during the recording (see above)"),
-        }));
-    }
-    Ok(summary)
+    failed
 }

@@ -58,14 +58,14 @@ pub const FAULT_CMD_TIMEOUT: u8 = 0x01;
 
 /// When a cycle runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Tick {
+pub struct PlantTick {
     /// The timer's absolute deadline, ns.
     pub deadline_ns: u64,
     /// Periods the timer skipped before this one (after an overrun).
     pub skipped: u64,
 }
 
-impl Tick {
+impl PlantTick {
     /// From the periodic timer's report.
     pub fn from_timing(t: &CycleTiming) -> Self {
         Self {
@@ -135,7 +135,7 @@ pub struct PlantStatus {
 
 /// Errors building the simulator.
 #[derive(Debug, thiserror::Error)]
-pub enum SimError {
+pub enum PlantSimError {
     /// A model rejected a parameter (field named, prefixed by its section).
     #[error("field `{}`: {}", .0.field, .0.reason)]
     Invalid(InvalidField),
@@ -197,22 +197,22 @@ impl PlantSim {
         roads: RoadCatalogue,
         vehicle: &VehicleParams,
         sensors: &SensorParams,
-    ) -> Result<Self, SimError> {
+    ) -> Result<Self, PlantSimError> {
         let init = PlantState::rolling(scenario.v0, vehicle.r);
-        let mut plant =
-            Plant::new(*vehicle, init).map_err(|e| SimError::Invalid(e.prefixed("vehicle")))?;
-        plant
-            .set_max_substep(cfg.max_substep_s)
-            .map_err(|_| SimError::Invalid(InvalidField::new("max_substep_s", "must be > 0")))?;
+        let mut plant = Plant::new(*vehicle, init)
+            .map_err(|e| PlantSimError::Invalid(e.prefixed("vehicle")))?;
+        plant.set_max_substep(cfg.max_substep_s).map_err(|_| {
+            PlantSimError::Invalid(InvalidField::new("max_substep_s", "must be > 0"))
+        })?;
         let sp = SensorParams {
             delay_samples: 0,
             ..*sensors
         };
-        let sensors =
-            Sensors::new(sp, cfg.seed).map_err(|e| SimError::Invalid(e.prefixed("sensors")))?;
+        let sensors = Sensors::new(sp, cfg.seed)
+            .map_err(|e| PlantSimError::Invalid(e.prefixed("sensors")))?;
         for (i, s) in scenario.segments.iter().enumerate() {
             if roads.by_index(s.road).is_none() {
-                return Err(SimError::Invalid(InvalidField::new(
+                return Err(PlantSimError::Invalid(InvalidField::new(
                     format!("segment[{i}].road"),
                     format!("road index {} not in the catalogue", s.road),
                 )));
@@ -333,7 +333,7 @@ impl PlantSim {
     /// One cycle at `tick` (see the module docs). Allocation-free.
     pub fn cycle<B: CanBus, T: TruthSink, C: Clock>(
         &mut self,
-        tick: &Tick,
+        tick: &PlantTick,
         clock: &C,
         bus: &mut B,
         truth: &mut T,

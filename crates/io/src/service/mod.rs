@@ -1,0 +1,315 @@
+//! The skeleton every grip service's `main` uses, so that the five
+//! services start, stop and fail the same way:
+//!
+//! - [`Service::run`]: `tracing` to stderr (`RUST_LOG`, default `info`;
+//!   colours only on a terminal), SIGTERM/SIGINT set the stop flag (and,
+//!   with [`Service::with_start_signal`], SIGUSR1 sets a start flag), then
+//!   the service's body; exit code 0 on success, 1 after one
+//!   `error: ...` line on stderr (a handler that cannot be installed, or
+//!   the body's error naming file, field and reason).
+//! - [`ConfigArgs`]: the `--config-dir DIR` / `--config FILE` pair of
+//!   every service's command line; [`ServiceConfig`]: the read → parse →
+//!   validate trio of the service's own TOML, whose errors name file,
+//!   field and reason. `GRIP_INSTANCE` (an isolated iceoryx2 namespace) is
+//!   read where the iceoryx2 node is created ([`crate::ipc`]).
+//! - [`monitor`]: the non-real-time helper thread (watchdog through
+//!   [`crate::systemd::Watchdog`], transition logging, counters that grew).
+
+pub mod monitor;
+
+use std::fmt::Display;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use grip_config::{ConfigDir, ConfigError, parse_toml, read_file};
+use serde::de::DeserializeOwned;
+
+use crate::can::CanBusConfig;
+use crate::rt::RtConfig;
+
+/// The flags the signal handlers set.
+#[derive(Debug, Clone)]
+pub struct Signals {
+    /// Set by SIGTERM and SIGINT: finish the cycle, shut down, exit 0.
+    pub stop: Arc<AtomicBool>,
+    /// Set by SIGUSR1 if the service asked for it
+    /// ([`Service::with_start_signal`]); otherwise never set (and SIGUSR1
+    /// keeps its default action).
+    pub start: Arc<AtomicBool>,
+}
+
+/// How a service's `main` runs its body (see the module docs).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Service {
+    start_signal: bool,
+}
+
+impl Service {
+    /// SIGTERM/SIGINT stop the service; no other signal is handled.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// SIGUSR1 also sets [`Signals::start`] (plant-sim's scenario start).
+    pub fn with_start_signal(mut self) -> Self {
+        self.start_signal = true;
+        self
+    }
+
+    /// Sets up tracing and the signal handlers, then runs `body`. Returns
+    /// the process's exit code: 0 if `body` succeeded; 1 after printing
+    /// `error: {e}` if it failed or a handler could not be installed.
+    pub fn run<E: Display>(self, body: impl FnOnce(&Signals) -> Result<(), E>) -> ExitCode {
+        init_tracing();
+        let signals = match self.install() {
+            Ok(s) => s,
+            Err(e) => return fail(e),
+        };
+        match body(&signals) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => fail(e),
+        }
+    }
+
+    fn install(self) -> Result<Signals, String> {
+        use signal_hook::consts::{SIGINT, SIGTERM, SIGUSR1};
+        let signals = Signals {
+            stop: Arc::new(AtomicBool::new(false)),
+            start: Arc::new(AtomicBool::new(false)),
+        };
+        let mut regs = vec![(SIGTERM, &signals.stop), (SIGINT, &signals.stop)];
+        if self.start_signal {
+            regs.push((SIGUSR1, &signals.start));
+        }
+        for (sig, flag) in regs {
+            signal_hook::flag::register(sig, Arc::clone(flag))
+                .map_err(|e| format!("cannot install the handler for signal {sig}: {e}"))?;
+        }
+        Ok(signals)
+    }
+}
+
+fn fail(e: impl Display) -> ExitCode {
+    eprintln!("error: {e}");
+    ExitCode::from(1)
+}
+
+/// `tracing` for a service: human-readable lines on stderr (journald
+/// keeps them), the level from `RUST_LOG` (default `info`), ANSI colours
+/// only when stderr is a terminal.
+pub fn init_tracing() {
+    tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .init();
+}
+
+/// The configuration options of every service's command line (flatten
+/// them into the service's `clap` arguments; the service names its own
+/// file's default in the help with `mut_arg("config", ...)`).
+#[derive(Debug, Clone, Default, PartialEq, Eq, clap::Args)]
+pub struct ConfigArgs {
+    /// Shared configuration directory.
+    #[arg(long, default_value = "config")]
+    pub config_dir: PathBuf,
+    /// The service's TOML (default: a file in <config-dir> named for the service).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+}
+
+impl ConfigArgs {
+    /// The configuration directory `dir` (`--config-dir`) without `--config`.
+    pub fn in_dir(dir: impl Into<PathBuf>) -> Self {
+        Self {
+            config_dir: dir.into(),
+            config: None,
+        }
+    }
+
+    /// The service's own TOML: `--config`, else [`ServiceConfig::FILE_NAME`]
+    /// in `--config-dir`.
+    pub fn own_file<C: ServiceConfig>(&self) -> PathBuf {
+        C::path(&self.config_dir, self.config.as_deref())
+    }
+}
+
+/// A service's own TOML file: read, parsed (unknown fields refused, errors
+/// naming file, field and line) and range-checked in one place.
+pub trait ServiceConfig: DeserializeOwned {
+    /// Its name in the configuration directory, e.g. `tcs-loop.toml`.
+    const FILE_NAME: &'static str;
+
+    /// Range checks; the error names `file` and the field.
+    fn validate(&self, file: &Path) -> Result<(), ConfigError>;
+
+    /// Parses and validates `text`, the contents of `file`.
+    fn parse(file: &Path, text: &str) -> Result<Self, ConfigError> {
+        let c: Self = parse_toml(file, text)?;
+        c.validate(file)?;
+        Ok(c)
+    }
+
+    /// Reads, parses and validates `file`.
+    fn load(file: &Path) -> Result<Self, ConfigError> {
+        Self::parse(file, &read_file(file)?)
+    }
+
+    /// The file a run reads: `config` (`--config`) if given, else
+    /// [`Self::FILE_NAME`] in `config_dir` (`--config-dir`).
+    fn path(config_dir: &Path, config: Option<&Path>) -> PathBuf {
+        config.map_or_else(|| config_dir.join(Self::FILE_NAME), Path::to_path_buf)
+    }
+}
+
+/// The checks of a service's `[rt]` table: `rt.fifo_priority` in 1..=99,
+/// every CPU of `rt.cpus` below 1024. Errors name `file` and the field.
+pub fn validate_rt(rt: &RtConfig, file: &Path) -> Result<(), ConfigError> {
+    if let Some(p) = rt.fifo_priority
+        && !(1..=99).contains(&p)
+    {
+        return Err(ConfigError::new(
+            file,
+            "rt.fifo_priority",
+            format!("must be in 1..=99 (got {p}); leave it out to stay SCHED_OTHER"),
+        ));
+    }
+    if let Some(&c) = rt.cpus.iter().find(|&&c| c >= 1024) {
+        return Err(ConfigError::new(
+            file,
+            "rt.cpus",
+            format!("CPU {c} out of range 0..1024"),
+        ));
+    }
+    Ok(())
+}
+
+/// Reads `can.toml` in `dir` (the bus of tcs-loop and plant-sim); the
+/// interface must not be empty.
+pub fn load_can(dir: &ConfigDir) -> Result<CanBusConfig, ConfigError> {
+    let path = dir.file("can.toml");
+    let c: CanBusConfig = parse_toml(&path, &read_file(&path)?)?;
+    if c.interface.trim().is_empty() {
+        return Err(ConfigError::new(&path, "interface", "must not be empty"));
+    }
+    Ok(c)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Demo {
+        rate_hz: f64,
+    }
+
+    impl ServiceConfig for Demo {
+        const FILE_NAME: &'static str = "demo.toml";
+        fn validate(&self, file: &Path) -> Result<(), ConfigError> {
+            if self.rate_hz > 0.0 {
+                Ok(())
+            } else {
+                Err(ConfigError::new(file, "rate_hz", "must be > 0"))
+            }
+        }
+    }
+
+    #[test]
+    fn path_defaults_to_the_file_in_the_directory() {
+        assert_eq!(
+            Demo::path(Path::new("cfg"), None),
+            Path::new("cfg/demo.toml")
+        );
+        assert_eq!(
+            Demo::path(Path::new("cfg"), Some(Path::new("x/own.toml"))),
+            Path::new("x/own.toml")
+        );
+    }
+
+    #[test]
+    fn parse_validates_and_names_file_and_field() {
+        let f = Path::new("dir/demo.toml");
+        assert_eq!(Demo::parse(f, "rate_hz = 5.0").unwrap().rate_hz, 5.0);
+        let e = Demo::parse(f, "rate_hz = -1.0").unwrap_err();
+        assert_eq!(e.field, "rate_hz");
+        assert!(e.to_string().starts_with("dir/demo.toml"), "{e}");
+        let e = Demo::parse(f, "rate_hz = 5.0\nbogus = 1").unwrap_err();
+        assert!(e.to_string().contains("bogus"), "{e}");
+    }
+
+    #[test]
+    fn load_names_a_missing_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("demo.toml");
+        let e = Demo::load(&p).unwrap_err();
+        assert!(e.to_string().contains("demo.toml"), "{e}");
+        std::fs::write(&p, "rate_hz = 2.0").unwrap();
+        assert_eq!(Demo::load(&p).unwrap().rate_hz, 2.0);
+    }
+
+    #[test]
+    fn rt_checks_name_the_field() {
+        let f = Path::new("svc.toml");
+        assert!(validate_rt(&RtConfig::default(), f).is_ok());
+        let rt = RtConfig {
+            fifo_priority: Some(0),
+            ..RtConfig::default()
+        };
+        let e = validate_rt(&rt, f).unwrap_err();
+        assert_eq!(e.field, "rt.fifo_priority");
+        assert!(e.to_string().starts_with("svc.toml"), "{e}");
+        let rt = RtConfig {
+            fifo_priority: Some(80),
+            cpus: vec![1, 4096],
+            ..RtConfig::default()
+        };
+        assert_eq!(validate_rt(&rt, f).unwrap_err().field, "rt.cpus");
+    }
+
+    #[test]
+    fn can_toml_interface_must_not_be_empty() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = ConfigDir::new(dir.path());
+        assert!(load_can(&d).unwrap_err().to_string().contains("can.toml"));
+        let good = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/can.toml"),
+        )
+        .unwrap();
+        std::fs::write(dir.path().join("can.toml"), &good).unwrap();
+        assert!(!load_can(&d).unwrap().interface.is_empty());
+        let interface = good
+            .lines()
+            .find(|l| l.trim_start().starts_with("interface"))
+            .unwrap();
+        std::fs::write(
+            dir.path().join("can.toml"),
+            good.replace(interface, "interface = \" \""),
+        )
+        .unwrap();
+        assert_eq!(load_can(&d).unwrap_err().field, "interface");
+    }
+
+    #[test]
+    fn config_args_parse_and_default() {
+        use clap::Parser;
+        #[derive(Debug, Parser)]
+        struct A {
+            #[command(flatten)]
+            c: ConfigArgs,
+        }
+        let a = A::try_parse_from(["x"]).unwrap();
+        assert_eq!(a.c.config_dir, Path::new("config"));
+        assert_eq!(a.c.config, None);
+        let a =
+            A::try_parse_from(["x", "--config-dir", "/etc/grip", "--config", "o.toml"]).unwrap();
+        assert_eq!(a.c.config_dir, Path::new("/etc/grip"));
+        assert_eq!(a.c.config.as_deref(), Some(Path::new("o.toml")));
+    }
+}

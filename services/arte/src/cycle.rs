@@ -1,0 +1,351 @@
+//! [`ArteLoop`]: the per-block work of the arte service (see the crate
+//! docs), and the counters it shares with the helper thread
+//! ([`ArteCounters`]).
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+use grip_arte::model::Model;
+use grip_arte::stream::{Classify, StreamConfig, StreamEstimator};
+use grip_io::clock::Clock;
+use grip_msgs::{AUDIO_MAX_SAMPLES, AudioBlock, CycleRecord, MAX_ROAD_CLASSES, RoadEstimate};
+
+use crate::{ArteError, RoadInfo};
+
+/// Counters shared with the helper thread (and read by tests).
+#[derive(Debug, Default)]
+pub struct ArteCounters {
+    /// Loop iterations (the heartbeat the watchdog follows).
+    pub heartbeat: AtomicU64,
+    /// Audio blocks received.
+    pub blocks: AtomicU64,
+    /// Blocks missing by sequence number (lost in transport).
+    pub lost_blocks: AtomicU64,
+    /// Estimator restarts (time discontinuity or publisher restart).
+    pub resets: AtomicU64,
+    /// Blocks refused for a sample rate other than the model's.
+    pub rate_mismatch: AtomicU64,
+    /// The last refused rate, Hz.
+    pub bad_rate: AtomicU64,
+    /// Road estimates published.
+    pub estimates: AtomicU64,
+    /// Publish failures.
+    pub publish_errors: AtomicU64,
+    /// Receive failures.
+    pub receive_errors: AtomicU64,
+    /// Latest xrun count reported by audio-acq.
+    pub xruns: AtomicU64,
+    /// Published estimates per winning class index.
+    pub per_class: [AtomicU64; MAX_ROAD_CLASSES],
+    /// Cycle records received from tcs-loop (`grip/tcs/cycle`), valid or not.
+    pub cycle_records: AtomicU64,
+    /// Cycle records with `v_valid = 1` but a non-finite `v` (ignored).
+    pub bad_speeds: AtomicU64,
+    /// Receive failures on `grip/tcs/cycle`.
+    pub cycle_receive_errors: AtomicU64,
+    /// Blocks given to the estimator with a fresh vehicle speed.
+    pub blocks_with_speed: AtomicU64,
+    /// Blocks given to the estimator without one (none yet, or stale).
+    pub blocks_without_speed: AtomicU64,
+    /// Whether the last block given to the estimator had a fresh speed.
+    pub speed_fresh: AtomicBool,
+    /// The speed (m/s, `f64::to_bits`) of the last block that had one.
+    pub last_speed_bits: AtomicU64,
+}
+
+impl ArteCounters {
+    /// The speed the estimator got with the last block: `Some(m/s)` if
+    /// that block had a fresh speed, `None` if it had none (or no block
+    /// yet).
+    pub fn speed_in_use(&self) -> Option<f64> {
+        self.speed_fresh
+            .load(Ordering::Relaxed)
+            .then(|| f64::from_bits(self.last_speed_bits.load(Ordering::Relaxed)))
+    }
+}
+
+/// Where estimates go: the iceoryx2 publisher, or a test sink.
+pub trait EstimateSink {
+    /// Sends one estimate. Allocation-free.
+    fn send(&mut self, e: &RoadEstimate) -> Result<(), grip_io::ipc::IpcError>;
+}
+
+impl EstimateSink for grip_io::ipc::Publisher<RoadEstimate> {
+    fn send(&mut self, e: &RoadEstimate) -> Result<(), grip_io::ipc::IpcError> {
+        self.publish(e).map(|_| ())
+    }
+}
+
+/// The per-block work of the arte service (see the crate docs).
+///
+/// Frame spans: the estimator counts samples since its last restart; a
+/// decision at sample count `t_end` that falls inside a block starting at
+/// count `S0` with stamp `B` gets `frame_t1 = B + (t_end − S0)/fs` and
+/// `frame_t0 = frame_t1 − frame_len/fs`. Each block re-anchors time, so
+/// lost blocks and overruns shift no later estimate's span (within a frame
+/// that straddles a small gap, `frame_t0` is off by the gap).
+pub struct ArteLoop<C: Classify, K: Clock> {
+    est: StreamEstimator<C>,
+    roads: Vec<RoadInfo>,
+    fs: u32,
+    frame_ns: u64,
+    scratch: Vec<f32>,
+    expected_seq: Option<u64>,
+    next_stamp: Option<u64>,
+    pushed: u64,
+    out_seq: u64,
+    resync_ns: u64,
+    clock: K,
+    est_buf: RoadEstimate,
+    /// Newest valid vehicle speed: (|v| m/s, its record's stamp ns).
+    speed: Option<(f64, u64)>,
+    speed_timeout_ns: u64,
+}
+
+/// Default of `input.speed_timeout_s`, s.
+pub const DEFAULT_SPEED_TIMEOUT_S: f64 = 0.2;
+
+impl<C: Classify, K: Clock> std::fmt::Debug for ArteLoop<C, K> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ArteLoop")
+            .field("fs", &self.fs)
+            .field("out_seq", &self.out_seq)
+            .finish_non_exhaustive()
+    }
+}
+
+fn samples_ns(n: u64, fs: u32) -> u64 {
+    (u128::from(n) * 1_000_000_000 / u128::from(fs.max(1))) as u64
+}
+
+impl<K: Clock> ArteLoop<grip_arte::model::Predictor, K> {
+    /// From a model: its predictor, feature config and class table.
+    pub fn from_model(
+        model: &Model,
+        stream: &StreamConfig,
+        roads: Vec<RoadInfo>,
+        resync_gap_s: f64,
+        clock: K,
+    ) -> Result<Self, ArteError> {
+        Self::new(
+            model.predictor(),
+            model.feature_config(),
+            stream,
+            roads,
+            resync_gap_s,
+            clock,
+        )
+    }
+}
+
+impl<C: Classify, K: Clock> ArteLoop<C, K> {
+    /// Builds the estimator for `classifier` on `model`'s features at
+    /// `sample_rate`; `roads[i]` describes class i.
+    pub fn new(
+        classifier: C,
+        features: &grip_arte::features::FeatureConfig,
+        stream: &StreamConfig,
+        roads: Vec<RoadInfo>,
+        resync_gap_s: f64,
+        clock: K,
+    ) -> Result<Self, ArteError> {
+        if roads.len() != classifier.n_classes() || roads.len() > MAX_ROAD_CLASSES {
+            return Err(ArteError::Other(format!(
+                "{} road entries for {} classes (max {MAX_ROAD_CLASSES})",
+                roads.len(),
+                classifier.n_classes()
+            )));
+        }
+        let est = StreamEstimator::new(classifier, features, stream)?;
+        let fs = features.sample_rate;
+        Ok(Self {
+            frame_ns: samples_ns(est.frame_len() as u64, fs),
+            est,
+            roads,
+            fs,
+            scratch: vec![0.0; AUDIO_MAX_SAMPLES],
+            expected_seq: None,
+            next_stamp: None,
+            pushed: 0,
+            out_seq: 0,
+            resync_ns: (resync_gap_s.max(0.0) * 1e9) as u64,
+            clock,
+            est_buf: RoadEstimate::zeroed(),
+            speed: None,
+            speed_timeout_ns: (DEFAULT_SPEED_TIMEOUT_S * 1e9) as u64,
+        })
+    }
+
+    /// Sets how old (s) a vehicle speed may be and still be used (default
+    /// [`DEFAULT_SPEED_TIMEOUT_S`]; `input.speed_timeout_s`). Negative or
+    /// NaN: 0.
+    pub fn with_speed_timeout(mut self, timeout_s: f64) -> Self {
+        self.speed_timeout_ns = (timeout_s.max(0.0) * 1e9) as u64;
+        self
+    }
+
+    /// Whether the model's features depend on the vehicle speed (if not,
+    /// the speed is still tracked and counted but changes nothing).
+    pub fn speed_normalised(&self) -> bool {
+        self.est.speed_normalised()
+    }
+
+    /// Takes one tcs-loop cycle record: if `v_valid = 1` and `v` is finite,
+    /// its |v| becomes the vehicle speed unless a record with a later stamp
+    /// was taken before. Other records change nothing (the kept speed ages
+    /// out). Allocation-free.
+    pub fn on_cycle(&mut self, r: &CycleRecord, stats: &ArteCounters) {
+        stats.cycle_records.fetch_add(1, Ordering::Relaxed);
+        if r.v_valid != 1 {
+            return;
+        }
+        if !r.v.is_finite() {
+            stats.bad_speeds.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        if self.speed.is_none_or(|(_, t)| r.stamp_ns >= t) {
+            // reversing: the tyre noise depends on the speed's magnitude
+            self.speed = Some((r.v.abs(), r.stamp_ns));
+        }
+    }
+
+    /// Drains `sub` (non-blocking) into [`Self::on_cycle`]. Receive errors
+    /// are counted in `cycle_receive_errors`. Allocation-free once the
+    /// subscriber is connected to its publisher.
+    pub fn poll_cycles(
+        &mut self,
+        sub: &grip_io::ipc::Subscriber<CycleRecord>,
+        stats: &ArteCounters,
+    ) {
+        if sub.drain(|r| self.on_cycle(r, stats)).is_err() {
+            stats.cycle_receive_errors.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    /// The vehicle speed a block processed now would get: the kept speed
+    /// if its record's stamp is within `speed_timeout` of the clock's now
+    /// (either side: a stamp far in the future is not trusted either).
+    pub fn current_speed(&self) -> Option<f64> {
+        let now = self.clock.now_ns();
+        self.speed
+            .filter(|&(_, t)| now.abs_diff(t) <= self.speed_timeout_ns)
+            .map(|(v, _)| v)
+    }
+
+    /// The model's sample rate, Hz.
+    pub fn sample_rate(&self) -> u32 {
+        self.fs
+    }
+
+    /// Estimates published so far.
+    pub fn estimates(&self) -> u64 {
+        self.out_seq
+    }
+
+    fn restart(&mut self, stats: &ArteCounters) {
+        self.est.reset();
+        self.pushed = 0;
+        stats.resets.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Processes one block; sends every estimate that falls due in it.
+    /// Returns how many. Allocation-free.
+    pub fn on_block(
+        &mut self,
+        b: &AudioBlock,
+        sink: &mut impl EstimateSink,
+        stats: &ArteCounters,
+    ) -> usize {
+        stats.blocks.fetch_add(1, Ordering::Relaxed);
+        stats.xruns.store(u64::from(b.xruns), Ordering::Relaxed);
+        if b.sample_rate != self.fs {
+            stats.rate_mismatch.fetch_add(1, Ordering::Relaxed);
+            stats
+                .bad_rate
+                .store(u64::from(b.sample_rate), Ordering::Relaxed);
+            // received, not lost: later blocks are not counted as gaps (a
+            // long run of refused blocks restarts the estimator by time)
+            self.expected_seq = Some(b.seq.wrapping_add(1));
+            return 0;
+        }
+        let x = b.samples();
+        let n = x.len();
+        // Sequence: gaps are counted; a sequence going backwards means the
+        // publisher restarted.
+        let mut discontinuity = false;
+        if let Some(exp) = self.expected_seq {
+            if b.seq > exp {
+                stats.lost_blocks.fetch_add(b.seq - exp, Ordering::Relaxed);
+            } else if b.seq < exp {
+                discontinuity = true;
+            }
+        }
+        if let Some(ns) = self.next_stamp
+            && b.stamp_ns.abs_diff(ns) > self.resync_ns
+        {
+            discontinuity = true;
+        }
+        if discontinuity && self.pushed > 0 {
+            self.restart(stats);
+        }
+        self.expected_seq = Some(b.seq.wrapping_add(1));
+        self.next_stamp = Some(b.stamp_ns + samples_ns(n as u64, self.fs));
+        // after a restart, which may reset the estimator's speed
+        let speed = self.current_speed();
+        self.est.set_speed(speed);
+        match speed {
+            Some(v) => {
+                stats.blocks_with_speed.fetch_add(1, Ordering::Relaxed);
+                stats.last_speed_bits.store(v.to_bits(), Ordering::Relaxed);
+                stats.speed_fresh.store(true, Ordering::Relaxed);
+            }
+            None => {
+                stats.blocks_without_speed.fetch_add(1, Ordering::Relaxed);
+                stats.speed_fresh.store(false, Ordering::Relaxed);
+            }
+        }
+        for (d, &s) in self.scratch.iter_mut().zip(x) {
+            *d = f32::from(s) / 32768.0;
+        }
+        let start = self.pushed;
+        let stamp = b.stamp_ns;
+        let fs = self.fs;
+        let frame_ns = self.frame_ns;
+        let roads = &self.roads;
+        let clock = &self.clock;
+        let e = &mut self.est_buf;
+        let out_seq = &mut self.out_seq;
+        let mut sent = 0;
+        self.est.push(&self.scratch[..n], |d| {
+            let end = (d.t_end * f64::from(fs)).round().max(0.0) as u64;
+            let t1 = stamp + samples_ns(end.saturating_sub(start), fs);
+            let k = d.probs.len().min(MAX_ROAD_CLASSES);
+            let class = d.class.min(k.saturating_sub(1));
+            e.seq = *out_seq;
+            e.frame_t1_ns = t1;
+            e.frame_t0_ns = t1.saturating_sub(frame_ns);
+            e.class_index = class as u32;
+            e.n_classes = k as u32;
+            e.probabilities = [0.0; MAX_ROAD_CLASSES];
+            for (p, &q) in e.probabilities.iter_mut().zip(d.probs) {
+                *p = q as f32;
+            }
+            e.confidence = d.probs.get(class).copied().unwrap_or(0.0).clamp(0.0, 1.0);
+            let r = &roads[class];
+            e.class_name = r.name;
+            e.lambda_opt = r.lambda_opt;
+            e.mu_peak = r.mu_peak;
+            e.alpha = r.alpha;
+            e.stamp_ns = clock.now_ns();
+            if sink.send(e).is_err() {
+                stats.publish_errors.fetch_add(1, Ordering::Relaxed);
+            } else {
+                stats.estimates.fetch_add(1, Ordering::Relaxed);
+                stats.per_class[class].fetch_add(1, Ordering::Relaxed);
+            }
+            *out_seq += 1;
+            sent += 1;
+        });
+        self.pushed += n as u64;
+        sent
+    }
+}

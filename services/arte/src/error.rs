@@ -1,0 +1,50 @@
+//! [`ArteError`]: what stops the arte service from starting.
+
+use std::path::PathBuf;
+
+use grip_arte::model::ModelError;
+use grip_arte::stream::StreamError;
+
+/// Errors of the arte service (start-up).
+#[derive(Debug, thiserror::Error)]
+pub enum ArteError {
+    /// Bad configuration file (or road catalogue).
+    #[error(transparent)]
+    Config(#[from] grip_config::ConfigError),
+    /// The model file cannot be read.
+    #[error("model file {}: cannot read: {reason}", path.display())]
+    ModelIo {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// The model file is not a valid model.
+    #[error("model file {}: {source}", path.display())]
+    Model {
+        /// The file.
+        path: PathBuf,
+        /// The model crate's error.
+        source: ModelError,
+    },
+    /// A model class has no road in the catalogue, or too many classes.
+    #[error("model file {}: {reason}", path.display())]
+    Classes {
+        /// The model file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// The streaming estimator refused model or settings.
+    #[error("streaming estimator: {0}")]
+    Stream(#[from] StreamError),
+    /// iceoryx2.
+    #[error(transparent)]
+    Ipc(#[from] grip_io::ipc::IpcError),
+    /// The helper thread could not be started.
+    #[error(transparent)]
+    Helper(#[from] grip_io::service::monitor::HelperError),
+    /// Other start-up failure.
+    #[error("{0}")]
+    Other(String),
+}

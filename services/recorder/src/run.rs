@@ -1,0 +1,279 @@
+//! [`run`]: opens the log file and writes the run's metadata, starts the
+//! receive thread, sends `READY=1`, runs the writing loop
+//! ([`crate::cycle`]) until stopped, then writes the summary and finishes
+//! the file.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::sync_channel;
+
+use grip_config::ConfigError;
+use grip_io::ipc::IpcError;
+use grip_io::mcaplog::{McapLogError, McapWriter, RunInfo, sha256_hex};
+use grip_io::service::{ConfigArgs, ServiceConfig};
+use grip_io::systemd;
+use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
+
+use crate::config::RecorderConfig;
+use crate::cycle::{Summary, queue, spawn_receiver, write_loop};
+
+/// The grip revision this binary was built from (build.rs).
+pub const GIT_REV: &str = env!("GRIP_GIT_REV");
+
+/// Command-line choices (see `main.rs`).
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    /// `--config-dir` and `--config`.
+    pub config: ConfigArgs,
+    /// Output file (default: `<out_dir>/grip-<unix s>-<pid>.mcap`).
+    pub out: Option<PathBuf>,
+    /// Extra `grip.run` metadata (scenario, controller, ...).
+    pub meta: Vec<(String, String)>,
+}
+
+/// Fatal errors.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// Bad configuration.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// iceoryx2.
+    #[error(transparent)]
+    Ipc(#[from] IpcError),
+    /// The MCAP file.
+    #[error(transparent)]
+    Mcap(#[from] McapLogError),
+    /// The output directory.
+    #[error("{path}: cannot create the log directory: {source}")]
+    OutDir {
+        /// Directory.
+        path: PathBuf,
+        /// Error.
+        source: std::io::Error,
+    },
+    /// A thread could not be started.
+    #[error("cannot start the receive thread: {0}")]
+    Thread(std::io::Error),
+}
+
+/// A file to attach: its name in the log, path, and whether it is a model.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ConfigFile {
+    /// Name in the log (relative to the config directory).
+    pub name: String,
+    /// Path on disk.
+    pub path: PathBuf,
+    /// Under `models/`.
+    pub model: bool,
+}
+
+/// The files of a configuration directory that describe a run: `*.toml`,
+/// `*.dbc`, `*.csv` at the top and in `roads/`, `scenarios/*.toml`,
+/// everything in `models/`. Sorted by name; unreadable directories are
+/// skipped.
+pub fn config_files(dir: &Path) -> Vec<ConfigFile> {
+    let mut out = Vec::new();
+    let mut scan = |sub: &str, exts: Option<&[&str]>, model: bool| {
+        let d = if sub.is_empty() {
+            dir.to_path_buf()
+        } else {
+            dir.join(sub)
+        };
+        let Ok(rd) = std::fs::read_dir(&d) else {
+            return;
+        };
+        for e in rd.flatten() {
+            let p = e.path();
+            if !p.is_file() {
+                continue;
+            }
+            let ext = p.extension().and_then(|e| e.to_str()).unwrap_or("");
+            if exts.is_some_and(|xs| !xs.contains(&ext)) {
+                continue;
+            }
+            let file = e.file_name().to_string_lossy().into_owned();
+            let name = if sub.is_empty() {
+                file
+            } else {
+                format!("{sub}/{file}")
+            };
+            out.push(ConfigFile {
+                name,
+                path: p,
+                model,
+            });
+        }
+    };
+    scan("", Some(&["toml", "dbc", "csv"]), false);
+    scan("roads", Some(&["toml", "csv"]), false);
+    scan("scenarios", Some(&["toml"]), false);
+    scan("models", None, true);
+    out.sort_by(|a, b| a.name.cmp(&b.name));
+    out
+}
+
+/// Writes `grip.run` (version, git revision, hashes, extras) and attaches
+/// the configuration files.
+pub fn write_run_info(
+    w: &mut McapWriter,
+    config_dir: &Path,
+    attach_max: u64,
+    meta: &[(String, String)],
+) -> Result<(), McapLogError> {
+    let mut info = RunInfo {
+        version: env!("CARGO_PKG_VERSION").into(),
+        git_revision: GIT_REV.into(),
+        ..RunInfo::default()
+    };
+    info.extra
+        .insert("config_dir".into(), config_dir.display().to_string());
+    for (k, v) in meta {
+        info.extra.insert(k.clone(), v.clone());
+    }
+    let mut attach = Vec::new();
+    for f in config_files(config_dir) {
+        let data = match std::fs::read(&f.path) {
+            Ok(d) => d,
+            Err(e) => {
+                tracing::warn!(file = %f.path.display(), error = %e, "cannot read config file; not attached");
+                continue;
+            }
+        };
+        let h = sha256_hex(&data);
+        if f.model {
+            info.model_hashes.insert(f.name.clone(), h);
+        } else {
+            info.config_hashes.insert(f.name.clone(), h);
+        }
+        if data.len() as u64 <= attach_max {
+            attach.push((f, data));
+        } else {
+            info.extra.insert(
+                format!("not_attached.{}", f.name),
+                format!("{} bytes > attach_max_bytes", data.len()),
+            );
+        }
+    }
+    w.write_run_info(&info)?;
+    for (f, data) in attach {
+        let media = match f.path.extension().and_then(|e| e.to_str()) {
+            Some("toml") => "application/toml",
+            Some("json") => "application/json",
+            Some("csv") => "text/csv",
+            Some("dbc") => "text/plain",
+            _ => "application/octet-stream",
+        };
+        w.attach_bytes(&f.name, media, &data)?;
+    }
+    Ok(())
+}
+
+/// Default log path in `dir`.
+pub fn default_out(dir: &Path) -> PathBuf {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    dir.join(format!("grip-{secs}-{}.mcap", std::process::id()))
+}
+
+/// Runs the recorder until `stop` (SIGTERM/SIGINT): opens the subscribers
+/// and the file, writes `grip.run` and the attachments, sends `READY=1`,
+/// records; on stop drains what is queued, writes the `grip.recorder`
+/// summary metadata and finishes the file.
+pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> {
+    let own = opts.config.own_file::<RecorderConfig>();
+    let cfg = RecorderConfig::load(&own)?;
+    let path = match &opts.out {
+        Some(p) => p.clone(),
+        None => {
+            std::fs::create_dir_all(&cfg.out_dir).map_err(|source| RunError::OutDir {
+                path: cfg.out_dir.clone(),
+                source,
+            })?;
+            default_out(&cfg.out_dir)
+        }
+    };
+    let mut w = McapWriter::create(&path, cfg.writer_options())?;
+    for t in grip_msgs::topics::ALL {
+        match t.0 {
+            x if x == topics::AUDIO => w.add_topic::<AudioBlock>(x)?,
+            x if x == topics::ROAD => w.add_topic::<RoadEstimate>(x)?,
+            x if x == topics::CYCLE => w.add_topic::<CycleRecord>(x)?,
+            x if x == topics::CAN_LOG => w.add_topic::<CanFrame>(x)?,
+            x if x == topics::TRUTH => w.add_topic::<GroundTruth>(x)?,
+            other => tracing::warn!(topic = other, "topic not known to the recorder"),
+        }
+    }
+    write_run_info(
+        &mut w,
+        &opts.config.config_dir,
+        cfg.attach_max_bytes,
+        &opts.meta,
+    )?;
+    w.flush()?;
+
+    let (q, rx, depth, high) = queue(cfg.queue_capacity);
+    let rx_stop = Arc::new(AtomicBool::new(false));
+    let rx_beat = Arc::new(AtomicU64::new(0));
+    let (ready_tx, ready_rx) = sync_channel(1);
+    let handle = spawn_receiver(
+        q,
+        Arc::clone(&rx_stop),
+        cfg.poll_interval(),
+        Arc::clone(&rx_beat),
+        ready_tx,
+    )
+    .map_err(RunError::Thread)?;
+    match ready_rx.recv() {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => {
+            let _ = handle.join();
+            return Err(RunError::Ipc(e));
+        }
+        Err(_) => {
+            let _ = handle.join();
+            return Err(RunError::Thread(std::io::Error::other(
+                "the receive thread ended before opening its subscribers",
+            )));
+        }
+    }
+
+    systemd::notify_ready(&format!("recording to {}", path.display()));
+    tracing::info!(file = %path.display(), git = GIT_REV, "recorder ready");
+
+    let mut summary = Summary {
+        path: path.clone(),
+        ..Summary::default()
+    };
+    let failed = write_loop(&rx, &mut w, &depth, stop, &rx_stop, &rx_beat, &mut summary);
+    summary.recv = handle.join().unwrap_or_default();
+    summary.queue_high_water = high.load(Ordering::Relaxed);
+    if !failed {
+        w.write_metadata("grip.recorder", &summary.metadata())?;
+        w.finish()?;
+    }
+    let total_rx: u64 = summary.recv.topics.values().map(|s| s.received).sum();
+    let total_w: u64 = summary.written.values().sum();
+    let gaps: u64 = summary.recv.topics.values().map(|s| s.seq.gaps).sum();
+    let dropped: u64 = summary.recv.topics.values().map(|s| s.queue_dropped).sum();
+    tracing::info!(
+        file = %path.display(),
+        received = total_rx,
+        written = total_w,
+        seq_gaps = gaps,
+        can_counter_gaps = summary.recv.can.gaps,
+        queue_dropped = dropped,
+        queue_high_water = summary.queue_high_water,
+        write_errors = summary.write_errors,
+        "recorder stopped"
+    );
+    if failed {
+        return Err(RunError::Mcap(McapLogError::Io {
+            path,
+            source: std::io::Error::other("a write failed during the recording (see above)"),
+        }));
+    }
+    Ok(summary)
+}

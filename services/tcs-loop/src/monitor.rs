@@ -1,0 +1,103 @@
+//! The non-real-time helper thread beside the control loop (the loop
+//! through [`grip_io::service::monitor`]: `WATCHDOG=1` while the loop's
+//! heartbeat advances; state transitions logged, never per cycle).
+//! `READY=1`, `STATUS=` and `STOPPING=1` come from [`grip_io::systemd`].
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use grip_io::service::monitor::{self, Changed, Count, Flow, FlowEvent, HelperError, Monitor};
+use grip_io::warn_if_grew;
+
+use crate::cycle::SharedStatus;
+
+/// Spawns the helper thread (call it *before* the calling thread switches to
+/// SCHED_FIFO so the helper stays SCHED_OTHER). It wakes every 50 ms (or at
+/// half the watchdog period if shorter), sends `WATCHDOG=1` at half the
+/// watchdog period only if the heartbeat advanced since the last ping, and
+/// logs transitions: safe state entered/left, ARTE estimates stopped
+/// (none for 1 s while ARTE is on) / resumed, new E2E faults, bus errors and
+/// deadline misses (at most one line per kind per second). Ends when `done`
+/// is set.
+pub fn spawn_helper(
+    status: Arc<SharedStatus>,
+    arte: bool,
+    done: Arc<AtomicBool>,
+) -> Result<JoinHandle<()>, HelperError> {
+    let m = TcsMonitor {
+        safe: Changed::new(status.safe_state.load(Ordering::Relaxed)),
+        road: arte.then(|| Flow::new(0, Instant::now(), Duration::from_secs(1))),
+        faults: Count::default(),
+        bus_errors: Count::default(),
+        misses: Count::default(),
+        s: status,
+    };
+    monitor::spawn("tcs-helper", m, done)
+}
+
+struct TcsMonitor {
+    s: Arc<SharedStatus>,
+    safe: Changed<bool>,
+    /// ARTE's estimates (only while ARTE is on).
+    road: Option<Flow>,
+    faults: Count,
+    bus_errors: Count,
+    misses: Count,
+}
+
+impl Monitor for TcsMonitor {
+    fn heartbeat(&self) -> u64 {
+        self.s.heartbeat.load(Ordering::Relaxed)
+    }
+
+    fn stalled(&self, heartbeat: u64) {
+        tracing::warn!(
+            heartbeat,
+            "control loop heartbeat stalled: watchdog not fed"
+        );
+    }
+
+    fn tick(&mut self, now: Instant) {
+        let s = &self.s;
+        match self.safe.update(s.safe_state.load(Ordering::Relaxed)) {
+            Some(true) => tracing::warn!(
+                entries = s.safe_entries.load(Ordering::Relaxed),
+                "SAFE STATE entered: sensor or driver-demand frames missing; commanding 0 N m, enable cleared"
+            ),
+            Some(false) => tracing::info!("safe state left: inputs valid again; controller reset"),
+            None => {}
+        }
+        if let Some(road) = &mut self.road {
+            match road.update(s.road_estimates.load(Ordering::Relaxed), now) {
+                Some(FlowEvent::Moving {
+                    after_stall: true, ..
+                }) => tracing::info!("ARTE road estimates arriving again"),
+                Some(FlowEvent::Stopped) => tracing::warn!(
+                    "no ARTE road estimate for 1 s (arte dead or not started): controller falls back to its no-ARTE behaviour by age"
+                ),
+                _ => {}
+            }
+        }
+    }
+
+    fn report(&mut self, _now: Instant) {
+        let s = &self.s;
+        warn_if_grew!(
+            self.faults,
+            s.faults_total.load(Ordering::Relaxed),
+            "CAN E2E faults"
+        );
+        warn_if_grew!(
+            self.bus_errors,
+            s.bus_errors.load(Ordering::Relaxed),
+            "CAN bus send/receive errors"
+        );
+        warn_if_grew!(
+            self.misses,
+            s.deadline_misses.load(Ordering::Relaxed),
+            "deadline misses"
+        );
+    }
+}
