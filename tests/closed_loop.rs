@@ -149,7 +149,9 @@ fn closed_loop(kind: ControllerKind, arte: bool) -> Outcome_ {
             "{g:?}"
         );
     }
-    let late = late_snow(plant.scenario());
+    let snow = roads.index_of("snow").unwrap();
+    let road: Vec<usize> = run.iter().map(|g| g.road_index as usize).collect();
+    let late = late_snow(&road, snow);
     let last = truths.0.last().unwrap();
     Outcome_ {
         mean_abs_slip: run.iter().map(|g| g.lambda.abs()).sum::<f64>() / n as f64,
@@ -167,17 +169,23 @@ fn closed_loop(kind: ControllerKind, arte: bool) -> Outcome_ {
 }
 
 /// Cycle-index windows of the last 0.3 s of every snow patch.
-fn late_snow(sc: &grip_physics::Scenario) -> Vec<(usize, usize)> {
-    (0..sc.segments.len())
-        .filter(|&i| sc.segments[i].road_name == "snow")
-        .map(|i| {
-            let end = sc.segment_start(i) + sc.segments[i].span;
-            (
-                ((end - 0.3) * 1000.0).round() as usize,
-                (end * 1000.0).round() as usize,
-            )
-        })
-        .collect()
+/// The last 0.3 s (300 cycles) of every stretch of snow the run was on,
+/// from the run's own road per cycle (the scenario's segments are places).
+fn late_snow(road_per_cycle: &[usize], snow: usize) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    let mut k = 0;
+    while k < road_per_cycle.len() {
+        if road_per_cycle[k] != snow {
+            k += 1;
+            continue;
+        }
+        let start = k;
+        while k < road_per_cycle.len() && road_per_cycle[k] == snow {
+            k += 1;
+        }
+        out.push((start.max(k.saturating_sub(300)), k));
+    }
+    out
 }
 
 fn late_max(run: &[GroundTruth], w: &[(usize, usize)], f: impl Fn(&GroundTruth) -> f64) -> f64 {
@@ -197,13 +205,15 @@ fn open_loop() -> (f64, f64) {
     let mut p = Plant::new(vehicle, PlantState::rolling(sc.v0, vehicle.r)).unwrap();
     let n = (sc.duration * 1000.0).round() as usize;
     let mut lam = Vec::with_capacity(n);
+    let mut road = Vec::with_capacity(n);
     for k in 0..n {
         let t = k as f64 * 1e-3;
         let seg = sc.segment_at(t, p.state().x);
+        road.push(sc.segments[seg].road);
         p.step(1e-3, sc.demand_at(t), &roads[sc.segments[seg].road], 0.0);
         lam.push(p.lambda());
     }
-    let late = late_snow(&sc)
+    let late = late_snow(&road, roads.index_of("snow").unwrap())
         .iter()
         .flat_map(|&(a, b)| lam[a..b].iter().copied())
         .fold(f64::MIN, f64::max);

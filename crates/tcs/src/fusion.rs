@@ -15,7 +15,7 @@
 //!   road gets its (capped) confidence c, every other road (1 − c)/(K − 1);
 //!   uniform before any decision.
 //! - `S(r)`: slip evidence, a leaky sum (time constant `tau_forget_s`) of
-//!   `weight · log N(μ̂ − μ_r(λ); 0, σ_r²)` per cycle, with μ̂ from the
+//!   `−weight · (μ̂ − μ_r(λ))² / (2 σ_r²)` per cycle, with μ̂ from the
 //!   wheel's torque balance (a first-order driving-force observer,
 //!   μ̂ = (T − J_w dω/dt)/(N r)), λ measured from ω and V, and
 //!   σ_r² = σ_μ² + (μ_r'(λ) σ_λ)² (a steep curve is blurred by slip noise).
@@ -197,7 +197,11 @@ impl RoadBelief {
                 let slope = road.dmu_dlambda(lambda);
                 let s2 = s2m + slope * slope * s2l;
                 let d = mu_hat - mu;
-                let ll = -0.5 * d * d / s2 - 0.5 * s2.ln();
+                // The squared, noise-scaled misfit only: a curve's own
+                // noise level (its −½ ln σ² term) would, summed over
+                // thousands of correlated cycles that say nothing, pull the
+                // belief towards the flattest curves.
+                let ll = -0.5 * d * d / s2;
                 if ll.is_finite() {
                     self.evidence[i] += self.p.weight * ll;
                 }
