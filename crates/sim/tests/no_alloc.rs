@@ -1,6 +1,8 @@
 //! `Sim::step` allocates nothing: a counting global allocator around the
 //! per-cycle loop of every variant, with the trace recorded (it is
-//! preallocated to the run length) and the confusion-matrix ARTE in the loop.
+//! preallocated to the run length) and the confusion-matrix ARTE in the loop;
+//! with the paper's placement (fusion only) and with the front-arch
+//! microphone (the preview queue, the road belief and the torque cap).
 
 mod common;
 
@@ -16,7 +18,23 @@ fn allocs() -> u64 {
 #[test]
 fn the_cycle_allocates_nothing() {
     let (setup, est) = common::reference();
-    for v in Variant::ALL {
+    let dir = grip_config::ConfigDir::new(common::config_dir());
+    let (vehicle, sensors) =
+        grip_config::load_vehicle(common::config_dir().join("vehicles/front-mic.toml")).unwrap();
+    let front = grip_sim::SimSetup::new(
+        vehicle,
+        sensors,
+        setup.roads().clone(),
+        setup.scenario().clone(),
+        *setup.controllers(),
+        &dir.knowledge(setup.roads()).unwrap(),
+    )
+    .unwrap();
+    for (setup, v) in Variant::ALL
+        .iter()
+        .map(|&v| (&setup, v))
+        .chain(Variant::ALL.iter().filter(|v| v.arte).map(|&v| (&front, v)))
+    {
         let mut e = est.clone();
         let mut sim = Sim::new(&setup, v, 11, &mut e, true).unwrap();
         let before = allocs();
