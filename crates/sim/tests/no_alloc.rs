@@ -36,7 +36,7 @@ fn the_cycle_allocates_nothing() {
         .chain(Variant::ALL.iter().filter(|v| v.arte).map(|&v| (&front, v)))
     {
         let mut e = est.clone();
-        let mut sim = Sim::new(&setup, v, 11, &mut e, true).unwrap();
+        let mut sim = Sim::new(setup, v, 11, &mut e, true).unwrap();
         let before = allocs();
         let mut cycles = 0;
         while sim.step() {
