@@ -58,6 +58,9 @@ pub struct Prepared {
     pub lp: ArteLoop<grip_arte::model::Predictor, MonotonicClock>,
     /// Model class names.
     pub classes: Vec<String>,
+    /// What every estimate of each class carries (class order): the one
+    /// road-knowledge rule applied to the configuration directory.
+    pub table: Vec<crate::RoadInfo>,
 }
 
 fn resolve(dir: &Path, p: &Path) -> PathBuf {
@@ -86,7 +89,7 @@ pub fn prepare(opts: &Options) -> Result<Prepared, ArteError> {
     let lp = ArteLoop::from_model(
         &model,
         &cfg.stream,
-        table,
+        table.clone(),
         cfg.input.resync_gap_s,
         MonotonicClock,
     )?
@@ -97,6 +100,7 @@ pub fn prepare(opts: &Options) -> Result<Prepared, ArteError> {
         classes: model.classes().to_vec(),
         cfg,
         lp,
+        table,
     })
 }
 
@@ -108,6 +112,7 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
         model_path,
         mut lp,
         classes,
+        ..
     } = prepare(opts)?;
     let rate = lp.sample_rate();
     tracing::info!(
