@@ -77,7 +77,7 @@ pub struct PreviewParams {
 impl Default for PreviewParams {
     fn default() -> Self {
         Self {
-            cap_share: 1.0,
+            cap_share: 0.95,
             recover_share: 0.7,
             recover_slip_factor: 1.5,
             horizon_s: 1.0,
@@ -291,18 +291,26 @@ impl RoadAware {
             };
             cap = cap.min(share * info.mu_peak * self.nr);
         }
-        if alive && let Some((next, d)) = view.next {
+        if alive {
+            // Every confirmed lower-friction road ahead within the horizon
+            // (not only the next entry: a stray decision between two snow
+            // decisions must not hide the snow).
             let v = m.v.unwrap_or(self.r * m.omega).max(0.1);
-            let next_info = self.table.info(next.road);
-            let lower = next_info.mu_peak < if usable { info.mu_peak } else { f64::INFINITY };
-            let t_arrive = d / v;
-            if t_arrive <= self.p.horizon_s
-                && lower
-                && next.confidence >= self.arte.min_confidence
-                && next.hits >= self.p.min_hits
-            {
-                let target = self.p.cap_share * next_info.mu_peak * self.nr;
-                cap = cap.min(self.approach(m.torque, m.demand, target, t_arrive));
+            let here_mu = if usable { info.mu_peak } else { f64::INFINITY };
+            let skip = usize::from(view.here.is_some());
+            for e in self.queue.entries().iter().skip(skip) {
+                let t_arrive = (e.x_start - x).max(0.0) / v;
+                if t_arrive > self.p.horizon_s {
+                    break;
+                }
+                let e_info = self.table.info(e.road);
+                if e_info.mu_peak < here_mu
+                    && e.confidence >= self.arte.min_confidence
+                    && e.hits >= self.p.min_hits
+                {
+                    let target = self.p.cap_share * e_info.mu_peak * self.nr;
+                    cap = cap.min(self.approach(m.torque, m.demand, target, t_arrive));
+                }
             }
         }
         Guidance {
@@ -393,7 +401,7 @@ mod tests {
         a.decision(0, 0.95, 0.0, -2.77, 0.5); // asphalt from the start
         a.decision(1, 0.95, 0.1, 0.5, 1.0); // snow from 0.5 + 2.77 m
         a.decision(1, 0.95, 0.125, 0.6, 1.1); // heard twice: confirmed
-        let snow_cap = 0.19 * 3433.5 * 0.28;
+        let snow_cap = 0.95 * 0.19 * 3433.5 * 0.28;
         // 0.1 s of cruising on asphalt up to x = 2.0 (1.27 m = 0.25 s ahead
         // at 5 m/s): not yet.
         let g = run(&mut a, 0.1, 1.5, 0, 100);
