@@ -1,2 +1,3 @@
 //! Shared helpers for grip's end-to-end and HIL tests.
+#![warn(missing_docs)]
 pub mod hil;

@@ -16,6 +16,7 @@
 //! - `model`: the versioned, checksummed model file, standardisation inside.
 //! - `eval`: cross-validation by recording, confusion matrices, macro-F1.
 //! - `calib`: confidence calibration of the stream's decisions, ECE, reliability.
+#![warn(missing_docs)]
 
 pub mod calib;
 pub mod eval;

@@ -12,6 +12,7 @@
 //! [`SensorParams`]: grip_physics::SensorParams
 //! [`RoadCatalogue`]: grip_physics::RoadCatalogue
 //! [`Scenario`]: grip_physics::Scenario
+#![warn(missing_docs)]
 
 pub mod controllers;
 pub mod dir;

@@ -4,6 +4,7 @@
 //! a pure crate that may import no I/O crate), the run metadata of MCAP logs
 //! (grip-io, which must not pull in the DSP crate grip-arte for a hash) and
 //! the dataset hashes of `grip train` all call [`sha256_hex`].
+#![warn(missing_docs)]
 
 use sha2::{Digest, Sha256};
 

@@ -20,6 +20,7 @@
 //!   the running executable), for `grip drive` and the workspace tests.
 //!
 //! See `crates/io/README.md` for the protocol tables and measured figures.
+#![warn(missing_docs)]
 
 pub mod binaries;
 pub mod can;

@@ -505,6 +505,7 @@ mod tests {
             let s = pin_to_cpus(&[0]);
             // SAFETY: reading the calling thread's mask into a zeroed set.
             let mut set: libc::cpu_set_t = unsafe { core::mem::zeroed() };
+            // SAFETY: `set` is a valid, writable cpu_set_t of the size passed.
             let r = unsafe {
                 libc::sched_getaffinity(0, core::mem::size_of::<libc::cpu_set_t>(), &mut set)
             };
@@ -512,6 +513,7 @@ mod tests {
             if s.is_applied() {
                 // SAFETY: index in range.
                 assert!(unsafe { libc::CPU_ISSET(0, &set) });
+                // SAFETY: `set` was filled by sched_getaffinity above.
                 assert_eq!(unsafe { libc::CPU_COUNT(&set) }, 1);
             }
             assert!(matches!(pin_to_cpus(&[100_000]), RtStatus::Failed(_)));

@@ -14,6 +14,7 @@
 //! Times are `CLOCK_MONOTONIC` nanoseconds (`stamp_ns`), physical values are
 //! SI (rad/s, m/s, N m, m). This crate depends only on iceoryx2's traits; the
 //! JSON mapping for MCAP lives in `grip-io`.
+#![warn(missing_docs)]
 
 use iceoryx2::prelude::ZeroCopySend;
 

@@ -3,6 +3,7 @@
 //! quantisation, noise and delay, and scenarios. Pure: no I/O, no clock.
 //!
 //! See `README.md` in this crate ("Plant", "Roads") for the equations.
+#![warn(missing_docs)]
 
 pub mod plant;
 pub mod road;

@@ -24,6 +24,7 @@
 //! - [`report`]: statistics over seeds, the Table-V style table, CSV output.
 //!
 //! See `README.md` in this crate for the design and the results.
+#![warn(missing_docs)]
 
 pub mod acoustic;
 pub mod batch;

@@ -2,6 +2,7 @@
 //! slip, MTTE), their observers and filters, the metrics (`metrics`), and
 //! the linear analysis (transfer functions, K_MFC bound, Vinnicombe nu-gap).
 //! Pure: no I/O, no clock; every `step` is allocation-free.
+#![warn(missing_docs)]
 
 pub mod analysis;
 pub mod any;

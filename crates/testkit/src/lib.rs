@@ -23,6 +23,7 @@
 //! let n = grip_testkit::allocations(|| hot_loop());
 //! assert_eq!(n, 0);
 //! ```
+#![warn(missing_docs)]
 
 pub mod svc;
 

@@ -29,6 +29,7 @@
 //! `input.speed_timeout_s` old, else `None` (frames taken as heard at the
 //! model's reference speed). Counted in [`ArteCounters::blocks_with_speed`] /
 //! [`ArteCounters::blocks_without_speed`].
+#![warn(missing_docs)]
 
 pub mod config;
 pub mod cycle;

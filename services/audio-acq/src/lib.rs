@@ -15,6 +15,7 @@
 //!
 //! See `services/README.md`, section "audio-acq / arte", for behaviour,
 //! time stamps, overruns and measured figures.
+#![warn(missing_docs)]
 
 pub mod alsa_src;
 pub mod config;

@@ -10,6 +10,7 @@
 //!   and counters logged), on [`grip_io::service::monitor`].
 //!
 //! See `services/README.md` ("tcs-loop / plant-sim").
+#![warn(missing_docs)]
 
 pub mod config;
 pub mod cycle;

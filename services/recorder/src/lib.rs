@@ -10,6 +10,7 @@
 //!   recorder has no helper thread: see the module).
 //!
 //! See `services/README.md` ("recorder / drive / inspect / systemd").
+#![warn(missing_docs)]
 
 pub mod config;
 pub mod cycle;

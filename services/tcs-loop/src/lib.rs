@@ -13,6 +13,7 @@
 //!
 //! See `services/README.md` ("tcs-loop / plant-sim") for the command line,
 //! readiness, safe state and measured latency.
+#![warn(missing_docs)]
 
 pub mod config;
 pub mod cycle;
