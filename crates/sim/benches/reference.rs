@@ -18,9 +18,9 @@ fn setup() -> (SimSetup, ConfusionArte) {
     let cpath = dir.file("controllers.toml");
     let controllers: ControllersConfig =
         parse_toml(&cpath, &read_file(&cpath).expect("read")).expect("controllers.toml");
-    let apath = dir.file("arte.toml");
+    let apath = dir.file("sim-confusion.toml");
     let arte: ArteConfig =
-        parse_toml(&apath, &read_file(&apath).expect("read")).expect("arte.toml");
+        parse_toml(&apath, &read_file(&apath).expect("read")).expect("sim-confusion.toml");
     let est = ConfusionArte::new(&arte.confusion, &roads).expect("confusion");
     let setup = SimSetup::new(
         vehicle,

@@ -90,7 +90,7 @@ pub trait RoadEstimator {
     }
 }
 
-/// `config/arte.toml`: the confusion-matrix source of `grip sim` (the
+/// `config/sim-confusion.toml`: the confusion-matrix source of `grip sim` (the
 /// road-knowledge rule is `grip_tcs::knowledge`, configured in the arte
 /// service's `[knowledge]`, so that a drive and a simulation share it).
 #[derive(Debug, Clone, PartialEq, serde::Deserialize)]
@@ -102,7 +102,7 @@ pub struct ArteConfig {
 
 impl ArteConfig {
     /// The paper's Table II with the documented defaults (the content of
-    /// `config/arte.toml` as shipped).
+    /// `config/sim-confusion.toml` as shipped).
     pub fn paper() -> Self {
         Self {
             confusion: ConfusionConfig::paper_table_ii(),

@@ -1,7 +1,7 @@
 //! `arte-svc.toml`: the model, the streaming estimator's settings, input
 //! handling and real-time settings.
 //!
-//! (`config/arte.toml` is the offline simulator's confusion-matrix
+//! (`config/sim-confusion.toml` is the offline simulator's confusion-matrix
 //! configuration, read by `grip sim`; the live service's file is
 //! `config/arte-svc.toml`.)
 

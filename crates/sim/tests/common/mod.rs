@@ -18,7 +18,7 @@ pub fn controllers_and_arte() -> (ControllersConfig, ArteConfig) {
     let cpath = dir.file("controllers.toml");
     let controllers: ControllersConfig = parse_toml(&cpath, &read_file(&cpath).unwrap()).unwrap();
     controllers.validate().unwrap();
-    let apath = dir.file("arte.toml");
+    let apath = dir.file("sim-confusion.toml");
     let arte: ArteConfig = parse_toml(&apath, &read_file(&apath).unwrap()).unwrap();
     (controllers, arte)
 }

@@ -31,7 +31,7 @@ const HOLD_S: f64 = 0.2;
 /// Which road-estimate source the ARTE variants get.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum ArteSource {
-    /// The true road through the confusion matrix of `arte.toml` (paper Table II).
+    /// The true road through the confusion matrix of `sim-confusion.toml` (paper Table II).
     Confusion,
     /// The true road, confidence 1 (upper bound of what ARTE can give).
     Perfect,
@@ -58,7 +58,7 @@ pub struct Args {
     /// Road-estimate source of the ARTE variants.
     #[arg(long, value_enum, default_value_t = ArteSource::Confusion)]
     arte: ArteSource,
-    /// ARTE configuration (default: <config-dir>/arte.toml).
+    /// Confusion-matrix source of `--arte confusion` (default: <config-dir>/sim-confusion.toml).
     #[arg(long)]
     arte_config: Option<PathBuf>,
     /// Vehicle and sensors (default: <config-dir>/vehicle.toml); e.g.
@@ -121,7 +121,7 @@ pub fn load(
     let scenario = dir.scenario_with(scenario, &roads)?;
     let controllers = grip_config::load_controllers(dir.file("controllers.toml"))?;
     let knowledge = dir.knowledge(&roads)?;
-    let apath = arte_config.map_or_else(|| dir.file("arte.toml"), Path::to_owned);
+    let apath = arte_config.map_or_else(|| dir.file("sim-confusion.toml"), Path::to_owned);
     let arte: ArteConfig = parse_toml(&apath, &read_file(&apath)?)?;
     arte.validate(&roads)
         .map_err(|e| ConfigError::new(&apath, e.field(), reason_of(&e)))?;
