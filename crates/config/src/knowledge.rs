@@ -59,14 +59,9 @@ pub fn load_road_table(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use grip_physics::Road;
 
     fn roads() -> RoadCatalogue {
-        RoadCatalogue::new(vec![
-            Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap(),
-            Road::burckhardt("snow", 0.1946, 94.129, 0.0646).unwrap(),
-        ])
-        .unwrap()
+        RoadCatalogue::burckhardt(&["asphalt", "snow"]).unwrap()
     }
 
     #[test]

@@ -455,7 +455,35 @@ pub struct RoadCatalogue {
     roads: Vec<Road>,
 }
 
+/// Burckhardt's published parameter sets (name, c1, c2, c3), the values
+/// `config/roads.toml` ships: dry asphalt, wet asphalt, dry cobblestone,
+/// wet cobblestone, snow, ice.
+pub const BURCKHARDT: [(&str, f64, f64, f64); 6] = [
+    ("asphalt", 1.2801, 23.99, 0.52),
+    ("wet_asphalt", 0.857, 33.822, 0.347),
+    ("stone", 1.3713, 6.4565, 0.6691),
+    ("wet_stone", 0.4004, 33.708, 0.1204),
+    ("snow", 0.1946, 94.129, 0.0646),
+    ("ice", 0.05, 306.39, 0.0),
+];
+
 impl RoadCatalogue {
+    /// A catalogue of [`BURCKHARDT`] roads in the order named (examples,
+    /// tests); an unknown name is an error naming it.
+    pub fn burckhardt(names: &[&str]) -> Result<Self, InvalidField> {
+        let roads = names
+            .iter()
+            .map(|&n| {
+                let (_, c1, c2, c3) = BURCKHARDT
+                    .iter()
+                    .find(|b| b.0 == n)
+                    .ok_or_else(|| InvalidField::new("road", format!("no Burckhardt set `{n}`")))?;
+                Road::burckhardt(n, *c1, *c2, *c3)
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Self::new(roads)
+    }
+
     /// A catalogue from roads in order; fails when empty or when a name repeats
     /// (the error's field is `road[i].name`).
     pub fn new(roads: Vec<Road>) -> Result<Self, InvalidField> {
@@ -540,6 +568,15 @@ mod tests {
 
     fn asphalt() -> Road {
         Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap()
+    }
+
+    #[test]
+    fn burckhardt_catalogue_by_name() {
+        let c = RoadCatalogue::burckhardt(&["snow", "asphalt"]).unwrap();
+        assert_eq!(c.names(), "snow, asphalt");
+        assert!((c[1].lambda_opt() - 0.170).abs() < 1e-3);
+        let e = RoadCatalogue::burckhardt(&["tarmac"]).unwrap_err();
+        assert!(e.reason.contains("`tarmac`"), "{e:?}");
     }
 
     #[test]

@@ -277,12 +277,7 @@ mod tests {
     use grip_physics::Road;
 
     fn roads() -> RoadCatalogue {
-        RoadCatalogue::new(vec![
-            Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap(),
-            Road::burckhardt("snow", 0.1946, 94.129, 0.0646).unwrap(),
-            Road::burckhardt("ice", 0.05, 306.39, 0.0).unwrap(),
-        ])
-        .unwrap()
+        RoadCatalogue::burckhardt(&["asphalt", "snow", "ice"]).unwrap()
     }
 
     /// Feed steady cycles at slip `lambda` with the torque a road with

@@ -130,14 +130,9 @@ impl RoadTable {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use grip_physics::Road;
 
     fn roads() -> RoadCatalogue {
-        RoadCatalogue::new(vec![
-            Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap(),
-            Road::burckhardt("snow", 0.1946, 94.129, 0.0646).unwrap(),
-        ])
-        .unwrap()
+        RoadCatalogue::burckhardt(&["asphalt", "snow"]).unwrap()
     }
 
     #[test]

@@ -345,14 +345,9 @@ fn slip_at_share(mu: impl Fn(f64) -> f64, lambda_opt: f64, mu_peak: f64, share: 
 mod tests {
     use super::*;
     use crate::knowledge::KnowledgeConfig;
-    use grip_physics::Road;
 
     fn roads() -> RoadCatalogue {
-        RoadCatalogue::new(vec![
-            Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap(),
-            Road::burckhardt("snow", 0.1946, 94.129, 0.0646).unwrap(),
-        ])
-        .unwrap()
+        RoadCatalogue::burckhardt(&["asphalt", "snow"]).unwrap()
     }
 
     fn aware(lead: f64) -> RoadAware {
