@@ -418,11 +418,14 @@ pub fn entry_figure(
             .filter_map(|(a, b, est)| {
                 let i = est? as usize;
                 let name = setup.roads().by_index(i).map_or("?", |x| x.name());
+                let (t0, t1) = (t_at(tr, a, dt), t_at(tr, b, dt));
+                // Label only the bands wide enough to read.
+                let wide = t1.min(te + half_s) - t0.max(te - half_s) > 0.08 * half_s;
                 Some(Band {
-                    t0: t_at(tr, a, dt),
-                    t1: t_at(tr, b, dt),
+                    t0,
+                    t1,
                     colour: road_colour(name, i),
-                    label: name.to_owned(),
+                    label: if wide { name.to_owned() } else { String::new() },
                 })
             })
             .collect();
