@@ -211,6 +211,14 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         }
     }
     let setup = &loaded.setup;
+    if let Some(road) = &args.entry_plot
+        && setup.roads().index_of(road).is_none()
+    {
+        anyhow::bail!(
+            "--entry-plot {road}: not a catalogue road ({})",
+            setup.roads().names()
+        );
+    }
     let threads = args
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
