@@ -55,6 +55,20 @@ pub fn run_batch(
     make_estimator: &(dyn Fn() -> Result<Box<dyn RoadEstimator>, SimError> + Sync),
     on_done: &(dyn Fn(&RunResult) + Sync),
 ) -> Result<Vec<RunResult>, SimError> {
+    run_batch_with(&|_| setup, jobs, threads, make_estimator, on_done)
+}
+
+/// [`run_batch`] with a setup per job: `setup_of(job)` gives the setup a job
+/// runs on (e.g. one scenario per seed, `grip sim --scenario random`). The
+/// setups must share the catalogue and the run length that the estimators of
+/// `make_estimator` were built for; otherwise as [`run_batch`].
+pub fn run_batch_with<'s>(
+    setup_of: &(dyn Fn(&Job) -> &'s SimSetup + Sync),
+    jobs: &[Job],
+    threads: usize,
+    make_estimator: &(dyn Fn() -> Result<Box<dyn RoadEstimator>, SimError> + Sync),
+    on_done: &(dyn Fn(&RunResult) + Sync),
+) -> Result<Vec<RunResult>, SimError> {
     let threads = threads.clamp(1, jobs.len().max(1));
     let next = AtomicUsize::new(0);
     let results: Mutex<Vec<Option<Result<RunResult, SimError>>>> =
@@ -76,8 +90,14 @@ pub fn run_batch(
         loop {
             let i = next.fetch_add(1, Ordering::Relaxed);
             let Some(job) = jobs.get(i) else { break };
-            let r = Sim::new(setup, job.variant, job.seed, est.as_mut(), job.keep_trace)
-                .map(Sim::finish);
+            let r = Sim::new(
+                setup_of(job),
+                job.variant,
+                job.seed,
+                est.as_mut(),
+                job.keep_trace,
+            )
+            .map(Sim::finish);
             if let Ok(r) = &r {
                 on_done(r);
             }

@@ -30,6 +30,7 @@ pub mod acoustic;
 pub mod batch;
 pub mod estimator;
 pub mod probe;
+pub mod random;
 pub mod report;
 pub mod setup;
 pub mod sim;
@@ -37,11 +38,12 @@ pub mod trace;
 pub mod variant;
 
 pub use acoustic::{AcousticArte, AcousticConfig, SoundAs};
-pub use batch::{Job, run_batch};
+pub use batch::{Job, run_batch, run_batch_with};
 pub use estimator::{
     ArteConfig, ConfusionArte, ConfusionConfig, Estimate, PerfectArte, RoadEstimator,
 };
 pub use probe::{InLoopProbe, InLoopStats};
+pub use random::{RandomSpec, SCENARIO_STREAM, sounding_roads};
 pub use setup::SimSetup;
 pub use sim::{ArteStats, RunResult, Sim, run};
 pub use trace::Trace;

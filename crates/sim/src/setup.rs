@@ -46,39 +46,8 @@ impl SimSetup {
             .map_err(|e| SimError::from_field("controllers", e))?;
         let road_table =
             RoadTable::new(&roads, knowledge).map_err(|e| SimError::from_field("knowledge", e))?;
-        for (i, s) in scenario.segments.iter().enumerate() {
-            let ok = roads
-                .by_index(s.road)
-                .is_some_and(|r| r.name() == s.road_name);
-            if !ok {
-                return Err(SimError::invalid(
-                    format!("scenario.segment[{i}].road"),
-                    format!(
-                        "road `{}` (index {}) is not in this catalogue (known: {})",
-                        s.road_name,
-                        s.road,
-                        roads.names()
-                    ),
-                ));
-            }
-        }
-        if vehicle.mic_lead_m > 0.0 && scenario.segments_by == grip_physics::SegmentMode::Time {
-            return Err(SimError::invalid(
-                "scenario.segments_by",
-                format!(
-                    "scenario `{}` is in time segments, which cannot say where a road begins before the wheel gets there; the microphone is {} m ahead of the driven wheel (vehicle.mic_lead_m): use a scenario in distance segments (segments_by = \"distance\"), or mic_lead_m = 0",
-                    scenario.name, vehicle.mic_lead_m
-                ),
-            ));
-        }
+        let cycles = check_scenario(&vehicle, &roads, &scenario, controllers.loop_.dt())?;
         let dt = controllers.loop_.dt();
-        let cycles_f = (scenario.duration / dt).round();
-        if !(1.0..=1e9).contains(&cycles_f) {
-            return Err(SimError::invalid(
-                "scenario.duration",
-                format!("gives {cycles_f} controller cycles at dt = {dt} s (need 1 ..= 1e9)"),
-            ));
-        }
         Ok(Self {
             vehicle,
             sensors,
@@ -88,7 +57,18 @@ impl SimSetup {
             road_table,
             max_substep: plant::DEFAULT_MAX_SUBSTEP,
             dt,
-            cycles: cycles_f as usize,
+            cycles,
+        })
+    }
+
+    /// The same setup with another scenario (checked as in [`SimSetup::new`]);
+    /// `grip sim --scenario random` builds one per seed.
+    pub fn with_scenario(&self, scenario: Scenario) -> Result<Self, SimError> {
+        let cycles = check_scenario(&self.vehicle, &self.roads, &scenario, self.dt)?;
+        Ok(Self {
+            scenario,
+            cycles,
+            ..self.clone()
         })
     }
 
@@ -162,4 +142,48 @@ impl SimSetup {
         self.road_table
             .knowledge(est.road_index, est.confidence, t - est.t_stamp)
     }
+}
+
+/// Check `scenario` against the catalogue and the vehicle (road names, a
+/// time-segment scenario with a microphone lead, the run length) and give
+/// the number of controller cycles at period `dt`.
+fn check_scenario(
+    vehicle: &VehicleParams,
+    roads: &RoadCatalogue,
+    scenario: &Scenario,
+    dt: f64,
+) -> Result<usize, SimError> {
+    for (i, s) in scenario.segments.iter().enumerate() {
+        let ok = roads
+            .by_index(s.road)
+            .is_some_and(|r| r.name() == s.road_name);
+        if !ok {
+            return Err(SimError::invalid(
+                format!("scenario.segment[{i}].road"),
+                format!(
+                    "road `{}` (index {}) is not in this catalogue (known: {})",
+                    s.road_name,
+                    s.road,
+                    roads.names()
+                ),
+            ));
+        }
+    }
+    if vehicle.mic_lead_m > 0.0 && scenario.segments_by == grip_physics::SegmentMode::Time {
+        return Err(SimError::invalid(
+            "scenario.segments_by",
+            format!(
+                "scenario `{}` is in time segments, which cannot say where a road begins before the wheel gets there; the microphone is {} m ahead of the driven wheel (vehicle.mic_lead_m): use a scenario in distance segments (segments_by = \"distance\"), or mic_lead_m = 0",
+                scenario.name, vehicle.mic_lead_m
+            ),
+        ));
+    }
+    let cycles_f = (scenario.duration / dt).round();
+    if !(1.0..=1e9).contains(&cycles_f) {
+        return Err(SimError::invalid(
+            "scenario.duration",
+            format!("gives {cycles_f} controller cycles at dt = {dt} s (need 1 ..= 1e9)"),
+        ));
+    }
+    Ok(cycles_f as usize)
 }

@@ -104,28 +104,58 @@ pub fn road_panel(
     t_end: f64,
     caption: &str,
     x_desc: &str,
+    y: (f64, f64),
+    bands: &[Band],
+    label_roads: bool,
+    lines: &[Line<'_>],
+) -> PlotResult {
+    road_panel_in(
+        area,
+        (0.0, t_end.max(1e-3)),
+        caption,
+        x_desc,
+        y,
+        bands,
+        label_roads,
+        lines,
+    )
+}
+
+/// [`road_panel`] over `[t_lo, t_hi]` s (a zoom); bands and lines are
+/// clipped to it.
+#[allow(clippy::too_many_arguments)]
+pub fn road_panel_in(
+    area: &Area<'_>,
+    (t_lo, t_hi): (f64, f64),
+    caption: &str,
+    x_desc: &str,
     (y_lo, y_hi): (f64, f64),
     bands: &[Band],
     label_roads: bool,
     lines: &[Line<'_>],
 ) -> PlotResult {
     use plotters::prelude::*;
-    let t_end = t_end.max(1e-3);
+    let t_hi = t_hi.max(t_lo + 1e-3);
+    let span = t_hi - t_lo;
     let mut chart = ChartBuilder::on(area)
         .margin(8)
         .caption(caption, ("sans-serif", 20))
         .x_label_area_size(34)
         .y_label_area_size(60)
-        .build_cartesian_2d(0.0..t_end, y_lo..y_hi)?;
+        .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?;
     for b in bands {
+        let (b0, b1) = (b.t0.max(t_lo), b.t1.min(t_hi));
+        if b1 <= b0 {
+            continue;
+        }
         chart.draw_series(std::iter::once(Rectangle::new(
-            [(b.t0, y_lo), (b.t1, y_hi)],
+            [(b0, y_lo), (b1, y_hi)],
             b.colour.mix(0.25).filled(),
         )))?;
         if label_roads {
             chart.draw_series(std::iter::once(Text::new(
                 b.label.clone(),
-                (b.t0 + 0.005 * t_end, y_hi - 0.03 * (y_hi - y_lo)),
+                (b0 + 0.005 * span, y_hi - 0.03 * (y_hi - y_lo)),
                 ("sans-serif", 15).into_font().color(&BLACK),
             )))?;
         }
@@ -145,7 +175,7 @@ pub fn road_panel(
                 line.points
                     .iter()
                     .step_by(step)
-                    .filter(|(_, y)| y.is_finite())
+                    .filter(|(t, y)| y.is_finite() && (t_lo..=t_hi).contains(t))
                     .map(|&(t, y)| (t, y.clamp(y_lo, y_hi))),
                 c.stroke_width(2),
             ))?

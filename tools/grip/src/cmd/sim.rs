@@ -15,10 +15,12 @@ use anyhow::Context;
 use grip_arte::model::Model;
 use grip_arte::stream::{Smoothing, percentile};
 use grip_config::{ConfigDir, ConfigError, parse_toml, read_file};
+use grip_sim::random::describe_segments;
 use grip_sim::report::{self, format_paper_comparison, format_relative, format_table, summarize};
 use grip_sim::{
     AcousticArte, AcousticConfig, ArteConfig, ConfusionArte, InLoopProbe, InLoopStats, Job,
-    PerfectArte, RoadEstimator, RunResult, SimSetup, Variant, run_batch,
+    PerfectArte, RandomSpec, RoadEstimator, RunResult, SCENARIO_STREAM, SimSetup, Variant,
+    run_batch, run_batch_with,
 };
 
 use super::Ctx;
@@ -43,7 +45,11 @@ pub enum ArteSource {
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scenario: a path to a TOML file, or a name under <config-dir>/scenarios.
+    /// Scenario: a path to a TOML file, a name under <config-dir>/scenarios,
+    /// or `random`: one random road sequence per seed (distance segments of
+    /// 1-4 m drawn from the roads that have a sound, 300 N m from 10 km/h,
+    /// 2.4 s; crates/sim/README.md), listed in the output and in
+    /// scenarios.csv with --out.
     #[arg(long, default_value = "paper")]
     scenario: String,
     /// Number of seeds per variant.
@@ -83,6 +89,17 @@ pub struct Args {
     /// Write summary.csv, traces and plots here.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// With --out: draw `entry_<ROAD>.png`, a zoom (±0.3 s) on the first
+    /// entry of the driven wheel onto ROAD in the first seed, one column per
+    /// ARTE variant: torque command and motor torque, slip, and the road the
+    /// controller believes with its confidence.
+    #[arg(long, value_name = "ROAD", requires = "out")]
+    entry_plot: Option<String>,
+    /// With --entry-plot: also run the first seed's ARTE variants on this
+    /// vehicle (e.g. config/vehicle.toml beside --vehicle
+    /// config/vehicles/front-mic.toml) and draw them beside.
+    #[arg(long, value_name = "FILE", requires = "entry_plot")]
+    compare_vehicle: Option<PathBuf>,
     /// Write the time series of every seed (default: the first seed only).
     #[arg(long)]
     all_traces: bool,
@@ -100,16 +117,24 @@ pub struct Loaded {
     pub setup: SimSetup,
     /// The ARTE configuration (confusion matrix, knowledge rule).
     pub arte: ArteConfig,
-    /// The scenario file.
+    /// The scenario file (`random` for `--scenario random`).
     pub scenario_path: PathBuf,
+    /// `--scenario random`: (seed, setup on that seed's scenario) per seed.
+    pub per_seed: Vec<(u64, SimSetup)>,
 }
 
-/// Load vehicle, roads, scenario, controllers and ARTE configuration.
+/// The `--scenario` value that asks for one random road sequence per seed.
+pub const RANDOM: &str = "random";
+
+/// Load vehicle, roads, scenario, controllers and ARTE configuration. With
+/// `scenario` = [`RANDOM`], the setup is that of the first of `seeds` and
+/// [`Loaded::per_seed`] holds one per seed.
 pub fn load(
     config_dir: &Path,
     scenario: &str,
     arte_config: Option<&Path>,
     vehicle: Option<&Path>,
+    seeds: &[u64],
 ) -> anyhow::Result<Loaded> {
     let dir = ConfigDir::new(config_dir);
     let (vehicle, sensors) = match vehicle {
@@ -117,8 +142,20 @@ pub fn load(
         None => dir.vehicle()?,
     };
     let roads = dir.roads()?;
-    let scenario_path = dir.scenario_path(scenario);
-    let scenario = dir.scenario_with(scenario, &roads)?;
+    let random = scenario == RANDOM;
+    let spec = RandomSpec::default();
+    let scenario_path = if random {
+        PathBuf::from(RANDOM)
+    } else {
+        dir.scenario_path(scenario)
+    };
+    let scenario = if random {
+        let seed = seeds.first().copied().unwrap_or(0);
+        spec.scenario(seed, &roads)
+            .map_err(|e| anyhow::anyhow!("--scenario random (seed {seed}): {e}"))?
+    } else {
+        dir.scenario_with(scenario, &roads)?
+    };
     let controllers = grip_config::load_controllers(dir.file("controllers.toml"))?;
     let knowledge = dir.knowledge(&roads)?;
     let apath = arte_config.map_or_else(|| dir.file("sim-confusion.toml"), Path::to_owned);
@@ -127,10 +164,21 @@ pub fn load(
         .map_err(|e| ConfigError::new(&apath, e.field(), reason_of(&e)))?;
     let setup = SimSetup::new(vehicle, sensors, roads, scenario, controllers, &knowledge)
         .map_err(|e| anyhow::anyhow!("{}: {e}", scenario_path.display()))?;
+    let mut per_seed = Vec::new();
+    if random {
+        for &seed in seeds {
+            let sc = spec
+                .scenario(seed, setup.roads())
+                .and_then(|sc| setup.with_scenario(sc))
+                .map_err(|e| anyhow::anyhow!("--scenario random (seed {seed}): {e}"))?;
+            per_seed.push((seed, sc));
+        }
+    }
     Ok(Loaded {
         setup,
         arte,
         scenario_path,
+        per_seed,
     })
 }
 
@@ -142,16 +190,6 @@ fn reason_of(e: &grip_sim::SimError) -> String {
 
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     let variants = Variant::parse_list(&args.variants)?;
-    let mut loaded = load(
-        &ctx.config_dir,
-        &args.scenario,
-        args.arte_config.as_deref(),
-        args.vehicle.as_deref(),
-    )?;
-    if let Some(h) = args.max_substep {
-        loaded.setup.set_max_substep(h).context("--max-substep")?;
-    }
-    let setup = &loaded.setup;
     let seeds: Vec<u64> = (0..args.seeds)
         .map(|i| {
             args.seed0
@@ -159,6 +197,28 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
                 .context("--seed0 + --seeds overflows u64")
         })
         .collect::<anyhow::Result<_>>()?;
+    let mut loaded = load(
+        &ctx.config_dir,
+        &args.scenario,
+        args.arte_config.as_deref(),
+        args.vehicle.as_deref(),
+        &seeds,
+    )?;
+    if let Some(h) = args.max_substep {
+        loaded.setup.set_max_substep(h).context("--max-substep")?;
+        for (_, s) in &mut loaded.per_seed {
+            s.set_max_substep(h).context("--max-substep")?;
+        }
+    }
+    let setup = &loaded.setup;
+    if let Some(road) = &args.entry_plot
+        && setup.roads().index_of(road).is_none()
+    {
+        anyhow::bail!(
+            "--entry-plot {road}: not a catalogue road ({})",
+            setup.roads().names()
+        );
+    }
     let threads = args
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
@@ -215,7 +275,14 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let started = Instant::now();
-    let results = run_batch(setup, &jobs, threads, &make, &|_| bar.inc(1))
+    let per_seed = &loaded.per_seed;
+    let setup_of = |j: &Job| -> &SimSetup {
+        per_seed
+            .iter()
+            .find(|(s, _)| *s == j.seed)
+            .map_or(setup, |(_, s)| s)
+    };
+    let results = run_batch_with(&setup_of, &jobs, threads, &make, &|_| bar.inc(1))
         .map_err(|e| anyhow::anyhow!("simulation: {e}"))?;
     let inloop: Vec<Option<InLoopStats>> = results.iter().map(|r| r.inloop.clone()).collect();
     let wall = started.elapsed().as_secs_f64();
@@ -223,12 +290,28 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
 
     let summaries = summarize(&results);
     let mut out = String::new();
+    let description = if per_seed.is_empty() {
+        sc.description.clone()
+    } else {
+        let spec = RandomSpec::default();
+        let mut d = format!(
+            "one random road sequence per seed (sub-seed stream {SCENARIO_STREAM}): distance segments of {}-{} m from the roads with a sound, constant {} N m from {} km/h, {} s:",
+            spec.min_len_m, spec.max_len_m, spec.torque, spec.v0_kmh, spec.duration
+        );
+        for (seed, s) in per_seed {
+            d.push_str(&format!(
+                "\n  seed {seed}: {}",
+                describe_segments(&s.scenario().segments)
+            ));
+        }
+        d
+    };
     out.push_str(&format!(
         "\nScenario `{}`: {}\n{} seeds ({}..={}), mean ± std over seeds; ARTE source: {}.\n\
          slip dev. = (1/T) ∫|λ| dt; max torque = max |T|; effort = (1/T) ∫|T| dt (the paper's \"normalised area\", N m);\n\
          mean accel = ΔV / T; ∫Tω dt = motor energy at the wheel; ΔKE = kinetic energy gained (one wheel's share, M/n).\n\n",
         sc.name,
-        sc.description,
+        description,
         seeds.len(),
         seeds[0],
         seeds[seeds.len() - 1],
@@ -268,6 +351,46 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     if let Some(dir) = &args.out {
         write_outputs(dir, setup, &results, &out)?;
         write_inloop_csv(dir, &results, &inloop)?;
+        if !per_seed.is_empty() {
+            write_scenarios_csv(dir, per_seed)?;
+        }
+        if let Some(road) = &args.entry_plot {
+            let setup_first = setup_of(&jobs[0]);
+            let compare = match &args.compare_vehicle {
+                Some(v) => {
+                    let other = load(
+                        &ctx.config_dir,
+                        &args.scenario,
+                        args.arte_config.as_deref(),
+                        Some(v),
+                        &seeds[..1],
+                    )?;
+                    let other_setup = other
+                        .per_seed
+                        .into_iter()
+                        .next()
+                        .map_or(other.setup, |(_, s)| s);
+                    let arte: Vec<Variant> = variants.iter().copied().filter(|v| v.arte).collect();
+                    let jobs2 = Job::grid(&arte, &seeds[..1], true);
+                    let r = run_batch(&other_setup, &jobs2, threads, &make, &|_| {})
+                        .map_err(|e| anyhow::anyhow!("simulation ({}): {e}", v.display()))?;
+                    Some((v.clone(), other_setup, r))
+                }
+                None => None,
+            };
+            let this_vehicle = args
+                .vehicle
+                .clone()
+                .unwrap_or_else(|| ctx.config_dir.join("vehicle.toml"));
+            write_entry_plot(
+                dir,
+                road,
+                (&this_vehicle, setup_first, &results),
+                compare
+                    .as_ref()
+                    .map(|(p, s, r)| (p.as_path(), s, r.as_slice())),
+            )?;
+        }
         eprintln!("wrote {}", dir.display());
     }
     Ok(())
@@ -514,6 +637,80 @@ fn format_confusion(setup: &SimSetup, stats: &[Option<InLoopStats>]) -> String {
         out.push('\n');
     }
     out
+}
+
+/// `entry_<ROAD>.png` ([`plot::entry_figure`]): the first seed's ARTE
+/// variants on this vehicle and, if given, on the compared one.
+fn write_entry_plot(
+    dir: &Path,
+    road: &str,
+    this: (&Path, &SimSetup, &[RunResult]),
+    other: Option<(&Path, &SimSetup, &[RunResult])>,
+) -> anyhow::Result<()> {
+    let ri = this.1.roads().index_of(road).with_context(|| {
+        format!(
+            "--entry-plot {road}: not a catalogue road ({})",
+            this.1.roads().names()
+        )
+    })?;
+    let first = this.2.first().map(|r| r.seed).context("no runs")?;
+    let mut cols = Vec::new();
+    let mut names = Vec::new();
+    for (vpath, setup, results) in std::iter::once(this).chain(other) {
+        let vname = vpath.file_stem().map_or_else(
+            || "vehicle".to_owned(),
+            |s| s.to_string_lossy().into_owned(),
+        );
+        names.push(format!("{vname} (lead {} m)", setup.vehicle().mic_lead_m));
+        for r in results.iter().filter(|r| r.seed == first && r.variant.arte) {
+            if let Some(tr) = &r.trace {
+                cols.push(plot::EntryRun {
+                    label: format!(
+                        "{}, {vname} (lead {} m)",
+                        r.variant.label(),
+                        setup.vehicle().mic_lead_m
+                    ),
+                    setup,
+                    trace: tr,
+                });
+            }
+        }
+    }
+    let p = dir.join(format!("entry_{road}.png"));
+    plot::entry_figure(
+        &p,
+        &cols,
+        ri,
+        0.3,
+        &format!(
+            "First entry onto {road}, scenario `{}`, seed {first}: {}",
+            this.1.scenario().name,
+            names.join(" vs ")
+        ),
+    )
+    .map_err(|e| anyhow::anyhow!("drawing {}: {e}", p.display()))
+}
+
+/// `scenarios.csv` (`--scenario random`): one row per segment of every
+/// seed's scenario: seed, segment index, road, length (m), start (m).
+fn write_scenarios_csv(dir: &Path, per_seed: &[(u64, SimSetup)]) -> anyhow::Result<()> {
+    let p = dir.join("scenarios.csv");
+    let mut w = create(&p)?;
+    let mut text = String::from("seed,segment,road,length_m,start_m\n");
+    for (seed, s) in per_seed {
+        let sc = s.scenario();
+        for (k, g) in sc.segments.iter().enumerate() {
+            text.push_str(&format!(
+                "{seed},{k},{},{:.2},{:.2}\n",
+                g.road_name,
+                g.span,
+                sc.segment_start(k)
+            ));
+        }
+    }
+    w.write_all(text.as_bytes())
+        .and_then(|()| w.flush())
+        .with_context(|| format!("writing {}", p.display()))
 }
 
 /// `arte_inloop.csv`: one row per ARTE run.

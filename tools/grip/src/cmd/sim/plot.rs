@@ -251,3 +251,221 @@ fn strip(area: &Area<'_>, setup: &SimSetup, tr: &Trace) -> Res {
         &ignored,
     )
 }
+
+/// One column of an entry figure: a caption, the setup it ran on, its trace.
+pub struct EntryRun<'a> {
+    /// Column caption (variant and vehicle).
+    pub label: String,
+    /// The setup the run used (roads, dt).
+    pub setup: &'a SimSetup,
+    /// The run's time series.
+    pub trace: &'a Trace,
+}
+
+/// First cycle at which the driven wheel is on road `road` after being on
+/// another one (or at the start), with its time.
+pub fn first_entry(tr: &Trace, road: u32) -> Option<(usize, f64)> {
+    (0..tr.len())
+        .find(|&k| tr.true_road[k] == road && (k == 0 || tr.true_road[k - 1] != road))
+        .map(|k| (k, tr.t[k]))
+}
+
+/// A zoom on the first entry of the driven wheel onto `road`, `half_s` each
+/// side, one column per run: torque (T_d, T*, T and the road's transmissible
+/// torque μ_peak N r), slip (λ, λ_opt of the true road), both over the true
+/// road at the wheel, and the road the controller believes (coloured bands)
+/// with the belief's confidence. Runs that never reach `road` are left out;
+/// none reaching it is an error.
+pub fn entry_figure(
+    path: &Path,
+    runs_in: &[EntryRun<'_>],
+    road: usize,
+    half_s: f64,
+    title: &str,
+) -> Res {
+    crate::plot::init_fonts();
+    let cols_runs: Vec<(&EntryRun<'_>, f64)> = runs_in
+        .iter()
+        .filter_map(|r| first_entry(r.trace, road as u32).map(|(_, t)| (r, t)))
+        .collect();
+    if cols_runs.is_empty() {
+        return Err("no run reaches the road".into());
+    }
+    let setup0 = cols_runs[0].0.setup;
+    let road_name = setup0.roads().by_index(road).map_or("?", |r| r.name());
+    let h = TITLE_H + 3 * PANEL_H + LEGEND_H;
+    let w = (700 * cols_runs.len() as u32).max(900);
+    let root = BitMapBackend::new(path, (w, h)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (top, rest) = root.split_vertically(TITLE_H);
+    top.draw_text(
+        title,
+        &("sans-serif", 26).into_font().color(&BLACK),
+        (20, 15),
+    )?;
+    let (body, legend) = rest.split_vertically(h - TITLE_H - LEGEND_H);
+    let cols = body.split_evenly((1, cols_runs.len()));
+
+    // Common y ranges over the windows.
+    let window = |tr: &Trace, te: f64| -> Vec<usize> {
+        (0..tr.len())
+            .filter(|&k| (tr.t[k] - te).abs() <= half_s)
+            .collect()
+    };
+    let mut q = (0.0f64, 0.0f64);
+    let mut l = (0.0f64, 0.0f64);
+    for (r, te) in &cols_runs {
+        let tr = r.trace;
+        for k in window(tr, *te) {
+            for v in [tr.torque[k], tr.torque_cmd[k], tr.demand[k]] {
+                if v.is_finite() {
+                    q = (q.0.min(v), q.1.max(v));
+                }
+            }
+            for v in [tr.lambda[k], tr.lambda_opt_true[k]] {
+                if v.is_finite() {
+                    l = (l.0.min(v), l.1.max(v));
+                }
+            }
+        }
+    }
+    let pad = |(lo, hi): (f64, f64)| {
+        let span = (hi - lo).max(1e-6);
+        (lo - 0.05 * span, hi + 0.12 * span)
+    };
+    let (q, l) = (pad(q), pad(l));
+
+    for ((r, te), col) in cols_runs.iter().zip(cols.iter()) {
+        let tr = r.trace;
+        let setup = r.setup;
+        let dt = setup.dt();
+        let range = (te - half_s, te + half_s);
+        let (p1, rr) = col.split_vertically(PANEL_H);
+        let (p2, p3) = rr.split_vertically(PANEL_H);
+        let true_bands = true_bands(setup, tr, dt);
+        let pts = |ys: &[f64]| -> Vec<(f64, f64)> {
+            tr.t.iter().copied().zip(ys.iter().copied()).collect()
+        };
+        // The transmissible torque of the true road at the wheel: μ_peak N r.
+        let v = setup.vehicle();
+        let n_r = v.normal_force() * v.r;
+        let limit: Vec<f64> = tr
+            .true_road
+            .iter()
+            .map(|&i| {
+                setup
+                    .roads()
+                    .by_index(i as usize)
+                    .map_or(f64::NAN, |x| x.mu_peak() * n_r)
+            })
+            .collect();
+        let x_desc = format!("t (s); the wheel reaches {road_name} at {te:.3} s");
+        crate::plot::road_panel_in(
+            &p1,
+            range,
+            &format!("{}: torque (N m)", r.label),
+            &x_desc,
+            q,
+            &true_bands,
+            true,
+            &[
+                Line {
+                    label: "T_d",
+                    colour: RGBColor(0, 0, 0),
+                    points: pts(&tr.demand),
+                },
+                Line {
+                    label: "μ_peak N r (true road)",
+                    colour: RGBColor(0, 150, 0),
+                    points: pts(&limit),
+                },
+                Line {
+                    label: "T* (command)",
+                    colour: RGBColor(230, 130, 0),
+                    points: pts(&tr.torque_cmd),
+                },
+                Line {
+                    label: "T (motor)",
+                    colour: RGBColor(0, 0, 200),
+                    points: pts(&tr.torque),
+                },
+            ],
+        )?;
+        crate::plot::road_panel_in(
+            &p2,
+            range,
+            &format!("{}: slip λ", r.label),
+            &x_desc,
+            l,
+            &true_bands,
+            false,
+            &[
+                Line {
+                    label: "λ",
+                    colour: RGBColor(200, 0, 0),
+                    points: pts(&tr.lambda),
+                },
+                Line {
+                    label: "λ_opt (true road)",
+                    colour: RGBColor(0, 120, 0),
+                    points: pts(&tr.lambda_opt_true),
+                },
+            ],
+        )?;
+        // The believed road as bands, its confidence as the line.
+        let belief: Vec<Band> = runs(&tr.est_road)
+            .into_iter()
+            .filter_map(|(a, b, est)| {
+                let i = est? as usize;
+                let name = setup.roads().by_index(i).map_or("?", |x| x.name());
+                let (t0, t1) = (t_at(tr, a, dt), t_at(tr, b, dt));
+                // Label only the bands wide enough to read.
+                let wide = t1.min(te + half_s) - t0.max(te - half_s) > 0.08 * half_s;
+                Some(Band {
+                    t0,
+                    t1,
+                    colour: road_colour(name, i),
+                    label: if wide { name.to_owned() } else { String::new() },
+                })
+            })
+            .collect();
+        crate::plot::road_panel_in(
+            &p3,
+            range,
+            &format!("{}: believed road (bands) and confidence", r.label),
+            &x_desc,
+            (0.0, 1.15),
+            &belief,
+            true,
+            &[Line {
+                label: "confidence",
+                colour: RGBColor(0, 0, 0),
+                points: pts(&tr.confidence),
+            }],
+        )?;
+    }
+    legend.draw_text(
+        "Top two rows: background = true road under the driven wheel. Bottom row: background = road the controller believes (white: none).",
+        &("sans-serif", 17).into_font().color(&BLACK),
+        (20, 15),
+    )?;
+    root.present()?;
+    Ok(())
+}
+
+/// The true road at the driven wheel as bands.
+fn true_bands(setup: &SimSetup, tr: &Trace, dt: f64) -> Vec<Band> {
+    runs(&tr.true_road)
+        .into_iter()
+        .map(|(a, b, road)| {
+            let i = road as usize;
+            let name = setup.roads().by_index(i).map_or("?", |r| r.name());
+            Band {
+                t0: t_at(tr, a, dt),
+                t1: t_at(tr, b, dt),
+                colour: road_colour(name, i),
+                label: name.to_owned(),
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,167 @@
+//! Random road sequences (`grip sim --scenario random`): one scenario per
+//! run seed, so that results can be checked on roads nobody tuned to.
+//!
+//! The recipe ([`RandomSpec::default`], documented in this crate's README):
+//!
+//! - roads: the catalogue's roads that have a sound, i.e. that
+//!   [`grip_arte::synth::road_index`] knows (asphalt, gravel, snow, stone,
+//!   wet_asphalt, wet_stone), in catalogue order; the first segment's road
+//!   is drawn uniformly among them, each next one uniformly among the
+//!   *others* (every segment boundary is a road change);
+//! - lengths: uniform in [`RandomSpec::min_len_m`, `RandomSpec::max_len_m`]
+//!   (1-4 m: 0.36-1.4 s at 10 km/h, 0.12-0.5 s at 30 km/h), drawn until the
+//!   segments cover [`RandomSpec::cover_m`] (24 m, more than any variant
+//!   travels in 2.4 s from 10 km/h at 300 N m; the last segment runs to the
+//!   end of the run anyway);
+//! - distance segments (`segments_by = "distance"`, so a microphone ahead
+//!   of the driven wheel hears each road first), level, constant 300 N m
+//!   demand, v0 10 km/h, 2.4 s: the reference scenario's drive.
+//!
+//! The draws come from a ChaCha8 generator seeded with
+//! `sub_seed(seed, SCENARIO_STREAM)` ([`crate::sub_seed`], stream 3; the
+//! sensor noise is stream 1, the road estimator stream 2), so seed `s`
+//! always gives the same road sequence, identical for every variant of `s`,
+//! and independent of the sensor noise and ARTE draws of that seed.
+
+use grip_physics::{Demand, RoadCatalogue, Scenario, Segment, SegmentMode};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::{SimError, sub_seed};
+
+/// Sub-seed stream of the random scenario (see [`crate::sub_seed`]).
+pub const SCENARIO_STREAM: u64 = 3;
+
+/// What a random scenario is drawn from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RandomSpec {
+    /// Shortest segment, m (> 0).
+    pub min_len_m: f64,
+    /// Longest segment, m (>= `min_len_m`).
+    pub max_len_m: f64,
+    /// Segments are drawn until they cover this distance, m.
+    pub cover_m: f64,
+    /// Initial speed, km/h.
+    pub v0_kmh: f64,
+    /// Constant driver demand, N m.
+    pub torque: f64,
+    /// Run duration, s.
+    pub duration: f64,
+}
+
+impl Default for RandomSpec {
+    fn default() -> Self {
+        Self {
+            min_len_m: 1.0,
+            max_len_m: 4.0,
+            cover_m: 24.0,
+            v0_kmh: 10.0,
+            torque: 300.0,
+            duration: 2.4,
+        }
+    }
+}
+
+/// Indices (catalogue order) of the roads of `roads` that have a sound
+/// (that the tyre-road synthesiser knows).
+pub fn sounding_roads(roads: &RoadCatalogue) -> Vec<usize> {
+    roads
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| grip_arte::synth::road_index(r.name()).is_some())
+        .map(|(i, _)| i)
+        .collect()
+}
+
+impl RandomSpec {
+    /// The scenario of run seed `seed`, resolved against `roads`. Fails when
+    /// the catalogue has fewer than two roads with a sound or the spec is
+    /// out of range.
+    pub fn scenario(&self, seed: u64, roads: &RoadCatalogue) -> Result<Scenario, SimError> {
+        if !(self.min_len_m > 0.0
+            && self.max_len_m >= self.min_len_m
+            && self.max_len_m.is_finite()
+            && self.cover_m > 0.0
+            && self.cover_m.is_finite())
+        {
+            return Err(SimError::invalid(
+                "random",
+                format!(
+                    "segment lengths need 0 < min <= max and a finite cover > 0 (got {}..{} m, cover {} m)",
+                    self.min_len_m, self.max_len_m, self.cover_m
+                ),
+            ));
+        }
+        let pool = sounding_roads(roads);
+        if pool.len() < 2 {
+            return Err(SimError::invalid(
+                "random.roads",
+                format!(
+                    "need at least two catalogue roads with a sound ({}); the catalogue has {} ({})",
+                    grip_arte::synth::ROADS.join(", "),
+                    pool.len(),
+                    roads.names()
+                ),
+            ));
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(sub_seed(seed, SCENARIO_STREAM));
+        let mut segments = Vec::new();
+        let mut covered = 0.0;
+        let mut prev: Option<usize> = None;
+        while covered < self.cover_m {
+            let road = match prev {
+                None => pool[rng.random_range(0..pool.len())],
+                Some(p) => {
+                    // Uniform among the other roads: skip the previous one.
+                    let k = rng.random_range(0..pool.len() - 1);
+                    let pos = pool.iter().position(|&i| i == p).unwrap_or(pool.len());
+                    pool[if k >= pos { k + 1 } else { k }]
+                }
+            };
+            let span = if self.max_len_m > self.min_len_m {
+                rng.random_range(self.min_len_m..=self.max_len_m)
+            } else {
+                self.min_len_m
+            };
+            // Centimetres, like the shipped scenarios.
+            let span = ((span * 100.0).round() / 100.0).clamp(self.min_len_m, self.max_len_m);
+            let name = roads.by_index(road).map_or("?", |r| r.name()).to_owned();
+            segments.push(Segment {
+                road_name: name,
+                road,
+                span,
+                grade_pct: 0.0,
+            });
+            covered += span;
+            prev = Some(road);
+        }
+        let description = format!(
+            "Random roads of seed {seed} (sub-seed stream {SCENARIO_STREAM}): {}; constant {} N m from {} km/h",
+            describe_segments(&segments),
+            self.torque,
+            self.v0_kmh
+        );
+        Scenario::new(
+            "random",
+            description,
+            self.duration,
+            self.v0_kmh / 3.6,
+            SegmentMode::Distance,
+            segments,
+            Demand::Constant {
+                torque: self.torque,
+            },
+            roads.len(),
+        )
+        .map_err(|e| SimError::from_field("random", e))
+    }
+}
+
+/// `road length m, ...` of a segment list (one line).
+pub fn describe_segments(segments: &[Segment]) -> String {
+    segments
+        .iter()
+        .map(|s| format!("{} {:.2} m", s.road_name, s.span))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
