@@ -702,6 +702,8 @@ mod tests {
         g.omega = 10.0;
         g.road_index = road;
         g.road_name = grip_msgs::name_to_bytes(name);
+        g.mic_road_index = road;
+        g.mic_road_name = g.road_name;
         g
     }
 
