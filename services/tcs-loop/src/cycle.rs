@@ -444,10 +444,11 @@ impl TcsLoop {
         {
             self.safe = false;
             self.controller.reset();
-            // the drive starts: knowledge of the time before is stale
-            if let Some(a) = self.aware.as_mut() {
-                a.reset();
-            }
+            // the road knowledge is kept: the decisions queued so far are
+            // places ahead of the wheel that the microphone heard (`reset`
+            // at this point left the wheel without acoustic knowledge for
+            // its first `mic_lead_m` metres, and the slip evidence alone
+            // then settled on ice at the start of a drive)
         }
 
         // 4. measurement and control
