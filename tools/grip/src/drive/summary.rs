@@ -239,10 +239,6 @@ pub fn truth_at(truth: &[GroundTruth], t_ns: u64) -> Option<&GroundTruth> {
     if i == 0 { None } else { truth.get(i - 1) }
 }
 
-fn name_of_truth(g: &GroundTruth) -> String {
-    g.road_name().unwrap_or("?").to_owned()
-}
-
 /// The road the microphone hears (`mic_lead_m` ahead of the driven wheel):
 /// what ARTE is judged against.
 fn name_of_mic_truth(g: &GroundTruth) -> String {
