@@ -51,6 +51,8 @@ fn sample_set(
         r.lambda_opt = 0.17 + i as f64 * 1e-9;
         r.mu_peak = 1.17;
         r.alpha = 1.0 / 3.0;
+        r.x_from = 1.5 * i as f64 - 0.28;
+        r.x_to = 1.5 * i as f64;
         road.push(r);
         let mut c = CycleRecord::zeroed();
         c.seq = i;
@@ -65,6 +67,10 @@ fn sample_set(
         c.torque_cmd = 187.25;
         c.internal = f64::MAX;
         c.mu_hat = f64::MIN_POSITIVE;
+        c.odometer = 0.001 * i as f64;
+        c.torque_cap = 182.66;
+        c.belief_prob = 0.75;
+        c.belief_road = 3;
         c.road_class = if i % 5 == 0 { NO_CLASS } else { 2 };
         c.used_arte = (i % 2) as u8;
         c.safe_state = (i % 7 == 0) as u8;
@@ -85,6 +91,8 @@ fn sample_set(
         g.stamp_ns = t + 4;
         g.road_index = 1;
         g.road_name = name_to_bytes("wet_cobblestone");
+        g.mic_road_index = 2;
+        g.mic_road_name = name_to_bytes("snow");
         g.v = 2.7777777777777777;
         g.omega = 10.0;
         g.lambda = -0.0;
@@ -328,10 +336,13 @@ proptest! {
         let c = CycleRecord {
             seq: ints[0], stamp_ns: ints[1], wakeup_latency_ns: lat, compute_ns: ints[2],
             deadline_misses: ints[3], omega: vals[0], v: vals[1], torque: vals[2], demand: vals[3],
-            torque_cmd: vals[4], internal: vals[5], mu_hat: vals[6], road_class: rc,
+            torque_cmd: vals[4], internal: vals[5], mu_hat: vals[6],
+            odometer: vals[0] * 0.5, torque_cap: vals[1] * 0.25, belief_prob: vals[2] * 0.125,
+            road_class: rc, belief_road: rc ^ 1,
             used_arte: b[0], safe_state: b[1], v_valid: b[2], _reserved: 0,
             faults: E2eFaults { crc: f[0], counter_repeated: f[1], counter_skipped: f[2],
                 length: f[3], unknown_id: f[4], timeout: f[5] },
+            _reserved2: 0,
         };
         let mut buf = Vec::new();
         c.write_json(&mut buf);
@@ -353,6 +364,8 @@ proptest! {
         r.probabilities = p;
         r.class_name = name_to_bytes(&name);
         r.alpha = x;
+        r.x_from = x * 0.5;
+        r.x_to = -x;
         let mut buf = Vec::new();
         r.write_json(&mut buf);
         let back = RoadEstimate::from_json(&serde_json::from_slice(&buf).unwrap()).unwrap();

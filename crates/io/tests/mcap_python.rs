@@ -57,7 +57,7 @@ with open(sys.argv[1], "rb") as f:
         json.loads(schema.data)
         d = json.loads(message.data)
         counts[channel.topic] = counts.get(channel.topic, 0) + 1
-        if schema.name == "grip::CycleRecord::v1":
+        if schema.name == "grip::CycleRecord::v2":
             torque_sum += d["torque_cmd"]
         if schema.name == "grip::AudioBlock::v1":
             last_audio = d["samples"][-1]

@@ -106,7 +106,7 @@ impl Default for AudioBlock {
 
 /// One road-type decision of `arte` for one audio frame.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("grip::RoadEstimate::v1")]
+#[type_name("grip::RoadEstimate::v2")]
 #[repr(C)]
 pub struct RoadEstimate {
     /// Decision sequence number.
@@ -133,11 +133,17 @@ pub struct RoadEstimate {
     pub mu_peak: f64,
     /// MTTE relaxation factor α the road implies.
     pub alpha: f64,
+    /// tcs-loop's odometer (`CycleRecord::odometer`, m) at the start of the
+    /// audio frame: where the microphone began hearing it, less the
+    /// microphone's lead. NaN when no fresh cycle record was at hand.
+    pub x_from: f64,
+    /// The odometer at the end of the audio frame, m (NaN as `x_from`).
+    pub x_to: f64,
 }
 
 impl RoadEstimate {
     /// Versioned type name.
-    pub const TYPE_NAME: &'static str = "grip::RoadEstimate::v1";
+    pub const TYPE_NAME: &'static str = "grip::RoadEstimate::v2";
 
     /// All-zero estimate with `class_index = NO_CLASS`.
     pub const fn zeroed() -> Self {
@@ -154,6 +160,8 @@ impl RoadEstimate {
             lambda_opt: 0.0,
             mu_peak: 0.0,
             alpha: 0.0,
+            x_from: f64::NAN,
+            x_to: f64::NAN,
         }
     }
 
@@ -216,7 +224,7 @@ impl E2eFaults {
 
 /// What happened in one cycle of `tcs-loop`.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("grip::CycleRecord::v1")]
+#[type_name("grip::CycleRecord::v2")]
 #[repr(C)]
 pub struct CycleRecord {
     /// Cycle number.
@@ -243,8 +251,16 @@ pub struct CycleRecord {
     pub internal: f64,
     /// Controller's friction estimate μ̂.
     pub mu_hat: f64,
+    /// Odometer: integral of the measured vehicle speed since start, m.
+    pub odometer: f64,
+    /// Torque cap of the road knowledge (ARTE on), N m; NaN: no cap.
+    pub torque_cap: f64,
+    /// Probability of the believed road (ARTE on), NaN without.
+    pub belief_prob: f64,
     /// Road class the controller used (`NO_CLASS` if none).
     pub road_class: u32,
+    /// Catalogue index of the believed road (ARTE on), `NO_CLASS` without.
+    pub belief_road: u32,
     /// 1 if the controller used the ARTE road knowledge this cycle.
     pub used_arte: u8,
     /// 1 if the loop was in its safe state (sensor timeout, fault).
@@ -255,11 +271,13 @@ pub struct CycleRecord {
     pub _reserved: u8,
     /// CAN receive faults counted since start (all messages summed).
     pub faults: E2eFaults,
+    /// Explicit padding, zero.
+    pub _reserved2: u32,
 }
 
 impl CycleRecord {
     /// Versioned type name.
-    pub const TYPE_NAME: &'static str = "grip::CycleRecord::v1";
+    pub const TYPE_NAME: &'static str = "grip::CycleRecord::v2";
 
     /// All-zero record (`road_class = NO_CLASS`).
     pub const fn zeroed() -> Self {
@@ -276,7 +294,11 @@ impl CycleRecord {
             torque_cmd: 0.0,
             internal: 0.0,
             mu_hat: 0.0,
+            odometer: 0.0,
+            torque_cap: f64::NAN,
+            belief_prob: f64::NAN,
             road_class: NO_CLASS,
+            belief_road: NO_CLASS,
             used_arte: 0,
             safe_state: 0,
             v_valid: 0,
@@ -289,6 +311,7 @@ impl CycleRecord {
                 unknown_id: 0,
                 timeout: 0,
             },
+            _reserved2: 0,
         }
     }
 }
@@ -370,19 +393,24 @@ impl CanFrame {
 
 /// What the plant simulator knows to be true (never seen by the controller).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("grip::GroundTruth::v1")]
+#[type_name("grip::GroundTruth::v2")]
 #[repr(C)]
 pub struct GroundTruth {
     /// Plant step sequence number.
     pub seq: u64,
     /// CLOCK_MONOTONIC time, ns.
     pub stamp_ns: u64,
-    /// Index of the true road in the scenario's road list, or [`NO_CLASS`].
+    /// Index of the true road under the driven wheel in the road
+    /// catalogue, or [`NO_CLASS`].
     pub road_index: u32,
-    /// Explicit padding, zero.
-    pub _reserved: u32,
-    /// Name of the true road, zero padded.
+    /// Index of the true road at the microphone (`vehicle.mic_lead_m` ahead
+    /// of the driven wheel, at `x + mic_lead_m`), or [`NO_CLASS`]: the road
+    /// the synthetic audio is rendered for.
+    pub mic_road_index: u32,
+    /// Name of the true road under the driven wheel, zero padded.
     pub road_name: [u8; NAME_LEN],
+    /// Name of the true road at the microphone, zero padded.
+    pub mic_road_name: [u8; NAME_LEN],
     /// True vehicle speed V, m/s.
     pub v: f64,
     /// True wheel speed ω, rad/s.
@@ -397,16 +425,17 @@ pub struct GroundTruth {
 
 impl GroundTruth {
     /// Versioned type name.
-    pub const TYPE_NAME: &'static str = "grip::GroundTruth::v1";
+    pub const TYPE_NAME: &'static str = "grip::GroundTruth::v2";
 
-    /// All-zero truth (`road_index = NO_CLASS`).
+    /// All-zero truth (`road_index = mic_road_index = NO_CLASS`).
     pub const fn zeroed() -> Self {
         Self {
             seq: 0,
             stamp_ns: 0,
             road_index: NO_CLASS,
-            _reserved: 0,
+            mic_road_index: NO_CLASS,
             road_name: [0; NAME_LEN],
+            mic_road_name: [0; NAME_LEN],
             v: 0.0,
             omega: 0.0,
             lambda: 0.0,
@@ -415,9 +444,14 @@ impl GroundTruth {
         }
     }
 
-    /// The true road's name, if valid UTF-8.
+    /// The true road's name (under the driven wheel), if valid UTF-8.
     pub fn road_name(&self) -> Option<&str> {
         name_from_bytes(&self.road_name)
+    }
+
+    /// The true road's name at the microphone, if valid UTF-8.
+    pub fn mic_road_name(&self) -> Option<&str> {
+        name_from_bytes(&self.mic_road_name)
     }
 }
 
@@ -432,15 +466,15 @@ const _: () = {
     use core::mem::{align_of, size_of};
     assert!(size_of::<AudioBlock>() == 8 + 8 + 4 + 4 + 2 + 2 + 4 + 2 * AUDIO_MAX_SAMPLES);
     assert!(align_of::<AudioBlock>() == 8);
-    assert!(size_of::<RoadEstimate>() == 8 * 4 + 4 + 4 + NAME_LEN + 4 * MAX_ROAD_CLASSES + 8 * 4);
+    assert!(size_of::<RoadEstimate>() == 8 * 4 + 4 + 4 + NAME_LEN + 4 * MAX_ROAD_CLASSES + 8 * 6);
     assert!(align_of::<RoadEstimate>() == 8);
     assert!(size_of::<E2eFaults>() == 6 * 4);
     assert!(align_of::<E2eFaults>() == 4);
-    assert!(size_of::<CycleRecord>() == 8 * 5 + 8 * 7 + 4 + 4 + size_of::<E2eFaults>());
+    assert!(size_of::<CycleRecord>() == 8 * 5 + 8 * 10 + 4 + 4 + 4 + size_of::<E2eFaults>() + 4);
     assert!(align_of::<CycleRecord>() == 8);
     assert!(size_of::<CanFrame>() == 24);
     assert!(align_of::<CanFrame>() == 8);
-    assert!(size_of::<GroundTruth>() == 8 + 8 + 4 + 4 + NAME_LEN + 8 * 5);
+    assert!(size_of::<GroundTruth>() == 8 + 8 + 4 + 4 + 2 * NAME_LEN + 8 * 5);
     assert!(align_of::<GroundTruth>() == 8);
 };
 

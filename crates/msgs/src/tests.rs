@@ -27,7 +27,7 @@ fn every_payload_is_plain_and_has_its_versioned_name() {
         GroundTruth::TYPE_NAME,
     ] {
         assert!(
-            name.starts_with("grip::") && name.ends_with("::v1"),
+            name.starts_with("grip::") && (name.ends_with("::v1") || name.ends_with("::v2")),
             "{name}"
         );
     }
@@ -38,14 +38,14 @@ fn sizes_and_alignment() {
     use core::mem::{align_of, size_of};
     assert_eq!(size_of::<AudioBlock>(), 32 + 2 * AUDIO_MAX_SAMPLES);
     assert_eq!(size_of::<CanFrame>(), 24);
-    assert_eq!(size_of::<RoadEstimate>(), 120);
-    assert_eq!(size_of::<CycleRecord>(), 128);
-    assert_eq!(size_of::<GroundTruth>(), 80);
+    assert_eq!(size_of::<RoadEstimate>(), 136);
+    assert_eq!(size_of::<CycleRecord>(), 160);
+    assert_eq!(size_of::<GroundTruth>(), 96);
     assert_eq!(align_of::<CycleRecord>(), 8);
     // field offsets a C reader would rely on
     assert_eq!(core::mem::offset_of!(CanFrame, data), 16);
     assert_eq!(core::mem::offset_of!(AudioBlock, samples), 32);
-    assert_eq!(core::mem::offset_of!(CycleRecord, faults), 104);
+    assert_eq!(core::mem::offset_of!(CycleRecord, faults), 132);
 }
 
 #[test]

@@ -98,6 +98,8 @@ pub struct ArteLoop<C: Classify, K: Clock> {
     est_buf: RoadEstimate,
     /// Newest valid vehicle speed: (|v| m/s, its record's stamp ns).
     speed: Option<(f64, u64)>,
+    /// tcs-loop's odometer in the record `speed` came from, m.
+    odometer: f64,
     speed_timeout_ns: u64,
 }
 
@@ -111,6 +113,11 @@ impl<C: Classify, K: Clock> std::fmt::Debug for ArteLoop<C, K> {
             .field("out_seq", &self.out_seq)
             .finish_non_exhaustive()
     }
+}
+
+/// The odometer at `t_ns` from `x` m at `t_rec_ns` and speed `v` m/s.
+fn odometer_at(x: f64, v: f64, t_rec_ns: u64, t_ns: u64) -> f64 {
+    x + v * (t_ns as i128 - t_rec_ns as i128) as f64 * 1e-9
 }
 
 fn samples_ns(n: u64, fs: u32) -> u64 {
@@ -171,6 +178,7 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             clock,
             est_buf: RoadEstimate::zeroed(),
             speed: None,
+            odometer: f64::NAN,
             speed_timeout_ns: (DEFAULT_SPEED_TIMEOUT_S * 1e9) as u64,
         })
     }
@@ -205,6 +213,11 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
         if self.speed.is_none_or(|(_, t)| r.stamp_ns >= t) {
             // reversing: the tyre noise depends on the speed's magnitude
             self.speed = Some((r.v.abs(), r.stamp_ns));
+            self.odometer = if r.odometer.is_finite() {
+                r.odometer
+            } else {
+                f64::NAN
+            };
         }
     }
 
@@ -292,6 +305,12 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
         // after a restart, which may reset the estimator's speed
         let speed = self.current_speed();
         self.est.set_speed(speed);
+        // tcs-loop's odometer at time t (ns), extrapolated from the newest
+        // fresh cycle record at its speed; NaN without one
+        let odo = match (speed, self.speed) {
+            (Some(v), Some((_, t_rec))) => Some((self.odometer, v, t_rec)),
+            _ => None,
+        };
         match speed {
             Some(v) => {
                 stats.blocks_with_speed.fetch_add(1, Ordering::Relaxed);
@@ -323,6 +342,13 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             e.seq = *out_seq;
             e.frame_t1_ns = t1;
             e.frame_t0_ns = t1.saturating_sub(frame_ns);
+            (e.x_from, e.x_to) = match odo {
+                Some((x, v, t_rec)) => (
+                    odometer_at(x, v, t_rec, e.frame_t0_ns),
+                    odometer_at(x, v, t_rec, t1),
+                ),
+                None => (f64::NAN, f64::NAN),
+            };
             e.class_index = class as u32;
             e.n_classes = k as u32;
             e.probabilities = [0.0; MAX_ROAD_CLASSES];

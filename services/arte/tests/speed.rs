@@ -228,3 +228,50 @@ fn speed_normalised_follows_the_feature_config() {
     assert_eq!(counts(&stats), (10, 10));
     assert!(sink.0 > 0);
 }
+
+/// Keeps every estimate.
+#[derive(Default)]
+struct Keep(Vec<RoadEstimate>);
+impl EstimateSink for Keep {
+    fn send(&mut self, e: &RoadEstimate) -> Result<(), IpcError> {
+        self.0.push(*e);
+        Ok(())
+    }
+}
+
+/// Each estimate carries tcs-loop's odometer at its frame's start and end:
+/// the newest fresh record's odometer moved on at its speed to the frame's
+/// times; NaN without a fresh record.
+#[test]
+fn estimates_carry_the_odometer_of_their_frame() {
+    let fcfg = FeatureConfig::new(RATE, FeatureSet::Rich);
+    let clock = ManualClock::new(T0);
+    let mut lp = new_loop(&fcfg, &clock);
+    let stats = ArteCounters::default();
+    let mut sink = Keep::default();
+    let mut bl = Blocks(0);
+    // no record: NaN
+    while sink.0.is_empty() {
+        lp.on_block(&bl.next(), &mut sink, &stats);
+    }
+    assert!(sink.0.iter().all(|e| e.x_from.is_nan() && e.x_to.is_nan()));
+    // a record at 40 m, 5 m/s, stamped at the next block's start
+    let mut rec = record(5.0, true, 0);
+    rec.odometer = 40.0;
+    let n0 = sink.0.len();
+    let b = bl.next();
+    rec.stamp_ns = b.stamp_ns;
+    clock.set_ns(b.stamp_ns);
+    lp.on_cycle(&rec, &stats);
+    lp.on_block(&b, &mut sink, &stats);
+    while sink.0.len() == n0 {
+        let b = bl.next();
+        clock.set_ns(b.stamp_ns);
+        lp.on_block(&b, &mut sink, &stats);
+    }
+    let e = sink.0[n0];
+    let at = |t: u64| 40.0 + 5.0 * (t as f64 - rec.stamp_ns as f64) * 1e-9;
+    assert!((e.x_to - at(e.frame_t1_ns)).abs() < 1e-9, "{e:?}");
+    assert!((e.x_from - at(e.frame_t0_ns)).abs() < 1e-9, "{e:?}");
+    assert!(e.x_to > e.x_from && e.x_to - e.x_from < 5.0, "{e:?}");
+}

@@ -146,13 +146,15 @@ impl<C: Clock, T: TruthInput> SynthSource<C, T> {
         (self.road, self.speed)
     }
 
+    /// The audio is the road at the microphone (`mic_road_name`), which is
+    /// `mic_lead_m` ahead of the driven wheel.
     fn take_truth(&mut self, t: &GroundTruth, now: u64) {
-        if t.road_name != self.last_name {
-            self.last_name = t.road_name;
+        if t.mic_road_name != self.last_name {
+            self.last_name = t.mic_road_name;
             self.road = self
                 .names
                 .iter()
-                .find(|(n, _)| *n == t.road_name)
+                .find(|(n, _)| *n == t.mic_road_name)
                 .map_or(NO_ROAD, |&(_, i)| i);
         }
         if self.road == NO_ROAD {

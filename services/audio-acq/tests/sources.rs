@@ -151,8 +151,11 @@ impl TruthInput for ScriptedTruth {
                 seq: 0,
                 stamp_ns: now,
                 road_index: 0,
-                _reserved: 0,
-                road_name: name_to_bytes(r),
+                mic_road_index: 0,
+                // the wheel is on another road: the synth renders the
+                // road at the microphone
+                road_name: name_to_bytes("under_the_wheel"),
+                mic_road_name: name_to_bytes(r),
                 v,
                 omega: v / 0.3,
                 lambda: 0.0,

@@ -147,6 +147,8 @@ pub struct PlantSim {
     scenario: Scenario,
     roads: RoadCatalogue,
     names: Vec<[u8; NAME_LEN]>,
+    /// The microphone's lead ahead of the driven wheel, m.
+    mic_lead: f64,
     plant: Plant,
     sensors: Sensors,
     r: f64,
@@ -218,8 +220,18 @@ impl PlantSim {
                 )));
             }
         }
+        if vehicle.mic_lead_m > 0.0 && scenario.segments_by == grip_physics::SegmentMode::Time {
+            return Err(PlantSimError::Invalid(InvalidField::new(
+                "vehicle.mic_lead_m",
+                format!(
+                    "scenario `{}` is in time segments, which cannot say where a road begins before the wheel gets there; the microphone is {} m ahead of the driven wheel: use a scenario in distance segments (segments_by = \"distance\"), or mic_lead_m = 0",
+                    scenario.name, vehicle.mic_lead_m
+                ),
+            )));
+        }
         let names = roads.iter().map(|r| name_to_bytes(r.name())).collect();
         Ok(Self {
+            mic_lead: vehicle.mic_lead_m,
             names,
             plant,
             sensors,
@@ -471,12 +483,16 @@ impl PlantSim {
         // 6. ground truth
         let seg = self.scenario.segment_at(self.t_s, s.x);
         let road_idx = self.scenario.segments[seg].road;
+        // the microphone hears the road `mic_lead_m` ahead of the wheel
+        let mic_seg = self.scenario.segment_at(self.t_s, s.x + self.mic_lead);
+        let mic_idx = self.scenario.segments[mic_seg].road;
         let g = GroundTruth {
             seq: self.seq,
             stamp_ns: now,
             road_index: road_idx as u32,
-            _reserved: 0,
+            mic_road_index: mic_idx as u32,
             road_name: self.names[road_idx],
+            mic_road_name: self.names[mic_idx],
             v: s.v,
             omega: s.omega,
             lambda: self.plant.lambda(),

@@ -3,11 +3,13 @@
 //!
 //! ```text
 //! plant-sim [--config-dir DIR] [--config FILE] [--scenario NAME|PATH] [--seed N]
-//!           [--start-on signal|commands|immediate] [--exit-at-end]
+//!           [--start-on signal|commands|immediate] [--exit-at-end] [--vehicle FILE]
 //! ```
 //! - `--config-dir DIR` (default `config`; systemd: `/etc/grip`): reads
 //!   `vehicle.toml` (vehicle + sensors), `roads.toml`, `scenarios/`, `can.toml`.
 //! - `--config FILE` (default `DIR/plant-sim.toml`).
+//! - `--vehicle FILE` (default `DIR/vehicle.toml`): vehicle + sensors (e.g.
+//!   `config/vehicles/front-mic.toml`).
 //! - `--scenario`, `--seed`, `--start-on`, `--exit-at-end` override the file.
 //! - `GRIP_INSTANCE` (environment) selects an isolated iceoryx2 namespace.
 //!
@@ -54,6 +56,9 @@ struct Args {
     /// Exit 0 at the scenario's end (after the zero-torque hold).
     #[arg(long)]
     exit_at_end: bool,
+    /// The vehicle's TOML (default: <config-dir>/vehicle.toml).
+    #[arg(long)]
+    vehicle: Option<std::path::PathBuf>,
 }
 
 fn main() -> ExitCode {
@@ -64,6 +69,7 @@ fn main() -> ExitCode {
         seed: args.seed,
         exit_at_end: args.exit_at_end,
         start_on: args.start_on,
+        vehicle: args.vehicle,
     };
     Service::new()
         .with_start_signal()

@@ -32,6 +32,8 @@ pub struct Options {
     pub exit_at_end: bool,
     /// `--start-on`.
     pub start_on: Option<StartOn>,
+    /// `--vehicle FILE` (default `<config-dir>/vehicle.toml`).
+    pub vehicle: Option<PathBuf>,
 }
 
 /// Fatal start-up errors.
@@ -76,11 +78,12 @@ pub fn load(opts: &Options) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), 
     cfg.exit_at_end |= opts.exit_at_end;
     let roads = dir.roads()?;
     let scenario = dir.scenario_with(&cfg.scenario, &roads)?;
-    let (vehicle, sensors) = dir.vehicle()?;
+    let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
+    let (vehicle, sensors) = grip_config::load_vehicle(&vehicle_path)?;
     let can = load_can(&dir)?;
     let sim = PlantSim::new(&cfg, scenario, roads, &vehicle, &sensors).map_err(|source| {
         RunError::Model {
-            file: dir.vehicle_path(),
+            file: vehicle_path,
             source,
         }
     })?;

@@ -290,3 +290,46 @@ fn skipped_periods_advance_the_scenario_clock() {
     );
     assert!((r.sim.scenario_time() - 0.005).abs() < 1e-12);
 }
+
+/// With the microphone in the front wheel arch (2.77 m ahead of the driven
+/// wheel), the truth names the road at the microphone apart from the road
+/// under the wheel: snow is at the microphone while the wheel is still on
+/// asphalt (paper: asphalt for the first 1.28 m).
+#[test]
+fn truth_names_the_road_at_the_microphone() {
+    let mut r = Rig::new(&immediate());
+    r.sim = common::sim_with_vehicle(&immediate(), "vehicles/front-mic.toml").unwrap();
+    r.cycle();
+    let g = r.truth.last.unwrap();
+    assert!(g.x < 1.28 - 0.1, "{g:?}");
+    assert_eq!(g.road_name(), Some("asphalt"));
+    assert_eq!(
+        g.mic_road_name(),
+        Some("snow"),
+        "1.28 m <= x + 2.77 m < 3.81 m"
+    );
+    assert_ne!(g.mic_road_index, g.road_index);
+    // the shipped vehicle (lead 0): both are the wheel's road
+    let mut r = Rig::new(&immediate());
+    r.cycle();
+    let g = r.truth.last.unwrap();
+    assert_eq!(g.mic_road_name(), Some("asphalt"));
+    assert_eq!(g.mic_road_index, g.road_index);
+}
+
+/// A time-segment scenario cannot say where a road begins ahead of the
+/// wheel: refused with a lead, the error naming the field and the way out.
+#[test]
+fn time_segments_with_a_lead_are_refused() {
+    let cfg = PlantSimConfig {
+        start_on: StartOn::Immediate,
+        ..PlantSimConfig::with_scenario("e2e")
+    };
+    let e = common::sim_with_vehicle(&cfg, "vehicles/front-mic.toml").unwrap_err();
+    let msg = e.to_string();
+    assert!(
+        msg.contains("mic_lead_m") && msg.contains("time segments") && msg.contains("distance"),
+        "{msg}"
+    );
+    assert!(common::sim_with_vehicle(&cfg, "vehicle.toml").is_ok());
+}

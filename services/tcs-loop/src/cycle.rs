@@ -23,11 +23,18 @@
 //!    T = TorqueActual; T_d = TorqueDemand, 0 while `BrakePressed`) and the
 //!    road knowledge (ARTE on and an estimate held; the controller's own
 //!    fallback rule `[arte]` of controllers.toml decides whether it is used).
+//!    With ARTE on and [`TcsLoop::with_road_aware`] (what `run` builds), this
+//!    is `grip sim`'s "with ARTE" path: each new estimate is queued in
+//!    [`RoadAware`] at the odometer positions it was heard at (arte's
+//!    `x_from`/`x_to`, the microphone's `mic_lead_m` added), every cycle
+//!    `RoadAware::step` at the odometer gives the knowledge of the believed
+//!    road and a torque cap, and the command is `min(T*, cap)`.
 //!    With `TcsEnable` = 0 the demand is passed through unchanged. A
 //!    non-finite controller output is sent as 0 N m.
 //! 5. **Send** `TorqueCommand` (E2E counter + CRC) and copy it to `CAN_LOG`
 //!    (direction TX).
-//! 6. **Publish** the `CycleRecord`.
+//! 6. **Publish** the `CycleRecord` (with the odometer, integral of the
+//!    measured speed V, else r·ω; the cap and the believed road with ARTE).
 //!
 //! Nothing here allocates, blocks or logs; transitions are reported through
 //! [`SharedStatus`] atomics that a non-real-time thread reads and logs.
@@ -42,9 +49,11 @@ use grip_io::can::protocol::{
 use grip_io::can::{CanBus, CanFrame};
 use grip_io::clock::Clock;
 use grip_io::rt::CycleTiming;
-use grip_msgs::{CycleRecord, NO_CLASS, RoadEstimate, can_dir, can_flags};
-use grip_physics::VehicleParams;
-use grip_tcs::{AnyController, Controller, ControllersConfig, Measurement, RoadKnowledge};
+use grip_msgs::{CycleRecord, NAME_LEN, NO_CLASS, RoadEstimate, can_dir, can_flags, name_to_bytes};
+use grip_physics::{RoadCatalogue, VehicleParams};
+use grip_tcs::{
+    AnyController, Controller, ControllersConfig, Measurement, RoadAware, RoadKnowledge,
+};
 
 use crate::config::SafetyConfig;
 use crate::ports::{RecordSink, RoadSource};
@@ -109,7 +118,8 @@ pub struct SharedStatus {
 /// Errors building the loop.
 #[derive(Debug, thiserror::Error)]
 pub enum LoopError {
-    /// The controller rejected its parameters (field named).
+    /// The controller or the road knowledge rejected its parameters (field
+    /// named).
     #[error("controller parameters: field `{field}`: {reason}")]
     Controller {
         /// Offending field.
@@ -125,6 +135,16 @@ pub enum LoopError {
 pub struct TcsLoop {
     controller: AnyController,
     arte: bool,
+    /// Road knowledge tied to places (ARTE on, built by
+    /// [`TcsLoop::with_road_aware`]): the preview queue, the road belief and
+    /// the torque cap, the same code as `grip sim`'s.
+    aware: Option<RoadAware>,
+    /// Catalogue road names, to map an estimate's class name to the
+    /// catalogue index `aware` uses.
+    road_names: Vec<[u8; NAME_LEN]>,
+    /// Integral of the measured vehicle speed since start, m.
+    odometer: f64,
+    dt: f64,
     r: f64,
     sensor_timeout_ns: u64,
     demand_timeout_ns: u64,
@@ -177,6 +197,10 @@ impl TcsLoop {
         Ok(Self {
             controller,
             arte,
+            aware: None,
+            road_names: Vec::new(),
+            odometer: 0.0,
+            dt: controllers.loop_.dt(),
             r: vehicle.r,
             sensor_timeout_ns: safety.sensor_timeout_ns(),
             demand_timeout_ns: safety.demand_timeout_ns(),
@@ -203,6 +227,78 @@ impl TcsLoop {
                 ..SharedStatus::default()
             }),
         })
+    }
+
+    /// With ARTE on, the "with ARTE" behaviour of `grip sim`: road
+    /// knowledge from [`RoadAware`] for `roads` (its `[arte]`, `[preview]`,
+    /// `[fusion]` of `controllers`, the road table and the vehicle's
+    /// `mic_lead_m`), decisions queued where they were heard, the torque
+    /// capped to what the road allows. Without ARTE nothing changes.
+    pub fn with_road_aware(
+        mut self,
+        roads: &RoadCatalogue,
+        table: grip_tcs::RoadTable,
+        controllers: &ControllersConfig,
+        vehicle: &VehicleParams,
+    ) -> Result<Self, LoopError> {
+        if !self.arte {
+            return Ok(self);
+        }
+        let aware = RoadAware::new(
+            roads,
+            table,
+            vehicle,
+            controllers.arte,
+            controllers.preview,
+            controllers.fusion,
+            self.dt,
+        )
+        .map_err(|e| LoopError::Controller {
+            field: e.field,
+            reason: e.reason,
+        })?;
+        self.road_names = roads.iter().map(|r| name_to_bytes(r.name())).collect();
+        self.aware = Some(aware);
+        Ok(self)
+    }
+
+    /// Whether the road knowledge of [`TcsLoop::with_road_aware`] is in use.
+    pub fn road_aware(&self) -> bool {
+        self.aware.is_some()
+    }
+
+    /// The odometer: integral of the measured vehicle speed since start, m.
+    pub fn odometer(&self) -> f64 {
+        self.odometer
+    }
+
+    /// Queues estimate `e` in the road knowledge at the odometer positions
+    /// it was heard at (arte's `x_from`/`x_to`; when arte had no fresh cycle
+    /// record, this loop's odometer at the frame's times). Allocation-free.
+    fn queue_estimate(&mut self, e: &RoadEstimate, now: u64, t0: u64, v: f64) {
+        let Some(aware) = self.aware.as_mut() else {
+            return;
+        };
+        let Some(road) = self.road_names.iter().position(|n| *n == e.class_name) else {
+            return;
+        };
+        let (x_from, x_to) = if e.x_from.is_finite() && e.x_to.is_finite() {
+            (e.x_from, e.x_to)
+        } else {
+            let ago = |t: u64| {
+                if t == 0 || t > now {
+                    0.0
+                } else {
+                    (now - t) as f64 * 1e-9
+                }
+            };
+            (
+                self.odometer - v * ago(e.frame_t0_ns),
+                self.odometer - v * ago(e.frame_t1_ns),
+            )
+        };
+        let stamp = (e.stamp_ns as i128 - t0 as i128) as f64 * 1e-9;
+        aware.decision(road, e.confidence, stamp, x_from, x_to);
     }
 
     /// The status shared with the helper thread.
@@ -302,10 +398,30 @@ impl TcsLoop {
         // counts timeout episodes into the E2E fault counters
         self.rx.poll_timeouts(now);
 
+        // measured vehicle speed (V = r·OmegaRef when valid, else the
+        // VehicleSpeed frame when valid and fresh)
+        let omega = self.ws.map_or(0.0, |(w, _)| w.omega_driven);
+        let v = match self.ws {
+            Some((w, _)) if w.ref_valid => Some(self.r * w.omega_ref),
+            _ => Self::fresh(&self.vs, now, self.vspeed_timeout_ns)
+                .filter(|s| s.valid)
+                .map(|s| s.speed),
+        };
+        // the odometer's speed: V, else the wheel's r·ω (as grip sim)
+        let v_odo = v.unwrap_or(self.r * omega);
+        let v_odo = if v_odo.is_finite() {
+            v_odo.max(0.0)
+        } else {
+            0.0
+        };
+
         // 2. road estimate (latest value wins)
         if let Some(e) = road.poll_latest() {
             self.road = Some(e);
             self.status.road_estimates.fetch_add(1, Ordering::Relaxed);
+            if e.class_index != NO_CLASS {
+                self.queue_estimate(&e, now, t0, v_odo);
+            }
         }
 
         // 3. safe state
@@ -328,16 +444,14 @@ impl TcsLoop {
         {
             self.safe = false;
             self.controller.reset();
+            // the road knowledge is kept: the decisions queued so far are
+            // places ahead of the wheel that the microphone heard (`reset`
+            // at this point left the wheel without acoustic knowledge for
+            // its first `mic_lead_m` metres, and the slip evidence alone
+            // then settled on ice at the start of a drive)
         }
 
         // 4. measurement and control
-        let omega = self.ws.map_or(0.0, |(w, _)| w.omega_driven);
-        let v = match self.ws {
-            Some((w, _)) if w.ref_valid => Some(self.r * w.omega_ref),
-            _ => Self::fresh(&self.vs, now, self.vspeed_timeout_ns)
-                .filter(|s| s.valid)
-                .map(|s| s.speed),
-        };
         let torque = self.ms.map_or(0.0, |(m, _)| m.torque_actual);
         let (demand, tcs_enable) = match self.dd {
             Some((d, _)) if d.brake_pressed => (0.0, d.tcs_enable),
@@ -369,7 +483,22 @@ impl TcsLoop {
                 torque,
                 demand,
             };
-            let out = self.controller.step(&m, knowledge.as_ref());
+            let out = match self.aware.as_mut() {
+                Some(aware) => {
+                    let g = aware.step(&m, self.odometer);
+                    rec.belief_road = g.belief.0 as u32;
+                    rec.belief_prob = g.belief.1;
+                    let mut out = self.controller.step(&m, g.knowledge.as_ref());
+                    if g.torque_cap.is_finite() {
+                        rec.torque_cap = g.torque_cap;
+                    }
+                    if g.torque_cap < out.torque_cmd {
+                        out.torque_cmd = g.torque_cap.max(0.0);
+                    }
+                    out
+                }
+                None => self.controller.step(&m, knowledge.as_ref()),
+            };
             rec.internal = out.internal;
             rec.mu_hat = out.mu_hat;
             rec.used_arte = u8::from(out.used_arte);
@@ -406,7 +535,9 @@ impl TcsLoop {
         rec.torque_cmd = cmd;
         rec.safe_state = u8::from(self.safe);
         rec.faults = self.rx.faults();
+        rec.odometer = self.odometer;
         sink.cycle(&rec);
+        self.odometer += v_odo * self.dt;
         self.record = rec;
         self.seq += 1;
 

@@ -2,11 +2,13 @@
 //!
 //! ```text
 //! tcs-loop [--config-dir DIR] [--config FILE] [--controller mfc|src|mtte] [--arte on|off]
-//!          [--run-for SECONDS]
+//!          [--run-for SECONDS] [--vehicle FILE]
 //! ```
 //! - `--config-dir DIR` (default `config`; systemd: `/etc/grip`): reads
 //!   `controllers.toml` (parameters, `[loop] rate_hz`), `vehicle.toml`,
 //!   `can.toml` from it.
+//! - `--vehicle FILE` (default `DIR/vehicle.toml`): the vehicle (e.g.
+//!   `config/vehicles/front-mic.toml`).
 //! - `--config FILE` (default `DIR/tcs-loop.toml`): controller, ARTE on/off,
 //!   `[safety]` timeouts, `[rt]` (SCHED_FIFO priority, mlockall, CPUs,
 //!   cpu_dma_latency).
@@ -54,6 +56,9 @@ struct Args {
     /// Stop after this many seconds (benchmarks).
     #[arg(long)]
     run_for: Option<f64>,
+    /// The vehicle's TOML (default: <config-dir>/vehicle.toml).
+    #[arg(long)]
+    vehicle: Option<std::path::PathBuf>,
 }
 
 fn main() -> ExitCode {
@@ -63,6 +68,7 @@ fn main() -> ExitCode {
         controller: args.controller,
         arte: args.arte.map(|a| a == OnOff::On),
         run_for_s: args.run_for,
+        vehicle: args.vehicle,
     };
     Service::new().run(|signals| run(&opts, &signals.stop).map(drop))
 }

@@ -32,6 +32,8 @@ pub struct Options {
     pub arte: Option<bool>,
     /// Stop by itself after this many seconds (benchmarks).
     pub run_for_s: Option<f64>,
+    /// `--vehicle FILE` (default `<config-dir>/vehicle.toml`).
+    pub vehicle: Option<PathBuf>,
 }
 
 /// Fatal start-up errors.
@@ -91,6 +93,12 @@ pub struct LoadedConfig {
     pub vehicle: grip_physics::VehicleParams,
     /// `can.toml`.
     pub can: CanBusConfig,
+    /// `roads.toml`.
+    pub roads: grip_physics::RoadCatalogue,
+    /// The road-knowledge table (roads.toml + `[knowledge]` of arte-svc.toml).
+    pub road_table: grip_tcs::RoadTable,
+    /// Path of the vehicle file (for error messages).
+    pub vehicle_path: PathBuf,
     /// Path of `controllers.toml` (for error messages).
     pub controllers_path: PathBuf,
     /// Path of the service's own TOML.
@@ -110,13 +118,19 @@ pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
     }
     let controllers_path = dir.file("controllers.toml");
     let controllers = load_controllers(&controllers_path)?;
-    let (vehicle, _) = dir.vehicle()?;
+    let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
+    let (vehicle, _) = grip_config::load_vehicle(&vehicle_path)?;
     let can = load_can(&dir)?;
+    let roads = dir.roads()?;
+    let road_table = dir.road_table(&roads)?;
     Ok(LoadedConfig {
         own,
         controllers,
         vehicle,
         can,
+        roads,
+        road_table,
+        vehicle_path,
         controllers_path,
         own_path,
     })
@@ -142,12 +156,25 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
     .map_err(|source| RunError::Loop {
         file: cfg.controllers_path.clone(),
         source,
+    })?
+    .with_road_aware(
+        &cfg.roads,
+        cfg.road_table.clone(),
+        &cfg.controllers,
+        &cfg.vehicle,
+    )
+    .map_err(|source| RunError::Loop {
+        file: cfg.controllers_path.clone(),
+        source,
     })?;
     let rate = cfg.controllers.loop_.rate_hz;
     let period_ns = (1e9 / rate).round() as u64;
     tracing::info!(
         controller = %kind,
         arte = cfg.own.arte,
+        road_aware = lp.road_aware(),
+        mic_lead_m = cfg.vehicle.mic_lead_m,
+        vehicle = %cfg.vehicle_path.display(),
         rate_hz = rate,
         sensor_timeout_ms = cfg.own.safety.sensor_timeout_ms,
         demand_timeout_ms = cfg.own.safety.demand_timeout_ms,

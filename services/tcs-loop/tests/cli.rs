@@ -10,11 +10,14 @@ use grip_testkit::svc::{NotifySocket, Service, copy_config, strip_rt};
 const BIN: &str = env!("CARGO_BIN_EXE_tcs-loop");
 
 /// The shipped files tcs-loop reads.
-const CONFIG: [&str; 4] = [
+const CONFIG: [&str; 7] = [
     "controllers.toml",
     "vehicle.toml",
     "can.toml",
     "tcs-loop.toml",
+    "roads.toml",
+    "roads",
+    "arte-svc.toml",
 ];
 
 fn run(args: &[&str]) -> (i32, String) {

@@ -471,3 +471,104 @@ fn shutdown_sends_zero_torque_with_enable_cleared() {
     let mut rx = grip_io::can::protocol::ProtocolRx::for_inverter();
     assert!(rx.receive(&sent[0], now).is_ok());
 }
+
+/// Snow heard ahead: with the microphone 2.77 m ahead of the driven wheel
+/// (`config/vehicles/front-mic.toml`) and the shipped controllers, roads and
+/// road table, estimates of snow queued where they were heard bring the
+/// command down to snow's transmissible torque, μ_peak · N · r (0.19 ·
+/// 3433.5 N · 0.28 m ≈ 183 N m), **before** the wheel's odometer reaches the
+/// snow, for every controller; far from the snow the command is not capped.
+#[test]
+fn snow_heard_ahead_caps_the_torque_before_the_wheel_gets_there() {
+    let dir = grip_config::ConfigDir::new(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config"),
+    );
+    let roads = dir.roads().unwrap();
+    let table = dir.road_table(&roads).unwrap();
+    let controllers = grip_config::load_controllers(dir.file("controllers.toml")).unwrap();
+    let (vehicle, _) = grip_config::load_vehicle(dir.file("vehicles/front-mic.toml")).unwrap();
+    assert!((vehicle.mic_lead_m - 2.77).abs() < 1e-12);
+    let snow = roads.index_of("snow").unwrap();
+    let limit = table.info(snow).mu_peak * vehicle.normal_force() * vehicle.r;
+    assert!((limit - 183.0).abs() < 1.0, "snow carries {limit} N m");
+    let frame_m = 0.1 * 0.28 * 9.9; // one 0.1 s frame at V = r·OmegaRef
+
+    for kind in ControllerKind::ALL {
+        let lp = TcsLoop::new(kind, true, &controllers, &vehicle, &SafetyConfig::default())
+            .unwrap()
+            .with_road_aware(&roads, table.clone(), &controllers, &vehicle)
+            .unwrap();
+        let mut r = Rig::new(kind, true);
+        r.lp = lp;
+        r.feed.torque = 250.0;
+        r.feed.demand = 300.0;
+        let mut seq = 0;
+        // an estimate of `road` for the frame that just ended, stamped by
+        // arte with the odometer it was heard at
+        let mut heard = |r: &Rig, road: &str| {
+            seq += 1;
+            let x = r.lp.odometer();
+            RoadEstimate {
+                seq,
+                stamp_ns: r.now(),
+                frame_t0_ns: r.now() - 100 * MS,
+                frame_t1_ns: r.now(),
+                class_index: 0,
+                n_classes: 4,
+                class_name: grip_msgs::name_to_bytes(road),
+                confidence: 0.95,
+                x_from: x - frame_m,
+                x_to: x,
+                ..RoadEstimate::zeroed()
+            }
+        };
+        // 1 s on asphalt (out of the safe state after 50 ms), estimates every
+        // 100 ms
+        let mut snow_at = f64::INFINITY;
+        let mut far_max: f64 = 0.0;
+        let mut near_max: f64 = 0.0;
+        let mut near = 0;
+        let mut arrived = false;
+        for k in 0..3_000u64 {
+            let mut road = SetRoad::default();
+            if k % 100 == 99 {
+                let name = if k < 1_000 { "asphalt" } else { "snow" };
+                let e = heard(&r, name);
+                if name == "snow" && snow_at.is_infinite() {
+                    // the snow begins where the microphone began hearing it
+                    snow_at = e.x_from + vehicle.mic_lead_m;
+                }
+                road.next = Some(e);
+            }
+            r.feed(true, true, true);
+            let (rec, cmd) = r.cycle_with(&mut road);
+            if rec.safe_state == 1 {
+                continue;
+            }
+            let to_go = snow_at - rec.odometer;
+            if to_go <= 0.0 {
+                arrived = true;
+                break;
+            }
+            if to_go > 2.0 && k > 200 {
+                far_max = far_max.max(cmd.torque_request);
+            }
+            // the last 20 ms before the wheel reaches the snow
+            if to_go <= 0.02 * 2.77 {
+                near_max = near_max.max(cmd.torque_request);
+                near += 1;
+                assert!(rec.torque_cap <= limit + 1e-9, "{kind}: cap {rec:?}");
+            }
+        }
+        assert!(arrived, "{kind}: the wheel reached the snow");
+        assert!(near >= 10, "{kind}: {near} cycles checked before the snow");
+        assert!(
+            near_max <= limit + 1e-9,
+            "{kind}: {near_max} N m commanded just before the snow (limit {limit})"
+        );
+        assert!(
+            far_max > limit + 20.0,
+            "{kind}: far from the snow the torque is not capped ({far_max} N m)"
+        );
+    }
+}

@@ -1,7 +1,10 @@
 //! The tcs-loop cycle allocates nothing after warm-up: a counting global
 //! allocator (current thread only) around 20 000 cycles of every path —
 //! normal control with ARTE estimates, corrupted frames, a sensor outage
-//! with safe state and recovery — for each controller.
+//! with safe state and recovery — for each controller, with and without
+//! the road knowledge of `grip sim`'s "with ARTE" path (`RoadAware`: the
+//! preview queue fed with estimates of changing roads, some with arte's
+//! odometer stamps and some without, the belief, the torque cap).
 //!
 //! The ports here are in-memory doubles. With the real iceoryx2 ports each
 //! *publish* allocates one 48-byte Arc inside iceoryx2 0.10 (pinned by
@@ -42,6 +45,7 @@ struct Rig {
     ms: E2eSender<MotorStatus>,
     dd: E2eSender<DriverDemand>,
     k: u64,
+    caps: u64,
 }
 
 impl Rig {
@@ -91,8 +95,23 @@ impl Rig {
             self.bus.inject(CanFrame::new(0x7FF, &[0; 8]));
         }
         if k.is_multiple_of(100) {
+            // asphalt, snow, gravel, stone in turn; every third without
+            // odometer stamps (arte had no fresh cycle record)
+            let names = ["asphalt", "snow", "gravel", "stone"];
+            let name = names[(k / 700) as usize % names.len()];
+            let x = self.lp.odometer();
+            let (x_from, x_to) = if k.is_multiple_of(300) {
+                (f64::NAN, f64::NAN)
+            } else {
+                (x - 0.3, x)
+            };
             self.road.next = Some(RoadEstimate {
                 stamp_ns: now,
+                frame_t0_ns: now.saturating_sub(100 * MS),
+                frame_t1_ns: now,
+                class_name: grip_msgs::name_to_bytes(name),
+                x_from,
+                x_to,
                 class_index: 1,
                 confidence: 0.9,
                 lambda_opt: 0.17,
@@ -109,6 +128,9 @@ impl Rig {
             &mut self.sink,
         );
         self.bus.tx.borrow_mut().clear();
+        if self.lp.last_record().torque_cap.is_finite() {
+            self.caps += 1;
+        }
         self.clock.advance_ns(MS);
         self.k += 1;
     }
@@ -116,15 +138,30 @@ impl Rig {
 
 #[test]
 fn cycle_allocates_nothing_after_warm_up() {
-    for kind in ControllerKind::ALL {
-        let lp = TcsLoop::new(
-            kind,
-            true,
-            &ControllersConfig::default(),
-            &VehicleParams::default(),
-            &SafetyConfig::default(),
-        )
-        .unwrap();
+    let dir = grip_config::ConfigDir::new(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config"),
+    );
+    let roads = dir.roads().unwrap();
+    let table = dir.road_table(&roads).unwrap();
+    let (front_mic, _) = grip_config::load_vehicle(dir.file("vehicles/front-mic.toml")).unwrap();
+    let controllers = ControllersConfig::default();
+    for (kind, aware) in ControllerKind::ALL
+        .into_iter()
+        .flat_map(|k| [(k, false), (k, true)])
+    {
+        let vehicle = if aware {
+            front_mic
+        } else {
+            VehicleParams::default()
+        };
+        let mut lp =
+            TcsLoop::new(kind, true, &controllers, &vehicle, &SafetyConfig::default()).unwrap();
+        if aware {
+            lp = lp
+                .with_road_aware(&roads, table.clone(), &controllers, &vehicle)
+                .unwrap();
+        }
+        assert_eq!(lp.road_aware(), aware);
         let mut r = Rig {
             clock: ManualClock::new(1_000 * MS),
             bus: MemBus::new(),
@@ -135,6 +172,7 @@ fn cycle_allocates_nothing_after_warm_up() {
             ms: E2eSender::new(),
             dd: E2eSender::new(),
             k: 0,
+            caps: 0,
         };
         for _ in 0..1_000 {
             r.step();
@@ -153,5 +191,14 @@ fn cycle_allocates_nothing_after_warm_up() {
         let f = r.lp.last_record().faults;
         assert!(f.crc >= 20 && f.unknown_id >= 20, "{kind}: {f:?}");
         assert!(r.sink.records >= 21_000);
+        assert!(r.lp.odometer() > 40.0, "{kind}: the odometer runs");
+        if aware {
+            let rec = r.lp.last_record();
+            assert!(
+                rec.belief_road != grip_msgs::NO_CLASS && rec.belief_prob > 0.0,
+                "{kind}: the road knowledge stepped: {rec:?}"
+            );
+            assert!(r.caps > 0, "{kind}: the torque was capped in some cycles");
+        }
     }
 }

@@ -362,6 +362,8 @@ impl McapRecord for RoadEstimate {
                 ("lambda_opt", t_num("optimal slip of the road")),
                 ("mu_peak", t_num("peak friction of the road")),
                 ("alpha", t_num("MTTE relaxation factor")),
+                ("x_from", t_num("tcs-loop odometer at the frame start, m")),
+                ("x_to", t_num("tcs-loop odometer at the frame end, m")),
             ],
         )
     }
@@ -383,7 +385,9 @@ impl McapRecord for RoadEstimate {
             .f("confidence", self.confidence)
             .f("lambda_opt", self.lambda_opt)
             .f("mu_peak", self.mu_peak)
-            .f("alpha", self.alpha);
+            .f("alpha", self.alpha)
+            .f("x_from", self.x_from)
+            .f("x_to", self.x_to);
         o.end();
     }
     fn from_json(v: &Value) -> Result<Self, JsonError> {
@@ -409,6 +413,8 @@ impl McapRecord for RoadEstimate {
         e.lambda_opt = r.f64("lambda_opt")?;
         e.mu_peak = r.f64("mu_peak")?;
         e.alpha = r.f64("alpha")?;
+        e.x_from = r.f64("x_from")?;
+        e.x_to = r.f64("x_to")?;
         Ok(e)
     }
     fn stamp_ns(&self) -> u64 {
@@ -435,7 +441,11 @@ impl McapRecord for CycleRecord {
                 ("torque_cmd", t_num("torque command, N m")),
                 ("internal", t_num("controller internal variable")),
                 ("mu_hat", t_num("friction estimate")),
+                ("odometer", t_num("integral of the measured speed, m")),
+                ("torque_cap", t_num("road knowledge's torque cap, N m")),
+                ("belief_prob", t_num("probability of the believed road")),
                 ("road_class", t_int("road class used (4294967295 = none)")),
+                ("belief_road", t_int("believed road (4294967295 = none)")),
                 ("used_arte", t_int("1 = ARTE knowledge used")),
                 ("safe_state", t_int("1 = safe state")),
                 ("v_valid", t_int("1 = v valid")),
@@ -457,7 +467,11 @@ impl McapRecord for CycleRecord {
             .f("torque_cmd", self.torque_cmd)
             .f("internal", self.internal)
             .f("mu_hat", self.mu_hat)
+            .f("odometer", self.odometer)
+            .f("torque_cap", self.torque_cap)
+            .f("belief_prob", self.belief_prob)
             .u("road_class", self.road_class.into())
+            .u("belief_road", self.belief_road.into())
             .u("used_arte", self.used_arte.into())
             .u("safe_state", self.safe_state.into())
             .u("v_valid", self.v_valid.into())
@@ -479,12 +493,17 @@ impl McapRecord for CycleRecord {
             torque_cmd: r.f64("torque_cmd")?,
             internal: r.f64("internal")?,
             mu_hat: r.f64("mu_hat")?,
+            odometer: r.f64("odometer")?,
+            torque_cap: r.f64("torque_cap")?,
+            belief_prob: r.f64("belief_prob")?,
             road_class: r.uint("road_class")?,
+            belief_road: r.uint("belief_road")?,
             used_arte: r.uint("used_arte")?,
             safe_state: r.uint("safe_state")?,
             v_valid: r.uint("v_valid")?,
             _reserved: 0,
             faults: read_faults(&r.sub("faults")?)?,
+            _reserved2: 0,
         })
     }
     fn stamp_ns(&self) -> u64 {
@@ -559,8 +578,16 @@ impl McapRecord for GroundTruth {
             &[
                 ("seq", t_int("plant step")),
                 ("stamp_ns", t_int("time, ns")),
-                ("road_index", t_int("true road index (4294967295 = none)")),
-                ("road_name", t_str("true road name")),
+                (
+                    "road_index",
+                    t_int("true road under the driven wheel (4294967295 = none)"),
+                ),
+                (
+                    "mic_road_index",
+                    t_int("true road at the microphone (4294967295 = none)"),
+                ),
+                ("road_name", t_str("true road name under the driven wheel")),
+                ("mic_road_name", t_str("true road name at the microphone")),
                 ("v", t_num("vehicle speed, m/s")),
                 ("omega", t_num("wheel speed, rad/s")),
                 ("lambda", t_num("slip")),
@@ -574,7 +601,12 @@ impl McapRecord for GroundTruth {
         o.u("seq", self.seq)
             .u("stamp_ns", self.stamp_ns)
             .u("road_index", self.road_index.into())
+            .u("mic_road_index", self.mic_road_index.into())
             .s("road_name", name_from_bytes(&self.road_name).unwrap_or(""))
+            .s(
+                "mic_road_name",
+                name_from_bytes(&self.mic_road_name).unwrap_or(""),
+            )
             .f("v", self.v)
             .f("omega", self.omega)
             .f("lambda", self.lambda)
@@ -588,8 +620,9 @@ impl McapRecord for GroundTruth {
             seq: r.u64("seq")?,
             stamp_ns: r.u64("stamp_ns")?,
             road_index: r.uint("road_index")?,
-            _reserved: 0,
+            mic_road_index: r.uint("mic_road_index")?,
             road_name: r.name("road_name")?,
+            mic_road_name: r.name("mic_road_name")?,
             v: r.f64("v")?,
             omega: r.f64("omega")?,
             lambda: r.f64("lambda")?,

@@ -2,7 +2,7 @@
 //! (grip inspect, replay, tests).
 //!
 //! Format: one schema per payload type (JSON Schema, named by the versioned
-//! type name, e.g. `grip::CycleRecord::v1`), one channel per topic,
+//! type name, e.g. `grip::CycleRecord::v2`), one channel per topic,
 //! `message_encoding = "json"`, log time = the payload's CLOCK_MONOTONIC
 //! stamp. Metadata record `grip.clock` relates that clock to wall time.
 //! Chunks are compressed with lz4 (default) or single-threaded zstd.

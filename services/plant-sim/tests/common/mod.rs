@@ -36,3 +36,16 @@ pub fn sim(cfg: &PlantSimConfig) -> PlantSim {
     let (vehicle, sensors) = dir.vehicle().unwrap();
     PlantSim::new(cfg, scenario, roads, &vehicle, &sensors).unwrap()
 }
+
+/// A simulator of the shipped `scenario` with the vehicle of `vehicle`
+/// (a path relative to the shipped configuration directory).
+pub fn sim_with_vehicle(
+    cfg: &PlantSimConfig,
+    vehicle: &str,
+) -> Result<PlantSim, grip_plant_sim::cycle::PlantSimError> {
+    let dir = config_dir();
+    let roads = dir.roads().unwrap();
+    let scenario = dir.scenario_with(&cfg.scenario, &roads).unwrap();
+    let (vehicle, sensors) = grip_config::load_vehicle(dir.file(vehicle)).unwrap();
+    PlantSim::new(cfg, scenario, roads, &vehicle, &sensors)
+}

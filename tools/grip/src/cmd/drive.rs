@@ -41,6 +41,10 @@ pub struct Args {
     /// MCAP log to write.
     #[arg(long, default_value = "drive.mcap")]
     out: PathBuf,
+    /// Vehicle TOML for plant-sim and tcs-loop (default: <config-dir>/vehicle.toml),
+    /// e.g. config/vehicles/front-mic.toml.
+    #[arg(long)]
+    vehicle: Option<PathBuf>,
     /// Sensor-noise seed of plant-sim.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -69,6 +73,15 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     if !(args.ready_timeout.is_finite() && args.ready_timeout > 0.0) {
         bail!("--ready-timeout must be a positive number of seconds");
     }
+    let vehicle = match &args.vehicle {
+        Some(v) => {
+            let v = cwd.join(v);
+            // a bad file fails here, before any service starts
+            grip_config::load_vehicle(&v)?;
+            Some(v)
+        }
+        None => None,
+    };
     let controller = match args.controller {
         Controller::Mfc => "mfc",
         Controller::Src => "src",
@@ -89,6 +102,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         seed: args.seed,
         instance: drive::new_instance(),
         ready_timeout: Duration::from_secs_f64(args.ready_timeout),
+        vehicle,
     };
     if args.dry_run {
         for svc in drive::services::Service::START_ORDER {

@@ -51,12 +51,19 @@ pub fn write_csv(log: &DriveLog, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let (mut w, p) = open(dir, "cycles.csv")?;
     writeln!(
         w,
-        "t_s,stamp_ns,seq,wakeup_latency_ns,compute_ns,deadline_misses,omega,v,v_valid,torque,demand,torque_cmd,internal,mu_hat,road_class,used_arte,safe_state,faults_crc,faults_counter_repeated,faults_counter_skipped,faults_length,faults_unknown_id,faults_timeout"
+        "t_s,stamp_ns,seq,wakeup_latency_ns,compute_ns,deadline_misses,omega,v,v_valid,torque,demand,torque_cmd,internal,mu_hat,road_class,used_arte,safe_state,faults_crc,faults_counter_repeated,faults_counter_skipped,faults_length,faults_unknown_id,faults_timeout,odometer,torque_cap,belief_road,belief_prob"
     )?;
     for c in &log.cycles {
+        let idx = |i: u32| {
+            if i == grip_msgs::NO_CLASS {
+                String::new()
+            } else {
+                i.to_string()
+            }
+        };
         writeln!(
             w,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             t(c.stamp_ns),
             c.stamp_ns,
             c.seq,
@@ -83,7 +90,11 @@ pub fn write_csv(log: &DriveLog, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
             c.faults.counter_skipped,
             c.faults.length,
             c.faults.unknown_id,
-            c.faults.timeout
+            c.faults.timeout,
+            f(c.odometer),
+            f(c.torque_cap),
+            idx(c.belief_road),
+            f(c.belief_prob)
         )?;
     }
     w.flush()?;
@@ -92,7 +103,7 @@ pub fn write_csv(log: &DriveLog, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let (mut w, p) = open(dir, "estimates.csv")?;
     writeln!(
         w,
-        "t_s,stamp_ns,seq,frame_t0_s,frame_t1_s,class_index,class_name,confidence,lambda_opt,mu_peak,alpha,probabilities"
+        "t_s,stamp_ns,seq,frame_t0_s,frame_t1_s,class_index,class_name,confidence,lambda_opt,mu_peak,alpha,probabilities,x_from,x_to"
     )?;
     for e in &log.roads {
         let n = (e.n_classes as usize).min(e.probabilities.len());
@@ -102,7 +113,7 @@ pub fn write_csv(log: &DriveLog, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
             .collect();
         writeln!(
             w,
-            "{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             t(e.stamp_ns),
             e.stamp_ns,
             e.seq,
@@ -118,7 +129,9 @@ pub fn write_csv(log: &DriveLog, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
             f(e.lambda_opt),
             f(e.mu_peak),
             f(e.alpha),
-            probs.join(" ")
+            probs.join(" "),
+            f(e.x_from),
+            f(e.x_to)
         )?;
     }
     w.flush()?;
@@ -127,12 +140,12 @@ pub fn write_csv(log: &DriveLog, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let (mut w, p) = open(dir, "truth.csv")?;
     writeln!(
         w,
-        "t_s,stamp_ns,seq,road_index,road_name,v,omega,lambda,torque,x"
+        "t_s,stamp_ns,seq,road_index,road_name,v,omega,lambda,torque,x,mic_road_index,mic_road_name"
     )?;
     for g in &log.truth {
         writeln!(
             w,
-            "{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{}",
             t(g.stamp_ns),
             g.stamp_ns,
             g.seq,
@@ -142,7 +155,9 @@ pub fn write_csv(log: &DriveLog, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
             f(g.omega),
             f(g.lambda),
             f(g.torque),
-            f(g.x)
+            f(g.x),
+            g.mic_road_index,
+            g.mic_road_name().unwrap_or("")
         )?;
     }
     w.flush()?;

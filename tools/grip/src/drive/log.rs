@@ -129,6 +129,9 @@ mod tests {
             g.x = if k < 100 { 0.0 } else { k as f64 * 0.01 };
             g.road_index = u32::from(k >= 300);
             g.road_name = grip_msgs::name_to_bytes(if k >= 300 { "snow" } else { "asphalt" });
+            // microphone at the wheel (lead 0)
+            g.mic_road_index = g.road_index;
+            g.mic_road_name = g.road_name;
             w.write(topics::TRUTH, &g).unwrap();
             let mut f = CanFrame::new(0x100, &[1, (k & 15) as u8, 0, 0, 0, 0, 0, 0]);
             f.stamp_ns = c.stamp_ns;

@@ -88,6 +88,9 @@ pub struct DrivePlan {
     pub instance: String,
     /// Readiness timeout per service.
     pub ready_timeout: Duration,
+    /// `--vehicle FILE` for plant-sim and tcs-loop (absolute); `None`: the
+    /// services' default `<config-dir>/vehicle.toml`.
+    pub vehicle: Option<PathBuf>,
 }
 
 impl DrivePlan {
@@ -109,25 +112,40 @@ impl DrivePlan {
                 ] {
                     a.extend([s("--meta"), format!("{k}={v}")]);
                 }
+                if let Some(v) = &self.vehicle {
+                    a.extend([s("--meta"), format!("vehicle={}", v.display())]);
+                }
             }
-            Service::PlantSim => a.extend([
-                s("--scenario"),
-                self.scenario.clone(),
-                s("--seed"),
-                self.seed.to_string(),
-                s("--start-on"),
-                s("signal"),
-                s("--exit-at-end"),
-            ]),
-            Service::TcsLoop => a.extend([
-                s("--controller"),
-                self.controller.clone(),
-                s("--arte"),
-                s(if self.arte { "on" } else { "off" }),
-            ]),
+            Service::PlantSim => {
+                a.extend([
+                    s("--scenario"),
+                    self.scenario.clone(),
+                    s("--seed"),
+                    self.seed.to_string(),
+                    s("--start-on"),
+                    s("signal"),
+                    s("--exit-at-end"),
+                ]);
+                self.vehicle_args(&mut a);
+            }
+            Service::TcsLoop => {
+                a.extend([
+                    s("--controller"),
+                    self.controller.clone(),
+                    s("--arte"),
+                    s(if self.arte { "on" } else { "off" }),
+                ]);
+                self.vehicle_args(&mut a);
+            }
             Service::AudioAcq | Service::Arte => {}
         }
         a
+    }
+
+    fn vehicle_args(&self, a: &mut Vec<String>) {
+        if let Some(v) = &self.vehicle {
+            a.extend(["--vehicle".to_owned(), v.display().to_string()]);
+        }
     }
 }
 
@@ -334,6 +352,7 @@ mod tests {
             seed: 7,
             instance: "t".into(),
             ready_timeout: Duration::from_secs(1),
+            vehicle: None,
         };
         for s in Service::START_ORDER {
             let a = plan.args(s);
@@ -354,6 +373,26 @@ mod tests {
                 .join(" ")
                 .contains("--out /tmp/x.mcap")
         );
+        // --vehicle goes to the two services that read the vehicle, after
+        // the unit's command line
+        let plan = DrivePlan {
+            vehicle: Some(PathBuf::from("/cfg/vehicles/front-mic.toml")),
+            ..plan
+        };
+        for s in Service::START_ORDER {
+            let a = plan.args(s);
+            let base = s.base_args("/cfg");
+            assert_eq!(&a[..base.len()], &base[..], "{}", s.name());
+            let has = a
+                .join(" ")
+                .contains("--vehicle /cfg/vehicles/front-mic.toml");
+            assert_eq!(
+                has,
+                matches!(s, Service::PlantSim | Service::TcsLoop),
+                "{}",
+                s.name()
+            );
+        }
     }
 
     #[test]

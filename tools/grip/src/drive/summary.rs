@@ -239,8 +239,10 @@ pub fn truth_at(truth: &[GroundTruth], t_ns: u64) -> Option<&GroundTruth> {
     if i == 0 { None } else { truth.get(i - 1) }
 }
 
-fn name_of_truth(g: &GroundTruth) -> String {
-    g.road_name().unwrap_or("?").to_owned()
+/// The road the microphone hears (`mic_lead_m` ahead of the driven wheel):
+/// what ARTE is judged against.
+fn name_of_mic_truth(g: &GroundTruth) -> String {
+    g.mic_road_name().unwrap_or("?").to_owned()
 }
 
 fn name_of_est(e: &RoadEstimate) -> Option<String> {
@@ -400,7 +402,7 @@ pub fn summarize(log: &DriveLog, vehicle: &VehicleParams) -> Summary {
             let (Some(est), Some(g)) = (name_of_est(e), truth_at(&log.truth, mid)) else {
                 continue;
             };
-            let truth_name = name_of_truth(g);
+            let truth_name = name_of_mic_truth(g);
             a.judged += 1;
             let ok = est == truth_name;
             a.correct += u64::from(ok);
@@ -408,12 +410,16 @@ pub fn summarize(log: &DriveLog, vehicle: &VehicleParams) -> Summary {
             r.0 += 1;
             r.1 += u64::from(ok);
         }
-        // changes of the true road inside the window
+        // changes of the true road at the microphone inside the window
         let window: Vec<&GroundTruth> = log.truth[i0..=last_in].iter().collect();
         let mut change_at: Vec<(u64, String, String)> = Vec::new();
         for w in window.windows(2) {
-            if w[1].road_index != w[0].road_index {
-                change_at.push((w[1].stamp_ns, name_of_truth(w[0]), name_of_truth(w[1])));
+            if w[1].mic_road_index != w[0].mic_road_index {
+                change_at.push((
+                    w[1].stamp_ns,
+                    name_of_mic_truth(w[0]),
+                    name_of_mic_truth(w[1]),
+                ));
             }
         }
         for (k, (tc, from, to)) in change_at.iter().enumerate() {
@@ -641,7 +647,7 @@ impl Summary {
         if a.judged > 0 {
             let _ = writeln!(
                 o,
-                "  accuracy vs ground truth {:.1} % ({}/{} frames, truth at each frame's midpoint)",
+                "  accuracy vs ground truth {:.1} % ({}/{} frames, the road at the microphone at each frame's midpoint)",
                 100.0 * a.accuracy(),
                 a.correct,
                 a.judged
@@ -702,6 +708,8 @@ mod tests {
         g.omega = 10.0;
         g.road_index = road;
         g.road_name = grip_msgs::name_to_bytes(name);
+        g.mic_road_index = road;
+        g.mic_road_name = g.road_name;
         g
     }
 
