@@ -44,6 +44,10 @@ pub struct RoadAhead {
     pub stamp: f64,
     /// Decisions in a row that named it.
     pub hits: u32,
+    /// The highest confidence any of them had (a road once heard
+    /// confidently stays known while the frames straddling a change, whose
+    /// calibrated confidence is honestly lower, come in).
+    pub peak_confidence: f64,
 }
 
 /// What [`PreviewQueue::view`] returns.
@@ -70,6 +74,7 @@ const EMPTY: RoadAhead = RoadAhead {
     confidence: 0.0,
     stamp: f64::NEG_INFINITY,
     hits: 0,
+    peak_confidence: 0.0,
 };
 
 impl Default for PreviewQueue {
@@ -142,6 +147,7 @@ impl PreviewQueue {
             last.confidence = confidence;
             last.stamp = stamp;
             last.hits = last.hits.saturating_add(1);
+            last.peak_confidence = last.peak_confidence.max(confidence);
             return;
         }
         let mut x_start = if carries_less { lo } else { 0.5 * (lo + hi) };
@@ -172,6 +178,7 @@ impl PreviewQueue {
             confidence,
             stamp,
             hits: 1,
+            peak_confidence: confidence,
         };
         self.len += 1;
     }

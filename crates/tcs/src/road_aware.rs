@@ -273,7 +273,7 @@ impl RoadAware {
         // override acoustics only in the cautious direction.
         if alive
             && let Some(here) = view.here
-            && here.confidence >= self.arte.min_confidence
+            && here.peak_confidence >= self.arte.min_confidence
             && here.hits >= self.p.min_hits
         {
             let h = self.table.info(here.road);
@@ -305,7 +305,7 @@ impl RoadAware {
                 }
                 let e_info = self.table.info(e.road);
                 if e_info.mu_peak < here_mu
-                    && e.confidence >= self.arte.min_confidence
+                    && e.peak_confidence >= self.arte.min_confidence
                     && e.hits >= self.p.min_hits
                 {
                     let target = self.p.cap_share * e_info.mu_peak * self.nr;
