@@ -77,7 +77,7 @@ pub struct PreviewParams {
 impl Default for PreviewParams {
     fn default() -> Self {
         Self {
-            cap_share: 0.95,
+            cap_share: 1.0,
             recover_share: 0.7,
             recover_slip_factor: 1.5,
             horizon_s: 1.0,
@@ -396,7 +396,7 @@ mod tests {
         a.decision(0, 0.95, 0.0, -2.77, 0.5); // asphalt from the start
         a.decision(1, 0.95, 0.1, 0.5, 1.0); // snow from 0.5 + 2.77 m
         a.decision(1, 0.95, 0.125, 0.6, 1.1); // heard twice: confirmed
-        let snow_cap = 0.95 * 0.19 * 3433.5 * 0.28;
+        let snow_cap = 0.19 * 3433.5 * 0.28;
         // 0.1 s of cruising on asphalt up to x = 2.0 (1.27 m = 0.25 s ahead
         // at 5 m/s): not yet.
         let g = run(&mut a, 0.1, 1.5, 0, 100);
