@@ -9,7 +9,7 @@ use grip_arte::stream::{Classify, StreamConfig, StreamEstimator};
 use grip_io::clock::Clock;
 use grip_msgs::{AUDIO_MAX_SAMPLES, AudioBlock, CycleRecord, MAX_ROAD_CLASSES, RoadEstimate};
 
-use crate::{ArteError, RoadInfo};
+use crate::{ArteError, ClassKnowledge};
 
 /// Counters shared with the helper thread (and read by tests).
 #[derive(Debug, Default)]
@@ -85,7 +85,7 @@ impl EstimateSink for grip_io::ipc::Publisher<RoadEstimate> {
 /// that straddles a small gap, `frame_t0` is off by the gap).
 pub struct ArteLoop<C: Classify, K: Clock> {
     est: StreamEstimator<C>,
-    roads: Vec<RoadInfo>,
+    roads: Vec<ClassKnowledge>,
     fs: u32,
     frame_ns: u64,
     scratch: Vec<f32>,
@@ -129,7 +129,7 @@ impl<K: Clock> ArteLoop<grip_arte::model::Predictor, K> {
     pub fn from_model(
         model: &Model,
         stream: &StreamConfig,
-        roads: Vec<RoadInfo>,
+        roads: Vec<ClassKnowledge>,
         resync_gap_s: f64,
         clock: K,
     ) -> Result<Self, ArteError> {
@@ -151,7 +151,7 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
         classifier: C,
         features: &grip_arte::features::FeatureConfig,
         stream: &StreamConfig,
-        roads: Vec<RoadInfo>,
+        roads: Vec<ClassKnowledge>,
         resync_gap_s: f64,
         clock: K,
     ) -> Result<Self, ArteError> {

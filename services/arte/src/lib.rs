@@ -41,5 +41,5 @@ pub mod run;
 pub use config::ArteServiceConfig;
 pub use cycle::{ArteCounters, ArteLoop, DEFAULT_SPEED_TIMEOUT_S, EstimateSink};
 pub use error::ArteError;
-pub use model::{RoadInfo, load_model, road_table};
+pub use model::{ClassKnowledge, load_model, road_table};
 pub use run::{Options, run};

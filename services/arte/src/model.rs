@@ -24,7 +24,7 @@ pub fn load_model(path: &Path) -> Result<Model, ArteError> {
 
 /// What a road estimate says about one class's road.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RoadInfo {
+pub struct ClassKnowledge {
     /// Class (= road) name, zero padded.
     pub name: [u8; NAME_LEN],
     /// Optimal slip of the road's μ-λ curve.
@@ -47,7 +47,7 @@ pub fn road_table(
     rule: &grip_tcs::RoadTable,
     model_path: &Path,
     roads_file: &Path,
-) -> Result<Vec<RoadInfo>, ArteError> {
+) -> Result<Vec<ClassKnowledge>, ArteError> {
     let err = |reason: String| ArteError::Classes {
         path: model_path.to_owned(),
         reason,
@@ -74,7 +74,7 @@ pub fn road_table(
                 ))
             })?;
             let k = rule.info(i);
-            Ok(RoadInfo {
+            Ok(ClassKnowledge {
                 name: grip_msgs::name_to_bytes(c),
                 lambda_opt: k.lambda_opt,
                 mu_peak: k.mu_peak,

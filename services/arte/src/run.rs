@@ -60,7 +60,7 @@ pub struct Prepared {
     pub classes: Vec<String>,
     /// What every estimate of each class carries (class order): the one
     /// road-knowledge rule applied to the configuration directory.
-    pub table: Vec<crate::RoadInfo>,
+    pub table: Vec<crate::ClassKnowledge>,
 }
 
 fn resolve(dir: &Path, p: &Path) -> PathBuf {

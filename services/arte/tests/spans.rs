@@ -7,7 +7,7 @@ mod common;
 use common::Toy;
 use grip_arte::features::{FeatureConfig, FeatureSet};
 use grip_arte::stream::StreamConfig;
-use grip_arte_svc::{ArteCounters, ArteLoop, EstimateSink, RoadInfo};
+use grip_arte_svc::{ArteCounters, ArteLoop, ClassKnowledge, EstimateSink};
 use grip_io::clock::ManualClock;
 use grip_io::ipc::IpcError;
 use grip_msgs::{AudioBlock, RoadEstimate, name_to_bytes};
@@ -22,8 +22,8 @@ impl EstimateSink for VecSink {
     }
 }
 
-fn road(name: &str, l: f64) -> RoadInfo {
-    RoadInfo {
+fn road(name: &str, l: f64) -> ClassKnowledge {
+    ClassKnowledge {
         name: name_to_bytes(name),
         lambda_opt: l,
         mu_peak: 1.0,

@@ -11,7 +11,7 @@ use std::sync::atomic::Ordering;
 
 use grip_arte::features::{FeatureConfig, FeatureSet, SpeedNorm};
 use grip_arte::stream::StreamConfig;
-use grip_arte_svc::{ArteCounters, ArteLoop, EstimateSink, RoadInfo};
+use grip_arte_svc::{ArteCounters, ArteLoop, ClassKnowledge, EstimateSink};
 use grip_io::clock::ManualClock;
 use grip_io::ipc::IpcError;
 use grip_msgs::{AudioBlock, CycleRecord, RoadEstimate, name_to_bytes};
@@ -30,8 +30,8 @@ impl EstimateSink for Count {
     }
 }
 
-fn road(name: &str) -> RoadInfo {
-    RoadInfo {
+fn road(name: &str) -> ClassKnowledge {
+    ClassKnowledge {
         name: name_to_bytes(name),
         lambda_opt: 0.1,
         mu_peak: 1.0,

@@ -11,7 +11,7 @@ use grip_arte::mlp::LmConfig;
 use grip_arte::model::{ClassifierSpec, Model, fit};
 use grip_arte::stream::Classify;
 use grip_arte::synth::{RoadAudioSynth, SynthConfig, road_index};
-use grip_arte_svc::{RoadInfo, road_table};
+use grip_arte_svc::{ClassKnowledge, road_table};
 use grip_msgs::{AUDIO_MAX_SAMPLES, AudioBlock};
 
 pub const RATE: u32 = 44_100;
@@ -56,7 +56,7 @@ pub fn train_model(recordings: usize) -> Model {
     fit(&classes, &fcfg, &spec, &data).unwrap().0
 }
 
-pub fn roads_for(model: &Model) -> Vec<RoadInfo> {
+pub fn roads_for(model: &Model) -> Vec<ClassKnowledge> {
     let dir = config_dir();
     let roads = grip_config::load_roads(dir.join("roads.toml")).unwrap();
     let rule = grip_config::ConfigDir::new(&dir)
