@@ -8,30 +8,10 @@
 //! (rain and passing cars at 10 dB, like the shipped models).
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::OnceLock;
 
-fn grip() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_grip"));
-    c.arg("--config-dir").arg(config_dir());
-    c.env("RUST_LOG", "warn");
-    c
-}
-
-fn config_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config")
-}
-
-fn run_ok(c: &mut Command) -> String {
-    let out = c.output().expect("run grip");
-    assert!(
-        out.status.success(),
-        "grip failed: {}\n{}",
-        String::from_utf8_lossy(&out.stderr),
-        String::from_utf8_lossy(&out.stdout)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+mod common;
+use common::{config_dir, grip, run_ok};
 
 /// Directory kept for the whole test binary (training once).
 fn scratch() -> &'static Path {

@@ -2,30 +2,10 @@
 //! and in scenarios.csv, the same output for the same seeds, and the
 //! `--entry-plot` zoom with `--compare-vehicle`.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 
-fn grip() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_grip"));
-    c.arg("--config-dir").arg(config_dir());
-    c.env("RUST_LOG", "warn");
-    c
-}
-
-fn config_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config")
-}
-
-fn run_ok(c: &mut Command) -> String {
-    let out = c.output().expect("run grip");
-    assert!(
-        out.status.success(),
-        "grip failed: {}\n{}",
-        String::from_utf8_lossy(&out.stderr),
-        String::from_utf8_lossy(&out.stdout)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+mod common;
+use common::{config_dir, grip, run_ok};
 
 fn random(out: &Path) -> String {
     run_ok(

@@ -1,0 +1,31 @@
+//! Shared by the CLI's integration tests: run the built `grip` on the
+//! repository's configuration.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// `grip --config-dir <repo>/config`, quiet logging.
+pub fn grip() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_grip"));
+    c.arg("--config-dir").arg(config_dir());
+    c.env("RUST_LOG", "warn");
+    c
+}
+
+/// The repository's `config/`.
+pub fn config_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config")
+}
+
+/// Run `c`, require success, return its stdout.
+pub fn run_ok(c: &mut Command) -> String {
+    let out = c.output().expect("run grip");
+    assert!(
+        out.status.success(),
+        "grip failed: {}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        String::from_utf8_lossy(&out.stdout)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
