@@ -58,6 +58,11 @@ pub struct FusionParams {
     /// evidence gathered on one road must not outlast the change to the
     /// next by more than `tau_forget_s · ln(max_evidence / prior ratio)`.
     pub max_evidence: f64,
+    /// Slip below which a cycle adds no full evidence (none below half of
+    /// it, linear in between): at small slip every curve
+    /// fits nearly any friction a noisy, jittery μ̂ shows, and a cap from
+    /// such evidence would hold the wheel where it can show nothing else.
+    pub min_slip_evidence: f64,
 }
 
 impl Default for FusionParams {
@@ -70,6 +75,7 @@ impl Default for FusionParams {
             sigma_lambda: 0.004,
             max_acoustic_confidence: 0.97,
             max_evidence: 10.0,
+            min_slip_evidence: 0.02,
         }
     }
 }
@@ -189,7 +195,16 @@ impl RoadBelief {
         };
         self.lambda = lambda;
         self.cycles = self.cycles.saturating_add(1);
-        if self.cycles > self.warm_up && lambda.is_finite() && mu_hat.is_finite() {
+        // Evidence fades in linearly between half the slip floor and the
+        // floor (a step would make the closed loop's result jump with it).
+        let floor = self.p.min_slip_evidence;
+        let excite = if floor > 0.0 {
+            ((lambda.abs() - 0.5 * floor) / (0.5 * floor)).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        if self.cycles > self.warm_up && lambda.is_finite() && excite > 0.0 && mu_hat.is_finite()
+        {
             let s2l = self.p.sigma_lambda * self.p.sigma_lambda;
             let s2m = self.p.sigma_mu * self.p.sigma_mu;
             for (i, road) in self.roads.iter().enumerate().take(self.n) {
@@ -203,7 +218,7 @@ impl RoadBelief {
                 // belief towards the flattest curves.
                 let ll = -0.5 * d * d / s2;
                 if ll.is_finite() {
-                    self.evidence[i] += self.p.weight * ll;
+                    self.evidence[i] += excite * self.p.weight * ll;
                 }
             }
             let best = self.evidence[..self.n]
@@ -340,8 +355,19 @@ mod tests {
         let mut b = belief();
         b.set_acoustic(Some((1, 0.9)));
         let asphalt = Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap();
-        steady(&mut b, 0.02, asphalt.mu(0.02), 100);
+        steady(&mut b, 0.03, asphalt.mu(0.03), 100);
         assert_eq!(b.best().0, 0, "{:?}", b.probabilities());
+    }
+
+    #[test]
+    fn small_slip_adds_no_evidence() {
+        // 1 % slip with a friction only ice would give at that slip: below
+        // the 2 % floor the wheel is not asked, the acoustic estimate stands.
+        let mut b = belief();
+        b.set_acoustic(Some((0, 0.9)));
+        steady(&mut b, 0.01, 0.02, 200);
+        assert_eq!(b.best().0, 0, "{:?}", b.probabilities());
+        assert!((b.best().1 - 0.9).abs() < 1e-9);
     }
 
     #[test]

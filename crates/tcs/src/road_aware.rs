@@ -15,6 +15,8 @@
 //! 3. hands the controller the [`RoadKnowledge`] of the most probable road
 //!    (its probability as the confidence, age 0: the belief is this
 //!    cycle's), which the controller's own fallback rule accepts or not;
+//!    nothing while no decision came within `[arte] max_age_s` (a dead or
+//!    not yet started stream: the no-ARTE behaviour);
 //! 4. and a torque cap: what the believed road transmits,
 //!    `cap_share · μ_peak · N · r` (the μ-λ curves are flat near their peaks,
 //!    so a cap below the peak holds the slip where μ reaches about that
@@ -266,7 +268,9 @@ impl RoadAware {
         if let Some(&l) = self.lambda_target.get(road) {
             knowledge.lambda_opt = l;
         }
-        let usable = self.arte.usable(Some(&knowledge)).is_some();
+        // Without a live decision stream the controller falls back to its
+        // no-ARTE behaviour (`[arte] max_age_s`): no knowledge, no cap.
+        let usable = alive && self.arte.usable(Some(&knowledge)).is_some();
         let mut cap = f64::INFINITY;
         // What the microphone says of the road under the wheel caps too when
         // it carries less than the believed road: the wheel's evidence may
@@ -314,7 +318,7 @@ impl RoadAware {
             }
         }
         Guidance {
-            knowledge: Some(knowledge),
+            knowledge: alive.then_some(knowledge),
             belief: (road, prob),
             torque_cap: cap,
             view,
