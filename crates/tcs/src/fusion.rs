@@ -203,8 +203,7 @@ impl RoadBelief {
         } else {
             1.0
         };
-        if self.cycles > self.warm_up && lambda.is_finite() && excite > 0.0 && mu_hat.is_finite()
-        {
+        if self.cycles > self.warm_up && lambda.is_finite() && excite > 0.0 && mu_hat.is_finite() {
             let s2l = self.p.sigma_lambda * self.p.sigma_lambda;
             let s2m = self.p.sigma_mu * self.p.sigma_mu;
             for (i, road) in self.roads.iter().enumerate().take(self.n) {
