@@ -1,10 +1,9 @@
 //! [`SimSetup`]: everything a run needs, validated once.
 
 use grip_physics::{RoadCatalogue, Scenario, SensorParams, VehicleParams, plant};
-use grip_tcs::{ControllersConfig, KnowledgeConfig, RoadKnowledge, RoadTable};
+use grip_tcs::{ControllersConfig, KnowledgeConfig, RoadTable};
 
 use crate::SimError;
-use crate::estimator::Estimate;
 
 /// Vehicle, sensors, roads, scenario, controller parameters and the
 /// road-knowledge rule of a simulation; immutable once built, shared by all
@@ -132,15 +131,6 @@ impl SimSetup {
     /// Simulated time per run, s (cycles · dt).
     pub fn sim_time(&self) -> f64 {
         self.cycles as f64 * self.dt
-    }
-
-    /// The road knowledge an estimate gives at time `t`: the estimated road's
-    /// λ_opt, mu_peak and α ([`RoadTable`]), the estimate's confidence, and
-    /// age `t − t_stamp`. An index outside the catalogue gives NaN values,
-    /// which the controllers' fallback rule rejects.
-    pub fn knowledge(&self, est: &Estimate, t: f64) -> RoadKnowledge {
-        self.road_table
-            .knowledge(est.road_index, est.confidence, t - est.t_stamp)
     }
 }
 
