@@ -38,6 +38,9 @@ pub struct RoadAhead {
     pub road: usize,
     /// Wheel path position where it begins, m.
     pub x_start: f64,
+    /// Where it has surely begun, m: the end of the first frame that named
+    /// it (the change lies somewhere in that frame).
+    pub x_sure: f64,
     /// Confidence of the latest decision for it, [0, 1].
     pub confidence: f64,
     /// Time of the latest decision for it, s (its frame's end).
@@ -72,6 +75,7 @@ pub struct PreviewQueue {
 const EMPTY: RoadAhead = RoadAhead {
     road: usize::MAX,
     x_start: f64::NEG_INFINITY,
+    x_sure: f64::NEG_INFINITY,
     confidence: 0.0,
     stamp: f64::NEG_INFINITY,
     hits: 0,
@@ -216,6 +220,7 @@ impl PreviewQueue {
         self.buf[self.len] = RoadAhead {
             road,
             x_start,
+            x_sure: hi.max(x_start),
             confidence,
             stamp,
             hits: 1,

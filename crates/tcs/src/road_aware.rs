@@ -36,6 +36,7 @@
 use grip_physics::{InvalidField, RoadCatalogue, VehicleParams};
 use serde::Deserialize;
 
+use crate::filters::LowPass;
 use crate::fusion::{FusionParams, RoadBelief};
 use crate::knowledge::RoadTable;
 use crate::params::{ArteUse, in_range, positive};
@@ -74,6 +75,15 @@ pub struct PreviewParams {
     /// at half its λ_opt), so a share just below 1 gives nearly all the
     /// traction at much less slip. 1: λ_opt itself.
     pub slip_share: f64,
+    /// Plausibility of a binding cap, in the grippy direction: while the
+    /// motor delivers the believed road's cap and the wheel slips less than
+    /// this share of that road's target slip (on the believed road it would
+    /// slip more), for `release_s`, the road carries more than believed and
+    /// its cap is released until the belief changes road or the wheel
+    /// spins, [0, 1] (0: never).
+    pub release_slip_share: f64,
+    /// How long the wheel must contradict the cap before it is released, s.
+    pub release_s: f64,
 }
 
 impl Default for PreviewParams {
@@ -87,6 +97,8 @@ impl Default for PreviewParams {
             change_at: 0.0,
             min_hits: 2,
             slip_share: 0.95,
+            release_slip_share: 0.6,
+            release_s: 0.02,
         }
     }
 }
@@ -101,6 +113,8 @@ impl PreviewParams {
         in_range("lag_margin_s", self.lag_margin_s, 0.0, 1.0)?;
         in_range("change_at", self.change_at, 0.0, 1.0)?;
         in_range("slip_share", self.slip_share, 1e-3, 1.0)?;
+        in_range("release_slip_share", self.release_slip_share, 0.0, 1.0)?;
+        in_range("release_s", self.release_s, 0.0, 10.0)?;
         if self.min_hits == 0 {
             return Err(InvalidField::new("min_hits", "must be >= 1 (got 0)"));
         }
@@ -139,6 +153,16 @@ pub struct RoadAware {
     tau_m: f64,
     lead: f64,
     last_decision: f64,
+    dt: f64,
+    /// Time the wheel has contradicted the binding cap of the believed road, s.
+    contradicted_s: f64,
+    /// The believed road whose cap the wheel has overruled (see
+    /// `release_slip_share`), if any.
+    released: Option<usize>,
+    /// Last cycle's cap, N m.
+    last_cap: f64,
+    /// The measured slip, low-passed over `release_s / 2` (the release check).
+    slip_lp: LowPass,
 }
 
 impl RoadAware {
@@ -185,6 +209,11 @@ impl RoadAware {
             tau_m: vehicle.tau_m,
             lead: vehicle.mic_lead_m,
             last_decision: f64::NEG_INFINITY,
+            dt,
+            contradicted_s: 0.0,
+            released: None,
+            last_cap: f64::INFINITY,
+            slip_lp: LowPass::new(0.5 * preview.release_s, dt),
         })
     }
 
@@ -193,6 +222,10 @@ impl RoadAware {
         self.belief.reset();
         self.queue.clear();
         self.last_decision = f64::NEG_INFINITY;
+        self.contradicted_s = 0.0;
+        self.released = None;
+        self.last_cap = f64::INFINITY;
+        self.slip_lp.reset();
     }
 
     /// The microphone's lead, m.
@@ -288,6 +321,39 @@ impl RoadAware {
         // Without a live decision stream the controller falls back to its
         // no-ARTE behaviour (`[arte] max_age_s`): no knowledge, no cap.
         let usable = alive && self.arte.usable(Some(&knowledge)).is_some();
+        let (_, lambda) = self.belief.measured();
+        let spinning = lambda > self.p.recover_slip_factor * info.lambda_opt;
+        // The wheel's word on a binding cap, in the grippy direction: the
+        // motor delivers the cap and the wheel slips well below what the
+        // believed road would need for it.
+        if self.released.is_some_and(|r| r != road) || spinning || !usable {
+            self.released = None;
+        }
+        let target = self.lambda_target.get(road).copied().unwrap_or(f64::NAN);
+        let slip_lp = if lambda.is_finite() {
+            self.slip_lp.step(lambda)
+        } else {
+            f64::NAN
+        };
+        // Only where the road under the wheel has surely begun (a change
+        // heard ahead is placed up to a frame early, the cautious end, and
+        // the wheel may still be on the grippier road before it).
+        let surely_on = view.here.is_none_or(|h| x >= h.x_sure);
+        if usable
+            && surely_on
+            && self.released.is_none()
+            && m.torque >= 0.95 * self.last_cap
+            && slip_lp < self.p.release_slip_share * target
+        {
+            self.contradicted_s += self.dt;
+            if self.contradicted_s >= self.p.release_s && self.p.release_slip_share > 0.0 {
+                self.released = Some(road);
+            }
+        } else {
+            self.contradicted_s = 0.0;
+        }
+
+        let released = self.released;
         let mut cap = f64::INFINITY;
         // What the microphone says of the road under the wheel caps too when
         // it carries less than the believed road: the wheel's evidence may
@@ -298,13 +364,11 @@ impl RoadAware {
             && here.hits >= self.p.min_hits
         {
             let h = self.table.info(here.road);
-            if h.mu_peak < info.mu_peak || !usable {
+            if (h.mu_peak < info.mu_peak || !usable) && released != Some(here.road) {
                 cap = self.p.cap_share * h.mu_peak * self.nr;
             }
         }
-        if usable {
-            let (_, lambda) = self.belief.measured();
-            let spinning = lambda > self.p.recover_slip_factor * info.lambda_opt;
+        if usable && released.is_none() {
             let share = if spinning {
                 self.p.recover_share
             } else {
@@ -334,6 +398,7 @@ impl RoadAware {
                 }
             }
         }
+        self.last_cap = cap;
         Guidance {
             knowledge: alive.then_some(knowledge),
             belief: (road, prob),
@@ -438,6 +503,53 @@ mod tests {
         let g = run(&mut a, 0.3, 3.3, 1, 150);
         assert_eq!(g.belief.0, 1, "{g:?}");
         assert!((g.torque_cap - snow_cap).abs() < 5.0, "{g:?}");
+    }
+
+    #[test]
+    fn a_wheel_that_slips_too_little_at_the_cap_releases_it() {
+        // Believed snow (heard so), the motor at snow's cap, the wheel at
+        // 1 % slip: on snow it would need about 4 %; the road carries more.
+        let mut a = aware(0.0);
+        a.decision(1, 0.95, 0.0, -0.5, 0.0);
+        a.decision(1, 0.95, 0.0, -0.5, 0.0);
+        let snow_cap = 0.19 * 3433.5 * 0.28;
+        let at_cap = |t: f64| Measurement {
+            torque: snow_cap,
+            ..cruise(t, 0)
+        };
+        let g = a.step(&at_cap(0.001), 0.0);
+        assert_eq!(g.belief.0, 1, "{g:?}");
+        assert!((g.torque_cap - snow_cap).abs() < 1.0, "{g:?}");
+        let mut released_at = None;
+        for k in 2..200 {
+            let t = k as f64 * 1e-3;
+            let g = a.step(&at_cap(t), 5.0 * t);
+            if released_at.is_none() && g.torque_cap.is_infinite() {
+                released_at = Some(t);
+            }
+        }
+        let t = released_at.expect("released");
+        assert!(
+            t >= 0.02 && t < 0.06,
+            "after release_s of contradiction: {t}"
+        );
+        // A wheel that slips as snow would keeps the cap.
+        let mut a = aware(0.0);
+        a.decision(1, 0.95, 0.0, -0.5, 0.0);
+        a.decision(1, 0.95, 0.0, -0.5, 0.0);
+        for k in 1..200 {
+            let t = k as f64 * 1e-3;
+            let lambda: f64 = 0.037;
+            let m = Measurement {
+                t,
+                omega: 5.0 / (1.0 - lambda) / 0.28,
+                v: Some(5.0),
+                torque: snow_cap,
+                demand: 300.0,
+            };
+            let g = a.step(&m, 5.0 * t);
+            assert!(g.torque_cap <= snow_cap + 1.0, "{t}: {g:?}");
+        }
     }
 
     #[test]
