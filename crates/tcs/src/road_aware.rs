@@ -530,7 +530,7 @@ mod tests {
         }
         let t = released_at.expect("released");
         assert!(
-            t >= 0.02 && t < 0.06,
+            (0.02..0.06).contains(&t),
             "after release_s of contradiction: {t}"
         );
         // A wheel that slips as snow would keeps the cap.
