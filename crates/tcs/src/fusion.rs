@@ -198,7 +198,15 @@ impl RoadBelief {
         // Evidence fades in linearly between half the slip floor and the
         // floor (a step would make the closed loop's result jump with it).
         let floor = self.p.min_slip_evidence;
-        let excite = if floor > 0.0 {
+        // A wheel the driver asks nothing of rolls freely: at λ ≈ 0 every
+        // curve passes through μ = 0, so its slip "evidence" is sensor noise
+        // (measured in a live drive: 1 s of rolling at 0 N m before the
+        // pedal took the belief to ice at 0.98, and the ice cap then held
+        // the wheel on asphalt where it could show nothing else). No
+        // evidence is added without a demand; what there is fades.
+        let excite = if !(m.demand > 0.0) {
+            0.0
+        } else if floor > 0.0 {
             ((lambda.abs() - 0.5 * floor) / (0.5 * floor)).clamp(0.0, 1.0)
         } else {
             1.0

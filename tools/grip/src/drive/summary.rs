@@ -212,13 +212,16 @@ pub fn scenario_duration(log: &DriveLog) -> Option<f64> {
 
 /// Index of the first truth sample of the running scenario: plant-sim
 /// holds the vehicle (state frozen) until the start, so it is the last
-/// sample before the state first changes; `None` if it never changes (the
-/// scenario never started).
+/// sample before the state first changes; with a microphone ahead of the
+/// wheel it first pre-rolls (x rising from minus the lead to 0 at v0, speed
+/// and wheel speed unchanged), so changes of x at or below 0 do not count:
+/// the start is the last sample before x passes 0 or the speeds change.
+/// `None` if it never changes (the scenario never started).
 pub fn scenario_start(truth: &[GroundTruth]) -> Option<usize> {
     let f = truth.first()?;
     truth
         .iter()
-        .position(|g| g.x != f.x || g.v != f.v || g.omega != f.omega)
+        .position(|g| (g.x != f.x && g.x > 0.0) || g.v != f.v || g.omega != f.omega)
         .map(|i| i.saturating_sub(1))
 }
 
@@ -719,6 +722,15 @@ mod tests {
         t.push(truth(5, 5, 0.003, 0, "asphalt"));
         assert_eq!(scenario_start(&t), Some(4));
         assert_eq!(scenario_start(&t[..5]), None);
+        // a pre-roll: x rises from -0.012 m to 0 at the held speeds, then
+        // the scenario moves the car beyond 0
+        let mut p: Vec<GroundTruth> = (0..5)
+            .map(|k| truth(k, k, -0.003 * (4 - k) as f64, 0, "asphalt"))
+            .collect();
+        assert_eq!(p[4].x, 0.0);
+        p.push(truth(5, 5, 0.003, 0, "asphalt"));
+        assert_eq!(scenario_start(&p), Some(4), "the sample at x = 0");
+        assert_eq!(scenario_start(&p[..5]), None, "a pre-roll is no start");
         assert_eq!(truth_at(&t, 2_500_000).map(|g| g.seq), Some(2));
         assert!(truth_at(&t, 0).is_some());
     }
