@@ -204,7 +204,8 @@ impl RoadBelief {
         // pedal took the belief to ice at 0.98, and the ice cap then held
         // the wheel on asphalt where it could show nothing else). No
         // evidence is added without a demand; what there is fades.
-        let excite = if !(m.demand > 0.0) {
+        let demanded = m.demand > 0.0;
+        let excite = if !demanded {
             0.0
         } else if floor > 0.0 {
             ((lambda.abs() - 0.5 * floor) / (0.5 * floor)).clamp(0.0, 1.0)
@@ -375,6 +376,34 @@ mod tests {
         steady(&mut b, 0.01, 0.02, 200);
         assert_eq!(b.best().0, 0, "{:?}", b.probabilities());
         assert!((b.best().1 - 0.9).abs() < 1e-9);
+    }
+
+    /// A wheel rolling freely without a demand (0 N m) whose measured slip
+    /// jitters by ±3 % (sensor noise at low speed): no evidence, the
+    /// acoustic estimate stands; the same jitter with a demand is evidence
+    /// (ice fits μ̂ = 0 at 3 % slip), which is what the demand gate stops.
+    #[test]
+    fn a_freely_rolling_wheel_without_demand_adds_no_evidence() {
+        let v = VehicleParams::default();
+        let run = |demand: f64| {
+            let mut b = belief();
+            b.set_acoustic(Some((0, 0.9)));
+            for k in 0..1000 {
+                let lambda = if k % 2 == 0 { 0.03 } else { -0.03 };
+                b.step(&Measurement {
+                    t: k as f64 * 1e-3,
+                    omega: 5.0 / (1.0 - lambda) / v.r,
+                    v: Some(5.0),
+                    torque: 0.0,
+                    demand,
+                });
+            }
+            b.best()
+        };
+        let (road, p) = run(0.0);
+        assert_eq!(road, 0);
+        assert!((p - 0.9).abs() < 1e-9, "{p}");
+        assert_eq!(run(300.0).0, 2, "with a demand the jitter counts");
     }
 
     #[test]
