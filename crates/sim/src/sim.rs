@@ -227,14 +227,13 @@ impl<'a> Sim<'a> {
         };
         // The loop's own odometer, from what it measures.
         let v_meas = reading.v.unwrap_or(setup.vehicle().r * reading.omega);
-        let guidance = self.aware.as_mut().map(|a| a.step(&m, self.x_odo));
-        let knowledge = guidance.and_then(|g| g.knowledge);
-        let mut out = self.controller.step(&m, knowledge.as_ref());
-        if let Some(g) = guidance
-            && g.torque_cap < out.torque_cmd
-        {
-            out.torque_cmd = g.torque_cap.max(0.0);
-        }
+        let (guidance, out) = match self.aware.as_mut() {
+            Some(a) => {
+                let (g, out) = a.control(&mut self.controller, &m, self.x_odo);
+                (Some(g), out)
+            }
+            None => (None, self.controller.step(&m, None)),
+        };
 
         let lambda = self.plant.slip_of(s.omega, s.v);
         let finite = s.omega.is_finite() && s.v.is_finite() && s.torque.is_finite();

@@ -42,7 +42,8 @@ pub struct RoadAhead {
     pub confidence: f64,
     /// Time of the latest decision for it, s (its frame's end).
     pub stamp: f64,
-    /// Decisions in a row that named it.
+    /// Decisions that named it in a row (a single stray decision between
+    /// two of them does not break the row, [`PreviewQueue::push`]).
     pub hits: u32,
     /// The highest confidence any of them had (a road once heard
     /// confidently stays known while the frames straddling a change, whose
@@ -121,9 +122,19 @@ impl PreviewQueue {
 
     /// A decision for `road` with `confidence` at time `stamp`, heard over
     /// the wheel-path stretch `[x_from, x_to]` (m; `x_from <= x_to`).
-    /// `carries_less` says whether `road` transmits less than the last
-    /// queued road (decides which end of the stretch it begins at). Non-finite
-    /// positions are ignored. Allocation-free.
+    /// `mu_peak[i]` is road `i`'s peak friction (a road missing there counts
+    /// as carrying less than any: the cautious reading). A road that carries
+    /// less than the last queued one begins at the stretch's start, a
+    /// grippier one at its middle; non-finite positions are ignored.
+    /// Allocation-free.
+    ///
+    /// A classifier mishears some frames: a lower-friction road begins where
+    /// the run of unconfirmed (one-decision) grippier entries just before it
+    /// begins (a mixed frame at the change may have been this road misheard;
+    /// placing it late is the dangerous direction). And one stray decision
+    /// between two for the same road (two of three) goes, so that it neither
+    /// hides the road nor breaks its confirmation; a stray never confirmed
+    /// never capped anything.
     pub fn push(
         &mut self,
         road: usize,
@@ -131,7 +142,7 @@ impl PreviewQueue {
         stamp: f64,
         x_from: f64,
         x_to: f64,
-        carries_less: bool,
+        mu_peak: &[f64],
     ) {
         if !(x_from.is_finite() && x_to.is_finite()) {
             return;
@@ -141,6 +152,32 @@ impl PreviewQueue {
         } else {
             (x_to, x_from)
         };
+        let mu = |i: usize| mu_peak.get(i).copied().unwrap_or(f64::NAN);
+        let m = mu(road);
+        // Does `road` carry less than road `other`? (unknown: yes)
+        let less = |other: usize| {
+            let o = mu(other);
+            m < o || m.is_nan() || o.is_nan()
+        };
+        let carries_less = self.entries().last().is_none_or(|e| less(e.road));
+        let mut earliest = f64::INFINITY;
+        if carries_less {
+            while let Some(last) = self.entries().last()
+                && last.hits == 1
+                && less(last.road)
+            {
+                earliest = earliest.min(last.x_start);
+                self.len -= 1;
+            }
+        }
+        // One stray decision between two for the same road (two of three).
+        if self.len >= 2
+            && self.buf[self.len - 1].hits == 1
+            && self.buf[self.len - 1].road != road
+            && self.buf[self.len - 2].road == road
+        {
+            self.len -= 1;
+        }
         if let Some(last) = self.buf[..self.len].last_mut()
             && last.road == road
         {
@@ -150,7 +187,11 @@ impl PreviewQueue {
             last.peak_confidence = last.peak_confidence.max(confidence);
             return;
         }
-        let mut x_start = if carries_less { lo } else { 0.5 * (lo + hi) };
+        let mut x_start = if carries_less {
+            lo.min(earliest)
+        } else {
+            0.5 * (lo + hi)
+        };
         // Keep the queue ordered: a road cannot begin before one heard earlier.
         // A cautious (earlier) start moves the previous entries that now lie
         // behind it out of the way: they are replaced by this road.
@@ -210,16 +251,19 @@ impl PreviewQueue {
 mod tests {
     use super::*;
 
+    /// μ_peak of the test roads: 0 asphalt, 1 gravel-like, 2 snow, 3 grippier than asphalt.
+    const MU: [f64; 4] = [1.0, 0.5, 0.2, 1.1];
+
     #[test]
     fn lead_zero_gives_the_latest_decision() {
         let mut q = PreviewQueue::new();
         assert_eq!(q.view(0.0), PreviewView::default());
-        q.push(0, 0.9, 0.1, 0.0, 0.5, false);
+        q.push(0, 0.9, 0.1, 0.0, 0.5, &MU);
         // grippier-or-equal start at the frame's middle
         let v = q.view(0.25);
         assert_eq!(v.here.unwrap().road, 0);
         assert!(v.next.is_none());
-        q.push(2, 0.8, 0.2, 0.5, 1.0, true); // snow: begins at the frame start
+        q.push(2, 0.8, 0.2, 0.5, 1.0, &MU); // snow: begins at the frame start
         let v = q.view(1.0);
         assert_eq!(v.here.unwrap().road, 2);
         assert!(v.next.is_none());
@@ -230,18 +274,21 @@ mod tests {
     fn ordering_and_distance_ahead() {
         let mut q = PreviewQueue::new();
         let lead = 2.77;
-        q.push(0, 0.9, 0.1, 0.0 + lead, 0.3 + lead, false);
-        q.push(0, 0.95, 0.125, 0.1 + lead, 0.4 + lead, false);
+        q.push(0, 0.9, 0.1, 0.0 + lead, 0.3 + lead, &MU);
+        q.push(0, 0.95, 0.125, 0.1 + lead, 0.4 + lead, &MU);
         assert_eq!(q.len(), 1, "same road refreshes");
         assert_eq!(q.entries()[0].confidence, 0.95);
         assert_eq!(q.entries()[0].hits, 2);
-        q.push(2, 0.8, 0.2, 1.0 + lead, 1.3 + lead, true);
-        q.push(1, 0.7, 0.3, 2.0 + lead, 2.3 + lead, false);
+        q.push(2, 0.8, 0.2, 1.0 + lead, 1.3 + lead, &MU);
+        q.push(1, 0.7, 0.3, 2.0 + lead, 2.3 + lead, &MU);
         let v = q.view(1.0);
         assert!(v.here.is_none(), "nothing has reached the wheel yet");
         let (n, d) = v.next.unwrap();
         assert_eq!(n.road, 0);
-        assert!((d - (lead + 0.15 - 1.0)).abs() < 1e-12);
+        assert!(
+            (d - (lead - 1.0)).abs() < 1e-12,
+            "the first road from its frame's start: {d}"
+        );
         let v = q.view(3.9);
         assert_eq!(v.here.unwrap().road, 2);
         let (n, d) = v.next.unwrap();
@@ -252,8 +299,9 @@ mod tests {
     #[test]
     fn change_exactly_at_a_cycle_boundary() {
         let mut q = PreviewQueue::new();
-        q.push(0, 0.9, 0.0, 0.0, 0.0, false);
-        q.push(2, 0.9, 0.1, 5.0, 5.5, true);
+        q.push(0, 0.9, 0.0, 0.0, 0.0, &MU);
+        q.push(0, 0.9, 0.0, 0.0, 0.0, &MU);
+        q.push(2, 0.9, 0.1, 5.0, 5.5, &MU);
         // At x = 5.0 exactly the wheel is on the new road.
         assert_eq!(q.view(4.999_999).here.unwrap().road, 0);
         assert_eq!(q.view(5.0).here.unwrap().road, 2);
@@ -262,12 +310,14 @@ mod tests {
     #[test]
     fn cautious_start_replaces_entries_behind_it() {
         let mut q = PreviewQueue::new();
-        q.push(0, 0.9, 0.0, 0.0, 1.0, false); // starts at 0.5
-        q.push(3, 0.9, 0.1, 1.5, 2.5, false); // stone starts at 2.0
-        q.push(2, 0.9, 0.2, 1.8, 2.3, true); // snow may start at 1.8: before stone
+        q.push(0, 0.9, 0.0, 0.0, 1.0, &MU); // the first road: from 0.0
+        q.push(0, 0.9, 0.0, 0.5, 1.5, &MU); // confirmed
+        q.push(3, 0.9, 0.1, 1.5, 2.5, &MU); // grippier stone starts at 2.0
+        q.push(3, 0.9, 0.1, 2.0, 3.0, &MU); // confirmed
+        q.push(2, 0.9, 0.2, 1.8, 2.3, &MU); // snow may start at 1.8: before stone
         let e = q.entries();
         assert_eq!(e.len(), 2);
-        assert_eq!((e[0].road, e[0].x_start), (0, 0.5));
+        assert_eq!((e[0].road, e[0].x_start), (0, 0.0));
         assert_eq!((e[1].road, e[1].x_start), (2, 1.8));
     }
 
@@ -275,8 +325,10 @@ mod tests {
     fn capacity_is_fixed_and_overflow_counted() {
         let mut q = PreviewQueue::new();
         for i in 0..(PREVIEW_CAPACITY + 5) {
+            // Each road heard twice (confirmed), alternating.
             let x = i as f64;
-            q.push(i % 2, 0.9, x, x, x + 0.5, i % 2 == 1);
+            q.push(i % 2, 0.9, x, x, x + 0.5, &MU);
+            q.push(i % 2, 0.9, x + 0.5, x + 0.5, x + 1.0, &MU);
         }
         assert_eq!(q.len(), PREVIEW_CAPACITY);
         assert_eq!(q.overflows(), 5);
@@ -290,16 +342,68 @@ mod tests {
         // compares positions only, so a long drive behaves like a short one.
         let mut q = PreviewQueue::new();
         let x0 = 1.0e6;
-        q.push(0, 0.9, 0.0, x0, x0, false);
-        q.push(2, 0.9, 0.1, x0 + 0.001, x0 + 0.002, true);
+        q.push(0, 0.9, 0.0, x0, x0, &MU);
+        q.push(0, 0.9, 0.0, x0, x0, &MU);
+        q.push(2, 0.9, 0.1, x0 + 0.001, x0 + 0.002, &MU);
         assert_eq!(q.view(x0 + 0.000_999).here.unwrap().road, 0);
         assert_eq!(q.view(x0 + 0.001).here.unwrap().road, 2);
     }
 
     #[test]
+    fn a_stray_decision_between_two_for_the_same_road_goes() {
+        let mut q = PreviewQueue::new();
+        q.push(2, 0.9, 0.1, 1.0, 1.5, &MU); // snow
+        q.push(3, 0.9, 0.2, 1.5, 2.0, &MU); // one frame heard as stone
+        q.push(2, 0.9, 0.3, 2.0, 2.5, &MU); // snow again
+        let e = q.entries();
+        assert_eq!(e.len(), 1, "{e:?}");
+        assert_eq!((e[0].road, e[0].x_start, e[0].hits), (2, 1.0, 2));
+        // Two strays in a row are not strays: stone stays.
+        q.push(3, 0.9, 0.4, 2.5, 3.0, &MU);
+        q.push(3, 0.9, 0.5, 3.0, 3.5, &MU);
+        q.push(2, 0.9, 0.6, 3.5, 4.0, &MU);
+        let roads: Vec<usize> = q.entries().iter().map(|e| e.road).collect();
+        assert_eq!(roads, [2, 3, 2]);
+    }
+
+    #[test]
+    fn a_lower_friction_road_begins_where_unconfirmed_frames_before_it_begin() {
+        let mut q = PreviewQueue::new();
+        q.push(0, 0.9, 0.1, 0.0, 0.5, &MU); // asphalt
+        q.push(0, 0.9, 0.2, 0.5, 1.0, &MU);
+        q.push(1, 0.6, 0.3, 1.0, 1.5, &MU); // a mixed frame, heard as gravel
+        q.push(2, 0.9, 0.4, 1.5, 2.0, &MU); // snow
+        let e = q.entries();
+        assert_eq!(e.len(), 2, "{e:?}");
+        assert_eq!(
+            (e[1].road, e[1].x_start),
+            (2, 1.0),
+            "from the gravel frame's start"
+        );
+        // A confirmed grippier road is not taken back.
+        let mut q = PreviewQueue::new();
+        q.push(0, 0.9, 0.0, -0.5, 0.0, &MU);
+        q.push(0, 0.9, 0.1, 0.0, 0.5, &MU);
+        q.push(1, 0.9, 0.2, 0.5, 1.0, &MU);
+        q.push(1, 0.9, 0.3, 1.0, 1.5, &MU);
+        q.push(2, 0.9, 0.4, 1.5, 2.0, &MU);
+        let e = q.entries();
+        assert_eq!((e[2].road, e[2].x_start), (2, 1.5));
+        // Nor an unconfirmed road that carries even less (ice-like, road 2
+        // before gravel-like 1): it stays ahead of the gravel.
+        let mut q = PreviewQueue::new();
+        q.push(0, 0.9, 0.0, -0.5, 0.0, &MU);
+        q.push(0, 0.9, 0.1, 0.0, 0.5, &MU);
+        q.push(2, 0.9, 0.2, 0.5, 1.0, &MU);
+        q.push(1, 0.9, 0.3, 1.0, 1.5, &MU);
+        let roads: Vec<usize> = q.entries().iter().map(|e| e.road).collect();
+        assert_eq!(roads, [0, 2, 1]);
+    }
+
+    #[test]
     fn non_finite_positions_are_ignored() {
         let mut q = PreviewQueue::new();
-        q.push(0, 0.9, 0.0, f64::NAN, 1.0, false);
+        q.push(0, 0.9, 0.0, f64::NAN, 1.0, &MU);
         assert!(q.is_empty());
     }
 }

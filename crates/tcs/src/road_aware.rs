@@ -40,7 +40,7 @@ use crate::fusion::{FusionParams, RoadBelief};
 use crate::knowledge::RoadTable;
 use crate::params::{ArteUse, in_range, positive};
 use crate::preview::{PreviewQueue, PreviewView};
-use crate::types::{Measurement, RoadKnowledge};
+use crate::types::{ControlOutput, Controller, Measurement, RoadKnowledge};
 
 /// `[preview]` of `controllers.toml`.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
@@ -128,6 +128,8 @@ pub struct RoadAware {
     table: RoadTable,
     /// Per road: the slip where μ = slip_share · μ_peak (rising side).
     lambda_target: Vec<f64>,
+    /// Per road: μ_peak (the queue's cautious placement).
+    mu_peak: Vec<f64>,
     belief: RoadBelief,
     queue: PreviewQueue,
     p: PreviewParams,
@@ -169,9 +171,11 @@ impl RoadAware {
                 )
             })
             .collect();
+        let mu_peak = (0..roads.len()).map(|i| table.info(i).mu_peak).collect();
         Ok(Self {
             table,
             lambda_target,
+            mu_peak,
             belief,
             queue: PreviewQueue::new(),
             p: preview,
@@ -200,13 +204,6 @@ impl RoadAware {
     /// available at `stamp` (s), heard while the loop's odometer went from
     /// `x_from` to `x_to` (m; the lead is added here). Allocation-free.
     pub fn decision(&mut self, road: usize, confidence: f64, stamp: f64, x_from: f64, x_to: f64) {
-        let new = self.table.info(road).mu_peak;
-        let last = self
-            .queue
-            .entries()
-            .last()
-            .map_or(f64::INFINITY, |e| self.table.info(e.road).mu_peak);
-        let carries_less = new < last || new.is_nan() || last.is_nan();
         let x_from = x_from + self.p.change_at * (x_to - x_from);
         self.queue.push(
             road,
@@ -214,7 +211,7 @@ impl RoadAware {
             stamp,
             x_from + self.lead,
             x_to + self.lead,
-            carries_less,
+            &self.mu_peak,
         );
         self.last_decision = stamp;
     }
@@ -253,6 +250,26 @@ impl RoadAware {
             return 0.0;
         }
         ((target - torque * a) / (1.0 - a)).clamp(0.0, target)
+    }
+
+    /// One cycle of a "with ARTE" controller at time `m.t` and odometer `x`
+    /// (m): [`step`](Self::step), the controller stepped with the believed
+    /// road's knowledge, its command limited to the torque cap. The one
+    /// place where the
+    /// cap meets the command, for `grip sim` and tcs-loop alike.
+    /// Allocation-free.
+    pub fn control<C: Controller + ?Sized>(
+        &mut self,
+        controller: &mut C,
+        m: &Measurement,
+        x: f64,
+    ) -> (Guidance, ControlOutput) {
+        let g = self.step(m, x);
+        let mut out = controller.step(m, g.knowledge.as_ref());
+        if g.torque_cap < out.torque_cmd {
+            out.torque_cmd = g.torque_cap.max(0.0);
+        }
+        (g, out)
     }
 
     /// One cycle at time `m.t` and odometer `x` (m). Allocation-free.
@@ -398,6 +415,7 @@ mod tests {
     fn snow_ahead_caps_the_torque_before_the_wheel_arrives() {
         let mut a = aware(2.77);
         a.decision(0, 0.95, 0.0, -2.77, 0.5); // asphalt from the start
+        a.decision(0, 0.95, 0.0, -2.77, 0.5); // heard twice: confirmed
         a.decision(1, 0.95, 0.1, 0.5, 1.0); // snow from 0.5 + 2.77 m
         a.decision(1, 0.95, 0.125, 0.6, 1.1); // heard twice: confirmed
         let snow_cap = 0.19 * 3433.5 * 0.28;

@@ -485,15 +485,11 @@ impl TcsLoop {
             };
             let out = match self.aware.as_mut() {
                 Some(aware) => {
-                    let g = aware.step(&m, self.odometer);
+                    let (g, out) = aware.control(&mut self.controller, &m, self.odometer);
                     rec.belief_road = g.belief.0 as u32;
                     rec.belief_prob = g.belief.1;
-                    let mut out = self.controller.step(&m, g.knowledge.as_ref());
                     if g.torque_cap.is_finite() {
                         rec.torque_cap = g.torque_cap;
-                    }
-                    if g.torque_cap < out.torque_cmd {
-                        out.torque_cmd = g.torque_cap.max(0.0);
                     }
                     out
                 }
