@@ -13,10 +13,17 @@
 //!    transition counts one episode ([`PlantSim::cmd_timeouts`]). The next
 //!    valid command resumes torque at once. `Enable` = 0 also applies 0 N m
 //!    (not a fault).
-//! 3. **Start** (phase `Holding` → `Running`) per [`StartOn`].
+//! 3. **Start** (phase `Holding` → `PreRoll` → `Running`) per [`StartOn`].
 //! 4. **Plant**: `Holding` — not stepped (the vehicle is held at the
-//!    scenario's initial state: rolling at `v0` without slip, torque 0).
-//!    `Running` — stepped by the elapsed period (one period, plus any periods
+//!    scenario's initial state: rolling at `v0` without slip, torque 0, at
+//!    `x = -pre-roll distance`). `PreRoll` (only with a microphone ahead of
+//!    the wheel, `mic_lead_m > 0`, and `v0 > 0`) — the car rolls at `v0`
+//!    (kinematically: no torque, no demand, x advancing by `v0` per second)
+//!    over the pre-roll distance `n · v0 · dt`, `n = ⌈mic_lead_m / (v0 dt)⌉`
+//!    cycles (the `pre_roll` of `grip sim`), so that it reaches `x = 0` with
+//!    the microphone having heard the road from 0 to `mic_lead_m`; the
+//!    scenario clock then starts at 0 with the car at x = 0, as in the
+//!    simulator. `Running` — stepped by the elapsed period (one period, plus any periods
 //!    the timer skipped after a deadline miss, so the scenario clock stays
 //!    real-time) with the applied torque on the scenario's road and grade
 //!    at (t, x); the motor lag is the plant's. After the scenario's duration
@@ -105,6 +112,9 @@ pub enum Phase {
     Running = 1,
     /// Past the scenario's duration: zero torque, zero demand, coasting.
     Ended = 2,
+    /// Started, rolling at `v0` towards x = 0 (the microphone's lead) before
+    /// the scenario clock runs; only with `mic_lead_m > 0` and `v0 > 0`.
+    PreRoll = 3,
 }
 
 /// What the caller should do after a cycle.
@@ -149,6 +159,9 @@ pub struct PlantSim {
     names: Vec<[u8; NAME_LEN]>,
     /// The microphone's lead ahead of the driven wheel, m.
     mic_lead: f64,
+    /// Pre-roll cycles (0: none) and those done.
+    pre_roll_n: u64,
+    pre_roll_k: u64,
     plant: Plant,
     sensors: Sensors,
     r: f64,
@@ -185,6 +198,17 @@ pub struct PlantSim {
     status: Arc<PlantStatus>,
 }
 
+/// Pre-roll cycles at `dt` for a microphone `lead` m ahead of the wheel at
+/// `v0` m/s: `⌈lead / (v0 dt)⌉` (as `grip sim`'s pre-roll), 0 without a
+/// lead or from standstill (a car that stands has heard nothing ahead).
+pub fn pre_roll_cycles(lead: f64, v0: f64, dt: f64) -> u64 {
+    if lead > 0.0 && v0 > 0.0 && dt > 0.0 {
+        (lead / (v0 * dt)).ceil() as u64
+    } else {
+        0
+    }
+}
+
 fn divider(cycle_ms: u32, rate_hz: f64) -> u64 {
     ((f64::from(cycle_ms) * 1e-3 * rate_hz).round() as u64).max(1)
 }
@@ -200,7 +224,12 @@ impl PlantSim {
         vehicle: &VehicleParams,
         sensors: &SensorParams,
     ) -> Result<Self, PlantSimError> {
-        let init = PlantState::rolling(scenario.v0, vehicle.r);
+        let dt = 1.0 / cfg.rate_hz;
+        let pre_roll_n = pre_roll_cycles(vehicle.mic_lead_m, scenario.v0, dt);
+        let init = PlantState {
+            x: -(pre_roll_n as f64) * scenario.v0 * dt,
+            ..PlantState::rolling(scenario.v0, vehicle.r)
+        };
         let mut plant = Plant::new(*vehicle, init)
             .map_err(|e| PlantSimError::Invalid(e.prefixed("vehicle")))?;
         plant.set_max_substep(cfg.max_substep_s).map_err(|_| {
@@ -232,11 +261,13 @@ impl PlantSim {
         let names = roads.iter().map(|r| name_to_bytes(r.name())).collect();
         Ok(Self {
             mic_lead: vehicle.mic_lead_m,
+            pre_roll_n,
+            pre_roll_k: 0,
             names,
             plant,
             sensors,
             r: vehicle.r,
-            dt: 1.0 / cfg.rate_hz,
+            dt,
             rx: ProtocolRx::for_inverter(),
             tx_ws: E2eSender::new(),
             tx_ms: E2eSender::new(),
@@ -397,8 +428,12 @@ impl PlantSim {
                 StartOn::Immediate => true,
             };
             if go {
-                self.phase = Phase::Running;
                 self.t_s = 0.0;
+                self.phase = if self.pre_roll_n > 0 {
+                    Phase::PreRoll
+                } else {
+                    Phase::Running
+                };
             }
         }
 
@@ -419,9 +454,25 @@ impl PlantSim {
         };
         self.applied = match self.phase {
             Phase::Running => cmd_torque,
-            Phase::Holding | Phase::Ended => 0.0,
+            Phase::Holding | Phase::PreRoll | Phase::Ended => 0.0,
         };
-        if self.phase != Phase::Holding {
+        if self.phase == Phase::PreRoll {
+            // kinematic: rolling at v0 without slip, only x advances; the
+            // last pre-roll cycle puts the car exactly at x = 0 and starts
+            // the scenario clock (its first step is the next cycle's)
+            self.pre_roll_k = (self.pre_roll_k + 1 + tick.skipped).min(self.pre_roll_n);
+            let left = (self.pre_roll_n - self.pre_roll_k) as f64;
+            let held = PlantState {
+                x: -left * self.scenario.v0 * self.dt,
+                ..state
+            };
+            // x is finite and the rest is the state the plant accepted
+            let _ = self.plant.set_state(held);
+            if self.pre_roll_k == self.pre_roll_n {
+                self.phase = Phase::Running;
+                self.t_s = 0.0;
+            }
+        } else if self.phase != Phase::Holding {
             let grade = self.scenario.segments[seg].grade_rad();
             self.plant
                 .step(step, self.applied, &self.roads[road_idx], grade);

@@ -57,6 +57,12 @@ impl Monitor for PlantMonitor {
                 tracing::info!("scenario started");
                 notify_status("scenario running");
             }
+            Some(3) => {
+                tracing::info!(
+                    "pre-roll: rolling at v0 over the microphone's lead to x = 0 before the scenario clock starts"
+                );
+                notify_status("pre-roll");
+            }
             Some(2) => {
                 tracing::info!("scenario ended: zero torque, zero demand");
                 notify_status("scenario ended");

@@ -81,3 +81,44 @@ fn cycle_allocates_nothing_after_warm_up() {
     assert!(s.protocol_rx().faults().crc >= 20);
     assert!(truth.last.unwrap().v.is_finite());
 }
+
+/// The front-mic vehicle's hold, pre-roll and scenario: nothing allocated
+/// from the first cycle after construction to the scenario's end.
+#[test]
+fn pre_roll_allocates_nothing() {
+    let cfg = PlantSimConfig {
+        start_on: StartOn::Commands,
+        ..PlantSimConfig::with_scenario("paper")
+    };
+    let mut s = common::sim_with_vehicle(&cfg, "vehicles/front-mic.toml").unwrap();
+    let clock = ManualClock::new(1_000 * MS);
+    let mut bus = MemBus::new();
+    let mut truth = LastTruth::default();
+    let mut tx = E2eSender::<TorqueCommand>::new();
+    // warm-up: one cycle (the bus double's queues)
+    let f = tx.encode(&TorqueCommand::default(), clock.now_ns());
+    bus.inject(f);
+    s.cycle(&PlantTick::at(clock.now_ns()), &clock, &mut bus, &mut truth);
+    bus.tx.borrow_mut().clear();
+    clock.advance_ns(MS);
+    let mut phases = [false; 4];
+    let n = allocations(|| {
+        for _ in 0..5_000 {
+            let now = clock.now_ns();
+            let f = tx.encode(
+                &TorqueCommand {
+                    torque_request: 200.0,
+                    enable: true,
+                },
+                now,
+            );
+            bus.inject(f);
+            s.cycle(&PlantTick::at(now), &clock, &mut bus, &mut truth);
+            bus.tx.borrow_mut().clear();
+            clock.advance_ns(MS);
+            phases[s.phase() as usize] = true;
+        }
+    });
+    assert_eq!(n, 0, "{n} allocations");
+    assert!(phases.iter().all(|&p| p), "every phase seen: {phases:?}");
+}

@@ -293,15 +293,18 @@ fn skipped_periods_advance_the_scenario_clock() {
 
 /// With the microphone in the front wheel arch (2.77 m ahead of the driven
 /// wheel), the truth names the road at the microphone apart from the road
-/// under the wheel: snow is at the microphone while the wheel is still on
-/// asphalt (paper: asphalt for the first 1.28 m).
+/// under the wheel: at the end of the pre-roll (wheel at x = 0) snow is at
+/// the microphone while the wheel is still on asphalt (paper: asphalt for
+/// the first 1.28 m).
 #[test]
 fn truth_names_the_road_at_the_microphone() {
     let mut r = Rig::new(&immediate());
     r.sim = common::sim_with_vehicle(&immediate(), "vehicles/front-mic.toml").unwrap();
-    r.cycle();
+    while r.sim.phase() != Phase::Running {
+        r.cycle();
+    }
     let g = r.truth.last.unwrap();
-    assert!(g.x < 1.28 - 0.1, "{g:?}");
+    assert_eq!(g.x, 0.0, "{g:?}");
     assert_eq!(g.road_name(), Some("asphalt"));
     assert_eq!(
         g.mic_road_name(),
@@ -315,6 +318,85 @@ fn truth_names_the_road_at_the_microphone() {
     let g = r.truth.last.unwrap();
     assert_eq!(g.mic_road_name(), Some("asphalt"));
     assert_eq!(g.mic_road_index, g.road_index);
+}
+
+/// The pre-roll (front-mic vehicle, 2.77 m lead, paper from 10 km/h): the
+/// car is held 2.77 m before the scenario's start (rounded up to whole
+/// cycles, as `grip sim`'s pre-roll) with the microphone over x = 0; once
+/// started it rolls there at v0 without torque or demand, x advancing
+/// v0·dt per cycle, the microphone hearing asphalt and then the snow that
+/// begins at 1.28 m; at x = 0 the scenario clock starts and the plant is
+/// driven. The shipped vehicle (lead 0) has no pre-roll.
+#[test]
+fn pre_roll_rolls_the_lead_at_v0_before_the_scenario_clock_starts() {
+    let cfg = PlantSimConfig::with_scenario("paper");
+    let mut r = Rig::new(&cfg);
+    r.sim = common::sim_with_vehicle(&cfg, "vehicles/front-mic.toml").unwrap();
+    let v0 = 10.0 / 3.6;
+    let n = grip_plant_sim::pre_roll_cycles(2.77, v0, 1e-3);
+    assert_eq!(n, 998, "⌈2.77 m / (2.78 m/s · 1 ms)⌉");
+    let x_hold = -(n as f64) * v0 * 1e-3;
+    assert!(x_hold <= -2.77 && x_hold > -2.77 - v0 * 1e-3);
+    // held: x fixed, the microphone over the scenario's start
+    for _ in 0..50 {
+        r.send_cmd(300.0, true);
+        r.cycle();
+    }
+    assert_eq!(r.sim.phase(), Phase::Holding);
+    let g = r.truth.last.unwrap();
+    assert_eq!(g.x, x_hold);
+    assert_eq!(g.mic_road_name(), Some("asphalt"));
+    r.sim.request_start();
+    let mut demand = Vec::new();
+    let mut mic_snow_at = None;
+    let mut prev_x = x_hold;
+    for k in 1..=n {
+        r.send_cmd(300.0, true);
+        let (_, sent) = r.cycle();
+        for f in sent.iter().filter(|f| f.id == 0x140) {
+            demand.push(grip_io::can::protocol::DriverDemand::read_signals(&f.data).torque_demand);
+        }
+        let g = r.truth.last.unwrap();
+        if k < n {
+            assert_eq!(r.sim.phase(), Phase::PreRoll, "cycle {k}");
+        }
+        assert!((g.x - prev_x - v0 * 1e-3).abs() < 1e-9, "cycle {k}: {g:?}");
+        assert_eq!(g.v, v0, "rolling at v0");
+        assert_eq!(g.lambda, 0.0, "without slip");
+        assert_eq!(g.torque, 0.0);
+        assert_eq!(r.sim.applied_torque(), 0.0, "no torque in the pre-roll");
+        assert_eq!(r.sim.scenario_time(), 0.0);
+        assert_eq!(g.road_name(), Some("asphalt"));
+        if g.mic_road_name() == Some("snow") {
+            mic_snow_at.get_or_insert(g.x + 2.77);
+        }
+        prev_x = g.x;
+    }
+    assert!(
+        demand.iter().all(|&d| d == 0.0),
+        "no demand in the pre-roll"
+    );
+    let snow = mic_snow_at.expect("the microphone heard the snow");
+    assert!((snow - 1.28).abs() < 0.01, "snow heard at {snow} m");
+    assert_eq!(r.sim.phase(), Phase::Running);
+    assert_eq!(r.truth.last.unwrap().x, 0.0, "pre-roll ends at x = 0");
+    r.send_cmd(300.0, true);
+    r.cycle();
+    assert!((r.sim.scenario_time() - 1e-3).abs() < 1e-12);
+    assert!(r.truth.last.unwrap().x > 0.0);
+    assert!(r.sim.applied_torque() > 0.0, "the scenario drives");
+
+    // lead 0: no pre-roll, running from x = 0 at the start
+    assert_eq!(grip_plant_sim::pre_roll_cycles(0.0, v0, 1e-3), 0);
+    assert_eq!(grip_plant_sim::pre_roll_cycles(2.77, 0.0, 1e-3), 0);
+    let mut r = Rig::new(&cfg);
+    assert_eq!(r.sim.plant().state().x, 0.0);
+    r.sim.request_start();
+    for _ in 0..20 {
+        r.send_cmd(0.0, true);
+        r.cycle();
+    }
+    assert_eq!(r.sim.phase(), Phase::Running);
 }
 
 /// A time-segment scenario cannot say where a road begins ahead of the

@@ -5,7 +5,7 @@
 //! ```
 //! - `--config-dir DIR` (default `config`; systemd: `/etc/grip`): the
 //!   configuration files in it (`*.toml`, the DBC, `roads/`, `scenarios/`,
-//!   `models/`) are hashed into the `grip.run` metadata and attached.
+//!   `vehicles/`, `models/`) are hashed into the `grip.run` metadata and attached.
 //! - `--config FILE` (default `DIR/recorder.toml`).
 //! - `--out FILE` (default `<out_dir>/grip-<unix s>-<pid>.mcap`).
 //! - `--meta KEY=VALUE`: extra `grip.run` metadata (`grip drive` passes the

@@ -70,7 +70,7 @@ pub struct ConfigFile {
 
 /// The files of a configuration directory that describe a run: `*.toml`,
 /// `*.dbc`, `*.csv` at the top and in `roads/`, `scenarios/*.toml`,
-/// everything in `models/`. Sorted by name; unreadable directories are
+/// `vehicles/*.toml` (the profiles `--vehicle` picks), everything in `models/`. Sorted by name; unreadable directories are
 /// skipped.
 pub fn config_files(dir: &Path) -> Vec<ConfigFile> {
     let mut out = Vec::new();
@@ -108,6 +108,7 @@ pub fn config_files(dir: &Path) -> Vec<ConfigFile> {
     scan("", Some(&["toml", "dbc", "csv"]), false);
     scan("roads", Some(&["toml", "csv"]), false);
     scan("scenarios", Some(&["toml"]), false);
+    scan("vehicles", Some(&["toml"]), false);
     scan("models", None, true);
     out.sort_by(|a, b| a.name.cmp(&b.name));
     out

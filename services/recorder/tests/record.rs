@@ -180,6 +180,7 @@ fn records_everything_counts_gaps_and_finishes_on_sigterm() {
         "inverter.dbc",
         "recorder.toml",
         "scenarios/paper.toml",
+        "vehicles/front-mic.toml",
     ] {
         assert!(
             names.contains(&want),

@@ -144,8 +144,8 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     // the summary, from the log (also after a failure: what was recorded)
     match DriveLog::load(&out) {
         Ok(log) => {
-            let vehicle = drive::vehicle_for(&log, &config_dir);
-            let s = summary::summarize(&log, &vehicle);
+            let (vehicle, from) = drive::vehicle_for(&log, &config_dir);
+            let s = summary::summarize(&log, &vehicle, &from, Some(&roads));
             println!("{}", s.render());
             println!(
                 "loop wake-up latency histogram:\n{}",

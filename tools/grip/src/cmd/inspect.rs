@@ -1,7 +1,10 @@
 //! `grip inspect LOG`: the summary `grip drive` prints, for any drive log,
 //! with the loop-timing histogram, the road timeline, `--csv DIR` and
 //! `--plot DIR`. A truncated log gives a partial summary that says what was
-//! lost; a file that is not MCAP gives a clear error.
+//! lost; a file that is not MCAP gives a clear error. `grip inspect A B`:
+//! the two drives' slip, traction, torque and energy side by side (B / A)
+//! and what each one's torque did before the wheel reached a road that
+//! carries less.
 
 use std::path::PathBuf;
 
@@ -10,20 +13,53 @@ use crate::drive::{self, export, log::DriveLog, plot, summary};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The MCAP log (from `grip drive` or the recorder service).
-    log: PathBuf,
-    /// Write cycles.csv, estimates.csv, truth.csv and can.csv here.
+    /// The MCAP log (from `grip drive` or the recorder service); with a
+    /// second log, the two side by side (e.g. `grip inspect on.mcap off.mcap`).
+    #[arg(required = true, num_args = 1..=2)]
+    logs: Vec<PathBuf>,
+    /// Write cycles.csv, estimates.csv, truth.csv and can.csv here (one log).
     #[arg(long)]
     csv: Option<PathBuf>,
-    /// Write drive.png and timing.png here.
+    /// Write drive.png and timing.png here (one log).
     #[arg(long)]
     plot: Option<PathBuf>,
 }
 
+/// The summary of the log at `path`, with the vehicle the drive ran with
+/// and the configuration directory's road catalogue (for the preview
+/// report; without it, a warning and no preview report).
+fn summary_of(
+    ctx: &Ctx,
+    path: &std::path::Path,
+) -> anyhow::Result<(DriveLog, f64, summary::Summary)> {
+    let log = DriveLog::load(path)?;
+    let (vehicle, from) = drive::vehicle_for(&log, &ctx.config_dir);
+    let roads = match grip_config::ConfigDir::new(&ctx.config_dir).roads() {
+        Ok(r) => Some(r),
+        Err(e) => {
+            eprintln!("warning: {e}; no preview report");
+            None
+        }
+    };
+    let s = summary::summarize(&log, &vehicle, &from, roads.as_ref());
+    Ok((log, vehicle.r, s))
+}
+
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
-    let log = DriveLog::load(&args.log)?;
-    let vehicle = drive::vehicle_for(&log, &ctx.config_dir);
-    let s = summary::summarize(&log, &vehicle);
+    if let [a, b] = args.logs.as_slice() {
+        if args.csv.is_some() || args.plot.is_some() {
+            anyhow::bail!(
+                "--csv and --plot take one log (got two: {} and {})",
+                a.display(),
+                b.display()
+            );
+        }
+        let (_, _, sa) = summary_of(ctx, a)?;
+        let (_, _, sb) = summary_of(ctx, b)?;
+        println!("{}", summary::compare(&sa, &sb));
+        return Ok(());
+    }
+    let (log, r, s) = summary_of(ctx, &args.logs[0])?;
     println!("{}", s.render());
     println!(
         "loop wake-up latency histogram:\n{}",
@@ -48,7 +84,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             log.run.get("arte").map_or("?", String::as_str),
             log.run.get("scenario").map_or("?", String::as_str)
         );
-        for p in plot::write_plots(&log, dir, vehicle.r, &title)? {
+        for p in plot::write_plots(&log, dir, r, &title)? {
             println!("wrote {}", p.display());
         }
     }

@@ -166,7 +166,12 @@ mod tests {
             ),
             (600, 600, 600, 6)
         );
-        let s = super::super::summary::summarize(&log, &grip_physics::VehicleParams::default());
+        let s = super::super::summary::summarize(
+            &log,
+            &grip_physics::VehicleParams::default(),
+            "defaults",
+            None,
+        );
         assert!(
             s.warnings.iter().any(|w| w.contains("grip.recorder")),
             "{:?}",
@@ -191,7 +196,7 @@ mod tests {
             match DriveLog::load(&q) {
                 Ok(log) => {
                     assert!(log.report.truncated.is_some(), "cut at {cut} not reported");
-                    let s = super::super::summary::summarize(&log, &v);
+                    let s = super::super::summary::summarize(&log, &v, "defaults", None);
                     let text = s.render();
                     assert!(text.contains("incomplete"), "cut at {cut}: {text}");
                 }
@@ -203,7 +208,7 @@ mod tests {
             b[pos] ^= 0x5A;
             std::fs::write(&q, &b).unwrap();
             if let Ok(log) = DriveLog::load(&q) {
-                let _ = super::super::summary::summarize(&log, &v).render();
+                let _ = super::super::summary::summarize(&log, &v, "defaults", None).render();
             }
         }
     }

@@ -50,19 +50,51 @@ pub fn check_binaries(dir: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Vehicle parameters for the metrics: the log's attached `vehicle.toml`,
-/// else the configuration directory's, else the defaults (with a warning).
-pub fn vehicle_for(log: &DriveLog, config_dir: &Path) -> VehicleParams {
+/// The vehicle a drive ran with, for the metrics (kinetic energy: M/n and
+/// J_w) and the preview report (N · r): with `grip.run` `vehicle=PATH`
+/// (`grip drive --vehicle`), the attached copy of that file (the recorder
+/// attaches `vehicles/*.toml`; matched by the end of PATH), else PATH read
+/// from disk; without it (or when neither can be read, with a warning) the
+/// attached `vehicle.toml`, else the configuration directory's, else the
+/// defaults. Returns the parameters and where they came from.
+pub fn vehicle_for(log: &DriveLog, config_dir: &Path) -> (VehicleParams, String) {
+    if let Some(p) = log.run.get("vehicle") {
+        let attached = log
+            .attachments
+            .keys()
+            .filter(|name| p.ends_with(&format!("/{name}")) || p == *name)
+            .max_by_key(|name| name.len());
+        if let Some(name) = attached
+            && let Some(text) = log.attachment_text(name)
+        {
+            match grip_config::parse_vehicle(Path::new(&format!("{name} (attached)")), text) {
+                Ok((v, _)) => return (v, format!("{name} (attached to the log)")),
+                Err(e) => eprintln!("warning: {e}"),
+            }
+        }
+        match grip_config::load_vehicle(p) {
+            Ok((v, _)) => return (v, format!("{p} (read from disk: not attached to the log)")),
+            Err(e) => eprintln!(
+                "warning: the drive ran with vehicle {p}, which is neither attached to the log nor readable ({e}); using vehicle.toml instead"
+            ),
+        }
+    }
     if let Some(text) = log.attachment_text("vehicle.toml")
         && let Ok((v, _)) = grip_config::parse_vehicle(Path::new("vehicle.toml (attached)"), text)
     {
-        return v;
+        return (v, "vehicle.toml (attached to the log)".into());
     }
     match ConfigDir::new(config_dir).vehicle() {
-        Ok((v, _)) => v,
+        Ok((v, _)) => (
+            v,
+            format!(
+                "{} (configuration directory)",
+                ConfigDir::new(config_dir).vehicle_path().display()
+            ),
+        ),
         Err(e) => {
             eprintln!("warning: {e}; using the default vehicle for the energy metrics");
-            VehicleParams::default()
+            (VehicleParams::default(), "defaults".into())
         }
     }
 }
@@ -340,6 +372,43 @@ mod tests {
 
     /// Every service's drive command line is its unit's command line (base
     /// arguments) with the drive's overrides appended, never changed.
+    /// The vehicle a drive ran with (`grip.run` `vehicle=PATH`) is the
+    /// attached copy of that profile, not the attached `vehicle.toml`;
+    /// without the key, `vehicle.toml`.
+    #[test]
+    fn vehicle_for_uses_the_profile_the_drive_ran_with() {
+        let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
+        let read = |f: &str| std::fs::read(cfg.join(f)).unwrap();
+        let mut log = DriveLog::default();
+        log.attachments
+            .insert("vehicle.toml".into(), read("vehicle.toml"));
+        log.attachments.insert(
+            "vehicles/front-mic.toml".into(),
+            read("vehicles/front-mic.toml"),
+        );
+        let (v, from) = vehicle_for(&log, &cfg);
+        assert_eq!(v.mic_lead_m, 0.0);
+        assert!(from.starts_with("vehicle.toml"), "{from}");
+        log.run.insert(
+            "vehicle".into(),
+            "/elsewhere/config/vehicles/front-mic.toml".into(),
+        );
+        let (v, from) = vehicle_for(&log, &cfg);
+        assert_eq!(v.mic_lead_m, 2.77);
+        assert_eq!(v.n_driven, 2.0);
+        assert!(
+            from.starts_with("vehicles/front-mic.toml (attached"),
+            "{from}"
+        );
+        // not attached: read from the path
+        log.attachments.remove("vehicles/front-mic.toml");
+        let p = cfg.join("vehicles/front-mic.toml");
+        log.run.insert("vehicle".into(), p.display().to_string());
+        let (v, from) = vehicle_for(&log, &cfg);
+        assert_eq!(v.mic_lead_m, 2.77);
+        assert!(from.contains("read from disk"), "{from}");
+    }
+
     #[test]
     fn drive_args_extend_the_unit_command_line() {
         let plan = DrivePlan {

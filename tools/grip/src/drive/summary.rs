@@ -19,7 +19,7 @@ use std::fmt::Write as _;
 
 use grip_io::can::protocol::spec_for_id;
 use grip_msgs::{CycleRecord, E2eFaults, GroundTruth, RoadEstimate, can_dir, can_flags, topics};
-use grip_physics::VehicleParams;
+use grip_physics::{RoadCatalogue, VehicleParams};
 use grip_tcs::{Metrics, MetricsAccumulator, Sample};
 
 use super::log::DriveLog;
@@ -175,6 +175,125 @@ pub struct Summary {
     pub speed_kmh: Option<(f64, f64)>,
     /// Cycles in the safe state during the scenario window.
     pub safe_cycles_in_window: Option<u64>,
+    /// Where the vehicle parameters (metrics, N · r) came from.
+    pub vehicle: String,
+    /// What the torque did before each change of the road under the driven
+    /// wheel to one that carries less (None: no road catalogue).
+    pub preview: Option<Vec<PreviewEvent>>,
+}
+
+/// The wheel reaching a road that carries less (`grip inspect`'s
+/// "preview" section).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PreviewEvent {
+    /// When the wheel reached the new road, s from the scenario start.
+    pub t: f64,
+    /// Where (the plant's x), m.
+    pub x: f64,
+    /// Road before and after.
+    pub from: String,
+    /// The new road.
+    pub to: String,
+    /// What the new road transmits, μ_peak · N · r, N m.
+    pub limit: f64,
+    /// How long (s) and how far (m) before the wheel arrived the command
+    /// was continuously at or below `limit` (None: it was not at arrival).
+    pub ahead: Option<(f64, f64)>,
+    /// Command and motor torque when the wheel arrived, N m.
+    pub cmd_at_arrival: f64,
+    /// Motor torque (truth) at arrival, N m.
+    pub torque_at_arrival: f64,
+    /// Largest true slip in the 0.2 s after arrival.
+    pub max_slip_after: f64,
+}
+
+/// The command may sit this far above a limit and still count as at it
+/// (the CAN signal's resolution is 0.1 N m).
+const LIMIT_TOL_NM: f64 = 0.2;
+
+/// Preview events over the truth samples `truth[i0..=i1]` (see
+/// [`PreviewEvent`]).
+fn preview_events(
+    log: &DriveLog,
+    i0: usize,
+    i1: usize,
+    roads: &RoadCatalogue,
+    vehicle: &VehicleParams,
+) -> Vec<PreviewEvent> {
+    let nr = vehicle.normal_force() * vehicle.r;
+    let start_ns = log.truth[i0].stamp_ns;
+    let mut out = Vec::new();
+    for k in i0 + 1..=i1 {
+        let (a, b) = (&log.truth[k - 1], &log.truth[k]);
+        if a.road_index == b.road_index {
+            continue;
+        }
+        let (Some(ra), Some(rb)) = (
+            roads.by_index(a.road_index as usize),
+            roads.by_index(b.road_index as usize),
+        ) else {
+            continue;
+        };
+        if rb.mu_peak() >= ra.mu_peak() {
+            continue;
+        }
+        let limit = rb.mu_peak() * nr;
+        let tc = b.stamp_ns;
+        // the cycles up to arrival, newest first
+        let upto = log.cycles.partition_point(|c| c.stamp_ns <= tc);
+        let Some(at) = upto.checked_sub(1).map(|i| &log.cycles[i]) else {
+            continue;
+        };
+        let mut since: Option<u64> = None;
+        for c in log.cycles[..upto].iter().rev() {
+            if c.safe_state == 0 && c.torque_cmd <= limit + LIMIT_TOL_NM {
+                since = Some(c.stamp_ns);
+            } else {
+                break;
+            }
+        }
+        let ahead = since.map(|t| {
+            let x_then = truth_at(&log.truth, t).map_or(b.x, |g| g.x);
+            ((tc - t) as f64 * 1e-9, b.x - x_then)
+        });
+        let max_slip_after = log.truth[k..]
+            .iter()
+            .take_while(|g| g.stamp_ns < tc + 200_000_000)
+            .map(|g| g.lambda)
+            .fold(f64::MIN, f64::max);
+        out.push(PreviewEvent {
+            t: (tc as i128 - start_ns as i128) as f64 * 1e-9,
+            x: b.x,
+            from: ra.name().to_owned(),
+            to: rb.name().to_owned(),
+            limit,
+            ahead,
+            cmd_at_arrival: at.torque_cmd,
+            torque_at_arrival: b.torque,
+            max_slip_after,
+        });
+    }
+    out
+}
+
+impl PreviewEvent {
+    /// One line of the report.
+    pub fn line(&self) -> String {
+        let head = format!(
+            "{} -> {} at {:.3} s (x {:.2} m), limit {:.1} N m:",
+            self.from, self.to, self.t, self.x, self.limit
+        );
+        let capped = match self.ahead {
+            Some((s, m)) => {
+                format!("command at or below it from {s:.3} s / {m:.2} m before the wheel arrived")
+            }
+            None => "command NOT at or below it when the wheel arrived".to_owned(),
+        };
+        format!(
+            "{head} {capped}; at arrival command {:.1}, motor {:.1} N m; max slip in the next 0.2 s {:.3}",
+            self.cmd_at_arrival, self.torque_at_arrival, self.max_slip_after
+        )
+    }
 }
 
 /// Sequence gaps and resets of a sequence.
@@ -212,13 +331,16 @@ pub fn scenario_duration(log: &DriveLog) -> Option<f64> {
 
 /// Index of the first truth sample of the running scenario: plant-sim
 /// holds the vehicle (state frozen) until the start, so it is the last
-/// sample before the state first changes; `None` if it never changes (the
-/// scenario never started).
+/// sample before the state first changes; with a microphone ahead of the
+/// wheel it first pre-rolls (x rising from minus the lead to 0 at v0, speed
+/// and wheel speed unchanged), so changes of x at or below 0 do not count:
+/// the start is the last sample before x passes 0 or the speeds change.
+/// `None` if it never changes (the scenario never started).
 pub fn scenario_start(truth: &[GroundTruth]) -> Option<usize> {
     let f = truth.first()?;
     truth
         .iter()
-        .position(|g| g.x != f.x || g.v != f.v || g.omega != f.omega)
+        .position(|g| (g.x != f.x && g.x > 0.0) || g.v != f.v || g.omega != f.omega)
         .map(|i| i.saturating_sub(1))
 }
 
@@ -275,12 +397,19 @@ fn timing(cycles: &[CycleRecord]) -> Timing {
     }
 }
 
-/// Computes the summary of `log`; `vehicle` gives M/n and J_w for the
-/// kinetic-energy metric (from the log's attached `vehicle.toml` if the
-/// caller found it, else the configuration directory's).
-pub fn summarize(log: &DriveLog, vehicle: &VehicleParams) -> Summary {
+/// Computes the summary of `log`; `vehicle` (the one the drive ran with,
+/// [`super::vehicle_for`], described by `vehicle_from`) gives M/n and J_w
+/// for the kinetic-energy metric and N · r for the preview report, which
+/// needs the road catalogue `roads` (None: no preview report).
+pub fn summarize(
+    log: &DriveLog,
+    vehicle: &VehicleParams,
+    vehicle_from: &str,
+    roads: Option<&RoadCatalogue>,
+) -> Summary {
     let mut s = Summary {
         file: log.path.display().to_string(),
+        vehicle: vehicle_from.to_owned(),
         ..Summary::default()
     };
     for k in [
@@ -453,6 +582,7 @@ pub fn summarize(log: &DriveLog, vehicle: &VehicleParams) -> Summary {
             }
         }
         s.safe_cycles_in_window = Some(safe_in);
+        s.preview = roads.map(|r| preview_events(log, i0, last_in, r, vehicle));
         if let (Some(a0), Some(a1)) = (first_in, last_in_c) {
             s.can.faults_in_window = Some(fault_delta(&a0.faults, &a1.faults));
         }
@@ -614,6 +744,7 @@ impl Summary {
                 "  duration {:.3} s, {} samples ({} rejected)",
                 m.duration, m.samples, m.rejected
             );
+            let _ = writeln!(o, "  vehicle: {}", self.vehicle);
         } else {
             let _ = writeln!(o, "\nmetrics: no ground truth in the log");
         }
@@ -677,8 +808,126 @@ impl Summary {
                 a.active_cycles
             );
         }
+        if let Some(p) = &self.preview {
+            let _ = writeln!(
+                o,
+                "\npreview (the driven wheel reaching a road that carries less; limit = that road's μ_peak · N · r)"
+            );
+            if p.is_empty() {
+                let _ = writeln!(o, "  no such road change in the scenario window");
+            }
+            for e in p {
+                let _ = writeln!(o, "  {}", e.line());
+            }
+        }
         o
     }
+}
+
+/// `grip inspect A B`: the two drives' metrics side by side with A / B
+/// (`grip inspect on.mcap off.mcap`: what ARTE changed), then each one's
+/// preview events.
+pub fn compare(a: &Summary, b: &Summary) -> String {
+    let mut o = String::new();
+    let run = |s: &Summary, k: &str| {
+        s.run
+            .iter()
+            .find(|(kk, _)| kk == k)
+            .map_or("-".to_owned(), |(_, v)| v.clone())
+    };
+    let _ = writeln!(
+        o,
+        "A: {}
+B: {}",
+        a.file, b.file
+    );
+    let _ = writeln!(o, "{:<34} {:>12} {:>12} {:>8}", "", "A", "B", "A / B");
+    for k in ["scenario", "controller", "arte", "seed"] {
+        let _ = writeln!(o, "{k:<34} {:>12} {:>12}", run(a, k), run(b, k));
+    }
+    let (Some(ma), Some(mb)) = (&a.metrics, &b.metrics) else {
+        let _ = writeln!(o, "(no ground-truth metrics in one of the logs)");
+        return o;
+    };
+    let rows: [(&str, f64, f64, &str); 8] = [
+        (
+            "slip deviation (1/T)∫|λ|dt",
+            ma.slip_deviation,
+            mb.slip_deviation,
+            "{:.4}",
+        ),
+        (
+            "mean acceleration (m/s²)",
+            ma.mean_accel,
+            mb.mean_accel,
+            "{:.3}",
+        ),
+        ("max torque (N m)", ma.max_torque, mb.max_torque, "{:.1}"),
+        (
+            "torque effort (N m)",
+            ma.torque_effort,
+            mb.torque_effort,
+            "{:.1}",
+        ),
+        ("distance (m)", ma.distance, mb.distance, "{:.2}"),
+        ("energy ∫Tω dt (J)", ma.energy, mb.energy, "{:.0}"),
+        (
+            "kinetic energy gained (J)",
+            ma.kinetic_energy_gain,
+            mb.kinetic_energy_gain,
+            "{:.0}",
+        ),
+        (
+            "final speed (km/h)",
+            a.speed_kmh.map_or(f64::NAN, |v| v.1),
+            b.speed_kmh.map_or(f64::NAN, |v| v.1),
+            "{:.2}",
+        ),
+    ];
+    for (name, x, y, fmt) in rows {
+        let f = |v: f64| match fmt {
+            "{:.4}" => format!("{v:.4}"),
+            "{:.3}" => format!("{v:.3}"),
+            "{:.2}" => format!("{v:.2}"),
+            "{:.1}" => format!("{v:.1}"),
+            _ => format!("{v:.0}"),
+        };
+        let ratio = if y != 0.0 && x.is_finite() && y.is_finite() {
+            format!("{:.3}x", x / y)
+        } else {
+            "-".to_owned()
+        };
+        let _ = writeln!(o, "{name:<34} {:>12} {:>12} {ratio:>8}", f(x), f(y));
+    }
+    let safe = |s: &Summary| {
+        s.safe_cycles_in_window
+            .map_or("-".to_owned(), |n| n.to_string())
+    };
+    let _ = writeln!(
+        o,
+        "{:<34} {:>12} {:>12}",
+        "safe-state cycles in the scenario",
+        safe(a),
+        safe(b)
+    );
+    let _ = writeln!(
+        o,
+        "vehicle A: {}
+vehicle B: {}",
+        a.vehicle, b.vehicle
+    );
+    for (tag, s) in [("A", a), ("B", b)] {
+        if let Some(p) = &s.preview {
+            let _ = writeln!(
+                o,
+                "preview {tag} (the driven wheel reaching a road that carries less; limit = μ_peak · N · r):"
+            );
+            for e in p {
+                let _ = writeln!(o, "  {}", e.line());
+            }
+        }
+    }
+    o
 }
 
 #[cfg(test)]
@@ -719,8 +968,76 @@ mod tests {
         t.push(truth(5, 5, 0.003, 0, "asphalt"));
         assert_eq!(scenario_start(&t), Some(4));
         assert_eq!(scenario_start(&t[..5]), None);
+        // a pre-roll: x rises from -0.012 m to 0 at the held speeds, then
+        // the scenario moves the car beyond 0
+        let mut p: Vec<GroundTruth> = (0..5)
+            .map(|k| truth(k, k, -0.003 * (4 - k) as f64, 0, "asphalt"))
+            .collect();
+        assert_eq!(p[4].x, 0.0);
+        p.push(truth(5, 5, 0.003, 0, "asphalt"));
+        assert_eq!(scenario_start(&p), Some(4), "the sample at x = 0");
+        assert_eq!(scenario_start(&p[..5]), None, "a pre-roll is no start");
         assert_eq!(truth_at(&t, 2_500_000).map(|g| g.seq), Some(2));
         assert!(truth_at(&t, 0).is_some());
+    }
+
+    /// The wheel reaches snow at 100 ms: the command came down to snow's
+    /// limit 30 ms before (at 0.003 m per ms: 0.09 m ahead) in the first
+    /// log, never in the second; `compare` puts them side by side.
+    #[test]
+    fn preview_reports_how_far_ahead_the_torque_came_down() {
+        let roads = RoadCatalogue::burckhardt(&["asphalt", "snow"]).unwrap();
+        let v = VehicleParams::default();
+        let limit = roads[1].mu_peak() * v.normal_force() * v.r;
+        let make = |capped: bool| {
+            let mut t = Vec::new();
+            let mut c = Vec::new();
+            for k in 0..300u64 {
+                let x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
+                let (r, n) = if k < 110 { (0, "asphalt") } else { (1, "snow") };
+                let mut g = truth(k, k, x, r, n);
+                g.lambda = if k >= 110 && !capped { 0.3 } else { 0.02 };
+                g.torque = 150.0;
+                t.push(g);
+                let mut rec = CycleRecord::zeroed();
+                rec.stamp_ns = k * 1_000_000;
+                rec.torque_cmd = if capped && (80..300).contains(&k) {
+                    limit
+                } else {
+                    300.0
+                };
+                c.push(rec);
+            }
+            DriveLog {
+                truth: t,
+                cycles: c,
+                ..DriveLog::default()
+            }
+        };
+        let s = summarize(&make(true), &v, "test", Some(&roads));
+        let p = s.preview.as_ref().unwrap();
+        assert_eq!(p.len(), 1, "{p:?}");
+        let e = &p[0];
+        assert_eq!((e.from.as_str(), e.to.as_str()), ("asphalt", "snow"));
+        assert!((e.limit - limit).abs() < 1e-9);
+        let (dt, dx) = e.ahead.unwrap();
+        assert!((dt - 0.030).abs() < 1e-9, "{dt}");
+        assert!((dx - 0.090).abs() < 1e-9, "{dx}");
+        assert_eq!(e.cmd_at_arrival, limit);
+        assert!((e.max_slip_after - 0.02).abs() < 1e-12);
+        assert!(
+            s.render()
+                .contains("0.030 s / 0.09 m before the wheel arrived")
+        );
+        let off = summarize(&make(false), &v, "test", Some(&roads));
+        let q = &off.preview.as_ref().unwrap()[0];
+        assert_eq!(q.ahead, None);
+        assert!((q.max_slip_after - 0.3).abs() < 1e-12);
+        let c = compare(&s, &off);
+        assert!(c.contains("A / B"), "{c}");
+        assert!(c.contains("NOT at or below"), "{c}");
+        // snow -> asphalt carries more: no event; no catalogue: no report
+        assert!(summarize(&make(true), &v, "test", None).preview.is_none());
     }
 
     #[test]
@@ -752,7 +1069,7 @@ mod tests {
             ],
             ..DriveLog::default()
         };
-        let s = summarize(&log, &VehicleParams::default());
+        let s = summarize(&log, &VehicleParams::default(), "defaults", None);
         assert_eq!((s.arte.judged, s.arte.correct), (4, 2));
         assert_eq!(s.arte.changes.len(), 1);
         let d = s.arte.changes[0].delay.unwrap();
