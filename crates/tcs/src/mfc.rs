@@ -3,8 +3,16 @@
 //! ```text
 //! ω_M[k+1] = ω_M[k] + dt · T[k] / J_model          (model wheel: 1 / (J_model s))
 //! e[k]     = HPF_τ₂( ω[k] − ω_M[k] )               (τ₂ = tau_hpf, backward Euler)
-//! T*[k]    = clamp( T_d − K_MFC · e[k],  0,  T_d )  for T_d > 0
+//! e_f[k]   = LPF_τf( e[k] )                         (τ_f = tau_noise; 0: e_f = e)
+//! T*[k]    = clamp( T_d − K_MFC · e_f[k],  0,  T_d )  for T_d > 0
 //! ```
+//!
+//! The low-pass on the error is not the paper's: it keeps K_MFC (177 N m
+//! s/rad) from turning wheel-speed noise into a chattering command. It acts
+//! on ω − ω_M, i.e. on the wheel and on the model alike, so the model's own
+//! motion never shows up as a lagged error; what it delays is the slip
+//! itself, by τ_f, which adds to the motor lag τ₁ in the paper's bound (4)
+//! (README.md, "MFC: the noise filter").
 //!
 //! - `T` is the torque the inverter reports (`Measurement::torque`), so model
 //!   and wheel are driven by the same torque as in the paper's eq. (3).
@@ -18,7 +26,7 @@
 //!   the filter keep running so that the next positive demand starts from a
 //!   consistent state.
 
-use crate::filters::HighPass;
+use crate::filters::{HighPass, LowPass};
 use crate::params::{ArteUse, MfcParams};
 use crate::types::{ControlOutput, Controller, Measurement, RoadKnowledge};
 use crate::{limit_to_demand, valid_dt};
@@ -33,6 +41,8 @@ pub struct Mfc {
     j_w: f64,
     share_r2: f64,
     hpf: HighPass,
+    /// `None` with tau_noise = 0 (the paper's MFC, bit for bit).
+    lpf: Option<LowPass>,
     omega_model: f64,
     started: bool,
 }
@@ -58,6 +68,7 @@ impl Mfc {
             j_w: vehicle.j_w,
             share_r2: vehicle.mass_share() * vehicle.r * vehicle.r,
             hpf: HighPass::new(params.tau_hpf, dt),
+            lpf: (params.tau_noise > 0.0).then(|| LowPass::new(params.tau_noise, dt)),
             omega_model: 0.0,
             started: false,
         })
@@ -83,6 +94,10 @@ impl Controller for Mfc {
             self.started = true;
         }
         let e = self.hpf.step(m.omega - self.omega_model);
+        let e = match self.lpf.as_mut() {
+            Some(f) => f.step(e),
+            None => e,
+        };
         let candidate = m.demand - self.params.k_mfc * e;
         let torque_cmd = limit_to_demand(candidate, m.demand);
         let out = ControlOutput {
@@ -105,6 +120,9 @@ impl Controller for Mfc {
 
     fn reset(&mut self) {
         self.hpf.reset();
+        if let Some(f) = self.lpf.as_mut() {
+            f.reset();
+        }
         self.omega_model = 0.0;
         self.started = false;
     }
@@ -159,6 +177,7 @@ mod tests {
         let p = MfcParams {
             k_mfc: 2.5,
             tau_hpf: 1.0,
+            tau_noise: 0.0,
         };
         let mut c = Mfc::new(p, ArteUse::default(), &v, dt).unwrap();
         let mut omega = 10.0;
