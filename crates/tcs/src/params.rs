@@ -64,7 +64,7 @@ impl Default for MfcParams {
         Self {
             k_mfc: 177.0,
             tau_hpf: 1.0,
-            tau_noise: 0.005,
+            tau_noise: 0.004,
         }
     }
 }

@@ -16,6 +16,8 @@ static A: grip_testkit::CountingAlloc = grip_testkit::CountingAlloc;
 #[test]
 fn steps_allocate_nothing() {
     let cfg = ControllersConfig::default();
+    // The MFC runs with its noise low-pass (its state is part of the proof).
+    assert!(cfg.mfc.tau_noise > 0.0);
     let v = VehicleParams::default();
     let road = RoadKnowledge {
         lambda_opt: 0.17,
