@@ -65,6 +65,15 @@ mod tests {
         let e = parse_controllers(f, &bad).unwrap_err();
         assert!(e.reason.contains("missing field `kp`"), "{e}");
 
+        let bad = text.replace("tau_noise = 0.004", "tau_noise = 0.5");
+        let e = parse_controllers(f, &bad).unwrap_err();
+        assert_eq!(e.field, "mfc.tau_noise", "{e}");
+        assert!(e.reason.contains("[0, 0.1]"), "{e}");
+
+        let bad = text.replace("tau_noise = 0.004\n", "");
+        let e = parse_controllers(f, &bad).unwrap_err();
+        assert!(e.reason.contains("missing field `tau_noise`"), "{e}");
+
         let bad = text.replace("rate_hz = 1000.0", "rate_hz = nan");
         let e = parse_controllers(f, &bad).unwrap_err();
         assert_eq!(e.field, "loop.rate_hz", "{e}");

@@ -88,6 +88,37 @@ pub const COLUMNS: [Column; 9] = [
     },
 ];
 
+/// The torque command's smoothness (`grip_tcs::metrics`): in the table
+/// after [`COLUMNS`], in `summary.csv` appended after every older column.
+pub const COMMAND_COLUMNS: [Column; 3] = [
+    Column {
+        key: "cmd_tv_per_s",
+        label: "cmd TV",
+        unit: "N m/s",
+        decimals: 0,
+        get: |r| r.metrics.cmd_tv_per_s,
+    },
+    Column {
+        key: "cmd_hf_rms",
+        label: "cmd >20 Hz",
+        unit: "N m",
+        decimals: 2,
+        get: |r| r.metrics.cmd_hf_rms,
+    },
+    Column {
+        key: "cmd_hf_share",
+        label: ">20 Hz share",
+        unit: "",
+        decimals: 3,
+        get: |r| r.metrics.cmd_hf_share,
+    },
+];
+
+/// [`COLUMNS`] then [`COMMAND_COLUMNS`]: what [`VariantSummary::stats`] holds.
+pub fn all_columns() -> impl Iterator<Item = &'static Column> {
+    COLUMNS.iter().chain(COMMAND_COLUMNS.iter())
+}
+
 /// Mean and sample standard deviation (n − 1) of the finite values.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Stat {
@@ -128,7 +159,8 @@ pub struct VariantSummary {
     pub variant: Variant,
     /// Number of runs (seeds).
     pub runs: usize,
-    /// One [`Stat`] per entry of [`COLUMNS`].
+    /// One [`Stat`] per entry of [`all_columns`] ([`COLUMNS`], then
+    /// [`COMMAND_COLUMNS`]).
     pub stats: Vec<Stat>,
     /// Fraction of cycles in which the controller used ARTE, mean over runs.
     pub arte_usage: f64,
@@ -139,8 +171,7 @@ pub struct VariantSummary {
 impl VariantSummary {
     /// The statistics of column `key`.
     pub fn stat(&self, key: &str) -> Option<Stat> {
-        COLUMNS
-            .iter()
+        all_columns()
             .position(|c| c.key == key)
             .and_then(|i| self.stats.get(i).copied())
     }
@@ -162,8 +193,7 @@ pub fn summarize(results: &[RunResult]) -> Vec<VariantSummary> {
             VariantSummary {
                 variant: v,
                 runs: runs.len(),
-                stats: COLUMNS
-                    .iter()
+                stats: all_columns()
                     .map(|c| Stat::of(runs.iter().map(|r| (c.get)(r))))
                     .collect(),
                 arte_usage: Stat::of(runs.iter().map(|r| r.arte.usage())).mean,
@@ -206,7 +236,7 @@ fn pad(s: &str, w: usize) -> String {
 /// The main table: one row per variant, mean ± std over seeds for every column.
 pub fn format_table(summaries: &[VariantSummary]) -> String {
     let mut heads: Vec<String> = vec!["variant".into()];
-    heads.extend(COLUMNS.iter().map(|c| {
+    heads.extend(all_columns().map(|c| {
         if c.unit.is_empty() {
             c.label.to_owned()
         } else {
@@ -217,7 +247,7 @@ pub fn format_table(summaries: &[VariantSummary]) -> String {
     let mut rows: Vec<Vec<String>> = Vec::new();
     for s in summaries {
         let mut row = vec![s.variant.label().to_owned()];
-        for (c, st) in COLUMNS.iter().zip(&s.stats) {
+        for (c, st) in all_columns().zip(&s.stats) {
             row.push(fmt_stat(*st, c.decimals));
         }
         row.push(if s.variant.arte {
@@ -232,16 +262,20 @@ pub fn format_table(summaries: &[VariantSummary]) -> String {
 
 /// Relative change of each ARTE variant's means against its baseline.
 pub fn format_relative(summaries: &[VariantSummary]) -> String {
-    let cols = &COLUMNS[..7];
+    // the first seven columns and the command's total variation
+    let cols: Vec<(usize, &Column)> = all_columns()
+        .enumerate()
+        .filter(|(i, _)| *i < 7 || *i == COLUMNS.len())
+        .collect();
     let mut heads: Vec<String> = vec!["ARTE vs base".into()];
-    heads.extend(cols.iter().map(|c| c.label.to_owned()));
+    heads.extend(cols.iter().map(|(_, c)| c.label.to_owned()));
     let mut rows = Vec::new();
     for s in summaries.iter().filter(|s| s.variant.arte) {
         let Some(base) = summaries.iter().find(|b| b.variant == s.variant.baseline()) else {
             continue;
         };
         let mut row = vec![format!("{} / {}", s.variant.label(), base.variant.label())];
-        for (i, _) in cols.iter().enumerate() {
+        for &(i, _) in &cols {
             let r = relative_change(s.stats[i], base.stats[i]);
             row.push(if r.is_finite() {
                 format!("{r:+.1} %")
@@ -368,11 +402,16 @@ pub fn summary_header() -> String {
         h.push_str(c.key);
     }
     h.push_str(",arte_usage,arte_frames,duration,samples,rejected,non_finite_cycles");
+    for c in COMMAND_COLUMNS {
+        h.push(',');
+        h.push_str(c.key);
+    }
     h
 }
 
 /// `summary.csv`: one row per run (variant, seed), every column of
-/// [`COLUMNS`] plus ARTE usage and health counters. Floats in shortest
+/// [`COLUMNS`] plus ARTE usage and health counters, then (appended later,
+/// so that older readers keep their column positions) [`COMMAND_COLUMNS`]. Floats in shortest
 /// round-trip form; NaN as an empty field.
 pub fn write_summary_csv<W: Write>(w: &mut W, results: &[RunResult]) -> io::Result<()> {
     writeln!(w, "{}", summary_header())?;
@@ -386,7 +425,7 @@ pub fn write_summary_csv<W: Write>(w: &mut W, results: &[RunResult]) -> io::Resu
                 write!(w, ",{x}")?;
             }
         }
-        writeln!(
+        write!(
             w,
             ",{},{},{},{},{},{}",
             r.arte.usage(),
@@ -396,6 +435,15 @@ pub fn write_summary_csv<W: Write>(w: &mut W, results: &[RunResult]) -> io::Resu
             r.metrics.rejected,
             r.non_finite_cycles
         )?;
+        for c in COMMAND_COLUMNS {
+            let x = (c.get)(r);
+            if x.is_nan() {
+                write!(w, ",")?;
+            } else {
+                write!(w, ",{x}")?;
+            }
+        }
+        writeln!(w)?;
     }
     Ok(())
 }

@@ -246,6 +246,7 @@ impl<'a> Sim<'a> {
             torque: s.torque,
             omega: s.omega,
             v: s.v,
+            torque_cmd: out.torque_cmd,
         });
         if out.used_arte {
             self.arte.used_cycles += 1;

@@ -62,6 +62,13 @@ fn csv_headers_have_the_required_columns() {
     ] {
         assert!(cols.contains(&need), "summary.csv lacks `{need}`: {h}");
     }
+    // The older columns keep their positions; the command's come last.
+    assert_eq!(
+        h,
+        "variant,seed,slip_deviation,max_torque,torque_effort,mean_accel,distance,energy,\
+         kinetic_energy_gain,final_speed_kmh,arte_accuracy,arte_usage,arte_frames,duration,\
+         samples,rejected,non_finite_cycles,cmd_tv_per_s,cmd_hf_rms,cmd_hf_share"
+    );
     let results = batch(&[3], 1);
     let text = csv(&results);
     assert_eq!(text.lines().next(), Some(h.as_str()));

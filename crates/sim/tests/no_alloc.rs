@@ -2,7 +2,8 @@
 //! per-cycle loop of every variant, with the trace recorded (it is
 //! preallocated to the run length) and the confusion-matrix ARTE in the loop;
 //! with the paper's placement (fusion only) and with the front-arch
-//! microphone (the preview queue, the road belief and the torque cap).
+//! microphone (the preview queue, the road belief and the torque cap); the
+//! MFC with its noise low-pass and the metrics with the command's figures.
 
 mod common;
 
@@ -18,6 +19,8 @@ fn allocs() -> u64 {
 #[test]
 fn the_cycle_allocates_nothing() {
     let (setup, est) = common::reference();
+    // The shipped MFC runs with its noise low-pass: its state is in the proof.
+    assert!(setup.controllers().mfc.tau_noise > 0.0);
     let dir = grip_config::ConfigDir::new(common::config_dir());
     let (vehicle, sensors) =
         grip_config::load_vehicle(common::config_dir().join("vehicles/front-mic.toml")).unwrap();

@@ -51,6 +51,7 @@ fn bench_controllers(c: &mut Criterion) {
                 torque: 200.0,
                 omega: 12.0,
                 v: 3.2,
+                torque_cmd: 199.0,
             }));
         })
     });

@@ -17,6 +17,18 @@
 //! | `energy` | Σ T ω dt (J; motor output energy at the driven wheel, negative while regenerating) |
 //! | `kinetic_energy_gain` | ½ (M/n)(V_last² − V_first²) + ½ J_w (ω_last² − ω_first²) (J; one wheel's share, like `energy`) |
 //! | `duration` | T_run |
+//! | `cmd_tv_per_s` | Σ \|T*_k − T*_(k−1)\| / T_cmd: the command's total variation per second (N m/s) |
+//! | `cmd_hf_rms` | √((1/T_cmd) Σ y² dt), y = T* through a 4th-order Butterworth high-pass at 20 Hz (N m) |
+//! | `cmd_hf_share` | (1/T_cmd) Σ y² dt over the command's variance: the share of its (mean-free) power above 20 Hz |
+//!
+//! `T*` is the torque *command* (`Sample::torque_cmd`, what the controller
+//! sends the inverter), T_cmd the summed `dt` of the samples that carry a
+//! finite command (a sample without one, NaN, leaves the command's figures
+//! alone and is not rejected). The high-pass is designed for each sample's
+//! `dt` (bilinear transform, cut-off pre-warped), starts at rest on the
+//! first command (a constant command gives exactly 0), and needs about
+//! 50 ms to forget a step; a constant command has no variance and a share
+//! of 0.
 //!
 //! `T` is the torque actually acting on the wheel (the plant's motor torque
 //! after its lag, or the inverter's reported torque live), not the command.
@@ -43,6 +55,9 @@ pub struct Sample {
     pub omega: f64,
     /// Vehicle speed V, m/s.
     pub v: f64,
+    /// Torque command T* the controller sent this cycle, N m (NaN: unknown;
+    /// only the command's figures skip it).
+    pub torque_cmd: f64,
 }
 
 /// The result of a run.
@@ -64,6 +79,12 @@ pub struct Metrics {
     pub kinetic_energy_gain: f64,
     /// T_run, s.
     pub duration: f64,
+    /// Total variation of the command per second, Σ |ΔT*| / T_cmd, N m/s.
+    pub cmd_tv_per_s: f64,
+    /// RMS of the command above 20 Hz (4th-order Butterworth high-pass), N m.
+    pub cmd_hf_rms: f64,
+    /// Share of the command's mean-free power above 20 Hz, [0, 1].
+    pub cmd_hf_share: f64,
     /// Number of samples accumulated.
     pub samples: u64,
     /// Number of samples ignored (non-finite values or dt <= 0).
@@ -85,6 +106,110 @@ pub struct MetricsAccumulator {
     last: Sample,
     samples: u64,
     rejected: u64,
+    cmd: CommandStats,
+}
+
+/// Cut-off of the command's high-frequency figures, Hz.
+pub const CMD_HF_CUTOFF_HZ: f64 = 20.0;
+
+/// One biquad section, transposed direct form II.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct Biquad {
+    b: [f64; 3],
+    a: [f64; 2],
+    s1: f64,
+    s2: f64,
+}
+
+impl Biquad {
+    fn step(&mut self, x: f64) -> f64 {
+        let y = self.b[0] * x + self.s1;
+        self.s1 = self.b[1] * x - self.a[0] * y + self.s2;
+        self.s2 = self.b[2] * x - self.a[1] * y;
+        y
+    }
+    /// At rest on a constant input `x` (a high-pass: output 0).
+    fn rest_on(&mut self, x: f64) {
+        self.s1 = -self.b[0] * x;
+        self.s2 = self.b[2] * x;
+    }
+}
+
+/// The command's smoothness figures: total variation, and a 4th-order
+/// Butterworth high-pass at [`CMD_HF_CUTOFF_HZ`] (two biquads, Q = 1/(2
+/// cos(π/8)) and 1/(2 cos(3π/8))), with a weighted running mean and
+/// variance (West's update) for the share. Allocation-free.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct CommandStats {
+    design_dt: f64,
+    hp: [Biquad; 2],
+    prev: Option<f64>,
+    duration: f64,
+    tv: f64,
+    int_hf2: f64,
+    mean: f64,
+    m2: f64,
+}
+
+impl CommandStats {
+    fn design(&mut self, dt: f64) {
+        // Bilinear transform of s² / (s² + (w/Q) s + w²) with w pre-warped.
+        let k = (std::f64::consts::PI * CMD_HF_CUTOFF_HZ * dt).tan();
+        for (sec, q) in self.hp.iter_mut().zip([
+            0.5 / (std::f64::consts::PI / 8.0).cos(),
+            0.5 / (3.0 * std::f64::consts::PI / 8.0).cos(),
+        ]) {
+            let n = 1.0 / (1.0 + k / q + k * k);
+            sec.b = [n, -2.0 * n, n];
+            sec.a = [2.0 * (k * k - 1.0) * n, (1.0 - k / q + k * k) * n];
+        }
+        self.design_dt = dt;
+    }
+
+    fn push(&mut self, dt: f64, x: f64) {
+        if !x.is_finite() {
+            return;
+        }
+        if dt != self.design_dt {
+            // Coefficients for this cycle's length; the state carries over.
+            self.design(dt);
+        }
+        let y = match self.prev {
+            None => {
+                self.hp[0].rest_on(x);
+                self.hp[1].rest_on(0.0);
+                0.0
+            }
+            Some(p) => {
+                self.tv += (x - p).abs();
+                let y = self.hp[0].step(x);
+                self.hp[1].step(y)
+            }
+        };
+        self.prev = Some(x);
+        self.int_hf2 += y * y * dt;
+        // Weighted mean and variance (weights dt), West 1979.
+        self.duration += dt;
+        let d = x - self.mean;
+        self.mean += d * dt / self.duration;
+        self.m2 += dt * d * (x - self.mean);
+    }
+
+    /// (TV per second, HF RMS, HF share); zeros without a command.
+    fn finish(&self) -> (f64, f64, f64) {
+        if self.duration <= 0.0 {
+            return (0.0, 0.0, 0.0);
+        }
+        let t = self.duration;
+        let hf_ms = self.int_hf2 / t;
+        let var = self.m2 / t;
+        let share = if var > 0.0 {
+            (hf_ms / var).min(1.0)
+        } else {
+            0.0
+        };
+        (self.tv / t, hf_ms.sqrt(), share)
+    }
 }
 
 impl MetricsAccumulator {
@@ -104,6 +229,7 @@ impl MetricsAccumulator {
             last: Sample::default(),
             samples: 0,
             rejected: 0,
+            cmd: CommandStats::default(),
         }
     }
 
@@ -130,6 +256,7 @@ impl MetricsAccumulator {
         self.max_torque = self.max_torque.max(s.torque.abs());
         self.distance += s.v * s.dt;
         self.energy += s.torque * s.omega * s.dt;
+        self.cmd.push(s.dt, s.torque_cmd);
     }
 
     /// The metrics so far (the accumulator can keep going afterwards).
@@ -149,6 +276,7 @@ impl MetricsAccumulator {
         } else {
             0.0
         };
+        let (cmd_tv_per_s, cmd_hf_rms, cmd_hf_share) = self.cmd.finish();
         let kinetic_energy_gain = 0.5 * self.mass_share * (last.v * last.v - first.v * first.v)
             + 0.5 * self.j_w * (last.omega * last.omega - first.omega * first.omega);
         Metrics {
@@ -160,6 +288,9 @@ impl MetricsAccumulator {
             energy: self.energy,
             kinetic_energy_gain,
             duration: t,
+            cmd_tv_per_s,
+            cmd_hf_rms,
+            cmd_hf_share,
             samples: self.samples,
             rejected: self.rejected,
         }
@@ -185,6 +316,7 @@ mod tests {
                 torque: 100.0,
                 omega: 10.0,
                 v: 2.0,
+                torque_cmd: 0.0,
             },
             Sample {
                 dt: 0.1,
@@ -192,6 +324,7 @@ mod tests {
                 torque: -50.0,
                 omega: 11.0,
                 v: 3.0,
+                torque_cmd: 0.0,
             },
             Sample {
                 dt: 0.2,
@@ -199,6 +332,7 @@ mod tests {
                 torque: 200.0,
                 omega: 12.0,
                 v: 4.0,
+                torque_cmd: 0.0,
             },
         ];
         for x in &s {
@@ -235,6 +369,7 @@ mod tests {
                 torque: 20.0,
                 omega: 10.0,
                 v: 2.8,
+                torque_cmd: 0.0,
             });
         }
         let m = acc.finish();
@@ -270,10 +405,94 @@ mod tests {
             torque: 10.0,
             omega: 1.0,
             v: 1.0,
+            torque_cmd: 0.0,
         });
         let m = acc.finish();
         assert!(close(m.slip_deviation, 0.2));
         // One sample: no span for an acceleration.
         assert_eq!(m.mean_accel, 0.0);
+    }
+
+    fn command_run(dt: f64, n: usize, cmd: impl Fn(usize) -> f64) -> Metrics {
+        let v = VehicleParams::default();
+        let mut acc = MetricsAccumulator::new(&v);
+        for k in 0..n {
+            acc.push(&Sample {
+                dt,
+                torque: 100.0,
+                omega: 10.0,
+                v: 2.8,
+                torque_cmd: cmd(k),
+                ..Sample::default()
+            });
+        }
+        acc.finish()
+    }
+
+    #[test]
+    fn square_wave_command() {
+        // 0/100 N m at 10 Hz for 10 s at 1 kHz: 199 edges of 100 N m.
+        let m = command_run(
+            1e-3,
+            10_000,
+            |k| if (k / 50) % 2 == 0 { 100.0 } else { 0.0 },
+        );
+        assert!(close(m.cmd_tv_per_s, 1990.0), "{}", m.cmd_tv_per_s);
+        // A square wave's power in its odd harmonics n is 8/(π² n²) of the
+        // mean-free power: all but the fundamental (10 Hz) lie above 20 Hz,
+        // 1 − 8/π² = 0.189 (the Butterworth edge moves it by < 0.005).
+        let hand = 1.0 - 8.0 / std::f64::consts::PI.powi(2);
+        assert!((m.cmd_hf_share - hand).abs() < 0.005, "{}", m.cmd_hf_share);
+        // mean-free RMS 50 N m
+        assert!(
+            (m.cmd_hf_rms - 50.0 * hand.sqrt()).abs() < 0.5,
+            "{}",
+            m.cmd_hf_rms
+        );
+    }
+
+    #[test]
+    fn a_50_hz_sine_is_high_frequency_a_slow_ramp_is_not() {
+        // 200 ± 10 N m at 50 Hz, 2 s: TV = 4 A per period (20 samples a
+        // period, the peaks on samples), 100 periods less the last step
+        // (A sin(2π/20)) not taken: (4000 − 3.09) / 2 s = 1998.45 N m/s;
+        // all of its power above 20 Hz.
+        let sine = command_run(1e-3, 2000, |k| {
+            200.0 + 10.0 * (2.0 * std::f64::consts::PI * 50.0 * k as f64 * 1e-3).sin()
+        });
+        let hand = (4000.0 - 10.0 * (std::f64::consts::PI / 10.0).sin()) / 2.0;
+        assert!(close(sine.cmd_tv_per_s, hand), "{}", sine.cmd_tv_per_s);
+        assert!(sine.cmd_hf_share > 0.99, "{}", sine.cmd_hf_share);
+        // RMS 10/√2 = 7.07 N m
+        assert!((sine.cmd_hf_rms - 7.071).abs() < 0.1, "{}", sine.cmd_hf_rms);
+        // 0 → 300 N m in 3 s: TV 299.9 N m over 3 s, nothing above 20 Hz
+        // but the high-pass's start-up transient.
+        let ramp = command_run(1e-3, 3000, |k| 100.0 * k as f64 * 1e-3);
+        assert!(
+            close(ramp.cmd_tv_per_s, 299.9 / 3.0),
+            "{}",
+            ramp.cmd_tv_per_s
+        );
+        assert!(ramp.cmd_hf_share < 1e-4, "{}", ramp.cmd_hf_share);
+        assert!(ramp.cmd_hf_rms < 0.5, "{}", ramp.cmd_hf_rms);
+    }
+
+    #[test]
+    fn constant_or_missing_command() {
+        let m = command_run(1e-3, 1000, |_| 250.0);
+        assert_eq!(
+            (m.cmd_tv_per_s, m.cmd_hf_rms, m.cmd_hf_share),
+            (0.0, 0.0, 0.0)
+        );
+        // Samples without a command are skipped by the command's figures
+        // only: the rest of the metrics take them.
+        let m = command_run(1e-3, 1000, |k| if k % 2 == 0 { 100.0 } else { f64::NAN });
+        assert_eq!(m.samples, 1000);
+        assert_eq!(m.rejected, 0);
+        assert_eq!(m.cmd_tv_per_s, 0.0);
+        // 0 → 10 → 0 ... every cycle: 999 changes of 10 N m in 1 s.
+        let m = command_run(1e-3, 1000, |k| if k % 2 == 0 { 0.0 } else { 10.0 });
+        assert!(close(m.cmd_tv_per_s, 9990.0), "{}", m.cmd_tv_per_s);
+        assert!(m.cmd_hf_share > 0.99, "{}", m.cmd_hf_share);
     }
 }

@@ -3,8 +3,16 @@
 //! ```text
 //! ω_M[k+1] = ω_M[k] + dt · T[k] / J_model          (model wheel: 1 / (J_model s))
 //! e[k]     = HPF_τ₂( ω[k] − ω_M[k] )               (τ₂ = tau_hpf, backward Euler)
-//! T*[k]    = clamp( T_d − K_MFC · e[k],  0,  T_d )  for T_d > 0
+//! e_f[k]   = LPF_τf( e[k] )                         (τ_f = tau_noise; 0: e_f = e)
+//! T*[k]    = clamp( T_d − K_MFC · e_f[k],  0,  T_d )  for T_d > 0
 //! ```
+//!
+//! The low-pass on the error is not the paper's: it keeps K_MFC (177 N m
+//! s/rad) from turning wheel-speed noise into a chattering command. It acts
+//! on ω − ω_M, i.e. on the wheel and on the model alike, so the model's own
+//! motion never shows up as a lagged error; what it delays is the slip
+//! itself, by τ_f, which adds to the motor lag τ₁ in the paper's bound (4)
+//! (README.md, "MFC: the noise filter").
 //!
 //! - `T` is the torque the inverter reports (`Measurement::torque`), so model
 //!   and wheel are driven by the same torque as in the paper's eq. (3).
@@ -18,7 +26,7 @@
 //!   the filter keep running so that the next positive demand starts from a
 //!   consistent state.
 
-use crate::filters::HighPass;
+use crate::filters::{HighPass, LowPass};
 use crate::params::{ArteUse, MfcParams};
 use crate::types::{ControlOutput, Controller, Measurement, RoadKnowledge};
 use crate::{limit_to_demand, valid_dt};
@@ -33,6 +41,8 @@ pub struct Mfc {
     j_w: f64,
     share_r2: f64,
     hpf: HighPass,
+    /// `None` with tau_noise = 0 (the paper's MFC, bit for bit).
+    lpf: Option<LowPass>,
     omega_model: f64,
     started: bool,
 }
@@ -58,6 +68,7 @@ impl Mfc {
             j_w: vehicle.j_w,
             share_r2: vehicle.mass_share() * vehicle.r * vehicle.r,
             hpf: HighPass::new(params.tau_hpf, dt),
+            lpf: (params.tau_noise > 0.0).then(|| LowPass::new(params.tau_noise, dt)),
             omega_model: 0.0,
             started: false,
         })
@@ -83,6 +94,10 @@ impl Controller for Mfc {
             self.started = true;
         }
         let e = self.hpf.step(m.omega - self.omega_model);
+        let e = match self.lpf.as_mut() {
+            Some(f) => f.step(e),
+            None => e,
+        };
         let candidate = m.demand - self.params.k_mfc * e;
         let torque_cmd = limit_to_demand(candidate, m.demand);
         let out = ControlOutput {
@@ -105,6 +120,9 @@ impl Controller for Mfc {
 
     fn reset(&mut self) {
         self.hpf.reset();
+        if let Some(f) = self.lpf.as_mut() {
+            f.reset();
+        }
         self.omega_model = 0.0;
         self.started = false;
     }
@@ -159,6 +177,7 @@ mod tests {
         let p = MfcParams {
             k_mfc: 2.5,
             tau_hpf: 1.0,
+            tau_noise: 0.0,
         };
         let mut c = Mfc::new(p, ArteUse::default(), &v, dt).unwrap();
         let mut omega = 10.0;
@@ -186,5 +205,76 @@ mod tests {
         let out = c.step(&meas(0.0, 100.0, 100.0), Some(&k));
         let expected = dt * 100.0 / (v.j_w + v.mass_share() * v.r * v.r * 0.8);
         assert!((out.internal - expected).abs() < 1e-12);
+    }
+
+    /// Uniform noise in [-a, a] from a fixed xorshift stream (σ = a/√3).
+    fn noise(state: &mut u64, a: f64) -> f64 {
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        a * (2.0 * (*state >> 11) as f64 / (1u64 << 53) as f64 - 1.0)
+    }
+
+    fn p(tau_noise: f64) -> MfcParams {
+        MfcParams {
+            tau_noise,
+            ..MfcParams::default()
+        }
+    }
+
+    #[test]
+    fn the_noise_filter_cuts_the_chatter_of_a_gripping_wheel() {
+        // A wheel that follows the model, measured with σ = 0.05 rad/s of
+        // white noise (the shipped sensor's): the command's total variation
+        // over 2 s with and without the 4 ms low-pass on the error.
+        let v = VehicleParams::default();
+        let dt = 1e-3;
+        let tv = |tau_noise: f64| {
+            let mut c = Mfc::new(p(tau_noise), ArteUse::default(), &v, dt).unwrap();
+            let mut s = 0x9E37_79B9_7F4A_7C15u64;
+            let (mut omega, mut prev, mut tv) = (10.0, 300.0, 0.0);
+            for _ in 0..2000 {
+                let a = 0.05 * 3f64.sqrt();
+                let cmd = c
+                    .step(&meas(omega + noise(&mut s, a), 300.0, 300.0), None)
+                    .torque_cmd;
+                tv += (cmd - prev).abs();
+                prev = cmd;
+                omega += dt * 300.0 / v.j_model();
+            }
+            tv / 2.0
+        };
+        let (raw, filtered) = (tv(0.0), tv(0.004));
+        // Unfiltered: K σ = 8.9 N m of jitter, about half of it clipped at
+        // T_d: about 3 kN m/s. The 4 ms filter passes a fifth of each
+        // sample's noise and averages the rest away.
+        assert!(raw > 2000.0, "{raw}");
+        // (2890 -> 190 N m/s here)
+        assert!(filtered < raw / 10.0, "{raw} -> {filtered}");
+    }
+
+    #[test]
+    fn the_noise_filter_delays_a_slip_cut_by_about_its_time_constant() {
+        // A wheel that starts to spin at 0.1 s: the cycle at which the
+        // command falls below half the demand, with and without the filter.
+        let v = VehicleParams::default();
+        let dt = 1e-3;
+        let cut_at = |tau_noise: f64| {
+            let mut c = Mfc::new(p(tau_noise), ArteUse::default(), &v, dt).unwrap();
+            let mut omega = 10.0;
+            for k in 0..400 {
+                let cmd = c.step(&meas(omega, 300.0, 300.0), None).torque_cmd;
+                if cmd < 150.0 {
+                    return k;
+                }
+                let j = if k < 100 { v.j_model() } else { v.j_w };
+                omega += dt * 300.0 / j;
+            }
+            usize::MAX
+        };
+        let (raw, filtered) = (cut_at(0.0), cut_at(0.004));
+        // 102 -> 105 cycles: 3 ms later with τ_f = 4 ms
+        assert!((100..110).contains(&raw), "{raw}");
+        assert!(filtered > raw && filtered <= raw + 4, "{raw} -> {filtered}");
     }
 }

@@ -52,6 +52,11 @@ pub struct MfcParams {
     pub k_mfc: f64,
     /// High-pass time constant τ₂ (`tau_hpf`), s.
     pub tau_hpf: f64,
+    /// Time constant τ_f of the first-order low-pass on the high-passed
+    /// speed error before the gain (`tau_noise`), s; 0: none (the paper's
+    /// MFC). Not in the paper: it keeps K_MFC from turning wheel-speed noise
+    /// into a chattering command (README.md, "MFC: the noise filter").
+    pub tau_noise: f64,
 }
 
 impl Default for MfcParams {
@@ -59,15 +64,18 @@ impl Default for MfcParams {
         Self {
             k_mfc: 177.0,
             tau_hpf: 1.0,
+            tau_noise: 0.004,
         }
     }
 }
 
 impl MfcParams {
-    /// k_mfc >= 0, tau_hpf > 0.
+    /// k_mfc >= 0, tau_hpf > 0, 0 <= tau_noise <= 0.1 s (a longer filter
+    /// would be slower than the motor lag it must stay well inside).
     pub fn validate(&self) -> Result<(), InvalidField> {
         non_negative("k_mfc", self.k_mfc)?;
         positive("tau_hpf", self.tau_hpf)?;
+        in_range("tau_noise", self.tau_noise, 0.0, 0.1)?;
         Ok(())
     }
 }
@@ -321,6 +329,13 @@ mod tests {
         let mut c = ControllersConfig::default();
         c.mfc.tau_hpf = f64::NAN;
         assert_eq!(c.validate().unwrap_err().field, "mfc.tau_hpf");
+        for bad in [-1e-3, 0.2, f64::NAN, f64::INFINITY] {
+            let mut c = ControllersConfig::default();
+            c.mfc.tau_noise = bad;
+            let e = c.validate().unwrap_err();
+            assert_eq!(e.field, "mfc.tau_noise", "{bad}");
+            assert!(e.reason.contains("[0, 0.1]"), "{}", e.reason);
+        }
         let mut c = ControllersConfig::default();
         c.src.lambda_max = 0.01;
         assert_eq!(c.validate().unwrap_err().field, "src.lambda_max");

@@ -4,7 +4,8 @@
 //! with safe state and recovery — for each controller, with and without
 //! the road knowledge of `grip sim`'s "with ARTE" path (`RoadAware`: the
 //! preview queue fed with estimates of changing roads, some with arte's
-//! odometer stamps and some without, the belief, the torque cap).
+//! odometer stamps and some without, the belief, the torque cap), the MFC
+//! with its noise low-pass on the speed error.
 //!
 //! The ports here are in-memory doubles. With the real iceoryx2 ports each
 //! *publish* allocates one 48-byte Arc inside iceoryx2 0.10 (pinned by
@@ -145,6 +146,8 @@ fn cycle_allocates_nothing_after_warm_up() {
     let table = dir.road_table(&roads).unwrap();
     let (front_mic, _) = grip_config::load_vehicle(dir.file("vehicles/front-mic.toml")).unwrap();
     let controllers = ControllersConfig::default();
+    // The MFC runs with its noise low-pass (its state is part of the proof).
+    assert!(controllers.mfc.tau_noise > 0.0);
     for (kind, aware) in ControllerKind::ALL
         .into_iter()
         .flat_map(|k| [(k, false), (k, true)])

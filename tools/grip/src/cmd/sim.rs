@@ -309,7 +309,9 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     out.push_str(&format!(
         "\nScenario `{}`: {}\n{} seeds ({}..={}), mean ± std over seeds; ARTE source: {}.\n\
          slip dev. = (1/T) ∫|λ| dt; max torque = max |T|; effort = (1/T) ∫|T| dt (the paper's \"normalised area\", N m);\n\
-         mean accel = ΔV / T; ∫Tω dt = motor energy at the wheel; ΔKE = kinetic energy gained (one wheel's share, M/n).\n\n",
+         mean accel = ΔV / T; ∫Tω dt = motor energy at the wheel; ΔKE = kinetic energy gained (one wheel's share, M/n);\n\
+         cmd TV = Σ|ΔT*| / T, the torque command's total variation per second; cmd >20 Hz = RMS of the command through a\n\
+         4th-order Butterworth high-pass at 20 Hz; >20 Hz share = that power over the command's variance.\n\n",
         sc.name,
         description,
         seeds.len(),

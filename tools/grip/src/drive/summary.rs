@@ -496,10 +496,20 @@ pub fn summarize(
         let end_ns = scenario_duration(log).map_or(u64::MAX, |d| start_ns + (d * 1e9) as u64);
         let mut acc = MetricsAccumulator::new(vehicle);
         let mut last_in = i0;
+        // The command in force at each truth sample: the latest cycle
+        // record stamped at or before it (NaN before the first).
+        let mut next_cycle = 0usize;
+        let mut cmd = f64::NAN;
         for k in i0..log.truth.len() {
             let g = &log.truth[k];
             if g.stamp_ns >= end_ns {
                 break;
+            }
+            while let Some(c) = log.cycles.get(next_cycle)
+                && c.stamp_ns <= g.stamp_ns
+            {
+                cmd = c.torque_cmd;
+                next_cycle += 1;
             }
             let next = log
                 .truth
@@ -512,6 +522,7 @@ pub fn summarize(
                 torque: g.torque,
                 omega: g.omega,
                 v: g.v,
+                torque_cmd: cmd,
             });
             last_in = k;
         }
@@ -728,6 +739,16 @@ impl Summary {
                 o,
                 "  mean acceleration               {:.3} m/s²",
                 m.mean_accel
+            );
+            let _ = writeln!(
+                o,
+                "  command total variation Σ|ΔT*|/T {:.0} N m/s",
+                m.cmd_tv_per_s
+            );
+            let _ = writeln!(
+                o,
+                "  command above 20 Hz (RMS, share) {:.2} N m, {:.3} of its variance",
+                m.cmd_hf_rms, m.cmd_hf_share
             );
             let _ = writeln!(o, "  distance                        {:.2} m", m.distance);
             let _ = writeln!(o, "  energy ∫Tω dt                   {:.1} J", m.energy);
@@ -1076,5 +1097,43 @@ mod tests {
         assert!((d - 0.050).abs() < 1e-6, "{d}");
         let m = s.metrics.unwrap();
         assert_eq!(m.samples, 201, "window starts at the last held sample");
+        // no cycle records: no command figures
+        assert_eq!(m.cmd_tv_per_s, 0.0);
+    }
+
+    #[test]
+    fn the_command_in_force_at_each_truth_sample() {
+        // held 10 ms, then 200 ms moving; the loop commands 100 N m and
+        // 0 N m alternately every 10 ms (cycle records every 2 ms).
+        let mut t = Vec::new();
+        for k in 0..210u64 {
+            let x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
+            t.push(truth(k, k, x, 0, "asphalt"));
+        }
+        let cycles = (0..105u64)
+            .map(|i| {
+                let mut c = CycleRecord::zeroed();
+                c.seq = i;
+                c.stamp_ns = 2 * i * 1_000_000;
+                c.torque_cmd = if (2 * i / 10) % 2 == 0 { 100.0 } else { 0.0 };
+                c
+            })
+            .collect();
+        let log = DriveLog {
+            truth: t,
+            cycles,
+            ..DriveLog::default()
+        };
+        let s = summarize(&log, &VehicleParams::default());
+        let m = s.metrics.unwrap();
+        // window: truth samples 9..=209, 201 samples of 1 ms; the command
+        // changes at 10, 20, ..., 200 ms: 20 edges of 100 N m over 0.201 s.
+        assert_eq!(m.samples, 201);
+        assert!(
+            (m.cmd_tv_per_s - 2000.0 / 0.201).abs() < 1e-6,
+            "{}",
+            m.cmd_tv_per_s
+        );
+        assert!(s.render().contains("command total variation"));
     }
 }
