@@ -6,7 +6,8 @@
 use std::path::PathBuf;
 
 use super::Ctx;
-use crate::drive::{self, export, log::DriveLog, plot, summary};
+use crate::drive::{export, plot};
+use grip_drive::{self as drive, DriveLog, summary};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -22,7 +23,10 @@ pub struct Args {
 
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     let log = DriveLog::load(&args.log)?;
-    let vehicle = drive::vehicle_for(&log, &ctx.config_dir);
+    let (vehicle, warning) = drive::vehicle_for(&log, &ctx.config_dir);
+    if let Some(w) = warning {
+        eprintln!("{w}");
+    }
     let s = summary::summarize(&log, &vehicle);
     println!("{}", s.render());
     println!(

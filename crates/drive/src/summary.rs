@@ -22,7 +22,7 @@ use grip_msgs::{CycleRecord, E2eFaults, GroundTruth, RoadEstimate, can_dir, can_
 use grip_physics::VehicleParams;
 use grip_tcs::{Metrics, MetricsAccumulator, Sample};
 
-use super::log::DriveLog;
+use crate::log::DriveLog;
 
 /// p50 / p99 / max of a set of values (ns), and the count.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
