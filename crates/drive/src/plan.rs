@@ -98,7 +98,41 @@ pub struct DrivePlan {
     pub vehicle: Option<PathBuf>,
 }
 
+/// The name under which the recorder attaches a drive's `--vehicle` file.
+pub const VEHICLE_ATTACHMENT: &str = "drive/vehicle.toml";
+
+/// `grip drive`'s default controller.
+pub const DEFAULT_CONTROLLER: &str = "mtte";
+/// `grip drive`'s default plant sensor-noise seed.
+pub const DEFAULT_SEED: u64 = 1;
+/// `grip drive`'s default readiness timeout per service, s.
+pub const DEFAULT_READY_TIMEOUT_S: f64 = 30.0;
+
 impl DrivePlan {
+    /// A plan with `grip drive`'s defaults ([`DEFAULT_CONTROLLER`], ARTE on,
+    /// [`DEFAULT_SEED`], [`DEFAULT_READY_TIMEOUT_S`], the configuration
+    /// directory's vehicle).
+    pub fn new(
+        config_dir: &Path,
+        scenario: &str,
+        duration_s: f64,
+        out: &Path,
+        instance: &str,
+    ) -> Self {
+        Self {
+            config_dir: config_dir.to_path_buf(),
+            scenario: scenario.to_owned(),
+            duration_s,
+            controller: DEFAULT_CONTROLLER.to_owned(),
+            arte: true,
+            out: out.to_path_buf(),
+            seed: DEFAULT_SEED,
+            instance: instance.to_owned(),
+            ready_timeout: Duration::from_secs_f64(DEFAULT_READY_TIMEOUT_S),
+            vehicle: None,
+        }
+    }
+
     /// The full argument list of `svc` in this drive: the base command line
     /// (as in the systemd units) plus the drive's overrides.
     pub fn args(&self, svc: Service) -> Vec<String> {
@@ -119,6 +153,10 @@ impl DrivePlan {
                 }
                 if let Some(v) = &self.vehicle {
                     a.extend([s("--meta"), format!("vehicle={}", v.display())]);
+                    a.extend([
+                        s("--attach"),
+                        format!("{VEHICLE_ATTACHMENT}={}", v.display()),
+                    ]);
                 }
             }
             Service::PlantSim => {

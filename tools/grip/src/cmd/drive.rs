@@ -46,10 +46,10 @@ pub struct Args {
     #[arg(long)]
     vehicle: Option<PathBuf>,
     /// Sensor-noise seed of plant-sim.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = drive::plan::DEFAULT_SEED)]
     seed: u64,
     /// Seconds each service may take to report READY=1.
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = drive::plan::DEFAULT_READY_TIMEOUT_S)]
     ready_timeout: f64,
     /// Print each service's command line (and its systemd ExecStart=) and exit.
     #[arg(long)]
