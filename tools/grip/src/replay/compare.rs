@@ -91,6 +91,16 @@ fn show(v: Option<&Value>) -> String {
 
 /// Compares `old` and `new` message by message.
 pub fn compare<T: McapRecord>(topic: &str, old: &[T], new: &[T]) -> TopicDiff {
+    compare_except(topic, old, new, &[])
+}
+
+/// [`compare`], leaving out the fields `ignore` (fields a log predates).
+pub fn compare_except<T: McapRecord>(
+    topic: &str,
+    old: &[T],
+    new: &[T],
+    ignore: &[&str],
+) -> TopicDiff {
     let mut d = TopicDiff {
         topic: topic.to_owned(),
         logged: old.len(),
@@ -132,6 +142,9 @@ pub fn compare<T: McapRecord>(topic: &str, old: &[T], new: &[T]) -> TopicDiff {
         }
         let mut differs = false;
         for k in keys {
+            if ignore.contains(&k.as_str()) {
+                continue;
+            }
             let va = fa.iter().find(|(x, _)| x == k).map(|(_, v)| v);
             let vb = fb.iter().find(|(x, _)| x == k).map(|(_, v)| v);
             if va != vb {
