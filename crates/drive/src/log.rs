@@ -11,14 +11,23 @@ use std::path::{Path, PathBuf};
 use grip_io::mcaplog::{LogMessage, McapLog, McapLogError, MetadataMap, ReadReport};
 use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
 
-/// A log that cannot be read at all (missing, unreadable, not MCAP).
+/// A log that cannot be read at all (missing, unreadable, not MCAP); the
+/// reason is its [`source`](std::error::Error::source) (`{:#}` of an
+/// `anyhow::Error` prints both, [`LogError::full`] too).
 #[derive(Debug, thiserror::Error)]
-#[error("reading {path}: {source}")]
+#[error("reading {path}")]
 pub struct LogError {
     /// The file.
     pub path: PathBuf,
     /// Why.
     pub source: McapLogError,
+}
+
+impl LogError {
+    /// "reading PATH: reason".
+    pub fn full(&self) -> String {
+        format!("{self}: {}", self.source)
+    }
 }
 
 /// What to keep beyond the default.
@@ -249,15 +258,14 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("x.mcap");
         std::fs::write(&p, "hello, not a log").unwrap();
-        let e = format!("{:#}", DriveLog::load(&p).unwrap_err());
+        let e = DriveLog::load(&p).unwrap_err().full();
         assert!(
             e.contains("x.mcap") && e.contains("not an MCAP file"),
             "{e}"
         );
-        let e = format!(
-            "{:#}",
-            DriveLog::load(&dir.path().join("missing.mcap")).unwrap_err()
-        );
+        let e = DriveLog::load(&dir.path().join("missing.mcap"))
+            .unwrap_err()
+            .full();
         assert!(e.contains("missing.mcap"), "{e}");
     }
 }

@@ -11,17 +11,27 @@ use grip_drive::{self as drive, DriveLog, summary};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The MCAP log (from `grip drive` or the recorder service).
+    /// The MCAP log (from `grip drive` or the recorder service), or a
+    /// directory of them (one row per drive).
     log: PathBuf,
-    /// Write cycles.csv, estimates.csv, truth.csv and can.csv here.
+    /// One log: write cycles.csv, estimates.csv, truth.csv and can.csv into
+    /// this directory. A directory of logs: write the per-drive table to
+    /// this CSV file.
     #[arg(long)]
     csv: Option<PathBuf>,
-    /// Write drive.png and timing.png here.
+    /// Write drive.png and timing.png here (one log only).
     #[arg(long)]
     plot: Option<PathBuf>,
+    /// A directory of logs: exit with status 1 if any log is bad
+    /// (unreadable, truncated, or damaged).
+    #[arg(long)]
+    strict: bool,
 }
 
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
+    if args.log.is_dir() {
+        return crate::drive::many::inspect_dir(ctx, &args.log, args.csv.as_deref(), args.strict);
+    }
     let log = DriveLog::load(&args.log)?;
     let (vehicle, warning) = drive::vehicle_for(&log, &ctx.config_dir);
     if let Some(w) = warning {

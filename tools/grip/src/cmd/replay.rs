@@ -32,12 +32,16 @@ pub const CARRIED_OVER: &str = "carried over from the log as inputs (machine tim
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The drive log (from `grip drive` or the recorder service).
+    /// The drive log (from `grip drive` or the recorder service), or a
+    /// directory of them.
     log: PathBuf,
     /// Write the replayed drive here (the same topics; ground truth and
-    /// audio copied).
+    /// audio copied); with a directory of logs, a directory for them.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// With a directory of logs: replays run in parallel.
+    #[arg(long, default_value_t = 1)]
+    jobs: usize,
     /// What if: tcs-loop runs this controller.
     #[arg(long, value_enum)]
     controller: Option<Controller>,
@@ -83,6 +87,9 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         model: args.model.clone(),
         set: args.set.clone(),
     };
+    if args.log.is_dir() {
+        return replay_dir(&args, &what);
+    }
     let r = replay(&args.log, &what, args.out.as_deref())?;
     print!("{}", r.text);
     if args.check && r.diffs.iter().any(|d| !d.identical()) {
@@ -92,6 +99,65 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             .find_map(|d| d.first.as_ref())
             .map_or_else(String::new, ToString::to_string);
         bail!("the replay differs from the log; first divergence: {first}");
+    }
+    Ok(())
+}
+
+/// `grip replay DIR [--jobs N]`: one line per log; a bad log is named with
+/// its reason and does not stop the others.
+fn replay_dir(args: &Args, what: &WhatIf) -> anyhow::Result<()> {
+    let logs = crate::drive::many::logs_in(&args.log)?;
+    if let Some(o) = &args.out {
+        std::fs::create_dir_all(o).with_context(|| format!("creating {}", o.display()))?;
+    }
+    let pb = crate::drive::many::bar(logs.len(), "replays");
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results = std::sync::Mutex::new(vec![String::new(); logs.len()]);
+    let failed = std::sync::atomic::AtomicUsize::new(0);
+    std::thread::scope(|sc| {
+        for _ in 0..args.jobs.clamp(1, logs.len()) {
+            sc.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    let Some(p) = logs.get(i) else { break };
+                    let name = p
+                        .file_name()
+                        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+                    let out = args.out.as_ref().map(|o| o.join(&name));
+                    let line = match replay(p, what, out.as_deref()) {
+                        Ok(r) => match r.diffs.iter().find_map(|d| d.first.as_ref()) {
+                            None => format!("{name}: identical"),
+                            Some(d) => {
+                                failed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                                format!("{name}: DIFFERENT, first divergence: {d}")
+                            }
+                        },
+                        Err(e) => {
+                            failed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                            pb.println(format!("bad log {name}: {e:#}"));
+                            format!("{name}: not replayed: {e:#}")
+                        }
+                    };
+                    if let Ok(mut r) = results.lock() {
+                        r[i] = line;
+                    }
+                    pb.inc(1);
+                }
+            });
+        }
+    });
+    pb.finish_and_clear();
+    let results = results.into_inner().unwrap_or_default();
+    for l in &results {
+        println!("{l}");
+    }
+    let n = failed.load(std::sync::atomic::Ordering::Relaxed);
+    println!(
+        "{} logs, {n} not identical or not replayed ({OPEN_LOOP})",
+        results.len()
+    );
+    if args.check && n > 0 {
+        bail!("{n} of {} logs did not replay identically", results.len());
     }
     Ok(())
 }
@@ -159,7 +225,7 @@ pub fn replay(
     let config = ConfigArgs::in_dir(&cfg.dir);
 
     // arte
-    let t1 = Instant::now();
+    let t_setup = Instant::now();
     let clock = ScriptClock::default();
     let mut speed = SpeedMatch::default();
     let mut prepared = grip_arte_svc::prepare_with_clock(
@@ -171,11 +237,13 @@ pub fn replay(
         &clock,
     )
     .context("arte's start-up on the replay configuration")?;
+    let mut setup_s = t_setup.elapsed().as_secs_f64();
+    let t1 = Instant::now();
     let roads = replay_arte(&mut prepared.lp, &clock, &log, &mut speed);
     let t_arte = t1.elapsed().as_secs_f64();
 
     // tcs-loop
-    let t2 = Instant::now();
+    let t_setup = Instant::now();
     let opts = grip_tcs_loop::Options {
         config: config.clone(),
         controller: Some(
@@ -190,6 +258,8 @@ pub fn replay(
     let loaded = grip_tcs_loop::load(&opts).context("tcs-loop's configuration")?;
     let mut lp = grip_tcs_loop::build(&loaded).context("tcs-loop's start-up")?;
     let can = split_can(&log)?;
+    setup_s += t_setup.elapsed().as_secs_f64();
+    let t2 = Instant::now();
     let mut roadm = RoadMatch::default();
     let outs = replay_tcs(&mut lp, &log, &can, &roads, &mut roadm);
     let t_tcs = t2.elapsed().as_secs_f64();
@@ -308,7 +378,7 @@ pub fn replay(
     let replay_s = t_arte + t_tcs;
     let _ = writeln!(
         o,
-        "\nspeed: {span_s:.2} s of drive; tcs-loop {t_tcs:.3} s ({:.0}x real time), arte {t_arte:.3} s ({:.0}x), together {:.0}x; log read in {t_load:.3} s",
+        "\nspeed: {span_s:.2} s of drive; tcs-loop {t_tcs:.3} s ({:.0}x real time), arte {t_arte:.3} s ({:.0}x), together {:.0}x; log read in {t_load:.3} s, start-up (configuration, model) {setup_s:.3} s",
         span_s / t_tcs.max(1e-9),
         span_s / t_arte.max(1e-9),
         span_s / replay_s.max(1e-9)

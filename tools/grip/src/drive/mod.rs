@@ -2,7 +2,8 @@
 //! plots of a drive log. The log reader, the summary, the service
 //! supervisor and the drive's command lines are the `grip-drive` crate.
 //!
-//! - [`export`]: CSV; [`plot`]: PNGs.
+//! - [`export`]: CSV; [`plot`]: PNGs; [`many`]: a directory of logs.
 
 pub mod export;
+pub mod many;
 pub mod plot;
