@@ -134,7 +134,7 @@ fn replay_dir(args: &Args, what: &WhatIf) -> anyhow::Result<()> {
                         },
                         Err(e) => {
                             failed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                            pb.println(format!("bad log {name}: {e:#}"));
+                            pb.suspend(|| eprintln!("bad log {name}: {e:#}"));
                             format!("{name}: not replayed: {e:#}")
                         }
                     };

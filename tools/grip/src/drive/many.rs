@@ -156,7 +156,7 @@ pub fn inspect_dir(ctx: &Ctx, dir: &Path, csv: Option<&Path>, strict: bool) -> a
     for p in &logs {
         let (r, good) = row(p, &ctx.config_dir);
         if !good {
-            pb.println(format!("bad log {}: {}: {}", r[0], r[1], r[2]));
+            pb.suspend(|| eprintln!("bad log {}: {}: {}", r[0], r[1], r[2]));
             bad.push(r[0].clone());
         }
         rows.push(r);
