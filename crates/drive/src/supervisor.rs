@@ -188,7 +188,6 @@ pub struct Proc {
     notify: UnixDatagram,
     sock: PathBuf,
     lines: Arc<Mutex<VecDeque<String>>>,
-    keep: usize,
     file: Option<PathBuf>,
     reader: Option<JoinHandle<()>>,
     /// Exit status once reaped.
@@ -290,7 +289,6 @@ impl Proc {
             notify,
             sock,
             lines,
-            keep,
             file,
             reader,
             status: None,
@@ -468,11 +466,6 @@ impl Proc {
         self.status = st;
         self.join_reader();
         (st, true)
-    }
-
-    /// How many lines are kept of a piped output (`usize::MAX`: all).
-    pub fn kept_lines(&self) -> usize {
-        self.keep
     }
 }
 

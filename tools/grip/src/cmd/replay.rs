@@ -26,6 +26,9 @@ use crate::replay::{
 /// The text every report carries.
 pub const OPEN_LOOP: &str = "open loop: the logged wheel speeds, vehicle speed and motor torque are replayed as recorded; they do not react to a replayed torque command";
 
+/// The text of a closed-loop report.
+pub const CLOSED_LOOP: &str = "closed loop: plant-sim's loop re-simulates the vehicle from the drive's scenario, seed and vehicle in lock step with tcs-loop (1 kHz, manual clock, in-memory bus); ARTE's estimates are the drive's (what the microphone heard on the logged drive), handed over in the cycle the drive took them";
+
 /// Fields carried over from the log, not recomputed: they measure the
 /// machine, and the replay feeds them to the loop as inputs.
 pub const CARRIED_OVER: &str = "carried over from the log as inputs (machine timing): CycleRecord.wakeup_latency_ns, compute_ns and deadline_misses (the tick and the clock's second reading), the TorqueCommand's stamp_ns (the loop's clock), RoadEstimate.stamp_ns (arte's clock)";
@@ -60,6 +63,11 @@ pub struct Args {
     /// Exit with status 1 unless every replayed topic is identical to the log.
     #[arg(long)]
     check: bool,
+    /// Re-simulate the plant (plant-sim's own loop, from the drive's
+    /// scenario, seed and vehicle) in closed loop with tcs-loop, so that a
+    /// what-if controller meets the consequences of its own torque.
+    #[arg(long)]
+    closed_loop: bool,
 }
 
 fn controller_name(c: Controller) -> &'static str {
@@ -90,7 +98,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     if args.log.is_dir() {
         return replay_dir(&args, &what);
     }
-    let r = replay(&args.log, &what, args.out.as_deref())?;
+    let r = replay(&args.log, &what, args.out.as_deref(), args.closed_loop)?;
     print!("{}", r.text);
     if args.check && r.diffs.iter().any(|d| !d.identical()) {
         let first = r
@@ -124,7 +132,7 @@ fn replay_dir(args: &Args, what: &WhatIf) -> anyhow::Result<()> {
                         .file_name()
                         .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
                     let out = args.out.as_ref().map(|o| o.join(&name));
-                    let line = match replay(p, what, out.as_deref()) {
+                    let line = match replay(p, what, out.as_deref(), args.closed_loop) {
                         Ok(r) => match r.diffs.iter().find_map(|d| d.first.as_ref()) {
                             None => format!("{name}: identical"),
                             Some(d) => {
@@ -203,11 +211,13 @@ fn command_figures(cycles: &[CycleRecord]) -> Vec<(&'static str, f64)> {
     ]
 }
 
-/// Replays `log` with `what` changed; writes `out` if given.
+/// Replays `log` with `what` changed (in closed loop with the plant if
+/// `closed`); writes `out` if given.
 pub fn replay(
     path: &std::path::Path,
     what: &WhatIf,
     out: Option<&std::path::Path>,
+    closed: bool,
 ) -> anyhow::Result<Replayed> {
     let t0 = Instant::now();
     let log = DriveLog::load_with(path, LoadOptions { audio: true })?;
@@ -261,7 +271,36 @@ pub fn replay(
     setup_s += t_setup.elapsed().as_secs_f64();
     let t2 = Instant::now();
     let mut roadm = RoadMatch::default();
-    let outs = replay_tcs(&mut lp, &log, &can, &roads, &mut roadm);
+    let (outs, truth) = if closed {
+        let scenario = log.run.get("scenario").cloned().with_context(|| {
+            format!(
+                "{}: no scenario in grip.run: --closed-loop needs a drive against plant-sim",
+                path.display()
+            )
+        })?;
+        let seed = log.run.get("seed").and_then(|s| s.parse().ok());
+        let (_, mut plant, _) = grip_plant_sim::run::load(&grip_plant_sim::Options {
+            config: config.clone(),
+            scenario: Some(scenario),
+            seed,
+            exit_at_end: true,
+            start_on: Some(grip_plant_sim::StartOn::Signal),
+            vehicle: cfg.vehicle.clone(),
+        })
+        .context("plant-sim's start-up on the replay configuration")?;
+        let period_ns = (1e9 / loaded.controllers.loop_.rate_hz).round() as u64;
+        let cl = crate::replay::closed_loop(&mut lp, &mut plant, &log, &roads, period_ns);
+        roadm.recorded = crate::replay::taken_per_cycle(&log)
+            .iter()
+            .filter(|t| t.is_some())
+            .count() as u64;
+        (cl.outs, cl.truth)
+    } else {
+        (
+            replay_tcs(&mut lp, &log, &can, &roads, &mut roadm),
+            log.truth.clone(),
+        )
+    };
     let t_tcs = t2.elapsed().as_secs_f64();
 
     // compare
@@ -284,7 +323,11 @@ pub fn replay(
 
     let mut o = String::new();
     let _ = writeln!(o, "replay of {}", path.display());
-    let _ = writeln!(o, "  {OPEN_LOOP}");
+    if closed {
+        let _ = writeln!(o, "  {CLOSED_LOOP}");
+    } else {
+        let _ = writeln!(o, "  {OPEN_LOOP}");
+    }
     let _ = writeln!(o, "  configuration: {}", cfg.source);
     let _ = writeln!(
         o,
@@ -311,14 +354,23 @@ pub fn replay(
         "  tcs-loop's road input per cycle: {} as recorded (road_taken), {} inferred from stamps, {} not found",
         roadm.recorded, roadm.inferred, roadm.missing
     );
-    let _ = writeln!(o, "  {CARRIED_OVER}");
+    if !closed {
+        let _ = writeln!(o, "  {CARRIED_OVER}");
+    }
     if !ignore.is_empty() {
         let _ = writeln!(
             o,
             "  the log predates CycleRecord.road_taken: not compared; which cycle took each estimate was inferred from the stamps (the live poll can race a stamp: a difference here may be the inference's)"
         );
     }
-    let _ = writeln!(o, "\nper topic (field by field, no tolerance):");
+    if closed {
+        let _ = writeln!(
+            o,
+            "\nper topic (field by field; in closed loop the plant's own frames and timing differ by construction):"
+        );
+    } else {
+        let _ = writeln!(o, "\nper topic (field by field, no tolerance):");
+    }
     o.push_str(&compare::render(&diffs));
     match diffs.iter().find_map(|d| d.first.as_ref()) {
         None => {
@@ -337,6 +389,7 @@ pub fn replay(
         cycles: outs.cycles.clone(),
         roads: roads.clone(),
         can: outs.can.clone(),
+        truth: truth.clone(),
         ..log.clone()
     };
     new_log.audio_blocks.clear();
@@ -368,12 +421,36 @@ pub fn replay(
             d(b.delay)
         );
     }
-    if let Some(m) = &s_old.metrics {
-        let _ = writeln!(
-            o,
-            "  plant metrics (ground truth) are the logged ones in open loop: slip deviation {:.4}, torque effort {:.2} N m, distance {:.2} m",
-            m.slip_deviation, m.torque_effort, m.distance
-        );
+    match (&s_old.metrics, &s_new.metrics) {
+        (Some(a), Some(b)) if closed => {
+            for (name, x, y) in [
+                (
+                    "slip deviation (1/T)∫|λ|dt",
+                    a.slip_deviation,
+                    b.slip_deviation,
+                ),
+                ("max torque, N m", a.max_torque, b.max_torque),
+                ("torque effort, N m", a.torque_effort, b.torque_effort),
+                ("mean acceleration, m/s²", a.mean_accel, b.mean_accel),
+                ("distance, m", a.distance, b.distance),
+                ("energy ∫Tω dt, J", a.energy, b.energy),
+            ] {
+                let rel = if x != 0.0 {
+                    100.0 * (y - x) / x.abs()
+                } else {
+                    0.0
+                };
+                let _ = writeln!(o, "  {name:<44} {x:>12.4} {y:>12.4}  ({rel:+.1} %)");
+            }
+        }
+        (Some(m), _) => {
+            let _ = writeln!(
+                o,
+                "  plant metrics (ground truth) are the logged ones in open loop: slip deviation {:.4}, torque effort {:.2} N m, distance {:.2} m",
+                m.slip_deviation, m.torque_effort, m.distance
+            );
+        }
+        _ => {}
     }
     let replay_s = t_arte + t_tcs;
     let _ = writeln!(
@@ -389,8 +466,11 @@ pub fn replay(
         meta.insert("source".into(), path.display().to_string());
         meta.insert("configuration".into(), cfg.source.clone());
         meta.insert("changes".into(), cfg.changes.join("; "));
-        meta.insert("mode".into(), "open loop".into());
-        write_log(out, &log, &outs.cycles, &outs.can, &roads, &meta)?;
+        meta.insert(
+            "mode".into(),
+            if closed { "closed loop" } else { "open loop" }.into(),
+        );
+        write_log(out, &log, &truth, &outs.cycles, &outs.can, &roads, &meta)?;
         let _ = writeln!(o, "wrote {}", out.display());
     }
     Ok(Replayed { diffs, text: o })

@@ -32,7 +32,9 @@ use grip_drive::DriveLog;
 use grip_io::can::MemBus;
 use grip_io::clock::Clock;
 use grip_io::mcaplog::{McapRecord, McapWriter, McapWriterOptions};
-use grip_msgs::{AudioBlock, CanFrame, CycleRecord, RoadEstimate, can_dir, can_flags, topics};
+use grip_msgs::{
+    AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, can_dir, can_flags, topics,
+};
 use grip_tcs_loop::{CycleTick, RecordSink, RoadSource, TcsLoop};
 
 /// A clock that returns the times it was given, in order, then repeats
@@ -366,12 +368,138 @@ pub fn replay_tcs(
     out
 }
 
+/// Collects plant-sim's ground truth.
+#[derive(Debug, Default)]
+struct Truths(Vec<GroundTruth>);
+
+impl grip_plant_sim::TruthSink for Truths {
+    fn truth(&mut self, g: &GroundTruth) {
+        self.0.push(*g);
+    }
+}
+
+/// What a closed-loop replay produced.
+#[derive(Debug, Default)]
+pub struct ClosedLoop {
+    /// The re-simulated plant's ground truth.
+    pub truth: Vec<GroundTruth>,
+    /// The loop's outputs.
+    pub outs: Outputs,
+}
+
+/// `--closed-loop`: plant-sim's own loop (`PlantSim::cycle`, built by its
+/// start-up from the drive's scenario, seed and vehicle) and `lp` in lock
+/// step on a manual clock at the loop period over an in-memory bus pair,
+/// from the first logged cycle's deadline; the plant is asked to start when
+/// the logged drive's scenario started (it then waits for valid commands,
+/// as in the drive). The road estimates are the logged (or arte's replayed)
+/// ones, handed over in the cycle the drive took them: what the microphone
+/// heard on the logged drive (the acoustics stay open loop). Runs until
+/// plant-sim ends the scenario, or twice the logged cycles.
+pub fn closed_loop(
+    lp: &mut TcsLoop,
+    plant: &mut grip_plant_sim::PlantSim,
+    log: &DriveLog,
+    roads: &[RoadEstimate],
+    period_ns: u64,
+) -> ClosedLoop {
+    use grip_io::clock::ManualClock;
+    let t0 = log.cycles[0].stamp_ns;
+    let clock = ManualClock::new(t0);
+    let (mut bus_p, mut bus_t) = MemBus::pair();
+    let start_ns = grip_drive::summary::scenario_start(&log.truth)
+        .and_then(|i| log.truth.get(i))
+        .map_or(t0, |g| g.stamp_ns);
+    let taken = taken_per_cycle(log);
+    let mut truths = Truths::default();
+    let mut outs = Outputs::default();
+    for k in 0..log.cycles.len() * 2 {
+        let now = clock.now_ns();
+        if now >= start_ns {
+            plant.request_start();
+        }
+        let o = plant.cycle(
+            &grip_plant_sim::PlantTick::at(now),
+            &clock,
+            &mut bus_p,
+            &mut truths,
+        );
+        if o == grip_plant_sim::Outcome::Finished {
+            break;
+        }
+        let mut road = Road(
+            taken
+                .get(k)
+                .copied()
+                .flatten()
+                .and_then(|i| roads.get(i))
+                .copied(),
+        );
+        lp.cycle(
+            &CycleTick::at(now),
+            &clock,
+            &mut bus_t,
+            &mut road,
+            &mut outs,
+        );
+        clock.advance_ns(period_ns);
+    }
+    ClosedLoop {
+        truth: truths.0,
+        outs,
+    }
+}
+
+/// For each logged cycle, the index into `log.roads` of the estimate it
+/// took (`road_taken`; in an older log the newest estimate stamped since the
+/// previous cycle).
+pub fn taken_per_cycle(log: &DriveLog) -> Vec<Option<usize>> {
+    let recorded = log.cycles.iter().any(|c| c.road_taken != 0);
+    let split = split_can(log).ok();
+    let now_of = |k: usize| {
+        split
+            .as_ref()
+            .and_then(|s| s.tx.get(k))
+            .map_or(log.cycles[k].stamp_ns, |f| f.stamp_ns)
+    };
+    let mut out = Vec::with_capacity(log.cycles.len());
+    let mut next = 0usize;
+    for (k, c) in log.cycles.iter().enumerate() {
+        let now = now_of(k);
+        if recorded {
+            out.push(
+                (c.road_taken != 0)
+                    .then(|| {
+                        let seq = c.road_taken - 1;
+                        log.roads
+                            .iter()
+                            .enumerate()
+                            .filter(|(_, e)| e.seq as u32 == seq)
+                            .min_by_key(|(_, e)| e.stamp_ns.abs_diff(now))
+                            .map(|(i, _)| i)
+                    })
+                    .flatten(),
+            );
+        } else {
+            let mut newest = None;
+            while next < log.roads.len() && log.roads[next].stamp_ns <= now {
+                newest = Some(next);
+                next += 1;
+            }
+            out.push(newest);
+        }
+    }
+    out
+}
+
 /// Writes a log with the same topics: the replayed cycles, CAN log and
-/// road estimates, the logged ground truth and audio; `grip.run` and the
+/// road estimates, `truth` (the logged or the re-simulated) and the logged
+/// audio; `grip.run` and the
 /// attachments copied, `replay` as the `grip.replay` metadata record.
 pub fn write_log(
     path: &Path,
     log: &DriveLog,
+    truth: &[GroundTruth],
     cycles: &[CycleRecord],
     can: &[CanFrame],
     roads: &[RoadEstimate],
@@ -394,14 +522,14 @@ pub fn write_log(
         cycles.len(),
         can.len(),
         roads.len(),
-        log.truth.len(),
+        truth.len(),
         log.audio_blocks.len(),
     ];
     let stamp = |t: usize, i: usize| match t {
         0 => cycles[i].stamp_ns,
         1 => can[i].stamp_ns,
         2 => roads[i].stamp_ns,
-        3 => log.truth[i].stamp_ns,
+        3 => truth[i].stamp_ns,
         _ => log.audio_blocks[i].stamp_ns,
     };
     loop {
@@ -414,7 +542,7 @@ pub fn write_log(
             0 => w.write(topics::CYCLE, &cycles[i])?,
             1 => w.write(topics::CAN_LOG, &can[i])?,
             2 => w.write(topics::ROAD, &roads[i])?,
-            3 => w.write(topics::TRUTH, &log.truth[i])?,
+            3 => w.write(topics::TRUTH, &truth[i])?,
             _ => w.write(topics::AUDIO, &log.audio_blocks[i])?,
         }
         heads[t] += 1;
