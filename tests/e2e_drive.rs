@@ -25,9 +25,10 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Duration;
 
-use grip_io::mcaplog::{LogMessage, McapLog, MetadataMap};
+use grip_drive::{DriveLog, Supervisor, describe_status};
+use grip_io::mcaplog::MetadataMap;
 use grip_msgs::{can_dir, topics};
-use support::{Svc, built_bin_dir, config_dir, field, instance};
+use support::{built_bin_dir, config_dir, field, instance, spec};
 
 const READY: Duration = Duration::from_secs(60);
 
@@ -41,35 +42,21 @@ struct Read {
 }
 
 fn read(path: &Path) -> Read {
-    let log = McapLog::open(path).unwrap();
-    let (msgs, rep) = log.messages().unwrap();
+    let log = DriveLog::load(path).unwrap();
+    let rep = &log.report;
     assert!(rep.truncated.is_none(), "log truncated: {rep:?}");
     assert_eq!(rep.bad, 0, "{rep:?}");
-    let mut r = Read {
-        cycles: vec![],
-        truth: vec![],
-        roads: vec![],
-        can: vec![],
-        audio: 0,
-        recorder: MetadataMap::new(),
-    };
-    for m in msgs {
-        match m.msg {
-            LogMessage::Cycle(c) => r.cycles.push(c),
-            LogMessage::Truth(t) => r.truth.push(t),
-            LogMessage::Road(e) => r.roads.push(e),
-            LogMessage::Can(f) => r.can.push(f),
-            LogMessage::Audio(_) => r.audio += 1,
-        }
+    Read {
+        recorder: log
+            .recorder
+            .clone()
+            .expect("no grip.recorder summary: the recorder did not finish"),
+        cycles: log.cycles,
+        truth: log.truth,
+        roads: log.roads,
+        can: log.can,
+        audio: log.audio.blocks,
     }
-    r.recorder = log
-        .metadata()
-        .unwrap()
-        .into_iter()
-        .find(|(n, _)| n == "grip.recorder")
-        .map(|(_, m)| m)
-        .expect("no grip.recorder summary: the recorder did not finish");
-    r
 }
 
 fn meta(m: &MetadataMap, topic: &str, key: &str) -> u64 {
@@ -368,68 +355,70 @@ fn killed_service_is_reported_and_a_restart_reconnects() {
     ]
     .into_iter()
     .collect();
-    let mut procs: BTreeMap<&str, Svc> = BTreeMap::new();
+    let mut sup = Supervisor::new(&inst).unwrap();
     for name in support::SERVICES {
-        let mut s = Svc::spawn(name, &args[name], &inst, tmp.path());
-        s.wait_ready(READY);
-        procs.insert(name, s);
+        if let Err(e) = sup.start(&spec(name, &args[name]), READY) {
+            panic!("{e}");
+        }
     }
     // let estimates flow, then kill arte hard
     std::thread::sleep(Duration::from_millis(1500));
-    procs.get_mut("arte").unwrap().signal("KILL");
+    sup.get("arte").unwrap().signal(libc::SIGKILL);
     let killed_at = grip_io::clock::monotonic_now_ns();
     std::thread::sleep(Duration::from_millis(2500));
-    for (name, p) in procs.iter_mut() {
-        if *name == "arte" {
-            assert!(p.poll().is_some(), "arte survived SIGKILL");
+    for p in sup.procs_mut() {
+        if p.name() == "arte" {
+            assert!(p.poll_exit().is_some(), "arte survived SIGKILL");
         } else {
             assert!(
-                p.poll().is_none(),
-                "{name} died after arte was killed:\n{}",
-                p.stderr()
+                p.poll_exit().is_none(),
+                "{} died after arte was killed:\n{}",
+                p.name(),
+                p.text()
             );
         }
     }
-    let tcs = &procs["tcs-loop"];
+    let tcs = sup.get("tcs-loop").unwrap();
     assert!(
         tcs.has_line("no ARTE road estimate for 1 s"),
         "tcs-loop did not report the missing estimates:\n{}",
-        tcs.stderr()
+        tcs.text()
     );
 
     // restart arte: it cleans the dead node's resources and reconnects
-    let mut arte = Svc::spawn("arte", &args["arte"], &inst, tmp.path());
-    arte.wait_ready(READY);
+    if let Err(e) = sup.start(&spec("arte", &args["arte"]), READY) {
+        panic!("{e}");
+    }
     let restarted_at = grip_io::clock::monotonic_now_ns();
     std::thread::sleep(Duration::from_millis(2500));
+    let arte = sup.get("arte").unwrap();
     assert!(
-        arte.poll().is_none(),
+        arte.poll_exit().is_none(),
         "restarted arte died:\n{}",
-        arte.stderr()
+        arte.text()
     );
     assert!(
         arte.has_line("dead iceoryx2 nodes found at start-up")
             || arte.has_line("removed stale iceoryx2 resources"),
         "restarted arte did not clean up the killed node:\n{}",
-        arte.stderr()
+        arte.text()
     );
+    let tcs = sup.get("tcs-loop").unwrap();
     assert!(
-        procs["tcs-loop"].has_line("ARTE road estimates arriving again"),
+        tcs.has_line("ARTE road estimates arriving again"),
         "tcs-loop did not see the restarted arte:\n{}",
-        procs["tcs-loop"].stderr()
+        tcs.text()
     );
-    procs.insert("arte", arte);
 
     // stop: loop first, recorder last; every clean exit is 0
     for name in ["tcs-loop", "arte", "audio-acq", "plant-sim", "recorder"] {
-        let p = procs.get_mut(name).unwrap();
         let grace = Duration::from_secs(if name == "recorder" { 60 } else { 15 });
-        let st = p.stop(grace);
+        let st = sup.stop(name, grace).unwrap_or_else(|e| panic!("{e}"));
         assert!(
             st.success(),
             "{name}: {} on SIGTERM:\n{}",
-            Svc::describe(&st),
-            p.stderr()
+            describe_status(&st),
+            sup.get(name).unwrap().text()
         );
     }
 
@@ -523,12 +512,6 @@ fn drive_names_the_service_that_did_not_come_up() {
             "{s} not stopped cleanly:\n{stderr}"
         );
     }
-    let log = McapLog::open(&out).unwrap();
-    assert!(
-        log.metadata()
-            .unwrap()
-            .iter()
-            .any(|(n, _)| n == "grip.recorder"),
-        "recorder did not finish the log"
-    );
+    let log = DriveLog::load(&out).unwrap();
+    assert!(log.recorder.is_some(), "recorder did not finish the log");
 }

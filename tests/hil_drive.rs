@@ -49,11 +49,12 @@ use std::sync::{Mutex, MutexGuard};
 use std::time::Duration;
 
 use anyhow::{Context, bail, ensure};
-use grip_io::mcaplog::{LogMessage, McapLog, MetadataMap};
+use grip_drive::{DriveLog, LoadOptions};
+use grip_io::mcaplog::MetadataMap;
 use grip_msgs::{CycleRecord, GroundTruth, topics};
 use grip_tests::hil::{
     self, CAN_EFF_FLAG, CAN_RTR_FLAG, CAN_SFF_MASK, CanCapture, CaptureLog, Captured, Dbc,
-    HilConfig, Proc, RawCanSocket, RawFrame, RoadAudioPlayer, ServiceSet, StreamCheck,
+    HilConfig, Proc, RawCanSocket, RawFrame, RoadAudioPlayer, StreamCheck,
 };
 
 /// The scenario of every HIL drive (written by [`setup`] next to the drive's
@@ -242,8 +243,8 @@ struct Log {
 /// message, contiguous cycle and truth sequence numbers, the recorder's
 /// summary written with nothing lost between the services and the file.
 fn read_complete(path: &Path) -> anyhow::Result<Log> {
-    let log = McapLog::open(path).with_context(|| format!("opening {}", path.display()))?;
-    let (msgs, rep) = log.messages()?;
+    let log = DriveLog::load_with(path, LoadOptions { audio: true })?;
+    let rep = &log.report;
     ensure!(
         rep.truncated.is_none(),
         "{}: truncated: {rep:?}",
@@ -254,31 +255,22 @@ fn read_complete(path: &Path) -> anyhow::Result<Log> {
         "{}: undecodable messages: {rep:?}",
         path.display()
     );
-    let mut l = Log {
-        cycles: vec![],
-        truth: vec![],
-        roads: vec![],
-        audio: vec![],
-        recorder: MetadataMap::new(),
-    };
-    for m in msgs {
-        match m.msg {
-            LogMessage::Cycle(c) => l.cycles.push(c),
-            LogMessage::Truth(t) => l.truth.push(t),
-            LogMessage::Road(e) => l.roads.push(e),
-            LogMessage::Audio(a) => {
+    let l = Log {
+        audio: log
+            .audio_blocks
+            .iter()
+            .map(|a| {
                 let n = (a.n_samples as usize).min(a.samples.len());
-                l.audio.push((a.stamp_ns, hil::rms(&a.samples[..n])));
-            }
-            LogMessage::Can(_) => {}
-        }
-    }
-    l.recorder = log
-        .metadata()?
-        .into_iter()
-        .find(|(n, _)| n == "grip.recorder")
-        .map(|(_, m)| m)
-        .context("no grip.recorder summary: the recorder did not finish the log")?;
+                (a.stamp_ns, hil::rms(&a.samples[..n]))
+            })
+            .collect(),
+        recorder: log
+            .recorder
+            .context("no grip.recorder summary: the recorder did not finish the log")?,
+        cycles: log.cycles,
+        truth: log.truth,
+        roads: log.roads,
+    };
     ensure!(!l.cycles.is_empty(), "no cycle records");
     ensure!(!l.truth.is_empty(), "no ground truth");
     for (what, seqs) in [
@@ -540,19 +532,17 @@ fn killed_tcs_loop_makes_the_inverter_zero_torque() -> anyhow::Result<()> {
 fn kill_tcs_loop(s: &Setup) -> anyhow::Result<Attempt> {
     let mcap = s.out.join("drive.mcap");
     let inst = instance("kill");
-    let cmds = hil::drive_command_lines(&s.config, &s.scenario, &mcap, &inst)?;
+    let specs = hil::drive_specs(&s.config, &s.scenario, &mcap, &inst, &s.out)?;
     let cap = CanCapture::start(&s.iface)?;
     let player = RoadAudioPlayer::start(PLAYBACK, &s.iface, &s.config, &s.scenario)?;
     let run = || -> anyhow::Result<u64> {
-        let mut set = ServiceSet::start(&cmds, &inst, &s.out, Duration::from_secs(60))?;
-        set.get("plant-sim")?.signal(libc::SIGUSR1)?;
+        let mut set = hil::start_services(&specs, &inst, Duration::from_secs(60))?;
+        set.get("plant-sim")?.signal(libc::SIGUSR1);
         wait_scenario_start(s)?;
         std::thread::sleep(Duration::from_millis(500));
         let t_kill = hil::mono_ns();
-        set.get("tcs-loop")?.signal(libc::SIGKILL)?;
-        let st = set
-            .get("plant-sim")?
-            .wait_timeout(Duration::from_secs(60))?;
+        set.get("tcs-loop")?.signal(libc::SIGKILL);
+        let st = set.get("plant-sim")?.wait_timeout(Duration::from_secs(60));
         ensure!(
             st.is_some_and(|s| s.success()),
             "plant-sim did not finish the scenario after tcs-loop died ({st:?})"

@@ -1305,169 +1305,46 @@ impl RoadAudioPlayer {
 
 // --- services as the drive starts them ----------------------------------------
 
-/// A service's command line as `grip drive` would start it.
-#[derive(Debug, Clone)]
-pub struct ServiceCmd {
-    /// Service name (= binary name).
-    pub name: String,
-    /// Binary.
-    pub bin: PathBuf,
-    /// Arguments.
-    pub args: Vec<String>,
-}
-
-/// The five services' command lines of a drive, in start order, taken from
-/// `grip --config-dir CONFIG drive --dry-run ...` (one source of truth for
-/// how a drive starts them), with the recorder's `instance=` metadata set
-/// to `instance`.
-pub fn drive_command_lines(
+/// The five services of a drive, in start order, with `grip drive`'s
+/// command lines ([`grip_drive::DrivePlan::args`] with its defaults:
+/// controller, ARTE on, seed) for `scenario` in `config`, logging to `out`,
+/// in iceoryx2 instance `instance`; each service's stdout and stderr go to
+/// `<log_dir>/<service>.log`.
+pub fn drive_specs(
     config: &Path,
     scenario: &str,
     out: &Path,
     instance: &str,
-) -> anyhow::Result<Vec<ServiceCmd>> {
-    let grip = service_bin("grip")?;
-    let o = Command::new(&grip)
-        .arg("--config-dir")
-        .arg(config)
-        .args(["drive", "--dry-run", "--scenario", scenario, "--out"])
-        .arg(out)
-        .output()
-        .with_context(|| format!("running {} drive --dry-run", grip.display()))?;
-    if !o.status.success() {
-        bail!(
-            "grip drive --dry-run failed: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-    }
-    let text = String::from_utf8_lossy(&o.stdout);
-    let mut cmds = Vec::new();
-    let mut name = None;
-    for line in text.lines() {
-        if !line.starts_with(' ') && line.ends_with(':') {
-            name = Some(line.trim_end_matches(':').to_owned());
-        } else if let Some(rest) = line.trim().strip_prefix("drive:") {
-            let mut parts = rest.split_whitespace().map(str::to_owned);
-            let bin = PathBuf::from(parts.next().context("empty drive: line")?);
-            let args = parts
-                .map(|a| {
-                    if a.starts_with("instance=") {
-                        format!("instance={instance}")
-                    } else {
-                        a
-                    }
-                })
-                .collect();
-            cmds.push(ServiceCmd {
-                name: name.clone().context("drive: line before a service name")?,
-                bin,
-                args,
-            });
-        }
-    }
-    if cmds.len() != 5 {
-        bail!("expected 5 services from grip drive --dry-run, got:\n{text}");
-    }
-    Ok(cmds)
+    log_dir: &Path,
+) -> anyhow::Result<Vec<grip_drive::ProcSpec>> {
+    let dir = grip_config::ConfigDir::new(config);
+    let roads = dir.roads()?;
+    let scn = dir.scenario_with(scenario, &roads)?;
+    let plan = grip_drive::DrivePlan::new(config, scenario, scn.duration, out, instance);
+    let bin = grip_io::binaries::bin_dir()?.path;
+    Ok(grip_drive::Service::START_ORDER
+        .iter()
+        .map(|s| {
+            grip_drive::ProcSpec::new(s.name(), &bin.join(s.binary()), &plan.args(*s)).output(
+                grip_drive::Output::File(log_dir.join(format!("{}.log", s.name()))),
+            )
+        })
+        .collect())
 }
 
-/// Services started like `grip drive` does (own `NOTIFY_SOCKET` each,
-/// `READY=1` awaited in order, one `GRIP_INSTANCE`), but left to the test
-/// to signal, kill and stop one by one. Dropping it kills what still runs.
-#[derive(Debug)]
-pub struct ServiceSet {
-    procs: Vec<(String, Proc)>,
-    sock_dir: PathBuf,
-}
-
-impl ServiceSet {
-    /// Starts `cmds` in order, each awaited for `READY=1` (up to `ready` each).
-    pub fn start(
-        cmds: &[ServiceCmd],
-        instance: &str,
-        log_dir: &Path,
-        ready: Duration,
-    ) -> anyhow::Result<Self> {
-        let sock_dir = env::temp_dir().join(format!("grip-hil-{instance}"));
-        fs::create_dir_all(&sock_dir)?;
-        let mut set = ServiceSet {
-            procs: Vec::new(),
-            sock_dir,
-        };
-        for c in cmds {
-            let sock_path = set.sock_dir.join(format!("{}.sock", c.name));
-            let _ = fs::remove_file(&sock_path);
-            let sock = std::os::unix::net::UnixDatagram::bind(&sock_path)?;
-            sock.set_read_timeout(Some(Duration::from_millis(50)))?;
-            let args: Vec<&str> = c.args.iter().map(String::as_str).collect();
-            let mut p = Proc::spawn_env(
-                &c.bin,
-                &args,
-                &[
-                    ("GRIP_INSTANCE", instance),
-                    ("NOTIFY_SOCKET", &sock_path.display().to_string()),
-                    ("NO_COLOR", "1"),
-                ],
-                &c.name,
-                log_dir,
-            )?;
-            let t0 = Instant::now();
-            let mut buf = [0u8; 4096];
-            loop {
-                if let Ok(n) = sock.recv(&mut buf)
-                    && String::from_utf8_lossy(&buf[..n])
-                        .lines()
-                        .any(|l| l == "READY=1")
-                {
-                    break;
-                }
-                if let Some(st) = p.wait_timeout(Duration::ZERO)? {
-                    bail!("{} exited before READY=1 ({st}):\n{}", c.name, p.log_text());
-                }
-                if t0.elapsed() > ready {
-                    bail!("{} not ready within {ready:?}:\n{}", c.name, p.log_text());
-                }
-            }
-            set.procs.push((c.name.clone(), p));
-        }
-        Ok(set)
+/// Starts `specs` in order under grip-drive's supervisor, each awaited for
+/// `READY=1` (up to `ready` each), left to the test to signal, kill and
+/// stop one by one; dropping the supervisor kills what still runs.
+pub fn start_services(
+    specs: &[grip_drive::ProcSpec],
+    instance: &str,
+    ready: Duration,
+) -> anyhow::Result<grip_drive::Supervisor> {
+    let mut sup = grip_drive::Supervisor::new(instance)?;
+    for s in specs {
+        sup.start(s, ready)?;
     }
-
-    /// The running service `name`.
-    pub fn get(&mut self, name: &str) -> anyhow::Result<&mut Proc> {
-        self.procs
-            .iter_mut()
-            .find(|(n, _)| n == name)
-            .map(|(_, p)| p)
-            .with_context(|| format!("no service {name} in this drive"))
-    }
-
-    /// SIGTERM to `name` and wait up to `grace` (then SIGKILL and an error).
-    pub fn stop(&mut self, name: &str, grace: Duration) -> anyhow::Result<ExitStatus> {
-        let p = self.get(name)?;
-        if let Some(st) = p.wait_timeout(Duration::ZERO)? {
-            return Ok(st);
-        }
-        p.signal(libc::SIGTERM)?;
-        match p.wait_timeout(grace)? {
-            Some(st) => Ok(st),
-            None => {
-                p.signal(libc::SIGKILL)?;
-                bail!(
-                    "{name} did not stop within {grace:?} of SIGTERM:\n{}",
-                    p.log_text()
-                )
-            }
-        }
-    }
-}
-
-impl Drop for ServiceSet {
-    fn drop(&mut self) {
-        // the procs kill themselves on drop; the sockets go with the folder
-        self.procs.clear();
-        let _ = fs::remove_dir_all(&self.sock_dir);
-    }
+    Ok(sup)
 }
 
 /// The pid of a child of `parent` whose command name is `comm`, if one runs.

@@ -342,7 +342,7 @@ proptest! {
             used_arte: b[0], safe_state: b[1], v_valid: b[2], _reserved: 0,
             faults: E2eFaults { crc: f[0], counter_repeated: f[1], counter_skipped: f[2],
                 length: f[3], unknown_id: f[4], timeout: f[5] },
-            _reserved2: 0,
+            road_taken: rc.rotate_left(3),
         };
         let mut buf = Vec::new();
         c.write_json(&mut buf);

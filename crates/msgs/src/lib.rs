@@ -271,8 +271,11 @@ pub struct CycleRecord {
     pub _reserved: u8,
     /// CAN receive faults counted since start (all messages summed).
     pub faults: E2eFaults,
-    /// Explicit padding, zero.
-    pub _reserved2: u32,
+    /// The road estimate this cycle took from `grip/arte/road` (latest
+    /// value wins): 1 + the low 32 bits of its `seq`; 0 if it took none.
+    /// What a replay needs to hand the loop the same estimate in the same
+    /// cycle (the estimate's own stamp cannot tell: it races the poll).
+    pub road_taken: u32,
 }
 
 impl CycleRecord {
@@ -311,7 +314,7 @@ impl CycleRecord {
                 unknown_id: 0,
                 timeout: 0,
             },
-            _reserved2: 0,
+            road_taken: 0,
         }
     }
 }

@@ -115,8 +115,9 @@ impl<C: Classify, K: Clock> std::fmt::Debug for ArteLoop<C, K> {
     }
 }
 
-/// The odometer at `t_ns` from `x` m at `t_rec_ns` and speed `v` m/s.
-fn odometer_at(x: f64, v: f64, t_rec_ns: u64, t_ns: u64) -> f64 {
+/// The odometer at `t_ns` from `x` m at `t_rec_ns` and speed `v` m/s (the
+/// extrapolation behind every estimate's `x_from`/`x_to`).
+pub fn odometer_at(x: f64, v: f64, t_rec_ns: u64, t_ns: u64) -> f64 {
     x + v * (t_ns as i128 - t_rec_ns as i128) as f64 * 1e-9
 }
 

@@ -45,9 +45,11 @@ pub struct RunSummary {
     pub last_speed_mps: Option<f64>,
 }
 
-/// Everything checked at start-up, before any port opens.
+/// Everything checked at start-up, before any port opens; the loop runs
+/// on clock `K` (the real one in the service, a scripted one in `grip
+/// replay`).
 #[derive(Debug)]
-pub struct Prepared {
+pub struct Prepared<K: Clock = MonotonicClock> {
     /// The config file used.
     pub config_file: PathBuf,
     /// Its contents.
@@ -55,7 +57,7 @@ pub struct Prepared {
     /// The model file used.
     pub model_path: PathBuf,
     /// The loop, ready to run.
-    pub lp: ArteLoop<grip_arte::model::Predictor, MonotonicClock>,
+    pub lp: ArteLoop<grip_arte::model::Predictor, K>,
     /// Model class names.
     pub classes: Vec<String>,
     /// What every estimate of each class carries (class order): the one
@@ -74,6 +76,11 @@ fn resolve(dir: &Path, p: &Path) -> PathBuf {
 /// Loads config, model and road catalogue and builds the loop; every
 /// start-up error names its file.
 pub fn prepare(opts: &Options) -> Result<Prepared, ArteError> {
+    prepare_with_clock(opts, MonotonicClock)
+}
+
+/// [`prepare`] with the loop on `clock`.
+pub fn prepare_with_clock<K: Clock>(opts: &Options, clock: K) -> Result<Prepared<K>, ArteError> {
     let config_file = opts.config.own_file::<ArteServiceConfig>();
     let cfg = ArteServiceConfig::load(&config_file)?;
     let model_path = match &opts.model {
@@ -91,7 +98,7 @@ pub fn prepare(opts: &Options) -> Result<Prepared, ArteError> {
         &cfg.stream,
         table.clone(),
         cfg.input.resync_gap_s,
-        MonotonicClock,
+        clock,
     )?
     .with_speed_timeout(cfg.input.speed_timeout_s);
     Ok(Prepared {

@@ -1,7 +1,7 @@
 //! `recorder`: writes every grip topic to an MCAP file.
 //!
 //! ```text
-//! recorder [--config-dir DIR] [--config FILE] [--out FILE] [--meta KEY=VALUE]...
+//! recorder [--config-dir DIR] [--config FILE] [--out FILE] [--meta KEY=VALUE]... [--attach NAME=FILE]...
 //! ```
 //! - `--config-dir DIR` (default `config`; systemd: `/etc/grip`): the
 //!   configuration files in it (`*.toml`, the DBC, `roads/`, `scenarios/`,
@@ -10,6 +10,8 @@
 //! - `--out FILE` (default `<out_dir>/grip-<unix s>-<pid>.mcap`).
 //! - `--meta KEY=VALUE`: extra `grip.run` metadata (`grip drive` passes the
 //!   scenario, controller, ARTE switch and seed).
+//! - `--attach NAME=FILE`: one more file to hash and attach under NAME
+//!   (`grip drive` attaches its `--vehicle` file as `drive/vehicle.toml`).
 //! - `GRIP_INSTANCE` (environment) selects an isolated iceoryx2 namespace.
 //!
 //! Readiness: `READY=1` once the subscribers and the file are open and the
@@ -37,6 +39,9 @@ struct Args {
     /// Extra run metadata, KEY=VALUE (repeatable).
     #[arg(long, value_parser = parse_kv)]
     meta: Vec<(String, String)>,
+    /// One more file to hash and attach, NAME=FILE (repeatable).
+    #[arg(long, value_parser = parse_kv)]
+    attach: Vec<(String, String)>,
 }
 
 fn parse_kv(s: &str) -> Result<(String, String), String> {
@@ -52,6 +57,11 @@ fn main() -> ExitCode {
         config: args.config,
         out: args.out,
         meta: args.meta,
+        attach: args
+            .attach
+            .into_iter()
+            .map(|(k, v)| (k, PathBuf::from(v)))
+            .collect(),
     };
     Service::new().run(|signals| run(&opts, &signals.stop).map(drop))
 }

@@ -30,6 +30,9 @@ pub struct Options {
     pub out: Option<PathBuf>,
     /// Extra `grip.run` metadata (scenario, controller, ...).
     pub meta: Vec<(String, String)>,
+    /// Extra files to hash and attach: (name in the log, path); `grip
+    /// drive` attaches its `--vehicle` file as `drive/vehicle.toml`.
+    pub attach: Vec<(String, PathBuf)>,
 }
 
 /// Fatal errors.
@@ -115,12 +118,13 @@ pub fn config_files(dir: &Path) -> Vec<ConfigFile> {
 }
 
 /// Writes `grip.run` (version, git revision, hashes, extras) and attaches
-/// the configuration files.
+/// the configuration files and the `extra` files (name in the log, path).
 pub fn write_run_info(
     w: &mut McapWriter,
     config_dir: &Path,
     attach_max: u64,
     meta: &[(String, String)],
+    extra: &[(String, PathBuf)],
 ) -> Result<(), McapLogError> {
     let mut info = RunInfo {
         version: env!("CARGO_PKG_VERSION").into(),
@@ -133,7 +137,12 @@ pub fn write_run_info(
         info.extra.insert(k.clone(), v.clone());
     }
     let mut attach = Vec::new();
-    for f in config_files(config_dir) {
+    let extra = extra.iter().map(|(name, path)| ConfigFile {
+        name: name.clone(),
+        path: path.clone(),
+        model: false,
+    });
+    for f in config_files(config_dir).into_iter().chain(extra) {
         let data = match std::fs::read(&f.path) {
             Ok(d) => d,
             Err(e) => {
@@ -212,6 +221,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         &opts.config.config_dir,
         cfg.attach_max_bytes,
         &opts.meta,
+        &opts.attach,
     )?;
     w.flush()?;
 

@@ -34,7 +34,9 @@
 //! 5. **Send** `TorqueCommand` (E2E counter + CRC) and copy it to `CAN_LOG`
 //!    (direction TX).
 //! 6. **Publish** the `CycleRecord` (with the odometer, integral of the
-//!    measured speed V, else r·ω; the cap and the believed road with ARTE).
+//!    measured speed V, else r·ω; the cap and the believed road with ARTE;
+//!    `road_taken`, which estimate step 2 took, so that `grip replay` can
+//!    hand the loop the same estimate in the same cycle).
 //!
 //! Nothing here allocates, blocks or logs; transitions are reported through
 //! [`SharedStatus`] atomics that a non-real-time thread reads and logs.
@@ -416,7 +418,9 @@ impl TcsLoop {
         };
 
         // 2. road estimate (latest value wins)
+        let mut road_taken = 0;
         if let Some(e) = road.poll_latest() {
+            road_taken = (e.seq as u32).wrapping_add(1);
             self.road = Some(e);
             self.status.road_estimates.fetch_add(1, Ordering::Relaxed);
             if e.class_index != NO_CLASS {
@@ -532,6 +536,7 @@ impl TcsLoop {
         rec.safe_state = u8::from(self.safe);
         rec.faults = self.rx.faults();
         rec.odometer = self.odometer;
+        rec.road_taken = road_taken;
         sink.cycle(&rec);
         self.odometer += v_odo * self.dt;
         self.record = rec;

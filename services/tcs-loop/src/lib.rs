@@ -24,4 +24,4 @@ pub mod run;
 pub use config::{SafetyConfig, TcsLoopConfig};
 pub use cycle::{CycleTick, MAX_RX_PER_CYCLE, SharedStatus, TcsLoop};
 pub use ports::{NoRoad, NullSink, RecordSink, RoadSource};
-pub use run::{Options, RunError, RunSummary, run};
+pub use run::{LoadedConfig, Options, RunError, RunSummary, build, load, run};

@@ -136,17 +136,15 @@ pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
     })
 }
 
-/// Runs the service until `stop` is set (SIGTERM/SIGINT in `main`) or
-/// `run_for_s` has passed. Sends `READY=1` once the ports are open and the
-/// real-time set-up is done. Only start-up errors are returned; nothing
-/// after start is fatal.
-pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunError> {
-    let cfg = load(opts)?;
+/// The loop the service runs for `cfg`: its controller, ARTE switch,
+/// safety timeouts and (ARTE on) road knowledge. `run` and `grip replay`
+/// build it here, so a replay runs the very loop the service ran.
+pub fn build(cfg: &LoadedConfig) -> Result<TcsLoop, RunError> {
     let kind = cfg
         .own
         .controller_kind()
         .map_err(|(field, reason)| ConfigError::new(&cfg.own_path, field, reason))?;
-    let mut lp = TcsLoop::new(
+    let lp = TcsLoop::new(
         kind,
         cfg.own.arte,
         &cfg.controllers,
@@ -167,6 +165,17 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
         file: cfg.controllers_path.clone(),
         source,
     })?;
+    Ok(lp)
+}
+
+/// Runs the service until `stop` is set (SIGTERM/SIGINT in `main`) or
+/// `run_for_s` has passed. Sends `READY=1` once the ports are open and the
+/// real-time set-up is done. Only start-up errors are returned; nothing
+/// after start is fatal.
+pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunError> {
+    let cfg = load(opts)?;
+    let mut lp = build(&cfg)?;
+    let kind = lp.controller_kind();
     let rate = cfg.controllers.loop_.rate_hz;
     let period_ns = (1e9 / rate).round() as u64;
     tracing::info!(

@@ -3,12 +3,13 @@
 //! Each subcommand lives in `cmd/<name>.rs` as an `Args` struct and a `run`
 //! function; this file only dispatches.
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 mod cmd;
 mod dataset;
 mod drive;
 mod plot;
+mod replay;
 
 #[derive(Parser)]
 #[command(
@@ -46,6 +47,8 @@ enum Command {
     Drive(cmd::drive::Args),
     /// Summary, timing histogram, road timeline, CSV and plots of a drive log (MCAP).
     Inspect(cmd::inspect::Args),
+    /// Replay a drive log through the services' own code (open loop); what-if options.
+    Replay(cmd::replay::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -56,9 +59,15 @@ fn main() -> std::process::ExitCode {
         )
         .with_writer(std::io::stderr)
         .init();
-    let cli = Cli::parse();
+    let matches = Cli::command().get_matches();
+    let given = matches.value_source("config_dir") == Some(clap::parser::ValueSource::CommandLine);
+    let cli = match Cli::from_arg_matches(&matches) {
+        Ok(c) => c,
+        Err(e) => e.exit(),
+    };
     let ctx = cmd::Ctx {
         config_dir: cli.config_dir,
+        config_dir_given: given,
     };
     let result = match cli.command {
         Command::Roads(a) => cmd::roads::run(&ctx, a),
@@ -71,6 +80,7 @@ fn main() -> std::process::ExitCode {
         Command::Features(a) => cmd::features::run(&ctx, a),
         Command::Drive(a) => cmd::drive::run(&ctx, a),
         Command::Inspect(a) => cmd::inspect::run(&ctx, a),
+        Command::Replay(a) => cmd::replay::run(&ctx, a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -450,6 +450,12 @@ impl McapRecord for CycleRecord {
                 ("safe_state", t_int("1 = safe state")),
                 ("v_valid", t_int("1 = v valid")),
                 ("faults", faults_schema()),
+                (
+                    "road_taken",
+                    t_int(
+                        "1 + low 32 bits of the seq of the road estimate taken this cycle, 0 = none",
+                    ),
+                ),
             ],
         )
     }
@@ -475,7 +481,8 @@ impl McapRecord for CycleRecord {
             .u("used_arte", self.used_arte.into())
             .u("safe_state", self.safe_state.into())
             .u("v_valid", self.v_valid.into())
-            .obj("faults", |o| write_faults(o, &self.faults));
+            .obj("faults", |o| write_faults(o, &self.faults))
+            .u("road_taken", self.road_taken.into());
         o.end();
     }
     fn from_json(v: &Value) -> Result<Self, JsonError> {
@@ -503,7 +510,11 @@ impl McapRecord for CycleRecord {
             v_valid: r.uint("v_valid")?,
             _reserved: 0,
             faults: read_faults(&r.sub("faults")?)?,
-            _reserved2: 0,
+            // absent in logs written before it existed: 0 (none known)
+            road_taken: match r.v.get("road_taken") {
+                None => 0,
+                Some(_) => r.uint("road_taken")?,
+            },
         })
     }
     fn stamp_ns(&self) -> u64 {

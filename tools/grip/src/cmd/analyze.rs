@@ -471,6 +471,7 @@ mod tests {
     #[test]
     fn report_runs_on_the_shipped_config() {
         let ctx = Ctx {
+            config_dir_given: false,
             config_dir: std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config"),
         };
         let args = Args {

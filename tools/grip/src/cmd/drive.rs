@@ -12,7 +12,7 @@ use anyhow::{Context, bail};
 use grip_config::ConfigDir;
 
 use super::Ctx;
-use crate::drive::{self, DrivePlan, log::DriveLog, summary};
+use grip_drive::{self as drive, DriveLog, DrivePlan, summary};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum OnOff {
@@ -46,10 +46,10 @@ pub struct Args {
     #[arg(long)]
     vehicle: Option<PathBuf>,
     /// Sensor-noise seed of plant-sim.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = drive::plan::DEFAULT_SEED)]
     seed: u64,
     /// Seconds each service may take to report READY=1.
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = drive::plan::DEFAULT_READY_TIMEOUT_S)]
     ready_timeout: f64,
     /// Print each service's command line (and its systemd ExecStart=) and exit.
     #[arg(long)]
@@ -105,7 +105,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         vehicle,
     };
     if args.dry_run {
-        for svc in drive::services::Service::START_ORDER {
+        for svc in drive::Service::START_ORDER {
             println!("{}:", svc.name());
             println!(
                 "  drive:   {} {}",
@@ -127,7 +127,9 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         signal_hook::flag::register(sig, Arc::clone(&interrupt))
             .context("installing the signal handler")?;
     }
-    let outcome = drive::run_services(&plan, &bin, args.verbose, &interrupt)?;
+    let outcome = drive::run_services(&plan, &bin, args.verbose, &interrupt, &mut |l| {
+        eprintln!("{l}")
+    })?;
 
     eprintln!(
         "drive: services stopped (scenario part {:.2} s wall):",
@@ -144,7 +146,10 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     // the summary, from the log (also after a failure: what was recorded)
     match DriveLog::load(&out) {
         Ok(log) => {
-            let (vehicle, from) = drive::vehicle_for(&log, &config_dir);
+            let (vehicle, from, warnings) = drive::vehicle_for(&log, &config_dir);
+            for w in warnings {
+                eprintln!("{w}");
+            }
             let s = summary::summarize(&log, &vehicle, &from, Some(&roads));
             println!("{}", s.render());
             println!(
@@ -153,7 +158,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             );
         }
         Err(e) if outcome.failure.is_some() => eprintln!("drive: no readable log: {e:#}"),
-        Err(e) => return Err(e),
+        Err(e) => return Err(e.into()),
     }
     if let Some(f) = outcome.failure {
         bail!("drive failed: {f}");

@@ -9,20 +9,28 @@
 use std::path::PathBuf;
 
 use super::Ctx;
-use crate::drive::{self, export, log::DriveLog, plot, summary};
+use crate::drive::{export, plot};
+use grip_drive::{self as drive, DriveLog, summary};
 
 #[derive(clap::Args)]
 pub struct Args {
     /// The MCAP log (from `grip drive` or the recorder service); with a
-    /// second log, the two side by side (e.g. `grip inspect on.mcap off.mcap`).
+    /// second log, the two side by side (e.g. `grip inspect on.mcap
+    /// off.mcap`); or a directory of logs (one row per drive).
     #[arg(required = true, num_args = 1..=2)]
     logs: Vec<PathBuf>,
-    /// Write cycles.csv, estimates.csv, truth.csv and can.csv here (one log).
+    /// One log: write cycles.csv, estimates.csv, truth.csv and can.csv into
+    /// this directory. A directory of logs: write the per-drive table to
+    /// this CSV file.
     #[arg(long)]
     csv: Option<PathBuf>,
-    /// Write drive.png and timing.png here (one log).
+    /// Write drive.png and timing.png here (one log only).
     #[arg(long)]
     plot: Option<PathBuf>,
+    /// A directory of logs: exit with status 1 if any log is bad
+    /// (unreadable, truncated, or damaged).
+    #[arg(long)]
+    strict: bool,
 }
 
 /// The summary of the log at `path`, with the vehicle the drive ran with
@@ -33,7 +41,10 @@ fn summary_of(
     path: &std::path::Path,
 ) -> anyhow::Result<(DriveLog, f64, summary::Summary)> {
     let log = DriveLog::load(path)?;
-    let (vehicle, from) = drive::vehicle_for(&log, &ctx.config_dir);
+    let (vehicle, from, warnings) = drive::vehicle_for(&log, &ctx.config_dir);
+    for w in warnings {
+        eprintln!("{w}");
+    }
     let roads = match grip_config::ConfigDir::new(&ctx.config_dir).roads() {
         Ok(r) => Some(r),
         Err(e) => {
@@ -46,6 +57,11 @@ fn summary_of(
 }
 
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
+    if let [dir] = args.logs.as_slice()
+        && dir.is_dir()
+    {
+        return crate::drive::many::inspect_dir(ctx, dir, args.csv.as_deref(), args.strict);
+    }
     if let [a, b] = args.logs.as_slice() {
         if args.csv.is_some() || args.plot.is_some() {
             anyhow::bail!(

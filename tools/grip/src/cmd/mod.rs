@@ -7,6 +7,7 @@ pub mod dataset;
 pub mod drive;
 pub mod features;
 pub mod inspect;
+pub mod replay;
 pub mod roads;
 pub mod sim;
 pub mod snr;
@@ -16,4 +17,7 @@ pub mod train;
 pub struct Ctx {
     /// The configuration directory (`--config-dir`, default `config`).
     pub config_dir: std::path::PathBuf,
+    /// Whether `--config-dir` was given on the command line (`grip replay`
+    /// then uses it instead of the log's configuration).
+    pub config_dir_given: bool,
 }

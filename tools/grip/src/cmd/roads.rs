@@ -206,6 +206,7 @@ mod tests {
         )
         .unwrap();
         let ctx = Ctx {
+            config_dir_given: false,
             config_dir: dir.path().to_owned(),
         };
         let e = run(

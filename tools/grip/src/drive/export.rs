@@ -10,7 +10,7 @@ use anyhow::Context;
 use grip_io::can::protocol::spec_for_id;
 use grip_msgs::can_dir;
 
-use super::log::DriveLog;
+use grip_drive::DriveLog;
 
 fn f(x: f64) -> String {
     if x.is_finite() {

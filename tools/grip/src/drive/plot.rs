@@ -8,11 +8,11 @@ use std::path::{Path, PathBuf};
 use anyhow::anyhow;
 use plotters::prelude::*;
 
-use super::log::DriveLog;
-use super::summary::Percentiles;
 use crate::plot::{
     Area, Band, Line, PlotResult as Res, estimate_strip, init_fonts, road_colour, road_panel, runs,
 };
+use grip_drive::DriveLog;
+use grip_drive::summary::Percentiles;
 
 const W: u32 = 1600;
 const PANEL_H: u32 = 330;

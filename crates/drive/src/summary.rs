@@ -22,7 +22,7 @@ use grip_msgs::{CycleRecord, E2eFaults, GroundTruth, RoadEstimate, can_dir, can_
 use grip_physics::{RoadCatalogue, VehicleParams};
 use grip_tcs::{Metrics, MetricsAccumulator, Sample};
 
-use super::log::DriveLog;
+use crate::log::DriveLog;
 
 /// p50 / p99 / max of a set of values (ns), and the count.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -398,7 +398,7 @@ fn timing(cycles: &[CycleRecord]) -> Timing {
 }
 
 /// Computes the summary of `log`; `vehicle` (the one the drive ran with,
-/// [`super::vehicle_for`], described by `vehicle_from`) gives M/n and J_w
+/// [`crate::vehicle_for`], described by `vehicle_from`) gives M/n and J_w
 /// for the kinetic-energy metric and N · r for the preview report, which
 /// needs the road catalogue `roads` (None: no preview report).
 pub fn summarize(
@@ -1124,7 +1124,7 @@ mod tests {
             cycles,
             ..DriveLog::default()
         };
-        let s = summarize(&log, &VehicleParams::default());
+        let s = summarize(&log, &VehicleParams::default(), "defaults", None);
         let m = s.metrics.unwrap();
         // window: truth samples 9..=209, 201 samples of 1 ms; the command
         // changes at 10, 20, ..., 200 ms: 20 edges of 100 N m over 0.201 s.

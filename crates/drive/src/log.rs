@@ -1,13 +1,41 @@
-//! A drive's MCAP log in memory: every payload but audio samples (audio is
-//! counted, not kept), the run and recorder metadata, the attachments' names
-//! and texts. Shared by `grip drive` (its summary) and `grip inspect`.
+//! A drive's MCAP log in memory, typed: every payload (audio samples only
+//! when asked, [`DriveLog::load_with`]; else audio is counted), the run and
+//! recorder metadata, every metadata record, the attachments. A damaged
+//! file reads up to its first damage ([`McapLog::open`]'s tolerance) and
+//! says so in [`DriveLog::report`]. Shared by `grip drive` (its summary),
+//! `grip inspect`, `grip replay` and the tests.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use anyhow::Context;
-use grip_io::mcaplog::{LogMessage, McapLog, MetadataMap, ReadReport};
-use grip_msgs::{CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
+use grip_io::mcaplog::{LogMessage, McapLog, McapLogError, MetadataMap, ReadReport};
+use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
+
+/// A log that cannot be read at all (missing, unreadable, not MCAP); the
+/// reason is its [`source`](std::error::Error::source) (`{:#}` of an
+/// `anyhow::Error` prints both, [`LogError::full`] too).
+#[derive(Debug, thiserror::Error)]
+#[error("reading {path}")]
+pub struct LogError {
+    /// The file.
+    pub path: PathBuf,
+    /// Why.
+    pub source: McapLogError,
+}
+
+impl LogError {
+    /// "reading PATH: reason".
+    pub fn full(&self) -> String {
+        format!("{self}: {}", self.source)
+    }
+}
+
+/// What to keep beyond the default.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// Keep every audio block ([`DriveLog::audio_blocks`]; 8 KiB each).
+    pub audio: bool,
+}
 
 /// What the audio topic carried (samples are not kept).
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -49,13 +77,26 @@ pub struct DriveLog {
     pub recorder: Option<MetadataMap>,
     /// Attachments: name → bytes.
     pub attachments: BTreeMap<String, Vec<u8>>,
+    /// Every metadata record by name (the last of a name wins).
+    pub metadata: BTreeMap<String, MetadataMap>,
+    /// The audio blocks in log order, when [`LoadOptions::audio`] asked.
+    pub audio_blocks: Vec<AudioBlock>,
 }
 
 impl DriveLog {
     /// Reads `path`. A file that is not MCAP, or unreadable, is an error; a
     /// truncated one reads up to the damage (see `report.truncated`).
-    pub fn load(path: &Path) -> anyhow::Result<Self> {
-        let log = McapLog::open(path).with_context(|| format!("reading {}", path.display()))?;
+    pub fn load(path: &Path) -> Result<Self, LogError> {
+        Self::load_with(path, LoadOptions::default())
+    }
+
+    /// [`DriveLog::load`], keeping what `opts` asks for.
+    pub fn load_with(path: &Path, opts: LoadOptions) -> Result<Self, LogError> {
+        let err = |source| LogError {
+            path: path.to_path_buf(),
+            source,
+        };
+        let log = McapLog::open(path).map_err(err)?;
         let mut me = DriveLog {
             path: path.to_path_buf(),
             ..Self::default()
@@ -74,17 +115,21 @@ impl DriveLog {
                         me.audio.sample_rate = a.sample_rate;
                         me.audio.xruns = a.xruns;
                         me.audio.seqs.push(a.seq);
+                        if opts.audio {
+                            me.audio_blocks.push(*a);
+                        }
                     }
                 }
             })
-            .with_context(|| format!("reading {}", path.display()))?;
+            .map_err(err)?;
         me.report = report;
         for (name, map) in log.metadata().unwrap_or_default() {
             match name.as_str() {
-                "grip.run" => me.run = map,
-                "grip.recorder" => me.recorder = Some(map),
+                "grip.run" => me.run = map.clone(),
+                "grip.recorder" => me.recorder = Some(map.clone()),
                 _ => {}
             }
+            me.metadata.insert(name, map);
         }
         for a in log.attachments().unwrap_or_default() {
             me.attachments.insert(a.name, a.data);
@@ -166,7 +211,7 @@ mod tests {
             ),
             (600, 600, 600, 6)
         );
-        let s = super::super::summary::summarize(
+        let s = crate::summary::summarize(
             &log,
             &grip_physics::VehicleParams::default(),
             "defaults",
@@ -196,7 +241,7 @@ mod tests {
             match DriveLog::load(&q) {
                 Ok(log) => {
                     assert!(log.report.truncated.is_some(), "cut at {cut} not reported");
-                    let s = super::super::summary::summarize(&log, &v, "defaults", None);
+                    let s = crate::summary::summarize(&log, &v, "defaults", None);
                     let text = s.render();
                     assert!(text.contains("incomplete"), "cut at {cut}: {text}");
                 }
@@ -208,7 +253,7 @@ mod tests {
             b[pos] ^= 0x5A;
             std::fs::write(&q, &b).unwrap();
             if let Ok(log) = DriveLog::load(&q) {
-                let _ = super::super::summary::summarize(&log, &v, "defaults", None).render();
+                let _ = crate::summary::summarize(&log, &v, "defaults", None).render();
             }
         }
     }
@@ -218,15 +263,14 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("x.mcap");
         std::fs::write(&p, "hello, not a log").unwrap();
-        let e = format!("{:#}", DriveLog::load(&p).unwrap_err());
+        let e = DriveLog::load(&p).unwrap_err().full();
         assert!(
             e.contains("x.mcap") && e.contains("not an MCAP file"),
             "{e}"
         );
-        let e = format!(
-            "{:#}",
-            DriveLog::load(&dir.path().join("missing.mcap")).unwrap_err()
-        );
+        let e = DriveLog::load(&dir.path().join("missing.mcap"))
+            .unwrap_err()
+            .full();
         assert!(e.contains("missing.mcap"), "{e}");
     }
 }

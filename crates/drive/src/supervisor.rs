@@ -1,0 +1,674 @@
+//! The one service supervisor of grip: `grip drive`, the end-to-end tests
+//! and the HIL tests start services with it.
+//!
+//! Each service runs as its own process (own process group, so a terminal
+//! Ctrl-C reaches only the caller) with its own `NOTIFY_SOCKET` datagram
+//! socket; [`Proc::wait_ready`] waits for `READY=1` like systemd's
+//! `Type=notify`. Its output either goes through a pipe whose last lines
+//! are kept (and echoed: warnings and errors, or everything) or into a
+//! file (the HIL tests keep every service's log). A [`Supervisor`] starts
+//! services in order, watches for early deaths, stops them with SIGTERM
+//! (SIGKILL after a grace period) and kills whatever still runs when it
+//! is dropped.
+
+use std::collections::VecDeque;
+use std::io::{BufRead, BufReader};
+use std::os::unix::net::UnixDatagram;
+use std::os::unix::process::{CommandExt, ExitStatusExt};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// Lines of output kept per service by default.
+pub const TAIL_LINES: usize = 40;
+
+/// Errors of the supervisor; each names the service, its command line and
+/// the last lines it wrote.
+#[derive(Debug, thiserror::Error)]
+pub enum SuperviseError {
+    /// A file-system or socket operation failed.
+    #[error("{what}: {source}")]
+    Io {
+        /// What was being done (names the path or service).
+        what: String,
+        /// The error.
+        source: std::io::Error,
+    },
+    /// The service ended before it reported `READY=1`.
+    #[error(
+        "{service} exited before it was ready ({status}).\n  command: {cmdline}\n  last stderr lines:\n{tail}"
+    )]
+    ExitedBeforeReady {
+        /// Service.
+        service: String,
+        /// How it ended ([`describe_status`]).
+        status: String,
+        /// Its command line.
+        cmdline: String,
+        /// Its last output lines, indented.
+        tail: String,
+    },
+    /// The service stayed silent.
+    #[error(
+        "{service} did not report READY=1 within {secs:.0} s.\n  command: {cmdline}\n  last stderr lines:\n{tail}"
+    )]
+    NotReady {
+        /// Service.
+        service: String,
+        /// The timeout, s.
+        secs: f64,
+        /// Its command line.
+        cmdline: String,
+        /// Its last output lines, indented.
+        tail: String,
+    },
+    /// The service did not stop within its grace period and was killed.
+    #[error(
+        "{service} did not stop within {secs:.0} s of SIGTERM and was killed.\n  last stderr lines:\n{tail}"
+    )]
+    Killed {
+        /// Service.
+        service: String,
+        /// The grace period, s.
+        secs: f64,
+        /// Its last output lines, indented.
+        tail: String,
+    },
+    /// No service of that name was started.
+    #[error("no service {0} in this supervisor")]
+    Unknown(String),
+}
+
+/// Removes ANSI escape sequences (coloured tracing output).
+pub fn strip_ansi(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    let mut it = s.chars().peekable();
+    while let Some(c) = it.next() {
+        if c == '\u{1b}' {
+            if it.peek() == Some(&'[') {
+                it.next();
+                for c in it.by_ref() {
+                    if ('@'..='~').contains(&c) {
+                        break;
+                    }
+                }
+            }
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// How a child ended: `exit code N` or `killed by signal N`.
+pub fn describe_status(st: &ExitStatus) -> String {
+    match (st.code(), st.signal()) {
+        (Some(c), _) => format!("exit code {c}"),
+        (None, Some(s)) => format!(
+            "killed by signal {s}{}",
+            if s == 9 { " (SIGKILL)" } else { "" }
+        ),
+        _ => "ended (unknown status)".to_owned(),
+    }
+}
+
+/// Where a service's stdout and stderr go.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Output {
+    /// stderr through a pipe (stdout discarded): the last `keep` lines are
+    /// kept; lines are echoed to the caller's stderr as `  [name] line`
+    /// (all of them with `echo_all`, else only warnings and errors).
+    Pipe {
+        /// Lines kept.
+        keep: usize,
+        /// Echo every line (else only `WARN`/`ERROR`/`error` lines).
+        echo_all: bool,
+    },
+    /// stderr kept in memory in full, nothing echoed (tests that look for
+    /// a line).
+    Capture,
+    /// stdout and stderr both appended to this file.
+    File(PathBuf),
+}
+
+/// What to start: a name (the service and its notify socket), the binary
+/// and its arguments, extra environment variables, and the output.
+#[derive(Debug, Clone)]
+pub struct ProcSpec {
+    /// Service name (messages, socket file, [`Supervisor::get`]).
+    pub name: String,
+    /// Executable.
+    pub bin: PathBuf,
+    /// Arguments.
+    pub args: Vec<String>,
+    /// Extra environment.
+    pub env: Vec<(String, String)>,
+    /// Output handling.
+    pub output: Output,
+}
+
+impl ProcSpec {
+    /// `bin args...` named `name`, output piped with the default tail.
+    pub fn new(name: &str, bin: &Path, args: &[String]) -> Self {
+        Self {
+            name: name.to_owned(),
+            bin: bin.to_path_buf(),
+            args: args.to_vec(),
+            env: Vec::new(),
+            output: Output::Pipe {
+                keep: TAIL_LINES,
+                echo_all: false,
+            },
+        }
+    }
+
+    /// With `output`.
+    pub fn output(mut self, output: Output) -> Self {
+        self.output = output;
+        self
+    }
+
+    /// The command line, for messages.
+    pub fn cmdline(&self) -> String {
+        std::iter::once(self.bin.display().to_string())
+            .chain(self.args.iter().cloned())
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+}
+
+/// One running service.
+pub struct Proc {
+    name: String,
+    /// The command line (for messages).
+    pub cmdline: String,
+    child: Child,
+    notify: UnixDatagram,
+    sock: PathBuf,
+    lines: Arc<Mutex<VecDeque<String>>>,
+    file: Option<PathBuf>,
+    reader: Option<JoinHandle<()>>,
+    /// Exit status once reaped.
+    pub status: Option<ExitStatus>,
+    /// When it was started.
+    pub started: Instant,
+    /// Last `STATUS=` it sent.
+    pub last_status: Option<String>,
+}
+
+impl std::fmt::Debug for Proc {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Proc")
+            .field("name", &self.name)
+            .field("pid", &self.child.id())
+            .finish()
+    }
+}
+
+impl Proc {
+    /// Starts `spec` in iceoryx2 instance `instance` (`GRIP_INSTANCE`),
+    /// with its notify socket `<sock_dir>/<name>.notify`.
+    pub fn spawn(spec: &ProcSpec, instance: &str, sock_dir: &Path) -> Result<Self, SuperviseError> {
+        let io = |what: String| move |source| SuperviseError::Io { what, source };
+        let sock = sock_dir.join(format!("{}.notify", spec.name));
+        let _ = std::fs::remove_file(&sock);
+        let notify = UnixDatagram::bind(&sock)
+            .map_err(io(format!("binding the notify socket {}", sock.display())))?;
+        notify
+            .set_read_timeout(Some(Duration::from_millis(50)))
+            .map_err(io(format!("notify socket {}", sock.display())))?;
+        let mut cmd = Command::new(&spec.bin);
+        cmd.args(&spec.args)
+            .env(grip_io::ipc::INSTANCE_ENV, instance)
+            .env("NOTIFY_SOCKET", &sock)
+            .env("NO_COLOR", "1")
+            .env_remove("WATCHDOG_USEC")
+            .env_remove("WATCHDOG_PID")
+            .envs(spec.env.iter().map(|(k, v)| (k, v)))
+            .stdin(Stdio::null())
+            .process_group(0);
+        let mut file = None;
+        let (keep, echo) = match &spec.output {
+            Output::Pipe { keep, echo_all } => {
+                cmd.stdout(Stdio::null()).stderr(Stdio::piped());
+                (*keep, Some(*echo_all))
+            }
+            Output::Capture => {
+                cmd.stdout(Stdio::null()).stderr(Stdio::piped());
+                (usize::MAX, None)
+            }
+            Output::File(p) => {
+                let f = std::fs::OpenOptions::new()
+                    .create(true)
+                    .append(true)
+                    .open(p)
+                    .map_err(io(format!("creating {}", p.display())))?;
+                let f2 = f
+                    .try_clone()
+                    .map_err(io(format!("opening {}", p.display())))?;
+                cmd.stdout(f).stderr(f2);
+                file = Some(p.clone());
+                (0, None)
+            }
+        };
+        let cmdline = spec.cmdline();
+        let mut child = cmd
+            .spawn()
+            .map_err(io(format!("starting {}: {cmdline}", spec.name)))?;
+        let lines = Arc::new(Mutex::new(VecDeque::new()));
+        let reader = child.stderr.take().map(|err| {
+            let lines = Arc::clone(&lines);
+            let name = spec.name.clone();
+            std::thread::spawn(move || {
+                for line in BufReader::new(err).lines() {
+                    let Ok(line) = line else { break };
+                    let line = strip_ansi(&line);
+                    if let Some(all) = echo {
+                        let loud = line.contains(" WARN ")
+                            || line.contains(" ERROR ")
+                            || line.starts_with("error");
+                        if all || loud {
+                            eprintln!("  [{name}] {line}");
+                        }
+                    }
+                    if let Ok(mut t) = lines.lock() {
+                        if t.len() == keep {
+                            t.pop_front();
+                        }
+                        t.push_back(line);
+                    }
+                }
+            })
+        });
+        Ok(Self {
+            name: spec.name.clone(),
+            cmdline,
+            child,
+            notify,
+            sock,
+            lines,
+            file,
+            reader,
+            status: None,
+            started: Instant::now(),
+            last_status: None,
+        })
+    }
+
+    /// Service name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// Its output so far, as lines: the kept pipe lines, or the log file's.
+    pub fn lines(&self) -> Vec<String> {
+        match &self.file {
+            Some(p) => std::fs::read(p)
+                .map(|b| {
+                    String::from_utf8_lossy(&b)
+                        .lines()
+                        .map(strip_ansi)
+                        .collect()
+                })
+                .unwrap_or_default(),
+            None => self
+                .lines
+                .lock()
+                .map(|t| t.iter().cloned().collect())
+                .unwrap_or_default(),
+        }
+    }
+
+    /// Its output so far as one text.
+    pub fn text(&self) -> String {
+        self.lines().join("\n")
+    }
+
+    /// Whether a line of its output contains `needle`.
+    pub fn has_line(&self, needle: &str) -> bool {
+        self.lines().iter().any(|l| l.contains(needle))
+    }
+
+    /// The log file ([`Output::File`]).
+    pub fn log_path(&self) -> Option<&Path> {
+        self.file.as_deref()
+    }
+
+    /// The last `n` lines of its output.
+    pub fn tail(&self, n: usize) -> Vec<String> {
+        let t = self.lines();
+        let skip = t.len().saturating_sub(n);
+        t.into_iter().skip(skip).collect()
+    }
+
+    /// Its output tail, indented, for error messages.
+    pub fn tail_text(&self, n: usize) -> String {
+        let lines = self.tail(n);
+        if lines.is_empty() {
+            "    (no output on stderr)".to_owned()
+        } else {
+            lines
+                .iter()
+                .map(|l| format!("    {l}"))
+                .collect::<Vec<_>>()
+                .join("\n")
+        }
+    }
+
+    /// Reaps it if it ended.
+    pub fn poll_exit(&mut self) -> Option<ExitStatus> {
+        if self.status.is_none()
+            && let Ok(Some(st)) = self.child.try_wait()
+        {
+            self.status = Some(st);
+            self.join_reader();
+        }
+        self.status
+    }
+
+    /// Waits up to `timeout` for it to end.
+    pub fn wait_timeout(&mut self, timeout: Duration) -> Option<ExitStatus> {
+        let t0 = Instant::now();
+        loop {
+            if let Some(st) = self.poll_exit() {
+                return Some(st);
+            }
+            if t0.elapsed() >= timeout {
+                return None;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    fn join_reader(&mut self) {
+        if let Some(h) = self.reader.take() {
+            let _ = h.join();
+        }
+    }
+
+    /// Reads pending notify datagrams (waits up to 50 ms); true if one said
+    /// `READY=1`.
+    pub fn read_notify(&mut self) -> bool {
+        let mut buf = [0u8; 4096];
+        let mut ready = false;
+        while let Ok(n) = self.notify.recv(&mut buf) {
+            let text = String::from_utf8_lossy(&buf[..n]);
+            for line in text.lines() {
+                if line == "READY=1" {
+                    ready = true;
+                } else if let Some(s) = line.strip_prefix("STATUS=") {
+                    self.last_status = Some(s.to_owned());
+                }
+            }
+            let _ = self.notify.set_nonblocking(true);
+        }
+        let _ = self.notify.set_nonblocking(false);
+        ready
+    }
+
+    /// Waits for `READY=1` up to `timeout`; an error naming the service
+    /// with its output tail if it died or stayed silent.
+    pub fn wait_ready(&mut self, timeout: Duration) -> Result<Duration, SuperviseError> {
+        let t0 = Instant::now();
+        loop {
+            if self.read_notify() {
+                return Ok(t0.elapsed());
+            }
+            if let Some(st) = self.poll_exit() {
+                return Err(SuperviseError::ExitedBeforeReady {
+                    service: self.name.clone(),
+                    status: describe_status(&st),
+                    cmdline: self.cmdline.clone(),
+                    tail: self.tail_text(15),
+                });
+            }
+            if t0.elapsed() > timeout {
+                return Err(SuperviseError::NotReady {
+                    service: self.name.clone(),
+                    secs: timeout.as_secs_f64(),
+                    cmdline: self.cmdline.clone(),
+                    tail: self.tail_text(15),
+                });
+            }
+        }
+    }
+
+    /// Sends `sig` (e.g. `libc::SIGUSR1`) unless it has been reaped.
+    pub fn signal(&self, sig: i32) {
+        if self.status.is_none() {
+            // SAFETY: kill(2) with a pid we spawned and have not reaped
+            // (so it cannot have been reused); no memory is involved.
+            unsafe {
+                libc::kill(self.child.id() as libc::pid_t, sig);
+            }
+        }
+    }
+
+    /// SIGTERM, then SIGKILL after `grace`; returns the exit status and
+    /// whether SIGKILL was needed.
+    pub fn stop(&mut self, grace: Duration) -> (Option<ExitStatus>, bool) {
+        if let Some(st) = self.poll_exit() {
+            return (Some(st), false);
+        }
+        self.signal(libc::SIGTERM);
+        if let Some(st) = self.wait_timeout(grace) {
+            return (Some(st), false);
+        }
+        self.signal(libc::SIGKILL);
+        let st = self.child.wait().ok();
+        self.status = st;
+        self.join_reader();
+        (st, true)
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        // never leave a service running behind a failed drive or test
+        if self.poll_exit().is_none() {
+            self.signal(libc::SIGKILL);
+            let _ = self.child.wait();
+        }
+        let _ = std::fs::remove_file(&self.sock);
+    }
+}
+
+/// Services of one drive (one `GRIP_INSTANCE`), started in order, each
+/// awaited for `READY=1`; dropping it kills what still runs and removes
+/// the notify sockets.
+#[derive(Debug)]
+pub struct Supervisor {
+    instance: String,
+    sock_dir: PathBuf,
+    procs: Vec<Proc>,
+}
+
+impl Supervisor {
+    /// A supervisor for instance `instance`; its notify sockets go to a
+    /// fresh folder `<tmp>/grip-<instance>`.
+    pub fn new(instance: &str) -> Result<Self, SuperviseError> {
+        let sock_dir = std::env::temp_dir().join(format!("grip-{instance}"));
+        std::fs::create_dir_all(&sock_dir).map_err(|source| SuperviseError::Io {
+            what: format!("creating {}", sock_dir.display()),
+            source,
+        })?;
+        Ok(Self {
+            instance: instance.to_owned(),
+            sock_dir,
+            procs: Vec::new(),
+        })
+    }
+
+    /// The `GRIP_INSTANCE`.
+    pub fn instance(&self) -> &str {
+        &self.instance
+    }
+
+    /// Spawns `spec` without waiting for readiness (replacing a reaped or
+    /// still running service of the same name, which is killed).
+    pub fn spawn(&mut self, spec: &ProcSpec) -> Result<&mut Proc, SuperviseError> {
+        self.procs.retain(|p| p.name != spec.name);
+        let p = Proc::spawn(spec, &self.instance, &self.sock_dir)?;
+        self.procs.push(p);
+        let last = self.procs.len() - 1;
+        Ok(&mut self.procs[last])
+    }
+
+    /// Spawns `spec` and waits up to `ready` for its `READY=1`; returns how
+    /// long that took. On an error the process stays in the supervisor (its
+    /// output can still be read; it is killed on drop).
+    pub fn start(&mut self, spec: &ProcSpec, ready: Duration) -> Result<Duration, SuperviseError> {
+        self.spawn(spec)?.wait_ready(ready)
+    }
+
+    /// The service `name`.
+    pub fn get(&mut self, name: &str) -> Result<&mut Proc, SuperviseError> {
+        self.procs
+            .iter_mut()
+            .find(|p| p.name == name)
+            .ok_or_else(|| SuperviseError::Unknown(name.to_owned()))
+    }
+
+    /// Every service, in start order.
+    pub fn procs(&self) -> &[Proc] {
+        &self.procs
+    }
+
+    /// Every service, in start order, mutable.
+    pub fn procs_mut(&mut self) -> &mut [Proc] {
+        &mut self.procs
+    }
+
+    /// The services that ended since the last call (name and status),
+    /// reaped: the watchdog of a running drive.
+    pub fn ended(&mut self) -> Vec<(String, ExitStatus)> {
+        let mut v = Vec::new();
+        for p in &mut self.procs {
+            let was = p.status.is_some();
+            if let Some(st) = p.poll_exit()
+                && !was
+            {
+                v.push((p.name.clone(), st));
+            }
+        }
+        v
+    }
+
+    /// SIGTERM to `name`, waiting up to `grace`; killed after it is an
+    /// error. Returns its exit status.
+    pub fn stop(&mut self, name: &str, grace: Duration) -> Result<ExitStatus, SuperviseError> {
+        let p = self.get(name)?;
+        match p.stop(grace) {
+            (Some(st), false) => Ok(st),
+            (_, _) => Err(SuperviseError::Killed {
+                service: name.to_owned(),
+                secs: grace.as_secs_f64(),
+                tail: p.tail_text(10),
+            }),
+        }
+    }
+}
+
+impl Drop for Supervisor {
+    fn drop(&mut self) {
+        self.procs.clear();
+        let _ = std::fs::remove_dir_all(&self.sock_dir);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ansi_is_stripped() {
+        assert_eq!(
+            strip_ansi("\u{1b}[2m2026\u{1b}[0m \u{1b}[32m INFO\u{1b}[0m x"),
+            "2026  INFO x"
+        );
+    }
+
+    fn sh(name: &str, script: &str) -> ProcSpec {
+        ProcSpec::new(
+            name,
+            Path::new("/bin/sh"),
+            &["-c".to_owned(), script.to_owned()],
+        )
+    }
+
+    /// READY=1 over the notify socket, stderr kept, SIGTERM stops it; a
+    /// process that exits early is named with its exit code and output.
+    #[test]
+    fn ready_stop_and_early_exit() {
+        let mut s = Supervisor::new(&format!("test-sup-{}", std::process::id())).unwrap();
+        let ready = "import os, socket; s = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM); \
+                     s.sendto(b'STATUS=up\\nREADY=1', os.environ['NOTIFY_SOCKET']); import time; time.sleep(30)";
+        let spec = ProcSpec::new(
+            "notifier",
+            Path::new("/usr/bin/env"),
+            &["python3".to_owned(), "-c".to_owned(), ready.to_owned()],
+        );
+        s.start(&spec, Duration::from_secs(20)).unwrap();
+        assert_eq!(
+            s.get("notifier").unwrap().last_status.as_deref(),
+            Some("up")
+        );
+        let st = s.stop("notifier", Duration::from_secs(5)).unwrap();
+        assert_eq!(st.signal(), Some(libc::SIGTERM));
+        let e = s
+            .start(
+                &sh("quitter", "echo bad field >&2; exit 3").output(Output::Capture),
+                Duration::from_secs(10),
+            )
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("quitter exited before it was ready (exit code 3)")
+                && e.contains("bad field"),
+            "{e}"
+        );
+        let e = s
+            .start(&sh("silent", "exec sleep 30"), Duration::from_millis(200))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("silent did not report READY=1"), "{e}");
+        let st = s.stop("silent", Duration::from_secs(5)).unwrap();
+        assert_eq!(st.signal(), Some(libc::SIGTERM));
+        assert!(s.get("nobody").is_err());
+    }
+
+    /// A process that ignores SIGTERM is killed and reported; dropping the
+    /// supervisor kills what still runs.
+    #[test]
+    fn kill_after_grace_and_on_drop() {
+        let mut s = Supervisor::new(&format!("test-sup2-{}", std::process::id())).unwrap();
+        s.spawn(&sh("stubborn", "trap '' TERM; sleep 2 & wait"))
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(100));
+        let e = s.stop("stubborn", Duration::from_millis(200)).unwrap_err();
+        assert!(e.to_string().contains("stubborn did not stop"), "{e}");
+        let dir = std::env::temp_dir();
+        let f = dir.join(format!("grip-sup-{}.log", std::process::id()));
+        let pid = s
+            .spawn(&sh("sleeper", "echo started; exec sleep 30").output(Output::File(f.clone())))
+            .unwrap()
+            .pid();
+        std::thread::sleep(Duration::from_millis(200));
+        assert!(s.get("sleeper").unwrap().has_line("started"));
+        drop(s);
+        assert!(
+            !Path::new(&format!("/proc/{pid}")).exists()
+                || std::fs::read_to_string(format!("/proc/{pid}/stat"))
+                    .is_ok_and(|t| t.contains(") Z")),
+            "sleeper survived the drop"
+        );
+        let _ = std::fs::remove_file(f);
+    }
+}

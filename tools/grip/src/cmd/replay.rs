@@ -1,0 +1,480 @@
+//! `grip replay LOG.mcap [--out NEW.mcap]`: the drive's logged inputs
+//! through the services' own code (arte's `ArteLoop::on_block`, tcs-loop's
+//! `TcsLoop::cycle`), with the drive's own configuration from the log, or
+//! a what-if change; a per-topic comparison with the logged outputs, the
+//! first divergence, and the controller's figures old against new. See
+//! `replay/` for how the inputs are fed.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use grip_drive::{DriveLog, LoadOptions, summarize};
+use grip_io::service::ConfigArgs;
+use grip_msgs::{CanFrame, CycleRecord, can_dir, topics};
+
+use super::Ctx;
+use super::drive::{Controller, OnOff};
+use crate::replay::compare::{self, TopicDiff};
+use crate::replay::config::{ReplayConfig, WhatIf};
+use crate::replay::{
+    RoadMatch, ScriptClock, SpeedMatch, replay_arte, replay_tcs, split_can, write_log,
+};
+
+/// The text every report carries.
+pub const OPEN_LOOP: &str = "open loop: the logged wheel speeds, vehicle speed and motor torque are replayed as recorded; they do not react to a replayed torque command";
+
+/// The text of a closed-loop report.
+pub const CLOSED_LOOP: &str = "closed loop: plant-sim's loop re-simulates the vehicle from the drive's scenario, seed and vehicle in lock step with tcs-loop (1 kHz, manual clock, in-memory bus); ARTE's estimates are the drive's (what the microphone heard on the logged drive), handed over in the cycle the drive took them";
+
+/// Fields carried over from the log, not recomputed: they measure the
+/// machine, and the replay feeds them to the loop as inputs.
+pub const CARRIED_OVER: &str = "carried over from the log as inputs (machine timing): CycleRecord.wakeup_latency_ns, compute_ns and deadline_misses (the tick and the clock's second reading), the TorqueCommand's stamp_ns (the loop's clock), RoadEstimate.stamp_ns (arte's clock)";
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The drive log (from `grip drive` or the recorder service), or a
+    /// directory of them.
+    log: PathBuf,
+    /// Write the replayed drive here (the same topics; ground truth and
+    /// audio copied); with a directory of logs, a directory for them.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// With a directory of logs: replays run in parallel.
+    #[arg(long, default_value_t = 1)]
+    jobs: usize,
+    /// What if: tcs-loop runs this controller.
+    #[arg(long, value_enum)]
+    controller: Option<Controller>,
+    /// What if: the controller uses ARTE's estimates (on) or not (off).
+    #[arg(long, value_enum)]
+    arte: Option<OnOff>,
+    /// What if: a vehicle TOML for tcs-loop (the drive's, from the log, by default).
+    #[arg(long)]
+    vehicle: Option<PathBuf>,
+    /// What if: arte runs this model file.
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// What if: one parameter, [FILE:]SECTION.KEY=VALUE (e.g. mfc.k_mfc=1.01); repeatable.
+    #[arg(long = "set", value_name = "[FILE:]SECTION.KEY=VALUE")]
+    set: Vec<String>,
+    /// Exit with status 1 unless every replayed topic is identical to the log.
+    #[arg(long)]
+    check: bool,
+    /// Re-simulate the plant (plant-sim's own loop, from the drive's
+    /// scenario, seed and vehicle) in closed loop with tcs-loop, so that a
+    /// what-if controller meets the consequences of its own torque.
+    #[arg(long)]
+    closed_loop: bool,
+}
+
+fn controller_name(c: Controller) -> &'static str {
+    match c {
+        Controller::Mfc => "mfc",
+        Controller::Src => "src",
+        Controller::Mtte => "mtte",
+    }
+}
+
+/// The result of a replay.
+pub struct Replayed {
+    /// Per topic.
+    pub diffs: Vec<TopicDiff>,
+    /// The report.
+    pub text: String,
+}
+
+pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
+    let what = WhatIf {
+        controller: args.controller.map(|c| controller_name(c).to_owned()),
+        arte: args.arte.map(|a| a == OnOff::On),
+        config_dir: ctx.config_dir_given.then(|| ctx.config_dir.clone()),
+        vehicle: args.vehicle.clone(),
+        model: args.model.clone(),
+        set: args.set.clone(),
+    };
+    if args.log.is_dir() {
+        return replay_dir(&args, &what);
+    }
+    let r = replay(&args.log, &what, args.out.as_deref(), args.closed_loop)?;
+    print!("{}", r.text);
+    if args.check && r.diffs.iter().any(|d| !d.identical()) {
+        let first = r
+            .diffs
+            .iter()
+            .find_map(|d| d.first.as_ref())
+            .map_or_else(String::new, ToString::to_string);
+        bail!("the replay differs from the log; first divergence: {first}");
+    }
+    Ok(())
+}
+
+/// `grip replay DIR [--jobs N]`: one line per log; a bad log is named with
+/// its reason and does not stop the others.
+fn replay_dir(args: &Args, what: &WhatIf) -> anyhow::Result<()> {
+    let logs = crate::drive::many::logs_in(&args.log)?;
+    if let Some(o) = &args.out {
+        std::fs::create_dir_all(o).with_context(|| format!("creating {}", o.display()))?;
+    }
+    let pb = crate::drive::many::bar(logs.len(), "replays");
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results = std::sync::Mutex::new(vec![String::new(); logs.len()]);
+    let failed = std::sync::atomic::AtomicUsize::new(0);
+    std::thread::scope(|sc| {
+        for _ in 0..args.jobs.clamp(1, logs.len()) {
+            sc.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    let Some(p) = logs.get(i) else { break };
+                    let name = p
+                        .file_name()
+                        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+                    let out = args.out.as_ref().map(|o| o.join(&name));
+                    let line = match replay(p, what, out.as_deref(), args.closed_loop) {
+                        Ok(r) => match r.diffs.iter().find_map(|d| d.first.as_ref()) {
+                            None => format!("{name}: identical"),
+                            Some(d) => {
+                                failed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                                format!("{name}: DIFFERENT, first divergence: {d}")
+                            }
+                        },
+                        Err(e) => {
+                            failed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                            pb.suspend(|| eprintln!("bad log {name}: {e:#}"));
+                            format!("{name}: not replayed: {e:#}")
+                        }
+                    };
+                    if let Ok(mut r) = results.lock() {
+                        r[i] = line;
+                    }
+                    pb.inc(1);
+                }
+            });
+        }
+    });
+    pb.finish_and_clear();
+    let results = results.into_inner().unwrap_or_default();
+    for l in &results {
+        println!("{l}");
+    }
+    let n = failed.load(std::sync::atomic::Ordering::Relaxed);
+    println!(
+        "{} logs, {n} not identical or not replayed ({OPEN_LOOP})",
+        results.len()
+    );
+    if args.check && n > 0 {
+        bail!("{n} of {} logs did not replay identically", results.len());
+    }
+    Ok(())
+}
+
+fn tx(frames: &[CanFrame]) -> Vec<CanFrame> {
+    frames
+        .iter()
+        .copied()
+        .filter(|f| f.direction == can_dir::TX)
+        .collect()
+}
+
+fn rx(frames: &[CanFrame]) -> Vec<CanFrame> {
+    frames
+        .iter()
+        .copied()
+        .filter(|f| f.direction != can_dir::TX)
+        .collect()
+}
+
+/// The controller's own figures of a set of cycles (open loop: the plant's
+/// metrics cannot change).
+fn command_figures(cycles: &[CycleRecord]) -> Vec<(&'static str, f64)> {
+    let active: Vec<&CycleRecord> = cycles.iter().filter(|c| c.safe_state == 0).collect();
+    let n = active.len().max(1) as f64;
+    let mean = active.iter().map(|c| c.torque_cmd).sum::<f64>() / n;
+    let max = active.iter().map(|c| c.torque_cmd).fold(0.0f64, f64::max);
+    let cut = active
+        .iter()
+        .map(|c| (c.demand - c.torque_cmd).max(0.0))
+        .sum::<f64>()
+        / n;
+    let used = active.iter().filter(|c| c.used_arte != 0).count() as f64 / n;
+    vec![
+        ("mean torque command, N m (active cycles)", mean),
+        ("max torque command, N m", max),
+        ("mean torque taken off the demand, N m", cut),
+        ("cycles using ARTE, %", 100.0 * used),
+        (
+            "cycles in the safe state",
+            cycles.iter().filter(|c| c.safe_state != 0).count() as f64,
+        ),
+    ]
+}
+
+/// Replays `log` with `what` changed (in closed loop with the plant if
+/// `closed`); writes `out` if given.
+pub fn replay(
+    path: &std::path::Path,
+    what: &WhatIf,
+    out: Option<&std::path::Path>,
+    closed: bool,
+) -> anyhow::Result<Replayed> {
+    let t0 = Instant::now();
+    let log = DriveLog::load_with(path, LoadOptions { audio: true })?;
+    if let Some(t) = &log.report.truncated {
+        bail!(
+            "{}: the log is incomplete ({t}); a replay needs every cycle",
+            path.display()
+        );
+    }
+    if log.cycles.is_empty() {
+        bail!("{}: no cycle records: nothing to replay", path.display());
+    }
+    let t_load = t0.elapsed().as_secs_f64();
+    let cfg: ReplayConfig = crate::replay::config::prepare(&log, what)?;
+    let config = ConfigArgs::in_dir(&cfg.dir);
+
+    // arte
+    let t_setup = Instant::now();
+    let clock = ScriptClock::default();
+    let mut speed = SpeedMatch::default();
+    let mut prepared = grip_arte_svc::prepare_with_clock(
+        &grip_arte_svc::Options {
+            config: config.clone(),
+            model: cfg.model.clone(),
+            run_for: None,
+        },
+        &clock,
+    )
+    .context("arte's start-up on the replay configuration")?;
+    let mut setup_s = t_setup.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let roads = replay_arte(&mut prepared.lp, &clock, &log, &mut speed);
+    let t_arte = t1.elapsed().as_secs_f64();
+
+    // tcs-loop
+    let t_setup = Instant::now();
+    let opts = grip_tcs_loop::Options {
+        config: config.clone(),
+        controller: Some(
+            cfg.controller
+                .parse()
+                .map_err(|e| anyhow::anyhow!("controller {}: {e}", cfg.controller))?,
+        ),
+        arte: Some(cfg.arte),
+        run_for_s: None,
+        vehicle: cfg.vehicle.clone(),
+    };
+    let loaded = grip_tcs_loop::load(&opts).context("tcs-loop's configuration")?;
+    let mut lp = grip_tcs_loop::build(&loaded).context("tcs-loop's start-up")?;
+    let can = split_can(&log)?;
+    setup_s += t_setup.elapsed().as_secs_f64();
+    let t2 = Instant::now();
+    let mut roadm = RoadMatch::default();
+    let (outs, truth) = if closed {
+        let scenario = log.run.get("scenario").cloned().with_context(|| {
+            format!(
+                "{}: no scenario in grip.run: --closed-loop needs a drive against plant-sim",
+                path.display()
+            )
+        })?;
+        let seed = log.run.get("seed").and_then(|s| s.parse().ok());
+        let (_, mut plant, _) = grip_plant_sim::run::load(&grip_plant_sim::Options {
+            config: config.clone(),
+            scenario: Some(scenario),
+            seed,
+            exit_at_end: true,
+            start_on: Some(grip_plant_sim::StartOn::Signal),
+            vehicle: cfg.vehicle.clone(),
+        })
+        .context("plant-sim's start-up on the replay configuration")?;
+        let period_ns = (1e9 / loaded.controllers.loop_.rate_hz).round() as u64;
+        let cl = crate::replay::closed_loop(&mut lp, &mut plant, &log, &roads, period_ns);
+        roadm.recorded = crate::replay::taken_per_cycle(&log)
+            .iter()
+            .filter(|t| t.is_some())
+            .count() as u64;
+        (cl.outs, cl.truth)
+    } else {
+        (
+            replay_tcs(&mut lp, &log, &can, &roads, &mut roadm),
+            log.truth.clone(),
+        )
+    };
+    let t_tcs = t2.elapsed().as_secs_f64();
+
+    // compare
+    // a log from before CycleRecord.road_taken carries 0 there
+    let ignore: &[&str] = if roadm.inferred > 0 {
+        &["road_taken"]
+    } else {
+        &[]
+    };
+    let diffs = vec![
+        compare::compare(topics::ROAD, &log.roads, &roads),
+        compare::compare_except(topics::CYCLE, &log.cycles, &outs.cycles, ignore),
+        compare::compare("grip/can/log (tx)", &tx(&log.can), &tx(&outs.can)),
+        compare::compare("grip/can/log (rx)", &rx(&log.can), &rx(&outs.can)),
+    ];
+    let span_s = match (log.cycles.first(), log.cycles.last()) {
+        (Some(a), Some(b)) => (b.stamp_ns - a.stamp_ns) as f64 * 1e-9,
+        _ => 0.0,
+    };
+
+    let mut o = String::new();
+    let _ = writeln!(o, "replay of {}", path.display());
+    if closed {
+        let _ = writeln!(o, "  {CLOSED_LOOP}");
+    } else {
+        let _ = writeln!(o, "  {OPEN_LOOP}");
+    }
+    let _ = writeln!(o, "  configuration: {}", cfg.source);
+    let _ = writeln!(
+        o,
+        "  tcs-loop: {} cycles through TcsLoop::cycle, controller {}, ARTE {}; arte: {} audio blocks through ArteLoop::on_block",
+        log.cycles.len(),
+        cfg.controller,
+        if cfg.arte { "on" } else { "off" },
+        log.audio_blocks.len()
+    );
+    if cfg.changes.is_empty() {
+        let _ = writeln!(o, "  changes: none (the drive's own configuration)");
+    } else {
+        for c in &cfg.changes {
+            let _ = writeln!(o, "  change: {c}");
+        }
+    }
+    let _ = writeln!(
+        o,
+        "  arte's speed input per block: {} found exactly, {} without speed, {} approximated",
+        speed.exact, speed.none, speed.approximated
+    );
+    let _ = writeln!(
+        o,
+        "  tcs-loop's road input per cycle: {} as recorded (road_taken), {} inferred from stamps, {} not found",
+        roadm.recorded, roadm.inferred, roadm.missing
+    );
+    if !closed {
+        let _ = writeln!(o, "  {CARRIED_OVER}");
+    }
+    if !ignore.is_empty() {
+        let _ = writeln!(
+            o,
+            "  the log predates CycleRecord.road_taken: not compared; which cycle took each estimate was inferred from the stamps (the live poll can race a stamp: a difference here may be the inference's)"
+        );
+    }
+    if closed {
+        let _ = writeln!(
+            o,
+            "\nper topic (field by field; in closed loop the plant's own frames and timing differ by construction):"
+        );
+    } else {
+        let _ = writeln!(o, "\nper topic (field by field, no tolerance):");
+    }
+    o.push_str(&compare::render(&diffs));
+    match diffs.iter().find_map(|d| d.first.as_ref()) {
+        None => {
+            let _ = writeln!(
+                o,
+                "  first divergence: none; every replayed topic is identical"
+            );
+        }
+        Some(d) => {
+            let _ = writeln!(o, "  first divergence: {d}");
+        }
+    }
+
+    // old vs new
+    let mut new_log = DriveLog {
+        cycles: outs.cycles.clone(),
+        roads: roads.clone(),
+        can: outs.can.clone(),
+        truth: truth.clone(),
+        ..log.clone()
+    };
+    new_log.audio_blocks.clear();
+    let (vehicle, from, _) = grip_drive::vehicle_for(&log, &cfg.dir);
+    let (s_old, s_new) = (
+        summarize(&log, &vehicle, &from, None),
+        summarize(&new_log, &vehicle, &from, None),
+    );
+    let _ = writeln!(o, "\nold (logged) vs new (replayed):");
+    let _ = writeln!(o, "  {:<44} {:>12} {:>12}", "figure", "old", "new");
+    for ((name, a), (_, b)) in command_figures(&log.cycles)
+        .into_iter()
+        .zip(command_figures(&outs.cycles))
+    {
+        let _ = writeln!(o, "  {name:<44} {a:>12.3} {b:>12.3}");
+    }
+    let acc = |s: &grip_drive::Summary| 100.0 * s.arte.accuracy();
+    let _ = writeln!(
+        o,
+        "  {:<44} {:>12.1} {:>12.1}",
+        "ARTE accuracy vs ground truth, %",
+        acc(&s_old),
+        acc(&s_new)
+    );
+    for (a, b) in s_old.arte.changes.iter().zip(&s_new.arte.changes) {
+        let d = |x: Option<f64>| x.map_or("missed".to_owned(), |v| format!("{v:.3}"));
+        let _ = writeln!(
+            o,
+            "  {:<44} {:>12} {:>12}",
+            format!("detection delay {} -> {}, s", a.from, a.to),
+            d(a.delay),
+            d(b.delay)
+        );
+    }
+    match (&s_old.metrics, &s_new.metrics) {
+        (Some(a), Some(b)) if closed => {
+            for (name, x, y) in [
+                (
+                    "slip deviation (1/T)∫|λ|dt",
+                    a.slip_deviation,
+                    b.slip_deviation,
+                ),
+                ("max torque, N m", a.max_torque, b.max_torque),
+                ("torque effort, N m", a.torque_effort, b.torque_effort),
+                ("mean acceleration, m/s²", a.mean_accel, b.mean_accel),
+                ("distance, m", a.distance, b.distance),
+                ("energy ∫Tω dt, J", a.energy, b.energy),
+            ] {
+                let rel = if x != 0.0 {
+                    100.0 * (y - x) / x.abs()
+                } else {
+                    0.0
+                };
+                let _ = writeln!(o, "  {name:<44} {x:>12.4} {y:>12.4}  ({rel:+.1} %)");
+            }
+        }
+        (Some(m), _) => {
+            let _ = writeln!(
+                o,
+                "  plant metrics (ground truth) are the logged ones in open loop: slip deviation {:.4}, torque effort {:.2} N m, distance {:.2} m",
+                m.slip_deviation, m.torque_effort, m.distance
+            );
+        }
+        _ => {}
+    }
+    let replay_s = t_arte + t_tcs;
+    let _ = writeln!(
+        o,
+        "\nspeed: {span_s:.2} s of drive; tcs-loop {t_tcs:.3} s ({:.0}x real time), arte {t_arte:.3} s ({:.0}x), together {:.0}x; log read in {t_load:.3} s, start-up (configuration, model) {setup_s:.3} s",
+        span_s / t_tcs.max(1e-9),
+        span_s / t_arte.max(1e-9),
+        span_s / replay_s.max(1e-9)
+    );
+
+    if let Some(out) = out {
+        let mut meta = BTreeMap::new();
+        meta.insert("source".into(), path.display().to_string());
+        meta.insert("configuration".into(), cfg.source.clone());
+        meta.insert("changes".into(), cfg.changes.join("; "));
+        meta.insert(
+            "mode".into(),
+            if closed { "closed loop" } else { "open loop" }.into(),
+        );
+        write_log(out, &log, &truth, &outs.cycles, &outs.can, &roads, &meta)?;
+        let _ = writeln!(o, "wrote {}", out.display());
+    }
+    Ok(Replayed { diffs, text: o })
+}

@@ -1,0 +1,214 @@
+//! Many drive logs at once: `grip inspect DIR` (one row per drive) and the
+//! list of logs `grip replay DIR` works through. A log that cannot be read,
+//! or is truncated or damaged, is a row that names it and the reason; it
+//! never stops the others.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use grip_drive::{DriveLog, summarize};
+
+use crate::cmd::Ctx;
+
+/// The `*.mcap` files of `dir`, sorted by name.
+pub fn logs_in(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .with_context(|| format!("reading {}", dir.display()))?
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.is_file() && p.extension().is_some_and(|e| e == "mcap"))
+        .collect();
+    v.sort();
+    if v.is_empty() {
+        bail!("{}: no .mcap files", dir.display());
+    }
+    Ok(v)
+}
+
+/// A progress bar over `n` logs on stderr.
+pub fn bar(n: usize, what: &str) -> indicatif::ProgressBar {
+    let b = indicatif::ProgressBar::new(n as u64);
+    b.set_style(
+        indicatif::ProgressStyle::with_template(&format!(
+            "{{bar:40}} {{pos}}/{{len}} {what} {{elapsed_precise}}"
+        ))
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    b
+}
+
+/// The table's columns.
+pub const COLUMNS: [&str; 22] = [
+    "file",
+    "status",
+    "reason",
+    "scenario",
+    "controller",
+    "arte",
+    "cycles",
+    "scenario_s",
+    "slip_deviation",
+    "max_torque_nm",
+    "torque_effort_nm",
+    "distance_m",
+    "energy_j",
+    "arte_estimates",
+    "arte_accuracy",
+    "road_changes",
+    "changes_missed",
+    "mean_delay_s",
+    "max_delay_s",
+    "deadline_misses",
+    "safe_cycles_in_scenario",
+    "e2e_faults_in_scenario",
+];
+
+fn num(x: f64) -> String {
+    if x.is_finite() {
+        format!("{x}")
+    } else {
+        String::new()
+    }
+}
+
+/// One row: `Ok` for a complete log, `Err` (status, reason) when it is bad.
+pub fn row(path: &Path, config_dir: &Path) -> (Vec<String>, bool) {
+    let file = path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let mut r = vec![String::new(); COLUMNS.len()];
+    r[0] = file;
+    let log = match DriveLog::load(path) {
+        Ok(l) => l,
+        Err(e) => {
+            r[1] = "unreadable".into();
+            r[2] = e.full();
+            return (r, false);
+        }
+    };
+    let (vehicle, from, _) = grip_drive::vehicle_for(&log, config_dir);
+    let roads = grip_config::ConfigDir::new(config_dir).roads().ok();
+    let s = summarize(&log, &vehicle, &from, roads.as_ref());
+    let mut good = true;
+    if let Some(t) = &log.report.truncated {
+        r[1] = "incomplete".into();
+        r[2] = t.clone();
+        good = false;
+    } else if log.report.bad > 0 {
+        r[1] = "damaged".into();
+        r[2] = format!(
+            "{} messages did not decode (first: {})",
+            log.report.bad,
+            log.report.first_error.as_deref().unwrap_or("?")
+        );
+        good = false;
+    } else {
+        r[1] = "ok".into();
+    }
+    let get = |k: &str| log.run.get(k).cloned().unwrap_or_default();
+    r[3] = get("scenario");
+    r[4] = get("controller");
+    r[5] = get("arte");
+    r[6] = s.timing.cycles.to_string();
+    if let (Some(m), Some((a, b))) = (&s.metrics, s.window) {
+        r[7] = num(b - a);
+        r[8] = num(m.slip_deviation);
+        r[9] = num(m.max_torque);
+        r[10] = num(m.torque_effort);
+        r[11] = num(m.distance);
+        r[12] = num(m.energy);
+    }
+    r[13] = s.arte.estimates.to_string();
+    r[14] = num(s.arte.accuracy());
+    let delays: Vec<f64> = s.arte.changes.iter().filter_map(|c| c.delay).collect();
+    r[15] = s.arte.changes.len().to_string();
+    r[16] = (s.arte.changes.len() - delays.len()).to_string();
+    if !delays.is_empty() {
+        r[17] = num(delays.iter().sum::<f64>() / delays.len() as f64);
+        r[18] = num(delays.iter().copied().fold(0.0, f64::max));
+    }
+    r[19] = s.timing.deadline_misses.to_string();
+    r[20] = s
+        .safe_cycles_in_window
+        .map_or(String::new(), |n| n.to_string());
+    r[21] = s
+        .can
+        .faults_in_window
+        .map_or(String::new(), |f| f.total().to_string());
+    (r, good)
+}
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_owned()
+    }
+}
+
+/// `grip inspect DIR [--csv FILE] [--strict]`.
+pub fn inspect_dir(ctx: &Ctx, dir: &Path, csv: Option<&Path>, strict: bool) -> anyhow::Result<()> {
+    let logs = logs_in(dir)?;
+    let pb = bar(logs.len(), "logs");
+    let mut rows = Vec::with_capacity(logs.len());
+    let mut bad = Vec::new();
+    for p in &logs {
+        let (r, good) = row(p, &ctx.config_dir);
+        if !good {
+            pb.suspend(|| eprintln!("bad log {}: {}: {}", r[0], r[1], r[2]));
+            bad.push(r[0].clone());
+        }
+        rows.push(r);
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "{:<28} {:<11} {:>8} {:>10} {:>9} {:>9} {:>8} {:>9} {:>7} {:>6}",
+        "file",
+        "status",
+        "cycles",
+        "slip_dev",
+        "effort",
+        "dist_m",
+        "arte_acc",
+        "delay_s",
+        "misses",
+        "faults"
+    );
+    for r in &rows {
+        let _ = writeln!(
+            text,
+            "{:<28} {:<11} {:>8} {:>10.10} {:>9.9} {:>9.9} {:>8.8} {:>9.9} {:>7} {:>6}",
+            r[0], r[1], r[6], r[8], r[10], r[11], r[14], r[17], r[19], r[21]
+        );
+    }
+    print!("{text}");
+    println!(
+        "{} logs, {} bad{}",
+        rows.len(),
+        bad.len(),
+        if bad.is_empty() {
+            String::new()
+        } else {
+            format!(": {}", bad.join(", "))
+        }
+    );
+    if let Some(f) = csv {
+        let mut out = COLUMNS.join(",");
+        out.push('\n');
+        for r in &rows {
+            out.push_str(&r.iter().map(|x| csv_field(x)).collect::<Vec<_>>().join(","));
+            out.push('\n');
+        }
+        std::fs::write(f, out).with_context(|| format!("writing {}", f.display()))?;
+        println!("wrote {}", f.display());
+    }
+    if strict && !bad.is_empty() {
+        bail!("{} of {} logs are bad (--strict)", bad.len(), rows.len());
+    }
+    Ok(())
+}

@@ -1,0 +1,563 @@
+//! `grip replay`: a recorded drive's inputs through the services' own code.
+//!
+//! - arte: every logged audio block through the arte service's
+//!   [`ArteLoop::on_block`], built by the service's own start-up
+//!   ([`grip_arte_svc::prepare_with_clock`]) from the drive's configuration.
+//!   Its inputs besides the block are the tcs-loop cycle record whose speed
+//!   it held (found exactly: the record whose odometer extrapolation gives
+//!   the logged estimate's `x_from` and `x_to` bit for bit) and the clock
+//!   (scripted: the logged estimates' `stamp_ns`).
+//! - tcs-loop: every logged cycle through [`TcsLoop::cycle`], built by the
+//!   service's own [`grip_tcs_loop::build`], on a scripted clock (`now` =
+//!   the cycle's logged TorqueCommand stamp, which is the loop's `now`; the
+//!   second reading = wake-up + the logged compute time), with a tick of
+//!   the logged deadline, wake-up latency and miss count, an in-memory CAN
+//!   bus ([`MemBus`]) fed the RX frames the cycle logged (the frames between
+//!   two TorqueCommands of the CAN log), and the road estimate the cycle
+//!   took (`CycleRecord::road_taken`).
+//!
+//! Open loop: the logged wheel speeds, vehicle speed and motor torque are
+//! replayed as recorded; they do not react to a replayed torque command.
+
+pub mod compare;
+pub mod config;
+
+use std::cell::{Cell, RefCell};
+use std::collections::VecDeque;
+use std::path::Path;
+
+use anyhow::{Context, bail};
+use grip_arte_svc::{ArteCounters, ArteLoop, EstimateSink, odometer_at};
+use grip_drive::DriveLog;
+use grip_io::can::MemBus;
+use grip_io::clock::Clock;
+use grip_io::mcaplog::{McapRecord, McapWriter, McapWriterOptions};
+use grip_msgs::{
+    AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, can_dir, can_flags, topics,
+};
+use grip_tcs_loop::{CycleTick, RecordSink, RoadSource, TcsLoop};
+
+/// A clock that returns the times it was given, in order, then repeats
+/// the last one: each reading the replayed code makes is the one the live
+/// code made.
+#[derive(Debug, Default)]
+pub struct ScriptClock {
+    times: RefCell<VecDeque<u64>>,
+    last: Cell<u64>,
+}
+
+impl ScriptClock {
+    /// Queues `t` as the next reading.
+    pub fn push(&self, t: u64) {
+        self.times.borrow_mut().push_back(t);
+    }
+    /// Forgets unread times; later readings repeat `t`.
+    pub fn reset(&self, t: u64) {
+        self.times.borrow_mut().clear();
+        self.last.set(t);
+    }
+}
+
+impl Clock for ScriptClock {
+    fn now_ns(&self) -> u64 {
+        if let Some(t) = self.times.borrow_mut().pop_front() {
+            self.last.set(t);
+        }
+        self.last.get()
+    }
+    fn sleep_until_ns(&self, deadline_ns: u64) -> u64 {
+        self.reset(deadline_ns.max(self.last.get()));
+        self.last.get()
+    }
+}
+
+/// Collects what arte publishes.
+#[derive(Debug, Default)]
+struct Estimates(Vec<RoadEstimate>);
+
+impl EstimateSink for Estimates {
+    fn send(&mut self, e: &RoadEstimate) -> Result<(), grip_io::ipc::IpcError> {
+        self.0.push(*e);
+        Ok(())
+    }
+}
+
+/// How the speed record of a block was found.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct SpeedMatch {
+    /// Blocks whose record was found exactly (from their estimates' `x_from`/`x_to`).
+    pub exact: u64,
+    /// Blocks whose estimates had no speed (NaN odometer span).
+    pub none: u64,
+    /// Blocks with estimates whose record was not found (approximated by
+    /// the newest valid record before the estimate: replay may differ).
+    pub approximated: u64,
+}
+
+/// The newest valid cycle record at or before `t_ns`.
+fn newest_valid(cycles: &[CycleRecord], t_ns: u64) -> Option<&CycleRecord> {
+    let i = cycles.partition_point(|c| c.stamp_ns <= t_ns);
+    cycles[..i]
+        .iter()
+        .rev()
+        .take(2000)
+        .find(|c| c.v_valid == 1 && c.v.is_finite())
+}
+
+/// The cycle record whose odometer extrapolation gives `e`'s span exactly.
+fn record_of(cycles: &[CycleRecord], e: &RoadEstimate) -> Option<CycleRecord> {
+    let i = cycles.partition_point(|c| c.stamp_ns <= e.stamp_ns);
+    cycles[..i].iter().rev().take(2000).copied().find(|c| {
+        if c.v_valid != 1 || !c.v.is_finite() || !c.odometer.is_finite() {
+            return false;
+        }
+        let v = c.v.abs();
+        odometer_at(c.odometer, v, c.stamp_ns, e.frame_t0_ns).to_bits() == e.x_from.to_bits()
+            && odometer_at(c.odometer, v, c.stamp_ns, e.frame_t1_ns).to_bits() == e.x_to.to_bits()
+    })
+}
+
+fn block_ns(b: &AudioBlock) -> u64 {
+    (u128::from(b.n_samples) * 1_000_000_000 / u128::from(b.sample_rate.max(1))) as u64
+}
+
+/// The audio blocks arte processed, `first..last` of the log's: the
+/// recorder starts before arte and stops after it, so the log holds blocks
+/// arte never saw. Arte's first block is the one from which its estimator,
+/// filling its first frame, decides exactly at the first logged estimate's
+/// `frame_t1_ns`; its last is the one holding the last logged estimate's
+/// frame end (blocks after it produced nothing that was logged). Without
+/// estimates: every block.
+pub fn arte_window(log: &DriveLog) -> (usize, usize) {
+    let blocks = &log.audio_blocks;
+    let (Some(e0), Some(e1)) = (log.roads.first(), log.roads.last()) else {
+        return (0, blocks.len());
+    };
+    let last = blocks
+        .iter()
+        .position(|b| b.stamp_ns < e1.frame_t1_ns && e1.frame_t1_ns <= b.stamp_ns + block_ns(b))
+        .map_or(blocks.len(), |i| i + 1);
+    let first = (0..last)
+        .find(|&i| {
+            let fs = u128::from(blocks[i].sample_rate.max(1));
+            // the frame length in samples, from the estimate's span
+            let frame = (u128::from(e0.frame_t1_ns - e0.frame_t0_ns) * fs).div_ceil(1_000_000_000);
+            let mut before = 0u128;
+            for b in &blocks[i..last] {
+                let n = u128::from(b.n_samples);
+                if before + n >= frame {
+                    let t1 = b.stamp_ns + ((frame - before) * 1_000_000_000 / fs) as u64;
+                    return t1 == e0.frame_t1_ns;
+                }
+                before += n;
+            }
+            false
+        })
+        .unwrap_or(0);
+    (first, last)
+}
+
+/// Runs the logged audio blocks arte processed ([`arte_window`]) through
+/// `lp` (see the module docs); returns the estimates in publication order.
+pub fn replay_arte<C: grip_arte::stream::Classify>(
+    lp: &mut ArteLoop<C, &ScriptClock>,
+    clock: &ScriptClock,
+    log: &DriveLog,
+    matched: &mut SpeedMatch,
+) -> Vec<RoadEstimate> {
+    let stats = ArteCounters::default();
+    let mut out = Estimates(Vec::with_capacity(log.roads.len() + 16));
+    let mut k = 0usize; // next logged estimate
+    let (first, last) = arte_window(log);
+    for b in &log.audio_blocks[first..last] {
+        let end = b.stamp_ns + block_ns(b);
+        let first = k;
+        while k < log.roads.len() && log.roads[k].frame_t1_ns <= end {
+            k += 1;
+        }
+        let group = &log.roads[first..k];
+        clock.reset(end);
+        if let Some(e) = group.first() {
+            if e.x_from.is_finite() && e.x_to.is_finite() {
+                let r = match record_of(&log.cycles, e) {
+                    Some(r) => {
+                        matched.exact += 1;
+                        Some(r)
+                    }
+                    None => {
+                        matched.approximated += 1;
+                        newest_valid(&log.cycles, e.stamp_ns).copied()
+                    }
+                };
+                if let Some(r) = r {
+                    lp.on_cycle(&r, &stats);
+                    // the reading `current_speed` makes: the record is fresh
+                    clock.push(r.stamp_ns);
+                }
+            } else {
+                matched.none += 1;
+                // no fresh speed: a reading far from any record's stamp
+                clock.push(u64::MAX / 2);
+            }
+            for e in group {
+                clock.push(e.stamp_ns);
+            }
+        }
+        lp.on_block(b, &mut out, &stats);
+    }
+    out.0
+}
+
+/// Feeds the loop the estimate a cycle took.
+#[derive(Debug, Default)]
+struct Road(Option<RoadEstimate>);
+
+impl RoadSource for Road {
+    fn poll_latest(&mut self) -> Option<RoadEstimate> {
+        self.0.take()
+    }
+}
+
+/// Collects the loop's outputs.
+#[derive(Debug, Default)]
+pub struct Outputs {
+    /// Cycle records.
+    pub cycles: Vec<CycleRecord>,
+    /// CAN log copies (RX and TX), in publication order.
+    pub can: Vec<CanFrame>,
+}
+
+impl RecordSink for Outputs {
+    fn cycle(&mut self, rec: &CycleRecord) {
+        self.cycles.push(*rec);
+    }
+    fn can(&mut self, frame: &CanFrame) {
+        self.can.push(*frame);
+    }
+}
+
+/// How the cycles' road estimates were found.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct RoadMatch {
+    /// Cycles whose `road_taken` named an estimate of the log.
+    pub recorded: u64,
+    /// Cycles of a log without `road_taken` given the newest estimate
+    /// stamped since the previous cycle (the live poll raced the stamp).
+    pub inferred: u64,
+    /// `road_taken` named no estimate of the log.
+    pub missing: u64,
+}
+
+/// The logged CAN log split per cycle: the RX frames each cycle drained,
+/// each cycle's TorqueCommand, and the frames after the last cycle (the
+/// shutdown command).
+#[derive(Debug, Default)]
+pub struct CanPerCycle {
+    /// RX frames of each cycle.
+    pub rx: Vec<Vec<CanFrame>>,
+    /// TX frame of each cycle.
+    pub tx: Vec<CanFrame>,
+    /// TX frames after the last cycle.
+    pub tail_tx: Vec<CanFrame>,
+}
+
+/// Splits `log.can` at the TX frames: cycle k drained the RX frames logged
+/// between its predecessor's TorqueCommand and its own.
+pub fn split_can(log: &DriveLog) -> anyhow::Result<CanPerCycle> {
+    let mut s = CanPerCycle::default();
+    let mut pending = Vec::new();
+    for f in &log.can {
+        if f.direction == can_dir::TX {
+            if s.tx.len() < log.cycles.len() {
+                s.rx.push(std::mem::take(&mut pending));
+                s.tx.push(*f);
+            } else {
+                s.tail_tx.push(*f);
+            }
+        } else {
+            pending.push(*f);
+        }
+    }
+    if s.tx.len() != log.cycles.len() {
+        bail!(
+            "{}: {} cycle records but {} transmitted frames: the CAN log is incomplete, the cycles cannot be aligned",
+            log.path.display(),
+            log.cycles.len(),
+            s.tx.len()
+        );
+    }
+    Ok(s)
+}
+
+/// Runs every logged cycle through `lp` (see the module docs) with the road
+/// estimates `roads` (the logged ones, or arte's replayed ones: same
+/// positions); returns the outputs.
+pub fn replay_tcs(
+    lp: &mut TcsLoop,
+    log: &DriveLog,
+    can: &CanPerCycle,
+    roads: &[RoadEstimate],
+    matched: &mut RoadMatch,
+) -> Outputs {
+    let clock = ScriptClock::default();
+    let mut bus = MemBus::new();
+    let mut out = Outputs {
+        cycles: Vec::with_capacity(log.cycles.len()),
+        can: Vec::with_capacity(log.can.len()),
+    };
+    let recorded = log.cycles.iter().any(|c| c.road_taken != 0);
+    let mut next_road = 0usize; // inference: first estimate not yet past
+    let mut prev_now = 0u64;
+    for (k, c) in log.cycles.iter().enumerate() {
+        let now = can.tx[k].stamp_ns;
+        let woke = c.stamp_ns.wrapping_add_signed(c.wakeup_latency_ns);
+        clock.reset(now);
+        clock.push(now);
+        clock.push(woke + c.compute_ns);
+        for f in &can.rx[k] {
+            let mut f = *f;
+            f.flags &= !can_flags::E2E_REJECTED;
+            bus.inject(f);
+        }
+        let mut road = Road::default();
+        if recorded {
+            if c.road_taken != 0 {
+                let seq = c.road_taken - 1;
+                // the estimate of that seq stamped nearest this cycle (seq
+                // numbers restart with arte)
+                let best = log
+                    .roads
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, e)| e.seq as u32 == seq)
+                    .min_by_key(|(_, e)| e.stamp_ns.abs_diff(now))
+                    .map(|(i, _)| i);
+                match best.and_then(|i| roads.get(i)) {
+                    Some(e) => {
+                        matched.recorded += 1;
+                        road.0 = Some(*e);
+                    }
+                    None => matched.missing += 1,
+                }
+            }
+        } else {
+            let mut newest = None;
+            while next_road < log.roads.len() && log.roads[next_road].stamp_ns <= now {
+                if log.roads[next_road].stamp_ns > prev_now || k == 0 {
+                    newest = Some(next_road);
+                }
+                next_road += 1;
+            }
+            if let Some(i) = newest.and_then(|i| roads.get(i)) {
+                matched.inferred += 1;
+                road.0 = Some(*i);
+            }
+        }
+        let tick = CycleTick {
+            deadline_ns: c.stamp_ns,
+            woke_ns: woke,
+            deadline_misses: c.deadline_misses,
+        };
+        lp.cycle(&tick, &&clock, &mut bus, &mut road, &mut out);
+        bus.clear_sent();
+        prev_now = now;
+    }
+    for f in &can.tail_tx {
+        lp.shutdown(f.stamp_ns, &mut bus, &mut out);
+    }
+    out
+}
+
+/// Collects plant-sim's ground truth.
+#[derive(Debug, Default)]
+struct Truths(Vec<GroundTruth>);
+
+impl grip_plant_sim::TruthSink for Truths {
+    fn truth(&mut self, g: &GroundTruth) {
+        self.0.push(*g);
+    }
+}
+
+/// What a closed-loop replay produced.
+#[derive(Debug, Default)]
+pub struct ClosedLoop {
+    /// The re-simulated plant's ground truth.
+    pub truth: Vec<GroundTruth>,
+    /// The loop's outputs.
+    pub outs: Outputs,
+}
+
+/// `--closed-loop`: plant-sim's own loop (`PlantSim::cycle`, built by its
+/// start-up from the drive's scenario, seed and vehicle) and `lp` in lock
+/// step on a manual clock at the loop period over an in-memory bus pair,
+/// from the first logged cycle's deadline; the plant is asked to start when
+/// the logged drive's scenario started (it then waits for valid commands,
+/// as in the drive). The road estimates are the logged (or arte's replayed)
+/// ones, handed over in the cycle the drive took them: what the microphone
+/// heard on the logged drive (the acoustics stay open loop). Runs until
+/// plant-sim ends the scenario, or twice the logged cycles.
+pub fn closed_loop(
+    lp: &mut TcsLoop,
+    plant: &mut grip_plant_sim::PlantSim,
+    log: &DriveLog,
+    roads: &[RoadEstimate],
+    period_ns: u64,
+) -> ClosedLoop {
+    use grip_io::clock::ManualClock;
+    let t0 = log.cycles[0].stamp_ns;
+    let clock = ManualClock::new(t0);
+    let (mut bus_p, mut bus_t) = MemBus::pair();
+    let start_ns = grip_drive::summary::scenario_start(&log.truth)
+        .and_then(|i| log.truth.get(i))
+        .map_or(t0, |g| g.stamp_ns);
+    let taken = taken_per_cycle(log);
+    let mut truths = Truths::default();
+    let mut outs = Outputs::default();
+    for k in 0..log.cycles.len() * 2 {
+        let now = clock.now_ns();
+        if now >= start_ns {
+            plant.request_start();
+        }
+        let o = plant.cycle(
+            &grip_plant_sim::PlantTick::at(now),
+            &clock,
+            &mut bus_p,
+            &mut truths,
+        );
+        if o == grip_plant_sim::Outcome::Finished {
+            break;
+        }
+        let mut road = Road(
+            taken
+                .get(k)
+                .copied()
+                .flatten()
+                .and_then(|i| roads.get(i))
+                .copied(),
+        );
+        lp.cycle(
+            &CycleTick::at(now),
+            &clock,
+            &mut bus_t,
+            &mut road,
+            &mut outs,
+        );
+        clock.advance_ns(period_ns);
+    }
+    ClosedLoop {
+        truth: truths.0,
+        outs,
+    }
+}
+
+/// For each logged cycle, the index into `log.roads` of the estimate it
+/// took (`road_taken`; in an older log the newest estimate stamped since the
+/// previous cycle).
+pub fn taken_per_cycle(log: &DriveLog) -> Vec<Option<usize>> {
+    let recorded = log.cycles.iter().any(|c| c.road_taken != 0);
+    let split = split_can(log).ok();
+    let now_of = |k: usize| {
+        split
+            .as_ref()
+            .and_then(|s| s.tx.get(k))
+            .map_or(log.cycles[k].stamp_ns, |f| f.stamp_ns)
+    };
+    let mut out = Vec::with_capacity(log.cycles.len());
+    let mut next = 0usize;
+    for (k, c) in log.cycles.iter().enumerate() {
+        let now = now_of(k);
+        if recorded {
+            out.push(
+                (c.road_taken != 0)
+                    .then(|| {
+                        let seq = c.road_taken - 1;
+                        log.roads
+                            .iter()
+                            .enumerate()
+                            .filter(|(_, e)| e.seq as u32 == seq)
+                            .min_by_key(|(_, e)| e.stamp_ns.abs_diff(now))
+                            .map(|(i, _)| i)
+                    })
+                    .flatten(),
+            );
+        } else {
+            let mut newest = None;
+            while next < log.roads.len() && log.roads[next].stamp_ns <= now {
+                newest = Some(next);
+                next += 1;
+            }
+            out.push(newest);
+        }
+    }
+    out
+}
+
+/// Writes a log with the same topics: the replayed cycles, CAN log and
+/// road estimates, `truth` (the logged or the re-simulated) and the logged
+/// audio; `grip.run` and the
+/// attachments copied, `replay` as the `grip.replay` metadata record.
+pub fn write_log(
+    path: &Path,
+    log: &DriveLog,
+    truth: &[GroundTruth],
+    cycles: &[CycleRecord],
+    can: &[CanFrame],
+    roads: &[RoadEstimate],
+    replay: &std::collections::BTreeMap<String, String>,
+) -> anyhow::Result<()> {
+    let mut w = McapWriter::create(path, McapWriterOptions::default())
+        .with_context(|| format!("creating {}", path.display()))?;
+    for (name, map) in &log.metadata {
+        if name != "grip.clock" && name != "grip.recorder" {
+            w.write_metadata(name, map)?;
+        }
+    }
+    w.write_metadata("grip.replay", replay)?;
+    for (name, data) in &log.attachments {
+        w.attach_bytes(name, "application/octet-stream", data)?;
+    }
+    // merge by stamp, keeping each topic's own order
+    let mut heads = [0usize; 5];
+    let lens = [
+        cycles.len(),
+        can.len(),
+        roads.len(),
+        truth.len(),
+        log.audio_blocks.len(),
+    ];
+    let stamp = |t: usize, i: usize| match t {
+        0 => cycles[i].stamp_ns,
+        1 => can[i].stamp_ns,
+        2 => roads[i].stamp_ns,
+        3 => truth[i].stamp_ns,
+        _ => log.audio_blocks[i].stamp_ns,
+    };
+    loop {
+        let next = (0..5)
+            .filter(|&t| heads[t] < lens[t])
+            .min_by_key(|&t| stamp(t, heads[t]));
+        let Some(t) = next else { break };
+        let i = heads[t];
+        match t {
+            0 => w.write(topics::CYCLE, &cycles[i])?,
+            1 => w.write(topics::CAN_LOG, &can[i])?,
+            2 => w.write(topics::ROAD, &roads[i])?,
+            3 => w.write(topics::TRUTH, &truth[i])?,
+            _ => w.write(topics::AUDIO, &log.audio_blocks[i])?,
+        }
+        heads[t] += 1;
+    }
+    w.finish()?;
+    Ok(())
+}
+
+/// A record as its JSON fields (the log's own encoding): what the
+/// comparison walks, so new fields are compared without code here.
+pub fn fields<T: McapRecord>(r: &T) -> serde_json::Map<String, serde_json::Value> {
+    let mut buf = Vec::new();
+    r.write_json(&mut buf);
+    match serde_json::from_slice(&buf) {
+        Ok(serde_json::Value::Object(m)) => m,
+        _ => serde_json::Map::new(),
+    }
+}

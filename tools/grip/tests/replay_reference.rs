@@ -1,0 +1,128 @@
+//! Regression against a recorded drive: `tests/data/reference-drive.mcap`
+//! (1.5 s of the e2e scenario, all five services; regenerate it with
+//! `tests/data/regenerate-reference` when behaviour changes on purpose)
+//! replayed through today's arte and tcs-loop with the repository's
+//! `config/` must give every road estimate, cycle record and CAN frame
+//! identically, field by field (no tolerance). A 1 % change of a
+//! controller parameter must make it fail with the first divergence named.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn replay(extra: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_grip"))
+        .arg("--config-dir")
+        .arg(root().join("config"))
+        .arg("replay")
+        .arg(root().join("tests/data/reference-drive.mcap"))
+        .arg("--check")
+        .args(extra)
+        .output()
+        .expect("running grip replay");
+    (
+        out.status.success(),
+        format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        ),
+    )
+}
+
+#[test]
+fn reference_drive_replays_identically() {
+    let (ok, text) = replay(&[]);
+    assert!(
+        ok,
+        "the reference drive no longer replays identically with today's code and config/.\n\
+         If the change is intended, run tests/data/regenerate-reference and say why in the commit.\n{text}"
+    );
+    assert!(
+        text.contains("first divergence: none; every replayed topic is identical"),
+        "{text}"
+    );
+    for topic in [
+        "grip/arte/road",
+        "grip/tcs/cycle",
+        "grip/can/log (tx)",
+        "grip/can/log (rx)",
+    ] {
+        let line = text
+            .lines()
+            .find(|l| l.trim_start().starts_with(topic))
+            .unwrap_or_else(|| panic!("no line for {topic}:\n{text}"));
+        assert!(line.ends_with("identical"), "{line}");
+    }
+}
+
+#[test]
+fn a_one_percent_gain_change_is_caught_with_its_first_divergence() {
+    // MTTE's relaxation factor 0.9 -> 0.909
+    let (ok, text) = replay(&["--set", "controllers.toml:mtte.alpha=0.909"]);
+    assert!(!ok, "a 1 % gain change went unnoticed:\n{text}");
+    let err = text
+        .lines()
+        .find(|l| l.starts_with("error: the replay differs from the log; first divergence: "))
+        .unwrap_or_else(|| panic!("no first divergence in the error:\n{text}"));
+    assert!(
+        err.contains("grip/tcs/cycle message") && err.contains("field "),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_damaged_reference_is_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = std::fs::read(root().join("tests/data/reference-drive.mcap")).unwrap();
+    let cut = dir.path().join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_grip"))
+        .arg("replay")
+        .arg(&cut)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("cut.mcap") && err.contains("incomplete"),
+        "{err}"
+    );
+}
+
+/// `--closed-loop` with nothing changed reproduces the logged drive's plant
+/// metrics within 2 % (measured: within 0.6 %, 2026-12-01).
+#[test]
+fn closed_loop_reproduces_the_logged_metrics() {
+    let out = Command::new(env!("CARGO_BIN_EXE_grip"))
+        .arg("replay")
+        .arg(root().join("tests/data/reference-drive.mcap"))
+        .arg("--closed-loop")
+        .output()
+        .expect("running grip replay");
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        text.contains("closed loop: plant-sim's loop re-simulates"),
+        "{text}"
+    );
+    for metric in ["slip deviation", "torque effort", "distance, m", "energy"] {
+        let line = text
+            .lines()
+            .find(|l| l.trim_start().starts_with(metric))
+            .unwrap_or_else(|| panic!("no {metric} line:\n{text}"));
+        let rel: f64 = line
+            .rsplit('(')
+            .next()
+            .and_then(|x| x.trim_end_matches(" %)").trim().parse().ok())
+            .unwrap_or_else(|| panic!("{line}"));
+        assert!(rel.abs() <= 2.0, "{metric}: {rel} % off the log: {line}");
+    }
+}
