@@ -15,7 +15,7 @@
 //!    (default 60) seconds; its periodic timer's histogram gives the wake-up
 //!    latency (woken − absolute deadline).
 //! 3. Then `cyclictest -m -p 80 -i 1000 -l <secs·1000> -t 1 -q --histogram=10000`
-//!    (Debian `rt-tests`; installed with apt-get if missing) runs for the
+//!    (Debian `rt-tests`; installed with tools/apt-install if missing) runs for the
 //!    same time, plant-sim still running.
 //!
 //! Percentiles of both come from 1 µs histogram buckets and are reported as
@@ -54,16 +54,18 @@ fn ensure_cyclictest() -> Result<(), String> {
     if Command::new("cyclictest").arg("--help").output().is_ok() {
         return Ok(());
     }
-    eprintln!("cyclictest not found: installing Debian's rt-tests (apt-get install -y rt-tests)");
-    let ok = Command::new("apt-get")
-        .args(["install", "-y", "rt-tests"])
+    // tools/apt-install: only what is missing, never a removal or upgrade
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/../tools/apt-install");
+    eprintln!("cyclictest not found: installing Debian's rt-tests ({script} rt-tests)");
+    let ok = Command::new(script)
+        .args(["--for", "the wake-up bench", "rt-tests"])
         .status()
         .map(|s| s.success())
         .unwrap_or(false);
     if ok {
         Ok(())
     } else {
-        Err("cyclictest is missing and `apt-get install -y rt-tests` failed".into())
+        Err("cyclictest is missing and `tools/apt-install rt-tests` did not install it".into())
     }
 }
 

@@ -1021,7 +1021,7 @@ pub struct HilConfig {
 
 /// Replaces the line of `file` that starts with `key =` inside `[section]`
 /// (`""` = top level) by `key = value`; an error when there is none.
-fn set_toml_line(
+pub fn set_toml_line(
     text: &str,
     file: &str,
     section: &str,

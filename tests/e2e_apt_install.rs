@@ -1,0 +1,225 @@
+//! `tools/apt-install` (every system package grip's scripts install goes
+//! through it) adds missing packages and never removes, upgrades or
+//! downgrades one the machine has.
+//!
+//! The machine's own apt is not touched: each test builds a private apt root
+//! in a temporary directory (a dpkg status file, a flat `file:` repository,
+//! package lists, `APT_CONFIG` pointing apt at them) whose packages have the
+//! shape of the case that once went wrong on a fresh machine: a newer
+//! `qemu-utils` installed that breaks the older `qemu-system-common` which
+//! `qemu-system-x86` needs, so apt's plan for `qemu-system-x86` removed
+//! `qemu-utils`. The script runs with `--dry-run` (it installs nothing
+//! either way; the refusal is decided before any install).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn script() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../tools/apt-install")
+}
+
+const STATUS: &str = "\
+Package: util-a
+Status: install ok installed
+Priority: optional
+Section: misc
+Maintainer: grip tests <grip@localhost>
+Architecture: amd64
+Version: 1:10.0-1
+Breaks: sys-common (<< 1:10)
+Description: an installed newer utility (like a backported qemu-utils)
+
+Package: libz
+Status: install ok installed
+Priority: optional
+Section: misc
+Maintainer: grip tests <grip@localhost>
+Architecture: amd64
+Version: 1.0
+Description: an installed library
+
+";
+
+const PACKAGES: &str = "\
+Package: sys-x
+Version: 1:7.2-1
+Architecture: amd64
+Depends: sys-common (= 1:7.2-1), libnew
+Filename: sys-x.deb
+Size: 1
+Description: an emulator (like qemu-system-x86)
+
+Package: sys-common
+Version: 1:7.2-1
+Architecture: amd64
+Filename: sys-common.deb
+Size: 1
+Description: its common files (like qemu-system-common)
+
+Package: libnew
+Version: 1.0
+Architecture: amd64
+Filename: libnew.deb
+Size: 1
+Description: a library nobody has yet
+
+Package: wants-newer-libz
+Version: 1.0
+Architecture: amd64
+Depends: libz (>= 2)
+Filename: wants-newer-libz.deb
+Size: 1
+Description: needs a newer libz than the installed one
+
+Package: libz
+Version: 2.0
+Architecture: amd64
+Filename: libz.deb
+Size: 1
+Description: the newer libz
+";
+
+struct AptRoot {
+    dir: tempfile::TempDir,
+}
+
+impl AptRoot {
+    fn new() -> Self {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        for sub in [
+            "lists/partial",
+            "cache/archives/partial",
+            "repo",
+            "parts",
+            "prefs",
+        ] {
+            std::fs::create_dir_all(d.join(sub)).unwrap();
+        }
+        std::fs::write(d.join("status"), STATUS).unwrap();
+        std::fs::write(d.join("repo/Packages"), PACKAGES).unwrap();
+        std::fs::write(
+            d.join("sources.list"),
+            format!("deb [trusted=yes] file:{}/repo ./\n", d.display()),
+        )
+        .unwrap();
+        let user = String::from_utf8(Command::new("id").arg("-un").output().unwrap().stdout)
+            .unwrap()
+            .trim()
+            .to_string();
+        let conf = format!(
+            "Dir::State::status \"{d}/status\";\n\
+             Dir::State::lists \"{d}/lists\";\n\
+             Dir::Cache \"{d}/cache\";\n\
+             Dir::Etc::sourcelist \"{d}/sources.list\";\n\
+             Dir::Etc::sourceparts \"{d}/parts\";\n\
+             Dir::Etc::preferencesparts \"{d}/prefs\";\n\
+             APT::Architecture \"amd64\";\n\
+             APT::Architectures {{ \"amd64\"; }};\n\
+             Debug::NoLocking \"true\";\n\
+             APT::Sandbox::User \"{user}\";\n",
+            d = d.display()
+        );
+        std::fs::write(d.join("apt.conf"), conf).unwrap();
+        let root = AptRoot { dir };
+        let out = Command::new("apt-get")
+            .args(["update", "-q"])
+            .env("APT_CONFIG", root.conf())
+            .output()
+            .expect("apt-get is not installed (Debian: apt)");
+        assert!(
+            out.status.success(),
+            "apt-get update of the private root failed:\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        root
+    }
+
+    fn conf(&self) -> PathBuf {
+        self.dir.path().join("apt.conf")
+    }
+
+    fn status(&self) -> String {
+        std::fs::read_to_string(self.dir.path().join("status")).unwrap()
+    }
+
+    /// Runs `tools/apt-install --dry-run ARGS`: (exit code, stderr).
+    fn run(&self, args: &[&str]) -> (i32, String) {
+        let out = Command::new(script())
+            .arg("--dry-run")
+            .args(args)
+            .env("APT_CONFIG", self.conf())
+            .output()
+            .unwrap();
+        (
+            out.status.code().unwrap_or(-1),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    }
+}
+
+#[test]
+fn a_package_whose_install_would_remove_an_installed_one_is_refused_with_the_reason() {
+    let root = AptRoot::new();
+    let before = root.status();
+    let (rc, err) = root.run(&["--for", "the HIL VM", "sys-x"]);
+    assert_eq!(rc, 4, "expected a refusal (exit 4):\n{err}");
+    for want in [
+        "will not install sys-x (for the HIL VM)",
+        "remove  util-a 1:10.0-1",
+        // the relation that forces the removal, named
+        "util-a (installed) Breaks: sys-common (<< 1:10)",
+        // and the commands to resolve it
+        "apt-cache policy",
+        "apt-get install --no-install-recommends sys-x",
+    ] {
+        assert!(err.contains(want), "missing {want:?} in:\n{err}");
+    }
+    assert!(
+        !err.contains("would install"),
+        "refused, yet a plan was printed:\n{err}"
+    );
+    assert_eq!(root.status(), before, "the dpkg status changed");
+}
+
+#[test]
+fn a_package_whose_install_would_upgrade_an_installed_one_is_refused() {
+    let root = AptRoot::new();
+    let (rc, err) = root.run(&["wants-newer-libz"]);
+    assert_eq!(rc, 4, "expected a refusal (exit 4):\n{err}");
+    for want in [
+        "upgrade libz 1.0 -> 2.0",
+        "wants-newer-libz (to install) Depends: libz (>= 2)",
+    ] {
+        assert!(err.contains(want), "missing {want:?} in:\n{err}");
+    }
+}
+
+#[test]
+fn a_missing_package_that_adds_only_new_packages_is_installed() {
+    let root = AptRoot::new();
+    let (rc, err) = root.run(&["libnew"]);
+    assert_eq!(rc, 0, "{err}");
+    assert!(err.contains("would install libnew"), "{err}");
+    assert!(err.contains("no installed package changed"), "{err}");
+}
+
+#[test]
+fn installed_packages_are_left_alone_whatever_their_version() {
+    // libz 1.0 is installed and 2.0 is available: nothing to do, no upgrade
+    let root = AptRoot::new();
+    let (rc, err) = root.run(&["libz", "util-a"]);
+    assert_eq!(rc, 0, "{err}");
+    assert!(err.is_empty(), "expected silence, got:\n{err}");
+}
+
+#[test]
+fn an_unknown_package_is_a_clear_error() {
+    let root = AptRoot::new();
+    let (rc, err) = root.run(&["no-such-package"]);
+    assert_eq!(rc, 4, "{err}");
+    assert!(
+        err.contains("apt cannot install no-such-package") && err.contains("Unable to locate"),
+        "{err}"
+    );
+}
