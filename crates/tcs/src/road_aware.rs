@@ -97,7 +97,7 @@ impl Default for PreviewParams {
             change_at: 0.0,
             min_hits: 2,
             slip_share: 0.95,
-            release_slip_share: 0.6,
+            release_slip_share: 0.7,
             release_s: 0.02,
         }
     }
