@@ -79,10 +79,10 @@ fuzz_target!(|data: &[u8]| {
         build_loops(&repo.controllers, &v, &repo.roads, &repo.table);
         build_plant(&repo.plant_sim, repo.scenario.clone(), &v, &s);
     }
-    if let Some(roads) = named(parse_roads(&at("roads.toml"), text), "roads.toml") {
-        if let Ok(t) = RoadTable::new(&roads, &grip_tcs::KnowledgeConfig::default()) {
-            build_loops(&repo.controllers, &repo.vehicle, &roads, &t);
-        }
+    if let Some(roads) = named(parse_roads(&at("roads.toml"), text), "roads.toml")
+        && let Ok(t) = RoadTable::new(&roads, &grip_tcs::KnowledgeConfig::default())
+    {
+        build_loops(&repo.controllers, &repo.vehicle, &roads, &t);
     }
     if let Some(sc) = named(
         parse_scenario(&at("scenario.toml"), text, &repo.roads),
@@ -113,10 +113,9 @@ fuzz_target!(|data: &[u8]| {
     if let Some(c) = named(
         TcsLoopConfig::parse(&at("tcs-loop.toml"), text),
         "tcs-loop.toml",
-    ) {
-        if let Ok(kind) = c.controller_kind() {
-            let _ = TcsLoop::new(kind, c.arte, &repo.controllers, &repo.vehicle, &c.safety);
-        }
+    ) && let Ok(kind) = c.controller_kind()
+    {
+        let _ = TcsLoop::new(kind, c.arte, &repo.controllers, &repo.vehicle, &c.safety);
     }
     let _ = named(
         AcqConfig::parse(&at("audio-acq.toml"), text),
