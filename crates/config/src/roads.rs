@@ -69,8 +69,8 @@ struct CsvTable {
     lines: Vec<u64>,
 }
 
-fn read_csv_table(file: &Path) -> Result<CsvTable, ConfigError> {
-    let text = read_file(file)?;
+/// Parses `text`, the contents of the table `file`.
+fn read_csv_table(file: &Path, text: &str) -> Result<CsvTable, ConfigError> {
     let mut rdr = csv::ReaderBuilder::new()
         .comment(Some(b'#'))
         .trim(csv::Trim::All)
@@ -201,7 +201,17 @@ fn build_road(file: &Path, base: &Path, i: usize, spec: RoadSpec) -> Result<Road
         }
         ModelKind::Table => match (spec.csv, spec.slip, spec.mu) {
             (Some(csv), None, None) => {
-                let t = read_csv_table(&base.join(csv))?;
+                let path = base.join(&csv);
+                // a table that cannot be read is a mistake of this file's
+                // `csv` field: name both files
+                let text = std::fs::read_to_string(&path).map_err(|e| {
+                    ConfigError::new(
+                        file,
+                        at("csv"),
+                        format!("cannot read the table {}: {e}", path.display()),
+                    )
+                })?;
+                let t = read_csv_table(&path, &text)?;
                 let m = FrictionModel::Table {
                     slip: t.slip.clone(),
                     mu: t.mu.clone(),
@@ -370,9 +380,14 @@ mu = [0.0, 0.5, 0.4]
         std::fs::write(&csv, "s,m\n0.0,0.0\n").unwrap();
         assert_eq!(load_roads(&roads).unwrap_err().field, "header");
 
+        // a missing table is a mistake of roads.toml's `csv` field: the
+        // error names roads.toml and the field, and the table's path (the
+        // config fuzz target found it naming only the table)
         std::fs::remove_file(&csv).unwrap();
         let e = load_roads(&roads).unwrap_err();
-        assert_eq!(e.file, csv);
-        assert!(e.reason.starts_with("cannot read"), "{e}");
+        assert_eq!(e.file, roads);
+        assert_eq!(e.field, "road[0].csv", "{e}");
+        assert!(e.reason.starts_with("cannot read the table"), "{e}");
+        assert!(e.reason.contains(&csv.display().to_string()), "{e}");
     }
 }

@@ -5,7 +5,8 @@
 //!
 //! Reading:
 //! - PCM integer (1..=32 bit) and 32-bit float files; integers are scaled to
-//!   [−1, 1) by 2^(bits−1); non-finite float samples (NaN, ±∞) are read as 0.
+//!   [−1, 1) by 2^(bits−1); float samples beyond full scale are clamped to
+//!   [−1, 1] and non-finite ones (NaN, ±∞) are read as 0.
 //! - Several channels are **mixed down** to mono by averaging.
 //! - A file at another sample rate is **resampled** to the rate asked for by
 //!   [`read_mono_at`] ([`resample`]); [`read_mono`] and [`decode_mono`] keep
@@ -206,7 +207,13 @@ fn decode<R: std::io::Read>(mut reader: hound::WavReader<R>) -> Result<Audio, Wa
             }
             for s in reader.samples::<f32>() {
                 let v = s.map_err(|e| corrupt(inter.len(), e))?;
-                inter.push(if v.is_finite() { v } else { 0.0 });
+                // over-full-scale values clamped, as the S16 conversion
+                // does: the mixdown's sum of huge samples stays finite
+                inter.push(if v.is_finite() {
+                    v.clamp(-1.0, 1.0)
+                } else {
+                    0.0
+                });
             }
         }
     }
@@ -387,6 +394,25 @@ mod tests {
             &[0.25f32, f32::NAN, f32::INFINITY, -0.5],
         );
         assert_eq!(read_mono(&p).unwrap().samples, [0.25, 0.0, 0.0, -0.5]);
+    }
+
+    /// Found by fuzzing (fuzz/README.md): a float file's samples beyond
+    /// full scale came through as read (2.96 from the fuzzer's file), and
+    /// the stereo mixdown of two samples near `f32::MAX` summed to +∞,
+    /// although decoded audio is documented finite and in [−1, 1].
+    #[test]
+    fn float_samples_beyond_full_scale_are_clamped_and_the_mixdown_stays_finite() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("over.wav");
+        write_spec(&p, spec(1, 16000, 32, true), &[2.964_591f32, -7.0, 0.5]);
+        assert_eq!(read_mono(&p).unwrap().samples, [1.0, -1.0, 0.5]);
+        let p = dir.path().join("max.wav");
+        write_spec(
+            &p,
+            spec(2, 16000, 32, true),
+            &[f32::MAX, f32::MAX, -f32::MAX, 0.0],
+        );
+        assert_eq!(read_mono(&p).unwrap().samples, [1.0, -0.5]);
     }
 
     #[test]

@@ -529,10 +529,17 @@ impl McapLog {
     /// says where and why.
     pub fn open(path: impl AsRef<Path>) -> Result<Self, McapLogError> {
         let path = path.as_ref().to_path_buf();
-        let mut data = std::fs::read(&path).map_err(|source| McapLogError::Io {
+        let data = std::fs::read(&path).map_err(|source| McapLogError::Io {
             path: path.clone(),
             source,
         })?;
+        Ok(Self::from_bytes(data, path))
+    }
+
+    /// A log from the bytes of a file already in memory, as [`McapLog::open`]
+    /// reads it; `path` names the file in errors.
+    pub fn from_bytes(mut data: Vec<u8>, path: impl Into<PathBuf>) -> Self {
+        let path = path.into();
         let damage = if data.starts_with(mcap::MAGIC) {
             first_damage(&data).map(|(off, why)| {
                 data.truncate(off);
@@ -541,7 +548,7 @@ impl McapLog {
         } else {
             None
         };
-        Ok(Self { data, path, damage })
+        Self { data, path, damage }
     }
 
     /// Calls `f` for every grip message in file order. Stops quietly at a

@@ -193,9 +193,14 @@ pub fn validate_rt(rt: &RtConfig, file: &Path) -> Result<(), ConfigError> {
 /// interface must not be empty.
 pub fn load_can(dir: &ConfigDir) -> Result<CanBusConfig, ConfigError> {
     let path = dir.file("can.toml");
-    let c: CanBusConfig = parse_toml(&path, &read_file(&path)?)?;
+    parse_can(&path, &read_file(&path)?)
+}
+
+/// Parses `text`, the contents of `can.toml` at `file` (see [`load_can`]).
+pub fn parse_can(file: &Path, text: &str) -> Result<CanBusConfig, ConfigError> {
+    let c: CanBusConfig = parse_toml(file, text)?;
     if c.interface.trim().is_empty() {
-        return Err(ConfigError::new(&path, "interface", "must not be empty"));
+        return Err(ConfigError::new(file, "interface", "must not be empty"));
     }
     Ok(c)
 }
