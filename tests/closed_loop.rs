@@ -55,6 +55,20 @@ struct Outcome_ {
     used_arte_cycles: u64,
 }
 
+/// A SimBus between a plant-sim node and a tcs-loop node (the ends, then
+/// the nodes they live on), named uniquely per run: tests run in parallel
+/// and some run the same controller.
+fn bus_pair(tag: &str) -> ((IpcNode, IpcNode), SimBus, SimBus) {
+    static RUN: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let run_id = RUN.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let name = format!("{tag}-{}-{run_id}", std::process::id());
+    let node_p = IpcNode::create("plant-sim").unwrap();
+    let node_t = IpcNode::create("tcs-loop").unwrap();
+    let bus_p = SimBus::open(&node_p, &name, 0).unwrap();
+    let bus_t = SimBus::open(&node_t, &name, 0).unwrap();
+    ((node_p, node_t), bus_p, bus_t)
+}
+
 fn closed_loop(kind: ControllerKind, arte: bool) -> Outcome_ {
     let d = dir();
     let roads = d.roads().unwrap();
@@ -70,14 +84,7 @@ fn closed_loop(kind: ControllerKind, arte: bool) -> Outcome_ {
     let mut plant = PlantSim::new(&pcfg, scenario, roads.clone(), &vehicle, &sensors).unwrap();
     let mut tcs = TcsLoop::new(kind, arte, &controllers, &vehicle, &own.safety).unwrap();
 
-    // unique per run: tests run in parallel and some run the same controller
-    static RUN: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
-    let run_id = RUN.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let bus_name = format!("cl-{}-{run_id}-{kind}-{arte}", std::process::id());
-    let node_p = IpcNode::create("plant-sim").unwrap();
-    let node_t = IpcNode::create("tcs-loop").unwrap();
-    let mut bus_p = SimBus::open(&node_p, &bus_name, 0).unwrap();
-    let mut bus_t = SimBus::open(&node_t, &bus_name, 0).unwrap();
+    let (_nodes, mut bus_p, mut bus_t) = bus_pair(&format!("cl-{kind}-{arte}"));
 
     let clock = ManualClock::new(10_000 * MS);
     let mut truths = Truths::default();
@@ -405,13 +412,7 @@ fn front_mic_closed_loop(kind: ControllerKind) -> FrontMic {
         .unwrap();
     assert!(tcs.road_aware());
 
-    static RUN: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
-    let run_id = RUN.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let bus_name = format!("fm-{}-{run_id}-{kind}", std::process::id());
-    let node_p = IpcNode::create("plant-sim").unwrap();
-    let node_t = IpcNode::create("tcs-loop").unwrap();
-    let mut bus_p = SimBus::open(&node_p, &bus_name, 0).unwrap();
-    let mut bus_t = SimBus::open(&node_t, &bus_name, 0).unwrap();
+    let (_nodes, mut bus_p, mut bus_t) = bus_pair(&format!("fm-{kind}"));
 
     let clock = ManualClock::new(10_000 * MS);
     let mut truths = Truths::default();

@@ -690,22 +690,19 @@ impl Summary {
             tm.cycles,
             us(tm.period_ns)
         );
-        let _ = writeln!(
-            o,
-            "  wake-up latency  p50 {} µs  p99 {} µs  p99.9 {} µs  max {} µs",
-            us(tm.wakeup.p50),
-            us(tm.wakeup.p99),
-            us(tm.wakeup.p999),
-            us(tm.wakeup.max)
-        );
-        let _ = writeln!(
-            o,
-            "  compute time     p50 {} µs  p99 {} µs  p99.9 {} µs  max {} µs",
-            us(tm.compute.p50),
-            us(tm.compute.p99),
-            us(tm.compute.p999),
-            us(tm.compute.max)
-        );
+        for (label, p) in [
+            ("wake-up latency", &tm.wakeup),
+            ("compute time", &tm.compute),
+        ] {
+            let _ = writeln!(
+                o,
+                "  {label:<17}p50 {} µs  p99 {} µs  p99.9 {} µs  max {} µs",
+                us(p.p50),
+                us(p.p99),
+                us(p.p999),
+                us(p.max)
+            );
+        }
         let _ = writeln!(
             o,
             "  deadline misses {}   cycles in safe state {} (during the scenario: {})",

@@ -74,6 +74,19 @@ impl VehicleParams {
     pub fn mass_share(&self) -> f64 {
         self.mass / self.n_driven
     }
+    /// Cycles of `dt` it takes, rolling at `v0` m/s, to cover the
+    /// microphone's lead (`mic_lead_m`): `⌈lead / (v0 dt)⌉`, 0 without a lead
+    /// or from standstill. The pre-roll of `grip sim` and plant-sim: the car
+    /// rolls this far before the scenario's x = 0, so that the microphone has
+    /// heard the road from 0 to the lead when the wheel gets there.
+    pub fn pre_roll_cycles(&self, v0: f64, dt: f64) -> u64 {
+        let lead = self.mic_lead_m;
+        if lead > 0.0 && v0 > 0.0 && dt > 0.0 {
+            (lead / (v0 * dt)).ceil() as u64
+        } else {
+            0
+        }
+    }
     /// Normal force on the driven wheel, N = share · M g / n
     /// ([`VehicleParams::driven_load_share`]; M g / n by default).
     pub fn normal_force(&self) -> f64 {

@@ -330,12 +330,12 @@ impl<'a> Sim<'a> {
 /// the run's by it); 0 without a lead.
 fn pre_roll(setup: &SimSetup, estimator: &mut dyn RoadEstimator, aware: &mut RoadAware) -> f64 {
     let lead = aware.lead();
-    if lead <= 0.0 {
-        return 0.0;
-    }
     let dt = setup.dt();
     let v0 = setup.scenario().v0.max(1.0);
-    let n = (lead / v0 / dt).ceil() as usize;
+    let n = setup.vehicle().pre_roll_cycles(v0, dt) as usize;
+    if n == 0 {
+        return 0.0;
+    }
     let t_pre = n as f64 * dt;
     let scenario = setup.scenario();
     for k in 0..n {

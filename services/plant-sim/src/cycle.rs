@@ -198,17 +198,6 @@ pub struct PlantSim {
     status: Arc<PlantStatus>,
 }
 
-/// Pre-roll cycles at `dt` for a microphone `lead` m ahead of the wheel at
-/// `v0` m/s: `⌈lead / (v0 dt)⌉` (as `grip sim`'s pre-roll), 0 without a
-/// lead or from standstill (a car that stands has heard nothing ahead).
-pub fn pre_roll_cycles(lead: f64, v0: f64, dt: f64) -> u64 {
-    if lead > 0.0 && v0 > 0.0 && dt > 0.0 {
-        (lead / (v0 * dt)).ceil() as u64
-    } else {
-        0
-    }
-}
-
 fn divider(cycle_ms: u32, rate_hz: f64) -> u64 {
     ((f64::from(cycle_ms) * 1e-3 * rate_hz).round() as u64).max(1)
 }
@@ -225,7 +214,7 @@ impl PlantSim {
         sensors: &SensorParams,
     ) -> Result<Self, PlantSimError> {
         let dt = 1.0 / cfg.rate_hz;
-        let pre_roll_n = pre_roll_cycles(vehicle.mic_lead_m, scenario.v0, dt);
+        let pre_roll_n = vehicle.pre_roll_cycles(scenario.v0, dt);
         let init = PlantState {
             x: -(pre_roll_n as f64) * scenario.v0 * dt,
             ..PlantState::rolling(scenario.v0, vehicle.r)

@@ -18,7 +18,5 @@ pub mod monitor;
 pub mod run;
 
 pub use config::{PlantSimConfig, StartOn};
-pub use cycle::{
-    FAULT_CMD_TIMEOUT, NullTruth, Outcome, Phase, PlantSim, PlantTick, TruthSink, pre_roll_cycles,
-};
+pub use cycle::{FAULT_CMD_TIMEOUT, NullTruth, Outcome, Phase, PlantSim, PlantTick, TruthSink};
 pub use run::{Options, RunError, run};

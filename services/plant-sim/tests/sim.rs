@@ -333,7 +333,11 @@ fn pre_roll_rolls_the_lead_at_v0_before_the_scenario_clock_starts() {
     let mut r = Rig::new(&cfg);
     r.sim = common::sim_with_vehicle(&cfg, "vehicles/front-mic.toml").unwrap();
     let v0 = 10.0 / 3.6;
-    let n = grip_plant_sim::pre_roll_cycles(2.77, v0, 1e-3);
+    let n = grip_physics::VehicleParams {
+        mic_lead_m: 2.77,
+        ..Default::default()
+    }
+    .pre_roll_cycles(v0, 1e-3);
     assert_eq!(n, 998, "⌈2.77 m / (2.78 m/s · 1 ms)⌉");
     let x_hold = -(n as f64) * v0 * 1e-3;
     assert!(x_hold <= -2.77 && x_hold > -2.77 - v0 * 1e-3);
@@ -387,8 +391,22 @@ fn pre_roll_rolls_the_lead_at_v0_before_the_scenario_clock_starts() {
     assert!(r.sim.applied_torque() > 0.0, "the scenario drives");
 
     // lead 0: no pre-roll, running from x = 0 at the start
-    assert_eq!(grip_plant_sim::pre_roll_cycles(0.0, v0, 1e-3), 0);
-    assert_eq!(grip_plant_sim::pre_roll_cycles(2.77, 0.0, 1e-3), 0);
+    assert_eq!(
+        grip_physics::VehicleParams {
+            mic_lead_m: 0.0,
+            ..Default::default()
+        }
+        .pre_roll_cycles(v0, 1e-3),
+        0
+    );
+    assert_eq!(
+        grip_physics::VehicleParams {
+            mic_lead_m: 2.77,
+            ..Default::default()
+        }
+        .pre_roll_cycles(0.0, 1e-3),
+        0
+    );
     let mut r = Rig::new(&cfg);
     assert_eq!(r.sim.plant().state().x, 0.0);
     r.sim.request_start();
