@@ -126,8 +126,8 @@ impl PreviewQueue {
 
     /// A decision for `road` with `confidence` at time `stamp`, heard over
     /// the wheel-path stretch `[x_from, x_to]` (m; `x_from <= x_to`).
-    /// `mu_peak[i]` is road `i`'s peak friction (a road missing there counts
-    /// as carrying less than any: the cautious reading). A road that carries
+    /// `mu_peak(i)` is road `i`'s peak friction (NaN, for a road not known,
+    /// counts as carrying less than any: the cautious reading). A road that carries
     /// less than the last queued one begins at the stretch's start, a
     /// grippier one at its middle; non-finite positions are ignored.
     /// Allocation-free.
@@ -146,7 +146,7 @@ impl PreviewQueue {
         stamp: f64,
         x_from: f64,
         x_to: f64,
-        mu_peak: &[f64],
+        mu_peak: impl Fn(usize) -> f64,
     ) {
         if !(x_from.is_finite() && x_to.is_finite()) {
             return;
@@ -156,7 +156,7 @@ impl PreviewQueue {
         } else {
             (x_to, x_from)
         };
-        let mu = |i: usize| mu_peak.get(i).copied().unwrap_or(f64::NAN);
+        let mu = mu_peak;
         let m = mu(road);
         // Does `road` carry less than road `other`? (unknown: yes)
         let less = |other: usize| {
@@ -259,16 +259,20 @@ mod tests {
     /// μ_peak of the test roads: 0 asphalt, 1 gravel-like, 2 snow, 3 grippier than asphalt.
     const MU: [f64; 4] = [1.0, 0.5, 0.2, 1.1];
 
+    fn mu(i: usize) -> f64 {
+        MU.get(i).copied().unwrap_or(f64::NAN)
+    }
+
     #[test]
     fn lead_zero_gives_the_latest_decision() {
         let mut q = PreviewQueue::new();
         assert_eq!(q.view(0.0), PreviewView::default());
-        q.push(0, 0.9, 0.1, 0.0, 0.5, &MU);
+        q.push(0, 0.9, 0.1, 0.0, 0.5, mu);
         // grippier-or-equal start at the frame's middle
         let v = q.view(0.25);
         assert_eq!(v.here.unwrap().road, 0);
         assert!(v.next.is_none());
-        q.push(2, 0.8, 0.2, 0.5, 1.0, &MU); // snow: begins at the frame start
+        q.push(2, 0.8, 0.2, 0.5, 1.0, mu); // snow: begins at the frame start
         let v = q.view(1.0);
         assert_eq!(v.here.unwrap().road, 2);
         assert!(v.next.is_none());
@@ -279,13 +283,13 @@ mod tests {
     fn ordering_and_distance_ahead() {
         let mut q = PreviewQueue::new();
         let lead = 2.77;
-        q.push(0, 0.9, 0.1, 0.0 + lead, 0.3 + lead, &MU);
-        q.push(0, 0.95, 0.125, 0.1 + lead, 0.4 + lead, &MU);
+        q.push(0, 0.9, 0.1, 0.0 + lead, 0.3 + lead, mu);
+        q.push(0, 0.95, 0.125, 0.1 + lead, 0.4 + lead, mu);
         assert_eq!(q.len(), 1, "same road refreshes");
         assert_eq!(q.entries()[0].confidence, 0.95);
         assert_eq!(q.entries()[0].hits, 2);
-        q.push(2, 0.8, 0.2, 1.0 + lead, 1.3 + lead, &MU);
-        q.push(1, 0.7, 0.3, 2.0 + lead, 2.3 + lead, &MU);
+        q.push(2, 0.8, 0.2, 1.0 + lead, 1.3 + lead, mu);
+        q.push(1, 0.7, 0.3, 2.0 + lead, 2.3 + lead, mu);
         let v = q.view(1.0);
         assert!(v.here.is_none(), "nothing has reached the wheel yet");
         let (n, d) = v.next.unwrap();
@@ -304,9 +308,9 @@ mod tests {
     #[test]
     fn change_exactly_at_a_cycle_boundary() {
         let mut q = PreviewQueue::new();
-        q.push(0, 0.9, 0.0, 0.0, 0.0, &MU);
-        q.push(0, 0.9, 0.0, 0.0, 0.0, &MU);
-        q.push(2, 0.9, 0.1, 5.0, 5.5, &MU);
+        q.push(0, 0.9, 0.0, 0.0, 0.0, mu);
+        q.push(0, 0.9, 0.0, 0.0, 0.0, mu);
+        q.push(2, 0.9, 0.1, 5.0, 5.5, mu);
         // At x = 5.0 exactly the wheel is on the new road.
         assert_eq!(q.view(4.999_999).here.unwrap().road, 0);
         assert_eq!(q.view(5.0).here.unwrap().road, 2);
@@ -315,11 +319,11 @@ mod tests {
     #[test]
     fn cautious_start_replaces_entries_behind_it() {
         let mut q = PreviewQueue::new();
-        q.push(0, 0.9, 0.0, 0.0, 1.0, &MU); // the first road: from 0.0
-        q.push(0, 0.9, 0.0, 0.5, 1.5, &MU); // confirmed
-        q.push(3, 0.9, 0.1, 1.5, 2.5, &MU); // grippier stone starts at 2.0
-        q.push(3, 0.9, 0.1, 2.0, 3.0, &MU); // confirmed
-        q.push(2, 0.9, 0.2, 1.8, 2.3, &MU); // snow may start at 1.8: before stone
+        q.push(0, 0.9, 0.0, 0.0, 1.0, mu); // the first road: from 0.0
+        q.push(0, 0.9, 0.0, 0.5, 1.5, mu); // confirmed
+        q.push(3, 0.9, 0.1, 1.5, 2.5, mu); // grippier stone starts at 2.0
+        q.push(3, 0.9, 0.1, 2.0, 3.0, mu); // confirmed
+        q.push(2, 0.9, 0.2, 1.8, 2.3, mu); // snow may start at 1.8: before stone
         let e = q.entries();
         assert_eq!(e.len(), 2);
         assert_eq!((e[0].road, e[0].x_start), (0, 0.0));
@@ -332,8 +336,8 @@ mod tests {
         for i in 0..(PREVIEW_CAPACITY + 5) {
             // Each road heard twice (confirmed), alternating.
             let x = i as f64;
-            q.push(i % 2, 0.9, x, x, x + 0.5, &MU);
-            q.push(i % 2, 0.9, x + 0.5, x + 0.5, x + 1.0, &MU);
+            q.push(i % 2, 0.9, x, x, x + 0.5, mu);
+            q.push(i % 2, 0.9, x + 0.5, x + 0.5, x + 1.0, mu);
         }
         assert_eq!(q.len(), PREVIEW_CAPACITY);
         assert_eq!(q.overflows(), 5);
@@ -347,9 +351,9 @@ mod tests {
         // compares positions only, so a long drive behaves like a short one.
         let mut q = PreviewQueue::new();
         let x0 = 1.0e6;
-        q.push(0, 0.9, 0.0, x0, x0, &MU);
-        q.push(0, 0.9, 0.0, x0, x0, &MU);
-        q.push(2, 0.9, 0.1, x0 + 0.001, x0 + 0.002, &MU);
+        q.push(0, 0.9, 0.0, x0, x0, mu);
+        q.push(0, 0.9, 0.0, x0, x0, mu);
+        q.push(2, 0.9, 0.1, x0 + 0.001, x0 + 0.002, mu);
         assert_eq!(q.view(x0 + 0.000_999).here.unwrap().road, 0);
         assert_eq!(q.view(x0 + 0.001).here.unwrap().road, 2);
     }
@@ -357,16 +361,16 @@ mod tests {
     #[test]
     fn a_stray_decision_between_two_for_the_same_road_goes() {
         let mut q = PreviewQueue::new();
-        q.push(2, 0.9, 0.1, 1.0, 1.5, &MU); // snow
-        q.push(3, 0.9, 0.2, 1.5, 2.0, &MU); // one frame heard as stone
-        q.push(2, 0.9, 0.3, 2.0, 2.5, &MU); // snow again
+        q.push(2, 0.9, 0.1, 1.0, 1.5, mu); // snow
+        q.push(3, 0.9, 0.2, 1.5, 2.0, mu); // one frame heard as stone
+        q.push(2, 0.9, 0.3, 2.0, 2.5, mu); // snow again
         let e = q.entries();
         assert_eq!(e.len(), 1, "{e:?}");
         assert_eq!((e[0].road, e[0].x_start, e[0].hits), (2, 1.0, 2));
         // Two strays in a row are not strays: stone stays.
-        q.push(3, 0.9, 0.4, 2.5, 3.0, &MU);
-        q.push(3, 0.9, 0.5, 3.0, 3.5, &MU);
-        q.push(2, 0.9, 0.6, 3.5, 4.0, &MU);
+        q.push(3, 0.9, 0.4, 2.5, 3.0, mu);
+        q.push(3, 0.9, 0.5, 3.0, 3.5, mu);
+        q.push(2, 0.9, 0.6, 3.5, 4.0, mu);
         let roads: Vec<usize> = q.entries().iter().map(|e| e.road).collect();
         assert_eq!(roads, [2, 3, 2]);
     }
@@ -374,10 +378,10 @@ mod tests {
     #[test]
     fn a_lower_friction_road_begins_where_unconfirmed_frames_before_it_begin() {
         let mut q = PreviewQueue::new();
-        q.push(0, 0.9, 0.1, 0.0, 0.5, &MU); // asphalt
-        q.push(0, 0.9, 0.2, 0.5, 1.0, &MU);
-        q.push(1, 0.6, 0.3, 1.0, 1.5, &MU); // a mixed frame, heard as gravel
-        q.push(2, 0.9, 0.4, 1.5, 2.0, &MU); // snow
+        q.push(0, 0.9, 0.1, 0.0, 0.5, mu); // asphalt
+        q.push(0, 0.9, 0.2, 0.5, 1.0, mu);
+        q.push(1, 0.6, 0.3, 1.0, 1.5, mu); // a mixed frame, heard as gravel
+        q.push(2, 0.9, 0.4, 1.5, 2.0, mu); // snow
         let e = q.entries();
         assert_eq!(e.len(), 2, "{e:?}");
         assert_eq!(
@@ -387,20 +391,20 @@ mod tests {
         );
         // A confirmed grippier road is not taken back.
         let mut q = PreviewQueue::new();
-        q.push(0, 0.9, 0.0, -0.5, 0.0, &MU);
-        q.push(0, 0.9, 0.1, 0.0, 0.5, &MU);
-        q.push(1, 0.9, 0.2, 0.5, 1.0, &MU);
-        q.push(1, 0.9, 0.3, 1.0, 1.5, &MU);
-        q.push(2, 0.9, 0.4, 1.5, 2.0, &MU);
+        q.push(0, 0.9, 0.0, -0.5, 0.0, mu);
+        q.push(0, 0.9, 0.1, 0.0, 0.5, mu);
+        q.push(1, 0.9, 0.2, 0.5, 1.0, mu);
+        q.push(1, 0.9, 0.3, 1.0, 1.5, mu);
+        q.push(2, 0.9, 0.4, 1.5, 2.0, mu);
         let e = q.entries();
         assert_eq!((e[2].road, e[2].x_start), (2, 1.5));
         // Nor an unconfirmed road that carries even less (ice-like, road 2
         // before gravel-like 1): it stays ahead of the gravel.
         let mut q = PreviewQueue::new();
-        q.push(0, 0.9, 0.0, -0.5, 0.0, &MU);
-        q.push(0, 0.9, 0.1, 0.0, 0.5, &MU);
-        q.push(2, 0.9, 0.2, 0.5, 1.0, &MU);
-        q.push(1, 0.9, 0.3, 1.0, 1.5, &MU);
+        q.push(0, 0.9, 0.0, -0.5, 0.0, mu);
+        q.push(0, 0.9, 0.1, 0.0, 0.5, mu);
+        q.push(2, 0.9, 0.2, 0.5, 1.0, mu);
+        q.push(1, 0.9, 0.3, 1.0, 1.5, mu);
         let roads: Vec<usize> = q.entries().iter().map(|e| e.road).collect();
         assert_eq!(roads, [0, 2, 1]);
     }
@@ -408,7 +412,7 @@ mod tests {
     #[test]
     fn non_finite_positions_are_ignored() {
         let mut q = PreviewQueue::new();
-        q.push(0, 0.9, 0.0, f64::NAN, 1.0, &MU);
+        q.push(0, 0.9, 0.0, f64::NAN, 1.0, mu);
         assert!(q.is_empty());
     }
 }

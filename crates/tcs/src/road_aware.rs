@@ -142,8 +142,6 @@ pub struct RoadAware {
     table: RoadTable,
     /// Per road: the slip where μ = slip_share · μ_peak (rising side).
     lambda_target: Vec<f64>,
-    /// Per road: μ_peak (the queue's cautious placement).
-    mu_peak: Vec<f64>,
     belief: RoadBelief,
     queue: PreviewQueue,
     p: PreviewParams,
@@ -195,11 +193,9 @@ impl RoadAware {
                 )
             })
             .collect();
-        let mu_peak = (0..roads.len()).map(|i| table.info(i).mu_peak).collect();
         Ok(Self {
             table,
             lambda_target,
-            mu_peak,
             belief,
             queue: PreviewQueue::new(),
             p: preview,
@@ -238,13 +234,14 @@ impl RoadAware {
     /// `x_from` to `x_to` (m; the lead is added here). Allocation-free.
     pub fn decision(&mut self, road: usize, confidence: f64, stamp: f64, x_from: f64, x_to: f64) {
         let x_from = x_from + self.p.change_at * (x_to - x_from);
+        let table = &self.table;
         self.queue.push(
             road,
             confidence,
             stamp,
             x_from + self.lead,
             x_to + self.lead,
-            &self.mu_peak,
+            |i| table.info(i).mu_peak,
         );
         self.last_decision = stamp;
     }
