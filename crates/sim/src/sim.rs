@@ -226,7 +226,7 @@ impl<'a> Sim<'a> {
             demand,
         };
         // The loop's own odometer, from what it measures.
-        let v_meas = reading.v.unwrap_or(setup.vehicle().r * reading.omega);
+        let v_odo = grip_tcs::odometer_speed(reading.v, reading.omega, setup.vehicle().r);
         let (guidance, out) = match self.aware.as_mut() {
             Some(a) => {
                 let (g, out) = a.control(&mut self.controller, &m, self.x_odo);
@@ -281,19 +281,12 @@ impl<'a> Sim<'a> {
                     self.arte.correct += 1;
                 }
                 let stamp = e.t_stamp - self.t_pre;
-                let v = if v_meas.is_finite() {
-                    v_meas.max(0.0)
-                } else {
-                    0.0
-                };
-                let x_to = self.x_odo + v * (stamp - t).max(0.0);
-                let x_from = x_to - v * e.frame_s;
+                let x_to = self.x_odo + v_odo * (stamp - t).max(0.0);
+                let x_from = x_to - v_odo * e.frame_s;
                 aware.decision(e.road_index, e.confidence, stamp, x_from, x_to);
             }
         }
-        if v_meas.is_finite() {
-            self.x_odo += v_meas.max(0.0) * dt;
-        }
+        self.x_odo += v_odo * dt;
 
         self.plant.step(dt, out.torque_cmd, road, grade);
         self.k += 1;

@@ -405,6 +405,14 @@ impl RoadAware {
     }
 }
 
+/// The speed the loop's odometer integrates (the place [`RoadAware`] works
+/// in), m/s: the measured vehicle speed `v`, else the wheel's `r · omega`;
+/// never negative, 0 when not finite. `grip sim` and tcs-loop alike.
+pub fn odometer_speed(v: Option<f64>, omega: f64, r: f64) -> f64 {
+    let s = v.unwrap_or(r * omega);
+    if s.is_finite() { s.max(0.0) } else { 0.0 }
+}
+
 /// The slip in (0, λ_opt] where `mu` reaches `share · mu_peak` (bisection;
 /// λ_opt when the share is 1 or the curve is odd).
 fn slip_at_share(mu: impl Fn(f64) -> f64, lambda_opt: f64, mu_peak: f64, share: f64) -> f64 {

@@ -410,12 +410,7 @@ impl TcsLoop {
                 .map(|s| s.speed),
         };
         // the odometer's speed: V, else the wheel's r·ω (as grip sim)
-        let v_odo = v.unwrap_or(self.r * omega);
-        let v_odo = if v_odo.is_finite() {
-            v_odo.max(0.0)
-        } else {
-            0.0
-        };
+        let v_odo = grip_tcs::odometer_speed(v, omega, self.r);
 
         // 2. road estimate (latest value wins)
         let mut road_taken = 0;
