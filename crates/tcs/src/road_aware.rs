@@ -84,6 +84,18 @@ pub struct PreviewParams {
     pub release_slip_share: f64,
     /// How long the wheel must contradict the cap before it is released, s.
     pub release_s: f64,
+    /// How a previewed drop is shaped, [0, 1): the constant command that
+    /// brings the motor (first-order lag `tau_m`) to the target by arrival
+    /// never goes below this share of the target, so the drop begins early
+    /// enough for that command (`tau_m ln((T - f T*) / ((1 - f) T*))` ahead,
+    /// plus the margin). 0: the latest possible drop, a zero command and
+    /// then the target (the least torque given up, but a 300 → 0 → 183 N m
+    /// step that an inverter and a driveline feel); towards 1 one smooth
+    /// step down, started earlier (more torque given up on the road before).
+    /// Absent from a file: 0 (the drop before this field existed, so that
+    /// older drive logs' attached configuration still loads and replays).
+    #[serde(default)]
+    pub approach_floor: f64,
 }
 
 impl Default for PreviewParams {
@@ -99,6 +111,7 @@ impl Default for PreviewParams {
             slip_share: 0.95,
             release_slip_share: 0.7,
             release_s: 0.02,
+            approach_floor: 0.7,
         }
     }
 }
@@ -115,6 +128,7 @@ impl PreviewParams {
         in_range("slip_share", self.slip_share, 1e-3, 1.0)?;
         in_range("release_slip_share", self.release_slip_share, 0.0, 1.0)?;
         in_range("release_s", self.release_s, 0.0, 10.0)?;
+        in_range("approach_floor", self.approach_floor, 0.0, 0.99)?;
         if self.min_hits == 0 {
             return Err(InvalidField::new("min_hits", "must be >= 1 (got 0)"));
         }
@@ -159,6 +173,8 @@ pub struct RoadAware {
     released: Option<usize>,
     /// Last cycle's cap, N m.
     last_cap: f64,
+    /// Whether the wheel spun last cycle (see `recover_slip_factor`).
+    spinning: bool,
     /// The measured slip, low-passed over `release_s / 2` (the release check).
     slip_lp: LowPass,
 }
@@ -209,6 +225,7 @@ impl RoadAware {
             contradicted_s: 0.0,
             released: None,
             last_cap: f64::INFINITY,
+            spinning: false,
             slip_lp: LowPass::new(0.5 * preview.release_s, dt),
         })
     }
@@ -221,6 +238,7 @@ impl RoadAware {
         self.contradicted_s = 0.0;
         self.released = None;
         self.last_cap = f64::INFINITY;
+        self.spinning = false;
         self.slip_lp.reset();
     }
 
@@ -248,10 +266,11 @@ impl RoadAware {
 
     /// The command that brings the motor torque (first-order lag `tau_m`)
     /// from `torque` down to `target` by the time the wheel arrives in
-    /// `t_arrive` s, as late as possible: full freedom (no cap) until the
-    /// drop with a zero command, `tau_m ln(torque / target)` plus the margin,
-    /// no longer fits; then the constant command that reaches `target` at
-    /// arrival (0 at the last moment), and `target` itself from arrival on.
+    /// `t_arrive` s: full freedom (no cap) until the drop no longer fits
+    /// (with the constant command `approach_floor · target`, a zero command
+    /// by default: `tau_m ln((torque - f target) / ((1 - f) target))` plus
+    /// the margin); then the constant command that reaches `target` at
+    /// arrival, and `target` itself from arrival on.
     fn approach(&self, torque: f64, demand: f64, target: f64, t_arrive: f64) -> f64 {
         if self.tau_m <= 0.0 {
             return if t_arrive <= self.p.lag_margin_s {
@@ -263,23 +282,28 @@ impl RoadAware {
         // The most the motor may carry by then: what it has or what the
         // driver asks for.
         let high = torque.max(demand);
+        let target_pos = target.max(1e-9);
+        let floor = self.p.approach_floor * target_pos;
         let t_drop = if high > target {
-            self.tau_m * (high / target.max(1e-9)).ln()
+            self.tau_m * ((high - floor) / (target_pos - floor)).ln()
         } else {
             0.0
         } + self.p.lag_margin_s;
         if t_arrive > t_drop {
             return f64::INFINITY;
         }
-        if torque <= target || torque.is_nan() {
+        // Within 2 % of the target the motor is there: the measured torque's
+        // noise must not turn into a zero command (near arrival the constant
+        // command amplifies it by 1 / (1 - e^(-t/τ_m))).
+        if torque <= 1.02 * target || torque.is_nan() {
             return target;
         }
         let t = (t_arrive - self.p.lag_margin_s).max(0.0);
         let a = (-t / self.tau_m).exp();
         if a >= 1.0 {
-            return 0.0;
+            return floor;
         }
-        ((target - torque * a) / (1.0 - a)).clamp(0.0, target)
+        ((target - torque * a) / (1.0 - a)).clamp(floor, target)
     }
 
     /// One cycle of a "with ARTE" controller at time `m.t` and odometer `x`
@@ -319,7 +343,16 @@ impl RoadAware {
         // no-ARTE behaviour (`[arte] max_age_s`): no knowledge, no cap.
         let usable = alive && self.arte.usable(Some(&knowledge)).is_some();
         let (_, lambda) = self.belief.measured();
-        let spinning = lambda > self.p.recover_slip_factor * info.lambda_opt;
+        // The wheel spins from recover_slip_factor · λ_opt on, and goes on
+        // spinning until its slip is back under λ_opt (hysteresis: a noisy
+        // slip at the threshold must not flip the cap every cycle).
+        let spin_from = if self.spinning {
+            info.lambda_opt
+        } else {
+            self.p.recover_slip_factor * info.lambda_opt
+        };
+        let spinning = lambda > spin_from;
+        self.spinning = spinning;
         // The wheel's word on a binding cap, in the grippy direction: the
         // motor delivers the cap and the wheel slips well below what the
         // believed road would need for it.
@@ -508,6 +541,53 @@ mod tests {
         let g = run(&mut a, 0.3, 3.3, 1, 150);
         assert_eq!(g.belief.0, 1, "{g:?}");
         assert!((g.torque_cap - snow_cap).abs() < 5.0, "{g:?}");
+    }
+
+    /// The previewed drop from 300 N m to snow's cap against a first-order
+    /// motor (τ_m = 50 ms, 1 ms steps), arriving in 0.5 s: the commands, the
+    /// motor torque at arrival and the first capped cycle.
+    fn drop_to(a: &RoadAware, target: f64) -> (Vec<f64>, f64, usize) {
+        let (dt, tau) = (1e-3, a.tau_m);
+        let mut torque = 300.0;
+        let mut cmds = Vec::new();
+        let mut first = usize::MAX;
+        for k in 0..500 {
+            let t_arrive = 0.5 - k as f64 * dt;
+            let cmd = a.approach(torque, 300.0, target, t_arrive).min(300.0);
+            if cmd < 300.0 && first == usize::MAX {
+                first = k;
+            }
+            cmds.push(cmd);
+            torque += (cmd - torque) * (1.0 - (-dt / tau).exp());
+        }
+        (cmds, torque, first)
+    }
+
+    #[test]
+    fn an_approach_floor_starts_the_drop_earlier_and_still_arrives_at_the_cap() {
+        let target = 183.0;
+        let tv = |c: &[f64]| c.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f64>() + 300.0 - c[0];
+        // The latest drop: a zero command, then the target.
+        let mut fast = aware(2.77);
+        fast.p.approach_floor = 0.0;
+        let (cmds, at, first_fast) = drop_to(&fast, target);
+        assert!(cmds.iter().any(|&c| c == 0.0), "a zero command");
+        assert!((at - target).abs() < 3.0, "arrives at {at}");
+        assert!(tv(&cmds) > 2.0 * target, "down to 0 and up: {}", tv(&cmds));
+        // With approach_floor 0.5 the drop starts earlier, never below half
+        // the target, and the motor still arrives at the cap.
+        let mut smooth = aware(2.77);
+        smooth.p.approach_floor = 0.5;
+        let (cmds, at, first) = drop_to(&smooth, target);
+        assert!(first < first_fast, "earlier: {first} vs {first_fast}");
+        let lowest = cmds.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(lowest > 0.49 * target, "never below half the cap: {lowest}");
+        assert!((at - target).abs() < 3.0, "arrives at {at}");
+        assert!(
+            tv(&cmds) < (300.0 - target) + 1.1 * target,
+            "down to half the cap and up: {}",
+            tv(&cmds)
+        );
     }
 
     #[test]
