@@ -429,6 +429,9 @@ pub fn summarize(
         "version",
         "git_revision",
         "instance",
+        // `grip generate`: source = generated, clock = scripted
+        "source",
+        "clock",
     ] {
         if let Some(v) = log.run.get(k) {
             s.run.push((k.to_owned(), v.clone()));

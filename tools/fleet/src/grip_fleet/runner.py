@@ -24,6 +24,10 @@ def _replay_task(call: GripCall, path: str, what_if: list[str]) -> dict[str, Any
     return replay(call, path, what_if)
 
 
+#: Object store of a local Ray (the tasks only return JSON objects).
+LOCAL_OBJECT_STORE_BYTES = 256 * 1024 * 1024
+
+
 def start_ray(workers: int | None) -> str:
     """Connects to ``RAY_ADDRESS`` if set (``workers`` is then the cluster's
     business), else starts Ray in this process with ``workers`` CPUs (default:
@@ -33,9 +37,11 @@ def start_ray(workers: int | None) -> str:
     address = os.environ.get("RAY_ADDRESS")
     if address:
         ray.init(address=address, log_to_driver=False)
-        return f"Ray cluster at {address} ({ray.cluster_resources().get('CPU', 0):.0f} CPUs)"
+        cpus = ray.cluster_resources().get("CPU", 0)  # type: ignore[no-untyped-call]
+        return f"Ray cluster at {address} ({cpus:.0f} CPUs)"
     n = workers or os.cpu_count() or 1
-    ray.init(num_cpus=n, include_dashboard=False, log_to_driver=False)
+    # a small object store: the tasks return small JSON objects
+    ray.init(num_cpus=n, include_dashboard=False, log_to_driver=False, object_store_memory=LOCAL_OBJECT_STORE_BYTES)
     return f"local Ray, {n} worker(s)"
 
 
