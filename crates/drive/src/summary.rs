@@ -88,6 +88,9 @@ pub struct RoadChange {
     pub delay: Option<f64>,
 }
 
+/// Width of the speed bands of [`ArteEval::per_speed_band`], km/h.
+pub const SPEED_BAND_KMH: f64 = 5.0;
+
 /// ARTE against the ground truth.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ArteEval {
@@ -99,6 +102,12 @@ pub struct ArteEval {
     pub correct: u64,
     /// Per true road: (judged, correct).
     pub per_road: BTreeMap<String, (u64, u64)>,
+    /// Judged estimates per (true road, estimated road): the confusion
+    /// counts behind `per_road` (fleet tables add them up across drives).
+    pub confusion: BTreeMap<(String, String), u64>,
+    /// Per speed band of [`SPEED_BAND_KMH`] (key: band index, speed
+    /// `|v|` of the truth at the frame's midpoint): (judged, correct).
+    pub per_speed_band: BTreeMap<u32, (u64, u64)>,
     /// Road changes in the scenario window.
     pub changes: Vec<RoadChange>,
     /// Cycles (scenario window, out of safe state) the controller used the estimate.
@@ -420,6 +429,9 @@ pub fn summarize(
         "version",
         "git_revision",
         "instance",
+        // `grip generate`: source = generated, clock = scripted
+        "source",
+        "clock",
     ] {
         if let Some(v) = log.run.get(k) {
             s.run.push((k.to_owned(), v.clone()));
@@ -546,6 +558,13 @@ pub fn summarize(
             a.judged += 1;
             let ok = est == truth_name;
             a.correct += u64::from(ok);
+            let band = (g.v.abs() * 3.6 / SPEED_BAND_KMH).floor();
+            if band.is_finite() {
+                let b = a.per_speed_band.entry(band as u32).or_default();
+                b.0 += 1;
+                b.1 += u64::from(ok);
+            }
+            *a.confusion.entry((truth_name.clone(), est)).or_default() += 1;
             let r = a.per_road.entry(truth_name).or_default();
             r.0 += 1;
             r.1 += u64::from(ok);

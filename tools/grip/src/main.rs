@@ -3,6 +3,9 @@
 //! Each subcommand lives in `cmd/<name>.rs` as an `Args` struct and a `run`
 //! function; this file only dispatches.
 
+// serde_json::json! of `grip inspect --json`'s object (drive/json.rs)
+#![recursion_limit = "256"]
+
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 mod cmd;
@@ -47,6 +50,8 @@ enum Command {
     Drive(cmd::drive::Args),
     /// Summary, timing histogram, road timeline, CSV and plots of a drive log (MCAP).
     Inspect(cmd::inspect::Args),
+    /// Many simulated drive logs, fast: the services' own code in lock step on a scripted clock.
+    Generate(cmd::generate::Args),
     /// Replay a drive log through the services' own code (open loop); what-if options.
     Replay(cmd::replay::Args),
 }
@@ -81,6 +86,7 @@ fn main() -> std::process::ExitCode {
         Command::Drive(a) => cmd::drive::run(&ctx, a),
         Command::Inspect(a) => cmd::inspect::run(&ctx, a),
         Command::Replay(a) => cmd::replay::run(&ctx, a),
+        Command::Generate(a) => cmd::generate::run(&ctx, a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -31,6 +31,14 @@ pub struct Args {
     /// (unreadable, truncated, or damaged).
     #[arg(long)]
     strict: bool,
+    /// One JSON object per log on stdout, one per line (JSON Lines):
+    /// run metadata, metrics, ARTE accuracy per road and per speed band,
+    /// confusion counts, detection delays, deadline misses, safe-state
+    /// entries, E2E faults, command timeouts (`tools/grip/README.md`,
+    /// "grip inspect --json"). A bad log gives an object whose `status` says
+    /// why (exit status 0 unless --strict).
+    #[arg(long, conflicts_with_all = ["csv", "plot"])]
+    json: bool,
 }
 
 /// The summary of the log at `path`, with the vehicle the drive ran with
@@ -57,6 +65,26 @@ fn summary_of(
 }
 
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
+    if args.json {
+        let mut paths = Vec::new();
+        for p in &args.logs {
+            if p.is_dir() {
+                paths.extend(crate::drive::many::logs_in(p)?);
+            } else {
+                paths.push(p.clone());
+            }
+        }
+        let mut bad = 0usize;
+        for p in &paths {
+            let v = crate::drive::json::log_json(p, &ctx.config_dir);
+            bad += usize::from(v["status"] != "ok");
+            println!("{v}");
+        }
+        if args.strict && bad > 0 {
+            anyhow::bail!("{bad} of {} logs are bad (--strict)", paths.len());
+        }
+        return Ok(());
+    }
     if let [dir] = args.logs.as_slice()
         && dir.is_dir()
     {

@@ -6,6 +6,7 @@ pub mod classify;
 pub mod dataset;
 pub mod drive;
 pub mod features;
+pub mod generate;
 pub mod inspect;
 pub mod replay;
 pub mod roads;

@@ -68,6 +68,12 @@ pub struct Args {
     /// what-if controller meets the consequences of its own torque.
     #[arg(long)]
     closed_loop: bool,
+    /// Print one JSON object per log (JSON Lines) instead of the report:
+    /// per-topic comparison, first divergence, old and new figures
+    /// (`tools/grip/README.md`, "grip replay --json"); a log that cannot be
+    /// replayed gives `status = "error"` and the reason.
+    #[arg(long)]
+    json: bool,
 }
 
 fn controller_name(c: Controller) -> &'static str {
@@ -84,6 +90,18 @@ pub struct Replayed {
     pub diffs: Vec<TopicDiff>,
     /// The report.
     pub text: String,
+    /// The machine-readable result (`--json`).
+    pub json: serde_json::Value,
+}
+
+/// The `--json` object of a log that could not be replayed.
+fn error_json(path: &std::path::Path, e: &anyhow::Error) -> serde_json::Value {
+    serde_json::json!({
+        "file": path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned()),
+        "path": path.display().to_string(),
+        "status": "error",
+        "reason": format!("{e:#}"),
+    })
 }
 
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
@@ -98,8 +116,20 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     if args.log.is_dir() {
         return replay_dir(&args, &what);
     }
-    let r = replay(&args.log, &what, args.out.as_deref(), args.closed_loop)?;
-    print!("{}", r.text);
+    let r = match replay(&args.log, &what, args.out.as_deref(), args.closed_loop) {
+        Ok(r) => r,
+        Err(e) => {
+            if args.json {
+                println!("{}", error_json(&args.log, &e));
+            }
+            return Err(e);
+        }
+    };
+    if args.json {
+        println!("{}", r.json);
+    } else {
+        print!("{}", r.text);
+    }
     if args.check && r.diffs.iter().any(|d| !d.identical()) {
         let first = r
             .diffs
@@ -133,6 +163,16 @@ fn replay_dir(args: &Args, what: &WhatIf) -> anyhow::Result<()> {
                         .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
                     let out = args.out.as_ref().map(|o| o.join(&name));
                     let line = match replay(p, what, out.as_deref(), args.closed_loop) {
+                        Ok(r) if args.json => {
+                            if r.diffs.iter().any(|d| !d.identical()) {
+                                failed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                            }
+                            r.json.to_string()
+                        }
+                        Err(e) if args.json => {
+                            failed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                            error_json(p, &e).to_string()
+                        }
                         Ok(r) => match r.diffs.iter().find_map(|d| d.first.as_ref()) {
                             None => format!("{name}: identical"),
                             Some(d) => {
@@ -160,6 +200,12 @@ fn replay_dir(args: &Args, what: &WhatIf) -> anyhow::Result<()> {
         println!("{l}");
     }
     let n = failed.load(std::sync::atomic::Ordering::Relaxed);
+    if args.json {
+        if args.check && n > 0 {
+            bail!("{n} of {} logs did not replay identically", results.len());
+        }
+        return Ok(());
+    }
     println!(
         "{} logs, {n} not identical or not replayed ({OPEN_LOOP})",
         results.len()
@@ -184,6 +230,24 @@ fn rx(frames: &[CanFrame]) -> Vec<CanFrame> {
         .copied()
         .filter(|f| f.direction != can_dir::TX)
         .collect()
+}
+
+/// The `--json` keys of [`command_figures`], in its order.
+const FIGURE_KEYS: [&str; 5] = [
+    "mean_torque_cmd_nm",
+    "max_torque_cmd_nm",
+    "mean_torque_cut_nm",
+    "arte_used_pct",
+    "safe_cycles",
+];
+
+/// A finite number, else `null`.
+fn json_num(x: f64) -> serde_json::Value {
+    if x.is_finite() {
+        serde_json::json!(x)
+    } else {
+        serde_json::Value::Null
+    }
 }
 
 /// The controller's own figures of a set of cycles (open loop: the plant's
@@ -464,6 +528,60 @@ pub fn replay(
         span_s / replay_s.max(1e-9)
     );
 
+    let figures = |cycles: &[CycleRecord], s: &grip_drive::Summary| {
+        let mut m = serde_json::Map::new();
+        for ((_, v), key) in command_figures(cycles).into_iter().zip(FIGURE_KEYS) {
+            m.insert(key.into(), json_num(v));
+        }
+        m.insert("arte_accuracy".into(), json_num(s.arte.accuracy()));
+        m.insert(
+            "metrics".into(),
+            s.metrics.as_ref().map_or(serde_json::Value::Null, |x| {
+                serde_json::json!({
+                    "slip_deviation": json_num(x.slip_deviation),
+                    "max_torque_nm": json_num(x.max_torque),
+                    "torque_effort_nm": json_num(x.torque_effort),
+                    "mean_accel_ms2": json_num(x.mean_accel),
+                    "distance_m": json_num(x.distance),
+                    "energy_j": json_num(x.energy),
+                })
+            }),
+        );
+        serde_json::Value::Object(m)
+    };
+    let json = serde_json::json!({
+        "file": path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned()),
+        "path": path.display().to_string(),
+        "status": "replayed",
+        "mode": if closed { "closed loop" } else { "open loop" },
+        "plant_metrics_replayed": closed,
+        "configuration": cfg.source,
+        "controller": cfg.controller,
+        "arte": if cfg.arte { "on" } else { "off" },
+        "changes": cfg.changes,
+        "identical": diffs.iter().all(TopicDiff::identical),
+        "differing_messages": diffs.iter().map(|d| d.differing).sum::<usize>(),
+        "first_divergence": diffs.iter().find_map(|d| d.first.as_ref()).map(ToString::to_string),
+        "topics": diffs.iter().map(|d| serde_json::json!({
+            "topic": d.topic,
+            "logged": d.logged,
+            "replayed": d.replayed,
+            "differing": d.differing,
+            "fields": d.fields.iter().map(|(f, n)| (f.clone(), serde_json::json!(n))).collect::<serde_json::Map<_, _>>(),
+        })).collect::<Vec<_>>(),
+        "speed_match": {"exact": speed.exact, "none": speed.none, "approximated": speed.approximated},
+        "road_match": {"recorded": roadm.recorded, "inferred": roadm.inferred, "missing": roadm.missing},
+        "old": figures(&log.cycles, &s_old),
+        "new": figures(&outs.cycles, &s_new),
+        "detection_delays": s_old.arte.changes.iter().zip(&s_new.arte.changes).map(|(a, b)| serde_json::json!({
+            "from": a.from, "to": a.to,
+            "old_s": a.delay.map_or(serde_json::Value::Null, json_num),
+            "new_s": b.delay.map_or(serde_json::Value::Null, json_num),
+        })).collect::<Vec<_>>(),
+        "drive_s": json_num(span_s),
+        "replay_s": json_num(replay_s),
+    });
+
     if let Some(out) = out {
         let mut meta = BTreeMap::new();
         meta.insert("source".into(), path.display().to_string());
@@ -476,5 +594,9 @@ pub fn replay(
         write_log(out, &log, &truth, &outs.cycles, &outs.can, &roads, &meta)?;
         let _ = writeln!(o, "wrote {}", out.display());
     }
-    Ok(Replayed { diffs, text: o })
+    Ok(Replayed {
+        diffs,
+        text: o,
+        json,
+    })
 }

@@ -1,0 +1,222 @@
+//! `grip inspect --json`: one JSON object per drive log, everything a fleet
+//! table needs, computed by the same summary `grip inspect` prints
+//! ([`grip_drive::summary::summarize`]): run metadata, metrics, ARTE
+//! accuracy (per road, per speed band, the confusion counts), road-change
+//! detection delays, deadline misses, safe-state entries, E2E faults and
+//! the inverter's command timeouts. Counts are given as counts (judged,
+//! correct) so that a fleet can add them up without re-implementing any
+//! of this; NaN and missing figures are `null`.
+
+use std::path::Path;
+
+use grip_drive::{DriveLog, summary};
+use grip_io::can::protocol::InverterMsg;
+use grip_msgs::{CycleRecord, E2eFaults, can_dir};
+use serde_json::{Value, json};
+
+/// A finite number, else `null`.
+fn num(x: f64) -> Value {
+    if x.is_finite() { json!(x) } else { Value::Null }
+}
+
+fn faults(f: &E2eFaults) -> Value {
+    json!({
+        "crc": f.crc,
+        "counter_repeated": f.counter_repeated,
+        "counter_skipped": f.counter_skipped,
+        "length": f.length,
+        "unknown_id": f.unknown_id,
+        "timeout": f.timeout,
+        "total": f.total(),
+    })
+}
+
+/// Times the loop went from active into the safe state (a log that starts
+/// in the safe state does not count its start).
+pub fn safe_state_entries(cycles: &[CycleRecord]) -> u64 {
+    cycles
+        .windows(2)
+        .filter(|w| w[0].safe_state == 0 && w[1].safe_state != 0)
+        .count() as u64
+}
+
+/// Command-timeout episodes of the inverter, as its `MotorStatus` frames on
+/// the loop's CAN log report them: `CmdTimeout` going from clear to set.
+pub fn command_timeouts(log: &DriveLog) -> u64 {
+    let mut last: Option<bool> = None;
+    let mut n = 0;
+    for f in log.can.iter().filter(|f| f.direction != can_dir::TX) {
+        if let Some(InverterMsg::MotorStatus(m)) = InverterMsg::decode_unchecked(f) {
+            if last == Some(false) && m.cmd_timeout {
+                n += 1;
+            }
+            last = Some(m.cmd_timeout);
+        }
+    }
+    n
+}
+
+/// The status and reason of a loaded log (as `grip inspect DIR` gives them).
+fn status(log: &DriveLog) -> (&'static str, Option<String>) {
+    if let Some(t) = &log.report.truncated {
+        ("incomplete", Some(t.clone()))
+    } else if log.report.bad > 0 {
+        (
+            "damaged",
+            Some(format!(
+                "{} messages did not decode (first: {})",
+                log.report.bad,
+                log.report.first_error.as_deref().unwrap_or("?")
+            )),
+        )
+    } else {
+        ("ok", None)
+    }
+}
+
+fn file_name(path: &Path) -> String {
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}
+
+/// The JSON object of the log at `path` (an unreadable file gives an object
+/// with `status = "unreadable"` and the reason).
+pub fn log_json(path: &Path, config_dir: &Path) -> Value {
+    let log = match DriveLog::load(path) {
+        Ok(l) => l,
+        Err(e) => {
+            return json!({
+                "file": file_name(path),
+                "path": path.display().to_string(),
+                "status": "unreadable",
+                "reason": e.full(),
+            });
+        }
+    };
+    let (vehicle, from, warnings) = grip_drive::vehicle_for(&log, config_dir);
+    let roads = grip_config::ConfigDir::new(config_dir).roads().ok();
+    let s = summary::summarize(&log, &vehicle, &from, roads.as_ref());
+    summary_json(path, &log, &s, &warnings)
+}
+
+/// The JSON object of a loaded log and its summary.
+pub fn summary_json(
+    path: &Path,
+    log: &DriveLog,
+    s: &summary::Summary,
+    vehicle_warnings: &[String],
+) -> Value {
+    let (st, reason) = status(log);
+    let get = |k: &str| log.run.get(k).cloned();
+    let a = &s.arte;
+    let per_road: serde_json::Map<String, Value> = a
+        .per_road
+        .iter()
+        .map(|(road, (n, c))| {
+            (
+                road.clone(),
+                json!({"judged": n, "correct": c,
+                       "accuracy": num(*c as f64 / (*n).max(1) as f64)}),
+            )
+        })
+        .collect();
+    let confusion: Vec<Value> = a
+        .confusion
+        .iter()
+        .map(|((t, e), n)| json!({"truth": t, "estimate": e, "count": n}))
+        .collect();
+    let bands: Vec<Value> = a
+        .per_speed_band
+        .iter()
+        .map(|(b, (n, c))| {
+            json!({
+                "band_kmh_lo": f64::from(*b) * summary::SPEED_BAND_KMH,
+                "band_kmh_hi": f64::from(*b + 1) * summary::SPEED_BAND_KMH,
+                "judged": n,
+                "correct": c,
+            })
+        })
+        .collect();
+    let changes: Vec<Value> = a
+        .changes
+        .iter()
+        .map(|c| {
+            json!({"t_s": num(c.t), "from": c.from, "to": c.to,
+                        "delay_s": c.delay.map_or(Value::Null, num)})
+        })
+        .collect();
+    let delays: Vec<f64> = a.changes.iter().filter_map(|c| c.delay).collect();
+    let mean_delay = if delays.is_empty() {
+        Value::Null
+    } else {
+        num(delays.iter().sum::<f64>() / delays.len() as f64)
+    };
+    let max_delay = if delays.is_empty() {
+        Value::Null
+    } else {
+        num(delays.iter().copied().fold(0.0, f64::max))
+    };
+    let metrics = s.metrics.as_ref().map_or(Value::Null, |m| {
+        json!({
+            "slip_deviation": num(m.slip_deviation),
+            "max_torque_nm": num(m.max_torque),
+            "torque_effort_nm": num(m.torque_effort),
+            "mean_accel_ms2": num(m.mean_accel),
+            "distance_m": num(m.distance),
+            "energy_j": num(m.energy),
+            "kinetic_energy_gain_j": num(m.kinetic_energy_gain),
+            "duration_s": num(m.duration),
+            "cmd_tv_per_s": num(m.cmd_tv_per_s),
+        })
+    });
+    let mut warnings: Vec<String> = vehicle_warnings.to_vec();
+    warnings.extend(s.warnings.iter().cloned());
+    json!({
+        "file": file_name(path),
+        "path": path.display().to_string(),
+        "status": st,
+        "reason": reason,
+        "run": log.run,
+        "simulated": get("source").as_deref() == Some("generated"),
+        "scenario": get("scenario"),
+        "controller": get("controller"),
+        "arte": get("arte"),
+        "seed": get("seed"),
+        "revision": get("git_revision"),
+        "version": get("version"),
+        "vehicle": s.vehicle,
+        "cycles": s.timing.cycles,
+        "scenario_s": s.window.map_or(Value::Null, |(a, b)| num(b - a)),
+        "speed_kmh_start": s.speed_kmh.map_or(Value::Null, |v| num(v.0)),
+        "speed_kmh_end": s.speed_kmh.map_or(Value::Null, |v| num(v.1)),
+        "metrics": metrics,
+        "arte_estimates": a.estimates,
+        "arte_judged": a.judged,
+        "arte_correct": a.correct,
+        "arte_accuracy": num(a.accuracy()),
+        "arte_used_cycles": a.used_cycles,
+        "arte_active_cycles": a.active_cycles,
+        "arte_per_road": per_road,
+        "confusion": confusion,
+        "speed_band_kmh": summary::SPEED_BAND_KMH,
+        "speed_bands": bands,
+        "road_changes": changes,
+        "changes_detected": delays.len(),
+        "changes_missed": a.changes.len() - delays.len(),
+        "mean_delay_s": mean_delay,
+        "max_delay_s": max_delay,
+        "deadline_misses": s.timing.deadline_misses,
+        "wakeup_p99_ns": s.timing.wakeup.p99,
+        "safe_cycles": s.timing.safe_cycles,
+        "safe_cycles_in_scenario": s.safe_cycles_in_window,
+        "safe_state_entries": safe_state_entries(&log.cycles),
+        "e2e_faults": faults(&s.can.faults),
+        "e2e_faults_in_scenario": s.can.faults_in_window.as_ref().map_or(Value::Null, faults),
+        "e2e_rejected_frames": s.can.rejected,
+        "command_timeouts": command_timeouts(log),
+        "bad_messages": log.report.bad,
+        "warnings": warnings,
+    })
+}
