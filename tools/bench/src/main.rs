@@ -418,6 +418,13 @@ fn arte_run(exe: Option<&Path>, out: &Path, quick: bool) -> Result<ArteCost, Str
     Ok(ArteCost { frame })
 }
 
+/// The 1, 5 and 15 min load averages (`/proc/loadavg`).
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_default()
+}
+
 fn conditions(quick: bool, secs: u64) -> Vec<(String, String)> {
     let read = |p: &str| {
         std::fs::read_to_string(p)
@@ -452,6 +459,7 @@ fn conditions(quick: bool, secs: u64) -> Vec<(String, String)> {
                 .to_string(),
         ),
         ("cpu".into(), cpu),
+        ("load_average_at_start".into(), load_average()),
         ("mode".into(), if quick { "quick" } else { "full" }.into()),
         ("drive_and_cyclictest_s".into(), secs.to_string()),
     ]
@@ -492,7 +500,7 @@ fn run() -> anyhow::Result<ExitCode> {
         max_miss_rate: a.max_miss_rate,
         ..Budget::default()
     };
-    let cond = conditions(a.quick, secs);
+    let mut cond = conditions(a.quick, secs);
     eprintln!(
         "grip-bench: {} mode, {secs} s drive + {secs} s cyclictest, loop period {:.0} µs; output in {}",
         if a.quick { "quick" } else { "full" },
@@ -509,6 +517,7 @@ fn run() -> anyhow::Result<ExitCode> {
     let rec = recorder_run(a.recorder_bench.as_deref(), &out, a.quick, d.msg_per_s);
     eprintln!("[5/5] ARTE frame cost");
     let arte = arte_run(a.arte_bench.as_deref(), &out, a.quick);
+    cond.push(("load_average_at_end".into(), load_average()));
     let m = Measurements {
         loop_timing: d.timing,
         cyclictest: ct,
@@ -527,7 +536,7 @@ fn run() -> anyhow::Result<ExitCode> {
     }
     let text = format!("{head}\n{table}");
     println!("{text}");
-    std::fs::write(out.join("bench.md"), &text)?;
+    std::fs::write(out.join("bench.txt"), &text)?;
     report::write_csv(&out.join("bench.csv"), &lines)?;
     report::write_json(
         &out.join("bench.json"),
@@ -541,7 +550,7 @@ fn run() -> anyhow::Result<ExitCode> {
     )?;
     eprintln!(
         "written: {} (table), bench.json, bench.csv, raw outputs beside them",
-        out.join("bench.md").display()
+        out.join("bench.txt").display()
     );
     Ok(match overall {
         verdict::Overall::Pass => ExitCode::SUCCESS,

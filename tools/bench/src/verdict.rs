@@ -168,8 +168,8 @@ fn limit_line(item: &str, value: f64, limit: f64, unit: &str, prec: usize, why: 
     let ok = value.is_finite() && value <= limit;
     Line {
         item: item.into(),
-        measured: format!("{value:.prec$} {unit}"),
-        limit: format!("≤ {limit:.prec$} {unit}"),
+        measured: format!("{value:.prec$} {unit}").trim_end().to_owned(),
+        limit: format!("≤ {limit:.prec$} {unit}").trim_end().to_owned(),
         verdict: if ok { Verdict::Pass } else { Verdict::Fail },
         reason: format!("{} {why}", if ok { "within:" } else { "over:" },),
         value: Some(value),
