@@ -61,7 +61,13 @@ fn cyclictest(secs: u64) -> Result<Stats, String> {
     ensure_cyclictest()?;
     // the command line and the histogram reader of the ECU bench (tools/bench)
     let out = Command::new("cyclictest")
-        .args(grip_bench::cyclictest::args(80, 1000, secs * 1000, None, 10_000))
+        .args(grip_bench::cyclictest::args(
+            80,
+            1000,
+            secs * 1000,
+            None,
+            10_000,
+        ))
         .output()
         .map_err(|e| format!("cyclictest: {e}"))?;
     if !out.status.success() {
