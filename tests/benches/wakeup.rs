@@ -38,18 +38,6 @@ struct Stats {
     over_1ms: u64,
 }
 
-fn quantile(buckets: &[u64], count: u64, max_us: f64, q: f64) -> f64 {
-    let rank = ((q * count as f64).ceil() as u64).max(1);
-    let mut seen = 0;
-    for (i, &c) in buckets.iter().enumerate() {
-        seen += c;
-        if seen >= rank {
-            return ((i + 1) as f64).min(max_us);
-        }
-    }
-    max_us
-}
-
 fn ensure_cyclictest() -> Result<(), String> {
     if Command::new("cyclictest").arg("--help").output().is_ok() {
         return Ok(());
@@ -71,21 +59,15 @@ fn ensure_cyclictest() -> Result<(), String> {
 
 fn cyclictest(secs: u64) -> Result<Stats, String> {
     ensure_cyclictest()?;
-    let loops = (secs * 1000).to_string();
+    // the command line and the histogram reader of the ECU bench (tools/bench)
     let out = Command::new("cyclictest")
-        .args([
-            "-m",
-            "-p",
-            "80",
-            "-i",
-            "1000",
-            "-l",
-            &loops,
-            "-t",
-            "1",
-            "-q",
-            "--histogram=10000",
-        ])
+        .args(grip_bench::cyclictest::args(
+            80,
+            1000,
+            secs * 1000,
+            None,
+            10_000,
+        ))
         .output()
         .map_err(|e| format!("cyclictest: {e}"))?;
     if !out.status.success() {
@@ -94,40 +76,14 @@ fn cyclictest(secs: u64) -> Result<Stats, String> {
             String::from_utf8_lossy(&out.stderr)
         ));
     }
-    let text = String::from_utf8_lossy(&out.stdout);
-    let mut buckets = vec![0u64; 10_000];
-    let mut max_us = 0.0;
-    let mut overflow = 0;
-    for line in text.lines() {
-        let mut it = line.split_whitespace();
-        match (it.next(), it.next()) {
-            (Some(a), Some(b)) if !a.starts_with('#') => {
-                if let (Ok(i), Ok(c)) = (a.parse::<usize>(), b.parse::<u64>())
-                    && i < buckets.len()
-                {
-                    buckets[i] += c;
-                }
-            }
-            _ => {}
-        }
-        if let Some(v) = line.strip_prefix("# Max Latencies:") {
-            max_us = v.trim().parse::<f64>().unwrap_or(0.0);
-        }
-        if let Some(v) = line.strip_prefix("# Histogram Overflows:") {
-            overflow = v.trim().parse::<u64>().unwrap_or(0);
-        }
-    }
-    let count: u64 = buckets.iter().sum::<u64>() + overflow;
-    if count == 0 {
-        return Err(format!("could not parse cyclictest output:\n{text}"));
-    }
+    let s = grip_bench::cyclictest::parse(&String::from_utf8_lossy(&out.stdout), 1000)?;
     Ok(Stats {
-        count,
-        p50_us: quantile(&buckets, count, max_us, 0.5),
-        p99_us: quantile(&buckets, count, max_us, 0.99),
-        p999_us: quantile(&buckets, count, max_us, 0.999),
-        max_us,
-        over_1ms: buckets[1000..].iter().sum::<u64>() + overflow,
+        count: s.count,
+        p50_us: s.p50_us,
+        p99_us: s.p99_us,
+        p999_us: s.p999_us,
+        max_us: s.max_us,
+        over_1ms: s.over_limit,
     })
 }
 
