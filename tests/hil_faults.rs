@@ -35,7 +35,8 @@ use grip_tests::hil::{
 };
 use grip_tests::hil_drives::{
     Attempt, PLAYBACK, SENSOR_TIMEOUT_MS, Setup, VM_MARGIN_MS, grip_drive, instance, ms,
-    read_complete_allowing_xruns, serial, sig, wait_scenario_start, wait_success, with_attempts_in,
+    read_complete_allowing_audio_gaps, read_complete_allowing_xruns, serial, sig,
+    wait_scenario_start, wait_success, with_attempts_in,
 };
 
 /// A drive of `secs` seconds on asphalt at a constant 300 N m from 10 km/h:
@@ -386,8 +387,9 @@ fn bus_down(s: &Setup) -> anyhow::Result<Attempt> {
     let run = |drive: &mut Proc| -> anyhow::Result<(u64, u64)> {
         wait_scenario_start(s)?;
         std::thread::sleep(Duration::from_millis(1000));
-        let t_down = hil::mono_ns();
         let r = hil::set_link_up(&s.iface, false);
+        // once the interface is down (the ioctl may take a while under emulation)
+        let t_down = hil::mono_ns();
         std::thread::sleep(Duration::from_millis(DOWN_MS));
         let t_up = hil::mono_ns();
         // up again whatever happened
@@ -641,7 +643,7 @@ fn kill_recorder(s: &Setup) -> anyhow::Result<Attempt> {
     // the killed recorder's file: readable up to the kill, in order
     let old = DriveLog::load_with(&first, LoadOptions::default())
         .map_err(|e| anyhow::anyhow!("{}", e.full()))?;
-    println!("killed recorder's file: {:?}", old.report);
+    println!("killed recorder's file: {:?}, {:?}", old.report, old.counts);
     ensure!(
         old.report.bad == 0,
         "undecodable messages in the killed recorder's file"
@@ -892,9 +894,9 @@ fn mic_faults(s: &Setup) -> anyhow::Result<Attempt> {
         let t_x0 = hil::mono_ns();
         while hil::mono_ns() < at(XRUNS.0 + XRUNS.1) {
             hil::kill_pid(acq, libc::SIGSTOP)?;
-            std::thread::sleep(Duration::from_millis(150));
+            std::thread::sleep(Duration::from_millis(300));
             hil::kill_pid(acq, libc::SIGCONT)?;
-            std::thread::sleep(Duration::from_millis(50));
+            std::thread::sleep(Duration::from_millis(100));
         }
         let t_x1 = hil::mono_ns();
         wait_success(drive, "grip drive", Duration::from_secs(180))?;
@@ -1067,7 +1069,10 @@ fn stall_arte(s: &Setup) -> anyhow::Result<Attempt> {
     let (t_stop, t_cont) = res?;
     println!("grip drive output:\n{}", drive.log_text());
     check_frames(&cap, s)?;
-    let l = read_complete_allowing_xruns(&mcap)?;
+    let l = read_complete_allowing_audio_gaps(
+        &mcap,
+        "seen while arte was stopped: a finding, tools/hil/README.md",
+    )?;
 
     let (share0, n0) = arte_share(&l.cycles, t_stop - 500_000_000, t_stop);
     println!(

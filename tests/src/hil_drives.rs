@@ -219,7 +219,21 @@ pub struct Log {
 /// message, contiguous cycle and truth sequence numbers, the recorder's
 /// summary written with nothing lost between the services and the file.
 pub fn read_complete(path: &Path) -> anyhow::Result<Log> {
-    read_checked(path, false)
+    read_checked(path, AudioGaps::No)
+}
+
+/// Which audio blocks the recorder may have missed (by sequence number).
+#[derive(Debug, Clone, Copy)]
+enum AudioGaps {
+    No,
+    IfXruns,
+    Because(&'static str),
+}
+
+/// [`read_complete`], audio blocks the recorder missed allowed (printed)
+/// for the reason `why`, e.g. a fault that stalls a peer of the audio topic.
+pub fn read_complete_allowing_audio_gaps(path: &Path, why: &'static str) -> anyhow::Result<Log> {
+    read_checked(path, AudioGaps::Because(why))
 }
 
 /// [`read_complete`], but audio blocks missing by sequence number are
@@ -227,10 +241,10 @@ pub fn read_complete(path: &Path) -> anyhow::Result<Log> {
 /// block an overrun broke, and under emulation an overrun is a scheduling
 /// event): for drives whose fault is not the audio's. Printed.
 pub fn read_complete_allowing_xruns(path: &Path) -> anyhow::Result<Log> {
-    read_checked(path, true)
+    read_checked(path, AudioGaps::IfXruns)
 }
 
-fn read_checked(path: &Path, xrun_gaps_ok: bool) -> anyhow::Result<Log> {
+fn read_checked(path: &Path, audio_gaps: AudioGaps) -> anyhow::Result<Log> {
     let log = DriveLog::load_with(path, LoadOptions { audio: true })?;
     let rep = &log.report;
     ensure!(
@@ -296,9 +310,18 @@ fn read_checked(path: &Path, xrun_gaps_ok: bool) -> anyhow::Result<Log> {
     }
     for t in [topics::CYCLE, topics::TRUTH, topics::AUDIO] {
         let gaps = meta(t, "seq_gaps")?;
-        if t == topics::AUDIO && xrun_gaps_ok && xruns > 0 {
-            println!("{t}: {gaps} blocks missing, with {xruns} capture overruns reported");
-            continue;
+        if t == topics::AUDIO && gaps > 0 {
+            match audio_gaps {
+                AudioGaps::IfXruns if xruns > 0 => {
+                    println!("{t}: {gaps} blocks missing, with {xruns} capture overruns reported");
+                    continue;
+                }
+                AudioGaps::Because(why) => {
+                    println!("{t}: the recorder missed {gaps} blocks ({why})");
+                    continue;
+                }
+                _ => {}
+            }
         }
         ensure!(gaps == 0, "{t}: {gaps} sequence gaps seen by the recorder");
     }
