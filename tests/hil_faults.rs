@@ -185,7 +185,9 @@ fn bus_flood_keeps_the_loop_on_time() -> anyhow::Result<()> {
     with_attempts_in("flood", &scenario(5), flood)
 }
 
-/// `cangen IFACE -g 0 -I ID -L 8 -D DATA` (full rate: no gap) for `len`.
+/// `cangen IFACE -g 0 -I ID -L 8 -D DATA -p 1` (full rate: no gap; on
+/// `ENOBUFS`, a full socket send buffer, it waits up to 1 ms for room
+/// instead of exiting) for `len`.
 fn cangen(s: &Setup, id: u32, data: &[u8; 8], len: Duration) -> anyhow::Result<(u64, u64)> {
     let hex: String = data.iter().map(|b| format!("{b:02X}")).collect();
     let idh = format!("{id:03X}");
@@ -785,6 +787,14 @@ fn full_disk_on(s: &Setup, disk: &Path) -> anyhow::Result<Attempt> {
         } else {
             ensure!(st.success(), "{name} exited with {st}");
         }
+    }
+    // precondition: the recorder filled the disk (a starved recorder may
+    // not have written the headroom before the drive ended)
+    let free_end = hil::free_bytes(disk)?;
+    if free_end > 64 << 10 && !rec_log.contains("No space left on device") {
+        return Ok(Attempt::Disturbed(format!(
+            "the recorder did not fill its disk ({free_end} bytes still free at the end)"
+        )));
     }
     // the recorder says so in its log
     let says = rec_log
