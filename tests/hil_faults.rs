@@ -168,6 +168,11 @@ fn cycles_in(cycles: &[CycleRecord], t0: u64, t1: u64) -> Vec<&CycleRecord> {
         .collect()
 }
 
+/// Each stopped service's name and exit status.
+type Statuses = Vec<(String, ExitStatus)>;
+/// A captured audio block: start and end (ns), silent, clipped, its xruns.
+type Block = (u64, u64, bool, bool, u32);
+
 fn ns(ms: f64) -> u64 {
     (ms * 1e6) as u64
 }
@@ -549,7 +554,7 @@ fn start_drive(s: &Setup, tag: &str, recorder_out: &Path) -> anyhow::Result<Supe
 
 /// Waits for plant-sim's end of the scenario, then stops the others in
 /// `grip drive`'s order; returns each one's exit status.
-fn finish_drive(set: &mut Supervisor, names: &[&str]) -> anyhow::Result<Vec<(String, ExitStatus)>> {
+fn finish_drive(set: &mut Supervisor, names: &[&str]) -> anyhow::Result<Statuses> {
     let st = set.get("plant-sim")?.wait_timeout(Duration::from_secs(120));
     ensure!(
         st.is_some_and(|s| s.success()),
@@ -602,7 +607,7 @@ fn kill_recorder(s: &Setup) -> anyhow::Result<Attempt> {
     let second = s.out.join("second.mcap");
     let cap = CanCapture::start(&s.iface)?;
     let player = RoadAudioPlayer::start(PLAYBACK, &s.iface, &s.config, &s.scenario)?;
-    let run = || -> anyhow::Result<(u64, u64, String, Vec<(String, ExitStatus)>)> {
+    let run = || -> anyhow::Result<(u64, u64, String, Statuses)> {
         let mut set = start_drive(s, "krec", &first)?;
         wait_scenario_start(s)?;
         std::thread::sleep(Duration::from_millis(1500));
@@ -741,7 +746,7 @@ fn full_disk_on(s: &Setup, disk: &Path) -> anyhow::Result<Attempt> {
     let mcap = disk.join("drive.mcap");
     let cap = CanCapture::start(&s.iface)?;
     let player = RoadAudioPlayer::start(PLAYBACK, &s.iface, &s.config, &s.scenario)?;
-    let run = || -> anyhow::Result<(u64, u64, String, String, Vec<(String, ExitStatus)>)> {
+    let run = || -> anyhow::Result<(u64, u64, String, String, Statuses)> {
         let mut set = start_drive(s, "disk", &mcap)?;
         wait_scenario_start(s)?;
         // fill the disk up to DISK_HEADROOM: the recorder's next ~2 s fit
@@ -927,7 +932,7 @@ fn mic_faults(s: &Setup) -> anyhow::Result<Attempt> {
     );
 
     // the faults as the microphone delivered them (captured audio blocks)
-    let blocks: Vec<(u64, u64, bool, bool, u32)> = l
+    let blocks: Vec<Block> = l
         .audio_blocks
         .iter()
         .map(|a| {
@@ -944,9 +949,7 @@ fn mic_faults(s: &Setup) -> anyhow::Result<Attempt> {
             (a.stamp_ns, end, silent, clipped, a.xruns)
         })
         .collect();
-    let span = |pred: &dyn Fn(&(u64, u64, bool, bool, u32)) -> bool,
-                what: &str|
-     -> anyhow::Result<(u64, u64)> {
+    let span = |pred: &dyn Fn(&Block) -> bool, what: &str| -> anyhow::Result<(u64, u64)> {
         let b: Vec<_> = blocks.iter().filter(|b| pred(b)).collect();
         let first = b
             .first()

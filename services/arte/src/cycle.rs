@@ -143,7 +143,7 @@ impl AudioQuality {
         for &v in x {
             let f = f64::from(v) / 32768.0;
             sq += f * f;
-            clipped += usize::from(v >= i16::MAX || v <= -i16::MAX);
+            clipped += usize::from(v == i16::MAX || v <= -i16::MAX);
         }
         let rms = (sq / x.len() as f64).sqrt();
         if rms < self.silence_rms {
