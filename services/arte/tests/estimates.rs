@@ -306,7 +306,7 @@ fn silence_clipping_and_overruns_give_no_road() {
     let bl = blocks(7, &[("asphalt", 10.0, 3.0)], 1024, T0);
     let block_ns = 1024u64 * 1_000_000_000 / u64::from(RATE);
     // blocks 0..43: clean; 43..53 silent; 53..63 clean; 63..73 clipped;
-    // 73..83 clean; block 83 reports an overrun, 84..129 clean
+    // (amplified 1000x) 73..83 clean; block 83 reports an overrun, 84..129 clean
     let faulty: Vec<AudioBlock> = bl
         .iter()
         .enumerate()
@@ -316,7 +316,7 @@ fn silence_clipping_and_overruns_give_no_road() {
                 43..53 => b.samples.fill(0),
                 63..73 => {
                     for s in &mut b.samples {
-                        *s = (i32::from(*s) * 20).clamp(-32768, 32767) as i16;
+                        *s = (i32::from(*s) * 1000).clamp(-32768, 32767) as i16;
                     }
                 }
                 _ => {}
