@@ -304,8 +304,13 @@ impl RawCanSocket {
             )
         };
         if n != mem::size_of::<RawFrame>() as isize {
-            return Err(io::Error::last_os_error())
-                .with_context(|| format!("read(can_frame) returned {n}"));
+            let e = io::Error::last_os_error();
+            if e.raw_os_error() == Some(libc::ENETDOWN) {
+                // the interface went down: the kernel reports it once
+                // (a test may set the bus down on purpose); no frame
+                return Ok(None);
+            }
+            return Err(e).with_context(|| format!("read(can_frame) returned {n}"));
         }
         Ok(Some(frame))
     }
@@ -867,8 +872,12 @@ impl RawCanSocket {
         // SAFETY: msg describes valid buffers we own.
         let n = unsafe { libc::recvmsg(self.fd.as_raw_fd(), &raw mut msg, 0) };
         if n != mem::size_of::<RawFrame>() as isize {
-            return Err(io::Error::last_os_error())
-                .with_context(|| format!("recvmsg(can_frame) returned {n}"));
+            let e = io::Error::last_os_error();
+            if e.raw_os_error() == Some(libc::ENETDOWN) {
+                // the interface went down (reported once): no frame
+                return Ok(None);
+            }
+            return Err(e).with_context(|| format!("recvmsg(can_frame) returned {n}"));
         }
         let (mut drops, mut stamp) = (None, None);
         // SAFETY: walking the control messages the kernel wrote into cbuf.
@@ -942,8 +951,18 @@ pub struct CanCapture {
 impl CanCapture {
     /// Opens the socket (4 MiB receive buffer, drop counting) and starts recording.
     pub fn start(iface: &str) -> anyhow::Result<Self> {
+        Self::start_filtered(iface, &[])
+    }
+
+    /// [`Self::start`] recording only the frames that pass `filters`
+    /// ((id, mask) pairs as [`RawCanSocket::set_filters`]; empty: all), e.g.
+    /// all but a flood's id (`CAN_INV_FILTER`).
+    pub fn start_filtered(iface: &str, filters: &[(u32, u32)]) -> anyhow::Result<Self> {
         require_can_iface(iface)?;
         let sock = RawCanSocket::open(iface)?;
+        if !filters.is_empty() {
+            sock.set_filters(filters)?;
+        }
         sock.set_rcvbuf(4 << 20)?;
         sock.enable_drop_count()?;
         sock.enable_timestamps()?;
@@ -981,6 +1000,75 @@ impl CanCapture {
         self.handle
             .join()
             .map_err(|_| anyhow::anyhow!("the CAN capture thread panicked"))?
+    }
+}
+
+/// A thread that counts the frames matching a set of receive filters
+/// through its own raw socket, with the kernel's count of frames it dropped
+/// for that socket (`SO_RXQ_OVFL`): `received + dropped` is every matching
+/// frame on the bus, however fast they came.
+#[derive(Debug)]
+pub struct FrameCounter {
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    handle: thread::JoinHandle<anyhow::Result<FrameCount>>,
+}
+
+/// What a [`FrameCounter`] counted.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct FrameCount {
+    /// Frames read.
+    pub received: u64,
+    /// Frames the kernel dropped for the counting socket.
+    pub dropped: u64,
+    /// CLOCK_MONOTONIC time of the first and the last frame read, ns.
+    pub first_ns: Option<u64>,
+    /// See `first_ns`.
+    pub last_ns: Option<u64>,
+}
+
+impl FrameCount {
+    /// Every matching frame on the bus: read + dropped.
+    pub fn total(&self) -> u64 {
+        self.received + self.dropped
+    }
+}
+
+impl FrameCounter {
+    /// Starts counting the frames that pass `filters` ((id, mask) pairs, as
+    /// [`RawCanSocket::set_filters`]).
+    pub fn start(iface: &str, filters: &[(u32, u32)]) -> anyhow::Result<Self> {
+        let sock = RawCanSocket::open(iface)?;
+        sock.set_filters(filters)?;
+        sock.set_rcvbuf(4 << 20)?;
+        sock.enable_drop_count()?;
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let stop2 = std::sync::Arc::clone(&stop);
+        let handle = thread::Builder::new()
+            .name("can-count".into())
+            .spawn(move || {
+                let mut c = FrameCount::default();
+                while !stop2.load(std::sync::atomic::Ordering::Relaxed) {
+                    while let Some(m) = sock.recv_counting_drops(Duration::from_millis(20))? {
+                        let now = mono_ns();
+                        c.received += 1;
+                        c.first_ns.get_or_insert(now);
+                        c.last_ns = Some(now);
+                        if let Some(d) = m.drops {
+                            c.dropped = u64::from(d);
+                        }
+                    }
+                }
+                Ok(c)
+            })?;
+        Ok(Self { stop, handle })
+    }
+
+    /// Stops counting and returns the count.
+    pub fn finish(self) -> anyhow::Result<FrameCount> {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        self.handle
+            .join()
+            .map_err(|_| anyhow::anyhow!("the CAN frame counter thread panicked"))?
     }
 }
 
@@ -1112,6 +1200,34 @@ pub struct PlayerReport {
     pub roads: Vec<(u64, String)>,
     /// Highest vehicle speed the player followed, m/s.
     pub max_speed: f64,
+    /// Blocks played with a [`MicFault`] applied.
+    pub fault_blocks: u64,
+}
+
+/// What a faulty microphone does to the road sound, for a while
+/// ([`RoadAudioPlayer::start_with_faults`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MicFaultKind {
+    /// Digital silence (a cut cable, a muted preamplifier).
+    Silence,
+    /// The sound amplified by `gain` and clipped at full scale (an
+    /// overdriven input).
+    Clip {
+        /// Amplification before the clipping.
+        gain: f64,
+    },
+}
+
+/// A [`MicFaultKind`] from `from_s` for `len_s` seconds of scenario time
+/// (the clock that starts with the first `DriverDemand` carrying a demand).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MicFault {
+    /// What happens.
+    pub kind: MicFaultKind,
+    /// Start, s after the scenario start.
+    pub from_s: f64,
+    /// Duration, s.
+    pub len_s: f64,
 }
 
 /// Plays the scenario's synthetic tyre-road sound into an ALSA playback PCM
@@ -1148,7 +1264,21 @@ impl RoadAudioPlayer {
     /// Opens `device` for playback and starts the player thread for
     /// `scenario` (a name under `config` or a path); `iface` is the bus.
     pub fn start(device: &str, iface: &str, config: &Path, scenario: &str) -> anyhow::Result<Self> {
+        Self::start_with_faults(device, iface, config, scenario, &[])
+    }
+
+    /// [`Self::start`], with `faults` applied to the blocks written while
+    /// the scenario clock is in their windows (the sound reaches the
+    /// capture up to a buffer, about 186 ms, later).
+    pub fn start_with_faults(
+        device: &str,
+        iface: &str,
+        config: &Path,
+        scenario: &str,
+        faults: &[MicFault],
+    ) -> anyhow::Result<Self> {
         use alsa::pcm::{Access, Format, HwParams, PCM};
+        let faults = faults.to_vec();
         use alsa::{Direction, ValueOr};
         let cdir = grip_config::ConfigDir::new(config);
         let roads = cdir.roads()?;
@@ -1263,7 +1393,14 @@ impl RoadAudioPlayer {
                         }
                         None => (0.0, 0),
                     };
-                    let _ = t;
+                    let fault = rep
+                        .started_ns
+                        .and_then(|_| {
+                            faults
+                                .iter()
+                                .find(|f| t >= f.from_s && t < f.from_s + f.len_s)
+                        })
+                        .map(|f| f.kind);
                     last_ns = now;
                     let (road, ref name) = seg_roads[seg];
                     if road != cur_road {
@@ -1276,6 +1413,18 @@ impl RoadAudioPlayer {
                         *o = lp[pos % lp.len()];
                         pos += 1;
                     }
+                    match fault {
+                        Some(MicFaultKind::Silence) => ibuf.fill(0),
+                        Some(MicFaultKind::Clip { gain }) => {
+                            for o in &mut ibuf {
+                                *o = (f64::from(*o) * gain)
+                                    .clamp(f64::from(i16::MIN), f64::from(i16::MAX))
+                                    as i16;
+                            }
+                        }
+                        None => {}
+                    }
+                    rep.fault_blocks += u64::from(fault.is_some());
                     let mut off = 0;
                     while off < ibuf.len() {
                         match io.writei(&ibuf[off..]) {
@@ -1378,6 +1527,90 @@ pub fn kill_pid(pid: u32, sig: libc::c_int) -> anyhow::Result<()> {
     // SAFETY: kill(2) on a pid the caller found among its own children.
     cvt(unsafe { libc::kill(p, sig) }).with_context(|| format!("kill({pid}, {sig})"))?;
     Ok(())
+}
+
+/// `CAN_INV_FILTER`: set on a filter's id, the filter passes the frames
+/// that do *not* match (linux/can.h).
+pub const CAN_INV_FILTER: u32 = 0x2000_0000;
+
+/// Sets network interface `iface` up or down (`SIOCSIFFLAGS`, as `ip link
+/// set IFACE up|down`; needs root, which the HIL VM has).
+pub fn set_link_up(iface: &str, up: bool) -> anyhow::Result<()> {
+    // SAFETY: a plain datagram socket, closed by OwnedFd.
+    let fd = cvt(unsafe { libc::socket(libc::AF_INET, libc::SOCK_DGRAM, 0) })
+        .context("socket(AF_INET)")?;
+    // SAFETY: fd is a new, valid descriptor we own.
+    let fd = unsafe { OwnedFd::from_raw_fd(fd) };
+    // SAFETY: all-zero is a valid ifreq.
+    let mut req: libc::ifreq = unsafe { mem::zeroed() };
+    anyhow::ensure!(
+        iface.len() < libc::IFNAMSIZ,
+        "interface name {iface} too long"
+    );
+    for (d, s) in req.ifr_name.iter_mut().zip(iface.bytes()) {
+        *d = s as libc::c_char;
+    }
+    // SAFETY: SIOCGIFFLAGS fills ifr_ifru.ifru_flags of a valid ifreq.
+    cvt(unsafe { libc::ioctl(fd.as_raw_fd(), libc::SIOCGIFFLAGS, &raw mut req) })
+        .with_context(|| format!("SIOCGIFFLAGS {iface}"))?;
+    // SAFETY: the kernel wrote the flags member.
+    let mut flags = unsafe { req.ifr_ifru.ifru_flags };
+    let up_flag = libc::IFF_UP as libc::c_short;
+    flags = if up {
+        flags | up_flag
+    } else {
+        flags & !up_flag
+    };
+    req.ifr_ifru.ifru_flags = flags;
+    // SAFETY: SIOCSIFFLAGS reads the valid ifreq.
+    cvt(unsafe { libc::ioctl(fd.as_raw_fd(), libc::SIOCSIFFLAGS, &raw const req) })
+        .with_context(|| format!("SIOCSIFFLAGS {iface} {}", if up { "up" } else { "down" }))?;
+    Ok(())
+}
+
+/// Mounts a tmpfs of `bytes` at `dir` (created if missing; needs root,
+/// which the HIL VM has): a small disk that a test can fill.
+pub fn mount_tmpfs(dir: &Path, bytes: u64) -> anyhow::Result<()> {
+    fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let target = CString::new(dir.as_os_str().as_encoded_bytes())?;
+    let opts = CString::new(format!("size={bytes}"))?;
+    // SAFETY: valid NUL-terminated strings for mount(2).
+    cvt(unsafe {
+        libc::mount(
+            c"tmpfs".as_ptr(),
+            target.as_ptr(),
+            c"tmpfs".as_ptr(),
+            0,
+            opts.as_ptr().cast(),
+        )
+    })
+    .with_context(|| {
+        format!(
+            "mounting a {bytes}-byte tmpfs on {} (needs root)",
+            dir.display()
+        )
+    })?;
+    Ok(())
+}
+
+/// Unmounts `dir` (lazily: files still open stay readable to their holders).
+pub fn unmount(dir: &Path) -> anyhow::Result<()> {
+    let target = CString::new(dir.as_os_str().as_encoded_bytes())?;
+    // SAFETY: a valid NUL-terminated path.
+    cvt(unsafe { libc::umount2(target.as_ptr(), libc::MNT_DETACH) })
+        .with_context(|| format!("unmounting {}", dir.display()))?;
+    Ok(())
+}
+
+/// Bytes free for an unprivileged writer on the file system holding `dir`.
+pub fn free_bytes(dir: &Path) -> anyhow::Result<u64> {
+    let p = CString::new(dir.as_os_str().as_encoded_bytes())?;
+    // SAFETY: all-zero is a valid statvfs; p is NUL-terminated.
+    let mut st: libc::statvfs = unsafe { mem::zeroed() };
+    // SAFETY: as above.
+    cvt(unsafe { libc::statvfs(p.as_ptr(), &raw mut st) })
+        .with_context(|| format!("statvfs {}", dir.display()))?;
+    Ok(st.f_bavail * st.f_frsize)
 }
 
 #[cfg(test)]

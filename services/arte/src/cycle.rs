@@ -34,6 +34,14 @@ pub struct ArteCounters {
     pub receive_errors: AtomicU64,
     /// Latest xrun count reported by audio-acq.
     pub xruns: AtomicU64,
+    /// Blocks not classified because the microphone's signal was unusable
+    /// (see [`AudioQuality`]): digital silence or near it.
+    pub silent_blocks: AtomicU64,
+    /// ... clipped.
+    pub clipped_blocks: AtomicU64,
+    /// ... reporting a new capture overrun, or within
+    /// [`AudioQuality::xrun_hold_ns`] after one.
+    pub xrun_blocks: AtomicU64,
     /// Published estimates per winning class index.
     pub per_class: [AtomicU64; MAX_ROAD_CLASSES],
     /// Cycle records received from tcs-loop (`grip/tcs/cycle`), valid or not.
@@ -75,6 +83,81 @@ impl EstimateSink for grip_io::ipc::Publisher<RoadEstimate> {
     }
 }
 
+/// When a block of audio is not fit to classify: the microphone's own
+/// faults. The features are gain-invariant by design (`crates/arte`), so
+/// digital silence (a cut cable, a muted input) still gives a confident
+/// class; a clipped input adds harmonics the model never saw; after a
+/// capture overrun the samples have holes the frame would straddle. Such a
+/// block gives one estimate with `class_index = NO_CLASS` and confidence 0
+/// instead of the classifier's, and the estimator restarts at the next good
+/// block (no frame or smoothing state carries the bad audio over). tcs-loop
+/// then falls back to its no-ARTE behaviour (immediately without the road
+/// knowledge, by age with it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AudioQuality {
+    /// A block whose RMS is below this (full scale = 1) is silent.
+    pub silence_rms: f64,
+    /// A block with more than this share of its samples at full scale
+    /// (|s| ≥ 32767) is clipped.
+    pub clip_share: f64,
+    /// Blocks for this long (by their stamps) after one that reports a new
+    /// overrun are not trusted either: a storm of overruns keeps the audio
+    /// untrusted instead of yielding estimates between the holes, ns.
+    pub xrun_hold_ns: u64,
+}
+
+impl Default for AudioQuality {
+    /// −80 dBFS (a 16-bit converter's own noise floor is about −90 dBFS; road
+    /// noise at the microphone is tens of dB above it), half the samples
+    /// clipped (the clean synthetic stone sound of the tests has blocks with
+    /// more than a quarter of their samples at full scale), 0.5 s.
+    fn default() -> Self {
+        Self {
+            silence_rms: 1e-4,
+            clip_share: 0.5,
+            xrun_hold_ns: 500_000_000,
+        }
+    }
+}
+
+/// Why a block was not classified ([`AudioQuality`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BadAudio {
+    /// Silent.
+    Silence,
+    /// Clipped.
+    Clipping,
+    /// A new overrun, or within the hold after one.
+    Xrun,
+}
+
+impl AudioQuality {
+    /// Judges `x` (S16 samples); `xrun` = the block reports a new overrun
+    /// or lies within the hold after one. Allocation-free.
+    pub fn judge(&self, x: &[i16], xrun: bool) -> Option<BadAudio> {
+        if xrun {
+            return Some(BadAudio::Xrun);
+        }
+        if x.is_empty() {
+            return None;
+        }
+        let (mut sq, mut clipped) = (0.0f64, 0usize);
+        for &v in x {
+            let f = f64::from(v) / 32768.0;
+            sq += f * f;
+            clipped += usize::from(v == i16::MAX || v <= -i16::MAX);
+        }
+        let rms = (sq / x.len() as f64).sqrt();
+        if rms < self.silence_rms {
+            Some(BadAudio::Silence)
+        } else if clipped as f64 > self.clip_share * x.len() as f64 {
+            Some(BadAudio::Clipping)
+        } else {
+            None
+        }
+    }
+}
+
 /// The per-block work of the arte service (see the crate docs).
 ///
 /// Frame spans: the estimator counts samples since its last restart; a
@@ -101,6 +184,11 @@ pub struct ArteLoop<C: Classify, K: Clock> {
     /// tcs-loop's odometer in the record `speed` came from, m.
     odometer: f64,
     speed_timeout_ns: u64,
+    quality: AudioQuality,
+    /// The xrun count of the previous block.
+    last_xruns: Option<u32>,
+    /// Blocks stamped before this follow an overrun too closely, ns.
+    xrun_hold_until: u64,
 }
 
 /// Default of `input.speed_timeout_s`, s.
@@ -181,6 +269,9 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             speed: None,
             odometer: f64::NAN,
             speed_timeout_ns: (DEFAULT_SPEED_TIMEOUT_S * 1e9) as u64,
+            quality: AudioQuality::default(),
+            last_xruns: None,
+            xrun_hold_until: 0,
         })
     }
 
@@ -189,6 +280,12 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
     /// NaN: 0.
     pub fn with_speed_timeout(mut self, timeout_s: f64) -> Self {
         self.speed_timeout_ns = (timeout_s.max(0.0) * 1e9) as u64;
+        self
+    }
+
+    /// Sets what counts as unusable audio (default [`AudioQuality::default`]).
+    pub fn with_quality(mut self, quality: AudioQuality) -> Self {
+        self.quality = quality;
         self
     }
 
@@ -322,6 +419,46 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
                 stats.blocks_without_speed.fetch_add(1, Ordering::Relaxed);
                 stats.speed_fresh.store(false, Ordering::Relaxed);
             }
+        }
+        // the microphone's faults: no classification of unusable audio
+        let new_xrun = self.last_xruns.is_some_and(|last| last != b.xruns);
+        self.last_xruns = Some(b.xruns);
+        if new_xrun {
+            self.xrun_hold_until = b.stamp_ns.saturating_add(self.quality.xrun_hold_ns);
+        }
+        let held = b.stamp_ns < self.xrun_hold_until;
+        if let Some(why) = self.quality.judge(x, new_xrun || held) {
+            let c = match why {
+                BadAudio::Silence => &stats.silent_blocks,
+                BadAudio::Clipping => &stats.clipped_blocks,
+                BadAudio::Xrun => &stats.xrun_blocks,
+            };
+            c.fetch_add(1, Ordering::Relaxed);
+            // the next good block starts a fresh frame
+            if self.pushed > 0 {
+                self.est.reset();
+                self.pushed = 0;
+            }
+            let e = &mut self.est_buf;
+            *e = RoadEstimate::zeroed();
+            e.seq = self.out_seq;
+            e.frame_t1_ns = b.stamp_ns + samples_ns(n as u64, self.fs);
+            e.frame_t0_ns = e.frame_t1_ns.saturating_sub(self.frame_ns);
+            e.n_classes = self.roads.len().min(MAX_ROAD_CLASSES) as u32;
+            e.confidence = 0.0;
+            e.lambda_opt = f64::NAN;
+            e.mu_peak = f64::NAN;
+            e.alpha = f64::NAN;
+            e.x_from = f64::NAN;
+            e.x_to = f64::NAN;
+            e.stamp_ns = self.clock.now_ns();
+            if sink.send(e).is_err() {
+                stats.publish_errors.fetch_add(1, Ordering::Relaxed);
+            } else {
+                stats.estimates.fetch_add(1, Ordering::Relaxed);
+            }
+            self.out_seq += 1;
+            return 1;
         }
         for (d, &s) in self.scratch.iter_mut().zip(x) {
             *d = f32::from(s) / 32768.0;

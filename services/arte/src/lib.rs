@@ -39,7 +39,10 @@ pub mod monitor;
 pub mod run;
 
 pub use config::ArteServiceConfig;
-pub use cycle::{ArteCounters, ArteLoop, DEFAULT_SPEED_TIMEOUT_S, EstimateSink, odometer_at};
+pub use cycle::{
+    ArteCounters, ArteLoop, AudioQuality, BadAudio, DEFAULT_SPEED_TIMEOUT_S, EstimateSink,
+    odometer_at,
+};
 pub use error::ArteError;
 pub use model::{ClassKnowledge, load_model, road_table};
 pub use run::{Options, prepare, prepare_with_clock, run};

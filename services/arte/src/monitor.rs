@@ -18,7 +18,8 @@ use crate::ArteCounters;
 /// `WATCHDOG=1` at half the watchdog period if the loop's heartbeat
 /// advanced, and logs transitions: audio stopped (no block for 1 s; the
 /// audio-acq peer died or stalled) / resumed, lost blocks, estimator
-/// restarts, refused sample rates, new xruns upstream, publish and receive
+/// restarts, refused sample rates, new xruns upstream, blocks not
+/// classified for silence, clipping or overruns, publish and receive
 /// errors; at most one line per kind per second. Vehicle speed
 /// ([`SpeedLog`]): info once when it first becomes available (or once that
 /// none has come after 1 s of audio), info when it goes stale and when it
@@ -35,6 +36,9 @@ pub fn spawn_helper(
         resets: Count::default(),
         rate_bad: Count::default(),
         xruns: Count::default(),
+        silent: Count::default(),
+        clipped: Count::default(),
+        xrun_blocks: Count::default(),
         pub_err: Count::default(),
         rx_err: Count::default(),
         cycle_err: Count::default(),
@@ -215,6 +219,9 @@ struct ArteMonitor {
     resets: Count,
     rate_bad: Count,
     xruns: Count,
+    silent: Count,
+    clipped: Count,
+    xrun_blocks: Count,
     pub_err: Count,
     rx_err: Count,
     cycle_err: Count,
@@ -279,6 +286,21 @@ impl Monitor for ArteMonitor {
             self.xruns,
             s.xruns.load(Ordering::Relaxed),
             "audio-acq reports capture overruns"
+        );
+        warn_if_grew!(
+            self.silent,
+            s.silent_blocks.load(Ordering::Relaxed),
+            "microphone silent: blocks not classified (confidence 0, no road)"
+        );
+        warn_if_grew!(
+            self.clipped,
+            s.clipped_blocks.load(Ordering::Relaxed),
+            "microphone clipping: blocks not classified (confidence 0, no road)"
+        );
+        warn_if_grew!(
+            self.xrun_blocks,
+            s.xrun_blocks.load(Ordering::Relaxed),
+            "audio after capture overruns: blocks not classified (confidence 0, no road)"
         );
         warn_if_grew!(
             self.pub_err,

@@ -12,7 +12,7 @@ use grip_arte::stream::StreamConfig;
 use grip_arte_svc::{ArteCounters, ArteError, ArteLoop, EstimateSink, load_model, road_table};
 use grip_io::clock::ManualClock;
 use grip_io::ipc::IpcError;
-use grip_msgs::RoadEstimate;
+use grip_msgs::{AudioBlock, RoadEstimate};
 
 #[derive(Default)]
 struct VecSink(Vec<RoadEstimate>);
@@ -278,4 +278,148 @@ fn model_and_class_errors_name_the_file_and_class() {
     std::fs::write(&p, model.to_bytes().unwrap()).unwrap();
     let m = load_model(&p).unwrap();
     assert_eq!(m.classes(), model.classes());
+}
+
+/// The microphone's faults (`AudioQuality`): silent, clipped and
+/// overrun blocks are not classified. Each gives one estimate with
+/// `NO_CLASS` and confidence 0 (counted per kind); the estimator restarts,
+/// so the first real decision after the fault is a full frame of good audio
+/// later. Also printed: what the shipped model says of silence and of
+/// clipped audio without the gate (the reason for it).
+#[test]
+fn silence_clipping_and_overruns_give_no_road() {
+    use grip_arte_svc::AudioQuality;
+    let model = load_model(&config_dir().join("models/default.model")).unwrap();
+    let roads = roads_for(&model);
+    let clock = ManualClock::new(T0);
+    let new_loop = |q: AudioQuality| {
+        ArteLoop::from_model(
+            &model,
+            &StreamConfig::default(),
+            roads.clone(),
+            0.2,
+            clock.clone(),
+        )
+        .unwrap()
+        .with_quality(q)
+    };
+    let bl = blocks(7, &[("asphalt", 10.0, 3.0)], 1024, T0);
+    let block_ns = 1024u64 * 1_000_000_000 / u64::from(RATE);
+    // blocks 0..43: clean; 43..53 silent; 53..63 clean; 63..73 clipped;
+    // (amplified 1000x) 73..83 clean; block 83 reports an overrun, 84..129 clean
+    let faulty: Vec<AudioBlock> = bl
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            let mut b = *b;
+            match i {
+                43..53 => b.samples.fill(0),
+                63..73 => {
+                    for s in &mut b.samples {
+                        *s = (i32::from(*s) * 1000).clamp(-32768, 32767) as i16;
+                    }
+                }
+                _ => {}
+            }
+            b.xruns = u32::from(i >= 83);
+            b
+        })
+        .collect();
+
+    // without the gate: what the model makes of the faulty audio
+    let off = AudioQuality {
+        silence_rms: 0.0,
+        clip_share: 1.0,
+        xrun_hold_ns: 0,
+    };
+    let mut lp = new_loop(off);
+    let stats = ArteCounters::default();
+    let mut sink = VecSink::default();
+    for b in &faulty {
+        lp.on_block(b, &mut sink, &stats);
+    }
+    let span = |a: usize, b: usize| (bl[a].stamp_ns, bl[b].stamp_ns);
+    let conf_in = |es: &[RoadEstimate], (t0, t1): (u64, u64)| -> Vec<(String, f64)> {
+        es.iter()
+            .filter(|e| e.frame_t0_ns >= t0 && e.frame_t1_ns <= t1)
+            .map(|e| (e.class_name().unwrap_or("-").to_owned(), e.confidence))
+            .collect()
+    };
+    for (what, w) in [("silence", span(43, 53)), ("clipping", span(63, 73))] {
+        let c = conf_in(&sink.0, w);
+        let top = c.iter().map(|x| x.1).fold(0.0, f64::max);
+        println!(
+            "without the gate, {what}: {} estimates, classes {:?}, highest confidence {top:.3}",
+            c.len(),
+            c.iter()
+                .map(|x| x.0.as_str())
+                .collect::<std::collections::BTreeSet<_>>()
+        );
+    }
+    assert_eq!(stats.silent_blocks.load(Ordering::Relaxed), 0);
+
+    // with the shipped gate
+    let mut lp = new_loop(AudioQuality::default());
+    let stats = ArteCounters::default();
+    let mut sink = VecSink::default();
+    let mut per_block = Vec::new();
+    for b in &faulty {
+        clock.set_ns(b.stamp_ns + block_ns);
+        let from = sink.0.len();
+        lp.on_block(b, &mut sink, &stats);
+        per_block.push(sink.0[from..].to_vec());
+    }
+    let load = |c: &std::sync::atomic::AtomicU64| c.load(Ordering::Relaxed);
+    assert_eq!(load(&stats.silent_blocks), 10);
+    assert_eq!(load(&stats.clipped_blocks), 10);
+    // the overrun block and the clean ones within 0.5 s after it
+    let held = (0.5e9 / block_ns as f64).ceil() as u64;
+    assert_eq!(load(&stats.xrun_blocks), held);
+    for (i, es) in per_block.iter().enumerate() {
+        let bad =
+            (43..53).contains(&i) || (63..73).contains(&i) || (83..83 + held as usize).contains(&i);
+        if bad {
+            assert_eq!(es.len(), 1, "block {i}: one estimate per unusable block");
+            let e = &es[0];
+            assert_eq!(e.class_index, grip_msgs::NO_CLASS, "block {i}");
+            assert_eq!(e.confidence, 0.0, "block {i}");
+            assert!(e.lambda_opt.is_nan() && e.mu_peak.is_nan(), "block {i}");
+            let end = faulty[i].stamp_ns + block_ns;
+            assert!(
+                e.frame_t1_ns.abs_diff(end) <= 1,
+                "block {i}: span ends with the block"
+            );
+        } else {
+            assert!(
+                es.iter().all(|e| e.class_index != grip_msgs::NO_CLASS),
+                "block {i}: a good block gave a no-road estimate"
+            );
+        }
+    }
+    // after each fault the first decision needs a full frame of good audio
+    for first_good in [53usize, 73, 83 + held as usize] {
+        let frame_blocks = 4410usize.div_ceil(1024);
+        for (k, es) in per_block[first_good..first_good + frame_blocks]
+            .iter()
+            .enumerate()
+        {
+            assert_eq!(
+                !es.is_empty(),
+                k + 1 == frame_blocks,
+                "block {}: a decision before a full frame of good audio",
+                first_good + k
+            );
+        }
+    }
+    // and the decisions after the faults are of the road again
+    let after: Vec<&RoadEstimate> = per_block[110..].iter().flatten().collect();
+    assert!(!after.is_empty());
+    let right = after
+        .iter()
+        .filter(|e| e.class_name() == Some("asphalt"))
+        .count();
+    println!(
+        "after the faults: {right}/{} estimates asphalt",
+        after.len()
+    );
 }

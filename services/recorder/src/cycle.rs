@@ -313,6 +313,24 @@ pub fn spawn_receiver(
         })
 }
 
+/// `e` and every error under it (`source()`), joined with ": ". The mcap
+/// crate's I/O error says only "I/O error from writing, or reading a
+/// compression stream"; the cause a reader needs ("No space left on device
+/// (os error 28)") is its source.
+pub fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut cur = e.source();
+    while let Some(c) = cur {
+        let t = c.to_string();
+        if !s.ends_with(&t) {
+            s.push_str(": ");
+            s.push_str(&t);
+        }
+        cur = c.source();
+    }
+    s
+}
+
 /// The writing thread's loop: takes the queue into `w` until the receive
 /// thread is gone (after `stop`: it is told to stop, `STOPPING=1` is sent,
 /// what is queued is written). Polls the watchdog at least every 50 ms (half
@@ -350,7 +368,7 @@ pub fn write_loop(
                         Err(e) => {
                             summary.write_errors += 1;
                             failed = true;
-                            tracing::error!(error = %e, "MCAP write failed: recording stopped (messages are now discarded)");
+                            tracing::error!(error = %error_chain(&e), "MCAP write failed: recording stopped (messages are now discarded)");
                         }
                     }
                 } else {
@@ -361,7 +379,7 @@ pub fn write_loop(
                 if !failed && let Err(e) = w.maybe_flush() {
                     summary.write_errors += 1;
                     failed = true;
-                    tracing::error!(error = %e, "MCAP flush failed: recording stopped");
+                    tracing::error!(error = %error_chain(&e), "MCAP flush failed: recording stopped");
                 }
             }
             Err(RecvTimeoutError::Disconnected) => break,
@@ -373,4 +391,42 @@ pub fn write_loop(
         }
     }
     failed
+}
+
+#[cfg(test)]
+mod error_tests {
+    use super::*;
+
+    /// Shaped like the mcap crate's `McapError::Io`: a message that hides
+    /// its I/O cause, the cause as its source.
+    #[derive(Debug)]
+    struct Opaque(std::io::Error);
+
+    impl std::fmt::Display for Opaque {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str("I/O error from writing, or reading a compression stream")
+        }
+    }
+
+    impl std::error::Error for Opaque {
+        fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+            Some(&self.0)
+        }
+    }
+
+    /// A full disk under such an error: the recorder's log line names it.
+    #[test]
+    fn write_errors_name_their_cause() {
+        // 28 = ENOSPC on Linux
+        let e = Opaque(std::io::Error::from_raw_os_error(28));
+        assert!(!e.to_string().contains("No space"));
+        let s = error_chain(&e);
+        assert!(
+            s.starts_with("I/O error from writing") && s.contains("No space left on device"),
+            "{s}"
+        );
+        // a message that already ends with its source's is not repeated
+        let io = std::io::Error::other("disk on fire");
+        assert_eq!(error_chain(&io), "disk on fire");
+    }
 }

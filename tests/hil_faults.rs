@@ -1,0 +1,1166 @@
+//! The HIL fault matrix: one fault during a drive of all five services on
+//! the kernel's `vcan0` with ALSA-loopback audio, each with an assertion of
+//! its outcome. Run by `tools/hil/run` (natively or in its VM); the set-up,
+//! the retry rule for drives a stall of the emulated machine disturbed and
+//! the MCAP read-back are `grip_tests::hil_drives`, shared with
+//! `tests/hil_drive.rs`.
+//!
+//! 1. `bus_flood_keeps_the_loop_on_time`: `cangen` at full rate on `vcan0`,
+//!    first with a foreign id, then with WheelSpeeds' id and a bad CRC.
+//! 2. `bus_down_and_up_gives_safe_state_and_recovery`: `vcan0` set down for
+//!    300 ms and up again.
+//! 3. `killed_recorder_loses_at_most_a_second`: `kill -9` of the recorder,
+//!    then a new recorder writing a new file.
+//! 4. `full_disk_stops_the_recorder_not_the_loop`: the recorder's file on a
+//!    small tmpfs that fills mid-drive.
+//! 5. `microphone_faults_make_the_controller_fall_back`: silence, clipping
+//!    and an xrun storm on the loopback.
+//! 6. `stalled_arte_ages_out_and_returns`: arte `SIGSTOP`ped for 2 s.
+//!
+//! Bounds are the protocol's or the configuration's figures plus the
+//! suite's [`VM_MARGIN_MS`] (the VM is for function, not deadlines); the
+//! measured figures are printed (`--nocapture`) and `tools/hil/README.md`
+//! lists them ("Fault matrix").
+
+use std::path::Path;
+use std::process::ExitStatus;
+use std::time::Duration;
+
+use anyhow::{Context, bail, ensure};
+use grip_drive::{DriveLog, LoadOptions, Supervisor};
+use grip_msgs::{CycleRecord, NO_CLASS, can_dir};
+use grip_tests::hil::{
+    self, CAN_EFF_FLAG, CAN_INV_FILTER, CAN_RTR_FLAG, CAN_SFF_MASK, CanCapture, CaptureLog,
+    FrameCounter, MicFault, MicFaultKind, Proc, RoadAudioPlayer, StreamCheck,
+};
+use grip_tests::hil_drives::{
+    Attempt, PLAYBACK, SENSOR_TIMEOUT_MS, Setup, VM_MARGIN_MS, grip_drive, instance, ms,
+    read_complete_allowing_audio_gaps, read_complete_allowing_xruns, serial, sig,
+    wait_scenario_start, wait_success, with_attempts_in,
+};
+
+/// A drive of `secs` seconds on asphalt at a constant 300 N m from 10 km/h:
+/// one road, so that every change the tests see is the fault's.
+fn scenario(secs: u32) -> String {
+    format!(
+        r#"name = "hil-faults"
+description = "HIL fault drive: constant 300 N m from 10 km/h on asphalt, {secs} s"
+v0_kmh = 10.0
+segments_by = "time"
+duration = {secs}.0
+
+[demand]
+kind = "constant"
+torque = 300.0
+
+[[segment]]
+road = "asphalt"
+duration = {secs}.0
+"#
+    )
+}
+
+/// tcs-loop's `[safety] recover_ms` (config/tcs-loop.toml): valid inputs
+/// for this long before it leaves the safe state.
+const RECOVER_MS: f64 = 50.0;
+/// `[arte] max_age_s` of config/controllers.toml: older road knowledge is
+/// not used.
+const MAX_AGE_MS: f64 = 300.0;
+/// The recorder's `flush_interval_ms` (config/recorder.toml): what a crash
+/// may lose at most.
+const FLUSH_MS: f64 = 1000.0;
+
+fn sd_mask() -> u32 {
+    CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_SFF_MASK
+}
+
+/// `key=N` from a service's log text (its stop line), the last one.
+fn log_value(text: &str, key: &str) -> Option<u64> {
+    let pat = format!("{key}=");
+    text.split_whitespace()
+        .filter_map(|w| w.strip_prefix(&pat))
+        .filter_map(|v| v.trim_end_matches(',').parse().ok())
+        .next_back()
+}
+
+/// The enabled (controlling) TorqueCommands of the capture, (time, Nm).
+fn enabled_commands(cap: &CaptureLog, s: &Setup) -> anyhow::Result<Vec<(u64, bool)>> {
+    let id = s.dbc.by_name("TorqueCommand")?.id;
+    Ok(cap
+        .with_id(id)
+        .map(|f| (f.t_ns, sig(&s.dbc, "TorqueCommand", "Enable", f) == 1.0))
+        .collect())
+}
+
+/// Longest gap between consecutive WheelSpeeds frames on the wire in
+/// `[t0, t1]`, ms: a gap there is plant-sim (or the whole machine) stalled,
+/// which no fault on tcs-loop's side explains.
+fn sensor_gap_ms(cap: &CaptureLog, s: &Setup, t0: u64, t1: u64) -> anyhow::Result<f64> {
+    let id = s.dbc.by_name("WheelSpeeds")?.id;
+    let t: Vec<u64> = cap
+        .with_id(id)
+        .filter(|f| f.t_ns >= t0 && f.t_ns <= t1)
+        .filter(|f| {
+            let m = s.dbc.by_name("WheelSpeeds").ok();
+            m.is_some_and(|m| f.frame.len == m.dlc && f.frame.data[0] == m.expected_crc(&f.data8()))
+        })
+        .map(|f| f.t_ns)
+        .collect();
+    Ok(t.windows(2)
+        .map(|w| ms(w[1] as i128 - w[0] as i128))
+        .fold(0.0, f64::max))
+}
+
+/// The loop from outside, over `[t0, t1]`: every command enabled (no safe
+/// state) and none more than [`VM_MARGIN_MS`] after the one before. A
+/// safe state the sensors' own silence on the wire explains (a stall of
+/// the machine, SENSOR_TIMEOUT_MS or more without WheelSpeeds) makes the
+/// drive disturbed; one without is a failure.
+fn loop_unaffected(
+    cap: &CaptureLog,
+    s: &Setup,
+    t0: u64,
+    t1: u64,
+    what: &str,
+) -> anyhow::Result<Option<String>> {
+    let cmds: Vec<(u64, bool)> = enabled_commands(cap, s)?
+        .into_iter()
+        .filter(|&(t, _)| t >= t0 && t <= t1)
+        .collect();
+    ensure!(
+        cmds.len() > 10,
+        "{what}: only {} TorqueCommands on the wire in the {:.0} ms around it",
+        cmds.len(),
+        ms(t1 as i128 - t0 as i128)
+    );
+    let max_gap = cmds
+        .windows(2)
+        .map(|w| ms(w[1].0 as i128 - w[0].0 as i128))
+        .fold(0.0, f64::max);
+    let disabled = cmds.iter().filter(|c| !c.1).count();
+    let sensors = sensor_gap_ms(cap, s, t0, t1)?;
+    println!(
+        "{what}: {} commands on the wire in {:.0} ms, longest gap {max_gap:.1} ms, {disabled} disabled (safe state); longest WheelSpeeds gap {sensors:.1} ms",
+        cmds.len(),
+        ms(t1 as i128 - t0 as i128)
+    );
+    if (disabled > 0 || max_gap > VM_MARGIN_MS) && sensors >= SENSOR_TIMEOUT_MS {
+        return Ok(Some(format!(
+            "{what}: the sensors themselves were silent {sensors:.1} ms on the wire (a stall of the machine)"
+        )));
+    }
+    ensure!(
+        disabled == 0,
+        "{what}: tcs-loop sent {disabled} disabled commands (safe state) though the sensors never paused"
+    );
+    ensure!(
+        max_gap <= VM_MARGIN_MS,
+        "{what}: {max_gap:.1} ms between two commands, bound {VM_MARGIN_MS} ms"
+    );
+    Ok(None)
+}
+
+/// Cycles with stamps in `[t0, t1)`.
+fn cycles_in(cycles: &[CycleRecord], t0: u64, t1: u64) -> Vec<&CycleRecord> {
+    cycles
+        .iter()
+        .filter(|c| c.stamp_ns >= t0 && c.stamp_ns < t1)
+        .collect()
+}
+
+/// Each stopped service's name and exit status.
+type Statuses = Vec<(String, ExitStatus)>;
+/// A captured audio block: start and end (ns), silent, clipped, its xruns.
+type Block = (u64, u64, bool, bool, u32);
+
+fn ns(ms: f64) -> u64 {
+    (ms * 1e6) as u64
+}
+
+// --- 1. bus flood ------------------------------------------------------------------------
+
+/// A foreign id for the flood: not in the DBC.
+const FOREIGN_ID: u32 = 0x5A5;
+/// How long each flood lasts.
+const FLOOD_MS: u64 = 1000;
+
+#[test]
+fn bus_flood_keeps_the_loop_on_time() -> anyhow::Result<()> {
+    let _g = serial();
+    with_attempts_in("flood", &scenario(5), flood)
+}
+
+/// `cangen IFACE -g 0 -I ID -L 8 -D DATA -p 1` (full rate: no gap; on
+/// `ENOBUFS`, a full socket send buffer, it waits up to 1 ms for room
+/// instead of exiting) for `len`.
+fn cangen(s: &Setup, id: u32, data: &[u8; 8], len: Duration) -> anyhow::Result<(u64, u64)> {
+    let hex: String = data.iter().map(|b| format!("{b:02X}")).collect();
+    let idh = format!("{id:03X}");
+    let mut p = Proc::spawn(
+        &hil::tool("cangen")?,
+        &[
+            &s.iface, "-g", "0", "-I", &idh, "-L", "8", "-D", &hex, "-p", "10",
+        ],
+        &format!("cangen-{idh}"),
+        &s.out,
+    )?;
+    let t0 = hil::mono_ns();
+    std::thread::sleep(len);
+    p.signal(libc::SIGINT)?;
+    let t1 = hil::mono_ns();
+    match p.wait_timeout(Duration::from_secs(10))? {
+        Some(_) => {}
+        None => bail!("cangen did not stop on SIGINT:\n{}", p.log_text()),
+    }
+    Ok((t0, t1))
+}
+
+fn flood(s: &Setup) -> anyhow::Result<Attempt> {
+    ensure!(
+        s.dbc.by_id(FOREIGN_ID).is_none(),
+        "{FOREIGN_ID:#x} is in the DBC"
+    );
+    let mcap = s.out.join("drive.mcap");
+    let ws = s.dbc.by_name("WheelSpeeds")?.clone();
+    // a WheelSpeeds payload with a wrong CRC (every flood frame the same)
+    let mut bad = ws.encode(
+        &[
+            ("DrivenValid", 1.0),
+            ("RefValid", 1.0),
+            ("OmegaDriven", 300.0),
+            ("OmegaRef", 300.0),
+        ],
+        0,
+    )?;
+    bad[0] = ws.expected_crc(&bad) ^ 0x5A;
+    ensure!(bad[0] != ws.expected_crc(&bad), "bad CRC is good");
+    // everything but the foreign flood is recorded; the foreign one counted
+    let cap = CanCapture::start_filtered(&s.iface, &[(FOREIGN_ID | CAN_INV_FILTER, sd_mask())])?;
+    let foreign = FrameCounter::start(&s.iface, &[(FOREIGN_ID, sd_mask())])?;
+    let player = RoadAudioPlayer::start(PLAYBACK, &s.iface, &s.config, &s.scenario)?;
+    let mut drive = grip_drive(s, &mcap)?;
+    let run = |drive: &mut Proc| -> anyhow::Result<[(u64, u64); 2]> {
+        wait_scenario_start(s)?;
+        std::thread::sleep(Duration::from_millis(800));
+        let a = cangen(
+            s,
+            FOREIGN_ID,
+            &[0xF0, 0x0D, 0, 1, 2, 3, 4, 5],
+            Duration::from_millis(FLOOD_MS),
+        )?;
+        std::thread::sleep(Duration::from_millis(800));
+        let b = cangen(s, ws.id, &bad, Duration::from_millis(FLOOD_MS))?;
+        wait_success(drive, "grip drive", Duration::from_secs(180))?;
+        Ok([a, b])
+    };
+    let res = run(&mut drive);
+    let cap = cap.finish()?;
+    let foreign = foreign.finish()?;
+    player.finish()?;
+    let [fa, fb] = res?;
+    println!("grip drive output:\n{}", drive.log_text());
+    ensure!(
+        cap.dropped == 0,
+        "the capture socket dropped {} frames",
+        cap.dropped
+    );
+
+    // the floods: how many frames, how fast
+    let n_bad = cap.with_id(ws.id).filter(|f| f.frame.data == bad).count() as u64;
+    let rate = |n: u64, (t0, t1): (u64, u64)| n as f64 / ((t1 - t0) as f64 * 1e-9);
+    println!(
+        "flood 1: {} frames of foreign id {FOREIGN_ID:#x} ({} read, {} dropped by the counting socket), {:.0} frames/s",
+        foreign.total(),
+        foreign.received,
+        foreign.dropped,
+        rate(foreign.total(), fa)
+    );
+    println!(
+        "flood 2: {n_bad} WheelSpeeds with a bad CRC, {:.0} frames/s (the bus's own traffic: 3200 frames/s)",
+        rate(n_bad, fb)
+    );
+    // "full rate" is what cangen manages with no gap: under emulation a
+    // few hundred to a few thousand frames/s (printed above)
+    for (what, n) in [("foreign", foreign.total()), ("bad-CRC", n_bad)] {
+        ensure!(n >= 100, "the {what} flood put only {n} frames on the bus");
+    }
+
+    let l = read_complete_allowing_xruns(&mcap)?;
+    // every frame on the wire but the injected ones is valid
+    let c = StreamCheck::run(&s.dbc, &cap.frames);
+    println!(
+        "frames on the bus: {:?} (frames, bad DLC, bad CRC, counter breaks)",
+        c.per_message
+    );
+    let get = |m: &str| c.per_message.get(m).copied().unwrap_or_default();
+    ensure!(get("WheelSpeeds")[2] == n_bad, "{:?}", get("WheelSpeeds"));
+    for m in [
+        "TorqueCommand",
+        "MotorStatus",
+        "VehicleSpeed",
+        "DriverDemand",
+    ] {
+        ensure!(get(m)[1..].iter().all(|&x| x == 0), "{m}: {:?}", get(m));
+    }
+    // no command lost: one TorqueCommand per cycle record (+ the shutdown
+    // frame), their alive counters without a break
+    let n_cmd = get("TorqueCommand")[0];
+    ensure!(
+        l.cycles[0].seq == 0,
+        "the log starts at cycle {}",
+        l.cycles[0].seq
+    );
+    println!(
+        "TorqueCommands on the wire {n_cmd}, cycle records {} (+1 shutdown frame)",
+        l.cycles.len()
+    );
+    ensure!(
+        n_cmd == l.cycles.len() as u64 + 1,
+        "{n_cmd} TorqueCommands on the wire for {} cycles: commands lost",
+        l.cycles.len()
+    );
+
+    // faults counted, cycles on time, the loop controlling
+    for (what, (t0, t1), field) in [("foreign", fa, 0usize), ("bad-CRC", fb, 1)] {
+        let before = l
+            .cycles
+            .iter()
+            .rev()
+            .find(|c| c.stamp_ns < t0)
+            .context("no cycle before the flood")?;
+        let after = l
+            .cycles
+            .iter()
+            .find(|c| c.stamp_ns > t1 + 200_000_000)
+            .context("no cycle 200 ms after the flood")?;
+        let (b, a) = (before.faults, after.faults);
+        let (counted, injected) = if field == 0 {
+            (a.unknown_id - b.unknown_id, foreign.total())
+        } else {
+            (a.crc - b.crc, n_bad)
+        };
+        let win = cycles_in(&l.cycles, t0, t1 + 50_000_000);
+        ensure!(
+            win.len() > 10,
+            "{what} flood: only {} cycle records in it",
+            win.len()
+        );
+        let misses = win[win.len() - 1].deadline_misses - win[0].deadline_misses;
+        let late = win.iter().map(|c| c.wakeup_latency_ns).max().unwrap_or(0) as f64 / 1e6;
+        println!(
+            "{what} flood: tcs-loop counted {counted} of {injected} frames as faults ({:.1} %); {} cycles, {misses} deadline misses, latest wake-up {late:.2} ms",
+            100.0 * counted as f64 / injected.max(1) as f64,
+            win.len()
+        );
+        ensure!(counted > 0, "{what} flood: no fault counted");
+        ensure!(
+            u64::from(counted) <= injected,
+            "{what} flood: {counted} faults counted for {injected} frames"
+        );
+        ensure!(
+            late <= VM_MARGIN_MS,
+            "{what} flood: a cycle woke {late:.1} ms late, bound {VM_MARGIN_MS} ms"
+        );
+        ensure!(
+            misses * 10 <= win.len() as u64,
+            "{what} flood: {misses} deadline misses in {} cycles (more than 10 %)",
+            win.len()
+        );
+        if let Some(r) = loop_unaffected(&cap, s, t0, t1, &format!("{what} flood"))? {
+            return Ok(Attempt::Disturbed(r));
+        }
+    }
+    Ok(Attempt::Done)
+}
+
+// --- 2. bus down and up --------------------------------------------------------------------
+
+/// How long `vcan0` stays down.
+const DOWN_MS: u64 = 300;
+
+#[test]
+fn bus_down_and_up_gives_safe_state_and_recovery() -> anyhow::Result<()> {
+    let _g = serial();
+    with_attempts_in("bus-down", &scenario(4), bus_down)
+}
+
+fn bus_down(s: &Setup) -> anyhow::Result<Attempt> {
+    let mcap = s.out.join("drive.mcap");
+    let cap = CanCapture::start(&s.iface)?;
+    let player = RoadAudioPlayer::start(PLAYBACK, &s.iface, &s.config, &s.scenario)?;
+    let mut drive = grip_drive(s, &mcap)?;
+    let run = |drive: &mut Proc| -> anyhow::Result<(u64, u64)> {
+        wait_scenario_start(s)?;
+        std::thread::sleep(Duration::from_millis(1000));
+        let r = hil::set_link_up(&s.iface, false);
+        // once the interface is down (the ioctl may take a while under emulation)
+        let t_down = hil::mono_ns();
+        std::thread::sleep(Duration::from_millis(DOWN_MS));
+        let t_up = hil::mono_ns();
+        // up again whatever happened
+        hil::set_link_up(&s.iface, true)?;
+        r?;
+        wait_success(drive, "grip drive", Duration::from_secs(180))?;
+        Ok((t_down, t_up))
+    };
+    let res = run(&mut drive);
+    let cap = cap.finish()?;
+    player.finish()?;
+    let (t_down, t_up) = res?;
+    println!("grip drive output:\n{}", drive.log_text());
+    hil::require_can_iface(&s.iface)?;
+    ensure!(
+        cap.dropped == 0,
+        "the capture socket dropped {} frames",
+        cap.dropped
+    );
+
+    // the wire: nothing while down, every frame valid; each message's alive
+    // counter breaks at most once (the frames its sender could not send)
+    ensure!(
+        !cap.frames
+            .iter()
+            .any(|f| f.t_ns > t_down + 1_000_000 && f.t_ns < t_up),
+        "frames on the wire while {} was down",
+        s.iface
+    );
+    let c = StreamCheck::run(&s.dbc, &cap.frames);
+    println!(
+        "frames on the bus: {:?} (frames, bad DLC, bad CRC, counter breaks)",
+        c.per_message
+    );
+    ensure!(c.unknown == 0, "unknown ids on the wire: {}", c.unknown);
+    for (m, v) in &c.per_message {
+        ensure!(v[1] == 0 && v[2] == 0 && v[3] <= 1, "{m}: {v:?}");
+    }
+
+    let l = read_complete_allowing_xruns(&mcap)?;
+    let ws_id = s.dbc.by_name("WheelSpeeds")?.id;
+    // precondition: the loop was controlling just before
+    let before = cycles_in(&l.cycles, t_down - 30_000_000, t_down);
+    if before.is_empty() || before.iter().any(|c| c.safe_state == 1) {
+        return Ok(Attempt::Disturbed(format!(
+            "tcs-loop was not controlling in the 30 ms before the bus went down ({} cycles)",
+            before.len()
+        )));
+    }
+    // the gap in the log: tcs-loop's received frames (CAN log, RX) stop
+    let rx_ws: Vec<u64> = l
+        .can
+        .iter()
+        .filter(|f| f.direction == can_dir::RX && f.id == ws_id)
+        .map(|f| f.stamp_ns)
+        .collect();
+    let last_rx = rx_ws
+        .iter()
+        .copied()
+        .filter(|&t| t <= t_down + 1_000_000)
+        .max()
+        .context("no WheelSpeeds received before the bus went down")?;
+    let back_rx = rx_ws
+        .iter()
+        .copied()
+        .find(|&t| t > last_rx)
+        .context("tcs-loop never received WheelSpeeds again after the bus came up")?;
+    let gap = ms(back_rx as i128 - last_rx as i128);
+    println!(
+        "bus down {:.0} ms; the CAN log's received WheelSpeeds pause {gap:.0} ms ({:.1} ms before the down .. {:.1} ms after the up)",
+        ms(t_up as i128 - t_down as i128),
+        ms(t_down as i128 - last_rx as i128),
+        ms(back_rx as i128 - t_up as i128)
+    );
+    ensure!(
+        back_rx >= t_up,
+        "tcs-loop received WheelSpeeds while the bus was down"
+    );
+    // the cycles went on through the gap, in the safe state
+    let during = cycles_in(&l.cycles, last_rx, back_rx);
+    ensure!(
+        during.len() as f64 >= 0.5 * gap,
+        "only {} cycle records during the {gap:.0} ms gap",
+        during.len()
+    );
+    let first_safe = during
+        .iter()
+        .find(|c| c.safe_state == 1)
+        .context("tcs-loop never entered its safe state while the bus was down")?;
+    let safe_ms = ms(first_safe.stamp_ns as i128 - last_rx as i128);
+    let bound = SENSOR_TIMEOUT_MS + VM_MARGIN_MS;
+    println!(
+        "safe state {safe_ms:.1} ms after the last WheelSpeeds (timeout {SENSOR_TIMEOUT_MS} ms, bound {bound} ms)"
+    );
+    ensure!(
+        safe_ms <= bound,
+        "safe state {safe_ms:.1} ms after the last frame, bound {bound} ms"
+    );
+    ensure!(
+        during
+            .iter()
+            .filter(|c| c.stamp_ns >= first_safe.stamp_ns)
+            .all(|c| c.safe_state == 1 && c.torque_cmd == 0.0),
+        "a cycle left the safe state or commanded torque while the bus was down"
+    );
+    ensure!(
+        first_safe.faults.timeout >= 1,
+        "the sensor timeout was not counted"
+    );
+    // recovery: recover_ms of valid inputs after the frames came back
+    let Some(rec) = l
+        .cycles
+        .iter()
+        .find(|c| c.stamp_ns > back_rx && c.safe_state == 0)
+    else {
+        let clean = sensor_gap_ms(&cap, s, t_up, t_up + 500_000_000)?;
+        if clean >= SENSOR_TIMEOUT_MS {
+            return Ok(Attempt::Disturbed(format!(
+                "after the bus came up the sensor frames paused {clean:.1} ms (a stall)"
+            )));
+        }
+        bail!("tcs-loop never left its safe state after the bus came up");
+    };
+    let rec_ms = ms(rec.stamp_ns as i128 - back_rx as i128);
+    let rbound = RECOVER_MS + VM_MARGIN_MS;
+    println!(
+        "control again {rec_ms:.1} ms after the first WheelSpeeds back (recover_ms {RECOVER_MS}, bound {rbound} ms)"
+    );
+    ensure!(
+        rec_ms >= RECOVER_MS - 2.0,
+        "tcs-loop left its safe state {rec_ms:.1} ms after the frames came back, before recover_ms {RECOVER_MS}"
+    );
+    if rec_ms > rbound {
+        let clean = sensor_gap_ms(&cap, s, back_rx, rec.stamp_ns)?;
+        if clean >= SENSOR_TIMEOUT_MS {
+            return Ok(Attempt::Disturbed(format!(
+                "recovery {rec_ms:.1} ms, but the sensor frames paused {clean:.1} ms after the bus came up"
+            )));
+        }
+        bail!("recovery {rec_ms:.1} ms after the frames came back, bound {rbound} ms");
+    }
+    Ok(Attempt::Done)
+}
+
+// --- services under the test's own supervisor ----------------------------------------------
+
+/// The five services started as `grip drive` starts them, under
+/// grip-drive's supervisor, the scenario started; `recorder_out`: where
+/// the recorder writes.
+fn start_drive(s: &Setup, tag: &str, recorder_out: &Path) -> anyhow::Result<Supervisor> {
+    let inst = instance(tag);
+    let specs = hil::drive_specs(&s.config, &s.scenario, recorder_out, &inst, &s.out)?;
+    let mut set = hil::start_services(&specs, &inst, Duration::from_secs(60))?;
+    set.get("plant-sim")?.signal(libc::SIGUSR1);
+    Ok(set)
+}
+
+/// Waits for plant-sim's end of the scenario, then stops the others in
+/// `grip drive`'s order; returns each one's exit status.
+fn finish_drive(set: &mut Supervisor, names: &[&str]) -> anyhow::Result<Statuses> {
+    let st = set.get("plant-sim")?.wait_timeout(Duration::from_secs(120));
+    ensure!(
+        st.is_some_and(|s| s.success()),
+        "plant-sim did not finish the scenario ({st:?})"
+    );
+    let mut out = Vec::new();
+    for &name in names {
+        let grace = if name.starts_with("recorder") { 60 } else { 10 };
+        out.push((name.to_owned(), set.stop(name, Duration::from_secs(grace))?));
+    }
+    Ok(out)
+}
+
+fn log_text(set: &mut Supervisor, name: &str) -> anyhow::Result<String> {
+    let p = set.get(name)?;
+    Ok(match p.log_path() {
+        Some(f) => std::fs::read_to_string(f).unwrap_or_default(),
+        None => p.text(),
+    })
+}
+
+/// tcs-loop's stop line against the wire: every command it says it sent
+/// is on the wire (`can_tx`), and it had no bus error.
+fn commands_all_on_the_wire(tcs_log: &str, cap: &CaptureLog, s: &Setup) -> anyhow::Result<()> {
+    let tx = log_value(tcs_log, "can_tx").context("no can_tx in tcs-loop's stop line")?;
+    let errs = log_value(tcs_log, "bus_errors").context("no bus_errors in tcs-loop's stop line")?;
+    let misses = log_value(tcs_log, "deadline_misses").unwrap_or(0);
+    let wire = cap.with_id(s.dbc.by_name("TorqueCommand")?.id).count() as u64;
+    println!(
+        "tcs-loop: can_tx {tx}, on the wire {wire}, bus_errors {errs}, deadline_misses {misses}"
+    );
+    ensure!(
+        wire == tx,
+        "tcs-loop sent {tx} commands, {wire} on the wire"
+    );
+    ensure!(errs == 0, "tcs-loop counted {errs} bus errors");
+    Ok(())
+}
+
+// --- 3. recorder kill -9 ---------------------------------------------------------------------
+
+#[test]
+fn killed_recorder_loses_at_most_a_second() -> anyhow::Result<()> {
+    let _g = serial();
+    with_attempts_in("kill-recorder", &scenario(5), kill_recorder)
+}
+
+fn kill_recorder(s: &Setup) -> anyhow::Result<Attempt> {
+    let first = s.out.join("first.mcap");
+    let second = s.out.join("second.mcap");
+    let cap = CanCapture::start(&s.iface)?;
+    let player = RoadAudioPlayer::start(PLAYBACK, &s.iface, &s.config, &s.scenario)?;
+    let run = || -> anyhow::Result<(u64, u64, String, Statuses)> {
+        let mut set = start_drive(s, "krec", &first)?;
+        wait_scenario_start(s)?;
+        std::thread::sleep(Duration::from_millis(1500));
+        let t_kill = hil::mono_ns();
+        set.get("recorder")?.signal(libc::SIGKILL);
+        let st = set
+            .get("recorder")?
+            .wait_timeout(Duration::from_secs(5))
+            .context("the recorder survived SIGKILL")?;
+        ensure!(!st.success(), "the killed recorder exited {st}");
+        // a new recorder, as a service manager would start it, on a new file
+        let inst = set.instance().to_owned();
+        let mut spec = hil::drive_specs(&s.config, &s.scenario, &second, &inst, &s.out)?
+            .into_iter()
+            .find(|p| p.name == "recorder")
+            .context("no recorder in the drive's services")?;
+        spec.name = "recorder-2".into();
+        spec = spec.output(grip_drive::Output::File(s.out.join("recorder-2.log")));
+        set.start(&spec, Duration::from_secs(60))?;
+        let t_new = hil::mono_ns();
+        let sts = finish_drive(&mut set, &["tcs-loop", "arte", "audio-acq", "recorder-2"])?;
+        let tcs = log_text(&mut set, "tcs-loop")?;
+        Ok((t_kill, t_new, tcs, sts))
+    };
+    let res = run();
+    let cap = cap.finish()?;
+    player.finish()?;
+    let (t_kill, t_new, tcs_log, sts) = res?;
+    for (name, st) in &sts {
+        ensure!(st.success(), "{name} exited with {st}");
+    }
+    ensure!(
+        cap.dropped == 0,
+        "the capture socket dropped {} frames",
+        cap.dropped
+    );
+
+    // the killed recorder's file: readable up to the kill, in order
+    let old = DriveLog::load_with(&first, LoadOptions::default())
+        .map_err(|e| anyhow::anyhow!("{}", e.full()))?;
+    println!("killed recorder's file: {:?}, {:?}", old.report, old.counts);
+    ensure!(
+        old.report.bad == 0,
+        "undecodable messages in the killed recorder's file"
+    );
+    ensure!(
+        !old.cycles.is_empty(),
+        "no cycle records in the killed recorder's file"
+    );
+    if let Some(w) = old.cycles.windows(2).find(|w| w[1].seq != w[0].seq + 1) {
+        bail!(
+            "killed recorder's file: cycle sequence {} then {}",
+            w[0].seq,
+            w[1].seq
+        );
+    }
+    let last = old.cycles.iter().map(|c| c.stamp_ns).max().unwrap_or(0);
+    let lost = ms(t_kill as i128 - last as i128);
+    let bound = FLUSH_MS + VM_MARGIN_MS;
+    println!(
+        "last cycle record in the killed recorder's file {lost:.0} ms before the kill (flush interval {FLUSH_MS} ms, bound {bound} ms)"
+    );
+    ensure!(
+        lost <= bound,
+        "{lost:.0} ms of cycle records lost at the kill, bound {bound} ms"
+    );
+
+    // the new recorder's file: complete, starting after the kill
+    let peek = DriveLog::load_with(&second, LoadOptions::default())
+        .map_err(|e| anyhow::anyhow!("{}", e.full()))?;
+    println!(
+        "new recorder ready {:.0} ms after the kill; its file: {:?}",
+        ms(t_new as i128 - t_kill as i128),
+        peek.counts
+    );
+    let new = read_complete_allowing_xruns(&second)?;
+    let first_new = new.cycles[0].stamp_ns;
+    println!(
+        "new recorder ready {:.0} ms after the kill; its first cycle record {:.0} ms after the kill",
+        ms(t_new as i128 - t_kill as i128),
+        ms(first_new as i128 - t_kill as i128)
+    );
+    ensure!(first_new > last, "the new file overlaps the old one");
+    // tcs-loop's cycles went on through the gap: its seq continues
+    ensure!(
+        new.cycles[0].seq > old.cycles[old.cycles.len() - 1].seq,
+        "cycle sequence restarted: tcs-loop was disturbed"
+    );
+
+    // the loop unaffected: every command on the wire, controlling throughout
+    commands_all_on_the_wire(&tcs_log, &cap, s)?;
+    let misses_across =
+        new.cycles[0].deadline_misses - old.cycles[old.cycles.len() - 1].deadline_misses;
+    println!(
+        "deadline misses from the old file's last record to the new file's first: {misses_across}"
+    );
+    if let Some(r) = loop_unaffected(
+        &cap,
+        s,
+        t_kill - 500_000_000,
+        t_kill + 1_000_000_000,
+        "recorder kill",
+    )? {
+        return Ok(Attempt::Disturbed(r));
+    }
+    Ok(Attempt::Done)
+}
+
+// --- 4. full disk ----------------------------------------------------------------------------
+
+/// Bytes the recorder's disk has free when the scenario starts.
+const DISK_HEADROOM: u64 = 1 << 20;
+
+#[test]
+fn full_disk_stops_the_recorder_not_the_loop() -> anyhow::Result<()> {
+    let _g = serial();
+    with_attempts_in("full-disk", &scenario(5), full_disk)
+}
+
+fn full_disk(s: &Setup) -> anyhow::Result<Attempt> {
+    let disk = s.out.join("disk");
+    // room for the run metadata and the attachments (the configuration
+    // folder, under 1 MB), then filled up to DISK_HEADROOM
+    hil::mount_tmpfs(&disk, 8 << 20)?;
+    let res = full_disk_on(s, &disk);
+    let free = hil::free_bytes(&disk).unwrap_or(u64::MAX);
+    // keep what the recorder wrote: copy it off the tmpfs
+    let _ = std::fs::copy(disk.join("drive.mcap"), s.out.join("drive.mcap"));
+    hil::unmount(&disk)?;
+    let a = res?;
+    println!("the recorder's disk had {free} bytes free at the end");
+    Ok(a)
+}
+
+fn full_disk_on(s: &Setup, disk: &Path) -> anyhow::Result<Attempt> {
+    let mcap = disk.join("drive.mcap");
+    let cap = CanCapture::start(&s.iface)?;
+    let player = RoadAudioPlayer::start(PLAYBACK, &s.iface, &s.config, &s.scenario)?;
+    let run = || -> anyhow::Result<(u64, u64, String, String, Statuses)> {
+        let mut set = start_drive(s, "disk", &mcap)?;
+        wait_scenario_start(s)?;
+        // fill the disk up to DISK_HEADROOM: the recorder's next ~2 s fit
+        let free = hil::free_bytes(disk)?;
+        let fill = free.saturating_sub(DISK_HEADROOM);
+        let f = std::fs::File::create(disk.join("filler"))?;
+        f.set_len(0)?;
+        {
+            use std::io::Write;
+            let mut w = std::io::BufWriter::new(f);
+            let block = vec![0xA5u8; 1 << 16];
+            let mut left = fill;
+            while left > 0 {
+                let n = left.min(block.len() as u64) as usize;
+                w.write_all(&block[..n])?;
+                left -= n as u64;
+            }
+            w.flush()?;
+        }
+        let t_fill = hil::mono_ns();
+        println!(
+            "disk: {free} bytes free at the scenario start, filled to {} bytes free",
+            hil::free_bytes(disk)?
+        );
+        let sts = finish_drive(&mut set, &["tcs-loop", "arte", "audio-acq", "recorder"])?;
+        let t_end = hil::mono_ns();
+        let tcs = log_text(&mut set, "tcs-loop")?;
+        let rec = log_text(&mut set, "recorder")?;
+        let _ = t_end;
+        Ok((t_fill, t_end, tcs, rec, sts))
+    };
+    let res = run();
+    let cap = cap.finish()?;
+    player.finish()?;
+    let (t_fill, t_end, tcs_log, rec_log, sts) = res?;
+    for (name, st) in &sts {
+        if name == "recorder" {
+            // a write error stops recording; the recorder exits 1 at the end
+            ensure!(
+                st.code() == Some(1),
+                "the recorder exited with {st} after its disk filled (1 expected):\n{rec_log}"
+            );
+        } else {
+            ensure!(st.success(), "{name} exited with {st}");
+        }
+    }
+    // precondition: the recorder filled the disk (a starved recorder may
+    // not have written the headroom before the drive ended)
+    let free_end = hil::free_bytes(disk)?;
+    if free_end > 64 << 10 && !rec_log.contains("No space left on device") {
+        return Ok(Attempt::Disturbed(format!(
+            "the recorder did not fill its disk ({free_end} bytes still free at the end)"
+        )));
+    }
+    // the recorder says so in its log
+    let says = rec_log
+        .lines()
+        .find(|l| l.contains("No space left on device"))
+        .with_context(|| {
+            format!("the recorder's log does not say that its disk is full:\n{rec_log}")
+        })?;
+    println!("recorder: {says}");
+
+    // the file: readable up to where the disk filled, in order
+    let l = DriveLog::load_with(&mcap, LoadOptions::default())
+        .map_err(|e| anyhow::anyhow!("{}", e.full()))?;
+    println!("the recorder's file on the full disk: {:?}", l.report);
+    ensure!(l.report.bad == 0, "undecodable messages in the file");
+    ensure!(!l.cycles.is_empty(), "no cycle records in the file");
+    if let Some(w) = l.cycles.windows(2).find(|w| w[1].seq != w[0].seq + 1) {
+        bail!("cycle sequence {} then {} in the file", w[0].seq, w[1].seq);
+    }
+    let last = l.cycles[l.cycles.len() - 1].stamp_ns;
+    println!(
+        "file: {} cycle records, the last {:.0} ms after the disk was filled, {:.0} ms before the drive ended",
+        l.cycles.len(),
+        ms(last as i128 - t_fill as i128),
+        ms(t_end as i128 - last as i128)
+    );
+    ensure!(
+        last > t_fill,
+        "nothing recorded after the disk was filled to its headroom"
+    );
+    ensure!(
+        last + 500_000_000 < t_end,
+        "the file runs to the drive's end: the disk never filled"
+    );
+
+    // the loop unaffected
+    commands_all_on_the_wire(&tcs_log, &cap, s)?;
+    if let Some(r) = loop_unaffected(
+        &cap,
+        s,
+        t_fill,
+        t_end.min(last + 1_500_000_000),
+        "full disk",
+    )? {
+        return Ok(Attempt::Disturbed(r));
+    }
+    Ok(Attempt::Done)
+}
+
+// --- 5. microphone faults ---------------------------------------------------------------------
+
+/// Scenario time of each microphone fault, s: (start, length).
+const SILENCE: (f64, f64) = (1.5, 1.0);
+const CLIPPING: (f64, f64) = (3.5, 1.0);
+const XRUNS: (f64, f64) = (5.5, 1.0);
+
+#[test]
+fn microphone_faults_make_the_controller_fall_back() -> anyhow::Result<()> {
+    let _g = serial();
+    with_attempts_in("mic-faults", &scenario(8), mic_faults)
+}
+
+/// The share of `used_arte` cycles among the controlling ones in `[t0, t1)`,
+/// and how many controlling cycles there were.
+fn arte_share(cycles: &[CycleRecord], t0: u64, t1: u64) -> (f64, usize) {
+    let c: Vec<&CycleRecord> = cycles_in(cycles, t0, t1)
+        .into_iter()
+        .filter(|c| c.safe_state == 0)
+        .collect();
+    let used = c.iter().filter(|c| c.used_arte == 1).count();
+    (used as f64 / c.len().max(1) as f64, c.len())
+}
+
+fn mic_faults(s: &Setup) -> anyhow::Result<Attempt> {
+    let mcap = s.out.join("drive.mcap");
+    let faults = [
+        MicFault {
+            kind: MicFaultKind::Silence,
+            from_s: SILENCE.0,
+            len_s: SILENCE.1,
+        },
+        MicFault {
+            kind: MicFaultKind::Clip { gain: 1000.0 },
+            from_s: CLIPPING.0,
+            len_s: CLIPPING.1,
+        },
+    ];
+    let cap = CanCapture::start(&s.iface)?;
+    let player =
+        RoadAudioPlayer::start_with_faults(PLAYBACK, &s.iface, &s.config, &s.scenario, &faults)?;
+    let mut drive = grip_drive(s, &mcap)?;
+    let run = |drive: &mut Proc| -> anyhow::Result<(u64, u64, u64)> {
+        let start = wait_scenario_start(s)?.t_ns;
+        let at = |sec: f64| start + (sec * 1e9) as u64;
+        let sleep_until = |t: u64| {
+            let now = hil::mono_ns();
+            if t > now {
+                std::thread::sleep(Duration::from_nanos(t - now));
+            }
+        };
+        // the xrun storm: audio-acq stopped for longer than its capture
+        // buffer, five times, so that the loopback capture overruns
+        sleep_until(at(XRUNS.0));
+        let acq = hil::child_pid(drive.pid(), "audio-acq").context("audio-acq is not running")?;
+        let t_x0 = hil::mono_ns();
+        while hil::mono_ns() < at(XRUNS.0 + XRUNS.1) {
+            hil::kill_pid(acq, libc::SIGSTOP)?;
+            std::thread::sleep(Duration::from_millis(300));
+            hil::kill_pid(acq, libc::SIGCONT)?;
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        let t_x1 = hil::mono_ns();
+        wait_success(drive, "grip drive", Duration::from_secs(180))?;
+        Ok((start, t_x0, t_x1))
+    };
+    let res = run(&mut drive);
+    let cap = cap.finish()?;
+    let played = player.finish()?;
+    let (start, t_x0, t_x1) = res?;
+    println!("grip drive output:\n{}", drive.log_text());
+    println!("player: {played:?}");
+    ensure!(played.fault_blocks > 0, "the player applied no fault");
+    check_frames(&cap, s)?;
+    let l = DriveLog::load_with(&mcap, LoadOptions { audio: true })
+        .map_err(|e| anyhow::anyhow!("{}", e.full()))?;
+    ensure!(
+        l.report.truncated.is_none() && l.report.bad == 0,
+        "{:?}",
+        l.report
+    );
+
+    // the faults as the microphone delivered them (captured audio blocks)
+    let blocks: Vec<Block> = l
+        .audio_blocks
+        .iter()
+        .map(|a| {
+            let n = (a.n_samples as usize).min(a.samples.len());
+            let x = &a.samples[..n];
+            let end = a.stamp_ns + (n as u64 * 1_000_000_000) / u64::from(a.sample_rate.max(1));
+            let silent = x.iter().all(|&v| v == 0);
+            let clipped = x
+                .iter()
+                .filter(|&&v| v == i16::MAX || v == i16::MIN)
+                .count()
+                * 20
+                > n;
+            (a.stamp_ns, end, silent, clipped, a.xruns)
+        })
+        .collect();
+    let span = |pred: &dyn Fn(&Block) -> bool, what: &str| -> anyhow::Result<(u64, u64)> {
+        let b: Vec<_> = blocks.iter().filter(|b| pred(b)).collect();
+        let first = b
+            .first()
+            .with_context(|| format!("no {what} in the captured audio"))?;
+        let last = b[b.len() - 1];
+        Ok((first.0, last.1))
+    };
+    let sil = span(&|b| b.2 && b.0 > start, "silent block after the start")?;
+    let clip = span(&|b| b.3, "clipped block")?;
+    let xr0 = blocks.iter().rev().find(|b| b.0 < t_x0).map_or(0, |b| b.4);
+    let xr1 = blocks.last().map_or(0, |b| b.4);
+    println!(
+        "captured: silence {:.0}-{:.0} ms, clipping {:.0}-{:.0} ms after the start; xruns {xr0} before the storm, {xr1} at the end",
+        ms(sil.0 as i128 - start as i128),
+        ms(sil.1 as i128 - start as i128),
+        ms(clip.0 as i128 - start as i128),
+        ms(clip.1 as i128 - start as i128)
+    );
+    // the storm on the capture side: overruns reported, or at least the
+    // holes in the audio stamps (a stopped audio-acq)
+    let holes = blocks
+        .windows(2)
+        .filter(|w| w[1].0 >= t_x0 && w[1].0 <= t_x1 + 500_000_000 && w[1].0 > w[0].1 + 100_000_000)
+        .count();
+    println!(
+        "xrun storm: {} new overruns reported, {holes} holes over 100 ms in the captured stream",
+        xr1 - xr0
+    );
+    ensure!(
+        xr1 > xr0 || holes > 0,
+        "the storm left no mark on the captured audio (no overrun, no hole)"
+    );
+    let xr = (t_x0, t_x1);
+
+    // before the first fault: the controller uses ARTE's knowledge
+    let (share0, n0) = arte_share(&l.cycles, sil.0 - 600_000_000, sil.0 - 100_000_000);
+    println!(
+        "before the faults: ARTE used in {:.0} % of {n0} controlling cycles",
+        share0 * 100.0
+    );
+    if n0 < 100 {
+        return Ok(Attempt::Disturbed(format!(
+            "only {n0} controlling cycles before the first fault (safe state after stalls)"
+        )));
+    }
+    ensure!(
+        share0 >= 0.5,
+        "ARTE used in only {:.0} % of the cycles before any fault",
+        share0 * 100.0
+    );
+
+    for (what, (t0, t1)) in [("silence", sil), ("clipping", clip), ("xrun storm", xr)] {
+        // arte's confidence: no confident estimate of audio inside the fault
+        let inside: Vec<&grip_msgs::RoadEstimate> = l
+            .roads
+            .iter()
+            .filter(|e| e.frame_t0_ns >= t0 && e.frame_t1_ns <= t1)
+            .collect();
+        let confident = inside
+            .iter()
+            .filter(|e| e.class_index != NO_CLASS && e.confidence >= 0.6)
+            .count();
+        let max_conf = inside
+            .iter()
+            .filter(|e| e.class_index != NO_CLASS)
+            .map(|e| e.confidence)
+            .fold(0.0f64, f64::max);
+        // the controller: no ARTE from max_age (+ margin) into the fault on
+        let fb0 = t0 + ns(MAX_AGE_MS + VM_MARGIN_MS);
+        let (share, n) = arte_share(&l.cycles, fb0, t1);
+        // and back after it
+        let (share_after, n_after) = arte_share(&l.cycles, t1, t1 + 1_000_000_000);
+        println!(
+            "{what}: {} estimates of audio inside it, {confident} confident (highest {max_conf:.2}); ARTE used in {:.1} % of {n} controlling cycles from {:.0} ms in; in the 1 s after it: {:.0} % of {n_after}",
+            inside.len(),
+            share * 100.0,
+            MAX_AGE_MS + VM_MARGIN_MS,
+            share_after * 100.0
+        );
+        ensure!(
+            confident == 0,
+            "{what}: arte published {confident} confident estimates of the faulty audio (highest {max_conf:.2})"
+        );
+        ensure!(n > 0, "{what}: no controlling cycle during the fault");
+        ensure!(
+            share == 0.0,
+            "{what}: the controller used ARTE in {:.1} % of the cycles during the fault",
+            share * 100.0
+        );
+        ensure!(
+            share_after > 0.0,
+            "{what}: the controller did not return to ARTE within 1 s after the fault"
+        );
+    }
+    Ok(Attempt::Done)
+}
+
+/// Every frame on the wire valid (the faults here are off the bus).
+fn check_frames(cap: &CaptureLog, s: &Setup) -> anyhow::Result<()> {
+    ensure!(
+        cap.dropped == 0,
+        "the capture socket dropped {} frames",
+        cap.dropped
+    );
+    let c = StreamCheck::run(&s.dbc, &cap.frames);
+    ensure!(c.all_valid(), "invalid frames on the bus: {c:#?}");
+    Ok(())
+}
+
+// --- 6. arte stalled -------------------------------------------------------------------------
+
+/// How long arte is stopped.
+const ARTE_STOP_MS: u64 = 2000;
+
+#[test]
+fn stalled_arte_ages_out_and_returns() -> anyhow::Result<()> {
+    let _g = serial();
+    with_attempts_in("stall-arte", &scenario(5), stall_arte)
+}
+
+fn stall_arte(s: &Setup) -> anyhow::Result<Attempt> {
+    let mcap = s.out.join("drive.mcap");
+    let cap = CanCapture::start(&s.iface)?;
+    let player = RoadAudioPlayer::start(PLAYBACK, &s.iface, &s.config, &s.scenario)?;
+    let mut drive = grip_drive(s, &mcap)?;
+    let run = |drive: &mut Proc| -> anyhow::Result<(u64, u64)> {
+        wait_scenario_start(s)?;
+        std::thread::sleep(Duration::from_millis(1000));
+        let arte = hil::child_pid(drive.pid(), "arte").context("arte is not running")?;
+        hil::kill_pid(arte, libc::SIGSTOP)?;
+        let t_stop = hil::mono_ns();
+        std::thread::sleep(Duration::from_millis(ARTE_STOP_MS));
+        let t_cont = hil::mono_ns();
+        hil::kill_pid(arte, libc::SIGCONT)?;
+        wait_success(drive, "grip drive", Duration::from_secs(180))?;
+        Ok((t_stop, t_cont))
+    };
+    let res = run(&mut drive);
+    let cap = cap.finish()?;
+    player.finish()?;
+    let (t_stop, t_cont) = res?;
+    println!("grip drive output:\n{}", drive.log_text());
+    check_frames(&cap, s)?;
+    let l = read_complete_allowing_audio_gaps(
+        &mcap,
+        "seen while arte was stopped: a finding, tools/hil/README.md",
+    )?;
+
+    let (share0, n0) = arte_share(&l.cycles, t_stop - 500_000_000, t_stop);
+    println!(
+        "before the stop: ARTE used in {:.0} % of {n0} controlling cycles",
+        share0 * 100.0
+    );
+    if n0 < 100 {
+        return Ok(Attempt::Disturbed(format!(
+            "only {n0} controlling cycles in the 500 ms before the stop"
+        )));
+    }
+    ensure!(
+        share0 >= 0.5,
+        "ARTE used in only {:.0} % of the cycles before the stop",
+        share0 * 100.0
+    );
+    let published: Vec<u64> = l
+        .roads
+        .iter()
+        .map(|e| e.stamp_ns)
+        .filter(|&t| t > t_stop + 5_000_000 && t < t_cont)
+        .collect();
+    ensure!(
+        published.is_empty(),
+        "{} estimates published while arte was stopped",
+        published.len()
+    );
+    // estimates age out: the last one before the stop, then no ARTE
+    let last = l
+        .roads
+        .iter()
+        .map(|e| e.stamp_ns)
+        .filter(|&t| t <= t_stop + 5_000_000)
+        .max()
+        .context("no estimate before the stop")?;
+    let used_after = l
+        .cycles
+        .iter()
+        .filter(|c| c.stamp_ns > last && c.stamp_ns < t_cont && c.used_arte == 1)
+        .map(|c| c.stamp_ns)
+        .max();
+    let aged_ms = used_after.map_or(0.0, |t| ms(t as i128 - last as i128));
+    let bound = MAX_AGE_MS + VM_MARGIN_MS;
+    println!(
+        "ARTE last used {aged_ms:.1} ms after the last estimate (max_age {MAX_AGE_MS} ms, bound {bound} ms)"
+    );
+    ensure!(
+        aged_ms <= bound,
+        "the controller used ARTE {aged_ms:.1} ms after the last estimate, bound {bound} ms"
+    );
+    let (share_stop, n_stop) = arte_share(&l.cycles, last + ns(bound), t_cont);
+    ensure!(
+        n_stop > 0 && share_stop == 0.0,
+        "ARTE used while stalled: {share_stop} of {n_stop}"
+    );
+    // back to ARTE after SIGCONT
+    let back = l
+        .cycles
+        .iter()
+        .find(|c| c.stamp_ns > t_cont && c.used_arte == 1)
+        .context("the controller never returned to ARTE after arte resumed")?;
+    println!(
+        "ARTE used again {:.0} ms after SIGCONT",
+        ms(back.stamp_ns as i128 - t_cont as i128)
+    );
+    Ok(Attempt::Done)
+}
