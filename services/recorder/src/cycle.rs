@@ -16,7 +16,7 @@ use grip_io::mcaplog::{McapLogError, McapWriter};
 use grip_io::systemd::{Watchdog, WatchdogPoll};
 use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
 
-use crate::monitor::{self, PeerWatch};
+use crate::monitor::{self, PeerWatch, RxProbe, RxStep};
 use crate::stats::{RecvStats, TopicStats};
 
 /// One message on its way to the file.
@@ -158,10 +158,18 @@ fn account(st: &mut TopicStats, seq: Option<u64>, queued: bool) {
 /// One pass over every subscriber: moves what is waiting (at most `max`
 /// per topic) into the queue, counting gaps and drops. Returns the number
 /// of messages taken.
-pub fn receive_pass(subs: &Subscribers, q: &Queue, stats: &mut RecvStats, max: usize) -> usize {
+pub fn receive_pass(
+    subs: &Subscribers,
+    q: &Queue,
+    stats: &mut RecvStats,
+    max: usize,
+    probe: &RxProbe,
+) -> usize {
     let mut n = 0;
+    let at = |t: &str| RECORDED.iter().position(|r| *r == t).unwrap_or(0);
     macro_rules! pass {
         ($sub:expr, $topic:expr, $seq:expr, $wrap:expr) => {{
+            probe.enter(RxStep::Receive, at($topic));
             for _ in 0..max {
                 match $sub.recv() {
                     Ok(Some(m)) => {
@@ -186,6 +194,7 @@ pub fn receive_pass(subs: &Subscribers, q: &Queue, stats: &mut RecvStats, max: u
         Msg::Cycle
     );
     // CAN: alive counters tracked separately (no sequence number)
+    probe.enter(RxStep::Receive, at(topics::CAN_LOG));
     for _ in 0..max {
         match subs.can.recv() {
             Ok(Some(f)) => {
@@ -277,11 +286,13 @@ pub fn spawn_receiver(
     stop: Arc<AtomicBool>,
     poll: Duration,
     heartbeat: Arc<AtomicU64>,
+    probe: Arc<RxProbe>,
     ready: SyncSender<Result<(), IpcError>>,
 ) -> std::io::Result<JoinHandle<RecvStats>> {
     std::thread::Builder::new()
         .name("recorder-rx".into())
         .spawn(move || {
+            probe.register_thread();
             let mut stats = RecvStats::default();
             for t in RECORDED {
                 stats.topic(t);
@@ -300,15 +311,19 @@ pub fn spawn_receiver(
             };
             let mut peers = PeerWatch::new(Instant::now());
             while !stop.load(Ordering::Relaxed) {
-                let n = receive_pass(&subs, &q, &mut stats, 4096);
+                let n = receive_pass(&subs, &q, &mut stats, 4096, &probe);
                 heartbeat.fetch_add(1, Ordering::Relaxed);
                 if n == 0 {
+                    probe.enter(RxStep::Sleep, 0);
                     std::thread::sleep(poll);
                 }
-                peers.poll(Instant::now(), || subs.peers());
+                peers.poll(Instant::now(), || {
+                    probe.enter(RxStep::Peers, 0);
+                    subs.peers()
+                });
             }
             // drain what is still waiting in the subscribers
-            while receive_pass(&subs, &q, &mut stats, 4096) > 0 {}
+            while receive_pass(&subs, &q, &mut stats, 4096, &probe) > 0 {}
             stats
         })
 }
@@ -327,6 +342,7 @@ pub fn write_loop(
     stop: &AtomicBool,
     rx_stop: &AtomicBool,
     rx_beat: &AtomicU64,
+    probe: &RxProbe,
     summary: &mut Summary,
 ) -> bool {
     let mut wd = Watchdog::from_env(rx_beat.load(Ordering::Relaxed));
@@ -369,7 +385,7 @@ pub fn write_loop(
         // fed only while both the receive thread and this loop advance
         let beat = rx_beat.load(Ordering::Relaxed);
         if wd.poll(beat, Instant::now()) == WatchdogPoll::Stalled {
-            monitor::receive_stalled(beat);
+            monitor::receive_stalled(beat, probe);
         }
     }
     failed

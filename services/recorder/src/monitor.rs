@@ -6,14 +6,107 @@
 //! thread advance ([`receive_stalled`] otherwise).
 
 use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicU8, AtomicU32, Ordering};
 use std::time::{Duration, Instant};
 
 use grip_io::ipc::PeerReport;
 
-/// The receive thread's heartbeat did not move for half a watchdog period.
-pub fn receive_stalled(heartbeat: u64) {
+/// What the receive thread is doing, for the stall warning: it stores its
+/// step before each one (a relaxed atomic store: nothing allocates), and
+/// its kernel thread id once.
+#[derive(Debug, Default)]
+pub struct RxProbe {
+    step: AtomicU8,
+    tid: AtomicU32,
+}
+
+/// Steps of the receive thread ([`RxProbe::enter`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum RxStep {
+    /// Not started yet.
+    Starting = 0,
+    /// Taking samples of one topic (index into [`crate::RECORDED`]) + 1.
+    Receive = 1,
+    /// Sleeping for the poll interval.
+    Sleep = 10,
+    /// Asking iceoryx2 for the topics' nodes ([`PeerWatch`]).
+    Peers = 11,
+}
+
+impl RxProbe {
+    /// Called once by the receive thread: remembers its kernel thread id
+    /// (`/proc/thread-self`), 0 where that cannot be read.
+    pub fn register_thread(&self) {
+        let tid = std::fs::read_link("/proc/thread-self")
+            .ok()
+            .and_then(|p| p.file_name()?.to_str()?.parse().ok())
+            .unwrap_or(0);
+        self.tid.store(tid, Ordering::Relaxed);
+    }
+
+    /// The thread enters `step`; `topic` is the index of the topic for
+    /// [`RxStep::Receive`].
+    pub fn enter(&self, step: RxStep, topic: usize) {
+        let v = match step {
+            RxStep::Receive => RxStep::Receive as u8 + topic.min(8) as u8,
+            s => s as u8,
+        };
+        self.step.store(v, Ordering::Relaxed);
+    }
+
+    /// The step as words.
+    pub fn step(&self) -> String {
+        match self.step.load(Ordering::Relaxed) {
+            0 => "starting".into(),
+            v @ 1..=9 => {
+                let i = usize::from(v - 1);
+                let t = crate::cycle::RECORDED.get(i).copied().unwrap_or("?");
+                format!("receiving {t}")
+            }
+            10 => "sleeping for the poll interval".into(),
+            11 => "listing the topics' nodes (iceoryx2)".into(),
+            v => format!("step {v}"),
+        }
+    }
+
+    /// The thread's scheduler state, kernel wait channel and system call
+    /// as `/proc` shows them (state R: runnable, i.e. waiting for a CPU;
+    /// S or D: blocked, in `wchan`).
+    pub fn kernel_view(&self) -> String {
+        let tid = self.tid.load(Ordering::Relaxed);
+        if tid == 0 {
+            return "thread id unknown".into();
+        }
+        let dir = format!("/proc/self/task/{tid}");
+        let read = |f: &str| {
+            std::fs::read_to_string(format!("{dir}/{f}"))
+                .map(|s| s.trim().to_owned())
+                .unwrap_or_else(|e| format!("({e})"))
+        };
+        let stat = read("stat");
+        // the state is the field after the parenthesised name
+        let state = stat
+            .rsplit_once(") ")
+            .and_then(|(_, rest)| rest.split_whitespace().next())
+            .unwrap_or("?")
+            .to_owned();
+        let sched = read("schedstat");
+        format!(
+            "tid {tid} state {state} wchan {} syscall {} schedstat {sched}",
+            read("wchan"),
+            read("syscall").split_whitespace().next().unwrap_or("?")
+        )
+    }
+}
+
+/// The receive thread's heartbeat did not move for half a watchdog period:
+/// says what it was doing ([`RxProbe`]).
+pub fn receive_stalled(heartbeat: u64, probe: &RxProbe) {
     tracing::warn!(
         heartbeat,
+        step = %probe.step(),
+        kernel = %probe.kernel_view(),
         "recorder receive thread stalled: watchdog not fed"
     );
 }
@@ -61,5 +154,46 @@ impl PeerWatch {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn probe_names_the_step_and_shows_a_blocked_thread_as_sleeping() {
+        let probe = std::sync::Arc::new(RxProbe::default());
+        assert_eq!(probe.step(), "starting");
+        assert_eq!(probe.kernel_view(), "thread id unknown");
+        let (tx, rx) = std::sync::mpsc::channel::<()>();
+        let (reg_tx, reg_rx) = std::sync::mpsc::channel::<()>();
+        let p = std::sync::Arc::clone(&probe);
+        let h = std::thread::spawn(move || {
+            p.register_thread();
+            p.enter(RxStep::Peers, 0);
+            reg_tx.send(()).unwrap();
+            // blocked until the test lets it go
+            let _ = rx.recv();
+        });
+        reg_rx.recv().unwrap();
+        assert_eq!(probe.step(), "listing the topics' nodes (iceoryx2)");
+        // the thread gets to its recv() some time after it said so
+        let t0 = Instant::now();
+        let view = loop {
+            let v = probe.kernel_view();
+            if v.contains("state S") || t0.elapsed() > Duration::from_secs(10) {
+                break v;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        };
+        assert!(view.starts_with("tid "), "{view}");
+        assert!(view.contains("state S"), "{view}");
+        tx.send(()).unwrap();
+        h.join().unwrap();
+        probe.enter(RxStep::Receive, 3);
+        assert_eq!(probe.step(), format!("receiving {}", crate::RECORDED[3]));
+        probe.enter(RxStep::Sleep, 0);
+        assert_eq!(probe.step(), "sleeping for the poll interval");
     }
 }

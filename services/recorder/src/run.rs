@@ -17,6 +17,7 @@ use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, to
 
 use crate::config::RecorderConfig;
 use crate::cycle::{Summary, queue, spawn_receiver, write_loop};
+use crate::monitor::RxProbe;
 
 /// The grip revision this binary was built from (build.rs).
 pub const GIT_REV: &str = env!("GRIP_GIT_REV");
@@ -228,12 +229,14 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
     let (q, rx, depth, high) = queue(cfg.queue_capacity);
     let rx_stop = Arc::new(AtomicBool::new(false));
     let rx_beat = Arc::new(AtomicU64::new(0));
+    let probe = Arc::new(RxProbe::default());
     let (ready_tx, ready_rx) = sync_channel(1);
     let handle = spawn_receiver(
         q,
         Arc::clone(&rx_stop),
         cfg.poll_interval(),
         Arc::clone(&rx_beat),
+        Arc::clone(&probe),
         ready_tx,
     )
     .map_err(RunError::Thread)?;
@@ -258,7 +261,16 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         path: path.clone(),
         ..Summary::default()
     };
-    let failed = write_loop(&rx, &mut w, &depth, stop, &rx_stop, &rx_beat, &mut summary);
+    let failed = write_loop(
+        &rx,
+        &mut w,
+        &depth,
+        stop,
+        &rx_stop,
+        &rx_beat,
+        &probe,
+        &mut summary,
+    );
     summary.recv = handle.join().unwrap_or_default();
     summary.queue_high_water = high.load(Ordering::Relaxed);
     if !failed {
