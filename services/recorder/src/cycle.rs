@@ -11,12 +11,12 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError, sync
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use grip_io::ipc::{IpcError, IpcNode, PeerReport, Subscriber, SubscriberMode};
+use grip_io::ipc::{IpcError, IpcNode, Subscriber, SubscriberMode};
 use grip_io::mcaplog::{McapLogError, McapWriter};
 use grip_io::systemd::{Watchdog, WatchdogPoll};
 use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
 
-use crate::monitor::{self, PeerWatch, RxProbe, RxStep};
+use crate::monitor::{self, RxProbe, RxStep};
 use crate::stats::{RecvStats, TopicStats};
 
 /// One message on its way to the file.
@@ -87,17 +87,6 @@ impl Subscribers {
             can: node.subscriber(topics::CAN_LOG, SubscriberMode::Deep)?,
             truth: node.subscriber(topics::TRUTH, SubscriberMode::Deep)?,
         })
-    }
-
-    /// Peer reports per topic.
-    pub fn peers(&self) -> [(&'static str, PeerReport); 5] {
-        [
-            (topics::AUDIO, self.audio.peers()),
-            (topics::ROAD, self.road.peers()),
-            (topics::CYCLE, self.cycle.peers()),
-            (topics::CAN_LOG, self.can.peers()),
-            (topics::TRUTH, self.truth.peers()),
-        ]
     }
 }
 
@@ -309,7 +298,8 @@ pub fn spawn_receiver(
                     return stats;
                 }
             };
-            let mut peers = PeerWatch::new(Instant::now());
+            // only receiving and sleeping here: the topics' peers are
+            // watched by a thread of their own (monitor::spawn_peer_watch)
             while !stop.load(Ordering::Relaxed) {
                 let n = receive_pass(&subs, &q, &mut stats, 4096, &probe);
                 heartbeat.fetch_add(1, Ordering::Relaxed);
@@ -317,10 +307,6 @@ pub fn spawn_receiver(
                     probe.enter(RxStep::Sleep, 0);
                     std::thread::sleep(poll);
                 }
-                peers.poll(Instant::now(), || {
-                    probe.enter(RxStep::Peers, 0);
-                    subs.peers()
-                });
             }
             // drain what is still waiting in the subscribers
             while receive_pass(&subs, &q, &mut stats, 4096, &probe) > 0 {}

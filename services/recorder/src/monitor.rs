@@ -1,15 +1,27 @@
-//! What the recorder watches and logs outside its per-message work. It
-//! has no helper thread of its own: the receive thread follows the
-//! publishers of every topic ([`PeerWatch`], once per second), and the
-//! writing loop feeds the watchdog (`WATCHDOG=1` through
+//! What the recorder watches and logs outside its per-message work: a
+//! thread of its own follows the publishers and dead nodes of every topic
+//! ([`spawn_peer_watch`], [`PeerWatch`], once per second), and the writing
+//! loop feeds the watchdog (`WATCHDOG=1` through
 //! [`grip_io::systemd::Watchdog`]) only while both it and the receive
-//! thread advance ([`receive_stalled`] otherwise).
+//! thread advance ([`receive_stalled`] otherwise, naming what the receive
+//! thread was doing: [`RxProbe`]).
+//!
+//! The peers are not asked from the receive thread: listing a topic's
+//! nodes makes iceoryx2 read and parse every node's details, and under
+//! systemd in the HIL VM (emulated CPU, the recorder at `Nice=10` on the
+//! CPU of two SCHED_FIFO loops) the receive thread was seen runnable
+//! inside that listing for more than half its 10 s watchdog period, so
+//! the watchdog went unfed and systemd killed a recorder that was only
+//! slow (`tools/hil/README.md`).
 
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicU8, AtomicU32, Ordering};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU32, Ordering};
+use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use grip_io::ipc::PeerReport;
+use grip_io::ipc::{IpcError, IpcNode, PeerReport, TopicWatch};
+use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
 
 /// What the receive thread is doing, for the stall warning: it stores its
 /// step before each one (a relaxed atomic store: nothing allocates), and
@@ -30,8 +42,6 @@ pub enum RxStep {
     Receive = 1,
     /// Sleeping for the poll interval.
     Sleep = 10,
-    /// Asking iceoryx2 for the topics' nodes ([`PeerWatch`]).
-    Peers = 11,
 }
 
 impl RxProbe {
@@ -65,7 +75,6 @@ impl RxProbe {
                 format!("receiving {t}")
             }
             10 => "sleeping for the poll interval".into(),
-            11 => "listing the topics' nodes (iceoryx2)".into(),
             v => format!("step {v}"),
         }
     }
@@ -109,6 +118,65 @@ pub fn receive_stalled(heartbeat: u64, probe: &RxProbe) {
         kernel = %probe.kernel_view(),
         "recorder receive thread stalled: watchdog not fed"
     );
+}
+
+/// Every recorded topic's service, held open (no port) by the peer-watch
+/// thread.
+#[derive(Debug)]
+struct Watches {
+    audio: TopicWatch<AudioBlock>,
+    road: TopicWatch<RoadEstimate>,
+    cycle: TopicWatch<CycleRecord>,
+    can: TopicWatch<CanFrame>,
+    truth: TopicWatch<GroundTruth>,
+}
+
+impl Watches {
+    fn open(node: &IpcNode) -> Result<Self, IpcError> {
+        Ok(Self {
+            audio: node.watch(topics::AUDIO)?,
+            road: node.watch(topics::ROAD)?,
+            cycle: node.watch(topics::CYCLE)?,
+            can: node.watch(topics::CAN_LOG)?,
+            truth: node.watch(topics::TRUTH)?,
+        })
+    }
+
+    fn peers(&self) -> [(&'static str, PeerReport); 5] {
+        [
+            (self.audio.topic(), self.audio.peers()),
+            (self.road.topic(), self.road.peers()),
+            (self.cycle.topic(), self.cycle.peers()),
+            (self.can.topic(), self.can.peers()),
+            (self.truth.topic(), self.truth.peers()),
+        ]
+    }
+}
+
+/// Starts the peer-watch thread: its own iceoryx2 node (iceoryx2 ports
+/// and services are not `Send`), every recorded topic's service held
+/// open, [`PeerWatch::poll`] about once per second, until `stop`. It
+/// feeds nothing: how slow it is never reaches the watchdog. If the
+/// services cannot be opened it says so once and ends (recording goes on).
+pub fn spawn_peer_watch(stop: Arc<AtomicBool>) -> std::io::Result<JoinHandle<()>> {
+    std::thread::Builder::new()
+        .name("recorder-peers".into())
+        .spawn(move || {
+            let opened = IpcNode::create(&format!("{}-peers", topics::node::RECORDER))
+                .and_then(|node| Watches::open(&node).map(|w| (node, w)));
+            let (_node, watches) = match opened {
+                Ok(x) => x,
+                Err(e) => {
+                    tracing::warn!(error = %e, "recorder: cannot watch the topics' peers; recording goes on without");
+                    return;
+                }
+            };
+            let mut watch = PeerWatch::new(Instant::now());
+            while !stop.load(Ordering::Relaxed) {
+                std::thread::sleep(Duration::from_millis(100));
+                watch.poll(Instant::now(), || watches.peers());
+            }
+        })
 }
 
 /// Publishers and dead nodes per topic, checked once per second; a change
@@ -171,13 +239,13 @@ mod tests {
         let p = std::sync::Arc::clone(&probe);
         let h = std::thread::spawn(move || {
             p.register_thread();
-            p.enter(RxStep::Peers, 0);
+            p.enter(RxStep::Sleep, 0);
             reg_tx.send(()).unwrap();
             // blocked until the test lets it go
             let _ = rx.recv();
         });
         reg_rx.recv().unwrap();
-        assert_eq!(probe.step(), "listing the topics' nodes (iceoryx2)");
+        assert_eq!(probe.step(), "sleeping for the poll interval");
         // the thread gets to its recv() some time after it said so
         let t0 = Instant::now();
         let view = loop {
@@ -193,7 +261,5 @@ mod tests {
         h.join().unwrap();
         probe.enter(RxStep::Receive, 3);
         assert_eq!(probe.step(), format!("receiving {}", crate::RECORDED[3]));
-        probe.enter(RxStep::Sleep, 0);
-        assert_eq!(probe.step(), "sleeping for the poll interval");
     }
 }

@@ -254,6 +254,10 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         }
     }
 
+    // the topics' peers, watched beside the receive thread (never on it)
+    let peers = crate::monitor::spawn_peer_watch(Arc::clone(&rx_stop))
+        .inspect_err(|e| tracing::warn!(error = %e, "cannot start the peer-watch thread; recording goes on without"))
+        .ok();
     systemd::notify_ready(&format!("recording to {}", path.display()));
     tracing::info!(file = %path.display(), git = GIT_REV, "recorder ready");
 
@@ -272,6 +276,9 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         &mut summary,
     );
     summary.recv = handle.join().unwrap_or_default();
+    if let Some(p) = peers {
+        let _ = p.join();
+    }
     summary.queue_high_water = high.load(Ordering::Relaxed);
     if !failed {
         w.write_metadata("grip.recorder", &summary.metadata())?;
