@@ -145,14 +145,17 @@ fn account(st: &mut TopicStats, seq: Option<u64>, queued: bool) {
 }
 
 /// One pass over every subscriber: moves what is waiting (at most `max`
-/// per topic) into the queue, counting gaps and drops. Returns the number
-/// of messages taken.
+/// per topic) into the queue, counting gaps and drops. `beat` moves with
+/// every message taken (the watchdog's sign that the receive path
+/// advances: a pass over a full backlog can take seconds on a starved
+/// CPU). Returns the number of messages taken.
 pub fn receive_pass(
     subs: &Subscribers,
     q: &Queue,
     stats: &mut RecvStats,
     max: usize,
     probe: &RxProbe,
+    beat: &AtomicU64,
 ) -> usize {
     let mut n = 0;
     let at = |t: &str| RECORDED.iter().position(|r| *r == t).unwrap_or(0);
@@ -166,6 +169,7 @@ pub fn receive_pass(
                         let queued = q.offer($wrap(m));
                         account(stats.topic($topic), seq, queued);
                         n += 1;
+                        beat.fetch_add(1, Ordering::Relaxed);
                     }
                     Ok(None) => break,
                     Err(_) => {
@@ -191,6 +195,7 @@ pub fn receive_pass(
                 let queued = q.offer(Msg::Can(f));
                 account(stats.topic(topics::CAN_LOG), None, queued);
                 n += 1;
+                beat.fetch_add(1, Ordering::Relaxed);
             }
             Ok(None) => break,
             Err(_) => {
@@ -301,7 +306,7 @@ pub fn spawn_receiver(
             // only receiving and sleeping here: the topics' peers are
             // watched by a thread of their own (monitor::spawn_peer_watch)
             while !stop.load(Ordering::Relaxed) {
-                let n = receive_pass(&subs, &q, &mut stats, 4096, &probe);
+                let n = receive_pass(&subs, &q, &mut stats, 4096, &probe, &heartbeat);
                 heartbeat.fetch_add(1, Ordering::Relaxed);
                 if n == 0 {
                     probe.enter(RxStep::Sleep, 0);
@@ -309,7 +314,7 @@ pub fn spawn_receiver(
                 }
             }
             // drain what is still waiting in the subscribers
-            while receive_pass(&subs, &q, &mut stats, 4096, &probe) > 0 {}
+            while receive_pass(&subs, &q, &mut stats, 4096, &probe, &heartbeat) > 0 {}
             stats
         })
 }
