@@ -375,6 +375,48 @@ impl IpcNode {
     }
 }
 
+impl IpcNode {
+    /// Opens (or creates) `topic`'s service only to watch its peers: no
+    /// port, nothing sent or received. [`TopicWatch::peers`] is the same
+    /// report as a port's, for a thread that owns no port (the recorder
+    /// asks from a thread of its own, since listing a topic's nodes reads
+    /// and parses every node's details and is not cheap).
+    pub fn watch<T: ZeroCopySend + Debug + Copy + 'static>(
+        &self,
+        topic: &str,
+    ) -> Result<TopicWatch<T>, IpcError> {
+        Ok(TopicWatch {
+            service: self.service::<T>(topic)?,
+            topic: leak_topic(topic),
+        })
+    }
+}
+
+/// A topic's service held open without a port ([`IpcNode::watch`]).
+pub struct TopicWatch<T: ZeroCopySend + Debug + Copy + 'static> {
+    service: PubSubFactory<Svc, T, ()>,
+    topic: &'static str,
+}
+
+impl<T: ZeroCopySend + Debug + Copy + 'static> Debug for TopicWatch<T> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("TopicWatch")
+            .field("topic", &self.topic)
+            .finish()
+    }
+}
+
+impl<T: ZeroCopySend + Debug + Copy + 'static> TopicWatch<T> {
+    /// The topic.
+    pub fn topic(&self) -> &'static str {
+        self.topic
+    }
+    /// Liveness of the topic's peers (iterates the nodes: not cheap).
+    pub fn peers(&self) -> PeerReport {
+        peers(&self.service)
+    }
+}
+
 /// How a subscriber buffers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SubscriberMode {

@@ -11,12 +11,12 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError, sync
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use grip_io::ipc::{IpcError, IpcNode, PeerReport, Subscriber, SubscriberMode};
+use grip_io::ipc::{IpcError, IpcNode, Subscriber, SubscriberMode};
 use grip_io::mcaplog::{McapLogError, McapWriter};
 use grip_io::systemd::{Watchdog, WatchdogPoll};
 use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
 
-use crate::monitor::{self, PeerWatch};
+use crate::monitor::{self, RxProbe, RxStep};
 use crate::stats::{RecvStats, TopicStats};
 
 /// One message on its way to the file.
@@ -88,17 +88,6 @@ impl Subscribers {
             truth: node.subscriber(topics::TRUTH, SubscriberMode::Deep)?,
         })
     }
-
-    /// Peer reports per topic.
-    pub fn peers(&self) -> [(&'static str, PeerReport); 5] {
-        [
-            (topics::AUDIO, self.audio.peers()),
-            (topics::ROAD, self.road.peers()),
-            (topics::CYCLE, self.cycle.peers()),
-            (topics::CAN_LOG, self.can.peers()),
-            (topics::TRUTH, self.truth.peers()),
-        ]
-    }
 }
 
 /// The bounded queue's sending side with its counters.
@@ -156,12 +145,23 @@ fn account(st: &mut TopicStats, seq: Option<u64>, queued: bool) {
 }
 
 /// One pass over every subscriber: moves what is waiting (at most `max`
-/// per topic) into the queue, counting gaps and drops. Returns the number
-/// of messages taken.
-pub fn receive_pass(subs: &Subscribers, q: &Queue, stats: &mut RecvStats, max: usize) -> usize {
+/// per topic) into the queue, counting gaps and drops. `beat` moves with
+/// every message taken (the watchdog's sign that the receive path
+/// advances: a pass over a full backlog can take seconds on a starved
+/// CPU). Returns the number of messages taken.
+pub fn receive_pass(
+    subs: &Subscribers,
+    q: &Queue,
+    stats: &mut RecvStats,
+    max: usize,
+    probe: &RxProbe,
+    beat: &AtomicU64,
+) -> usize {
     let mut n = 0;
+    let at = |t: &str| RECORDED.iter().position(|r| *r == t).unwrap_or(0);
     macro_rules! pass {
         ($sub:expr, $topic:expr, $seq:expr, $wrap:expr) => {{
+            probe.enter(RxStep::Receive, at($topic));
             for _ in 0..max {
                 match $sub.recv() {
                     Ok(Some(m)) => {
@@ -169,6 +169,7 @@ pub fn receive_pass(subs: &Subscribers, q: &Queue, stats: &mut RecvStats, max: u
                         let queued = q.offer($wrap(m));
                         account(stats.topic($topic), seq, queued);
                         n += 1;
+                        beat.fetch_add(1, Ordering::Relaxed);
                     }
                     Ok(None) => break,
                     Err(_) => {
@@ -186,6 +187,7 @@ pub fn receive_pass(subs: &Subscribers, q: &Queue, stats: &mut RecvStats, max: u
         Msg::Cycle
     );
     // CAN: alive counters tracked separately (no sequence number)
+    probe.enter(RxStep::Receive, at(topics::CAN_LOG));
     for _ in 0..max {
         match subs.can.recv() {
             Ok(Some(f)) => {
@@ -193,6 +195,7 @@ pub fn receive_pass(subs: &Subscribers, q: &Queue, stats: &mut RecvStats, max: u
                 let queued = q.offer(Msg::Can(f));
                 account(stats.topic(topics::CAN_LOG), None, queued);
                 n += 1;
+                beat.fetch_add(1, Ordering::Relaxed);
             }
             Ok(None) => break,
             Err(_) => {
@@ -277,11 +280,13 @@ pub fn spawn_receiver(
     stop: Arc<AtomicBool>,
     poll: Duration,
     heartbeat: Arc<AtomicU64>,
+    probe: Arc<RxProbe>,
     ready: SyncSender<Result<(), IpcError>>,
 ) -> std::io::Result<JoinHandle<RecvStats>> {
     std::thread::Builder::new()
         .name("recorder-rx".into())
         .spawn(move || {
+            probe.register_thread();
             let mut stats = RecvStats::default();
             for t in RECORDED {
                 stats.topic(t);
@@ -298,17 +303,18 @@ pub fn spawn_receiver(
                     return stats;
                 }
             };
-            let mut peers = PeerWatch::new(Instant::now());
+            // only receiving and sleeping here: the topics' peers are
+            // watched by a thread of their own (monitor::spawn_peer_watch)
             while !stop.load(Ordering::Relaxed) {
-                let n = receive_pass(&subs, &q, &mut stats, 4096);
+                let n = receive_pass(&subs, &q, &mut stats, 4096, &probe, &heartbeat);
                 heartbeat.fetch_add(1, Ordering::Relaxed);
                 if n == 0 {
+                    probe.enter(RxStep::Sleep, 0);
                     std::thread::sleep(poll);
                 }
-                peers.poll(Instant::now(), || subs.peers());
             }
             // drain what is still waiting in the subscribers
-            while receive_pass(&subs, &q, &mut stats, 4096) > 0 {}
+            while receive_pass(&subs, &q, &mut stats, 4096, &probe, &heartbeat) > 0 {}
             stats
         })
 }
@@ -345,6 +351,7 @@ pub fn write_loop(
     stop: &AtomicBool,
     rx_stop: &AtomicBool,
     rx_beat: &AtomicU64,
+    probe: &RxProbe,
     summary: &mut Summary,
 ) -> bool {
     let mut wd = Watchdog::from_env(rx_beat.load(Ordering::Relaxed));
@@ -387,7 +394,7 @@ pub fn write_loop(
         // fed only while both the receive thread and this loop advance
         let beat = rx_beat.load(Ordering::Relaxed);
         if wd.poll(beat, Instant::now()) == WatchdogPoll::Stalled {
-            monitor::receive_stalled(beat);
+            monitor::receive_stalled(beat, probe);
         }
     }
     failed

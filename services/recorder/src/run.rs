@@ -17,6 +17,7 @@ use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, to
 
 use crate::config::RecorderConfig;
 use crate::cycle::{Summary, queue, spawn_receiver, write_loop};
+use crate::monitor::RxProbe;
 
 /// The grip revision this binary was built from (build.rs).
 pub const GIT_REV: &str = env!("GRIP_GIT_REV");
@@ -228,12 +229,14 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
     let (q, rx, depth, high) = queue(cfg.queue_capacity);
     let rx_stop = Arc::new(AtomicBool::new(false));
     let rx_beat = Arc::new(AtomicU64::new(0));
+    let probe = Arc::new(RxProbe::default());
     let (ready_tx, ready_rx) = sync_channel(1);
     let handle = spawn_receiver(
         q,
         Arc::clone(&rx_stop),
         cfg.poll_interval(),
         Arc::clone(&rx_beat),
+        Arc::clone(&probe),
         ready_tx,
     )
     .map_err(RunError::Thread)?;
@@ -251,6 +254,10 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         }
     }
 
+    // the topics' peers, watched beside the receive thread (never on it)
+    let peers = crate::monitor::spawn_peer_watch(Arc::clone(&rx_stop))
+        .inspect_err(|e| tracing::warn!(error = %e, "cannot start the peer-watch thread; recording goes on without"))
+        .ok();
     systemd::notify_ready(&format!("recording to {}", path.display()));
     tracing::info!(file = %path.display(), git = GIT_REV, "recorder ready");
 
@@ -258,8 +265,20 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         path: path.clone(),
         ..Summary::default()
     };
-    let failed = write_loop(&rx, &mut w, &depth, stop, &rx_stop, &rx_beat, &mut summary);
+    let failed = write_loop(
+        &rx,
+        &mut w,
+        &depth,
+        stop,
+        &rx_stop,
+        &rx_beat,
+        &probe,
+        &mut summary,
+    );
     summary.recv = handle.join().unwrap_or_default();
+    if let Some(p) = peers {
+        let _ = p.join();
+    }
     summary.queue_high_water = high.load(Ordering::Relaxed);
     if !failed {
         w.write_metadata("grip.recorder", &summary.metadata())?;
