@@ -571,7 +571,7 @@ mod tests {
         let mut fast = aware(2.77);
         fast.p.approach_floor = 0.0;
         let (cmds, at, first_fast) = drop_to(&fast, target);
-        assert!(cmds.iter().any(|&c| c == 0.0), "a zero command");
+        assert!(cmds.contains(&0.0), "a zero command");
         assert!((at - target).abs() < 3.0, "arrives at {at}");
         assert!(tv(&cmds) > 2.0 * target, "down to 0 and up: {}", tv(&cmds));
         // With approach_floor 0.5 the drop starts earlier, never below half
