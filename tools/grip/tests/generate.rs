@@ -6,24 +6,15 @@
 //! (start speed, demand, noise) land in the log, and the same seed gives
 //! the same log.
 
+mod common;
+
 use std::path::Path;
-use std::process::Command;
 
 use grip_drive::{DriveLog, LoadOptions};
 use serde_json::Value;
 
 fn grip(args: &[&std::ffi::OsStr]) -> (bool, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_grip"))
-        .arg("--config-dir")
-        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        o.status.success(),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
+    common::output(args)
 }
 
 fn os(s: &str) -> &std::ffi::OsStr {

@@ -5,25 +5,16 @@
 //! replays the good ones identically and names the bad ones without
 //! stopping.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 fn reference() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/reference-drive.mcap")
 }
 
 fn grip(args: &[&std::ffi::OsStr]) -> (bool, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_grip"))
-        .arg("--config-dir")
-        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        o.status.success(),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
+    common::output(args)
 }
 
 /// `good` links to the reference drive plus the four bad logs.

@@ -13,6 +13,22 @@ pub fn grip() -> Command {
     c
 }
 
+/// Run `grip --config-dir <repo>/config ARGS` (logging as configured):
+/// whether it succeeded, its stdout and its stderr.
+pub fn output(args: &[&std::ffi::OsStr]) -> (bool, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_grip"))
+        .arg("--config-dir")
+        .arg(config_dir())
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        o.status.success(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
 /// The repository's `config/`.
 pub fn config_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config")
