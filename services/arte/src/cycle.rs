@@ -77,6 +77,19 @@ pub trait EstimateSink {
     fn send(&mut self, e: &RoadEstimate) -> Result<(), grip_io::ipc::IpcError>;
 }
 
+/// Sends `e` and counts it (`estimates`, or `publish_errors`); whether it
+/// went out. Allocation-free.
+fn publish(sink: &mut impl EstimateSink, e: &RoadEstimate, stats: &ArteCounters) -> bool {
+    let ok = sink.send(e).is_ok();
+    let c = if ok {
+        &stats.estimates
+    } else {
+        &stats.publish_errors
+    };
+    c.fetch_add(1, Ordering::Relaxed);
+    ok
+}
+
 impl EstimateSink for grip_io::ipc::Publisher<RoadEstimate> {
     fn send(&mut self, e: &RoadEstimate) -> Result<(), grip_io::ipc::IpcError> {
         self.publish(e).map(|_| ())
@@ -452,11 +465,7 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             e.x_from = f64::NAN;
             e.x_to = f64::NAN;
             e.stamp_ns = self.clock.now_ns();
-            if sink.send(e).is_err() {
-                stats.publish_errors.fetch_add(1, Ordering::Relaxed);
-            } else {
-                stats.estimates.fetch_add(1, Ordering::Relaxed);
-            }
+            publish(sink, e, stats);
             self.out_seq += 1;
             return 1;
         }
@@ -500,10 +509,7 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             e.mu_peak = r.mu_peak;
             e.alpha = r.alpha;
             e.stamp_ns = clock.now_ns();
-            if sink.send(e).is_err() {
-                stats.publish_errors.fetch_add(1, Ordering::Relaxed);
-            } else {
-                stats.estimates.fetch_add(1, Ordering::Relaxed);
+            if publish(sink, e, stats) {
                 stats.per_class[class].fetch_add(1, Ordering::Relaxed);
             }
             *out_seq += 1;
