@@ -14,7 +14,8 @@ use crate::{ArteError, ClassKnowledge};
 /// Counters shared with the helper thread (and read by tests).
 #[derive(Debug, Default)]
 pub struct ArteCounters {
-    /// Loop iterations (the heartbeat the watchdog follows).
+    /// Loop iterations and blocks taken (the heartbeat the watchdog follows:
+    /// it moves while the loop drains a backlog, too).
     pub heartbeat: AtomicU64,
     /// Audio blocks received.
     pub blocks: AtomicU64,

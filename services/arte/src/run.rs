@@ -175,6 +175,15 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
                     lp.poll_cycles(&cycles, &stats);
                     lp.on_block(&b, &mut publisher, &stats);
                     got += 1;
+                    // the heartbeat moves with every block as well as once
+                    // per iteration: an iteration that drains a backlog (a
+                    // restarted instance, a starved CPU) is progress, and
+                    // must not read as a stall to the watchdog
+                    beat += 1;
+                    stats.heartbeat.store(beat, Ordering::Relaxed);
+                    if stop.load(Ordering::Relaxed) {
+                        break;
+                    }
                 }
                 Ok(None) => break,
                 Err(_) => {
