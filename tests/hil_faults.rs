@@ -129,6 +129,10 @@ const INPUTS: [(&str, f64); 3] = [
     ("MotorStatus", SENSOR_TIMEOUT_MS),
     ("DriverDemand", DEMAND_TIMEOUT_MS),
 ];
+/// How far before a window of [`loop_unaffected`] an input's silence is
+/// looked for: the safe state outlasts it by [`RECOVER_MS`] and more under
+/// emulation.
+const LEAD_IN_MS: f64 = 200.0;
 /// tcs-loop's `[safety] demand_timeout_ms` (config/tcs-loop.toml).
 const DEMAND_TIMEOUT_MS: f64 = 50.0;
 
@@ -183,9 +187,11 @@ fn loop_unaffected(
         .map(|w| ms(w[1].0 as i128 - w[0].0 as i128))
         .fold(0.0, f64::max);
     let disabled = cmds.iter().filter(|c| !c.1).count();
-    let (silent, gaps) = silent_input(cap, s, t0, t1)?;
+    // a safe state lasts RECOVER_MS past its cause: a gap up to LEAD_IN_MS
+    // before the window explains a disabled command early in it
+    let (silent, gaps) = silent_input(cap, s, t0.saturating_sub(ns(LEAD_IN_MS)), t1)?;
     println!(
-        "{what}: {} commands on the wire in {:.0} ms, longest gap {max_gap:.1} ms, {disabled} disabled (safe state); longest input gaps on the wire: {gaps}",
+        "{what}: {} commands on the wire in {:.0} ms, longest gap {max_gap:.1} ms, {disabled} disabled (safe state); longest input gaps on the wire (from {LEAD_IN_MS} ms before): {gaps}",
         cmds.len(),
         ms(t1 as i128 - t0 as i128)
     );
@@ -550,11 +556,21 @@ fn bus_down(s: &Setup) -> anyhow::Result<Attempt> {
         back_rx >= t_up,
         "tcs-loop received WheelSpeeds while the bus was down"
     );
-    // the cycles went on through the gap, in the safe state
+    // the cycles went on through the gap, in the safe state: at least half
+    // as often as in the second before it (under emulation the loop runs
+    // well below its 1 kHz: a ratio within the drive, not a rate)
     let during = cycles_in(&l.cycles, last_rx, back_rx);
+    let before = cycles_in(&l.cycles, last_rx.saturating_sub(1_000_000_000), last_rx);
+    let rate_before = before.len() as f64 / 1000.0;
+    println!(
+        "{} cycle records during the {gap:.0} ms gap ({:.2} per ms; {:.2} per ms in the second before it)",
+        during.len(),
+        during.len() as f64 / gap,
+        rate_before
+    );
     ensure!(
-        during.len() as f64 >= 0.5 * gap,
-        "only {} cycle records during the {gap:.0} ms gap",
+        during.len() as f64 >= 0.5 * rate_before * gap,
+        "only {} cycle records during the {gap:.0} ms gap: under half the loop's rate of the second before it ({rate_before:.2} per ms)",
         during.len()
     );
     let first_safe = during
