@@ -96,14 +96,8 @@ fn enabled_commands(cap: &CaptureLog, s: &Setup) -> anyhow::Result<Vec<(u64, boo
 }
 
 /// Longest gap between consecutive valid (DLC, CRC) frames of message
-/// `name` on the wire in `[t0, t1]`, ms, and where it ends.
-fn frame_gap_ms(
-    cap: &CaptureLog,
-    s: &Setup,
-    name: &str,
-    t0: u64,
-    t1: u64,
-) -> anyhow::Result<(f64, u64)> {
+/// `name` on the wire in `[t0, t1]`, ms.
+fn frame_gap_ms(cap: &CaptureLog, s: &Setup, name: &str, t0: u64, t1: u64) -> anyhow::Result<f64> {
     let m = s.dbc.by_name(name)?;
     let t: Vec<u64> = cap
         .with_id(m.id)
@@ -111,17 +105,16 @@ fn frame_gap_ms(
         .filter(|f| f.frame.len == m.dlc && f.frame.data[0] == m.expected_crc(&f.data8()))
         .map(|f| f.t_ns)
         .collect();
-    Ok(t.windows(2).fold((0.0, t0), |acc, w| {
-        let g = ms(w[1] as i128 - w[0] as i128);
-        if g > acc.0 { (g, w[1]) } else { acc }
-    }))
+    Ok(t.windows(2)
+        .map(|w| ms(w[1] as i128 - w[0] as i128))
+        .fold(0.0, f64::max))
 }
 
 /// Longest gap between consecutive WheelSpeeds frames on the wire in
 /// `[t0, t1]`, ms: a gap there is plant-sim (or the whole machine) stalled,
 /// which no fault on tcs-loop's side explains.
 fn sensor_gap_ms(cap: &CaptureLog, s: &Setup, t0: u64, t1: u64) -> anyhow::Result<f64> {
-    Ok(frame_gap_ms(cap, s, "WheelSpeeds", t0, t1)?.0)
+    frame_gap_ms(cap, s, "WheelSpeeds", t0, t1)
 }
 
 /// tcs-loop's inputs and their timeouts (config/tcs-loop.toml `[safety]`):
@@ -152,7 +145,7 @@ fn silent_input(
     let mut silent = None;
     let mut report = Vec::new();
     for (name, timeout) in INPUTS {
-        let (gap, _) = frame_gap_ms(cap, s, name, t0, t1)?;
+        let gap = frame_gap_ms(cap, s, name, t0, t1)?;
         report.push(format!("{name} {gap:.1} ms"));
         if gap >= timeout && silent.is_none() {
             silent = Some(format!(
@@ -255,8 +248,8 @@ fn bus_flood_keeps_the_loop_on_time() -> anyhow::Result<()> {
     with_attempts_in("flood", &scenario(5), flood)
 }
 
-/// `cangen IFACE -g 0 -I ID -L 8 -D DATA -p 1` (full rate: no gap; on
-/// `ENOBUFS`, a full socket send buffer, it waits up to 1 ms for room
+/// `cangen IFACE -g 0 -I ID -L 8 -D DATA -p 10` (full rate: no gap; on
+/// `ENOBUFS`, a full socket send buffer, it waits up to 10 ms for room
 /// instead of exiting) for `len`.
 fn cangen(s: &Setup, id: u32, data: &[u8; 8], len: Duration) -> anyhow::Result<(u64, u64)> {
     let hex: String = data.iter().map(|b| format!("{b:02X}")).collect();
