@@ -48,11 +48,11 @@ use std::time::Duration;
 
 use anyhow::{Context, ensure};
 use grip_msgs::CycleRecord;
-use grip_tests::hil::{self, CanCapture, Captured, Proc, RawFrame, RoadAudioPlayer, StreamCheck};
+use grip_tests::hil::{self, CanCapture, Captured, RawFrame, RoadAudioPlayer, StreamCheck};
 use grip_tests::hil_drives::{
     Attempt, INVERTER_TIMEOUT_MS, PLAYBACK, SENSOR_TIMEOUT_MS, Setup, VM_MARGIN_MS, cansend,
-    check_all_frames_valid, grip_drive, instance, ms, raw_socket, read_complete, serial, sig,
-    wait_scenario_start, wait_success, with_attempts,
+    check_all_frames_valid, drive_with, grip_drive, instance, ms, raw_socket, read_complete,
+    serial, sig, wait_scenario_start, wait_success, with_attempts,
 };
 
 /// Torque-command reaction to asphalt → snow: about 20-25 ms in the offline
@@ -363,25 +363,20 @@ fn stopped_sensor_frames_put_tcs_loop_in_its_safe_state() -> anyhow::Result<()> 
 
 fn stop_plant_sim(s: &Setup) -> anyhow::Result<Attempt> {
     let mcap = s.out.join("drive.mcap");
-    let cap = CanCapture::start(&s.iface)?;
-    let player = RoadAudioPlayer::start(PLAYBACK, &s.iface, &s.config, &s.scenario)?;
-    let mut drive = grip_drive(s, &mcap)?;
-    let run = |drive: &mut Proc| -> anyhow::Result<(u64, u64)> {
-        wait_scenario_start(s)?;
-        std::thread::sleep(Duration::from_millis(500));
-        let plant = hil::child_pid(drive.pid(), "plant-sim").context("plant-sim is not running")?;
-        hil::kill_pid(plant, libc::SIGSTOP)?;
-        let t_stop = hil::mono_ns();
-        std::thread::sleep(Duration::from_millis(300));
-        let t_cont = hil::mono_ns();
-        hil::kill_pid(plant, libc::SIGCONT)?;
-        wait_success(drive, "grip drive", Duration::from_secs(180))?;
-        Ok((t_stop, t_cont))
-    };
-    let res = run(&mut drive);
-    let cap = cap.finish()?;
-    player.finish()?;
-    let (t_stop, t_cont) = res?;
+    let ((t_stop, t_cont), cap, drive) =
+        drive_with(s, &mcap, |drive| -> anyhow::Result<(u64, u64)> {
+            wait_scenario_start(s)?;
+            std::thread::sleep(Duration::from_millis(500));
+            let plant =
+                hil::child_pid(drive.pid(), "plant-sim").context("plant-sim is not running")?;
+            hil::kill_pid(plant, libc::SIGSTOP)?;
+            let t_stop = hil::mono_ns();
+            std::thread::sleep(Duration::from_millis(300));
+            let t_cont = hil::mono_ns();
+            hil::kill_pid(plant, libc::SIGCONT)?;
+            wait_success(drive, "grip drive", Duration::from_secs(180))?;
+            Ok((t_stop, t_cont))
+        })?;
     println!("grip drive output:\n{}", drive.log_text());
 
     check_all_frames_valid(&cap, &s.dbc)?;
@@ -533,10 +528,7 @@ fn corrupt_frames(s: &Setup) -> anyhow::Result<Attempt> {
     let unknown_id = 0x7FF;
     ensure!(s.dbc.by_id(unknown_id).is_none(), "0x7FF is in the DBC");
 
-    let cap = CanCapture::start(&s.iface)?;
-    let player = RoadAudioPlayer::start(PLAYBACK, &s.iface, &s.config, &s.scenario)?;
-    let mut drive = grip_drive(s, &mcap)?;
-    let run = |drive: &mut Proc| -> anyhow::Result<(u64, u64)> {
+    let ((t0, t1), cap, drive) = drive_with(s, &mcap, |drive| -> anyhow::Result<(u64, u64)> {
         wait_scenario_start(s)?;
         std::thread::sleep(Duration::from_millis(150));
         // each kind once through can-utils' cansend, the repetitions
@@ -585,11 +577,7 @@ fn corrupt_frames(s: &Setup) -> anyhow::Result<Attempt> {
         let t1 = hil::mono_ns();
         wait_success(drive, "grip drive", Duration::from_secs(180))?;
         Ok((t0, t1))
-    };
-    let res = run(&mut drive);
-    let cap = cap.finish()?;
-    player.finish()?;
-    let (t0, t1) = res?;
+    })?;
     println!(
         "injected over {:.0} ms; grip drive output:\n{}",
         ms(t1 as i128 - t0 as i128),

@@ -34,8 +34,8 @@ use grip_tests::hil::{
     FrameCounter, MicFault, MicFaultKind, Proc, RoadAudioPlayer, StreamCheck,
 };
 use grip_tests::hil_drives::{
-    Attempt, PLAYBACK, SENSOR_TIMEOUT_MS, Setup, VM_MARGIN_MS, grip_drive, instance, ms,
-    read_complete_allowing_audio_gaps, read_complete_allowing_xruns, serial, sig,
+    Attempt, PLAYBACK, SENSOR_TIMEOUT_MS, Setup, VM_MARGIN_MS, drive_with, grip_drive, instance,
+    ms, read_complete_allowing_audio_gaps, read_complete_allowing_xruns, serial, sig,
     wait_scenario_start, wait_success, with_attempts_in,
 };
 
@@ -465,27 +465,21 @@ fn bus_down_and_up_gives_safe_state_and_recovery() -> anyhow::Result<()> {
 
 fn bus_down(s: &Setup) -> anyhow::Result<Attempt> {
     let mcap = s.out.join("drive.mcap");
-    let cap = CanCapture::start(&s.iface)?;
-    let player = RoadAudioPlayer::start(PLAYBACK, &s.iface, &s.config, &s.scenario)?;
-    let mut drive = grip_drive(s, &mcap)?;
-    let run = |drive: &mut Proc| -> anyhow::Result<(u64, u64)> {
-        wait_scenario_start(s)?;
-        std::thread::sleep(Duration::from_millis(1000));
-        let r = hil::set_link_up(&s.iface, false);
-        // once the interface is down (the ioctl may take a while under emulation)
-        let t_down = hil::mono_ns();
-        std::thread::sleep(Duration::from_millis(DOWN_MS));
-        let t_up = hil::mono_ns();
-        // up again whatever happened
-        hil::set_link_up(&s.iface, true)?;
-        r?;
-        wait_success(drive, "grip drive", Duration::from_secs(180))?;
-        Ok((t_down, t_up))
-    };
-    let res = run(&mut drive);
-    let cap = cap.finish()?;
-    player.finish()?;
-    let (t_down, t_up) = res?;
+    let ((t_down, t_up), cap, drive) =
+        drive_with(s, &mcap, |drive| -> anyhow::Result<(u64, u64)> {
+            wait_scenario_start(s)?;
+            std::thread::sleep(Duration::from_millis(1000));
+            let r = hil::set_link_up(&s.iface, false);
+            // once the interface is down (the ioctl may take a while under emulation)
+            let t_down = hil::mono_ns();
+            std::thread::sleep(Duration::from_millis(DOWN_MS));
+            let t_up = hil::mono_ns();
+            // up again whatever happened
+            hil::set_link_up(&s.iface, true)?;
+            r?;
+            wait_success(drive, "grip drive", Duration::from_secs(180))?;
+            Ok((t_down, t_up))
+        })?;
     println!("grip drive output:\n{}", drive.log_text());
     hil::require_can_iface(&s.iface)?;
     ensure!(
@@ -1184,25 +1178,19 @@ fn stalled_arte_ages_out_and_returns() -> anyhow::Result<()> {
 
 fn stall_arte(s: &Setup) -> anyhow::Result<Attempt> {
     let mcap = s.out.join("drive.mcap");
-    let cap = CanCapture::start(&s.iface)?;
-    let player = RoadAudioPlayer::start(PLAYBACK, &s.iface, &s.config, &s.scenario)?;
-    let mut drive = grip_drive(s, &mcap)?;
-    let run = |drive: &mut Proc| -> anyhow::Result<(u64, u64)> {
-        wait_scenario_start(s)?;
-        std::thread::sleep(Duration::from_millis(1000));
-        let arte = hil::child_pid(drive.pid(), "arte").context("arte is not running")?;
-        hil::kill_pid(arte, libc::SIGSTOP)?;
-        let t_stop = hil::mono_ns();
-        std::thread::sleep(Duration::from_millis(ARTE_STOP_MS));
-        let t_cont = hil::mono_ns();
-        hil::kill_pid(arte, libc::SIGCONT)?;
-        wait_success(drive, "grip drive", Duration::from_secs(180))?;
-        Ok((t_stop, t_cont))
-    };
-    let res = run(&mut drive);
-    let cap = cap.finish()?;
-    player.finish()?;
-    let (t_stop, t_cont) = res?;
+    let ((t_stop, t_cont), cap, drive) =
+        drive_with(s, &mcap, |drive| -> anyhow::Result<(u64, u64)> {
+            wait_scenario_start(s)?;
+            std::thread::sleep(Duration::from_millis(1000));
+            let arte = hil::child_pid(drive.pid(), "arte").context("arte is not running")?;
+            hil::kill_pid(arte, libc::SIGSTOP)?;
+            let t_stop = hil::mono_ns();
+            std::thread::sleep(Duration::from_millis(ARTE_STOP_MS));
+            let t_cont = hil::mono_ns();
+            hil::kill_pid(arte, libc::SIGCONT)?;
+            wait_success(drive, "grip drive", Duration::from_secs(180))?;
+            Ok((t_stop, t_cont))
+        })?;
     println!("grip drive output:\n{}", drive.log_text());
     check_frames(&cap, s)?;
     let l = read_complete_allowing_audio_gaps(

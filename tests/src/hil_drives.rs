@@ -17,8 +17,8 @@ use grip_io::mcaplog::MetadataMap;
 use grip_msgs::{CycleRecord, GroundTruth, topics};
 
 use crate::hil::{
-    self, CAN_EFF_FLAG, CAN_RTR_FLAG, CAN_SFF_MASK, CaptureLog, Captured, Dbc, HilConfig, Proc,
-    RawCanSocket, StreamCheck,
+    self, CAN_EFF_FLAG, CAN_RTR_FLAG, CAN_SFF_MASK, CanCapture, CaptureLog, Captured, Dbc,
+    HilConfig, Proc, RawCanSocket, RoadAudioPlayer, StreamCheck,
 };
 
 /// The scenario of every HIL drive (written by [`setup`] next to the drive's
@@ -153,6 +153,26 @@ pub fn instance(tag: &str) -> String {
         std::process::id(),
         hil::mono_ns() & 0xffff_ffff
     )
+}
+
+/// A `grip drive` of `s` logging to `mcap`, with the road-audio player on
+/// [`PLAYBACK`] and an independent capture of the bus around it. `during`
+/// gets the running drive and must wait for its end (e.g. with
+/// [`wait_success`]); the capture and the player are finished whatever it
+/// returns. Gives what `during` returned, the capture and the finished
+/// drive (its output for the report).
+pub fn drive_with<T>(
+    s: &Setup,
+    mcap: &Path,
+    during: impl FnOnce(&mut Proc) -> anyhow::Result<T>,
+) -> anyhow::Result<(T, CaptureLog, Proc)> {
+    let cap = CanCapture::start(&s.iface)?;
+    let player = RoadAudioPlayer::start(PLAYBACK, &s.iface, &s.config, &s.scenario)?;
+    let mut drive = grip_drive(s, mcap)?;
+    let res = during(&mut drive);
+    let cap = cap.finish()?;
+    player.finish()?;
+    Ok((res?, cap, drive))
 }
 
 /// `grip --config-dir CONFIG drive --scenario e2e --out OUT` as a child.
