@@ -35,9 +35,10 @@ use grip_tests::hil::{
 };
 use grip_tests::hil_drives::{
     Attempt, PLAYBACK, SENSOR_TIMEOUT_MS, Setup, VM_MARGIN_MS, drive_with, grip_drive, instance,
-    ms, read_complete_allowing_audio_gaps, read_complete_allowing_xruns, serial, sig,
+    ms, read_complete_allowing_audio_gaps, read_complete_allowing_xruns, serial,
     wait_scenario_start, wait_success, with_attempts_in,
 };
+use grip_tests::wire_check::{enabled_commands, input_gaps, loop_unaffected, sensor_gap_ms};
 
 /// A drive of `secs` seconds on asphalt at a constant 300 N m from 10 km/h:
 /// one road, so that every change the tests see is the fault's.
@@ -84,136 +85,6 @@ fn log_value(text: &str, key: &str) -> Option<u64> {
         .filter_map(|w| w.strip_prefix(&pat))
         .filter_map(|v| v.trim_end_matches(',').parse().ok())
         .next_back()
-}
-
-/// The enabled (controlling) TorqueCommands of the capture, (time, Nm).
-fn enabled_commands(cap: &CaptureLog, s: &Setup) -> anyhow::Result<Vec<(u64, bool)>> {
-    let id = s.dbc.by_name("TorqueCommand")?.id;
-    Ok(cap
-        .with_id(id)
-        .map(|f| (f.t_ns, sig(&s.dbc, "TorqueCommand", "Enable", f) == 1.0))
-        .collect())
-}
-
-/// Longest gap between consecutive valid (DLC, CRC) frames of message
-/// `name` on the wire in `[t0, t1]`, ms.
-fn frame_gap_ms(cap: &CaptureLog, s: &Setup, name: &str, t0: u64, t1: u64) -> anyhow::Result<f64> {
-    let m = s.dbc.by_name(name)?;
-    let t: Vec<u64> = cap
-        .with_id(m.id)
-        .filter(|f| f.t_ns >= t0 && f.t_ns <= t1)
-        .filter(|f| f.frame.len == m.dlc && f.frame.data[0] == m.expected_crc(&f.data8()))
-        .map(|f| f.t_ns)
-        .collect();
-    Ok(t.windows(2)
-        .map(|w| ms(w[1] as i128 - w[0] as i128))
-        .fold(0.0, f64::max))
-}
-
-/// Longest gap between consecutive WheelSpeeds frames on the wire in
-/// `[t0, t1]`, ms: a gap there is plant-sim (or the whole machine) stalled,
-/// which no fault on tcs-loop's side explains.
-fn sensor_gap_ms(cap: &CaptureLog, s: &Setup, t0: u64, t1: u64) -> anyhow::Result<f64> {
-    frame_gap_ms(cap, s, "WheelSpeeds", t0, t1)
-}
-
-/// tcs-loop's inputs and their timeouts (config/tcs-loop.toml `[safety]`):
-/// WheelSpeeds and MotorStatus `sensor_timeout_ms`, DriverDemand
-/// `demand_timeout_ms`.
-const INPUTS: [(&str, f64); 3] = [
-    ("WheelSpeeds", SENSOR_TIMEOUT_MS),
-    ("MotorStatus", SENSOR_TIMEOUT_MS),
-    ("DriverDemand", DEMAND_TIMEOUT_MS),
-];
-/// How far before a window of [`loop_unaffected`] an input's silence is
-/// looked for: the safe state outlasts it by [`RECOVER_MS`] and more under
-/// emulation.
-const LEAD_IN_MS: f64 = 200.0;
-/// tcs-loop's `[safety] demand_timeout_ms` (config/tcs-loop.toml).
-const DEMAND_TIMEOUT_MS: f64 = 50.0;
-
-/// The first of tcs-loop's inputs that was silent on the wire in `[t0, t1]`
-/// for at least its timeout (a stall of plant-sim or of the machine,
-/// which no fault on tcs-loop's side explains), and each input's longest
-/// gap for the report.
-fn silent_input(
-    cap: &CaptureLog,
-    s: &Setup,
-    t0: u64,
-    t1: u64,
-) -> anyhow::Result<(Option<String>, String)> {
-    let mut silent = None;
-    let mut report = Vec::new();
-    for (name, timeout) in INPUTS {
-        let gap = frame_gap_ms(cap, s, name, t0, t1)?;
-        report.push(format!("{name} {gap:.1} ms"));
-        if gap >= timeout && silent.is_none() {
-            silent = Some(format!(
-                "{name} silent {gap:.1} ms on the wire (timeout {timeout} ms)"
-            ));
-        }
-    }
-    Ok((silent, report.join(", ")))
-}
-
-/// The loop from outside, over `[t0, t1]`: every command enabled (no safe
-/// state) and none more than [`VM_MARGIN_MS`] after the one before. A
-/// safe state its inputs' own silence on the wire explains (a stall of
-/// the machine: one of [`INPUTS`] missing for its timeout or more) makes
-/// the drive disturbed; one without is a failure.
-fn loop_unaffected(
-    cap: &CaptureLog,
-    s: &Setup,
-    t0: u64,
-    t1: u64,
-    what: &str,
-) -> anyhow::Result<Option<String>> {
-    let cmds: Vec<(u64, bool)> = enabled_commands(cap, s)?
-        .into_iter()
-        .filter(|&(t, _)| t >= t0 && t <= t1)
-        .collect();
-    ensure!(
-        cmds.len() > 10,
-        "{what}: only {} TorqueCommands on the wire in the {:.0} ms around it",
-        cmds.len(),
-        ms(t1 as i128 - t0 as i128)
-    );
-    let max_gap = cmds
-        .windows(2)
-        .map(|w| ms(w[1].0 as i128 - w[0].0 as i128))
-        .fold(0.0, f64::max);
-    let disabled = cmds.iter().filter(|c| !c.1).count();
-    // a safe state lasts RECOVER_MS past its cause: a gap up to LEAD_IN_MS
-    // before the window explains a disabled command early in it
-    let (silent, gaps) = silent_input(cap, s, t0.saturating_sub(ns(LEAD_IN_MS)), t1)?;
-    println!(
-        "{what}: {} commands on the wire in {:.0} ms, longest gap {max_gap:.1} ms, {disabled} disabled (safe state); longest input gaps on the wire (from {LEAD_IN_MS} ms before): {gaps}",
-        cmds.len(),
-        ms(t1 as i128 - t0 as i128)
-    );
-    if let Some(&(t, _)) = cmds.iter().find(|c| !c.1) {
-        // what tcs-loop saw before its safe state: the inputs over the
-        // 100 ms before the first disabled command
-        let (_, before) = silent_input(cap, s, t.saturating_sub(100_000_000), t)?;
-        println!(
-            "{what}: first disabled command {:.1} ms into the window; input gaps in the 100 ms before it: {before}",
-            ms(t as i128 - t0 as i128)
-        );
-    }
-    if (disabled > 0 || max_gap > VM_MARGIN_MS)
-        && let Some(silent) = silent
-    {
-        return Ok(Some(format!("{what}: {silent} (a stall of the machine)")));
-    }
-    ensure!(
-        disabled == 0,
-        "{what}: tcs-loop sent {disabled} disabled commands (safe state) though the sensors never paused"
-    );
-    ensure!(
-        max_gap <= VM_MARGIN_MS,
-        "{what}: {max_gap:.1} ms between two commands, bound {VM_MARGIN_MS} ms"
-    );
-    Ok(None)
 }
 
 /// Cycles with stamps in `[t0, t1)`.
@@ -445,7 +316,7 @@ fn flood(s: &Setup) -> anyhow::Result<Attempt> {
             100.0 * bound,
             100.0 * quiet_share
         );
-        if let Some(r) = loop_unaffected(&cap, s, t0, t1, &format!("{what} flood"))? {
+        if let Some(r) = loop_unaffected(&cap, &s.dbc, t0, t1, &format!("{what} flood"))? {
             return Ok(Attempt::Disturbed(r));
         }
     }
@@ -593,7 +464,7 @@ fn bus_down(s: &Setup) -> anyhow::Result<Attempt> {
         .iter()
         .find(|c| c.stamp_ns > back_rx && c.safe_state == 0)
     else {
-        let clean = sensor_gap_ms(&cap, s, t_up, t_up + 500_000_000)?;
+        let clean = sensor_gap_ms(&cap, &s.dbc, t_up, t_up + 500_000_000)?;
         if clean >= SENSOR_TIMEOUT_MS {
             return Ok(Attempt::Disturbed(format!(
                 "after the bus came up the sensor frames paused {clean:.1} ms (a stall)"
@@ -611,7 +482,7 @@ fn bus_down(s: &Setup) -> anyhow::Result<Attempt> {
         "tcs-loop left its safe state {rec_ms:.1} ms after the frames came back, before recover_ms {RECOVER_MS}"
     );
     if rec_ms > rbound {
-        let clean = sensor_gap_ms(&cap, s, back_rx, rec.stamp_ns)?;
+        let clean = sensor_gap_ms(&cap, &s.dbc, back_rx, rec.stamp_ns)?;
         if clean >= SENSOR_TIMEOUT_MS {
             return Ok(Attempt::Disturbed(format!(
                 "recovery {rec_ms:.1} ms, but the sensor frames paused {clean:.1} ms after the bus came up"
@@ -800,8 +671,8 @@ fn kill_recorder(s: &Setup) -> anyhow::Result<Attempt> {
     );
     // the restart, reported: the inputs on the wire and the commands in the
     // second after the new recorder was started
-    let (_, gaps) = silent_input(&cap, s, t_start, t_start + 1_000_000_000)?;
-    let after: Vec<(u64, bool)> = enabled_commands(&cap, s)?
+    let gaps = input_gaps(&cap, &s.dbc, t_start, t_start + 1_000_000_000)?;
+    let after: Vec<(u64, bool)> = enabled_commands(&cap, &s.dbc)?
         .into_iter()
         .filter(|&(t, _)| t >= t_start && t <= t_start + 1_000_000_000)
         .collect();
@@ -812,7 +683,7 @@ fn kill_recorder(s: &Setup) -> anyhow::Result<Attempt> {
     );
     if let Some(r) = loop_unaffected(
         &cap,
-        s,
+        &s.dbc,
         t_kill - 500_000_000,
         t_kill + ns(RESTART_MS as f64),
         "recorder kill",
@@ -945,7 +816,7 @@ fn full_disk_on(s: &Setup, disk: &Path) -> anyhow::Result<Attempt> {
     commands_all_on_the_wire(&tcs_log, &cap, s)?;
     if let Some(r) = loop_unaffected(
         &cap,
-        s,
+        &s.dbc,
         t_fill,
         t_end.min(last + 1_500_000_000),
         "full disk",

@@ -2,3 +2,4 @@
 #![warn(missing_docs)]
 pub mod hil;
 pub mod hil_drives;
+pub mod wire_check;

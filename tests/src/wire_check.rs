@@ -1,0 +1,311 @@
+//! The control loop judged from outside, on the wire: tcs-loop's
+//! TorqueCommands and its inputs as a [`CaptureLog`] of `vcan0` holds them.
+//! Used by the HIL fault matrix (`tests/hil_faults.rs`) to tell a fault that
+//! reached the loop from a stall of the emulated machine, which silences
+//! the loop's inputs first.
+
+use anyhow::{Context, ensure};
+
+use crate::hil::{CaptureLog, Dbc};
+use crate::hil_drives::{SENSOR_TIMEOUT_MS, VM_MARGIN_MS, ms, sig};
+
+fn ns(ms: f64) -> u64 {
+    (ms * 1e6) as u64
+}
+
+/// The enabled (controlling) TorqueCommands of the capture, (time, Nm).
+pub fn enabled_commands(cap: &CaptureLog, dbc: &Dbc) -> anyhow::Result<Vec<(u64, bool)>> {
+    let id = dbc.by_name("TorqueCommand")?.id;
+    Ok(cap
+        .with_id(id)
+        .map(|f| (f.t_ns, sig(dbc, "TorqueCommand", "Enable", f) == 1.0))
+        .collect())
+}
+
+/// The times of consecutive valid (DLC, CRC) frames of message `name` on
+/// the wire in `[t0, t1]`, as (before, after) pairs.
+pub fn frame_gaps(
+    cap: &CaptureLog,
+    dbc: &Dbc,
+    name: &str,
+    t0: u64,
+    t1: u64,
+) -> anyhow::Result<Vec<(u64, u64)>> {
+    let m = dbc.by_name(name)?;
+    let t: Vec<u64> = cap
+        .with_id(m.id)
+        .filter(|f| f.t_ns >= t0 && f.t_ns <= t1)
+        .filter(|f| f.frame.len == m.dlc && f.frame.data[0] == m.expected_crc(&f.data8()))
+        .map(|f| f.t_ns)
+        .collect();
+    Ok(t.windows(2).map(|w| (w[0], w[1])).collect())
+}
+
+/// Longest gap between consecutive valid (DLC, CRC) frames of message
+/// `name` on the wire in `[t0, t1]`, ms.
+pub fn frame_gap_ms(
+    cap: &CaptureLog,
+    dbc: &Dbc,
+    name: &str,
+    t0: u64,
+    t1: u64,
+) -> anyhow::Result<f64> {
+    Ok(frame_gaps(cap, dbc, name, t0, t1)?
+        .iter()
+        .map(|&(a, b)| ms(b as i128 - a as i128))
+        .fold(0.0, f64::max))
+}
+
+/// Longest gap between consecutive WheelSpeeds frames on the wire in
+/// `[t0, t1]`, ms: a gap there is plant-sim (or the whole machine) stalled,
+/// which no fault on tcs-loop's side explains.
+pub fn sensor_gap_ms(cap: &CaptureLog, dbc: &Dbc, t0: u64, t1: u64) -> anyhow::Result<f64> {
+    frame_gap_ms(cap, dbc, "WheelSpeeds", t0, t1)
+}
+
+/// tcs-loop's inputs and their timeouts (config/tcs-loop.toml `[safety]`):
+/// WheelSpeeds and MotorStatus `sensor_timeout_ms`, DriverDemand
+/// `demand_timeout_ms`.
+pub const INPUTS: [(&str, f64); 3] = [
+    ("WheelSpeeds", SENSOR_TIMEOUT_MS),
+    ("MotorStatus", SENSOR_TIMEOUT_MS),
+    ("DriverDemand", DEMAND_TIMEOUT_MS),
+];
+/// How far before a window of [`loop_unaffected`] an input's silence is
+/// looked for: the safe state outlasts it by [`RECOVER_MS`] and more under
+/// emulation.
+pub const LEAD_IN_MS: f64 = 200.0;
+/// tcs-loop's `[safety] demand_timeout_ms` (config/tcs-loop.toml).
+pub const DEMAND_TIMEOUT_MS: f64 = 50.0;
+
+/// Each of tcs-loop's [`INPUTS`] with its longest gap on the wire in
+/// `[t0, t1]`, for the report.
+pub fn input_gaps(cap: &CaptureLog, dbc: &Dbc, t0: u64, t1: u64) -> anyhow::Result<String> {
+    let mut report = Vec::new();
+    for (name, _) in INPUTS {
+        let gap = frame_gap_ms(cap, dbc, name, t0, t1)?;
+        report.push(format!("{name} {gap:.1} ms"));
+    }
+    Ok(report.join(", "))
+}
+
+/// The first of tcs-loop's [`INPUTS`] silent on the wire for at least its
+/// timeout in a gap that overlaps `[t0, t1]`: what explains a safe state
+/// or a pause of the loop there (a stall of plant-sim or of the machine).
+pub fn silence_overlapping(
+    cap: &CaptureLog,
+    dbc: &Dbc,
+    t0: u64,
+    t1: u64,
+) -> anyhow::Result<Option<String>> {
+    // a gap that overlaps [t0, t1] has its first frame before t1 and its
+    // second after t0; look a timeout's worth further out on each side
+    let pad = ns(DEMAND_TIMEOUT_MS * 2.0);
+    for (name, timeout) in INPUTS {
+        let gaps = frame_gaps(cap, dbc, name, t0.saturating_sub(pad), t1 + pad)?;
+        if let Some(&(a, b)) = gaps
+            .iter()
+            .find(|&&(a, b)| a <= t1 && b >= t0 && ms(b as i128 - a as i128) >= timeout)
+        {
+            return Ok(Some(format!(
+                "{name} silent {:.1} ms on the wire (timeout {timeout} ms)",
+                ms(b as i128 - a as i128)
+            )));
+        }
+    }
+    Ok(None)
+}
+
+/// Share of a window's commands that must be enabled for the window to say
+/// anything about the loop; below it, stalls of the machine (each one
+/// explained) took too much of it and the drive counts as disturbed.
+pub const MIN_ENABLED_SHARE: f64 = 0.8;
+
+/// The loop from outside, over `[t0, t1]`: every command enabled (no safe
+/// state) and none more than [`VM_MARGIN_MS`] after the one before, except
+/// where tcs-loop's own inputs explain it. Each safe state (a run of
+/// disabled commands) must follow one of [`INPUTS`] silent on the wire
+/// for its timeout or more, in the [`LEAD_IN_MS`] before its first
+/// disabled command (a stall of plant-sim or of the machine: the loop then
+/// does what it must); each pause between commands longer than
+/// [`VM_MARGIN_MS`] must overlap such a silence. One that nothing on the
+/// wire explains is a failure: the fault reached the loop. If explained
+/// safe states leave less than [`MIN_ENABLED_SHARE`] of the window's
+/// commands enabled, the drive is disturbed (retried).
+pub fn loop_unaffected(
+    cap: &CaptureLog,
+    dbc: &Dbc,
+    t0: u64,
+    t1: u64,
+    what: &str,
+) -> anyhow::Result<Option<String>> {
+    let cmds: Vec<(u64, bool)> = enabled_commands(cap, dbc)?
+        .into_iter()
+        .filter(|&(t, _)| t >= t0 && t <= t1)
+        .collect();
+    ensure!(
+        cmds.len() > 10,
+        "{what}: only {} TorqueCommands on the wire in the {:.0} ms around it",
+        cmds.len(),
+        ms(t1 as i128 - t0 as i128)
+    );
+    let max_gap = cmds
+        .windows(2)
+        .map(|w| ms(w[1].0 as i128 - w[0].0 as i128))
+        .fold(0.0, f64::max);
+    let disabled = cmds.iter().filter(|c| !c.1).count();
+    let gaps = input_gaps(cap, dbc, t0.saturating_sub(ns(LEAD_IN_MS)), t1)?;
+    println!(
+        "{what}: {} commands on the wire in {:.0} ms, longest gap {max_gap:.1} ms, {disabled} disabled (safe state); longest input gaps on the wire (from {LEAD_IN_MS} ms before): {gaps}",
+        cmds.len(),
+        ms(t1 as i128 - t0 as i128)
+    );
+    // each safe state: its first disabled command, explained or not
+    let mut explained = Vec::new();
+    for (k, &(t, on)) in cmds.iter().enumerate() {
+        if on || (k > 0 && !cmds[k - 1].1) {
+            continue;
+        }
+        // what tcs-loop saw before its safe state: the inputs over the
+        // 100 ms before the first disabled command
+        let before = input_gaps(cap, dbc, t.saturating_sub(100_000_000), t)?;
+        let why = silence_overlapping(cap, dbc, t.saturating_sub(ns(LEAD_IN_MS)), t)?;
+        println!(
+            "{what}: safe state from {:.1} ms into the window; input gaps in the 100 ms before it: {before}; {}",
+            ms(t as i128 - t0 as i128),
+            why.as_deref().unwrap_or("nothing on the wire explains it")
+        );
+        let why = why.with_context(|| {
+            format!(
+                "{what}: tcs-loop went to its safe state {:.1} ms into the window though none of its inputs was silent for its timeout in the {LEAD_IN_MS} ms before",
+                ms(t as i128 - t0 as i128)
+            )
+        })?;
+        explained.push(why);
+    }
+    for w in cmds.windows(2) {
+        let g = ms(w[1].0 as i128 - w[0].0 as i128);
+        if g <= VM_MARGIN_MS {
+            continue;
+        }
+        let why = silence_overlapping(cap, dbc, w[0].0, w[1].0)?.with_context(|| {
+            format!(
+                "{what}: {g:.1} ms between two commands (bound {VM_MARGIN_MS} ms) and none of tcs-loop's inputs silent for its timeout meanwhile"
+            )
+        })?;
+        println!("{what}: {g:.1} ms between two commands; {why}");
+        explained.push(why);
+    }
+    let share = 1.0 - disabled as f64 / cmds.len() as f64;
+    if share < MIN_ENABLED_SHARE {
+        return Ok(Some(format!(
+            "{what}: only {:.0} % of the commands enabled, each safe state explained by a stall of the machine ({})",
+            share * 100.0,
+            explained.join("; ")
+        )));
+    }
+    Ok(None)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::hil::{Captured, RawFrame};
+
+    fn dbc() -> Dbc {
+        Dbc::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/inverter.dbc"))
+            .unwrap()
+    }
+
+    /// A 1 s capture as the DBC's cycle times make it: WheelSpeeds,
+    /// MotorStatus and a TorqueCommand every 1 ms, DriverDemand every 10 ms (enabled unless `disabled`
+    /// says so); WheelSpeeds left out over `ws_silent` (ms).
+    fn capture(dbc: &Dbc, ws_silent: (u64, u64), disabled: (u64, u64)) -> CaptureLog {
+        let frame = |name: &str, vals: &[(&str, f64)], k: u64, t_ms: u64| {
+            let m = dbc.by_name(name).unwrap();
+            let d = m.encode(vals, (k % 16) as u8).unwrap();
+            Captured {
+                t_ns: t_ms * 1_000_000,
+                frame: RawFrame::new(m.id, &d[..m.dlc as usize]).unwrap(),
+            }
+        };
+        let mut frames = Vec::new();
+        for t in 0..1000u64 {
+            if !(ws_silent.0..ws_silent.1).contains(&t) {
+                frames.push(frame("WheelSpeeds", &[], t, t));
+            }
+            frames.push(frame("MotorStatus", &[], t, t));
+            if t % 10 == 0 {
+                frames.push(frame("DriverDemand", &[("TorqueDemand", 300.0)], t, t));
+            }
+            let on = !(disabled.0..disabled.1).contains(&t);
+            frames.push(frame(
+                "TorqueCommand",
+                &[("Enable", if on { 1.0 } else { 0.0 })],
+                t,
+                t,
+            ));
+        }
+        CaptureLog { frames, dropped: 0 }
+    }
+
+    const T1: u64 = 999_000_000;
+
+    #[test]
+    fn a_quiet_loop_is_unaffected() {
+        let d = dbc();
+        let cap = capture(&d, (0, 0), (0, 0));
+        assert_eq!(loop_unaffected(&cap, &d, 0, T1, "t").unwrap(), None);
+    }
+
+    #[test]
+    fn a_safe_state_after_silent_sensors_is_explained() {
+        let d = dbc();
+        // WheelSpeeds missing for 30 ms, safe state from 15 ms after it stopped
+        let cap = capture(&d, (400, 430), (425, 480));
+        assert_eq!(loop_unaffected(&cap, &d, 0, T1, "t").unwrap(), None);
+    }
+
+    #[test]
+    fn a_safe_state_nothing_on_the_wire_explains_fails() {
+        let d = dbc();
+        let cap = capture(&d, (0, 0), (425, 480));
+        let e = loop_unaffected(&cap, &d, 0, T1, "t").unwrap_err();
+        assert!(e.to_string().contains("safe state"), "{e}");
+    }
+
+    #[test]
+    fn a_silence_elsewhere_does_not_explain_a_safe_state() {
+        let d = dbc();
+        // sensors silent 300 ms before the safe state: more than LEAD_IN_MS
+        let cap = capture(&d, (100, 130), (430, 480));
+        assert!(loop_unaffected(&cap, &d, 0, T1, "t").is_err());
+    }
+
+    #[test]
+    fn mostly_safe_state_is_a_disturbed_window() {
+        let d = dbc();
+        // explained, but 30 % of the window disabled
+        let cap = capture(&d, (100, 130), (125, 425));
+        let r = loop_unaffected(&cap, &d, 0, T1, "t").unwrap();
+        assert!(r.is_some_and(|r| r.contains("enabled")));
+    }
+
+    #[test]
+    fn a_pause_of_the_loop_needs_its_inputs_silent_too() {
+        let d = dbc();
+        let tc = d.by_name("TorqueCommand").unwrap().id;
+        let pause = |mut cap: CaptureLog| {
+            // no command for 150 ms (more than VM_MARGIN_MS)
+            cap.frames
+                .retain(|f| !(f.id() == tc && (400_000_000..550_000_000).contains(&f.t_ns)));
+            cap
+        };
+        let alone = pause(capture(&d, (0, 0), (0, 0)));
+        let e = loop_unaffected(&alone, &d, 0, T1, "t").unwrap_err();
+        assert!(e.to_string().contains("between two commands"), "{e}");
+        // the whole machine stalled: the sensors paused with it
+        let stalled = pause(capture(&d, (400, 550), (0, 0)));
+        assert_eq!(loop_unaffected(&stalled, &d, 0, T1, "t").unwrap(), None);
+    }
+}
