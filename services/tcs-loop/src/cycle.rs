@@ -4,8 +4,8 @@
 //! A cycle, in this order:
 //! 1. **Drain CAN** (non-blocking, at most [`MAX_RX_PER_CYCLE`] frames): each
 //!    frame goes through `ProtocolRx::for_tcs()` (length, CRC, alive counter,
-//!    unknown id; faults counted) and is copied to `CAN_LOG` (direction RX,
-//!    flag `E2E_REJECTED` when rejected). Accepted frames update the latest
+//!    unknown id; faults counted) and is held for `CAN_LOG` (direction RX,
+//!    flag `E2E_REJECTED` when rejected; logged in step 5). Accepted frames update the latest
 //!    `WheelSpeeds`, `MotorStatus`, `VehicleSpeed`, `DriverDemand`.
 //! 2. **Road**: the newest `RoadEstimate` (latest value wins) replaces the
 //!    held one; its age is `now − stamp_ns` (both CLOCK_MONOTONIC).
@@ -31,8 +31,13 @@
 //!    road and a torque cap, and the command is `min(T*, cap)`.
 //!    With `TcsEnable` = 0 the demand is passed through unchanged. A
 //!    non-finite controller output is sent as 0 N m.
-//! 5. **Send** `TorqueCommand` (E2E counter + CRC) and copy it to `CAN_LOG`
-//!    (direction TX).
+//! 5. **Send** `TorqueCommand` (E2E counter + CRC); then copy the cycle's
+//!    received frames and the command (direction TX) to `CAN_LOG`, in bus
+//!    order. Nothing is published before the command is on the bus: a
+//!    publish can stall while iceoryx2 (0.10) sets up the connection to a
+//!    new subscriber inside its send (a recorder starting or restarting:
+//!    0.1-0.3 ms natively, 10-20 ms under emulation; `grip-io`'s
+//!    `subscriber_churn` bench), and that must not delay the command.
 //! 6. **Publish** the `CycleRecord` (with the odometer, integral of the
 //!    measured speed V, else r·ω; the cap and the believed road with ARTE;
 //!    `road_taken`, which estimate step 2 took, so that `grip replay` can
@@ -168,6 +173,11 @@ pub struct TcsLoop {
     can_rx: u64,
     seq: u64,
     record: CycleRecord,
+    /// This cycle's received frames, held for `CAN_LOG` until the command
+    /// is on the bus (step 5): publishing can stall (a new subscriber's
+    /// connection is set up inside iceoryx2's send), the command must not.
+    rx_log: [CanFrame; MAX_RX_PER_CYCLE],
+    rx_log_len: usize,
     status: Arc<SharedStatus>,
 }
 
@@ -224,6 +234,8 @@ impl TcsLoop {
             can_rx: 0,
             seq: 0,
             record: CycleRecord::zeroed(),
+            rx_log: [CanFrame::default(); MAX_RX_PER_CYCLE],
+            rx_log_len: 0,
             status: Arc::new(SharedStatus {
                 safe_state: AtomicBool::new(true),
                 ..SharedStatus::default()
@@ -346,7 +358,7 @@ impl TcsLoop {
         }
     }
 
-    fn on_frame<S: RecordSink>(&mut self, frame: &CanFrame, now: u64, sink: &mut S) {
+    fn on_frame(&mut self, frame: &CanFrame, now: u64) {
         let mut logged = *frame;
         logged.direction = can_dir::RX;
         match self.rx.receive(frame, now) {
@@ -366,7 +378,11 @@ impl TcsLoop {
             Ok(None) => {}
             Err(_) => logged.flags |= can_flags::E2E_REJECTED,
         }
-        sink.can(&logged);
+        // at most MAX_RX_PER_CYCLE frames are drained per cycle
+        if let Some(slot) = self.rx_log.get_mut(self.rx_log_len) {
+            *slot = logged;
+            self.rx_log_len += 1;
+        }
     }
 
     /// One cycle at `tick` (see the module docs). `clock` gives "now" for
@@ -388,7 +404,7 @@ impl TcsLoop {
             match bus.try_recv() {
                 Ok(Some(f)) => {
                     self.can_rx += 1;
-                    self.on_frame(&f, now, sink);
+                    self.on_frame(&f, now);
                 }
                 Ok(None) => break,
                 Err(_) => {
@@ -513,6 +529,12 @@ impl TcsLoop {
             now,
         );
         self.send(bus, &frame);
+        // then the log: this cycle's received frames and the command, in
+        // bus order
+        for f in &self.rx_log[..self.rx_log_len] {
+            sink.can(f);
+        }
+        self.rx_log_len = 0;
         sink.can(&frame);
 
         // 6. record

@@ -572,3 +572,99 @@ fn snow_heard_ahead_caps_the_torque_before_the_wheel_gets_there() {
         );
     }
 }
+
+/// A bus that counts the frames sent on it, shared with [`OrderSink`].
+struct CountingBus {
+    inner: MemBus,
+    sent: std::rc::Rc<std::cell::Cell<u64>>,
+}
+
+impl grip_io::can::CanBus for CountingBus {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), grip_io::can::CanError> {
+        self.sent.set(self.sent.get() + 1);
+        self.inner.send(frame)
+    }
+    fn try_recv(&mut self) -> Result<Option<CanFrame>, grip_io::can::CanError> {
+        self.inner.try_recv()
+    }
+    fn recv_timeout(
+        &mut self,
+        timeout: std::time::Duration,
+    ) -> Result<Option<CanFrame>, grip_io::can::CanError> {
+        self.inner.recv_timeout(timeout)
+    }
+    fn kind(&self) -> grip_io::can::BusKind {
+        self.inner.kind()
+    }
+}
+
+/// Each CAN-log copy with the bus's sent count when it was made.
+struct OrderSink {
+    sent: std::rc::Rc<std::cell::Cell<u64>>,
+    log: Vec<(u8, u32, u64)>,
+}
+
+impl grip_tcs_loop::RecordSink for OrderSink {
+    fn cycle(&mut self, _: &CycleRecord) {}
+    fn can(&mut self, f: &CanFrame) {
+        self.log.push((f.direction, f.id, self.sent.get()));
+    }
+}
+
+#[test]
+fn the_command_goes_out_before_anything_is_published() {
+    // Publishing can stall (iceoryx2 connects a new subscriber, e.g. a
+    // recorder starting, inside its send): the cycle's received frames are
+    // logged after the command is on the bus, still in bus order.
+    let sent = std::rc::Rc::new(std::cell::Cell::new(0));
+    let mut bus = CountingBus {
+        inner: MemBus::new(),
+        sent: sent.clone(),
+    };
+    let mut sink = OrderSink {
+        sent: sent.clone(),
+        log: Vec::new(),
+    };
+    let clock = ManualClock::new(T0);
+    let mut lp = TcsLoop::new(
+        ControllerKind::Mfc,
+        false,
+        &ControllersConfig::default(),
+        &VehicleParams::default(),
+        &SafetyConfig::default(),
+    )
+    .unwrap();
+    let mut feed = Feeder::new();
+    for k in 0..100u64 {
+        let now = clock.now_ns();
+        bus.inner.inject(feed.ws_frame(now));
+        bus.inner.inject(feed.ms_frame(now));
+        if k % 10 == 0 {
+            bus.inner.inject(feed.dd_frame(now));
+        }
+        let before = sent.get();
+        sink.log.clear();
+        lp.cycle(
+            &CycleTick::at(now),
+            &clock,
+            &mut bus,
+            &mut NoRoad,
+            &mut sink,
+        );
+        assert_eq!(sent.get(), before + 1, "one command per cycle");
+        let rx = if k % 10 == 0 { 3 } else { 2 };
+        assert_eq!(sink.log.len(), rx + 1, "cycle {k}: {:?}", sink.log);
+        // every copy made after the command was sent
+        assert!(
+            sink.log.iter().all(|&(_, _, n)| n == before + 1),
+            "cycle {k}: a CAN-log copy before the command went out: {:?}",
+            sink.log
+        );
+        // bus order: the received frames, then the command
+        let dirs: Vec<u8> = sink.log.iter().map(|e| e.0).collect();
+        assert!(dirs[..rx].iter().all(|&d| d == grip_msgs::can_dir::RX));
+        assert_eq!(dirs[rx], grip_msgs::can_dir::TX);
+        assert_eq!(sink.log[rx].1, 0x100);
+        clock.advance_ns(MS);
+    }
+}
