@@ -36,7 +36,7 @@
 //!    order. Nothing is published before the command is on the bus: a
 //!    publish can stall while iceoryx2 (0.10) sets up the connection to a
 //!    new subscriber inside its send (a recorder starting or restarting:
-//!    0.1-0.3 ms natively, 10-20 ms under emulation; `grip-io`'s
+//!    0.1-0.2 ms natively, 10-20 ms under emulation; `grip-io`'s
 //!    `subscriber_churn` bench), and that must not delay the command.
 //! 6. **Publish** the `CycleRecord` (with the odometer, integral of the
 //!    measured speed V, else r·ω; the cap and the believed road with ARTE;
