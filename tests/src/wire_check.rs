@@ -6,6 +6,8 @@
 
 use anyhow::{Context, ensure};
 
+use grip_msgs::{CanFrame, CycleRecord, can_dir, can_flags};
+
 use crate::hil::{CaptureLog, Dbc};
 use crate::hil_drives::{SENSOR_TIMEOUT_MS, VM_MARGIN_MS, ms, sig};
 
@@ -116,6 +118,59 @@ pub fn silence_overlapping(
     Ok(None)
 }
 
+/// What tcs-loop itself saw, from its drive log: its CAN log (on SocketCAN
+/// a received frame's `stamp_ns` is the time the loop read it) and its
+/// cycle records.
+#[derive(Debug, Clone, Copy)]
+pub struct LoopLog<'a> {
+    /// tcs-loop's `CAN_LOG` copies.
+    pub can: &'a [CanFrame],
+    /// tcs-loop's cycle records.
+    pub cycles: &'a [CycleRecord],
+}
+
+/// The first of tcs-loop's [`INPUTS`] that reached the loop (read times in
+/// its CAN log) at least its timeout apart, in a gap overlapping `[t0,
+/// t1]`, while the loop's cycles kept running through the gap (at least
+/// half of its 1 ms cycles have records there): the frames were on the
+/// wire but the kernel delivered them late (its network processing
+/// stalled), which no fault on the loop's side explains either. A loop
+/// that itself stalled has no cycle records in the gap and is not excused.
+pub fn late_delivery(log: &LoopLog, dbc: &Dbc, t0: u64, t1: u64) -> anyhow::Result<Option<String>> {
+    let pad = ns(DEMAND_TIMEOUT_MS * 2.0);
+    for (name, timeout) in INPUTS {
+        let id = dbc.by_name(name)?.id;
+        let mut prev: Option<u64> = None;
+        for f in log.can.iter().filter(|f| {
+            f.id == id
+                && f.direction == can_dir::RX
+                && f.flags & can_flags::E2E_REJECTED == 0
+                && f.stamp_ns + pad >= t0
+                && f.stamp_ns <= t1 + pad
+        }) {
+            let b = f.stamp_ns;
+            if let Some(a) = prev.replace(b)
+                && a <= t1
+                && b >= t0
+                && ms(b as i128 - a as i128) >= timeout
+            {
+                let gap = ms(b as i128 - a as i128);
+                let ran = log
+                    .cycles
+                    .iter()
+                    .filter(|c| c.stamp_ns > a && c.stamp_ns < b)
+                    .count();
+                if ran as f64 >= 0.5 * gap {
+                    return Ok(Some(format!(
+                        "{name} reached tcs-loop {gap:.1} ms apart (timeout {timeout} ms) while it ran {ran} cycles: on the wire in time, delivered late by the kernel"
+                    )));
+                }
+            }
+        }
+    }
+    Ok(None)
+}
+
 /// Share of a window's commands that must be enabled for the window to say
 /// anything about the loop; below it, stalls of the machine (each one
 /// explained) took too much of it and the drive counts as disturbed.
@@ -128,13 +183,16 @@ pub const MIN_ENABLED_SHARE: f64 = 0.8;
 /// for its timeout or more, in the [`LEAD_IN_MS`] before its first
 /// disabled command (a stall of plant-sim or of the machine: the loop then
 /// does what it must); each pause between commands longer than
-/// [`VM_MARGIN_MS`] must overlap such a silence. One that nothing on the
-/// wire explains is a failure: the fault reached the loop. If explained
+/// [`VM_MARGIN_MS`] must overlap such a silence. With the loop's own
+/// `log`, a safe state also counts as explained when its inputs reached
+/// the loop late while it kept cycling ([`late_delivery`]). One that
+/// nothing explains is a failure: the fault reached the loop. If explained
 /// safe states leave less than [`MIN_ENABLED_SHARE`] of the window's
 /// commands enabled, the drive is disturbed (retried).
 pub fn loop_unaffected(
     cap: &CaptureLog,
     dbc: &Dbc,
+    log: Option<&LoopLog>,
     t0: u64,
     t1: u64,
     what: &str,
@@ -169,7 +227,14 @@ pub fn loop_unaffected(
         // what tcs-loop saw before its safe state: the inputs over the
         // 100 ms before the first disabled command
         let before = input_gaps(cap, dbc, t.saturating_sub(100_000_000), t)?;
-        let why = silence_overlapping(cap, dbc, t.saturating_sub(ns(LEAD_IN_MS)), t)?;
+        let from = t.saturating_sub(ns(LEAD_IN_MS));
+        let why = match silence_overlapping(cap, dbc, from, t)? {
+            Some(w) => Some(w),
+            None => match log {
+                Some(l) => late_delivery(l, dbc, from, t)?,
+                None => None,
+            },
+        };
         println!(
             "{what}: safe state from {:.1} ms into the window; input gaps in the 100 ms before it: {before}; {}",
             ms(t as i128 - t0 as i128),
@@ -255,7 +320,7 @@ mod tests {
     fn a_quiet_loop_is_unaffected() {
         let d = dbc();
         let cap = capture(&d, (0, 0), (0, 0));
-        assert_eq!(loop_unaffected(&cap, &d, 0, T1, "t").unwrap(), None);
+        assert_eq!(loop_unaffected(&cap, &d, None, 0, T1, "t").unwrap(), None);
     }
 
     #[test]
@@ -263,14 +328,14 @@ mod tests {
         let d = dbc();
         // WheelSpeeds missing for 30 ms, safe state from 15 ms after it stopped
         let cap = capture(&d, (400, 430), (425, 480));
-        assert_eq!(loop_unaffected(&cap, &d, 0, T1, "t").unwrap(), None);
+        assert_eq!(loop_unaffected(&cap, &d, None, 0, T1, "t").unwrap(), None);
     }
 
     #[test]
     fn a_safe_state_nothing_on_the_wire_explains_fails() {
         let d = dbc();
         let cap = capture(&d, (0, 0), (425, 480));
-        let e = loop_unaffected(&cap, &d, 0, T1, "t").unwrap_err();
+        let e = loop_unaffected(&cap, &d, None, 0, T1, "t").unwrap_err();
         assert!(e.to_string().contains("safe state"), "{e}");
     }
 
@@ -279,7 +344,7 @@ mod tests {
         let d = dbc();
         // sensors silent 300 ms before the safe state: more than LEAD_IN_MS
         let cap = capture(&d, (100, 130), (430, 480));
-        assert!(loop_unaffected(&cap, &d, 0, T1, "t").is_err());
+        assert!(loop_unaffected(&cap, &d, None, 0, T1, "t").is_err());
     }
 
     #[test]
@@ -287,7 +352,7 @@ mod tests {
         let d = dbc();
         // explained, but 30 % of the window disabled
         let cap = capture(&d, (100, 130), (125, 425));
-        let r = loop_unaffected(&cap, &d, 0, T1, "t").unwrap();
+        let r = loop_unaffected(&cap, &d, None, 0, T1, "t").unwrap();
         assert!(r.is_some_and(|r| r.contains("enabled")));
     }
 
@@ -302,10 +367,80 @@ mod tests {
             cap
         };
         let alone = pause(capture(&d, (0, 0), (0, 0)));
-        let e = loop_unaffected(&alone, &d, 0, T1, "t").unwrap_err();
+        let e = loop_unaffected(&alone, &d, None, 0, T1, "t").unwrap_err();
         assert!(e.to_string().contains("between two commands"), "{e}");
         // the whole machine stalled: the sensors paused with it
         let stalled = pause(capture(&d, (400, 550), (0, 0)));
-        assert_eq!(loop_unaffected(&stalled, &d, 0, T1, "t").unwrap(), None);
+        assert_eq!(
+            loop_unaffected(&stalled, &d, None, 0, T1, "t").unwrap(),
+            None
+        );
+    }
+
+    /// tcs-loop's log of the capture's input frames, read `delay_ms` late
+    /// over `late` (ms), and its cycle records (none over `stalled`).
+    fn loop_log(
+        cap: &CaptureLog,
+        d: &Dbc,
+        late: (u64, u64),
+        stalled: (u64, u64),
+    ) -> (Vec<CanFrame>, Vec<CycleRecord>) {
+        let ids: Vec<u32> = INPUTS
+            .iter()
+            .map(|(n, _)| d.by_name(n).unwrap().id)
+            .collect();
+        let can = cap
+            .frames
+            .iter()
+            .filter(|f| ids.contains(&f.id()))
+            .map(|f| {
+                let t_ms = f.t_ns / 1_000_000;
+                // frames of the late stretch reach the loop at its end
+                let read = if (late.0..late.1).contains(&t_ms) {
+                    late.1 * 1_000_000
+                } else {
+                    f.t_ns
+                };
+                CanFrame {
+                    stamp_ns: read,
+                    id: f.id(),
+                    dlc: 8,
+                    direction: can_dir::RX,
+                    ..CanFrame::default()
+                }
+            })
+            .collect();
+        let cycles = (0..1000u64)
+            .filter(|t| !(stalled.0..stalled.1).contains(t))
+            .map(|t| CycleRecord {
+                stamp_ns: t * 1_000_000,
+                ..CycleRecord::zeroed()
+            })
+            .collect();
+        (can, cycles)
+    }
+
+    #[test]
+    fn frames_the_kernel_delivered_late_explain_a_safe_state() {
+        let d = dbc();
+        // on the wire in time; the loop read them 15 ms late and went safe
+        let cap = capture(&d, (0, 0), (425, 480));
+        let (can, cycles) = loop_log(&cap, &d, (405, 420), (0, 0));
+        let log = LoopLog {
+            can: &can,
+            cycles: &cycles,
+        };
+        assert!(loop_unaffected(&cap, &d, None, 0, T1, "t").is_err());
+        assert_eq!(
+            loop_unaffected(&cap, &d, Some(&log), 0, T1, "t").unwrap(),
+            None
+        );
+        // the same gap while the loop itself did not cycle: not excused
+        let (can, cycles) = loop_log(&cap, &d, (405, 420), (404, 421));
+        let stalled = LoopLog {
+            can: &can,
+            cycles: &cycles,
+        };
+        assert!(loop_unaffected(&cap, &d, Some(&stalled), 0, T1, "t").is_err());
     }
 }
