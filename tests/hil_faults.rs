@@ -35,7 +35,7 @@ use grip_tests::hil::{
 };
 use grip_tests::hil_drives::{
     Attempt, PLAYBACK, SENSOR_TIMEOUT_MS, Setup, VM_MARGIN_MS, drive_with, grip_drive, instance,
-    ms, read_complete_allowing_audio_gaps, read_complete_allowing_xruns, serial,
+    ms, ns, read_complete_allowing_audio_gaps, read_complete_allowing_xruns, serial,
     wait_scenario_start, wait_success, with_attempts_in,
 };
 use grip_tests::wire_check::{
@@ -104,10 +104,6 @@ fn cycles_in(cycles: &[CycleRecord], t0: u64, t1: u64) -> Vec<&CycleRecord> {
 type Statuses = Vec<(String, ExitStatus)>;
 /// A captured audio block: start and end (ns), silent, clipped, its xruns.
 type Block = (u64, u64, bool, bool, u32);
-
-fn ns(ms: f64) -> u64 {
-    (ms * 1e6) as u64
-}
 
 // --- 1. bus flood ------------------------------------------------------------------------
 

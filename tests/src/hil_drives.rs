@@ -66,6 +66,11 @@ pub fn serial() -> MutexGuard<'static, ()> {
     SERIAL.lock().unwrap_or_else(|e| e.into_inner())
 }
 
+/// Milliseconds as nanoseconds (the inverse of [`ms`]).
+pub fn ns(ms: f64) -> u64 {
+    (ms * 1e6) as u64
+}
+
 pub fn ms(ns: i128) -> f64 {
     ns as f64 / 1e6
 }

@@ -9,11 +9,7 @@ use anyhow::{Context, ensure};
 use grip_msgs::{CanFrame, CycleRecord, can_dir, can_flags};
 
 use crate::hil::{CaptureLog, Dbc};
-use crate::hil_drives::{SENSOR_TIMEOUT_MS, VM_MARGIN_MS, ms, sig};
-
-fn ns(ms: f64) -> u64 {
-    (ms * 1e6) as u64
-}
+use crate::hil_drives::{SENSOR_TIMEOUT_MS, VM_MARGIN_MS, ms, ns, sig};
 
 /// The enabled (controlling) TorqueCommands of the capture, (time, Nm).
 pub fn enabled_commands(cap: &CaptureLog, dbc: &Dbc) -> anyhow::Result<Vec<(u64, bool)>> {

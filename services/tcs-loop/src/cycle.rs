@@ -5,8 +5,8 @@
 //! 1. **Drain CAN** (non-blocking, at most [`MAX_RX_PER_CYCLE`] frames): each
 //!    frame goes through `ProtocolRx::for_tcs()` (length, CRC, alive counter,
 //!    unknown id; faults counted) and is held for `CAN_LOG` (direction RX,
-//!    flag `E2E_REJECTED` when rejected; logged in step 5). Accepted frames update the latest
-//!    `WheelSpeeds`, `MotorStatus`, `VehicleSpeed`, `DriverDemand`.
+//!    flag `E2E_REJECTED` when rejected; logged in step 5). Accepted frames
+//!    update the latest `WheelSpeeds`, `MotorStatus`, `VehicleSpeed`, `DriverDemand`.
 //! 2. **Road**: the newest `RoadEstimate` (latest value wins) replaces the
 //!    held one; its age is `now − stamp_ns` (both CLOCK_MONOTONIC).
 //! 3. **Safe state**: inputs are valid when a `WheelSpeeds` frame with
