@@ -1160,6 +1160,12 @@ pub enum SnrScope {
     /// whether a car happens to pass, and scaling to it would turn the rain
     /// up whenever none does.)
     Segment,
+    /// As in the loop ([`RoadAudioSynth::fill`]: `grip sim --arte acoustic`,
+    /// audio-acq's synthetic source): the noise at the nominal SNR against a
+    /// 1 s running estimate of the road-sound power, so for about a second
+    /// after a loud road a quiet one (snow) sits under noise pitched for the
+    /// loud one, as a real microphone would hear it.
+    Running,
 }
 
 /// Renders a whole recording (segments back to back, abrupt road changes at
@@ -1181,7 +1187,7 @@ pub fn render_scoped(
 ) -> Result<Vec<f32>, SynthError> {
     let mut synth = RoadAudioSynth::new(cfg, seed)?;
     let fs = f64::from(cfg.sample_rate);
-    let mut lens = Vec::with_capacity(segments.len());
+    let mut lens: Vec<usize> = Vec::with_capacity(segments.len());
     for (index, s) in segments.iter().enumerate() {
         if s.road >= ROADS.len() {
             return Err(SynthError::InvalidSegment {
@@ -1204,6 +1210,15 @@ pub fn render_scoped(
         lens.push((s.duration_s * fs).round() as usize);
     }
     let total: usize = lens.iter().sum();
+    if scope == SnrScope::Running {
+        let mut out = vec![0f32; total];
+        let mut at = 0;
+        for (s, &n) in segments.iter().zip(&lens) {
+            synth.fill(s.road, s.speed_mps, &mut out[at..at + n]);
+            at += n;
+        }
+        return Ok(out);
+    }
     let mut road = vec![0f32; total];
     let mut noise = vec![0f32; total];
     let mut at = 0;
@@ -1232,7 +1247,10 @@ pub fn render_scoped(
     // Noise gain per sample: one value, or one per segment ramped over 3 ms.
     let mut gains = Vec::with_capacity(lens.len());
     match scope {
-        SnrScope::Recording => gains.resize(lens.len(), gain(power(&road), power(&noise))),
+        // (Running has returned above.)
+        SnrScope::Recording | SnrScope::Running => {
+            gains.resize(lens.len(), gain(power(&road), power(&noise)))
+        }
         SnrScope::Segment => {
             // Against the noise power over the whole recording: this
             // recording's rain and cars (their parameters are drawn per

@@ -181,6 +181,65 @@ fn snr_per_segment_holds_in_every_segment() {
 }
 
 #[test]
+fn running_snr_is_the_loops_noise() {
+    // The running scope is what the loop hears (`fill`, block by block):
+    // right after loud stone the quiet snow sits under noise pitched for
+    // stone, and the noise falls towards snow's own 10 dB within a second
+    // or two. (Near, not at, 10 dB: the noise is scaled to its nominal
+    // power, and a recording's rain and cars are drawn around it.)
+    let stone = road_index("stone").unwrap();
+    let snow = road_index("snow").unwrap();
+    let seg = [
+        Segment {
+            road: stone,
+            speed_mps: 6.0,
+            duration_s: 2.0,
+        },
+        Segment {
+            road: snow,
+            speed_mps: 6.0,
+            duration_s: 3.0,
+        },
+    ];
+    let noisy_cfg = cfg(Some(NoiseConfig {
+        rain: true,
+        car: true,
+        snr_db: 10.0,
+    }));
+    let run = render_scoped(&noisy_cfg, 11, &seg, SnrScope::Running).unwrap();
+    let n = 44_100;
+    assert_eq!(run.len(), 5 * n);
+    let mut by_block = vec![0f32; 5 * n];
+    let mut synth = RoadAudioSynth::new(&noisy_cfg, 11).unwrap();
+    for (k, chunk) in by_block.chunks_mut(441).enumerate() {
+        let road = if k * 441 < 2 * n { stone } else { snow };
+        synth.fill(road, 6.0, chunk);
+    }
+    assert_eq!(run, by_block);
+    // The road alone (same seed, same draws), to measure the SNR.
+    let mut road = vec![0f32; 5 * n];
+    let mut noise = vec![0f32; 5 * n];
+    let mut parts = RoadAudioSynth::new(&noisy_cfg, 11).unwrap();
+    parts.fill_parts(stone, 6.0, &mut road[..2 * n], &mut noise[..2 * n]);
+    parts.fill_parts(snow, 6.0, &mut road[2 * n..], &mut noise[2 * n..]);
+    let snr = |r: std::ops::Range<usize>| {
+        let d: Vec<f32> = run[r.clone()]
+            .iter()
+            .zip(&road[r.clone()])
+            .map(|(a, b)| a - b)
+            .collect();
+        20.0 * (rms(&road[r]) / rms(&d)).log10()
+    };
+    let early = snr(2 * n..2 * n + n / 4);
+    let late = snr(4 * n..5 * n);
+    eprintln!("snow SNR {early:.1} dB in its first 0.25 s, {late:.1} dB in its last second");
+    assert!(
+        early < late - 3.0,
+        "snow SNR {early} dB first 0.25 s, {late} dB last s"
+    );
+}
+
+#[test]
 fn rolling_noise_follows_the_speed_law() {
     // L ∝ B log10(v) with B in 30..40 dB/decade: doubling the speed adds
     // 9..12 dB to the asphalt sound (wind rumble aside, which is small).

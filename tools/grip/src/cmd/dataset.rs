@@ -113,8 +113,11 @@ struct SynthArgs {
     segment: String,
     /// Change recordings: the SNR holds for every road segment ("segment",
     /// as in the one-road recordings) or over the whole recording
-    /// ("recording": one noise level, so quiet roads such as snow sit below it).
-    #[arg(long, default_value = "segment", value_parser = ["segment", "recording"])]
+    /// ("recording": one noise level, so quiet roads such as snow sit below it)
+    /// or against a 1 s running estimate of the road power ("running": as in
+    /// the loop, so a quiet road right after a loud one sits below it for
+    /// about a second).
+    #[arg(long, default_value = "segment", value_parser = ["segment", "recording", "running"])]
     snr_scope: String,
     /// Road classes, comma separated (default: all six).
     #[arg(long)]
@@ -543,10 +546,10 @@ fn synth(a: SynthArgs) -> Result<()> {
                 prev = r;
                 t += d;
             }
-            let scope = if a.snr_scope == "recording" {
-                SnrScope::Recording
-            } else {
-                SnrScope::Segment
+            let scope = match a.snr_scope.as_str() {
+                "recording" => SnrScope::Recording,
+                "running" => SnrScope::Running,
+                _ => SnrScope::Segment,
             };
             let x = render_scoped(&cfg, seed, &segs, scope)?;
             let file = format!("change_{i:04}.wav");
