@@ -41,6 +41,9 @@ enum DatasetCmd {
     /// Run the streaming estimator over road-change recordings: detection
     /// delay (p50/p95/max) and decision accuracy.
     Delay(DelayArgs),
+    /// Merge class datasets into a new one (files hard-linked or copied,
+    /// manifests merged; each source's files under a folder named after it).
+    Merge(super::dataset_merge::MergeArgs),
 }
 
 #[derive(clap::Args)]
@@ -798,6 +801,11 @@ pub fn run(ctx: &Ctx, args: Args) -> Result<()> {
     match args.cmd {
         DatasetCmd::Synth(a) => synth(a),
         DatasetCmd::Delay(a) => delay(a, &ctx.config_dir),
+        DatasetCmd::Merge(a) => {
+            let n = super::dataset_merge::merge(&a)?;
+            println!("wrote {} ({n} files)", a.out.display());
+            Ok(())
+        }
     }
 }
 

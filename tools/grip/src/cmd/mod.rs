@@ -4,6 +4,7 @@ pub mod analyze;
 pub mod calibrate;
 pub mod classify;
 pub mod dataset;
+pub mod dataset_merge;
 pub mod drive;
 pub mod features;
 pub mod generate;
