@@ -9,7 +9,11 @@
 //! copied otherwise. The manifests are merged: the union of their columns
 //! (in order of first appearance), `file` rewritten to the new path, a
 //! `recording` value prefixed with the tag (groups of different sources
-//! stay apart). Nothing is overwritten: `DIR` must not exist yet.
+//! stay apart), or, with `--recording-by COLUMN`, the value of that column
+//! (every source's manifest must have it): files of any source with the same
+//! value are one recording, so cross-validation keeps them in one fold (the
+//! same car rendered at two SNRs has one `seed`). Nothing is overwritten:
+//! `DIR` must not exist yet.
 
 use crate::dataset::Dataset;
 use anyhow::{Context, Result, bail};
@@ -24,6 +28,10 @@ pub struct MergeArgs {
     /// Source class datasets (folders with one sub-folder per class).
     #[arg(required = true, num_args = 2..)]
     pub src: Vec<PathBuf>,
+    /// Manifest column whose value names the recording across sources
+    /// (e.g. `seed`); default: every source's recordings stay apart.
+    #[arg(long)]
+    pub recording_by: Option<String>,
 }
 
 struct Manifest {
@@ -86,9 +94,21 @@ pub fn merge(a: &MergeArgs) -> Result<usize> {
             );
         }
         tags.push(tag);
-        sets.push((ds, read_manifest(src)?));
+        let man = read_manifest(src)?;
+        if let Some(col) = &a.recording_by
+            && !man.as_ref().is_some_and(|m| m.header.contains(col))
+        {
+            bail!(
+                "{}: --recording-by {col}, but its manifest.csv has no `{col}` column",
+                src.display()
+            );
+        }
+        sets.push((ds, man));
     }
     let mut header: Vec<String> = vec!["file".into()];
+    if a.recording_by.is_some() {
+        header.push("recording".into());
+    }
     for (_, m) in &sets {
         for h in m.iter().flat_map(|m| &m.header) {
             if !header.contains(h) {
@@ -125,7 +145,10 @@ pub fn merge(a: &MergeArgs) -> Result<usize> {
                 }
             }
             out[0] = new_rel(out[0].trim());
-            if let Some(rc) = rec_col
+            if let (Some(rc), Some(by)) = (rec_col, &a.recording_by) {
+                let v = cols.get(by.as_str()).and_then(|&i| r.get(i));
+                out[rc] = v.map(|v| v.trim().to_string()).unwrap_or_default();
+            } else if let Some(rc) = rec_col
                 && !out[rc].trim().is_empty()
             {
                 out[rc] = format!("{tag}/{}", out[rc].trim());
@@ -188,7 +211,8 @@ mod tests {
         let out = d.path().join("mix");
         let n = merge(&MergeArgs {
             out: out.clone(),
-            src: vec![a, b],
+            src: vec![a.clone(), b.clone()],
+            recording_by: None,
         })
         .unwrap();
         assert_eq!(n, 8);
@@ -212,6 +236,30 @@ mod tests {
         assert_eq!(ds.recordings_per_class(), [3, 4]);
         let m = std::fs::read_to_string(out.join("manifest.csv")).unwrap();
         assert!(m.starts_with("file,road,speed_kmh,recording\n"), "{m}");
+        // The same car in two sources: one recording with --recording-by.
+        let (c, e) = (d.path().join("c10"), d.path().join("c0"));
+        let man = "file,seed,speed_kmh\nasphalt/asphalt_0.wav,7,10\nasphalt/asphalt_1.wav,8,10\nsnow/snow_0.wav,9,10\nsnow/snow_1.wav,10,10\n";
+        tiny(&c, &["asphalt", "snow"], Some(man));
+        tiny(&e, &["asphalt", "snow"], Some(man));
+        let by = d.path().join("by");
+        merge(&MergeArgs {
+            out: by.clone(),
+            src: vec![c.clone(), e],
+            recording_by: Some("seed".into()),
+        })
+        .unwrap();
+        let ds = Dataset::scan(&by).unwrap();
+        assert_eq!(ds.recordings_per_class(), [2, 2]);
+        let get = |rel: &str| ds.entries.iter().find(|x| x.rel == rel).unwrap().recording;
+        assert_eq!(get("snow/c10/snow_1.wav"), get("snow/c0/snow_1.wav"));
+        let e = merge(&MergeArgs {
+            out: d.path().join("by2"),
+            src: vec![c, a],
+            recording_by: Some("seed".into()),
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("no `seed` column"), "{e}");
     }
 
     #[test]
@@ -225,6 +273,7 @@ mod tests {
         let e = merge(&MergeArgs {
             out: out.clone(),
             src: vec![a.clone(), b],
+            recording_by: None,
         })
         .unwrap_err()
         .to_string();
@@ -233,6 +282,7 @@ mod tests {
         let e = merge(&MergeArgs {
             out: out.clone(),
             src: vec![a.clone(), a],
+            recording_by: None,
         })
         .unwrap_err()
         .to_string();
@@ -242,6 +292,7 @@ mod tests {
         let e = merge(&MergeArgs {
             out: d.path().join("out2"),
             src: vec![bad, d.path().join("x").join("set")],
+            recording_by: None,
         })
         .unwrap_err()
         .to_string();
