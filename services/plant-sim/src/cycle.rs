@@ -58,8 +58,10 @@ use grip_physics::{
 
 use crate::config::{PlantSimConfig, StartOn};
 
-/// Most frames drained from the bus in one cycle.
-pub const MAX_RX_PER_CYCLE: usize = 64;
+/// Most frames drained from the bus in one cycle (as tcs-loop's: over
+/// 30 ms of a flooded bus, so a late cycle reaches the valid commands behind
+/// a burst of bad frames before the inverter's command timeout).
+pub const MAX_RX_PER_CYCLE: usize = 256;
 /// `MotorStatus.FaultCode` while torque is zeroed because commands stopped.
 pub const FAULT_CMD_TIMEOUT: u8 = 0x01;
 

@@ -361,6 +361,45 @@ fn corrupted_frames_are_rejected_counted_and_do_not_change_the_command() {
     assert_eq!(a.lp.can_rx(), a.sink.can_rx);
 }
 
+/// A late cycle after a stall finds a burst of bad-CRC frames at the head
+/// of the queue (a flood) and the valid frames behind it: it must reach the
+/// valid ones before their timeout, not go to the safe state because its
+/// drain stopped inside the burst (seen in the HIL flood drive with a
+/// 64-frame drain: an 8 ms late wake-up, 64 bad frames read, safe state).
+#[test]
+fn a_late_cycle_reaches_valid_frames_behind_a_burst_of_bad_ones() {
+    let mut r = Rig::new(ControllerKind::Mtte, false);
+    let (rec, _) = r.run_ok(100);
+    assert_eq!(rec.safe_state, 0);
+    // The loop stalls 11 ms. First a burst of 150 WheelSpeeds with a bad CRC
+    // (a flood), then the bus's own traffic of each millisecond.
+    let now = r.now();
+    for _ in 0..150 {
+        let mut f = encode(&r.feed.wheel(), r.feed.ws.next_counter(), now);
+        f.data[3] ^= 0x10;
+        r.bus.inject(f);
+    }
+    for _ in 0..11 {
+        r.feed(true, true, true);
+        r.clock.advance_ns(MS);
+        r.k += 1;
+    }
+    // The late cycle: the last valid frame it took before the stall is
+    // 12 ms old (the inputs' timeout is 10 ms), the newest on the bus 1 ms.
+    r.feed(true, true, true);
+    let (rec, cmd) = r.cycle();
+    assert_eq!(
+        rec.safe_state, 0,
+        "safe state: the drain stopped in the burst"
+    );
+    assert!(cmd.enable);
+    assert_eq!(rec.faults.crc, 150, "every bad frame read and counted");
+    // (The 12 ms gap itself is counted as a timeout of WheelSpeeds and
+    // MotorStatus: the fault counters say what happened on the bus.)
+    assert_eq!(rec.faults.timeout, 2);
+    assert_eq!(r.lp.safe_entries(), 0);
+}
+
 fn estimate(stamp_ns: u64, confidence: f64) -> RoadEstimate {
     RoadEstimate {
         seq: 1,
