@@ -1187,7 +1187,7 @@ pub fn render_scoped(
 ) -> Result<Vec<f32>, SynthError> {
     let mut synth = RoadAudioSynth::new(cfg, seed)?;
     let fs = f64::from(cfg.sample_rate);
-    let mut lens: Vec<usize> = Vec::with_capacity(segments.len());
+    let mut lens = Vec::with_capacity(segments.len());
     for (index, s) in segments.iter().enumerate() {
         if s.road >= ROADS.len() {
             return Err(SynthError::InvalidSegment {
@@ -1210,15 +1210,19 @@ pub fn render_scoped(
         lens.push((s.duration_s * fs).round() as usize);
     }
     let total: usize = lens.iter().sum();
-    if scope == SnrScope::Running {
-        let mut out = vec![0f32; total];
-        let mut at = 0;
-        for (s, &n) in segments.iter().zip(&lens) {
-            synth.fill(s.road, s.speed_mps, &mut out[at..at + n]);
-            at += n;
+    let per_segment = match scope {
+        SnrScope::Recording => false,
+        SnrScope::Segment => true,
+        SnrScope::Running => {
+            let mut out = vec![0f32; total];
+            let mut at = 0;
+            for (s, &n) in segments.iter().zip(&lens) {
+                synth.fill(s.road, s.speed_mps, &mut out[at..at + n]);
+                at += n;
+            }
+            return Ok(out);
         }
-        return Ok(out);
-    }
+    };
     let mut road = vec![0f32; total];
     let mut noise = vec![0f32; total];
     let mut at = 0;
@@ -1246,21 +1250,17 @@ pub fn render_scoped(
     };
     // Noise gain per sample: one value, or one per segment ramped over 3 ms.
     let mut gains = Vec::with_capacity(lens.len());
-    match scope {
-        // (Running has returned above.)
-        SnrScope::Recording | SnrScope::Running => {
-            gains.resize(lens.len(), gain(power(&road), power(&noise)))
-        }
-        SnrScope::Segment => {
-            // Against the noise power over the whole recording: this
-            // recording's rain and cars (their parameters are drawn per
-            // recording, so their level is not the calibrated nominal one).
-            let p_noise = power(&noise);
-            let mut at = 0;
-            for &n in &lens {
-                gains.push(gain(power(&road[at..at + n]), p_noise));
-                at += n;
-            }
+    if !per_segment {
+        gains.resize(lens.len(), gain(power(&road), power(&noise)));
+    } else {
+        // Against the noise power over the whole recording: this
+        // recording's rain and cars (their parameters are drawn per
+        // recording, so their level is not the calibrated nominal one).
+        let p_noise = power(&noise);
+        let mut at = 0;
+        for &n in &lens {
+            gains.push(gain(power(&road[at..at + n]), p_noise));
+            at += n;
         }
     }
     let ramp = ((0.003 * fs).round() as usize).max(1);
