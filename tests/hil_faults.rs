@@ -575,7 +575,7 @@ fn kill_recorder(s: &Setup) -> anyhow::Result<Attempt> {
     let second = s.out.join("second.mcap");
     let cap = CanCapture::start(&s.iface)?;
     let player = RoadAudioPlayer::start(PLAYBACK, &s.iface, &s.config, &s.scenario)?;
-    let run = || -> anyhow::Result<(u64, u64, u64, String, Statuses)> {
+    let run = || -> anyhow::Result<(u64, u64, u64, String, String, Statuses)> {
         let mut set = start_drive(s, "krec", &first)?;
         wait_scenario_start(s)?;
         std::thread::sleep(Duration::from_millis(1500));
@@ -609,12 +609,13 @@ fn kill_recorder(s: &Setup) -> anyhow::Result<Attempt> {
         let t_new = hil::mono_ns();
         let sts = finish_drive(&mut set, &["tcs-loop", "arte", "audio-acq", "recorder-2"])?;
         let tcs = log_text(&mut set, "tcs-loop")?;
-        Ok((t_kill, t_start, t_new, tcs, sts))
+        let rec = log_text(&mut set, "recorder").unwrap_or_default();
+        Ok((t_kill, t_start, t_new, tcs, rec, sts))
     };
     let res = run();
     let cap = cap.finish()?;
     player.finish()?;
-    let (t_kill, t_start, t_new, tcs_log, sts) = res?;
+    let (t_kill, t_start, t_new, tcs_log, rec_log, sts) = res?;
     for (name, st) in &sts {
         ensure!(st.success(), "{name} exited with {st}");
     }
@@ -649,6 +650,24 @@ fn kill_recorder(s: &Setup) -> anyhow::Result<Attempt> {
     println!(
         "last cycle record in the killed recorder's file {lost:.0} ms before the kill (flush interval {FLUSH_MS} ms, bound {bound} ms)"
     );
+    // each topic's last record against the kill: one topic behind the
+    // others is a receive problem, all of them behind a writer's
+    let before = |stamps: &mut dyn Iterator<Item = u64>| {
+        stamps.max().map_or("none".to_owned(), |l| {
+            format!("{:.0} ms", ms(t_kill as i128 - l as i128))
+        })
+    };
+    println!(
+        "killed recorder's file, last record before the kill: cycle {}, ground truth {}, road {}, CAN {}",
+        before(&mut old.cycles.iter().map(|c| c.stamp_ns)),
+        before(&mut old.truth.iter().map(|m| m.stamp_ns)),
+        before(&mut old.roads.iter().map(|m| m.stamp_ns)),
+        before(&mut old.can.iter().map(|m| m.stamp_ns)),
+    );
+    if lost > bound {
+        // the killed recorder's own log (queue, flushes, stalls), for the cause
+        println!("killed recorder's log:\n{rec_log}");
+    }
     ensure!(
         lost <= bound,
         "{lost:.0} ms of cycle records lost at the kill, bound {bound} ms"
@@ -1013,18 +1032,36 @@ fn mic_faults(s: &Setup) -> anyhow::Result<Attempt> {
             .filter(|e| e.class_index != NO_CLASS)
             .map(|e| e.confidence)
             .fold(0.0f64, f64::max);
-        // the controller: no ARTE from max_age (+ margin) into the fault on
-        let fb0 = t0 + ns(MAX_AGE_MS + VM_MARGIN_MS);
+        // the controller: no ARTE from max_age (+ margin) after the last
+        // confident estimate of audio heard before the fault (arte publishes
+        // a frame's estimate after the frame, later when it runs behind: the
+        // loop may use that good knowledge for max_age after it arrived)
+        let last_good = l
+            .roads
+            .iter()
+            .filter(|e| e.class_index != NO_CLASS && e.confidence >= 0.6 && e.frame_t0_ns < t0)
+            .max_by_key(|e| e.stamp_ns);
+        let heard = last_good.map_or(t0, |e| e.stamp_ns.max(t0));
+        let fb0 = heard + ns(MAX_AGE_MS + VM_MARGIN_MS);
         let (share, n) = arte_share(&l.cycles, fb0, t1);
         // and back after it
         let (share_after, n_after) = arte_share(&l.cycles, t1, t1 + 1_000_000_000);
         println!(
-            "{what}: {} estimates of audio inside it, {confident} confident (highest {max_conf:.2}); ARTE used in {:.1} % of {n} controlling cycles from {:.0} ms in; in the 1 s after it: {:.0} % of {n_after}",
+            "{what}: {} estimates of audio inside it, {confident} confident (highest {max_conf:.2}); the last confident estimate of audio before it published {:.0} ms into it ({:.0} ms after its frame ended); ARTE used in {:.1} % of {n} controlling cycles from {:.0} ms in; in the 1 s after it: {:.0} % of {n_after}",
             inside.len(),
+            ms(heard as i128 - t0 as i128),
+            last_good.map_or(f64::NAN, |e| ms(e.stamp_ns as i128 - e.frame_t1_ns as i128)),
             share * 100.0,
-            MAX_AGE_MS + VM_MARGIN_MS,
+            ms(fb0 as i128 - t0 as i128),
             share_after * 100.0
         );
+        if n == 0 && fb0 >= t1 {
+            return Ok(Attempt::Disturbed(format!(
+                "{what}: arte's last estimate of the audio before it came {:.0} ms into the {:.0} ms fault: no time left to see the fallback",
+                ms(heard as i128 - t0 as i128),
+                ms(t1 as i128 - t0 as i128)
+            )));
+        }
         ensure!(
             confident == 0,
             "{what}: arte published {confident} confident estimates of the faulty audio (highest {max_conf:.2})"

@@ -58,10 +58,11 @@ use grip_physics::{
 
 use crate::config::{PlantSimConfig, StartOn};
 
-/// Most frames drained from the bus in one cycle (as tcs-loop's: over
-/// 30 ms of a flooded bus, so a late cycle reaches the valid commands behind
-/// a burst of bad frames before the inverter's command timeout).
-pub const MAX_RX_PER_CYCLE: usize = 256;
+/// Most frames drained from the bus in one cycle (grip-io's, shared with
+/// tcs-loop: over 30 ms of a flooded bus, so a late cycle reaches the valid
+/// commands behind a burst of bad frames before the inverter's command
+/// timeout).
+pub use grip_io::can::MAX_RX_PER_CYCLE;
 /// `MotorStatus.FaultCode` while torque is zeroed because commands stopped.
 pub const FAULT_CMD_TIMEOUT: u8 = 0x01;
 

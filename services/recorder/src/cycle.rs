@@ -337,6 +337,38 @@ pub fn error_chain(e: &dyn std::error::Error) -> String {
     s
 }
 
+/// Messages waiting in the queue from which the writer counts as behind:
+/// about half a second of a drive's traffic (1 kHz cycle records and ground
+/// truth, the CAN copies at about 3 kHz).
+pub const BACKLOG_WARN: usize = 2500;
+
+/// Rate-limits the writer's backlog warning: at most one a second, each
+/// naming the deepest queue since the last.
+#[derive(Debug, Default)]
+pub struct Backlog {
+    last: Option<Instant>,
+    peak: usize,
+}
+
+impl Backlog {
+    /// One message taken with `waiting` still queued at `now`: the peak to
+    /// report, when one is due.
+    pub fn observe(&mut self, waiting: usize, now: Instant) -> Option<usize> {
+        if waiting < BACKLOG_WARN {
+            return None;
+        }
+        self.peak = self.peak.max(waiting);
+        if self
+            .last
+            .is_some_and(|t| now.duration_since(t) < Duration::from_secs(1))
+        {
+            return None;
+        }
+        self.last = Some(now);
+        Some(std::mem::take(&mut self.peak))
+    }
+}
+
 /// The writing thread's loop: takes the queue into `w` until the receive
 /// thread is gone (after `stop`: it is told to stop, `STOPPING=1` is sent,
 /// what is queued is written). Polls the watchdog at least every 50 ms (half
@@ -360,6 +392,7 @@ pub fn write_loop(
     let wait = wd.tick();
     let mut failed = false;
     let mut stopping = false;
+    let mut backlog = Backlog::default();
     loop {
         if !stopping && stop.load(Ordering::Relaxed) {
             stopping = true;
@@ -368,7 +401,15 @@ pub fn write_loop(
         }
         match rx.recv_timeout(wait) {
             Ok(m) => {
-                depth.fetch_sub(1, Ordering::Relaxed);
+                let waiting = depth.fetch_sub(1, Ordering::Relaxed).saturating_sub(1);
+                if let Some(peak) = backlog.observe(waiting, Instant::now()) {
+                    tracing::warn!(
+                        waiting = peak,
+                        topic = m.topic(),
+                        last_flush_ms = w.last_flush_took().as_secs_f64() * 1e3,
+                        "the writer is behind: messages wait in the queue (a crash now loses them too)"
+                    );
+                }
                 if !failed {
                     match m.write_to(w) {
                         Ok(()) => *summary.written.entry(m.topic()).or_default() += 1,
@@ -403,6 +444,20 @@ pub fn write_loop(
 #[cfg(test)]
 mod error_tests {
     use super::*;
+
+    #[test]
+    fn a_backlog_is_reported_at_most_once_a_second_with_its_peak() {
+        let mut b = Backlog::default();
+        let t0 = Instant::now();
+        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        assert_eq!(b.observe(BACKLOG_WARN - 1, at(0)), None, "not behind");
+        assert_eq!(b.observe(BACKLOG_WARN, at(1)), Some(BACKLOG_WARN));
+        assert_eq!(b.observe(9000, at(200)), None, "within the second");
+        assert_eq!(b.observe(BACKLOG_WARN + 1, at(900)), None);
+        assert_eq!(b.observe(10, at(1100)), None, "caught up");
+        assert_eq!(b.observe(3000, at(1200)), Some(9000), "the deepest since");
+        assert_eq!(b.observe(3000, at(1300)), None);
+    }
 
     /// Shaped like the mcap crate's `McapError::Io`: a message that hides
     /// its I/O cause, the cause as its source.

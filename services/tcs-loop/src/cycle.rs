@@ -65,15 +65,9 @@ use grip_tcs::{
 use crate::config::SafetyConfig;
 use crate::ports::{RecordSink, RoadSource};
 
-/// Most frames drained from the bus in one cycle (the rest waits for the
-/// next cycle, so a flood cannot make a cycle unbounded). The bus carries
-/// ~3.2 frames per ms, and the fault matrix's floods add up to ~4 more; a
-/// cycle that comes late after a stall must still reach the valid frames
-/// behind a burst of bad ones before the inputs' 10 ms timeout: 256 frames
-/// are over 30 ms of a flooded bus (64 were 9 ms: a burst of bad-CRC
-/// frames at the head of the queue after an 8 ms late wake-up hid every
-/// valid WheelSpeeds, and the loop went to its safe state, HIL 2026-12-02).
-pub const MAX_RX_PER_CYCLE: usize = 256;
+/// Most frames drained from the bus in one cycle (grip-io's, shared with
+/// plant-sim: why 256 is written there).
+pub use grip_io::can::MAX_RX_PER_CYCLE;
 
 /// When a cycle runs: its deadline and actual wake-up.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

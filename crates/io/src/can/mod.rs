@@ -20,6 +20,18 @@ pub use socket::{SocketCanBus, af_can_available, interface_exists};
 
 use crate::ipc::{IpcError, IpcNode};
 
+/// Most frames a real-time loop (tcs-loop, plant-sim) drains from its bus
+/// in one cycle; the rest waits for the next cycle, so a flood cannot make
+/// a cycle unbounded. The bus carries ~3.2 frames per ms and the fault
+/// matrix's floods add up to ~4 more; a cycle that comes late after a stall
+/// must still reach the valid frames behind a burst of bad ones before the
+/// inputs' 10 ms timeout: 256 frames are over 30 ms of a flooded bus (64
+/// were 9 ms: a burst of bad-CRC frames at the head of the queue after an
+/// 8 ms late wake-up hid every valid WheelSpeeds, and tcs-loop went to its
+/// safe state, HIL 2026-12-02). One constant for both loops, so that they
+/// cannot drift apart.
+pub const MAX_RX_PER_CYCLE: usize = 256;
+
 /// Errors of CAN transports.
 #[derive(Debug, thiserror::Error)]
 pub enum CanError {

@@ -157,6 +157,7 @@ pub struct McapWriter {
     buf: Vec<u8>,
     opts: McapWriterOptions,
     last_flush: Instant,
+    flush_took: Duration,
     messages: u64,
 }
 
@@ -206,6 +207,7 @@ impl McapWriter {
             buf: Vec::with_capacity(16 * 1024),
             opts,
             last_flush: Instant::now(),
+            flush_took: Duration::ZERO,
             messages: 0,
         };
         let mut clock = BTreeMap::new();
@@ -390,13 +392,21 @@ impl McapWriter {
 
     /// Durable flush: finish the chunk, flush buffers, fdatasync.
     pub fn flush(&mut self) -> Result<(), McapLogError> {
+        let start = Instant::now();
         self.writer().flush().map_err(|e| self.mcap_err(e))?;
         self.sync.sync_data().map_err(|source| McapLogError::Io {
             path: self.path.clone(),
             source,
         })?;
         self.last_flush = Instant::now();
+        self.flush_took = self.last_flush - start;
         Ok(())
+    }
+
+    /// How long the last durable flush took (finishing the chunk, writing
+    /// it, `fdatasync`); zero before the first.
+    pub fn last_flush_took(&self) -> Duration {
+        self.flush_took
     }
 
     /// Flushes if `flush_interval` has passed since the last flush; returns
