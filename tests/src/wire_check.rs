@@ -20,6 +20,24 @@ pub fn enabled_commands(cap: &CaptureLog, dbc: &Dbc) -> anyhow::Result<Vec<(u64,
         .collect())
 }
 
+/// The times of the valid (DLC, CRC) frames of message `name` on the wire
+/// in `[t0, t1]`.
+fn valid_frame_times(
+    cap: &CaptureLog,
+    dbc: &Dbc,
+    name: &str,
+    t0: u64,
+    t1: u64,
+) -> anyhow::Result<Vec<u64>> {
+    let m = dbc.by_name(name)?;
+    Ok(cap
+        .with_id(m.id)
+        .filter(|f| f.t_ns >= t0 && f.t_ns <= t1)
+        .filter(|f| f.frame.len == m.dlc && f.frame.data[0] == m.expected_crc(&f.data8()))
+        .map(|f| f.t_ns)
+        .collect())
+}
+
 /// The times of consecutive valid (DLC, CRC) frames of message `name` on
 /// the wire in `[t0, t1]`, as (before, after) pairs.
 pub fn frame_gaps(
@@ -29,14 +47,34 @@ pub fn frame_gaps(
     t0: u64,
     t1: u64,
 ) -> anyhow::Result<Vec<(u64, u64)>> {
-    let m = dbc.by_name(name)?;
-    let t: Vec<u64> = cap
-        .with_id(m.id)
-        .filter(|f| f.t_ns >= t0 && f.t_ns <= t1)
-        .filter(|f| f.frame.len == m.dlc && f.frame.data[0] == m.expected_crc(&f.data8()))
-        .map(|f| f.t_ns)
-        .collect();
+    let t = valid_frame_times(cap, dbc, name, t0, t1)?;
     Ok(t.windows(2).map(|w| (w[0], w[1])).collect())
+}
+
+/// The first gap between consecutive `stamps` (ascending) that overlaps
+/// `[t0, t1]` (its first stamp before `t1`, its second after `t0`), lasts
+/// at least `min_ms` and passes `accept`: the one search of an input's
+/// silence, on the wire ([`silence_overlapping`]) and as the loop read it
+/// ([`late_delivery`]).
+fn overlapping_gap(
+    stamps: impl IntoIterator<Item = u64>,
+    t0: u64,
+    t1: u64,
+    min_ms: f64,
+    mut accept: impl FnMut(u64, u64) -> bool,
+) -> Option<(u64, u64)> {
+    let mut prev: Option<u64> = None;
+    for b in stamps {
+        if let Some(a) = prev.replace(b)
+            && a <= t1
+            && b >= t0
+            && ms(b as i128 - a as i128) >= min_ms
+            && accept(a, b)
+        {
+            return Some((a, b));
+        }
+    }
+    None
 }
 
 /// Longest gap between consecutive valid (DLC, CRC) frames of message
@@ -100,11 +138,8 @@ pub fn silence_overlapping(
     // second after t0; look a timeout's worth further out on each side
     let pad = ns(DEMAND_TIMEOUT_MS * 2.0);
     for (name, timeout) in INPUTS {
-        let gaps = frame_gaps(cap, dbc, name, t0.saturating_sub(pad), t1 + pad)?;
-        if let Some(&(a, b)) = gaps
-            .iter()
-            .find(|&&(a, b)| a <= t1 && b >= t0 && ms(b as i128 - a as i128) >= timeout)
-        {
+        let times = valid_frame_times(cap, dbc, name, t0.saturating_sub(pad), t1 + pad)?;
+        if let Some((a, b)) = overlapping_gap(times, t0, t1, timeout, |_, _| true) {
             return Ok(Some(format!(
                 "{name} silent {:.1} ms on the wire (timeout {timeout} ms)",
                 ms(b as i128 - a as i128)
@@ -136,32 +171,31 @@ pub fn late_delivery(log: &LoopLog, dbc: &Dbc, t0: u64, t1: u64) -> anyhow::Resu
     let pad = ns(DEMAND_TIMEOUT_MS * 2.0);
     for (name, timeout) in INPUTS {
         let id = dbc.by_name(name)?.id;
-        let mut prev: Option<u64> = None;
-        for f in log.can.iter().filter(|f| {
-            f.id == id
-                && f.direction == can_dir::RX
-                && f.flags & can_flags::E2E_REJECTED == 0
-                && f.stamp_ns + pad >= t0
-                && f.stamp_ns <= t1 + pad
+        let received = log
+            .can
+            .iter()
+            .filter(|f| {
+                f.id == id
+                    && f.direction == can_dir::RX
+                    && f.flags & can_flags::E2E_REJECTED == 0
+                    && f.stamp_ns + pad >= t0
+                    && f.stamp_ns <= t1 + pad
+            })
+            .map(|f| f.stamp_ns);
+        let ran = |a: u64, b: u64| {
+            log.cycles
+                .iter()
+                .filter(|c| c.stamp_ns > a && c.stamp_ns < b)
+                .count()
+        };
+        if let Some((a, b)) = overlapping_gap(received, t0, t1, timeout, |a, b| {
+            ran(a, b) as f64 >= 0.5 * ms(b as i128 - a as i128)
         }) {
-            let b = f.stamp_ns;
-            if let Some(a) = prev.replace(b)
-                && a <= t1
-                && b >= t0
-                && ms(b as i128 - a as i128) >= timeout
-            {
-                let gap = ms(b as i128 - a as i128);
-                let ran = log
-                    .cycles
-                    .iter()
-                    .filter(|c| c.stamp_ns > a && c.stamp_ns < b)
-                    .count();
-                if ran as f64 >= 0.5 * gap {
-                    return Ok(Some(format!(
-                        "{name} reached tcs-loop {gap:.1} ms apart (timeout {timeout} ms) while it ran {ran} cycles: on the wire in time, delivered late by the kernel"
-                    )));
-                }
-            }
+            let gap = ms(b as i128 - a as i128);
+            return Ok(Some(format!(
+                "{name} reached tcs-loop {gap:.1} ms apart (timeout {timeout} ms) while it ran {} cycles: on the wire in time, delivered late by the kernel",
+                ran(a, b)
+            )));
         }
     }
     Ok(None)
