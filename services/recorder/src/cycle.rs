@@ -402,7 +402,10 @@ pub fn write_loop(
         match rx.recv_timeout(wait) {
             Ok(m) => {
                 let waiting = depth.fetch_sub(1, Ordering::Relaxed).saturating_sub(1);
-                if let Some(peak) = backlog.observe(waiting, Instant::now()) {
+                // (the clock is read only when the queue is deep)
+                if waiting >= BACKLOG_WARN
+                    && let Some(peak) = backlog.observe(waiting, Instant::now())
+                {
                     tracing::warn!(
                         waiting = peak,
                         topic = m.topic(),
