@@ -51,7 +51,7 @@ struct DelayArgs {
     /// Model file (from `grip train`).
     #[arg(long)]
     model: PathBuf,
-    /// Folder of change recordings (segments.csv + WAVs, from `grip dataset synth --changes`).
+    /// Folder of change recordings (segments.csv + WAVs, from `grip dataset synth --changes`), or a one-road dataset (manifest.csv: each recording one segment).
     dir: PathBuf,
     /// Time between decisions (s).
     #[arg(long, default_value_t = 0.025)]
@@ -193,15 +193,32 @@ impl ChangeRecording {
     }
 }
 
+/// One row of a one-road dataset's `manifest.csv`, as far as
+/// [`read_changes`] needs it.
+#[derive(Clone, Debug, Deserialize)]
+struct OneRoadRow {
+    file: String,
+    road: String,
+    speed_kmh: Option<f64>,
+    duration_s: Option<f64>,
+}
+
 /// Reads a folder of road-change recordings (`segments.csv` plus the WAV
 /// files it names). `classes` maps road names to class indices (e.g. a
 /// model's classes); a road not in it is an error naming the file, the
-/// record and the field.
+/// record and the field. A one-road dataset (`manifest.csv`, no
+/// `segments.csv`, as `grip dataset synth` without `--changes` writes) is
+/// read as one segment per recording, its whole `duration_s`: the stream's
+/// decisions on it are then its accuracy on roads that do not change.
 pub fn read_changes(dir: &Path, classes: &[String]) -> Result<Vec<ChangeRecording>> {
     let seg_path = dir.join("segments.csv");
+    let manifest = dir.join("manifest.csv");
+    if !seg_path.is_file() && manifest.is_file() {
+        return read_one_road(dir, &manifest, classes);
+    }
     if !seg_path.is_file() {
         bail!(
-            "{} does not exist (expected a folder written by `grip dataset synth --changes N`)",
+            "{} does not exist (expected a folder written by `grip dataset synth --changes N`, or a one-road dataset with a manifest.csv)",
             seg_path.display()
         );
     }
@@ -262,6 +279,48 @@ pub fn read_changes(dir: &Path, classes: &[String]) -> Result<Vec<ChangeRecordin
         bail!("{} lists no segments", seg_path.display());
     }
     Ok(by_file)
+}
+
+/// A one-road dataset as change recordings of one segment each.
+fn read_one_road(dir: &Path, manifest: &Path, classes: &[String]) -> Result<Vec<ChangeRecording>> {
+    let mut rd = csv::Reader::from_path(manifest)
+        .with_context(|| format!("opening {}", manifest.display()))?;
+    let mut out = Vec::new();
+    for (i, r) in rd.deserialize::<OneRoadRow>().enumerate() {
+        let at = || format!("{}: record {}", manifest.display(), i + 1);
+        let row = r.with_context(at)?;
+        let Some(class) = classes.iter().position(|c| *c == row.road) else {
+            bail!(
+                "{}: field `road`: `{}` is not one of the classes ({})",
+                at(),
+                row.road,
+                classes.join(", ")
+            );
+        };
+        let Some(d) = row.duration_s.filter(|d| d.is_finite() && *d > 0.0) else {
+            bail!(
+                "{}: field `duration_s`: needs a duration in seconds > 0 to read the recording as one segment",
+                at()
+            );
+        };
+        if let Some(v) = row.speed_kmh
+            && !(v.is_finite() && v >= 0.0)
+        {
+            bail!("{}: field `speed_kmh`: {v} is not a speed in km/h", at());
+        }
+        let p = dir.join(&row.file);
+        if !p.is_file() {
+            bail!("{}: field `file`: {} does not exist", at(), p.display());
+        }
+        out.push(ChangeRecording {
+            path: p,
+            segments: vec![(0.0, d, class, row.speed_kmh)],
+        });
+    }
+    if out.is_empty() {
+        bail!("{} lists no recordings", manifest.display());
+    }
+    Ok(out)
 }
 
 fn parse_range(s: &str, what: &str) -> Result<(f64, f64)> {
@@ -919,5 +978,42 @@ mod tests {
         .unwrap();
         let e = format!("{:#}", read_changes(dir.path(), &classes).unwrap_err());
         assert!(e.contains("`road`") && e.contains("ice"), "{e}");
+    }
+
+    #[test]
+    fn a_one_road_dataset_reads_as_one_segment_per_recording() {
+        let dir = tempfile::tempdir().unwrap();
+        let classes = vec!["asphalt".to_string(), "snow".to_string()];
+        std::fs::create_dir(dir.path().join("snow")).unwrap();
+        std::fs::write(dir.path().join("snow/snow_0000.wav"), b"").unwrap();
+        let manifest = dir.path().join("manifest.csv");
+        std::fs::write(
+            &manifest,
+            "file,road,speed_kmh,seed,noise,snr_db,duration_s\nsnow/snow_0000.wav,snow,12.5,7,rain+car,10.0,4.0\n",
+        )
+        .unwrap();
+        let c = read_changes(dir.path(), &classes).unwrap();
+        assert_eq!(c.len(), 1);
+        assert_eq!(c[0].path, dir.path().join("snow/snow_0000.wav"));
+        assert_eq!(c[0].segments, vec![(0.0, 4.0, 1, Some(12.5))]);
+        // without a duration it cannot be one segment: the error says where
+        std::fs::write(
+            &manifest,
+            "file,road,speed_kmh,seed,noise,snr_db,duration_s\nsnow/snow_0000.wav,snow,12.5,7,rain+car,10.0,\n",
+        )
+        .unwrap();
+        let e = format!("{:#}", read_changes(dir.path(), &classes).unwrap_err());
+        assert!(
+            e.contains("manifest.csv") && e.contains("record 1") && e.contains("`duration_s`"),
+            "{e}"
+        );
+        // segments.csv, when present, decides
+        std::fs::write(
+            dir.path().join("segments.csv"),
+            "file,t_start,t_end,road,speed_kmh,seed,noise,snr_db\nsnow/snow_0000.wav,0,1,asphalt,,,,\nsnow/snow_0000.wav,1,2,snow,,,,\n",
+        )
+        .unwrap();
+        let c = read_changes(dir.path(), &classes).unwrap();
+        assert_eq!(c[0].segments.len(), 2);
     }
 }
