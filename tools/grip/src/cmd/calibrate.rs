@@ -101,7 +101,16 @@ pub fn stream_recording(
     if est.speed_normalised() && r.segments.iter().any(|s| s.3.is_none()) {
         bail!(
             "{}: a segment of {} has no speed_kmh; the model is speed-normalised and needs the vehicle speed",
-            where_.join("segments.csv").display(),
+            {
+                // the ground truth's file: a one-road dataset has only its manifest
+                let seg = where_.join("segments.csv");
+                if seg.is_file() {
+                    seg
+                } else {
+                    where_.join("manifest.csv")
+                }
+            }
+            .display(),
             r.path.display(),
         );
     }
