@@ -1039,7 +1039,12 @@ fn mic_faults(s: &Setup) -> anyhow::Result<Attempt> {
         let last_good = l
             .roads
             .iter()
-            .filter(|e| e.class_index != NO_CLASS && e.confidence >= 0.6 && e.frame_t0_ns < t0)
+            .filter(|e| {
+                // a frame mostly before the fault: audio heard before it
+                e.class_index != NO_CLASS
+                    && e.confidence >= 0.6
+                    && e.frame_t0_ns / 2 + e.frame_t1_ns / 2 < t0
+            })
             .max_by_key(|e| e.stamp_ns);
         let heard = last_good.map_or(t0, |e| e.stamp_ns.max(t0));
         let fb0 = heard + ns(MAX_AGE_MS + VM_MARGIN_MS);
@@ -1055,6 +1060,10 @@ fn mic_faults(s: &Setup) -> anyhow::Result<Attempt> {
             ms(fb0 as i128 - t0 as i128),
             share_after * 100.0
         );
+        ensure!(
+            confident == 0,
+            "{what}: arte published {confident} confident estimates of the faulty audio (highest {max_conf:.2})"
+        );
         if n == 0 && fb0 >= t1 {
             return Ok(Attempt::Disturbed(format!(
                 "{what}: arte's last estimate of the audio before it came {:.0} ms into the {:.0} ms fault: no time left to see the fallback",
@@ -1062,10 +1071,6 @@ fn mic_faults(s: &Setup) -> anyhow::Result<Attempt> {
                 ms(t1 as i128 - t0 as i128)
             )));
         }
-        ensure!(
-            confident == 0,
-            "{what}: arte published {confident} confident estimates of the faulty audio (highest {max_conf:.2})"
-        );
         ensure!(n > 0, "{what}: no controlling cycle during the fault");
         ensure!(
             share == 0.0,
