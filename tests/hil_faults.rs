@@ -570,6 +570,13 @@ fn killed_recorder_loses_at_most_a_second() -> anyhow::Result<()> {
     with_attempts_in("kill-recorder", &scenario(8), kill_recorder)
 }
 
+/// How long before `t` the newest of `stamps` is, or "none".
+fn last_before(t: u64, stamps: impl Iterator<Item = u64>) -> String {
+    stamps.max().map_or("none".to_owned(), |l| {
+        format!("{:.0} ms", ms(t as i128 - l as i128))
+    })
+}
+
 fn kill_recorder(s: &Setup) -> anyhow::Result<Attempt> {
     let first = s.out.join("first.mcap");
     let second = s.out.join("second.mcap");
@@ -652,17 +659,12 @@ fn kill_recorder(s: &Setup) -> anyhow::Result<Attempt> {
     );
     // each topic's last record against the kill: one topic behind the
     // others is a receive problem, all of them behind a writer's
-    let before = |stamps: &mut dyn Iterator<Item = u64>| {
-        stamps.max().map_or("none".to_owned(), |l| {
-            format!("{:.0} ms", ms(t_kill as i128 - l as i128))
-        })
-    };
     println!(
         "killed recorder's file, last record before the kill: cycle {}, ground truth {}, road {}, CAN {}",
-        before(&mut old.cycles.iter().map(|c| c.stamp_ns)),
-        before(&mut old.truth.iter().map(|m| m.stamp_ns)),
-        before(&mut old.roads.iter().map(|m| m.stamp_ns)),
-        before(&mut old.can.iter().map(|m| m.stamp_ns)),
+        last_before(t_kill, old.cycles.iter().map(|c| c.stamp_ns)),
+        last_before(t_kill, old.truth.iter().map(|m| m.stamp_ns)),
+        last_before(t_kill, old.roads.iter().map(|m| m.stamp_ns)),
+        last_before(t_kill, old.can.iter().map(|m| m.stamp_ns)),
     );
     if lost > bound {
         // the killed recorder's own log (queue, flushes, stalls), for the cause

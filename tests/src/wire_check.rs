@@ -188,13 +188,15 @@ pub fn late_delivery(log: &LoopLog, dbc: &Dbc, t0: u64, t1: u64) -> anyhow::Resu
                 .filter(|c| c.stamp_ns > a && c.stamp_ns < b)
                 .count()
         };
+        // the loop ran through the gap: the frames were late, not absent
+        let mut cycles = 0;
         if let Some((a, b)) = overlapping_gap(received, t0, t1, timeout, |a, b| {
-            ran(a, b) as f64 >= 0.5 * ms(b as i128 - a as i128)
+            cycles = ran(a, b);
+            cycles as f64 >= 0.5 * ms(b as i128 - a as i128)
         }) {
             let gap = ms(b as i128 - a as i128);
             return Ok(Some(format!(
-                "{name} reached tcs-loop {gap:.1} ms apart (timeout {timeout} ms) while it ran {} cycles: on the wire in time, delivered late by the kernel",
-                ran(a, b)
+                "{name} reached tcs-loop {gap:.1} ms apart (timeout {timeout} ms) while it ran {cycles} cycles: on the wire in time, delivered late by the kernel"
             )));
         }
     }

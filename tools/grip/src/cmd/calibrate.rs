@@ -15,7 +15,7 @@
 //! time (`t_end`). That is exactly what a controller receives.
 
 use super::Ctx;
-use super::dataset::{ChangeRecording, read_changes};
+use super::dataset::{ChangeRecording, read_changes, truth_file};
 use anyhow::{Context, Result, bail};
 use grip_arte::calib::{Calibration, Method, Reliability, StreamCalibration, gate_stats};
 use grip_arte::model::{Model, Predictor};
@@ -101,16 +101,7 @@ pub fn stream_recording(
     if est.speed_normalised() && r.segments.iter().any(|s| s.3.is_none()) {
         bail!(
             "{}: a segment of {} has no speed_kmh; the model is speed-normalised and needs the vehicle speed",
-            {
-                // the ground truth's file: a one-road dataset has only its manifest
-                let seg = where_.join("segments.csv");
-                if seg.is_file() {
-                    seg
-                } else {
-                    where_.join("manifest.csv")
-                }
-            }
-            .display(),
+            truth_file(where_).display(),
             r.path.display(),
         );
     }

@@ -211,54 +211,27 @@ struct OneRoadRow {
 /// read as one segment per recording, its whole `duration_s`: the stream's
 /// decisions on it are then its accuracy on roads that do not change.
 pub fn read_changes(dir: &Path, classes: &[String]) -> Result<Vec<ChangeRecording>> {
-    let seg_path = dir.join("segments.csv");
-    let manifest = dir.join("manifest.csv");
-    if !seg_path.is_file() && manifest.is_file() {
-        return read_one_road(dir, &manifest, classes);
+    let truth = truth_file(dir);
+    if truth.ends_with("manifest.csv") {
+        return read_one_road(dir, &truth, classes);
     }
-    if !seg_path.is_file() {
+    if !truth.is_file() {
         bail!(
             "{} does not exist (expected a folder written by `grip dataset synth --changes N`, or a one-road dataset with a manifest.csv)",
-            seg_path.display()
+            truth.display()
         );
     }
-    let mut rd = csv::Reader::from_path(&seg_path)
-        .with_context(|| format!("opening {}", seg_path.display()))?;
+    let mut rd =
+        csv::Reader::from_path(&truth).with_context(|| format!("opening {}", truth.display()))?;
     let mut by_file: Vec<ChangeRecording> = Vec::new();
     for (i, r) in rd.deserialize::<SegmentRow>().enumerate() {
-        let row = r.with_context(|| format!("{}: record {}", seg_path.display(), i + 1))?;
-        let Some(class) = classes.iter().position(|c| *c == row.road) else {
-            bail!(
-                "{}: record {}: field `road`: `{}` is not one of the classes ({})",
-                seg_path.display(),
-                i + 1,
-                row.road,
-                classes.join(", ")
-            );
-        };
+        let at = || format!("{}: record {}", truth.display(), i + 1);
+        let row = r.with_context(at)?;
+        let (class, p) = checked_row(dir, &at, &row.road, &row.file, row.speed_kmh, classes)?;
         if !(row.t_start.is_finite() && row.t_start >= 0.0 && row.t_end > row.t_start) {
             bail!(
-                "{}: record {}: fields `t_start`/`t_end`: need 0 <= t_start < t_end",
-                seg_path.display(),
-                i + 1
-            );
-        }
-        let p = dir.join(&row.file);
-        if !p.is_file() {
-            bail!(
-                "{}: record {}: field `file`: {} does not exist",
-                seg_path.display(),
-                i + 1,
-                p.display()
-            );
-        }
-        if let Some(v) = row.speed_kmh
-            && !(v.is_finite() && v >= 0.0)
-        {
-            bail!(
-                "{}: record {}: field `speed_kmh`: {v} is not a speed in km/h",
-                seg_path.display(),
-                i + 1
+                "{}: fields `t_start`/`t_end`: need 0 <= t_start < t_end",
+                at()
             );
         }
         match by_file.iter_mut().find(|c| c.path == p) {
@@ -276,9 +249,53 @@ pub fn read_changes(dir: &Path, classes: &[String]) -> Result<Vec<ChangeRecordin
         c.segments.sort_by(|a, b| a.0.total_cmp(&b.0));
     }
     if by_file.is_empty() {
-        bail!("{} lists no segments", seg_path.display());
+        bail!("{} lists no segments", truth.display());
     }
     Ok(by_file)
+}
+
+/// The file that holds a recordings folder's ground truth for
+/// [`read_changes`]: `segments.csv`, or a one-road dataset's `manifest.csv`
+/// when there is no `segments.csv` (the path of `segments.csv` when there is
+/// neither).
+pub fn truth_file(dir: &Path) -> PathBuf {
+    let seg = dir.join("segments.csv");
+    let manifest = dir.join("manifest.csv");
+    if !seg.is_file() && manifest.is_file() {
+        manifest
+    } else {
+        seg
+    }
+}
+
+/// What both ground-truth files say of a recording, checked: its road (a
+/// class index), its file (which must exist) and its speed (km/h, if
+/// given). `at` names the file and record for the error.
+fn checked_row(
+    dir: &Path,
+    at: &dyn Fn() -> String,
+    road: &str,
+    file: &str,
+    speed_kmh: Option<f64>,
+    classes: &[String],
+) -> Result<(usize, PathBuf)> {
+    let Some(class) = classes.iter().position(|c| c == road) else {
+        bail!(
+            "{}: field `road`: `{road}` is not one of the classes ({})",
+            at(),
+            classes.join(", ")
+        );
+    };
+    let p = dir.join(file);
+    if !p.is_file() {
+        bail!("{}: field `file`: {} does not exist", at(), p.display());
+    }
+    if let Some(v) = speed_kmh
+        && !(v.is_finite() && v >= 0.0)
+    {
+        bail!("{}: field `speed_kmh`: {v} is not a speed in km/h", at());
+    }
+    Ok((class, p))
 }
 
 /// A one-road dataset as change recordings of one segment each.
@@ -289,29 +306,13 @@ fn read_one_road(dir: &Path, manifest: &Path, classes: &[String]) -> Result<Vec<
     for (i, r) in rd.deserialize::<OneRoadRow>().enumerate() {
         let at = || format!("{}: record {}", manifest.display(), i + 1);
         let row = r.with_context(at)?;
-        let Some(class) = classes.iter().position(|c| *c == row.road) else {
-            bail!(
-                "{}: field `road`: `{}` is not one of the classes ({})",
-                at(),
-                row.road,
-                classes.join(", ")
-            );
-        };
+        let (class, p) = checked_row(dir, &at, &row.road, &row.file, row.speed_kmh, classes)?;
         let Some(d) = row.duration_s.filter(|d| d.is_finite() && *d > 0.0) else {
             bail!(
                 "{}: field `duration_s`: needs a duration in seconds > 0 to read the recording as one segment",
                 at()
             );
         };
-        if let Some(v) = row.speed_kmh
-            && !(v.is_finite() && v >= 0.0)
-        {
-            bail!("{}: field `speed_kmh`: {v} is not a speed in km/h", at());
-        }
-        let p = dir.join(&row.file);
-        if !p.is_file() {
-            bail!("{}: field `file`: {} does not exist", at(), p.display());
-        }
         out.push(ChangeRecording {
             path: p,
             segments: vec![(0.0, d, class, row.speed_kmh)],
