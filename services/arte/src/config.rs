@@ -31,6 +31,13 @@ pub struct InputSection {
     /// most this old; older or absent: speed unknown, s.
     #[serde(default = "default_speed_timeout")]
     pub speed_timeout_s: f64,
+    /// A block whose audio ended longer ago than this when the service
+    /// takes it from the topic (a backlog: a starved CPU, a stopped and
+    /// resumed process) is not classified but dropped and counted, so that
+    /// no estimate is ever made of audio that old; the estimator starts a
+    /// fresh frame at the next block in time, s.
+    #[serde(default = "default_max_lag")]
+    pub max_lag_s: f64,
 }
 
 fn default_poll() -> f64 {
@@ -42,6 +49,9 @@ fn default_resync() -> f64 {
 fn default_speed_timeout() -> f64 {
     crate::DEFAULT_SPEED_TIMEOUT_S
 }
+fn default_max_lag() -> f64 {
+    crate::DEFAULT_MAX_LAG_S
+}
 
 impl Default for InputSection {
     fn default() -> Self {
@@ -49,6 +59,7 @@ impl Default for InputSection {
             poll_interval_ms: default_poll(),
             resync_gap_s: default_resync(),
             speed_timeout_s: default_speed_timeout(),
+            max_lag_s: default_max_lag(),
         }
     }
 }
@@ -137,6 +148,13 @@ impl ServiceConfig for ArteServiceConfig {
                 format!("{} s is outside (0, 10]", i.speed_timeout_s),
             );
         }
+        // at least one hop of audio late; at most what a resync allows
+        if !(i.max_lag_s >= 0.05 && i.max_lag_s <= 60.0) {
+            return bad(
+                "input.max_lag_s",
+                format!("{} s is outside [0.05, 60]", i.max_lag_s),
+            );
+        }
         validate_rt(&self.rt, file)
     }
 }
@@ -169,6 +187,7 @@ fifo_priority = 50
         );
         assert_eq!(c.input.resync_gap_s, 0.2);
         assert_eq!(c.input.speed_timeout_s, 0.2);
+        assert_eq!(c.input.max_lag_s, crate::DEFAULT_MAX_LAG_S);
         let s = ArteServiceConfig::parse(
             Path::new("a.toml"),
             &GOOD.replace("[input]", "[input]\nspeed_timeout_s = 0.5"),
@@ -206,6 +225,15 @@ fifo_priority = 50
             e.to_string()
                 .starts_with("a.toml: field `input.poll_interval_ms`")
         );
+        for bad in ["0.0", "0.01", "-1.0", "61.0", "nan"] {
+            let e = ArteServiceConfig::parse(
+                Path::new("a.toml"),
+                &GOOD.replace("[input]", &format!("[input]\nmax_lag_s = {bad}")),
+            )
+            .unwrap_err();
+            assert_eq!(e.field, "input.max_lag_s", "{bad}: {e}");
+            assert!(e.to_string().contains("[0.05, 60]"), "{bad}: {e}");
+        }
     }
 
     #[test]

@@ -40,8 +40,8 @@ pub mod run;
 
 pub use config::ArteServiceConfig;
 pub use cycle::{
-    ArteCounters, ArteLoop, AudioQuality, BadAudio, DEFAULT_SPEED_TIMEOUT_S, EstimateSink,
-    odometer_at,
+    ArteCounters, ArteLoop, AudioQuality, BadAudio, DEFAULT_MAX_LAG_S, DEFAULT_SPEED_TIMEOUT_S,
+    EstimateSink, odometer_at,
 };
 pub use error::ArteError;
 pub use model::{ClassKnowledge, load_model, road_table};

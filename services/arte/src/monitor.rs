@@ -33,6 +33,7 @@ pub fn spawn_helper(
     let m = ArteMonitor {
         blocks: Flow::new(0, Instant::now(), Duration::from_secs(1)),
         lost: Count::default(),
+        stale: Count::default(),
         resets: Count::default(),
         rate_bad: Count::default(),
         xruns: Count::default(),
@@ -216,6 +217,7 @@ struct ArteMonitor {
     speed_normalised: bool,
     blocks: Flow,
     lost: Count,
+    stale: Count,
     resets: Count,
     rate_bad: Count,
     xruns: Count,
@@ -262,6 +264,15 @@ impl Monitor for ArteMonitor {
             s.lost_blocks.load(Ordering::Relaxed),
             "audio blocks lost (sequence gaps)"
         );
+        if let Some(new) = self.stale.grew(s.stale_blocks.load(Ordering::Relaxed)) {
+            let max_lag_ms = s.max_stale_lag_ns.load(Ordering::Relaxed) as f64 * 1e-6;
+            tracing::warn!(
+                total = self.stale.last(),
+                new,
+                max_lag_ms,
+                "arte is behind the audio: blocks older than input.max_lag_s dropped, not classified (no estimate of old audio; CPU starved or the process was stopped)"
+            );
+        }
         warn_if_grew!(
             self.resets,
             s.resets.load(Ordering::Relaxed),

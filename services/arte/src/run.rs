@@ -100,7 +100,8 @@ pub fn prepare_with_clock<K: Clock>(opts: &Options, clock: K) -> Result<Prepared
         cfg.input.resync_gap_s,
         clock,
     )?
-    .with_speed_timeout(cfg.input.speed_timeout_s);
+    .with_speed_timeout(cfg.input.speed_timeout_s)
+    .with_max_lag(cfg.input.max_lag_s);
     Ok(Prepared {
         config_file,
         model_path,
@@ -130,6 +131,7 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
         hop_s = cfg.stream.hop_s,
         speed_normalised = lp.speed_normalised(),
         speed_timeout_s = cfg.input.speed_timeout_s,
+        max_lag_s = cfg.input.max_lag_s,
         "arte starting"
     );
     let node = IpcNode::create(topics::node::ARTE)?;
@@ -173,7 +175,7 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
             match sub.recv() {
                 Ok(Some(b)) => {
                     lp.poll_cycles(&cycles, &stats);
-                    lp.on_block(&b, &mut publisher, &stats);
+                    lp.on_live_block(&b, clock.now_ns(), &mut publisher, &stats);
                     got += 1;
                     // the heartbeat moves with every block as well as once
                     // per iteration: an iteration that drains a backlog (a
@@ -219,6 +221,8 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
         blocks = summary.blocks,
         estimates = summary.estimates,
         lost_blocks = summary.lost_blocks,
+        stale_blocks = stats.stale_blocks.load(Ordering::Relaxed),
+        max_stale_lag_ms = stats.max_stale_lag_ns.load(Ordering::Relaxed) as f64 * 1e-6,
         resets = stats.resets.load(Ordering::Relaxed),
         rate_mismatch = stats.rate_mismatch.load(Ordering::Relaxed),
         blocks_with_speed = summary.blocks_with_speed,

@@ -206,7 +206,12 @@ fn cycle_records_over_iceoryx2_give_the_estimator_its_speed() {
     let mut blk = bl.iter();
     let mut send = |n: usize| {
         for _ in 0..n {
-            audio.publish(blk.next().unwrap()).unwrap();
+            // stamped as audio-acq stamps a block: its first sample's time
+            // on the monotonic clock, just after its last one was captured
+            // (the service drops audio that ended more than max_lag_s ago)
+            let mut b = *blk.next().unwrap();
+            b.stamp_ns = monotonic_now_ns().saturating_sub(23_219_955);
+            audio.publish(&b).unwrap();
             std::thread::sleep(Duration::from_millis(23));
         }
         // Let the service take this phase's last block before the next
