@@ -38,6 +38,11 @@ pub struct ArteCounters {
     /// Blocks not classified because their audio had ended more than
     /// `input.max_lag_s` before the loop took them ([`ArteLoop::on_live_block`]).
     pub stale_blocks: AtomicU64,
+    /// Estimates not published by the live loop because their audio had
+    /// ended more than `input.max_lag_s` before the moment of publication
+    /// (the process was stopped or starved between taking a block and
+    /// classifying it).
+    pub stale_estimates: AtomicU64,
     /// The largest lag of a dropped block so far (its audio's end to the
     /// moment the loop took it), ns.
     pub max_stale_lag_ns: AtomicU64,
@@ -403,7 +408,10 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
     /// and the estimator starts a fresh frame at the next block in time, so
     /// a backlog (a starved CPU, a stopped and resumed process) never turns
     /// into estimates of old audio published as new. Otherwise
-    /// [`Self::on_block`]. Replays and generated drives call `on_block`
+    /// [`Self::on_block`], except that an estimate whose audio is older
+    /// than `max_lag` by the time it would go out (the process stopped
+    /// between taking the block and publishing) is not published either
+    /// (`stale_estimates`). Replays and generated drives call `on_block`
     /// directly: they classify every block. Returns the estimates sent.
     /// Allocation-free.
     pub fn on_live_block(
@@ -418,7 +426,7 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             .saturating_add(samples_ns(b.samples().len() as u64, self.fs));
         let lag = now_ns.saturating_sub(end);
         if lag <= self.max_lag_ns || b.sample_rate != self.fs {
-            return self.on_block(b, sink, stats);
+            return self.process(b, sink, stats, self.max_lag_ns);
         }
         stats.blocks.fetch_add(1, Ordering::Relaxed);
         stats.stale_blocks.fetch_add(1, Ordering::Relaxed);
@@ -440,6 +448,19 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
         b: &AudioBlock,
         sink: &mut impl EstimateSink,
         stats: &ArteCounters,
+    ) -> usize {
+        self.process(b, sink, stats, u64::MAX)
+    }
+
+    /// [`Self::on_block`], publishing no estimate whose audio ended more
+    /// than `max_lag_ns` before the clock's reading at its publication
+    /// (counted in `stale_estimates`).
+    fn process(
+        &mut self,
+        b: &AudioBlock,
+        sink: &mut impl EstimateSink,
+        stats: &ArteCounters,
+        max_lag_ns: u64,
     ) -> usize {
         stats.blocks.fetch_add(1, Ordering::Relaxed);
         stats.xruns.store(u64::from(b.xruns), Ordering::Relaxed);
@@ -527,6 +548,10 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             e.x_from = f64::NAN;
             e.x_to = f64::NAN;
             e.stamp_ns = self.clock.now_ns();
+            if e.stamp_ns.saturating_sub(e.frame_t1_ns) > max_lag_ns {
+                stats.stale_estimates.fetch_add(1, Ordering::Relaxed);
+                return 0;
+            }
             publish(sink, e, stats);
             self.out_seq += 1;
             return 1;
@@ -571,6 +596,12 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             e.mu_peak = r.mu_peak;
             e.alpha = r.alpha;
             e.stamp_ns = clock.now_ns();
+            // the live loop was stopped or starved between taking the
+            // block and getting here: this is old audio, not news
+            if e.stamp_ns.saturating_sub(t1) > max_lag_ns {
+                stats.stale_estimates.fetch_add(1, Ordering::Relaxed);
+                return;
+            }
             if publish(sink, e, stats) {
                 stats.per_class[class].fetch_add(1, Ordering::Relaxed);
             }

@@ -34,6 +34,7 @@ pub fn spawn_helper(
         blocks: Flow::new(0, Instant::now(), Duration::from_secs(1)),
         lost: Count::default(),
         stale: Count::default(),
+        stale_est: Count::default(),
         resets: Count::default(),
         rate_bad: Count::default(),
         xruns: Count::default(),
@@ -218,6 +219,7 @@ struct ArteMonitor {
     blocks: Flow,
     lost: Count,
     stale: Count,
+    stale_est: Count,
     resets: Count,
     rate_bad: Count,
     xruns: Count,
@@ -273,6 +275,11 @@ impl Monitor for ArteMonitor {
                 "arte is behind the audio: blocks older than input.max_lag_s dropped, not classified (no estimate of old audio; CPU starved or the process was stopped)"
             );
         }
+        warn_if_grew!(
+            self.stale_est,
+            s.stale_estimates.load(Ordering::Relaxed),
+            "estimates not published: their audio was older than input.max_lag_s when they were ready (arte stopped or starved while classifying)"
+        );
         warn_if_grew!(
             self.resets,
             s.resets.load(Ordering::Relaxed),

@@ -223,6 +223,7 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
         lost_blocks = summary.lost_blocks,
         stale_blocks = stats.stale_blocks.load(Ordering::Relaxed),
         max_stale_lag_ms = stats.max_stale_lag_ns.load(Ordering::Relaxed) as f64 * 1e-6,
+        stale_estimates = stats.stale_estimates.load(Ordering::Relaxed),
         resets = stats.resets.load(Ordering::Relaxed),
         rate_mismatch = stats.rate_mismatch.load(Ordering::Relaxed),
         blocks_with_speed = summary.blocks_with_speed,

@@ -170,3 +170,50 @@ fn without_the_bound_the_backlog_is_published_as_new() {
         "the unbounded loop's oldest estimate lagged only {worst} ns"
     );
 }
+
+#[test]
+fn an_estimate_ready_too_late_is_not_published() {
+    // the block is taken in time, but the process is stopped for 2 s before
+    // its estimates go out (the clock the loop stamps with has moved on)
+    let clock = ManualClock::new(0);
+    let mut lp = new_loop(&clock, DEFAULT_MAX_LAG_S);
+    let stats = ArteCounters::default();
+    let mut sink = Sink(Vec::with_capacity(100));
+    let live = |k: u64| T0 + (k + 1) * BLOCK_NS + 5_000_000;
+    for k in 0..30u64 {
+        clock.set_ns(live(k));
+        lp.on_live_block(&block(k), live(k), &mut sink, &stats);
+    }
+    let n0 = sink.0.len();
+    assert!(n0 > 0, "no estimate from 0.3 s of audio");
+    // taken at live(30), published 2 s later: not published, counted
+    let mut late = 0;
+    for k in 30..33u64 {
+        clock.set_ns(live(k) + 2_000_000_000);
+        late += lp.on_live_block(&block(k), live(k), &mut sink, &stats);
+    }
+    assert_eq!(late, 0);
+    assert_eq!(sink.0.len(), n0);
+    let dropped = stats.stale_estimates.load(Ordering::Relaxed);
+    assert!(dropped >= 1, "{dropped} estimates counted as too late");
+    assert_eq!(stats.stale_blocks.load(Ordering::Relaxed), 0);
+    // on time again (the audio from after the stop; the clock never goes
+    // back): published, seq contiguous
+    for k in 240..260u64 {
+        clock.set_ns(live(k));
+        lp.on_live_block(&block(k), live(k), &mut sink, &stats);
+    }
+    assert!(sink.0.len() > n0);
+    for (i, e) in sink.0.iter().enumerate() {
+        assert_eq!(e.seq, i as u64);
+    }
+    // on_block (replays, generated drives) publishes whatever the clock says
+    let clock = ManualClock::new(0);
+    let mut lp = new_loop(&clock, DEFAULT_MAX_LAG_S);
+    let mut sink = Sink(Vec::with_capacity(100));
+    for k in 0..30u64 {
+        clock.set_ns(live(k) + 2_000_000_000);
+        lp.on_block(&block(k), &mut sink, &stats);
+    }
+    assert!(!sink.0.is_empty());
+}
