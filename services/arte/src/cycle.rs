@@ -429,11 +429,14 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             return self.process(b, sink, stats, self.max_lag_ns);
         }
         stats.blocks.fetch_add(1, Ordering::Relaxed);
+        stats.xruns.store(u64::from(b.xruns), Ordering::Relaxed);
         stats.stale_blocks.fetch_add(1, Ordering::Relaxed);
         stats.max_stale_lag_ns.fetch_max(lag, Ordering::Relaxed);
-        // taken, not lost: the sequence and the time line go on from it
+        // taken, not lost: the sequence, the time line and the overrun count
+        // go on from it (the next block starts a fresh frame anyway)
         self.expected_seq = Some(b.seq.wrapping_add(1));
         self.next_stamp = Some(end);
+        self.last_xruns = Some(b.xruns);
         if self.pushed > 0 {
             self.est.reset();
             self.pushed = 0;
