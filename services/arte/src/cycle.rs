@@ -437,11 +437,17 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
         self.expected_seq = Some(b.seq.wrapping_add(1));
         self.next_stamp = Some(end);
         self.last_xruns = Some(b.xruns);
+        self.fresh_frame();
+        0
+    }
+
+    /// The next block classified starts a fresh frame: nothing of the
+    /// audio before it (unusable, or dropped as too old) carries over.
+    fn fresh_frame(&mut self) {
         if self.pushed > 0 {
             self.est.reset();
             self.pushed = 0;
         }
-        0
     }
 
     /// Processes one block; sends every estimate that falls due in it.
@@ -533,11 +539,7 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
                 BadAudio::Xrun => &stats.xrun_blocks,
             };
             c.fetch_add(1, Ordering::Relaxed);
-            // the next good block starts a fresh frame
-            if self.pushed > 0 {
-                self.est.reset();
-                self.pushed = 0;
-            }
+            self.fresh_frame();
             let e = &mut self.est_buf;
             *e = RoadEstimate::zeroed();
             e.seq = self.out_seq;

@@ -266,15 +266,12 @@ impl Monitor for ArteMonitor {
             s.lost_blocks.load(Ordering::Relaxed),
             "audio blocks lost (sequence gaps)"
         );
-        if let Some(new) = self.stale.grew(s.stale_blocks.load(Ordering::Relaxed)) {
-            let max_lag_ms = s.max_stale_lag_ns.load(Ordering::Relaxed) as f64 * 1e-6;
-            tracing::warn!(
-                total = self.stale.last(),
-                new,
-                max_lag_ms,
-                "arte is behind the audio: blocks older than input.max_lag_s dropped, not classified (no estimate of old audio; CPU starved or the process was stopped)"
-            );
-        }
+        warn_if_grew!(
+            self.stale,
+            s.stale_blocks.load(Ordering::Relaxed),
+            "arte is behind the audio: blocks older than input.max_lag_s dropped, not classified (no estimate of old audio; CPU starved or the process was stopped)",
+            max_lag_ms = s.max_stale_lag_ns.load(Ordering::Relaxed) as f64 * 1e-6
+        );
         warn_if_grew!(
             self.stale_est,
             s.stale_estimates.load(Ordering::Relaxed),

@@ -9,12 +9,11 @@
 mod common;
 use std::sync::atomic::Ordering;
 
-use common::Toy;
+use common::{Toy, VecSink};
 use grip_arte::features::{FeatureConfig, FeatureSet};
 use grip_arte::stream::StreamConfig;
-use grip_arte_svc::{ArteCounters, ArteLoop, ClassKnowledge, DEFAULT_MAX_LAG_S, EstimateSink};
+use grip_arte_svc::{ArteCounters, ArteLoop, ClassKnowledge, DEFAULT_MAX_LAG_S};
 use grip_io::clock::ManualClock;
-use grip_io::ipc::IpcError;
 use grip_msgs::{AudioBlock, RoadEstimate, name_to_bytes};
 
 #[global_allocator]
@@ -24,15 +23,6 @@ const RATE: u32 = 44_100;
 const BLOCK: usize = 441; // 10 ms
 const BLOCK_NS: u64 = 10_000_000;
 const T0: u64 = 5_000_000_000;
-
-/// Records what it is sent into a buffer reserved up front.
-struct Sink(Vec<RoadEstimate>);
-impl EstimateSink for Sink {
-    fn send(&mut self, e: &RoadEstimate) -> Result<(), IpcError> {
-        self.0.push(*e);
-        Ok(())
-    }
-}
 
 fn block(k: u64) -> AudioBlock {
     let mut b = AudioBlock::zeroed();
@@ -77,7 +67,7 @@ fn run(max_lag_s: f64) -> (Vec<RoadEstimate>, ArteCounters, Vec<u64>, usize) {
     let clock = ManualClock::new(0);
     let mut lp = new_loop(&clock, max_lag_s);
     let stats = ArteCounters::default();
-    let mut sink = Sink(Vec::with_capacity(1000));
+    let mut sink = VecSink(Vec::with_capacity(1000));
     let live = |k: u64| T0 + (k + 1) * BLOCK_NS + 5_000_000;
     let resume = live(300); // the 2 s stop ends
     let mut taken = Vec::with_capacity(400);
@@ -178,7 +168,7 @@ fn an_estimate_ready_too_late_is_not_published() {
     let clock = ManualClock::new(0);
     let mut lp = new_loop(&clock, DEFAULT_MAX_LAG_S);
     let stats = ArteCounters::default();
-    let mut sink = Sink(Vec::with_capacity(100));
+    let mut sink = VecSink(Vec::with_capacity(100));
     let live = |k: u64| T0 + (k + 1) * BLOCK_NS + 5_000_000;
     for k in 0..30u64 {
         clock.set_ns(live(k));
@@ -210,7 +200,7 @@ fn an_estimate_ready_too_late_is_not_published() {
     // on_block (replays, generated drives) publishes whatever the clock says
     let clock = ManualClock::new(0);
     let mut lp = new_loop(&clock, DEFAULT_MAX_LAG_S);
-    let mut sink = Sink(Vec::with_capacity(100));
+    let mut sink = VecSink(Vec::with_capacity(100));
     for k in 0..30u64 {
         clock.set_ns(live(k) + 2_000_000_000);
         lp.on_block(&block(k), &mut sink, &stats);

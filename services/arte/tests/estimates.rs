@@ -9,20 +9,9 @@ use std::sync::atomic::Ordering;
 
 use common::*;
 use grip_arte::stream::StreamConfig;
-use grip_arte_svc::{ArteCounters, ArteError, ArteLoop, EstimateSink, load_model, road_table};
+use grip_arte_svc::{ArteCounters, ArteError, ArteLoop, load_model, road_table};
 use grip_io::clock::ManualClock;
-use grip_io::ipc::IpcError;
 use grip_msgs::{AudioBlock, RoadEstimate};
-
-#[derive(Default)]
-struct VecSink(Vec<RoadEstimate>);
-
-impl EstimateSink for VecSink {
-    fn send(&mut self, e: &RoadEstimate) -> Result<(), IpcError> {
-        self.0.push(*e);
-        Ok(())
-    }
-}
 
 const T0: u64 = 5_000_000_000;
 const CHANGE_S: f64 = 4.0;

@@ -4,23 +4,13 @@
 //! class tables are applied. A toy classifier stands in for a model.
 
 mod common;
-use common::Toy;
+use common::{Toy, VecSink};
 use grip_arte::features::{FeatureConfig, FeatureSet};
 use grip_arte::stream::StreamConfig;
-use grip_arte_svc::{ArteCounters, ArteLoop, ClassKnowledge, EstimateSink};
+use grip_arte_svc::{ArteCounters, ArteLoop, ClassKnowledge};
 use grip_io::clock::ManualClock;
-use grip_io::ipc::IpcError;
-use grip_msgs::{AudioBlock, RoadEstimate, name_to_bytes};
+use grip_msgs::{AudioBlock, name_to_bytes};
 use proptest::prelude::*;
-
-#[derive(Default)]
-struct VecSink(Vec<RoadEstimate>);
-impl EstimateSink for VecSink {
-    fn send(&mut self, e: &RoadEstimate) -> Result<(), IpcError> {
-        self.0.push(*e);
-        Ok(())
-    }
-}
 
 fn road(name: &str, l: f64) -> ClassKnowledge {
     ClassKnowledge {

@@ -210,7 +210,8 @@ fn cycle_records_over_iceoryx2_give_the_estimator_its_speed() {
             // on the monotonic clock, just after its last one was captured
             // (the service drops audio that ended more than max_lag_s ago)
             let mut b = *blk.next().unwrap();
-            b.stamp_ns = monotonic_now_ns().saturating_sub(23_219_955);
+            let span_ns = u64::from(b.n_samples) * 1_000_000_000 / u64::from(b.sample_rate);
+            b.stamp_ns = monotonic_now_ns().saturating_sub(span_ns);
             audio.publish(&b).unwrap();
             std::thread::sleep(Duration::from_millis(23));
         }

@@ -109,14 +109,16 @@ impl Count {
 
 /// `warn_if_grew!(count, now, "what")`: [`Count::grew`], and if it did, a
 /// `tracing` warning `what` with `total = now` and `new` (since the last
-/// line). A macro so that the line's target is the calling service's
-/// module (log filters such as `RUST_LOG=grip_tcs_loop=warn` keep working).
+/// line); `warn_if_grew!(count, now, "what", key = value, ...)` adds
+/// fields, evaluated only when the line is written. A macro so that the
+/// line's target is the calling service's module (log filters such as
+/// `RUST_LOG=grip_tcs_loop=warn` keep working).
 #[macro_export]
 macro_rules! warn_if_grew {
-    ($count:expr, $now:expr, $what:literal) => {{
+    ($count:expr, $now:expr, $what:literal $(, $key:ident = $value:expr)* $(,)?) => {{
         let now: u64 = $now;
         if let Some(new) = $count.grew(now) {
-            $crate::service::monitor::tracing::warn!(total = now, new, $what);
+            $crate::service::monitor::tracing::warn!(total = now, new, $($key = $value,)* $what);
         }
     }};
 }

@@ -11,8 +11,9 @@ use grip_arte::mlp::LmConfig;
 use grip_arte::model::{ClassifierSpec, Model, fit};
 use grip_arte::stream::Classify;
 use grip_arte::synth::{RoadAudioSynth, SynthConfig, road_index};
-use grip_arte_svc::{ClassKnowledge, road_table};
-use grip_msgs::{AUDIO_MAX_SAMPLES, AudioBlock};
+use grip_arte_svc::{ClassKnowledge, EstimateSink, road_table};
+use grip_io::ipc::IpcError;
+use grip_msgs::{AUDIO_MAX_SAMPLES, AudioBlock, RoadEstimate};
 
 pub const RATE: u32 = 44_100;
 pub const CLASSES: [&str; 4] = ["asphalt", "gravel", "snow", "stone"];
@@ -123,5 +124,16 @@ impl Classify for Toy {
     }
     fn predict_proba(&mut self, _x: &[f64], out: &mut [f64]) {
         out.copy_from_slice(self.probs);
+    }
+}
+
+/// Keeps every estimate sent to it.
+#[derive(Default)]
+pub struct VecSink(pub Vec<RoadEstimate>);
+
+impl EstimateSink for VecSink {
+    fn send(&mut self, e: &RoadEstimate) -> Result<(), IpcError> {
+        self.0.push(*e);
+        Ok(())
     }
 }
