@@ -3,8 +3,10 @@
 //! clock; tests drive it on a manual clock.
 //!
 //! A cycle, in this order:
-//! 1. **Drain CAN** (non-blocking, at most [`MAX_RX_PER_CYCLE`] frames)
-//!    through `ProtocolRx::for_inverter()` (E2E checked, faults counted):
+//! 1. **Drain CAN** (non-blocking, at most [`MAX_RX_PER_CYCLE`] frames),
+//!    then read the clock (the cycle's "now": no command is stamped earlier
+//!    than it arrived, so the command timeout never fires early), then
+//!    check each frame through `ProtocolRx::for_inverter()` (E2E checked, faults counted):
 //!    the newest valid `TorqueCommand` is held with its arrival time.
 //! 2. **Inverter**: a command is *valid* while the last accepted one is at
 //!    most `cmd_timeout_ms` old. Without a valid command the inverter applies
@@ -196,6 +198,8 @@ pub struct PlantSim {
     io_errors: u64,
     can_tx: u64,
     can_rx: u64,
+    /// This cycle's drained frames, checked after the clock is read.
+    rx_buf: [CanFrame; MAX_RX_PER_CYCLE],
     seq: u64,
     truth: GroundTruth,
     status: Arc<PlantStatus>,
@@ -287,6 +291,7 @@ impl PlantSim {
             io_errors: 0,
             can_tx: 0,
             can_rx: 0,
+            rx_buf: [CanFrame::default(); MAX_RX_PER_CYCLE],
             seq: 0,
             truth: GroundTruth::zeroed(),
             status: Arc::new(PlantStatus::default()),
@@ -373,27 +378,35 @@ impl PlantSim {
         bus: &mut B,
         truth: &mut T,
     ) -> Outcome {
-        let now = clock.now_ns();
-
-        // 1. commands
-        for _ in 0..MAX_RX_PER_CYCLE {
+        // 1. commands: drain, then read the clock, so that a command that
+        // arrived while the thread was preempted before the drain is never
+        // stamped earlier than it arrived (the command timeout would fire
+        // that much early)
+        let mut n = 0;
+        while n < MAX_RX_PER_CYCLE {
             match bus.try_recv() {
                 Ok(Some(f)) => {
                     self.can_rx += 1;
-                    if let Ok(Some(InverterMsg::TorqueCommand(c))) = self.rx.receive(&f, now) {
-                        self.cmd = c;
-                        self.cmd_ns = Some(now);
-                        if c.enable {
-                            self.enabled_streak = self.enabled_streak.saturating_add(1);
-                        } else {
-                            self.enabled_streak = 0;
-                        }
-                    }
+                    self.rx_buf[n] = f;
+                    n += 1;
                 }
                 Ok(None) => break,
                 Err(_) => {
                     self.io_errors += 1;
                     break;
+                }
+            }
+        }
+        let now = clock.now_ns();
+        for i in 0..n {
+            let f = self.rx_buf[i];
+            if let Ok(Some(InverterMsg::TorqueCommand(c))) = self.rx.receive(&f, now) {
+                self.cmd = c;
+                self.cmd_ns = Some(now);
+                if c.enable {
+                    self.enabled_streak = self.enabled_streak.saturating_add(1);
+                } else {
+                    self.enabled_streak = 0;
                 }
             }
         }

@@ -126,6 +126,35 @@ fn inverter_zeroes_torque_when_commands_stop_and_resumes_on_valid_ones() {
 }
 
 #[test]
+fn a_command_drained_late_is_not_stamped_before_it_arrived() {
+    // the last command reaches the socket 4 ms after the cycle woke (the
+    // thread was preempted before its drain): the 20 ms timeout counts from
+    // its arrival, not from the wake-up (which zeroed the torque 4 ms early)
+    let mut r = Rig::new(&immediate());
+    for _ in 0..99 {
+        r.send_cmd(100.0, true);
+        r.cycle();
+    }
+    r.send_cmd(100.0, true);
+    r.bus.deliver_late(&r.clock, 4 * MS);
+    r.cycle();
+    let arrived = r.clock.now_ns() - MS;
+    let mut zero_at = None;
+    for _ in 0..40 {
+        let now = r.clock.now_ns();
+        r.cycle();
+        if r.sim.applied_torque() == 0.0 {
+            zero_at.get_or_insert(now);
+        }
+    }
+    let after_ms = (zero_at.expect("the command timeout") - arrived) as f64 / MS as f64;
+    assert_eq!(
+        after_ms, 21.0,
+        "torque zeroed {after_ms} ms after the last command arrived"
+    );
+}
+
+#[test]
 fn corrupted_commands_are_rejected_counted_and_ignored() {
     let mut r = Rig::new(&immediate());
     for _ in 0..50 {

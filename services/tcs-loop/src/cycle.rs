@@ -2,7 +2,9 @@
 //! on the real clock and by the tests on a manual clock.
 //!
 //! A cycle, in this order:
-//! 1. **Drain CAN** (non-blocking, at most [`MAX_RX_PER_CYCLE`] frames): each
+//! 1. **Drain CAN** (non-blocking, at most [`MAX_RX_PER_CYCLE`] frames),
+//!    then read the clock ("now" of the cycle, so no frame is stamped
+//!    earlier than it arrived and a timeout never fires early); each
 //!    frame goes through `ProtocolRx::for_tcs()` (length, CRC, alive counter,
 //!    unknown id; faults counted) and is held for `CAN_LOG` (direction RX,
 //!    flag `E2E_REJECTED` when rejected; logged in step 5). Accepted frames
@@ -357,9 +359,11 @@ impl TcsLoop {
         }
     }
 
-    fn on_frame(&mut self, frame: &CanFrame, now: u64) {
-        let mut logged = *frame;
-        logged.direction = can_dir::RX;
+    /// Checks the drained frame `rx_log[i]` at `now` (flags it when the
+    /// E2E check rejects it) and keeps its content when accepted.
+    fn on_frame(&mut self, i: usize, now: u64) {
+        let frame = &mut self.rx_log[i];
+        frame.direction = can_dir::RX;
         match self.rx.receive(frame, now) {
             Ok(Some(msg)) => match msg {
                 InverterMsg::WheelSpeeds(m) => {
@@ -375,12 +379,7 @@ impl TcsLoop {
                 InverterMsg::TorqueCommand(_) => {}
             },
             Ok(None) => {}
-            Err(_) => logged.flags |= can_flags::E2E_REJECTED,
-        }
-        // at most MAX_RX_PER_CYCLE frames are drained per cycle
-        if let Some(slot) = self.rx_log.get_mut(self.rx_log_len) {
-            *slot = logged;
-            self.rx_log_len += 1;
+            Err(_) => frame.flags |= can_flags::E2E_REJECTED,
         }
     }
 
@@ -395,15 +394,20 @@ impl TcsLoop {
         road: &mut R,
         sink: &mut S,
     ) -> &CycleRecord {
-        let now = clock.now_ns();
         let t0 = *self.t0_ns.get_or_insert(tick.deadline_ns);
 
-        // 1. drain CAN
-        for _ in 0..MAX_RX_PER_CYCLE {
+        // 1. drain CAN (at most MAX_RX_PER_CYCLE frames, held for the log),
+        // then read the clock: every frame drained is stamped no earlier
+        // than it reached the socket, so a timeout cannot fire before
+        // `timeout_ms` after the last frame's arrival (a clock read before
+        // the drain stamped a frame that arrived while the thread was
+        // preempted up to that long too early)
+        while self.rx_log_len < MAX_RX_PER_CYCLE {
             match bus.try_recv() {
                 Ok(Some(f)) => {
                     self.can_rx += 1;
-                    self.on_frame(&f, now);
+                    self.rx_log[self.rx_log_len] = f;
+                    self.rx_log_len += 1;
                 }
                 Ok(None) => break,
                 Err(_) => {
@@ -411,6 +415,10 @@ impl TcsLoop {
                     break;
                 }
             }
+        }
+        let now = clock.now_ns();
+        for i in 0..self.rx_log_len {
+            self.on_frame(i, now);
         }
         // counts timeout episodes into the E2E fault counters
         self.rx.poll_timeouts(now);

@@ -707,3 +707,68 @@ fn the_command_goes_out_before_anything_is_published() {
         clock.advance_ns(MS);
     }
 }
+
+#[test]
+fn a_frame_drained_late_is_not_stamped_before_it_arrived() {
+    // CI's HIL run: under emulation the loop was preempted ~3 ms between
+    // its clock read and the drain, the last WheelSpeeds arrived in that
+    // gap, and the safe state came 7.1 ms after that frame was on the wire
+    // (timeout 10 ms). The cycle's "now" is read after the drain.
+    let clock = ManualClock::new(T0);
+    let mut bus = MemBus::new();
+    let mut sink = LastSink::default();
+    let mut lp = TcsLoop::new(
+        ControllerKind::Mtte,
+        false,
+        &ControllersConfig::default(),
+        &VehicleParams::default(),
+        &SafetyConfig::default(),
+    )
+    .unwrap();
+    let mut feed = Feeder::new();
+    let mut last_ws_arrival = 0;
+    let mut entered_at = None;
+    for k in 0..140u64 {
+        let wake = clock.now_ns();
+        // WheelSpeeds stop after cycle 100; its last frame arrives 4 ms
+        // into that cycle, while the loop is not running
+        let ws = k <= 100;
+        if k == 100 {
+            bus.deliver_late(&clock, 4 * MS);
+        }
+        if ws {
+            bus.inject(feed.ws_frame(wake));
+        }
+        bus.inject(feed.ms_frame(wake));
+        if k % 10 == 0 {
+            bus.inject(feed.dd_frame(wake));
+        }
+        let rec = *lp.cycle(
+            &CycleTick::at(wake),
+            &clock,
+            &mut bus,
+            &mut NoRoad,
+            &mut sink,
+        );
+        if ws {
+            // handed over after the clock jumped
+            last_ws_arrival = clock.now_ns();
+        }
+        if k > 100 && rec.safe_state == 1 {
+            entered_at.get_or_insert(clock.now_ns());
+        }
+        assert!(
+            !(60..=100).contains(&k) || rec.safe_state == 0,
+            "cycle {k}: safe state while every frame came"
+        );
+        clock.advance_ns(MS);
+    }
+    let entered = entered_at.expect("the safe state after WheelSpeeds stopped");
+    let after_ms = (entered - last_ws_arrival) as f64 / MS as f64;
+    // the 10 ms timeout counts from the frame's arrival: 11 ms on a 1 ms
+    // grid (a stamp taken before the drain gave 7 ms)
+    assert_eq!(
+        after_ms, 11.0,
+        "safe state {after_ms} ms after the last frame arrived"
+    );
+}

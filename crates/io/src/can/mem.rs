@@ -13,6 +13,7 @@ use std::rc::Rc;
 use core::time::Duration;
 
 use super::{BusKind, CanBus, CanError};
+use crate::clock::ManualClock;
 use grip_msgs::{CanFrame, can_dir};
 
 /// A frame queue shared between a [`MemBus`] and its feeder.
@@ -33,6 +34,8 @@ pub struct MemBus {
     pub rx: FrameQueue,
     /// What this participant sent.
     pub tx: FrameQueue,
+    /// [`MemBus::deliver_late`]: the clock advanced before the next frame.
+    late: Option<(ManualClock, u64)>,
 }
 
 impl Default for MemBus {
@@ -47,6 +50,7 @@ impl MemBus {
         Self {
             rx: frame_queue(),
             tx: frame_queue(),
+            late: None,
         }
     }
 
@@ -57,8 +61,13 @@ impl MemBus {
             Self {
                 rx: a.clone(),
                 tx: b.clone(),
+                late: None,
             },
-            Self { rx: b, tx: a },
+            Self {
+                rx: b,
+                tx: a,
+                late: None,
+            },
         )
     }
 
@@ -70,6 +79,14 @@ impl MemBus {
     /// Everything this participant sent since the last call, in order.
     pub fn take_sent(&self) -> Vec<CanFrame> {
         self.tx.borrow_mut().drain(..).collect()
+    }
+
+    /// The next frame received arrives `delay_ns` late: `clock` advances
+    /// by that much just before `try_recv` hands it over, as when the
+    /// receiving thread was preempted between its clock read and its drain
+    /// and the frame reached the socket meanwhile.
+    pub fn deliver_late(&mut self, clock: &ManualClock, delay_ns: u64) {
+        self.late = Some((clock.clone(), delay_ns));
     }
 
     /// Forgets what this participant sent.
@@ -85,7 +102,13 @@ impl CanBus for MemBus {
     }
     /// The next queued frame, marked as received.
     fn try_recv(&mut self) -> Result<Option<CanFrame>, CanError> {
-        Ok(self.rx.borrow_mut().pop_front().map(|mut f| {
+        let f = self.rx.borrow_mut().pop_front();
+        if f.is_some()
+            && let Some((clock, delay_ns)) = self.late.take()
+        {
+            clock.advance_ns(delay_ns);
+        }
+        Ok(f.map(|mut f| {
             f.direction = can_dir::RX;
             f
         }))
@@ -129,5 +152,21 @@ mod tests {
         m.send(&CanFrame::new(0x22, &[])).unwrap();
         m.clear_sent();
         assert!(m.take_sent().is_empty());
+    }
+
+    #[test]
+    fn a_late_delivery_advances_the_clock_once_when_the_frame_is_taken() {
+        use crate::clock::Clock;
+        let clock = ManualClock::new(1_000);
+        let mut m = MemBus::new();
+        m.deliver_late(&clock, 500);
+        assert_eq!(m.try_recv().unwrap(), None);
+        assert_eq!(clock.now_ns(), 1_000, "no frame, no delay");
+        m.inject(CanFrame::new(0x10, &[]));
+        m.inject(CanFrame::new(0x11, &[]));
+        assert!(m.try_recv().unwrap().is_some());
+        assert_eq!(clock.now_ns(), 1_500);
+        assert!(m.try_recv().unwrap().is_some());
+        assert_eq!(clock.now_ns(), 1_500, "only the next frame is late");
     }
 }
