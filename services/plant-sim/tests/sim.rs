@@ -48,6 +48,13 @@ impl Rig {
         );
         self.bus.inject(f);
     }
+    /// `n` cycles, each with an enabled command of `torque`.
+    fn run_cmds(&mut self, n: usize, torque: f64) {
+        for _ in 0..n {
+            self.send_cmd(torque, true);
+            self.cycle();
+        }
+    }
     /// One cycle; checks every frame sent with a tcs-side receiver.
     fn cycle(&mut self) -> (Outcome, Vec<CanFrame>) {
         let now = self.clock.now_ns();
@@ -80,10 +87,7 @@ fn immediate() -> PlantSimConfig {
 #[test]
 fn inverter_zeroes_torque_when_commands_stop_and_resumes_on_valid_ones() {
     let mut r = Rig::new(&immediate());
-    for _ in 0..100 {
-        r.send_cmd(100.0, true);
-        r.cycle();
-    }
+    r.run_cmds(100, 100.0);
     assert_eq!(r.sim.applied_torque(), 100.0);
     assert!(!r.sim.cmd_timed_out());
     let st = r.last_status.unwrap();
@@ -131,10 +135,7 @@ fn a_command_drained_late_is_not_stamped_before_it_arrived() {
     // thread was preempted before its drain): the 20 ms timeout counts from
     // its arrival, not from the wake-up (which zeroed the torque 4 ms early)
     let mut r = Rig::new(&immediate());
-    for _ in 0..99 {
-        r.send_cmd(100.0, true);
-        r.cycle();
-    }
+    r.run_cmds(99, 100.0);
     r.send_cmd(100.0, true);
     r.bus.deliver_late(&r.clock, 4 * MS);
     r.cycle();

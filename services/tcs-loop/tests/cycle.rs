@@ -74,6 +74,18 @@ impl Feeder {
     }
 }
 
+/// A loop with the default configuration, ARTE off.
+fn plain_loop(kind: ControllerKind) -> TcsLoop {
+    TcsLoop::new(
+        kind,
+        false,
+        &ControllersConfig::default(),
+        &VehicleParams::default(),
+        &SafetyConfig::default(),
+    )
+    .unwrap()
+}
+
 struct Rig {
     clock: ManualClock,
     bus: MemBus,
@@ -665,14 +677,7 @@ fn the_command_goes_out_before_anything_is_published() {
         log: Vec::new(),
     };
     let clock = ManualClock::new(T0);
-    let mut lp = TcsLoop::new(
-        ControllerKind::Mfc,
-        false,
-        &ControllersConfig::default(),
-        &VehicleParams::default(),
-        &SafetyConfig::default(),
-    )
-    .unwrap();
+    let mut lp = plain_loop(ControllerKind::Mfc);
     let mut feed = Feeder::new();
     for k in 0..100u64 {
         let now = clock.now_ns();
@@ -717,14 +722,7 @@ fn a_frame_drained_late_is_not_stamped_before_it_arrived() {
     let clock = ManualClock::new(T0);
     let mut bus = MemBus::new();
     let mut sink = LastSink::default();
-    let mut lp = TcsLoop::new(
-        ControllerKind::Mtte,
-        false,
-        &ControllersConfig::default(),
-        &VehicleParams::default(),
-        &SafetyConfig::default(),
-    )
-    .unwrap();
+    let mut lp = plain_loop(ControllerKind::Mtte);
     let mut feed = Feeder::new();
     let mut last_ws_arrival = 0;
     let mut entered_at = None;
