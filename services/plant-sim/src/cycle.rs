@@ -50,7 +50,7 @@ use grip_io::can::protocol::{
     DRIVER_DEMAND, DriverDemand, E2eSender, InverterMsg, MotorStatus, ProtocolRx, TorqueCommand,
     VEHICLE_SPEED, VehicleSpeed, WheelSpeeds,
 };
-use grip_io::can::{CanBus, CanFrame};
+use grip_io::can::{CanBus, CanFrame, drain};
 use grip_io::clock::Clock;
 use grip_io::rt::CycleTiming;
 use grip_msgs::{GroundTruth, NAME_LEN, name_to_bytes};
@@ -382,23 +382,13 @@ impl PlantSim {
         // arrived while the thread was preempted before the drain is never
         // stamped earlier than it arrived (the command timeout would fire
         // that much early)
-        let mut n = 0;
-        while n < MAX_RX_PER_CYCLE {
-            match bus.try_recv() {
-                Ok(Some(f)) => {
-                    self.can_rx += 1;
-                    self.rx_buf[n] = f;
-                    n += 1;
-                }
-                Ok(None) => break,
-                Err(_) => {
-                    self.io_errors += 1;
-                    break;
-                }
-            }
+        let d = drain(bus, &mut self.rx_buf);
+        self.can_rx += d.frames as u64;
+        if d.error {
+            self.io_errors += 1;
         }
         let now = clock.now_ns();
-        for i in 0..n {
+        for i in 0..d.frames {
             let f = self.rx_buf[i];
             if let Ok(Some(InverterMsg::TorqueCommand(c))) = self.rx.receive(&f, now) {
                 self.cmd = c;

@@ -55,7 +55,7 @@ use grip_io::can::protocol::{
     DRIVER_DEMAND, DriverDemand, E2eSender, InverterMsg, MOTOR_STATUS, MotorStatus, ProtocolRx,
     TorqueCommand, VEHICLE_SPEED, VehicleSpeed, WHEEL_SPEEDS, WheelSpeeds,
 };
-use grip_io::can::{CanBus, CanFrame};
+use grip_io::can::{CanBus, CanFrame, drain};
 use grip_io::clock::Clock;
 use grip_io::rt::CycleTiming;
 use grip_msgs::{CycleRecord, NAME_LEN, NO_CLASS, RoadEstimate, can_dir, can_flags, name_to_bytes};
@@ -402,19 +402,11 @@ impl TcsLoop {
         // `timeout_ms` after the last frame's arrival (a clock read before
         // the drain stamped a frame that arrived while the thread was
         // preempted up to that long too early)
-        while self.rx_log_len < MAX_RX_PER_CYCLE {
-            match bus.try_recv() {
-                Ok(Some(f)) => {
-                    self.can_rx += 1;
-                    self.rx_log[self.rx_log_len] = f;
-                    self.rx_log_len += 1;
-                }
-                Ok(None) => break,
-                Err(_) => {
-                    self.bus_errors += 1;
-                    break;
-                }
-            }
+        let d = drain(bus, &mut self.rx_log);
+        self.rx_log_len = d.frames;
+        self.can_rx += d.frames as u64;
+        if d.error {
+            self.bus_errors += 1;
         }
         let now = clock.now_ns();
         for i in 0..self.rx_log_len {

@@ -155,6 +155,22 @@ mod tests {
     }
 
     #[test]
+    fn drain_takes_at_most_the_buffer_and_leaves_the_rest_in_order() {
+        let mut m = MemBus::new();
+        for id in 0..5 {
+            m.inject(CanFrame::new(id, &[]));
+        }
+        let mut buf = [CanFrame::default(); 3];
+        let d = super::super::drain(&mut m, &mut buf);
+        assert_eq!((d.frames, d.error), (3, false));
+        assert_eq!(buf.map(|f| f.id), [0, 1, 2]);
+        let d = super::super::drain(&mut m, &mut buf);
+        assert_eq!((d.frames, d.error), (2, false));
+        assert_eq!([buf[0].id, buf[1].id], [3, 4]);
+        assert_eq!(super::super::drain(&mut m, &mut buf).frames, 0);
+    }
+
+    #[test]
     fn a_late_delivery_advances_the_clock_once_when_the_frame_is_taken() {
         use crate::clock::Clock;
         let clock = ManualClock::new(1_000);

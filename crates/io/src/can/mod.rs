@@ -32,6 +32,43 @@ use crate::ipc::{IpcError, IpcNode};
 /// cannot drift apart.
 pub const MAX_RX_PER_CYCLE: usize = 256;
 
+/// What [`drain`] took from a bus.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Drained {
+    /// Frames written to the front of the buffer.
+    pub frames: usize,
+    /// The drain stopped at a receive error.
+    pub error: bool,
+}
+
+/// Takes the frames waiting on `bus` without blocking into `buf` (at most
+/// its length: the real-time loops pass their [`MAX_RX_PER_CYCLE`] array),
+/// stopping at the first empty read or error. The loops read their cycle's
+/// clock *after* it, so that no frame is stamped earlier than it arrived
+/// (a frame reaching the socket while the thread was preempted between a
+/// clock read and the drain made an input timeout fire early).
+/// Allocation-free.
+pub fn drain<B: CanBus + ?Sized>(bus: &mut B, buf: &mut [CanFrame]) -> Drained {
+    let mut d = Drained {
+        frames: 0,
+        error: false,
+    };
+    while d.frames < buf.len() {
+        match bus.try_recv() {
+            Ok(Some(f)) => {
+                buf[d.frames] = f;
+                d.frames += 1;
+            }
+            Ok(None) => break,
+            Err(_) => {
+                d.error = true;
+                break;
+            }
+        }
+    }
+    d
+}
+
 /// Errors of CAN transports.
 #[derive(Debug, thiserror::Error)]
 pub enum CanError {
