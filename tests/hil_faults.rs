@@ -34,34 +34,13 @@ use grip_tests::hil::{
     FrameCounter, MicFault, MicFaultKind, Proc, RoadAudioPlayer, StreamCheck,
 };
 use grip_tests::hil_drives::{
-    Attempt, PLAYBACK, SENSOR_TIMEOUT_MS, Setup, VM_MARGIN_MS, drive_with, grip_drive, instance,
-    ms, ns, read_complete_allowing_audio_gaps, read_complete_allowing_xruns, serial,
-    wait_scenario_start, wait_success, with_attempts_in,
+    Attempt, PLAYBACK, SENSOR_TIMEOUT_MS, Setup, VM_MARGIN_MS, asphalt_scenario, drive_with,
+    grip_drive, instance, ms, ns, read_complete_allowing_audio_gaps, read_complete_allowing_xruns,
+    serial, wait_scenario_start, wait_success, with_attempts_in,
 };
 use grip_tests::wire_check::{
     LoopLog, enabled_commands, input_gaps, loop_unaffected, sensor_gap_ms,
 };
-
-/// A drive of `secs` seconds on asphalt at a constant 300 N m from 10 km/h:
-/// one road, so that every change the tests see is the fault's.
-fn scenario(secs: u32) -> String {
-    format!(
-        r#"name = "hil-faults"
-description = "HIL fault drive: constant 300 N m from 10 km/h on asphalt, {secs} s"
-v0_kmh = 10.0
-segments_by = "time"
-duration = {secs}.0
-
-[demand]
-kind = "constant"
-torque = 300.0
-
-[[segment]]
-road = "asphalt"
-duration = {secs}.0
-"#
-    )
-}
 
 /// tcs-loop's `[safety] recover_ms` (config/tcs-loop.toml): valid inputs
 /// for this long before it leaves the safe state.
@@ -117,7 +96,7 @@ const QUIET_MS: f64 = 700.0;
 #[test]
 fn bus_flood_keeps_the_loop_on_time() -> anyhow::Result<()> {
     let _g = serial();
-    with_attempts_in("flood", &scenario(5), flood)
+    with_attempts_in("flood", &asphalt_scenario(5), flood)
 }
 
 /// `cangen IFACE -g 0 -I ID -L 8 -D DATA -p 10` (full rate: no gap; on
@@ -343,7 +322,7 @@ const DOWN_MS: u64 = 300;
 #[test]
 fn bus_down_and_up_gives_safe_state_and_recovery() -> anyhow::Result<()> {
     let _g = serial();
-    with_attempts_in("bus-down", &scenario(4), bus_down)
+    with_attempts_in("bus-down", &asphalt_scenario(4), bus_down)
 }
 
 fn bus_down(s: &Setup) -> anyhow::Result<Attempt> {
@@ -573,7 +552,7 @@ fn killed_recorder_loses_at_most_a_second() -> anyhow::Result<()> {
     let _g = serial();
     // 8 s: the kill at 1.5 s, the new recorder 1 s later, ready up to 3.7 s
     // after the kill under emulation, and it must still see the drive
-    with_attempts_in("kill-recorder", &scenario(8), kill_recorder)
+    with_attempts_in("kill-recorder", &asphalt_scenario(8), kill_recorder)
 }
 
 /// How long before `t` the newest of `stamps` is, or "none".
@@ -745,7 +724,7 @@ const DISK_HEADROOM: u64 = 1 << 20;
 #[test]
 fn full_disk_stops_the_recorder_not_the_loop() -> anyhow::Result<()> {
     let _g = serial();
-    with_attempts_in("full-disk", &scenario(5), full_disk)
+    with_attempts_in("full-disk", &asphalt_scenario(5), full_disk)
 }
 
 fn full_disk(s: &Setup) -> anyhow::Result<Attempt> {
@@ -882,7 +861,7 @@ const XRUNS: (f64, f64) = (5.5, 1.0);
 #[test]
 fn microphone_faults_make_the_controller_fall_back() -> anyhow::Result<()> {
     let _g = serial();
-    with_attempts_in("mic-faults", &scenario(8), mic_faults)
+    with_attempts_in("mic-faults", &asphalt_scenario(8), mic_faults)
 }
 
 /// The share of `used_arte` cycles among the controlling ones in `[t0, t1)`,
@@ -1113,7 +1092,7 @@ const ARTE_STOP_MS: u64 = 2000;
 #[test]
 fn stalled_arte_ages_out_and_returns() -> anyhow::Result<()> {
     let _g = serial();
-    with_attempts_in("stall-arte", &scenario(5), stall_arte)
+    with_attempts_in("stall-arte", &asphalt_scenario(5), stall_arte)
 }
 
 fn stall_arte(s: &Setup) -> anyhow::Result<Attempt> {

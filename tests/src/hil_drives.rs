@@ -47,6 +47,27 @@ duration = 1.0
 road = "gravel"
 duration = 1.0
 "#;
+/// A drive of `secs` seconds on asphalt at a constant 300 N m from 10 km/h:
+/// one road, so that every change the tests see is the fault's.
+pub fn asphalt_scenario(secs: u32) -> String {
+    format!(
+        r#"name = "hil-asphalt"
+description = "HIL drive: constant 300 N m from 10 km/h on asphalt, {secs} s"
+v0_kmh = 10.0
+segments_by = "time"
+duration = {secs}.0
+
+[demand]
+kind = "constant"
+torque = 300.0
+
+[[segment]]
+road = "asphalt"
+duration = {secs}.0
+"#
+    )
+}
+
 /// Attempts of a drive whose preconditions a stall of the emulated machine
 /// broke (see [`Attempt::Disturbed`]); each is reported.
 pub const ATTEMPTS: usize = 3;
