@@ -28,7 +28,8 @@
 //! 4. `corrupted_frames_are_rejected_and_counted`: frames injected with
 //!    `cansend` (bad CRC, wrong length, unknown id) and a replayed frame
 //!    (repeated counter) are counted exactly in tcs-loop's fault counters
-//!    and change nothing in the control.
+//!    and change nothing in the control (an 8 s drive on asphalt, so the
+//!    injection fits in it on a slow host).
 //!
 //! Every drive's MCAP is read back: not truncated, no bad message,
 //! contiguous cycle and ground-truth sequence numbers, the recorder's
