@@ -52,6 +52,13 @@ const ETC: &str = "/etc/grip";
 /// 13-16). A unit without `WatchdogSec=` gets no drop-in, so it has no
 /// watchdog and the SIGSTOP step fails for it.
 const VM_WATCHDOG_FLOOR_US: u64 = 8_000_000;
+/// The same floor where the guest's clocks count its instructions
+/// (`GRIP_HIL_CLOCK=virtual`, tools/hil/run's default under TCG): a host
+/// stall does not exist for the guest there, but its one CPU at 1 GIPS is
+/// shared by the five services, systemd and this test's `systemctl`
+/// calls, so the two 1 s watchdogs (plant-sim, tcs-loop) get 2 s; the
+/// others run as shipped.
+const VIRTUAL_CLOCK_WATCHDOG_FLOOR_US: u64 = 2_000_000;
 /// In the VM a unit's `TimeoutStartSec=` is raised to at least this (the
 /// same drop-in). A restart during the drive starts the new process beside
 /// the running real-time services: under emulation their SCHED_FIFO loops
@@ -96,6 +103,31 @@ fn prop(unit: &str, name: &str) -> anyhow::Result<String> {
         .to_owned())
 }
 
+/// NRestarts and whether the unit is active, in one `systemctl` call (the
+/// restart waits poll it; each call is a process start under emulation).
+fn restarts_and_active(unit: &str) -> anyhow::Result<(u64, bool)> {
+    let out = run(
+        "systemctl",
+        &["show", "-p", "NRestarts", "-p", "ActiveState", unit],
+    )?;
+    let (mut n, mut active) = (None, false);
+    for l in out.lines() {
+        if let Some(v) = l.strip_prefix("NRestarts=") {
+            n = Some(
+                v.trim()
+                    .parse()
+                    .with_context(|| format!("{unit}: NRestarts={v:?} is not a number"))?,
+            );
+        } else if let Some(v) = l.strip_prefix("ActiveState=") {
+            active = v.trim() == "active";
+        }
+    }
+    Ok((
+        n.with_context(|| format!("{unit}: no NRestarts in {out:?}"))?,
+        active,
+    ))
+}
+
 fn prop_u64(unit: &str, name: &str) -> anyhow::Result<u64> {
     let v = prop(unit, name)?;
     v.parse()
@@ -124,6 +156,25 @@ fn parse_span_us(v: &str) -> anyhow::Result<u64> {
     Ok(total as u64)
 }
 
+/// The highest CPU a systemd CPU list names ("1", "0-3", "0,2 5").
+fn max_cpu(v: &str) -> anyhow::Result<usize> {
+    let mut max = None;
+    for part in v
+        .split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|p| !p.is_empty())
+    {
+        let hi = part.rsplit('-').next().unwrap_or(part);
+        let n: usize = hi
+            .parse()
+            .with_context(|| format!("{part:?} is not a CPU or range"))?;
+        max = max.max(Some(n));
+    }
+    max.context("no CPU named")
+}
+
+/// How often the waits ask systemd (each ask starts `systemctl`).
+const POLL: Duration = Duration::from_millis(250);
+
 fn wait_until(
     what: &str,
     limit: Duration,
@@ -134,7 +185,7 @@ fn wait_until(
         if ok()? {
             return Ok(t0.elapsed());
         }
-        std::thread::sleep(Duration::from_millis(100));
+        std::thread::sleep(POLL);
     }
     bail!("{what}: not within {limit:?}")
 }
@@ -308,7 +359,8 @@ impl Rig {
         let limit = Duration::from_micros(wd_us + span("RestartUSec")? + span("TimeoutStartUSec")?)
             + RESTART_SLACK;
         let took = wait_until(&format!("{u} restarted after {signal}"), limit, || {
-            Ok(prop_u64(&u, "NRestarts")? > n0 && prop(&u, "ActiveState")? == "active")
+            let (n, active) = restarts_and_active(&u)?;
+            Ok(n > n0 && active)
         })
         .with_context(|| report(&u))?;
         let pid1 = prop(&u, "MainPID")?;
@@ -424,6 +476,21 @@ fn grip_package_under_systemd() -> anyhow::Result<()> {
     );
 
     // the VM's allowance on the watchdogs the package ships
+    let virtual_clock = std::env::var("GRIP_HIL_CLOCK").is_ok_and(|c| c == "virtual");
+    let wd_floor_us = if virtual_clock {
+        VIRTUAL_CLOCK_WATCHDOG_FLOOR_US
+    } else {
+        VM_WATCHDOG_FLOOR_US
+    };
+    println!(
+        "guest clock: {}; watchdogs at least {} s",
+        if virtual_clock {
+            "virtual (counts instructions)"
+        } else {
+            "the host's"
+        },
+        wd_floor_us / 1_000_000
+    );
     for s in ORDER {
         let path = Path::new("/lib/systemd/system").join(unit(s));
         let text = std::fs::read_to_string(&path)?;
@@ -441,12 +508,40 @@ fn grip_package_under_systemd() -> anyhow::Result<()> {
                 dir.join("hil-vm.conf"),
                 format!(
                     "# tests/pid1_systemd.rs: the shipped WatchdogSec={v} and TimeoutStartSec, at least {} s and {} s on the emulated machine\n[Service]\nWatchdogSec={}us\nTimeoutStartSec={}us\n",
-                    VM_WATCHDOG_FLOOR_US / 1_000_000,
+                    wd_floor_us / 1_000_000,
                     VM_START_TIMEOUT_FLOOR_US / 1_000_000,
-                    us.max(VM_WATCHDOG_FLOOR_US),
+                    us.max(wd_floor_us),
                     start_us.max(VM_START_TIMEOUT_FLOOR_US)
                 ),
             )?;
+        }
+    }
+    // a unit pinned to a CPU this guest lacks (tools/hil/run's deterministic
+    // emulation has one CPU; tcs-loop ships CPUAffinity=1) would fail its
+    // start (systemd's exec step CPUAFFINITY): the pin is reset, and said
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    for s in ORDER {
+        let path = Path::new("/lib/systemd/system").join(unit(s));
+        let text = std::fs::read_to_string(&path)?;
+        if let Some(v) = text
+            .lines()
+            .find_map(|l| l.trim().strip_prefix("CPUAffinity="))
+        {
+            let max = max_cpu(v).with_context(|| format!("{}: CPUAffinity={v}", path.display()))?;
+            if max >= cpus {
+                let dir = PathBuf::from(format!("/etc/systemd/system/{}.d", unit(s)));
+                std::fs::create_dir_all(&dir)?;
+                std::fs::write(
+                    dir.join("hil-vm-cpus.conf"),
+                    format!(
+                        "# tests/pid1_systemd.rs: the shipped CPUAffinity={v} names CPU {max}; this guest has {cpus}\n[Service]\nCPUAffinity=\n"
+                    ),
+                )?;
+                println!(
+                    "{}: CPUAffinity={v} names CPU {max} but this guest has {cpus} CPU(s): pin reset by a drop-in (not exercised here)",
+                    unit(s)
+                );
+            }
         }
     }
     run("systemctl", &["daemon-reload"])?;
@@ -634,4 +729,13 @@ fn grip_package_under_systemd() -> anyhow::Result<()> {
         "dpkg -r (not purge) must keep the conffiles"
     );
     Ok(())
+}
+
+#[test]
+fn cpu_lists_read_as_systemd_writes_them() {
+    assert_eq!(max_cpu("1").unwrap(), 1);
+    assert_eq!(max_cpu("0-3").unwrap(), 3);
+    assert_eq!(max_cpu("0,2 5").unwrap(), 5);
+    assert!(max_cpu("").is_err());
+    assert!(max_cpu("one").is_err());
 }
