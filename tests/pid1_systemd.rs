@@ -491,31 +491,6 @@ fn grip_package_under_systemd() -> anyhow::Result<()> {
         },
         wd_floor_us / 1_000_000
     );
-    for s in ORDER {
-        let path = Path::new("/lib/systemd/system").join(unit(s));
-        let text = std::fs::read_to_string(&path)?;
-        if let Some(v) = text
-            .lines()
-            .find_map(|l| l.trim().strip_prefix("WatchdogSec="))
-        {
-            let us =
-                parse_span_us(v).with_context(|| format!("{}: WatchdogSec={v}", path.display()))?;
-            let dir = PathBuf::from(format!("/etc/systemd/system/{}.d", unit(s)));
-            std::fs::create_dir_all(&dir)?;
-            let start_us = parse_span_us(&prop(&unit(s), "TimeoutStartUSec")?)
-                .with_context(|| format!("{}: TimeoutStartUSec", unit(s)))?;
-            std::fs::write(
-                dir.join("hil-vm.conf"),
-                format!(
-                    "# tests/pid1_systemd.rs: the shipped WatchdogSec={v} and TimeoutStartSec, at least {} s and {} s on the emulated machine\n[Service]\nWatchdogSec={}us\nTimeoutStartSec={}us\n",
-                    wd_floor_us / 1_000_000,
-                    VM_START_TIMEOUT_FLOOR_US / 1_000_000,
-                    us.max(wd_floor_us),
-                    start_us.max(VM_START_TIMEOUT_FLOOR_US)
-                ),
-            )?;
-        }
-    }
     // a unit pinned to a CPU this guest lacks (tools/hil/run's deterministic
     // emulation has one CPU; tcs-loop ships CPUAffinity=1) would fail its
     // start (systemd's exec step CPUAFFINITY): the pin is reset, and said
@@ -523,25 +498,44 @@ fn grip_package_under_systemd() -> anyhow::Result<()> {
     for s in ORDER {
         let path = Path::new("/lib/systemd/system").join(unit(s));
         let text = std::fs::read_to_string(&path)?;
-        if let Some(v) = text
-            .lines()
-            .find_map(|l| l.trim().strip_prefix("CPUAffinity="))
-        {
-            let max = max_cpu(v).with_context(|| format!("{}: CPUAffinity={v}", path.display()))?;
+        let shipped = |key: &str| {
+            text.lines()
+                .find_map(|l| l.trim().strip_prefix(key).map(str::to_owned))
+        };
+        let mut dropin = String::new();
+        if let Some(v) = shipped("WatchdogSec=") {
+            let us = parse_span_us(&v)
+                .with_context(|| format!("{}: WatchdogSec={v}", path.display()))?;
+            let start_us = parse_span_us(&prop(&unit(s), "TimeoutStartUSec")?)
+                .with_context(|| format!("{}: TimeoutStartUSec", unit(s)))?;
+            dropin += &format!(
+                "# the shipped WatchdogSec={v} and TimeoutStartSec, at least {} s and {} s on the emulated machine\nWatchdogSec={}us\nTimeoutStartSec={}us\n",
+                wd_floor_us / 1_000_000,
+                VM_START_TIMEOUT_FLOOR_US / 1_000_000,
+                us.max(wd_floor_us),
+                start_us.max(VM_START_TIMEOUT_FLOOR_US)
+            );
+        }
+        if let Some(v) = shipped("CPUAffinity=") {
+            let max =
+                max_cpu(&v).with_context(|| format!("{}: CPUAffinity={v}", path.display()))?;
             if max >= cpus {
-                let dir = PathBuf::from(format!("/etc/systemd/system/{}.d", unit(s)));
-                std::fs::create_dir_all(&dir)?;
-                std::fs::write(
-                    dir.join("hil-vm-cpus.conf"),
-                    format!(
-                        "# tests/pid1_systemd.rs: the shipped CPUAffinity={v} names CPU {max}; this guest has {cpus}\n[Service]\nCPUAffinity=\n"
-                    ),
-                )?;
+                dropin += &format!(
+                    "# the shipped CPUAffinity={v} names CPU {max}; this guest has {cpus}\nCPUAffinity=\n"
+                );
                 println!(
                     "{}: CPUAffinity={v} names CPU {max} but this guest has {cpus} CPU(s): pin reset by a drop-in (not exercised here)",
                     unit(s)
                 );
             }
+        }
+        if !dropin.is_empty() {
+            let dir = PathBuf::from(format!("/etc/systemd/system/{}.d", unit(s)));
+            std::fs::create_dir_all(&dir)?;
+            std::fs::write(
+                dir.join("hil-vm.conf"),
+                format!("# written by tests/pid1_systemd.rs\n[Service]\n{dropin}"),
+            )?;
         }
     }
     run("systemctl", &["daemon-reload"])?;
