@@ -22,7 +22,7 @@ pub mod roads;
 pub mod scenario;
 pub mod vehicle;
 
-pub use controllers::load_controllers;
+pub use controllers::{load_controllers, parse_controllers};
 pub use dir::ConfigDir;
 pub use error::{ConfigError, line_of, parse_toml, read_file};
 pub use knowledge::{load_knowledge, load_road_table, parse_knowledge};

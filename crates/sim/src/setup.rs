@@ -71,6 +71,23 @@ impl SimSetup {
         })
     }
 
+    /// The same setup with other controller parameters (validated; the
+    /// loop rate may change, and the cycle count with it). `grip sim
+    /// --sweep` builds one per point of its grid.
+    pub fn with_controllers(&self, controllers: ControllersConfig) -> Result<Self, SimError> {
+        controllers
+            .validate()
+            .map_err(|e| SimError::from_field("controllers", e))?;
+        let dt = controllers.loop_.dt();
+        let cycles = check_scenario(&self.vehicle, &self.roads, &self.scenario, dt)?;
+        Ok(Self {
+            controllers,
+            dt,
+            cycles,
+            ..self.clone()
+        })
+    }
+
     /// Set the plant's internal integration step bound (s, finite, > 0).
     pub fn set_max_substep(&mut self, h: f64) -> Result<(), SimError> {
         if !(h.is_finite() && h > 0.0) {

@@ -5,6 +5,7 @@
 //! runs the batch with a progress bar, prints and writes.
 
 mod plot;
+mod sweep;
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -109,6 +110,36 @@ pub struct Args {
     /// Plant integration sub-step bound, s (default: the physics crate's 1e-4).
     #[arg(long)]
     max_substep: Option<f64>,
+    /// Run the batch at every combination of these controllers.toml
+    /// values, SECTION.KEY=V1,V2,... (repeatable; e.g.
+    /// preview.cap_share=0.8,0.9,1.0), plus once as configured, and report
+    /// each ARTE variant's slip, acceleration and command variation relative
+    /// to its baseline (with --out: sweep.csv, sweep.txt and sweep.png).
+    #[arg(long, value_name = "SECTION.KEY=V1,V2,...", value_parser = sweep::parse_axis,
+          conflicts_with_all = ["entry_plot", "all_traces"])]
+    sweep: Vec<sweep::Axis>,
+    /// With --sweep: the target SLIP,ACCEL (slip ratio at most, acceleration
+    /// ratio at least), e.g. 0.4,0.98: drawn in sweep.png, and the points
+    /// that meet it listed.
+    #[arg(long, value_name = "SLIP,ACCEL", value_parser = parse_target, requires = "sweep")]
+    sweep_target: Option<(f64, f64)>,
+}
+
+/// `--sweep-target SLIP,ACCEL`: two positive ratios.
+fn parse_target(s: &str) -> Result<(f64, f64), String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let num = |t: &str| -> Result<f64, String> {
+        t.parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite() && *x > 0.0)
+            .ok_or_else(|| format!("`{t}` is not a ratio > 0"))
+    };
+    match parts.as_slice() {
+        [a, b] => Ok((num(a)?, num(b)?)),
+        _ => Err(format!(
+            "`{s}`: expected SLIP,ACCEL (e.g. 0.4,0.98: slip ratio at most, acceleration ratio at least)"
+        )),
+    }
 }
 
 /// Everything `grip sim` loads from the configuration directory.
@@ -255,6 +286,26 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         None => format!("{source:?}").to_lowercase(),
     };
 
+    if !args.sweep.is_empty() {
+        let vehicle = args
+            .vehicle
+            .clone()
+            .unwrap_or_else(|| ctx.config_dir.join("vehicle.toml"));
+        let req = sweep::Request {
+            axes: &args.sweep,
+            variants: &variants,
+            seeds: &seeds,
+            threads,
+            out: args.out.as_deref(),
+            target: args.sweep_target,
+            describe: format!(
+                "scenario {}, vehicle {}, ARTE source: {source_text}",
+                loaded.scenario_path.display(),
+                vehicle.display()
+            ),
+        };
+        return sweep::run(&ctx.config_dir, &loaded, &req, &make);
+    }
     let sc = setup.scenario();
     eprintln!(
         "scenario `{}` ({}): {:.2} s, {} cycles at {} Hz, plant sub-step <= {:.0e} s; {} variants x {} seeds on {} threads; ARTE source: {}",

@@ -1,0 +1,605 @@
+//! `grip sim --sweep SECTION.KEY=V1,V2,...`: the same batch (scenario,
+//! seeds, variants, ARTE source) at every point of a grid of
+//! `controllers.toml` values, reported as each ARTE variant's slip
+//! deviation, mean acceleration and command variation relative to its
+//! baseline: one table, and with `--out` `sweep.csv` and `sweep.png` (slip
+//! ratio against acceleration ratio per controller: what a tuning trades).
+//! Point 0 is the configuration as loaded; the grid points change only the
+//! swept values.
+
+use std::io::Write;
+use std::path::Path;
+
+use anyhow::Context;
+use grip_config::{ConfigDir, parse_controllers, read_file};
+use grip_sim::report::summarize;
+use grip_sim::{Job, RoadEstimator, SimError, SimSetup, Variant, run_batch_with};
+use grip_tcs::ControllerKind;
+use plotters::prelude::*;
+
+use super::Loaded;
+
+/// Most grid points one sweep may have.
+pub const MAX_POINTS: usize = 200;
+
+/// One `--sweep` axis: `SECTION.KEY=V1,V2,...`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Axis {
+    /// The `[section]` of controllers.toml.
+    pub section: String,
+    /// The key in it.
+    pub key: String,
+    /// The values, as TOML values.
+    pub values: Vec<toml::Value>,
+    /// The values as written.
+    pub texts: Vec<String>,
+}
+
+impl Axis {
+    /// `section.key`.
+    pub fn name(&self) -> String {
+        format!("{}.{}", self.section, self.key)
+    }
+}
+
+fn is_name(s: &str) -> bool {
+    !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+}
+
+/// Parse one `--sweep` argument (clap's value parser).
+pub fn parse_axis(s: &str) -> Result<Axis, String> {
+    let usage = "expected SECTION.KEY=V1,V2,... (e.g. preview.cap_share=0.8,0.9,1.0)";
+    let (name, list) = s.split_once('=').ok_or_else(|| format!("`{s}`: {usage}"))?;
+    let (section, key) = name
+        .trim()
+        .split_once('.')
+        .filter(|(a, b)| is_name(a) && is_name(b))
+        .ok_or_else(|| format!("`{name}`: not a SECTION.KEY of controllers.toml; {usage}"))?;
+    let mut values = Vec::new();
+    let mut texts = Vec::new();
+    for t in list.split(',').map(str::trim) {
+        if t.is_empty() {
+            return Err(format!("`{s}`: an empty value; {usage}"));
+        }
+        let v = toml::from_str::<toml::Table>(&format!("v = {t}"))
+            .ok()
+            .and_then(|mut tab| tab.remove("v"))
+            .ok_or_else(|| {
+                format!("`{name}={list}`: `{t}` is not a TOML value (a number, true/false or a quoted string)")
+            })?;
+        values.push(v);
+        texts.push(t.to_owned());
+    }
+    Ok(Axis {
+        section: section.to_owned(),
+        key: key.to_owned(),
+        values,
+        texts,
+    })
+}
+
+/// Every combination of the axes' value indices, the first axis slowest.
+pub fn grid(axes: &[Axis]) -> Vec<Vec<usize>> {
+    let mut points = vec![Vec::new()];
+    for a in axes {
+        let mut next = Vec::with_capacity(points.len() * a.values.len());
+        for p in &points {
+            for i in 0..a.values.len() {
+                let mut q = p.clone();
+                q.push(i);
+                next.push(q);
+            }
+        }
+        points = next;
+    }
+    points
+}
+
+/// `base` (controllers.toml as a table) with the point's values set; the
+/// section must exist (a key the file lacks is added, and a key the
+/// controllers do not know is refused by the parser, naming it).
+pub fn apply(base: &toml::Table, axes: &[Axis], point: &[usize]) -> Result<toml::Table, String> {
+    let mut t = base.clone();
+    for (a, &i) in axes.iter().zip(point) {
+        let sections: Vec<&str> = base
+            .iter()
+            .filter(|(_, v)| v.is_table())
+            .map(|(k, _)| k.as_str())
+            .collect();
+        let sec = t
+            .get_mut(&a.section)
+            .and_then(toml::Value::as_table_mut)
+            .ok_or_else(|| {
+                format!(
+                    "--sweep {}: controllers.toml has no [{}] (its sections: {})",
+                    a.name(),
+                    a.section,
+                    sections.join(", ")
+                )
+            })?;
+        sec.insert(a.key.clone(), a.values[i].clone());
+    }
+    Ok(t)
+}
+
+/// One ARTE variant against its baseline at one point (means over seeds).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ratios {
+    /// The controller.
+    pub kind: ControllerKind,
+    /// Baseline, ARTE variant: slip deviation, mean acceleration, command
+    /// variation per second.
+    pub base: [f64; 3],
+    /// See `base`.
+    pub arte: [f64; 3],
+    /// Runs of either variant with a non-finite state or rejected samples.
+    pub unhealthy: usize,
+}
+
+impl Ratios {
+    /// ARTE / baseline of slip deviation, acceleration, command variation.
+    pub fn ratio(&self) -> [f64; 3] {
+        [0, 1, 2].map(|i| self.arte[i] / self.base[i])
+    }
+}
+
+const KEYS: [&str; 3] = ["slip_deviation", "mean_accel", "cmd_tv_per_s"];
+
+fn ratios(results: &[grip_sim::RunResult], kinds: &[ControllerKind]) -> Vec<Ratios> {
+    let sums = summarize(results);
+    let find = |v: Variant| sums.iter().find(|s| s.variant == v);
+    kinds
+        .iter()
+        .filter_map(|&kind| {
+            let b = find(Variant::new(kind, false))?;
+            let a = find(Variant::new(kind, true))?;
+            let mean = |s: &grip_sim::report::VariantSummary, k: &str| {
+                s.stat(k).map_or(f64::NAN, |st| st.mean)
+            };
+            Some(Ratios {
+                kind,
+                base: KEYS.map(|k| mean(b, k)),
+                arte: KEYS.map(|k| mean(a, k)),
+                unhealthy: a.unhealthy_runs + b.unhealthy_runs,
+            })
+        })
+        .collect()
+}
+
+/// A point of the sweep, ready to run: its label, its values (as written,
+/// axis order; none for the configuration as loaded) and its setups.
+struct Point {
+    label: String,
+    values: Vec<String>,
+    setup: SimSetup,
+    per_seed: Vec<(u64, SimSetup)>,
+}
+
+/// A point of the sweep: its label and, per controller, the ratios.
+struct Row {
+    label: String,
+    values: Vec<String>,
+    ratios: Vec<Ratios>,
+}
+
+/// What the sweep needs of `grip sim`'s arguments.
+pub struct Request<'a> {
+    /// The axes.
+    pub axes: &'a [Axis],
+    /// The variants (at least one controller with and without ARTE).
+    pub variants: &'a [Variant],
+    /// The seeds.
+    pub seeds: &'a [u64],
+    /// Worker threads.
+    pub threads: usize,
+    /// Write sweep.csv and sweep.png here.
+    pub out: Option<&'a Path>,
+    /// `--sweep-target`: slip ratio at most, acceleration ratio at least.
+    pub target: Option<(f64, f64)>,
+    /// Scenario, vehicle and source, for the report's first line and the
+    /// figure's title.
+    pub describe: String,
+}
+
+/// Run the sweep.
+pub fn run(
+    config_dir: &Path,
+    loaded: &Loaded,
+    req: &Request<'_>,
+    make: &(dyn Fn() -> Result<Box<dyn RoadEstimator>, SimError> + Sync),
+) -> anyhow::Result<()> {
+    let kinds: Vec<ControllerKind> = [
+        ControllerKind::Mfc,
+        ControllerKind::Src,
+        ControllerKind::Mtte,
+    ]
+    .into_iter()
+    .filter(|&k| {
+        req.variants.contains(&Variant::new(k, false))
+            && req.variants.contains(&Variant::new(k, true))
+    })
+    .collect();
+    if kinds.is_empty() {
+        anyhow::bail!(
+            "--sweep compares each ARTE variant with its baseline: --variants must hold at least one controller with and without ARTE (e.g. src,src-arte; default all)"
+        );
+    }
+    let points = grid(req.axes);
+    if points.len() > MAX_POINTS {
+        anyhow::bail!(
+            "--sweep: {} grid points (the product of the axes' value counts); at most {MAX_POINTS}",
+            points.len()
+        );
+    }
+    let path = ConfigDir::new(config_dir).file("controllers.toml");
+    let text = read_file(&path)?;
+    // The file as loaded (errors name its line and field) ...
+    parse_controllers(&path, &text)?;
+    let base: toml::Table =
+        toml::from_str(&text).with_context(|| format!("{}: not a TOML table", path.display()))?;
+    // ... and every point checked before the first run.
+    let mut setups = vec![Point {
+        label: "as configured".into(),
+        values: Vec::new(),
+        setup: loaded.setup.clone(),
+        per_seed: loaded.per_seed.clone(),
+    }];
+    for p in &points {
+        let values: Vec<String> = req
+            .axes
+            .iter()
+            .zip(p)
+            .map(|(a, &i)| a.texts[i].clone())
+            .collect();
+        let label = req
+            .axes
+            .iter()
+            .zip(&values)
+            .map(|(a, v)| format!("{} = {v}", a.name()))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let table = apply(&base, req.axes, p).map_err(anyhow::Error::msg)?;
+        let text = toml::to_string(&table).context("--sweep: writing controllers.toml back")?;
+        let c = parse_controllers(&path, &text).with_context(|| format!("--sweep {label}"))?;
+        let s = loaded
+            .setup
+            .with_controllers(c)
+            .map_err(|e| anyhow::anyhow!("--sweep {label}: {e}"))?;
+        let per_seed = loaded
+            .per_seed
+            .iter()
+            .map(|(seed, ss)| {
+                ss.with_controllers(c)
+                    .map(|x| (*seed, x))
+                    .map_err(|e| anyhow::anyhow!("--sweep {label}: {e}"))
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        setups.push(Point {
+            label,
+            values,
+            setup: s,
+            per_seed,
+        });
+    }
+
+    let mut jobs = Job::grid(req.variants, req.seeds, false);
+    for j in &mut jobs {
+        j.keep_trace = false;
+    }
+    eprintln!(
+        "sweep: {} points (the configuration as loaded, then {} on the grid) x {} runs; {}",
+        setups.len(),
+        points.len(),
+        jobs.len(),
+        req.describe
+    );
+    let bar = indicatif::ProgressBar::new((setups.len() * jobs.len()) as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{bar:40} {pos}/{len} runs {elapsed_precise} (eta {eta})",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let mut rows = Vec::with_capacity(setups.len());
+    for Point {
+        label,
+        values,
+        setup,
+        per_seed,
+    } in &setups
+    {
+        let setup_of = |j: &Job| -> &SimSetup {
+            per_seed
+                .iter()
+                .find(|(s, _)| *s == j.seed)
+                .map_or(setup, |(_, s)| s)
+        };
+        let results = run_batch_with(&setup_of, &jobs, req.threads, make, &|_| bar.inc(1))
+            .map_err(|e| anyhow::anyhow!("simulation ({label}): {e}"))?;
+        rows.push(Row {
+            label: label.clone(),
+            values: values.clone(),
+            ratios: ratios(&results, &kinds),
+        });
+    }
+    bar.finish_and_clear();
+
+    let report = format_report(req, &kinds, &rows);
+    print!("{report}");
+    if let Some(dir) = req.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let csv = dir.join("sweep.csv");
+        let mut f = std::io::BufWriter::new(
+            std::fs::File::create(&csv).with_context(|| format!("creating {}", csv.display()))?,
+        );
+        f.write_all(format_csv(req.axes, &rows).as_bytes())
+            .and_then(|()| f.flush())
+            .with_context(|| format!("writing {}", csv.display()))?;
+        std::fs::write(dir.join("sweep.txt"), &report)
+            .with_context(|| format!("writing {}", dir.join("sweep.txt").display()))?;
+        let png = dir.join("sweep.png");
+        figure(&png, req, &kinds, &rows)
+            .map_err(|e| anyhow::anyhow!("drawing {}: {e}", png.display()))?;
+        eprintln!("wrote {}", dir.display());
+    }
+    Ok(())
+}
+
+fn format_report(req: &Request<'_>, kinds: &[ControllerKind], rows: &[Row]) -> String {
+    let mut s = format!(
+        "\nSweep: {}; {} seeds ({}..={}). Each ARTE variant against its baseline, means over the seeds:\n\
+         slip = slip deviation ratio, accel = mean acceleration ratio, TV = command variation ratio.\n\n",
+        req.describe,
+        req.seeds.len(),
+        req.seeds.first().copied().unwrap_or(0),
+        req.seeds.last().copied().unwrap_or(0),
+    );
+    let width = rows.iter().map(|r| r.label.len()).max().unwrap_or(5).max(5);
+    s.push_str(&format!("{:>3}  {:<width$}", "#", "point"));
+    for k in kinds {
+        let l = Variant::new(*k, true).label();
+        s.push_str(&format!(" | {l:>9} slip  accel     TV"));
+    }
+    s.push('\n');
+    for (i, r) in rows.iter().enumerate() {
+        s.push_str(&format!("{i:>3}  {:<width$}", r.label));
+        for q in &r.ratios {
+            let [a, b, c] = q.ratio();
+            s.push_str(&format!(" | {a:>14.3}x {b:>6.4}x {c:>5.2}x"));
+        }
+        let bad: usize = r.ratios.iter().map(|q| q.unhealthy).sum();
+        if bad > 0 {
+            s.push_str(&format!("  ({bad} unhealthy runs)"));
+        }
+        s.push('\n');
+    }
+    if let Some((slip, accel)) = req.target {
+        s.push_str(&format!(
+            "\nTarget (--sweep-target): slip <= {slip}x and accel >= {accel}x. Met:"
+        ));
+        for k in kinds {
+            let met: Vec<String> = rows
+                .iter()
+                .enumerate()
+                .filter(|(_, r)| {
+                    r.ratios.iter().any(|q| {
+                        let [a, b, _] = q.ratio();
+                        q.kind == *k && a <= slip && b >= accel
+                    })
+                })
+                .map(|(i, _)| format!("#{i}"))
+                .collect();
+            let l = Variant::new(*k, true).label();
+            let list = if met.is_empty() {
+                "no point".to_owned()
+            } else {
+                met.join(" ")
+            };
+            s.push_str(&format!(" {l}: {list};"));
+        }
+        s.push('\n');
+    }
+    s
+}
+
+fn format_csv(axes: &[Axis], rows: &[Row]) -> String {
+    let mut s = String::from("point,label");
+    for a in axes {
+        s.push(',');
+        s.push_str(&a.name());
+    }
+    s.push_str(",controller,slip_base,slip_arte,slip_ratio,accel_base,accel_arte,accel_ratio,cmd_tv_base,cmd_tv_arte,cmd_tv_ratio,unhealthy_runs\n");
+    for (i, r) in rows.iter().enumerate() {
+        for q in &r.ratios {
+            s.push_str(&format!("{i},\"{}\"", r.label));
+            for k in 0..axes.len() {
+                s.push(',');
+                s.push_str(r.values.get(k).map_or("", String::as_str));
+            }
+            s.push_str(&format!(",{}", Variant::new(q.kind, false).name()));
+            let rt = q.ratio();
+            for k in 0..3 {
+                s.push_str(&format!(",{},{},{}", q.base[k], q.arte[k], rt[k]));
+            }
+            s.push_str(&format!(",{}\n", q.unhealthy));
+        }
+    }
+    s
+}
+
+type Res = Result<(), Box<dyn std::error::Error>>;
+
+/// One panel per controller: slip ratio (y) against acceleration ratio (x)
+/// of every point, the loaded configuration marked, the quadrant "no more
+/// slip, no less traction" shaded, and the target box if given.
+fn figure(path: &Path, req: &Request<'_>, kinds: &[ControllerKind], rows: &[Row]) -> Res {
+    crate::plot::init_fonts();
+    const PW: u32 = 640;
+    const H: u32 = 640;
+    let w = PW * kinds.len() as u32;
+    let root = BitMapBackend::new(path, (w, H)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (top, rest) = root.split_vertically(70);
+    let (body, bottom) = rest.split_vertically(H - 70 - 30);
+    top.draw_text(
+        &format!("ARTE variant / its baseline over {} seeds", req.seeds.len()),
+        &("sans-serif", 24).into_font().color(&BLACK),
+        (15, 8),
+    )?;
+    top.draw_text(
+        &req.describe,
+        &("sans-serif", 15).into_font().color(&BLACK),
+        (15, 42),
+    )?;
+    let panels = body.split_evenly((1, kinds.len()));
+    for (area, &k) in panels.iter().zip(kinds) {
+        let pts: Vec<(f64, f64, usize)> = rows
+            .iter()
+            .enumerate()
+            .filter_map(|(i, r)| r.ratios.iter().find(|q| q.kind == k).map(|q| (q, i)))
+            .map(|(q, i)| {
+                let [s, a, _] = q.ratio();
+                (a, s, i)
+            })
+            .filter(|(a, s, _)| a.is_finite() && s.is_finite())
+            .collect();
+        let mut xs: Vec<f64> = pts.iter().map(|p| p.0).collect();
+        xs.push(1.0);
+        let mut ys: Vec<f64> = pts.iter().map(|p| p.1).collect();
+        ys.push(1.0);
+        if let Some((slip, accel)) = req.target {
+            xs.push(accel);
+            ys.push(slip);
+        }
+        let (x0, x1) = xs
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        let pad = ((x1 - x0) * 0.1).max(0.005);
+        let (x0, x1) = (x0 - pad, x1 + pad);
+        let y1 = ys.iter().copied().fold(0.0, f64::max) * 1.08;
+        let mut chart = ChartBuilder::on(area)
+            .caption(Variant::new(k, true).label(), ("sans-serif", 22))
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(60)
+            .build_cartesian_2d(x0..x1, 0.0..y1)?;
+        chart
+            .configure_mesh()
+            .x_desc("mean acceleration, ARTE / baseline")
+            .y_desc("slip deviation, ARTE / baseline")
+            .x_labels(6)
+            .y_labels(8)
+            .label_style(("sans-serif", 14))
+            .draw()?;
+        // No more slip and no less traction than the baseline.
+        chart.draw_series(std::iter::once(Rectangle::new(
+            [(1.0_f64.max(x0), 0.0), (x1, 1.0_f64.min(y1))],
+            RGBColor(200, 235, 200).filled(),
+        )))?;
+        if let Some((slip, accel)) = req.target {
+            chart.draw_series(std::iter::once(Rectangle::new(
+                [(accel.max(x0), 0.0), (x1, slip.min(y1))],
+                RGBColor(120, 190, 120).mix(0.5).filled(),
+            )))?;
+        }
+        let grey = RGBColor(120, 120, 120);
+        chart.draw_series(DashedLineSeries::new(
+            vec![(1.0, 0.0), (1.0, y1)],
+            6,
+            4,
+            grey.stroke_width(1),
+        ))?;
+        chart.draw_series(DashedLineSeries::new(
+            vec![(x0, 1.0), (x1, 1.0)],
+            6,
+            4,
+            grey.stroke_width(1),
+        ))?;
+        for &(a, s, i) in &pts {
+            // The configuration as loaded: red, labelled below its point;
+            // a grid point: blue, its values above right.
+            let (colour, size, label, at) = if i == 0 {
+                (RED, 8, "as configured".to_owned(), (10, 4))
+            } else {
+                (BLUE, 5, rows[i].values.join("/"), (7, -16))
+            };
+            chart.draw_series(std::iter::once(
+                EmptyElement::at((a, s))
+                    + Circle::new((0, 0), size, colour.filled())
+                    + Text::new(label, at, ("sans-serif", 13).into_font().color(&BLACK)),
+            ))?;
+        }
+    }
+    let legend = format!(
+        "red: the configuration as loaded; blue: the grid ({}); green: no more slip and no less traction than the baseline{}",
+        req.axes
+            .iter()
+            .map(Axis::name)
+            .collect::<Vec<_>>()
+            .join(" / "),
+        req.target.map_or(String::new(), |(s, a)| format!(
+            "; dark green: the target (slip <= {s}x, accel >= {a}x)"
+        ))
+    );
+    bottom.draw_text(
+        &legend,
+        &("sans-serif", 14).into_font().color(&BLACK),
+        (15, 6),
+    )?;
+    root.present()?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_axis_parses_and_bad_ones_are_named() {
+        let a = parse_axis("preview.cap_share=0.8, 0.9,1").unwrap();
+        assert_eq!(a.name(), "preview.cap_share");
+        assert_eq!(a.texts, ["0.8", "0.9", "1"]);
+        assert_eq!(a.values[0], toml::Value::Float(0.8));
+        assert_eq!(a.values[2], toml::Value::Integer(1));
+        for (bad, says) in [
+            ("preview.cap_share", "expected SECTION.KEY"),
+            ("cap_share=0.8", "not a SECTION.KEY"),
+            ("preview.cap share=0.8", "not a SECTION.KEY"),
+            ("preview.cap_share=0.8,,1", "an empty value"),
+            ("preview.cap_share=0.8,abc", "`abc` is not a TOML value"),
+        ] {
+            let e = parse_axis(bad).unwrap_err();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn the_grid_is_every_combination_first_axis_slowest() {
+        let a = parse_axis("preview.cap_share=0.8,0.9").unwrap();
+        let b = parse_axis("preview.slip_share=0.9,0.95,1.0").unwrap();
+        let g = grid(&[a, b]);
+        assert_eq!(g.len(), 6);
+        assert_eq!(g[0], [0, 0]);
+        assert_eq!(g[1], [0, 1]);
+        assert_eq!(g[5], [1, 2]);
+        assert_eq!(grid(&[]), vec![Vec::<usize>::new()]);
+    }
+
+    #[test]
+    fn apply_sets_the_value_and_names_a_missing_section() {
+        let base: toml::Table =
+            toml::from_str("[preview]\ncap_share = 1.0\n[mfc]\nk = 1\n").unwrap();
+        let a = parse_axis("preview.cap_share=0.7").unwrap();
+        let t = apply(&base, std::slice::from_ref(&a), &[0]).unwrap();
+        assert_eq!(t["preview"]["cap_share"], toml::Value::Float(0.7));
+        assert_eq!(base["preview"]["cap_share"], toml::Value::Float(1.0));
+        let b = parse_axis("previw.cap_share=0.7").unwrap();
+        let e = apply(&base, &[b], &[0]).unwrap_err();
+        assert!(
+            e.contains("has no [previw]") && e.contains("mfc, preview"),
+            "{e}"
+        );
+    }
+}

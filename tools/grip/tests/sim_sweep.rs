@@ -1,0 +1,116 @@
+//! `grip sim --sweep` end to end: one row per point and controller in
+//! sweep.csv, the configuration as loaded reproduced by the grid point that
+//! repeats it, baselines untouched by a `[preview]` value, the figure
+//! written; bad axes refused with the key and the reason.
+
+use std::ffi::OsStr;
+
+mod common;
+use common::{grip, output, run_ok};
+
+#[test]
+fn a_preview_sweep_reports_each_point_against_the_same_baseline() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("sweep");
+    let text = run_ok(
+        grip()
+            .args([
+                "sim",
+                "--seeds",
+                "2",
+                "--variants",
+                "src,src-arte,mtte,mtte-arte",
+                "--threads",
+                "2",
+                "--sweep",
+                "preview.cap_share=0.8,1.0",
+                "--sweep-target",
+                "0.4,0.98",
+                "--out",
+            ])
+            .arg(&out),
+    );
+    assert!(text.contains("preview.cap_share = 0.8"), "{text}");
+    assert!(text.contains("Target (--sweep-target)"), "{text}");
+    let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(
+        &header[..4],
+        ["point", "label", "preview.cap_share", "controller"]
+    );
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    // 3 points (as configured, 0.8, 1.0) x 2 controllers.
+    assert_eq!(rows.len(), 6, "{csv}");
+    let get = |point: &str, ctl: &str, c: &str| -> f64 {
+        let r = rows
+            .iter()
+            .find(|r| r[0] == point && r[3] == ctl)
+            .unwrap_or_else(|| panic!("no row {point} {ctl} in {csv}"));
+        r[col(c)].parse().unwrap()
+    };
+    for ctl in ["src", "mtte"] {
+        // controllers.toml ships cap_share = 1.0: point 2 is point 0 again.
+        for c in ["slip_arte", "accel_arte", "cmd_tv_arte"] {
+            assert_eq!(get("0", ctl, c), get("2", ctl, c), "{ctl} {c}");
+        }
+        // [preview] is for the ARTE variants only: the baseline is the same
+        // at every point, and the lower cap changes the ARTE variant.
+        for p in ["1", "2"] {
+            assert_eq!(get("0", ctl, "slip_base"), get(p, ctl, "slip_base"));
+            assert_eq!(get("0", ctl, "accel_base"), get(p, ctl, "accel_base"));
+        }
+        assert_ne!(
+            get("0", ctl, "slip_arte"),
+            get("1", ctl, "slip_arte"),
+            "{ctl}"
+        );
+        let ratio = get("1", ctl, "slip_ratio");
+        let expect = get("1", ctl, "slip_arte") / get("1", ctl, "slip_base");
+        assert!((ratio - expect).abs() < 1e-12, "{ratio} {expect}");
+    }
+    let png = std::fs::read(out.join("sweep.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    assert!(
+        std::fs::read_to_string(out.join("sweep.txt"))
+            .unwrap()
+            .contains("as configured")
+    );
+}
+
+#[test]
+fn bad_sweeps_name_the_key_and_the_reason() {
+    for (args, says) in [
+        (
+            vec!["--sweep", "previw.cap_share=0.8"],
+            "controllers.toml has no [previw]",
+        ),
+        (vec!["--sweep", "preview.cap_share=2"], "cap_share"),
+        (vec!["--sweep", "preview.cap_shar=0.8"], "cap_shar"),
+        (
+            vec!["--sweep", "preview.cap_share=0.8,x"],
+            "`x` is not a TOML value",
+        ),
+        (vec!["--sweep", "cap_share=0.8"], "not a SECTION.KEY"),
+        (
+            vec![
+                "--variants",
+                "src,mtte-arte",
+                "--sweep",
+                "preview.cap_share=0.8",
+            ],
+            "at least one controller with and without ARTE",
+        ),
+        (
+            vec!["--sweep", "preview.cap_share=0.8", "--sweep-target", "0.4"],
+            "expected SLIP,ACCEL",
+        ),
+    ] {
+        let mut a: Vec<&OsStr> = vec![OsStr::new("sim"), OsStr::new("--seeds"), OsStr::new("1")];
+        a.extend(args.iter().map(OsStr::new));
+        let (ok, _, err) = output(&a);
+        assert!(!ok, "{args:?} succeeded");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+}
