@@ -117,3 +117,20 @@ fn arte_raises_src_traction_over_20_seeds() {
     );
     assert!(dist(1) > dist(0), "SRC {} vs SRC-ARTE {}", dist(0), dist(1));
 }
+
+/// `SimSetup::with_controllers` (`grip sim --sweep`): the new parameters
+/// are used, the cycle count follows the loop rate, a bad value is refused
+/// naming the field.
+#[test]
+fn with_controllers_validates_and_follows_the_loop_rate() {
+    let (reference, _) = common::reference();
+    let mut c = *reference.controllers();
+    c.preview.cap_share = 0.8;
+    c.loop_.rate_hz = 500.0;
+    let s = reference.with_controllers(c).unwrap();
+    assert_eq!(s.controllers().preview.cap_share, 0.8);
+    assert_eq!(s.cycles(), reference.cycles() / 2);
+    c.preview.cap_share = 5.0;
+    let e = reference.with_controllers(c).unwrap_err().to_string();
+    assert!(e.contains("cap_share"), "{e}");
+}

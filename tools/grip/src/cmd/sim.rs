@@ -303,6 +303,17 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
                 loaded.scenario_path.display(),
                 vehicle.display()
             ),
+            title: format!(
+                "scenario {}, vehicle {}, ARTE source: {}",
+                loaded.scenario_path.display(),
+                vehicle.display(),
+                match (source, args.snr_db) {
+                    (ArteSource::Acoustic, Snr::Db(db)) =>
+                        format!("acoustic, noise at {db} dB SNR"),
+                    (ArteSource::Acoustic, _) => "acoustic, clean".into(),
+                    _ => format!("{source:?}").to_lowercase(),
+                }
+            ),
         };
         return sweep::run(&ctx.config_dir, &loaded, &req, &make);
     }

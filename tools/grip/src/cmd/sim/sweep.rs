@@ -196,9 +196,10 @@ pub struct Request<'a> {
     pub out: Option<&'a Path>,
     /// `--sweep-target`: slip ratio at most, acceleration ratio at least.
     pub target: Option<(f64, f64)>,
-    /// Scenario, vehicle and source, for the report's first line and the
-    /// figure's title.
+    /// Scenario, vehicle and source, for the report's first line.
     pub describe: String,
+    /// The same in one short line, for the figure.
+    pub title: String,
 }
 
 /// Run the sweep.
@@ -447,7 +448,7 @@ fn figure(path: &Path, req: &Request<'_>, kinds: &[ControllerKind], rows: &[Row]
         (15, 8),
     )?;
     top.draw_text(
-        &req.describe,
+        &req.title,
         &("sans-serif", 15).into_font().color(&BLACK),
         (15, 42),
     )?;
