@@ -97,41 +97,53 @@ fn run(cmd: &str, args: &[&str]) -> anyhow::Result<String> {
     Ok(String::from_utf8_lossy(&out.stdout).into_owned())
 }
 
-fn prop(unit: &str, name: &str) -> anyhow::Result<String> {
-    Ok(run("systemctl", &["show", "-p", name, "--value", unit])?
-        .trim()
-        .to_owned())
+/// Properties `names` of `unit`, in that order, from one `systemctl show`
+/// (each call is a process start, which the waits below pay every poll
+/// under emulation).
+fn props<const N: usize>(unit: &str, names: [&str; N]) -> anyhow::Result<[String; N]> {
+    let mut args = vec!["show"];
+    for n in &names {
+        args.extend(["-p", n]);
+    }
+    args.push(unit);
+    pick(unit, &run("systemctl", &args)?, names)
 }
 
-/// NRestarts and whether the unit is active, in one `systemctl` call (the
-/// restart waits poll it; each call is a process start under emulation).
-fn restarts_and_active(unit: &str) -> anyhow::Result<(u64, bool)> {
-    let out = run(
-        "systemctl",
-        &["show", "-p", "NRestarts", "-p", "ActiveState", unit],
-    )?;
-    let (mut n, mut active) = (None, false);
+/// `names`' values in `systemctl show` output (`Name=value` lines).
+fn pick<const N: usize>(unit: &str, out: &str, names: [&str; N]) -> anyhow::Result<[String; N]> {
+    let mut found: [Option<String>; N] = std::array::from_fn(|_| None);
     for l in out.lines() {
-        if let Some(v) = l.strip_prefix("NRestarts=") {
-            n = Some(
-                v.trim()
-                    .parse()
-                    .with_context(|| format!("{unit}: NRestarts={v:?} is not a number"))?,
-            );
-        } else if let Some(v) = l.strip_prefix("ActiveState=") {
-            active = v.trim() == "active";
+        if let Some((k, v)) = l.split_once('=')
+            && let Some(i) = names.iter().position(|n| *n == k)
+        {
+            found[i] = Some(v.trim().to_owned());
         }
     }
-    Ok((
-        n.with_context(|| format!("{unit}: no NRestarts in {out:?}"))?,
-        active,
-    ))
+    let mut values: [String; N] = std::array::from_fn(|_| String::new());
+    for (i, f) in found.into_iter().enumerate() {
+        values[i] = f.with_context(|| format!("{unit}: no {} in {out:?}", names[i]))?;
+    }
+    Ok(values)
+}
+
+fn prop(unit: &str, name: &str) -> anyhow::Result<String> {
+    let [v] = props(unit, [name])?;
+    Ok(v)
+}
+
+fn to_u64(unit: &str, name: &str, v: &str) -> anyhow::Result<u64> {
+    v.parse()
+        .with_context(|| format!("{unit}: {name}={v:?} is not a number"))
+}
+
+/// NRestarts and whether the unit is active, in one `systemctl` call.
+fn restarts_and_active(unit: &str) -> anyhow::Result<(u64, bool)> {
+    let [n, state] = props(unit, ["NRestarts", "ActiveState"])?;
+    Ok((to_u64(unit, "NRestarts", &n)?, state == "active"))
 }
 
 fn prop_u64(unit: &str, name: &str) -> anyhow::Result<u64> {
-    let v = prop(unit, name)?;
-    v.parse()
-        .with_context(|| format!("{unit}: {name}={v:?} is not a number"))
+    to_u64(unit, name, &prop(unit, name)?)
 }
 
 /// A systemd time span as `systemctl show` prints it ("2s", "500ms",
@@ -723,6 +735,19 @@ fn grip_package_under_systemd() -> anyhow::Result<()> {
         "dpkg -r (not purge) must keep the conffiles"
     );
     Ok(())
+}
+
+#[test]
+fn systemctl_show_lines_are_picked_by_name() {
+    let out = "ActiveState=active\nNRestarts=3\nExecStart={ path=/x ; argv[]=/x a=b }\n";
+    let [n, a] = pick("u", out, ["NRestarts", "ActiveState"]).unwrap();
+    assert_eq!((n.as_str(), a.as_str()), ("3", "active"));
+    let [e] = pick("u", out, ["ExecStart"]).unwrap();
+    assert_eq!(e, "{ path=/x ; argv[]=/x a=b }");
+    let err = pick("u", out, ["NRestarts", "MainPID"])
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("u: no MainPID"), "{err}");
 }
 
 #[test]
