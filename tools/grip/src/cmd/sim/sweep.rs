@@ -261,7 +261,10 @@ pub fn run(
             .join(", ");
         let table = apply(&base, req.axes, p).map_err(anyhow::Error::msg)?;
         let text = toml::to_string(&table).context("--sweep: writing controllers.toml back")?;
-        let c = parse_controllers(&path, &text).with_context(|| format!("--sweep {label}"))?;
+        // Errors name the file as swept: a line number is one of the
+        // rewritten text, not of the file on disk.
+        let swept = std::path::PathBuf::from(format!("{} with the --sweep values", path.display()));
+        let c = parse_controllers(&swept, &text).with_context(|| format!("--sweep {label}"))?;
         let s = loaded
             .setup
             .with_controllers(c)
