@@ -88,6 +88,30 @@ impl SimSetup {
         })
     }
 
+    /// The same setup with another vehicle and sensors (validated; a
+    /// microphone lead with a time-segment scenario is refused as in
+    /// [`SimSetup::new`]). `grip sim --sweep vehicle.KEY=...` builds one per
+    /// point.
+    pub fn with_vehicle(
+        &self,
+        vehicle: VehicleParams,
+        sensors: SensorParams,
+    ) -> Result<Self, SimError> {
+        vehicle
+            .validate()
+            .map_err(|e| SimError::from_field("vehicle", e))?;
+        sensors
+            .validate()
+            .map_err(|e| SimError::from_field("sensors", e))?;
+        let cycles = check_scenario(&vehicle, &self.roads, &self.scenario, self.dt)?;
+        Ok(Self {
+            vehicle,
+            sensors,
+            cycles,
+            ..self.clone()
+        })
+    }
+
     /// Set the plant's internal integration step bound (s, finite, > 0).
     pub fn set_max_substep(&mut self, h: f64) -> Result<(), SimError> {
         if !(h.is_finite() && h > 0.0) {

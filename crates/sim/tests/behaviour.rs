@@ -134,3 +134,21 @@ fn with_controllers_validates_and_follows_the_loop_rate() {
     let e = reference.with_controllers(c).unwrap_err().to_string();
     assert!(e.contains("cap_share"), "{e}");
 }
+
+/// `SimSetup::with_vehicle` (`grip sim --sweep vehicle.KEY=...`): the new
+/// vehicle is used and a bad one refused naming the field.
+#[test]
+fn with_vehicle_validates() {
+    let (reference, _) = common::reference();
+    let mut v = *reference.vehicle();
+    v.mic_lead_m = 1.5;
+    let s = reference.with_vehicle(v, *reference.sensors()).unwrap();
+    assert_eq!(s.vehicle().mic_lead_m, 1.5);
+    assert_eq!(s.cycles(), reference.cycles());
+    v.mass = -1.0;
+    let e = reference
+        .with_vehicle(v, *reference.sensors())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("mass"), "{e}");
+}

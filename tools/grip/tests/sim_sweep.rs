@@ -80,6 +80,46 @@ fn a_preview_sweep_reports_each_point_against_the_same_baseline() {
 }
 
 #[test]
+fn a_vehicle_axis_moves_the_microphone() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("lead");
+    let vehicle = common::config_dir().join("vehicles/front-mic.toml");
+    run_ok(
+        grip()
+            .args([
+                "sim",
+                "--seeds",
+                "2",
+                "--variants",
+                "src,src-arte",
+                "--threads",
+                "2",
+            ])
+            .arg("--vehicle")
+            .arg(&vehicle)
+            .args(["--sweep", "vehicle.mic_lead_m=0,2.77", "--out"])
+            .arg(&out),
+    );
+    let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 3, "{csv}");
+    // columns: point,label,vehicle.mic_lead_m,controller,slip_base,slip_arte,...
+    let slip_arte = |p: &str| rows.iter().find(|r| r[0] == p).unwrap()[5];
+    // front-mic.toml ships 2.77 m: point 2 is point 0 again; without the
+    // lead the preview is gone and SRC-ARTE slips more.
+    assert_eq!(slip_arte("0"), slip_arte("2"), "{csv}");
+    let (lead0, lead277): (f64, f64) = (
+        slip_arte("1").parse().unwrap(),
+        slip_arte("2").parse().unwrap(),
+    );
+    assert!(lead0 > lead277, "{csv}");
+}
+
+#[test]
 fn bad_sweeps_name_the_key_and_the_reason() {
     for (args, says) in [
         (
@@ -105,6 +145,11 @@ fn bad_sweeps_name_the_key_and_the_reason() {
         (
             vec!["--sweep", "preview.cap_share=0.8", "--sweep-target", "0.4"],
             "expected SLIP,ACCEL",
+        ),
+        (vec!["--sweep", "vehicle.mic_leadd=1"], "mic_leadd"),
+        (
+            vec!["--scenario", "e2e", "--sweep", "vehicle.mic_lead_m=1"],
+            "time segments",
         ),
     ] {
         let mut a: Vec<&OsStr> = vec![OsStr::new("sim"), OsStr::new("--seeds"), OsStr::new("1")];

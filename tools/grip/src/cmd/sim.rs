@@ -112,7 +112,9 @@ pub struct Args {
     max_substep: Option<f64>,
     /// Run the batch at every combination of these controllers.toml
     /// values, SECTION.KEY=V1,V2,... (repeatable; e.g.
-    /// preview.cap_share=0.8,0.9,1.0), plus once as configured, and report
+    /// preview.cap_share=0.8,0.9,1.0; the sections vehicle and sensors are
+    /// the vehicle file's, e.g. vehicle.mic_lead_m=0,1,2), plus once as
+    /// configured, and report
     /// each ARTE variant's slip, acceleration and command variation relative
     /// to its baseline (with --out: sweep.csv, sweep.txt and sweep.png).
     #[arg(long, value_name = "SECTION.KEY=V1,V2,...", value_parser = sweep::parse_axis,
@@ -296,6 +298,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             variants: &variants,
             seeds: &seeds,
             threads,
+            vehicle: &vehicle,
             out: args.out.as_deref(),
             target: args.sweep_target,
             describe: format!(

@@ -5,13 +5,15 @@
 //! baseline: one table, and with `--out` `sweep.csv` and `sweep.png` (slip
 //! ratio against acceleration ratio per controller: what a tuning trades).
 //! Point 0 is the configuration as loaded; the grid points change only the
-//! swept values.
+//! swept values. Sections `vehicle` and `sensors` are those of the vehicle
+//! file (`--vehicle`, default `<config-dir>/vehicle.toml`), every other
+//! section that of controllers.toml.
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use grip_config::{ConfigDir, parse_controllers, read_file};
+use grip_config::{ConfigDir, parse_controllers, parse_vehicle, read_file};
 use grip_sim::report::summarize;
 use grip_sim::{Job, RoadEstimator, SimError, SimSetup, Variant, run_batch_with};
 use grip_tcs::ControllerKind;
@@ -25,7 +27,8 @@ pub const MAX_POINTS: usize = 200;
 /// One `--sweep` axis: `SECTION.KEY=V1,V2,...`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Axis {
-    /// The `[section]` of controllers.toml.
+    /// The `[section]` of controllers.toml, or `vehicle`/`sensors` of the
+    /// vehicle file.
     pub section: String,
     /// The key in it.
     pub key: String,
@@ -40,7 +43,15 @@ impl Axis {
     pub fn name(&self) -> String {
         format!("{}.{}", self.section, self.key)
     }
+
+    /// Whether it sets a value of the vehicle file (else of controllers.toml).
+    pub fn of_vehicle(&self) -> bool {
+        VEHICLE_SECTIONS.contains(&self.section.as_str())
+    }
 }
+
+/// The sections of a vehicle file.
+pub const VEHICLE_SECTIONS: [&str; 2] = ["vehicle", "sensors"];
 
 fn is_name(s: &str) -> bool {
     !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
@@ -95,12 +106,17 @@ pub fn grid(axes: &[Axis]) -> Vec<Vec<usize>> {
     points
 }
 
-/// `base` (controllers.toml as a table) with the point's values set; the
-/// section must exist (a key the file lacks is added, and a key the
-/// controllers do not know is refused by the parser, naming it).
-pub fn apply(base: &toml::Table, axes: &[Axis], point: &[usize]) -> Result<toml::Table, String> {
+/// `base` (the TOML file named `file`, as a table) with `set`'s values
+/// (each axis with the index of its value); the section must exist (a key
+/// the file lacks is added, and one the parser does not know is refused by
+/// it, naming the key).
+pub fn apply(
+    base: &toml::Table,
+    file: &str,
+    set: &[(&Axis, usize)],
+) -> Result<toml::Table, String> {
     let mut t = base.clone();
-    for (a, &i) in axes.iter().zip(point) {
+    for &(a, i) in set {
         let sections: Vec<&str> = base
             .iter()
             .filter(|(_, v)| v.is_table())
@@ -111,7 +127,7 @@ pub fn apply(base: &toml::Table, axes: &[Axis], point: &[usize]) -> Result<toml:
             .and_then(toml::Value::as_table_mut)
             .ok_or_else(|| {
                 format!(
-                    "--sweep {}: controllers.toml has no [{}] (its sections: {})",
+                    "--sweep {}: {file} has no [{}] (its sections: {})",
                     a.name(),
                     a.section,
                     sections.join(", ")
@@ -120,6 +136,28 @@ pub fn apply(base: &toml::Table, axes: &[Axis], point: &[usize]) -> Result<toml:
         sec.insert(a.key.clone(), a.values[i].clone());
     }
     Ok(t)
+}
+
+/// `text` (the TOML file `path`) with `set`'s values, written back, and the
+/// name to give the result in errors (a line number is one of the rewritten
+/// text, not of the file on disk).
+fn swept_text(
+    path: &Path,
+    text: &str,
+    set: &[(&Axis, usize)],
+) -> anyhow::Result<(PathBuf, String)> {
+    let base: toml::Table =
+        toml::from_str(text).with_context(|| format!("{}: not a TOML table", path.display()))?;
+    let name = path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let table = apply(&base, &name, set).map_err(anyhow::Error::msg)?;
+    let out = toml::to_string(&table).context("--sweep: writing the values back")?;
+    Ok((
+        PathBuf::from(format!("{} with the --sweep values", path.display())),
+        out,
+    ))
 }
 
 /// One ARTE variant against its baseline at one point (means over seeds).
@@ -192,6 +230,9 @@ pub struct Request<'a> {
     pub seeds: &'a [u64],
     /// Worker threads.
     pub threads: usize,
+    /// The vehicle file the setup was loaded from (for `vehicle.*` and
+    /// `sensors.*` axes).
+    pub vehicle: &'a Path,
     /// Write sweep.csv and sweep.png here.
     pub out: Option<&'a Path>,
     /// `--sweep-target`: slip ratio at most, acceleration ratio at least.
@@ -234,10 +275,10 @@ pub fn run(
     }
     let path = ConfigDir::new(config_dir).file("controllers.toml");
     let text = read_file(&path)?;
-    // The file as loaded (errors name its line and field) ...
+    // The files as loaded (errors name their line and field) ...
     parse_controllers(&path, &text)?;
-    let base: toml::Table =
-        toml::from_str(&text).with_context(|| format!("{}: not a TOML table", path.display()))?;
+    let vehicle_text = read_file(req.vehicle)?;
+    parse_vehicle(req.vehicle, &vehicle_text)?;
     // ... and every point checked before the first run.
     let mut setups = vec![Point {
         label: "as configured".into(),
@@ -259,29 +300,40 @@ pub fn run(
             .map(|(a, v)| format!("{} = {v}", a.name()))
             .collect::<Vec<_>>()
             .join(", ");
-        let table = apply(&base, req.axes, p).map_err(anyhow::Error::msg)?;
-        let text = toml::to_string(&table).context("--sweep: writing controllers.toml back")?;
-        // Errors name the file as swept: a line number is one of the
-        // rewritten text, not of the file on disk.
-        let swept = std::path::PathBuf::from(format!("{} with the --sweep values", path.display()));
-        let c = parse_controllers(&swept, &text).with_context(|| format!("--sweep {label}"))?;
-        let s = loaded
-            .setup
-            .with_controllers(c)
-            .map_err(|e| anyhow::anyhow!("--sweep {label}: {e}"))?;
+        let (on_vehicle, on_controllers): (Vec<(&Axis, usize)>, Vec<(&Axis, usize)>) = req
+            .axes
+            .iter()
+            .zip(p.iter().copied())
+            .partition(|(a, _)| a.of_vehicle());
+        let (cpath, ctext) = swept_text(&path, &text, &on_controllers)?;
+        let c = parse_controllers(&cpath, &ctext).with_context(|| format!("--sweep {label}"))?;
+        let vehicle = if on_vehicle.is_empty() {
+            None
+        } else {
+            let (vpath, vtext) = swept_text(req.vehicle, &vehicle_text, &on_vehicle)?;
+            Some(parse_vehicle(&vpath, &vtext).with_context(|| format!("--sweep {label}"))?)
+        };
+        let build = |s: &SimSetup| -> anyhow::Result<SimSetup> {
+            let s = s
+                .with_controllers(c)
+                .map_err(|e| anyhow::anyhow!("--sweep {label}: {e}"))?;
+            match &vehicle {
+                Some((v, sens)) => s
+                    .with_vehicle(*v, *sens)
+                    .map_err(|e| anyhow::anyhow!("--sweep {label}: {e}")),
+                None => Ok(s),
+            }
+        };
+        let setup = build(&loaded.setup)?;
         let per_seed = loaded
             .per_seed
             .iter()
-            .map(|(seed, ss)| {
-                ss.with_controllers(c)
-                    .map(|x| (*seed, x))
-                    .map_err(|e| anyhow::anyhow!("--sweep {label}: {e}"))
-            })
+            .map(|(seed, ss)| build(ss).map(|x| (*seed, x)))
             .collect::<anyhow::Result<Vec<_>>>()?;
         setups.push(Point {
             label,
             values,
-            setup: s,
+            setup,
             per_seed,
         });
     }
@@ -595,15 +647,18 @@ mod tests {
     fn apply_sets_the_value_and_names_a_missing_section() {
         let base: toml::Table =
             toml::from_str("[preview]\ncap_share = 1.0\n[mfc]\nk = 1\n").unwrap();
-        let a = parse_axis("preview.cap_share=0.7").unwrap();
-        let t = apply(&base, std::slice::from_ref(&a), &[0]).unwrap();
-        assert_eq!(t["preview"]["cap_share"], toml::Value::Float(0.7));
+        let a = parse_axis("preview.cap_share=0.7,0.8").unwrap();
+        assert!(!a.of_vehicle());
+        let t = apply(&base, "controllers.toml", &[(&a, 1)]).unwrap();
+        assert_eq!(t["preview"]["cap_share"], toml::Value::Float(0.8));
         assert_eq!(base["preview"]["cap_share"], toml::Value::Float(1.0));
         let b = parse_axis("previw.cap_share=0.7").unwrap();
-        let e = apply(&base, &[b], &[0]).unwrap_err();
+        let e = apply(&base, "controllers.toml", &[(&b, 0)]).unwrap_err();
         assert!(
-            e.contains("has no [previw]") && e.contains("mfc, preview"),
+            e.contains("controllers.toml has no [previw]") && e.contains("mfc, preview"),
             "{e}"
         );
+        assert!(parse_axis("vehicle.mic_lead_m=0,1").unwrap().of_vehicle());
+        assert!(parse_axis("sensors.v_noise_std=0.02").unwrap().of_vehicle());
     }
 }
