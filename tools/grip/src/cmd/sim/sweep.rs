@@ -50,6 +50,9 @@ impl Axis {
     }
 }
 
+/// Axes with the index of their value at one point.
+type Set<'a> = Vec<(&'a Axis, usize)>;
+
 /// The sections of a vehicle file.
 pub const VEHICLE_SECTIONS: [&str; 2] = ["vehicle", "sensors"];
 
@@ -300,7 +303,7 @@ pub fn run(
             .map(|(a, v)| format!("{} = {v}", a.name()))
             .collect::<Vec<_>>()
             .join(", ");
-        let (on_vehicle, on_controllers): (Vec<(&Axis, usize)>, Vec<(&Axis, usize)>) = req
+        let (on_vehicle, on_controllers): (Set<'_>, Set<'_>) = req
             .axes
             .iter()
             .zip(p.iter().copied())
