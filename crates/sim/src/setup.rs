@@ -34,15 +34,7 @@ impl SimSetup {
         controllers: ControllersConfig,
         knowledge: &KnowledgeConfig,
     ) -> Result<Self, SimError> {
-        vehicle
-            .validate()
-            .map_err(|e| SimError::from_field("vehicle", e))?;
-        sensors
-            .validate()
-            .map_err(|e| SimError::from_field("sensors", e))?;
-        controllers
-            .validate()
-            .map_err(|e| SimError::from_field("controllers", e))?;
+        validate(&vehicle, &sensors, &controllers)?;
         let road_table =
             RoadTable::new(&roads, knowledge).map_err(|e| SimError::from_field("knowledge", e))?;
         let cycles = check_scenario(&vehicle, &roads, &scenario, controllers.loop_.dt())?;
@@ -75,9 +67,7 @@ impl SimSetup {
     /// loop rate may change, and the cycle count with it). `grip sim
     /// --sweep` builds one per point of its grid.
     pub fn with_controllers(&self, controllers: ControllersConfig) -> Result<Self, SimError> {
-        controllers
-            .validate()
-            .map_err(|e| SimError::from_field("controllers", e))?;
+        validate(&self.vehicle, &self.sensors, &controllers)?;
         let dt = controllers.loop_.dt();
         let cycles = check_scenario(&self.vehicle, &self.roads, &self.scenario, dt)?;
         Ok(Self {
@@ -97,12 +87,7 @@ impl SimSetup {
         vehicle: VehicleParams,
         sensors: SensorParams,
     ) -> Result<Self, SimError> {
-        vehicle
-            .validate()
-            .map_err(|e| SimError::from_field("vehicle", e))?;
-        sensors
-            .validate()
-            .map_err(|e| SimError::from_field("sensors", e))?;
+        validate(&vehicle, &sensors, &self.controllers)?;
         let cycles = check_scenario(&vehicle, &self.roads, &self.scenario, self.dt)?;
         Ok(Self {
             vehicle,
@@ -178,6 +163,23 @@ impl SimSetup {
 /// Check `scenario` against the catalogue and the vehicle (road names, a
 /// time-segment scenario with a microphone lead, the run length) and give
 /// the number of controller cycles at period `dt`.
+/// Each part's own validation, its errors prefixed with its name.
+fn validate(
+    vehicle: &VehicleParams,
+    sensors: &SensorParams,
+    controllers: &ControllersConfig,
+) -> Result<(), SimError> {
+    vehicle
+        .validate()
+        .map_err(|e| SimError::from_field("vehicle", e))?;
+    sensors
+        .validate()
+        .map_err(|e| SimError::from_field("sensors", e))?;
+    controllers
+        .validate()
+        .map_err(|e| SimError::from_field("controllers", e))
+}
+
 fn check_scenario(
     vehicle: &VehicleParams,
     roads: &RoadCatalogue,

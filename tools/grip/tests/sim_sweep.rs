@@ -8,20 +8,28 @@ use std::ffi::OsStr;
 mod common;
 use common::{grip, output, run_ok};
 
+/// `grip sim --seeds 2 --threads 2 --variants VARIANTS`.
+fn sim(variants: &str) -> std::process::Command {
+    let mut c = grip();
+    c.args([
+        "sim",
+        "--seeds",
+        "2",
+        "--threads",
+        "2",
+        "--variants",
+        variants,
+    ]);
+    c
+}
+
 #[test]
 fn a_preview_sweep_reports_each_point_against_the_same_baseline() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("sweep");
     let text = run_ok(
-        grip()
+        sim("src,src-arte,mtte,mtte-arte")
             .args([
-                "sim",
-                "--seeds",
-                "2",
-                "--variants",
-                "src,src-arte,mtte,mtte-arte",
-                "--threads",
-                "2",
                 "--sweep",
                 "preview.cap_share=0.8,1.0",
                 "--sweep-target",
@@ -85,16 +93,7 @@ fn a_vehicle_axis_moves_the_microphone() {
     let out = dir.path().join("lead");
     let vehicle = common::config_dir().join("vehicles/front-mic.toml");
     run_ok(
-        grip()
-            .args([
-                "sim",
-                "--seeds",
-                "2",
-                "--variants",
-                "src,src-arte",
-                "--threads",
-                "2",
-            ])
+        sim("src,src-arte")
             .arg("--vehicle")
             .arg(&vehicle)
             .args(["--sweep", "vehicle.mic_lead_m=0,2.77", "--out"])
