@@ -160,9 +160,6 @@ impl SimSetup {
     }
 }
 
-/// Check `scenario` against the catalogue and the vehicle (road names, a
-/// time-segment scenario with a microphone lead, the run length) and give
-/// the number of controller cycles at period `dt`.
 /// Each part's own validation, its errors prefixed with its name.
 fn validate(
     vehicle: &VehicleParams,
@@ -180,6 +177,9 @@ fn validate(
         .map_err(|e| SimError::from_field("controllers", e))
 }
 
+/// Check `scenario` against the catalogue and the vehicle (road names, a
+/// time-segment scenario with a microphone lead, the run length) and give
+/// the number of controller cycles at period `dt`.
 fn check_scenario(
     vehicle: &VehicleParams,
     roads: &RoadCatalogue,

@@ -244,6 +244,12 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         }
     }
     let setup = &loaded.setup;
+    // The vehicle file the setup came from (the sweep's vehicle axes, the
+    // entry plot's title).
+    let vehicle = args
+        .vehicle
+        .clone()
+        .unwrap_or_else(|| ctx.config_dir.join("vehicle.toml"));
     if let Some(road) = &args.entry_plot
         && setup.roads().index_of(road).is_none()
     {
@@ -289,10 +295,6 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     };
 
     if !args.sweep.is_empty() {
-        let vehicle = args
-            .vehicle
-            .clone()
-            .unwrap_or_else(|| ctx.config_dir.join("vehicle.toml"));
         let req = sweep::Request {
             axes: &args.sweep,
             variants: &variants,
@@ -445,14 +447,10 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
                 }
                 None => None,
             };
-            let this_vehicle = args
-                .vehicle
-                .clone()
-                .unwrap_or_else(|| ctx.config_dir.join("vehicle.toml"));
             write_entry_plot(
                 dir,
                 road,
-                (&this_vehicle, setup_first, &results),
+                (&vehicle, setup_first, &results),
                 compare
                     .as_ref()
                     .map(|(p, s, r)| (p.as_path(), s, r.as_slice())),

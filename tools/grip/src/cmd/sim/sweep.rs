@@ -120,15 +120,15 @@ pub fn apply(
 ) -> Result<toml::Table, String> {
     let mut t = base.clone();
     for &(a, i) in set {
-        let sections: Vec<&str> = base
-            .iter()
-            .filter(|(_, v)| v.is_table())
-            .map(|(k, _)| k.as_str())
-            .collect();
         let sec = t
             .get_mut(&a.section)
             .and_then(toml::Value::as_table_mut)
             .ok_or_else(|| {
+                let sections: Vec<&str> = base
+                    .iter()
+                    .filter(|(_, v)| v.is_table())
+                    .map(|(k, _)| k.as_str())
+                    .collect();
                 format!(
                     "--sweep {}: {file} has no [{}] (its sections: {})",
                     a.name(),
