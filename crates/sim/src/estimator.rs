@@ -463,6 +463,7 @@ impl RoadEstimator for ConfusionArte {
 pub struct PerfectArte {
     frame_s: f64,
     frames_done: u64,
+    name: &'static str,
 }
 
 impl PerfectArte {
@@ -475,6 +476,17 @@ impl PerfectArte {
                 0.1
             },
             frames_done: 0,
+            name: "perfect",
+        }
+    }
+
+    /// The oracle: the true road at every control cycle of `dt` seconds (a
+    /// perfect and instant estimate; `grip sim --arte oracle`). Named
+    /// `oracle` in reports.
+    pub fn oracle(dt: f64) -> Self {
+        Self {
+            name: "oracle",
+            ..Self::new(dt)
         }
     }
 }
@@ -507,7 +519,7 @@ impl RoadEstimator for PerfectArte {
     }
 
     fn name(&self) -> &str {
-        "perfect"
+        self.name
     }
 }
 

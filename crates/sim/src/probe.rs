@@ -40,6 +40,8 @@ pub struct InLoopProbe {
     hold_s: f64,
     decisions: Vec<(f64, usize)>,
     changes: Vec<(f64, usize)>,
+    /// Decisions received (all of them, also any beyond `decisions`' room).
+    n_decisions: u64,
     correct: u64,
     single_road: u64,
     single_road_correct: u64,
@@ -62,8 +64,9 @@ impl std::fmt::Debug for InLoopProbe {
 
 impl InLoopProbe {
     /// Wrap `inner` whose decisions analyse frames of `frame_s`; room for
-    /// `cycles` cycles (at most one decision and one change per cycle, so
-    /// recording never allocates); stable detection needs `hold_s`; the
+    /// `cycles` cycles, the pre-roll's included (at most one decision and
+    /// one change per cycle, so recording never allocates; counts go on
+    /// beyond it, the delays then see the first `cycles` decisions only); stable detection needs `hold_s`; the
     /// catalogue has `n_roads` roads (larger indices are not counted in the
     /// confusion matrix).
     pub fn new(
@@ -79,6 +82,7 @@ impl InLoopProbe {
             hold_s,
             decisions: Vec::with_capacity(cycles),
             changes: Vec::with_capacity(cycles),
+            n_decisions: 0,
             correct: 0,
             single_road: 0,
             single_road_correct: 0,
@@ -97,7 +101,7 @@ impl InLoopProbe {
         let first = detection_delays(&self.decisions, &self.changes, self.end, 0.0);
         let stable = detection_delays(&self.decisions, &self.changes, self.end, self.hold_s);
         Some(InLoopStats {
-            decisions: self.decisions.len() as u64,
+            decisions: self.n_decisions,
             correct: self.correct,
             single_road: self.single_road,
             single_road_correct: self.single_road_correct,
@@ -117,6 +121,7 @@ impl RoadEstimator for InLoopProbe {
         self.inner.reset(seed);
         self.decisions.clear();
         self.changes.clear();
+        self.n_decisions = 0;
         self.correct = 0;
         self.single_road = 0;
         self.single_road_correct = 0;
@@ -146,6 +151,7 @@ impl RoadEstimator for InLoopProbe {
         self.last_road = Some(true_road_index);
         self.end = t + dt;
         let e = self.inner.update(t, dt, true_road_index, speed_mps)?;
+        self.n_decisions += 1;
         if self.decisions.len() < self.decisions.capacity() {
             self.decisions.push((e.t_stamp, e.road_index));
         }
@@ -207,5 +213,23 @@ mod tests {
         let s = p.take_stats().unwrap();
         assert_eq!(s.confusion, vec![vec![0; 3], vec![0, 3, 0], vec![0; 3]]);
         assert!(s.first_delays.is_empty());
+    }
+
+    #[test]
+    fn decisions_beyond_the_room_still_count() {
+        // The oracle decides every cycle: 500 decisions into room for 200
+        // (a pre-roll longer than planned); the counts stay consistent.
+        let mut p = InLoopProbe::new(
+            Box::new(crate::PerfectArte::oracle(1e-3)),
+            1e-3,
+            200,
+            0.2,
+            3,
+        );
+        drive(&mut p, 1, &[(0.0, 0), (0.25, 2)], 0.5);
+        let s = p.take_stats().unwrap();
+        assert_eq!(s.decisions, 500);
+        assert_eq!(s.correct, 500);
+        assert_eq!(s.confusion[0][0] + s.confusion[2][2], 500);
     }
 }

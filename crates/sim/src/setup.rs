@@ -158,6 +158,17 @@ impl SimSetup {
     pub fn sim_time(&self) -> f64 {
         self.cycles as f64 * self.dt
     }
+    /// Cycles of the pre-roll before each run of an ARTE variant (the
+    /// microphone hearing the vehicle's `mic_lead_m` at the scenario's
+    /// initial speed, at least 1 m/s); 0 without a lead.
+    pub fn pre_roll_cycles(&self) -> usize {
+        self.vehicle
+            .pre_roll_cycles(self.scenario.v0.max(1.0), self.dt) as usize
+    }
+    /// Cycles an estimator is stepped per run: the pre-roll and the run.
+    pub fn estimator_cycles(&self) -> usize {
+        self.pre_roll_cycles() + self.cycles
+    }
 }
 
 /// Each part's own validation, its errors prefixed with its name.

@@ -325,7 +325,7 @@ fn pre_roll(setup: &SimSetup, estimator: &mut dyn RoadEstimator, aware: &mut Roa
     let lead = aware.lead();
     let dt = setup.dt();
     let v0 = setup.scenario().v0.max(1.0);
-    let n = setup.vehicle().pre_roll_cycles(v0, dt) as usize;
+    let n = setup.pre_roll_cycles();
     if n == 0 {
         return 0.0;
     }

@@ -93,6 +93,23 @@ fn perfect_estimate_tracks_the_true_road() {
     );
 }
 
+/// The oracle (`grip sim --arte oracle`) decides at every control cycle,
+/// always for the road then at the microphone, and names itself so in
+/// reports; the perfect classifier decides once per 0.1 s frame.
+#[test]
+fn oracle_decides_the_true_road_at_every_cycle() {
+    let (setup, _) = common::reference();
+    let mut oracle = PerfectArte::oracle(setup.dt());
+    assert_eq!(RoadEstimator::name(&oracle), "oracle");
+    assert_eq!(RoadEstimator::name(&PerfectArte::new(0.1)), "perfect");
+    let o = grip_sim::run(&setup, Variant::ALL[4], 1, &mut oracle).unwrap();
+    let p = grip_sim::run(&setup, Variant::ALL[4], 1, &mut PerfectArte::new(0.1)).unwrap();
+    let cycles = setup.cycles() as u64;
+    assert!(o.arte.frames + 1 >= cycles, "{} in {cycles}", o.arte.frames);
+    assert_eq!(o.arte.correct, o.arte.frames);
+    assert!(p.arte.frames * 50 < o.arte.frames, "{}", p.arte.frames);
+}
+
 /// The direction of the comparison that holds robustly on the reference
 /// scenario over 20 seeds: ARTE raises SRC's traction (its fixed lower slip
 /// reference on high-friction roads is replaced by the road's lambda_opt).

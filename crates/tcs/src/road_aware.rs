@@ -77,10 +77,11 @@ pub struct PreviewParams {
     pub slip_share: f64,
     /// Plausibility of a binding cap, in the grippy direction: while the
     /// motor delivers the believed road's cap and the wheel slips less than
-    /// this share of that road's target slip (on the believed road it would
-    /// slip more), for `release_s`, the road carries more than believed and
-    /// its cap is released until the belief changes road or the wheel
-    /// spins, [0, 1] (0: never).
+    /// this share of that road's target slip, or of the slip the road needs
+    /// to carry its cap when that is lower (`cap_share` below `slip_share`),
+    /// for `release_s` (on the believed road it would slip more), the road
+    /// carries more than believed and its cap is released until the belief
+    /// changes road or the wheel spins, [0, 1] (0: never).
     pub release_slip_share: f64,
     /// How long the wheel must contradict the cap before it is released, s.
     pub release_s: f64,
@@ -156,6 +157,10 @@ pub struct RoadAware {
     table: RoadTable,
     /// Per road: the slip where μ = slip_share · μ_peak (rising side).
     lambda_target: Vec<f64>,
+    /// Per road: the slip the release check compares with, the lower of
+    /// the target and the slip where μ = cap_share · μ_peak (what the road
+    /// needs to carry its cap; below the target when cap_share < slip_share).
+    lambda_release: Vec<f64>,
     belief: RoadBelief,
     queue: PreviewQueue,
     p: PreviewParams,
@@ -196,22 +201,26 @@ impl RoadAware {
         positive("dt", dt)?;
         let belief =
             RoadBelief::new(roads, vehicle, fusion, dt).map_err(|e| e.prefixed("fusion"))?;
-        let lambda_target = roads
-            .iter()
-            .enumerate()
-            .map(|(i, r)| {
-                let info = table.info(i);
-                slip_at_share(
-                    |l| r.mu(l),
-                    info.lambda_opt,
-                    info.mu_peak,
-                    preview.slip_share,
-                )
-            })
+        let at_share = |share: f64| -> Vec<f64> {
+            roads
+                .iter()
+                .enumerate()
+                .map(|(i, r)| {
+                    let info = table.info(i);
+                    slip_at_share(|l| r.mu(l), info.lambda_opt, info.mu_peak, share)
+                })
+                .collect()
+        };
+        let lambda_target = at_share(preview.slip_share);
+        let lambda_release = at_share(preview.cap_share.min(1.0))
+            .into_iter()
+            .zip(&lambda_target)
+            .map(|(c, &t)| c.min(t))
             .collect();
         Ok(Self {
             table,
             lambda_target,
+            lambda_release,
             belief,
             queue: PreviewQueue::new(),
             p: preview,
@@ -359,7 +368,7 @@ impl RoadAware {
         if self.released.is_some_and(|r| r != road) || spinning || !usable {
             self.released = None;
         }
-        let target = self.lambda_target.get(road).copied().unwrap_or(f64::NAN);
+        let target = self.lambda_release.get(road).copied().unwrap_or(f64::NAN);
         let slip_lp = if lambda.is_finite() {
             self.slip_lp.step(lambda)
         } else {
@@ -475,6 +484,10 @@ mod tests {
     }
 
     fn aware(lead: f64) -> RoadAware {
+        aware_with(lead, PreviewParams::default())
+    }
+
+    fn aware_with(lead: f64, preview: PreviewParams) -> RoadAware {
         let roads = roads();
         let v = VehicleParams {
             mic_lead_m: lead,
@@ -485,7 +498,7 @@ mod tests {
             RoadTable::new(&roads, &KnowledgeConfig::default()).unwrap(),
             &v,
             ArteUse::default(),
-            PreviewParams::default(),
+            preview,
             FusionParams::default(),
             1e-3,
         )
@@ -635,6 +648,43 @@ mod tests {
             let g = a.step(&m, 5.0 * t);
             assert!(g.torque_cap <= snow_cap + 1.0, "{t}: {g:?}");
         }
+    }
+
+    #[test]
+    fn a_cap_below_the_target_share_is_judged_by_the_slip_it_needs() {
+        // cap_share 0.75 under slip_share 0.95: at its binding cap snow
+        // needs the slip where μ = 0.75 μ_peak (about 1.4 %), below 0.7 of
+        // the 2.9 % target; a wheel slipping so is on snow and keeps the
+        // cap, one at 0.5 % is on something grippier and releases it.
+        let slip_run = |lambda: f64| {
+            let p = PreviewParams {
+                cap_share: 0.75,
+                ..PreviewParams::default()
+            };
+            let mut a = aware_with(0.0, p);
+            a.decision(1, 0.95, 0.0, -0.5, 0.0);
+            a.decision(1, 0.95, 0.0, -0.5, 0.0);
+            let cap = 0.75 * roads()[1].mu_peak() * 3433.5 * 0.28;
+            let mut released = false;
+            for k in 1..200 {
+                let t = k as f64 * 1e-3;
+                let m = Measurement {
+                    t,
+                    omega: 5.0 / (1.0 - lambda) / 0.28,
+                    v: Some(5.0),
+                    torque: cap,
+                    demand: 300.0,
+                };
+                let g = a.step(&m, 5.0 * t);
+                released |= g.torque_cap.is_infinite();
+            }
+            released
+        };
+        let r = roads();
+        let at_cap = slip_at_share(|l| r[1].mu(l), r[1].lambda_opt(), r[1].mu_peak(), 0.75);
+        assert!((0.012..0.016).contains(&at_cap), "{at_cap}");
+        assert!(!slip_run(at_cap), "released at the slip snow needs");
+        assert!(slip_run(0.005), "kept on a road that carries more");
     }
 
     #[test]

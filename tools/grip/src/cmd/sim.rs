@@ -36,8 +36,14 @@ const HOLD_S: f64 = 0.2;
 pub enum ArteSource {
     /// The true road through the confusion matrix of `sim-confusion.toml` (paper Table II).
     Confusion,
-    /// The true road, confidence 1 (upper bound of what ARTE can give).
+    /// The true road, confidence 1, one decision per frame of
+    /// `sim-confusion.toml`'s `frame_s` (a perfect classifier on the real
+    /// frame timing).
     Perfect,
+    /// The true road, confidence 1, at every control cycle: a perfect and
+    /// instant estimate, the bound that no estimator can beat (what is left
+    /// against the baseline is the controllers' own).
+    Oracle,
     /// The real acoustic chain: synthetic tyre-road audio of the true road at
     /// the true speed, classified by the model (`--model`) in the stream
     /// estimator.
@@ -273,12 +279,19 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         ArteSource::Acoustic => Some(load_acoustic(ctx, &args, setup)?),
         _ => None,
     };
-    let probe_frame_s = acoustic.as_ref().map_or(frame_s, |a| a.frame_s);
-    let cycles = setup.cycles();
+    let probe_frame_s = match (&acoustic, source) {
+        (Some(a), _) => a.frame_s,
+        (None, ArteSource::Oracle) => setup.dt(),
+        (None, _) => frame_s,
+    };
+    // Room for every cycle the estimator is stepped, the pre-roll included,
+    // twice over: a sweep's `vehicle.mic_lead_m` may lengthen the pre-roll.
+    let cycles = 2 * setup.estimator_cycles();
     let make = |/* per worker */| -> Result<Box<dyn RoadEstimator>, grip_sim::SimError> {
         let inner: Box<dyn RoadEstimator> = match (&acoustic, source) {
             (Some(a), _) => Box::new(AcousticArte::new(&a.model, setup.roads(), &a.config)?),
             (None, ArteSource::Perfect) => Box::new(PerfectArte::new(frame_s)),
+            (None, ArteSource::Oracle) => Box::new(PerfectArte::oracle(setup.dt())),
             (None, _) => Box::new(confusion.clone()),
         };
         Ok(Box::new(InLoopProbe::new(
