@@ -488,6 +488,36 @@ fn format_csv(axes: &[Axis], rows: &[Row]) -> String {
 
 type Res = Result<(), Box<dyn std::error::Error>>;
 
+/// Which grid points of a panel carry a label: a point whose label would
+/// sit within a label's size (80 x 12 pixels of a `panel` of `(w, h)`
+/// pixels over x `x0..x1` and y `0..y1`) of an earlier labelled point's
+/// gives it up and is counted with that one. Per point, how many points its
+/// label stands for (0: no label of its own).
+fn label_counts(
+    pts: &[(f64, f64)],
+    (x0, x1): (f64, f64),
+    y1: f64,
+    (w, h): (f64, f64),
+) -> Vec<usize> {
+    let px = |&(a, s): &(f64, f64)| ((a - x0) / (x1 - x0) * w, s / y1 * h);
+    let mut counts = vec![0usize; pts.len()];
+    let mut labelled: Vec<(usize, (f64, f64))> = Vec::new();
+    for (i, p) in pts.iter().enumerate() {
+        let (x, y) = px(p);
+        match labelled
+            .iter()
+            .find(|(_, (lx, ly))| (x - lx).abs() < 80.0 && (y - ly).abs() < 12.0)
+        {
+            Some(&(j, _)) => counts[j] += 1,
+            None => {
+                counts[i] = 1;
+                labelled.push((i, (x, y)));
+            }
+        }
+    }
+    counts
+}
+
 /// One panel per controller: slip ratio (y) against acceleration ratio (x)
 /// of every point, the loaded configuration marked, the quadrant "no more
 /// slip, no less traction" shaded, and the target box if given.
@@ -576,13 +606,26 @@ fn figure(path: &Path, req: &Request<'_>, kinds: &[ControllerKind], rows: &[Row]
             4,
             grey.stroke_width(1),
         ))?;
+        // Grid points that land on one spot share one label ("+k").
+        let grid: Vec<(f64, f64)> = pts
+            .iter()
+            .filter(|p| p.2 != 0)
+            .map(|p| (p.0, p.1))
+            .collect();
+        let panel = (f64::from(PW) - 90.0, f64::from(H - 100) - 90.0);
+        let mut counts = label_counts(&grid, (x0, x1), y1, panel).into_iter();
         for &(a, s, i) in &pts {
             // The configuration as loaded: red, labelled below its point;
             // a grid point: blue, its values above right.
             let (colour, size, label, at) = if i == 0 {
                 (RED, 8, "as configured".to_owned(), (10, 4))
             } else {
-                (BLUE, 5, rows[i].values.join("/"), (7, -16))
+                let label = match counts.next().unwrap_or(1) {
+                    0 => String::new(),
+                    1 => rows[i].values.join("/"),
+                    n => format!("{} (+{})", rows[i].values.join("/"), n - 1),
+                };
+                (BLUE, 5, label, (7, -16))
             };
             chart.draw_series(std::iter::once(
                 EmptyElement::at((a, s))
@@ -663,5 +706,19 @@ mod tests {
         );
         assert!(parse_axis("vehicle.mic_lead_m=0,1").unwrap().of_vehicle());
         assert!(parse_axis("sensors.v_noise_std=0.02").unwrap().of_vehicle());
+    }
+
+    #[test]
+    fn points_on_one_spot_share_a_label() {
+        // Three points on one spot, one a label's width away, one far.
+        let pts = [
+            (1.0, 0.5),
+            (1.0, 0.5),
+            (1.0005, 0.501),
+            (1.02, 0.5),
+            (1.0, 0.8),
+        ];
+        let c = label_counts(&pts, (0.95, 1.05), 1.0, (500.0, 400.0));
+        assert_eq!(c, vec![3, 0, 0, 1, 1]);
     }
 }
