@@ -518,6 +518,17 @@ mod tests {
         }
     }
 
+    /// 5 m/s at slip `lambda` with the motor at `torque`, 300 N m asked.
+    fn slipping(t: f64, lambda: f64, torque: f64) -> Measurement {
+        Measurement {
+            t,
+            omega: 5.0 / (1.0 - lambda) / 0.28,
+            v: Some(5.0),
+            torque,
+            demand: 300.0,
+        }
+    }
+
     fn run(a: &mut RoadAware, t0: f64, x0: f64, road: usize, cycles: usize) -> Guidance {
         let mut g = None;
         for k in 0..cycles {
@@ -637,15 +648,7 @@ mod tests {
         a.decision(1, 0.95, 0.0, -0.5, 0.0);
         for k in 1..200 {
             let t = k as f64 * 1e-3;
-            let lambda: f64 = 0.037;
-            let m = Measurement {
-                t,
-                omega: 5.0 / (1.0 - lambda) / 0.28,
-                v: Some(5.0),
-                torque: snow_cap,
-                demand: 300.0,
-            };
-            let g = a.step(&m, 5.0 * t);
+            let g = a.step(&slipping(t, 0.037, snow_cap), 5.0 * t);
             assert!(g.torque_cap <= snow_cap + 1.0, "{t}: {g:?}");
         }
     }
@@ -668,14 +671,7 @@ mod tests {
             let mut released = false;
             for k in 1..200 {
                 let t = k as f64 * 1e-3;
-                let m = Measurement {
-                    t,
-                    omega: 5.0 / (1.0 - lambda) / 0.28,
-                    v: Some(5.0),
-                    torque: cap,
-                    demand: 300.0,
-                };
-                let g = a.step(&m, 5.0 * t);
+                let g = a.step(&slipping(t, lambda, cap), 5.0 * t);
                 released |= g.torque_cap.is_infinite();
             }
             released
