@@ -66,9 +66,9 @@ impl InLoopProbe {
     /// Wrap `inner` whose decisions analyse frames of `frame_s`; room for
     /// `cycles` cycles, the pre-roll's included (at most one decision and
     /// one change per cycle, so recording never allocates; counts go on
-    /// beyond it, the delays then see the first `cycles` decisions only); stable detection needs `hold_s`; the
-    /// catalogue has `n_roads` roads (larger indices are not counted in the
-    /// confusion matrix).
+    /// beyond it, the delays then see the first `cycles` decisions only);
+    /// stable detection needs `hold_s`; the catalogue has `n_roads` roads
+    /// (larger indices are not counted in the confusion matrix).
     pub fn new(
         inner: Box<dyn RoadEstimator>,
         frame_s: f64,

@@ -368,7 +368,7 @@ impl RoadAware {
         if self.released.is_some_and(|r| r != road) || spinning || !usable {
             self.released = None;
         }
-        let target = self.lambda_release.get(road).copied().unwrap_or(f64::NAN);
+        let slip_ref = self.lambda_release.get(road).copied().unwrap_or(f64::NAN);
         let slip_lp = if lambda.is_finite() {
             self.slip_lp.step(lambda)
         } else {
@@ -382,7 +382,7 @@ impl RoadAware {
             && surely_on
             && self.released.is_none()
             && m.torque >= 0.95 * self.last_cap
-            && slip_lp < self.p.release_slip_share * target
+            && slip_lp < self.p.release_slip_share * slip_ref
         {
             self.contradicted_s += self.dt;
             if self.contradicted_s >= self.p.release_s && self.p.release_slip_share > 0.0 {
