@@ -158,12 +158,16 @@ impl SimSetup {
     pub fn sim_time(&self) -> f64 {
         self.cycles as f64 * self.dt
     }
+    /// Speed of the pre-roll, m/s: the scenario's initial speed, at least
+    /// 1 m/s.
+    pub fn pre_roll_speed(&self) -> f64 {
+        self.scenario.v0.max(1.0)
+    }
     /// Cycles of the pre-roll before each run of an ARTE variant (the
-    /// microphone hearing the vehicle's `mic_lead_m` at the scenario's
-    /// initial speed, at least 1 m/s); 0 without a lead.
+    /// microphone hearing the vehicle's `mic_lead_m` at
+    /// [`pre_roll_speed`](Self::pre_roll_speed)); 0 without a lead.
     pub fn pre_roll_cycles(&self) -> usize {
-        self.vehicle
-            .pre_roll_cycles(self.scenario.v0.max(1.0), self.dt) as usize
+        self.vehicle.pre_roll_cycles(self.pre_roll_speed(), self.dt) as usize
     }
     /// Cycles an estimator is stepped per run: the pre-roll and the run.
     pub fn estimator_cycles(&self) -> usize {

@@ -324,7 +324,7 @@ impl<'a> Sim<'a> {
 fn pre_roll(setup: &SimSetup, estimator: &mut dyn RoadEstimator, aware: &mut RoadAware) -> f64 {
     let lead = aware.lead();
     let dt = setup.dt();
-    let v0 = setup.scenario().v0.max(1.0);
+    let v0 = setup.pre_roll_speed();
     let n = setup.pre_roll_cycles();
     if n == 0 {
         return 0.0;
