@@ -83,8 +83,55 @@ struct AptRoot {
     dir: tempfile::TempDir,
 }
 
+/// Builds `NAME.deb` (package NAME, VERSION, Depends DEPENDS) holding one
+/// file `path` in `repo`; returns its "Size:" and "SHA256:" lines.
+fn build_deb(repo: &Path, name: &str, version: &str, depends: &str, path: &str) -> String {
+    let tree = repo.join(format!("{name}.tree"));
+    std::fs::create_dir_all(tree.join("DEBIAN")).unwrap();
+    let depends = if depends.is_empty() {
+        String::new()
+    } else {
+        format!("Depends: {depends}\n")
+    };
+    std::fs::write(
+        tree.join("DEBIAN/control"),
+        format!(
+            "Package: {name}\nVersion: {version}\nArchitecture: amd64\n{depends}\
+             Maintainer: grip tests <grip@localhost>\nDescription: test package {name}\n"
+        ),
+    )
+    .unwrap();
+    let file = tree.join(path.trim_start_matches('/'));
+    std::fs::create_dir_all(file.parent().unwrap()).unwrap();
+    std::fs::write(&file, format!("{name} {version}\n")).unwrap();
+    let deb = repo.join(format!("{name}.deb"));
+    let out = Command::new("dpkg-deb")
+        .args(["--root-owner-group", "--build"])
+        .arg(&tree)
+        .arg(&deb)
+        .output()
+        .expect("dpkg-deb is not installed (Debian: dpkg)");
+    assert!(
+        out.status.success(),
+        "dpkg-deb --build {name}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::remove_dir_all(&tree).unwrap();
+    let sum = Command::new("sha256sum").arg(&deb).output().unwrap();
+    let sum = String::from_utf8_lossy(&sum.stdout);
+    let size = std::fs::metadata(&deb).unwrap().len();
+    format!("Size: {size}\nSHA256: {}\n", sum.split(' ').next().unwrap())
+}
+
 impl AptRoot {
     fn new() -> Self {
+        Self::with_debs(false)
+    }
+
+    /// With `debs`, the repository holds real packages for `sys-x`,
+    /// `sys-common` and `libnew` (one file each), so that they can be
+    /// downloaded and unpacked.
+    fn with_debs(debs: bool) -> Self {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
         for sub in [
@@ -97,7 +144,25 @@ impl AptRoot {
             std::fs::create_dir_all(d.join(sub)).unwrap();
         }
         std::fs::write(d.join("status"), STATUS).unwrap();
-        std::fs::write(d.join("repo/Packages"), PACKAGES).unwrap();
+        let mut packages = PACKAGES.to_string();
+        if debs {
+            for (name, version, depends, path) in [
+                (
+                    "sys-x",
+                    "1:7.2-1",
+                    "sys-common (= 1:7.2-1), libnew",
+                    "/usr/bin/sys-x",
+                ),
+                ("sys-common", "1:7.2-1", "", "/usr/share/sys-common/data"),
+                ("libnew", "1.0", "", "/usr/lib/x86_64-linux-gnu/libnew.so.1"),
+            ] {
+                let lines = build_deb(&d.join("repo"), name, version, depends, path);
+                let stub = format!("Filename: {name}.deb\nSize: 1\n");
+                assert!(packages.contains(&stub), "{name} not in PACKAGES");
+                packages = packages.replace(&stub, &format!("Filename: {name}.deb\n{lines}"));
+            }
+        }
+        std::fs::write(d.join("repo/Packages"), packages).unwrap();
         std::fs::write(
             d.join("sources.list"),
             format!("deb [trusted=yes] file:{}/repo ./\n", d.display()),
@@ -145,8 +210,15 @@ impl AptRoot {
 
     /// Runs `tools/apt-install --dry-run ARGS`: (exit code, stderr).
     fn run(&self, args: &[&str]) -> (i32, String) {
+        let mut all = vec!["--dry-run"];
+        all.extend_from_slice(args);
+        self.run_for_real(&all)
+    }
+
+    /// Runs `tools/apt-install ARGS` (no `--dry-run` added: only for plans
+    /// that never reach `apt-get install`, whose dpkg is the machine's).
+    fn run_for_real(&self, args: &[&str]) -> (i32, String) {
         let out = Command::new(script())
-            .arg("--dry-run")
             .args(args)
             .env("APT_CONFIG", self.conf())
             .output()
@@ -222,4 +294,46 @@ fn an_unknown_package_is_a_clear_error() {
         err.contains("apt cannot install no-such-package") && err.contains("Unable to locate"),
         "{err}"
     );
+}
+
+#[test]
+fn where_installing_would_remove_an_installed_package_the_plan_is_unpacked_instead() {
+    let root = AptRoot::with_debs(true);
+    let before = root.status();
+    let into = root.dir.path().join("unpacked/sys-x");
+    let into_s = into.to_str().unwrap();
+    let (rc, err) = root.run_for_real(&["--for", "the HIL VM", "--unpack-into", into_s, "sys-x"]);
+    assert_eq!(rc, 0, "expected the plan unpacked (exit 0):\n{err}");
+    for want in [
+        "installing sys-x (for the HIL VM): it would change packages this machine has (util-a)",
+        "unpacked 3 package(s) into",
+    ] {
+        assert!(err.contains(want), "missing {want:?} in:\n{err}");
+    }
+    // every package of the plan, its file where the package puts it
+    for (file, text) in [
+        ("usr/bin/sys-x", "sys-x 1:7.2-1\n"),
+        ("usr/share/sys-common/data", "sys-common 1:7.2-1\n"),
+        ("usr/lib/x86_64-linux-gnu/libnew.so.1", "libnew 1.0\n"),
+    ] {
+        let got = std::fs::read_to_string(into.join(file))
+            .unwrap_or_else(|e| panic!("{file} not unpacked: {e}\n{err}"));
+        assert_eq!(got, text, "{file}");
+    }
+    let listed = std::fs::read_to_string(into.join(".unpacked")).unwrap();
+    let mut listed: Vec<&str> = listed.lines().collect();
+    listed.sort_unstable();
+    assert_eq!(
+        listed,
+        ["libnew=1.0", "sys-common=1:7.2-1", "sys-x=1:7.2-1"]
+    );
+    assert!(!root.dir.path().join("unpacked/sys-x.part").exists());
+    assert_eq!(root.status(), before, "the dpkg status changed");
+
+    // --dry-run with --unpack-into says what it would unpack, and does not
+    let again = root.dir.path().join("unpacked/dry");
+    let (rc, err) = root.run(&["--unpack-into", again.to_str().unwrap(), "sys-x"]);
+    assert_eq!(rc, 0, "{err}");
+    assert!(err.contains("would unpack sys-common"), "{err}");
+    assert!(!again.exists(), "a dry run unpacked");
 }
