@@ -34,25 +34,43 @@ use grip_tests::hil::{
     FrameCounter, MicFault, MicFaultKind, Proc, RoadAudioPlayer, StreamCheck,
 };
 use grip_tests::hil_drives::{
-    Attempt, PLAYBACK, SENSOR_TIMEOUT_MS, Setup, VM_MARGIN_MS, asphalt_scenario, drive_with,
-    grip_drive, instance, ms, ns, read_complete_allowing_audio_gaps, read_complete_allowing_xruns,
-    serial, wait_scenario_start, wait_success, with_attempts_in,
+    Attempt, PLAYBACK, SENSOR_TIMEOUT_MS, Setup, VM_MARGIN_MS, asphalt_scenario, config_number,
+    drive_with, grip_drive, instance, ms, ns, read_complete_allowing_audio_gaps,
+    read_complete_allowing_xruns, serial, unit_setting_ms, wait_scenario_start, wait_success,
+    with_attempts_in,
 };
 use grip_tests::wire_check::{
     LoopLog, enabled_commands, input_gaps, loop_unaffected, sensor_gap_ms,
 };
 
-/// tcs-loop's `[safety] recover_ms` (config/tcs-loop.toml): valid inputs
-/// for this long before it leaves the safe state.
-const RECOVER_MS: f64 = 50.0;
-/// `[arte] max_age_s` of config/controllers.toml: older road knowledge is
-/// not used.
-const MAX_AGE_MS: f64 = 300.0;
-/// The recorder unit's `RestartSec=` (config/systemd/grip-recorder.service):
-/// when the test starts the new recorder after the kill, ms.
-const RESTART_MS: u64 = 1000;
-/// The recorder's `flush_interval_ms` (config/recorder.toml).
-const FLUSH_MS: f64 = 500.0;
+/// Figures of the configuration the services run with, read from it (not
+/// copied: a configuration change moves the bounds with it).
+struct Figures {
+    /// tcs-loop's `[safety] recover_ms` (tcs-loop.toml): valid inputs for
+    /// this long before it leaves the safe state.
+    recover_ms: f64,
+    /// `[arte] max_age_s` of controllers.toml, in ms: older road knowledge
+    /// is not used.
+    max_age_ms: f64,
+    /// The recorder unit's `RestartSec=` (systemd/grip-recorder.service):
+    /// when the test starts the new recorder after the kill, ms.
+    restart_ms: f64,
+    /// The recorder's `flush_interval_ms` (recorder.toml).
+    flush_ms: f64,
+}
+
+impl Figures {
+    fn of(s: &Setup) -> anyhow::Result<Self> {
+        let c = &s.config;
+        Ok(Self {
+            recover_ms: config_number(c, "tcs-loop.toml", "safety.recover_ms")?,
+            max_age_ms: 1e3 * config_number(c, "controllers.toml", "arte.max_age_s")?,
+            restart_ms: unit_setting_ms(c, "grip-recorder.service", "RestartSec")?,
+            flush_ms: config_number(c, "recorder.toml", "flush_interval_ms")?,
+        })
+    }
+}
+
 /// What a recorder crash may lose at most (issue 13: "at most 1 s of
 /// messages lost"): the flush interval plus the writer's lag behind the
 /// loops.
@@ -326,6 +344,7 @@ fn bus_down_and_up_gives_safe_state_and_recovery() -> anyhow::Result<()> {
 }
 
 fn bus_down(s: &Setup) -> anyhow::Result<Attempt> {
+    let fig = Figures::of(s)?;
     let mcap = s.out.join("drive.mcap");
     let ((t_down, t_up), cap, drive) =
         drive_with(s, &mcap, |drive| -> anyhow::Result<(u64, u64)> {
@@ -470,13 +489,15 @@ fn bus_down(s: &Setup) -> anyhow::Result<Attempt> {
         bail!("tcs-loop never left its safe state after the bus came up");
     };
     let rec_ms = ms(rec.stamp_ns as i128 - back_rx as i128);
-    let rbound = RECOVER_MS + VM_MARGIN_MS;
+    let rbound = fig.recover_ms + VM_MARGIN_MS;
     println!(
-        "control again {rec_ms:.1} ms after the first WheelSpeeds back (recover_ms {RECOVER_MS}, bound {rbound} ms)"
+        "control again {rec_ms:.1} ms after the first WheelSpeeds back (recover_ms {}, bound {rbound} ms)",
+        fig.recover_ms
     );
     ensure!(
-        rec_ms >= RECOVER_MS - 2.0,
-        "tcs-loop left its safe state {rec_ms:.1} ms after the frames came back, before recover_ms {RECOVER_MS}"
+        rec_ms >= fig.recover_ms - 2.0,
+        "tcs-loop left its safe state {rec_ms:.1} ms after the frames came back, before recover_ms {}",
+        fig.recover_ms
     );
     if rec_ms > rbound {
         let clean = sensor_gap_ms(&cap, &s.dbc, back_rx, rec.stamp_ns)?;
@@ -563,6 +584,7 @@ fn last_before(t: u64, stamps: impl Iterator<Item = u64>) -> String {
 }
 
 fn kill_recorder(s: &Setup) -> anyhow::Result<Attempt> {
+    let fig = Figures::of(s)?;
     let first = s.out.join("first.mcap");
     let second = s.out.join("second.mcap");
     let cap = CanCapture::start(&s.iface)?;
@@ -586,7 +608,7 @@ fn kill_recorder(s: &Setup) -> anyhow::Result<Attempt> {
         // cycle): under emulation plant-sim's sensor frames then paused
         // 10-20 ms in two of three drives (2026-12-02), printed below
         std::thread::sleep(
-            Duration::from_millis(RESTART_MS)
+            Duration::from_secs_f64(fig.restart_ms / 1e3)
                 .saturating_sub(Duration::from_nanos(hil::mono_ns() - t_kill)),
         );
         let inst = set.instance().to_owned();
@@ -640,7 +662,8 @@ fn kill_recorder(s: &Setup) -> anyhow::Result<Attempt> {
     let lost = ms(t_kill as i128 - last as i128);
     let bound = LOST_MAX_MS;
     println!(
-        "last cycle record in the killed recorder's file {lost:.0} ms before the kill (flush interval {FLUSH_MS} ms, bound {bound} ms)"
+        "last cycle record in the killed recorder's file {lost:.0} ms before the kill (flush interval {} ms, bound {bound} ms)",
+        fig.flush_ms
     );
     // each topic's last record against the kill: one topic behind the
     // others is a receive problem, all of them behind a writer's
@@ -708,7 +731,7 @@ fn kill_recorder(s: &Setup) -> anyhow::Result<Attempt> {
         &s.dbc,
         None,
         t_kill - 500_000_000,
-        t_kill + ns(RESTART_MS as f64),
+        t_kill + ns(fig.restart_ms),
         "recorder kill",
     )? {
         return Ok(Attempt::Disturbed(r));
@@ -876,6 +899,7 @@ fn arte_share(cycles: &[CycleRecord], t0: u64, t1: u64) -> (f64, usize) {
 }
 
 fn mic_faults(s: &Setup) -> anyhow::Result<Attempt> {
+    let fig = Figures::of(s)?;
     let mcap = s.out.join("drive.mcap");
     let faults = [
         MicFault {
@@ -1034,7 +1058,7 @@ fn mic_faults(s: &Setup) -> anyhow::Result<Attempt> {
             })
             .max_by_key(|e| e.stamp_ns);
         let heard = last_good.map_or(t0, |e| e.stamp_ns.max(t0));
-        let fb0 = heard + ns(MAX_AGE_MS + VM_MARGIN_MS);
+        let fb0 = heard + ns(fig.max_age_ms + VM_MARGIN_MS);
         let (share, n) = arte_share(&l.cycles, fb0, t1);
         // and back after it
         let (share_after, n_after) = arte_share(&l.cycles, t1, t1 + 1_000_000_000);
@@ -1096,6 +1120,7 @@ fn stalled_arte_ages_out_and_returns() -> anyhow::Result<()> {
 }
 
 fn stall_arte(s: &Setup) -> anyhow::Result<Attempt> {
+    let fig = Figures::of(s)?;
     let mcap = s.out.join("drive.mcap");
     let ((t_stop, t_cont), cap, drive) =
         drive_with(s, &mcap, |drive| -> anyhow::Result<(u64, u64)> {
@@ -1158,9 +1183,10 @@ fn stall_arte(s: &Setup) -> anyhow::Result<Attempt> {
         .map(|c| c.stamp_ns)
         .max();
     let aged_ms = used_after.map_or(0.0, |t| ms(t as i128 - last as i128));
-    let bound = MAX_AGE_MS + VM_MARGIN_MS;
+    let bound = fig.max_age_ms + VM_MARGIN_MS;
     println!(
-        "ARTE last used {aged_ms:.1} ms after the last estimate (max_age {MAX_AGE_MS} ms, bound {bound} ms)"
+        "ARTE last used {aged_ms:.1} ms after the last estimate (max_age {} ms, bound {bound} ms)",
+        fig.max_age_ms
     );
     ensure!(
         aged_ms <= bound,

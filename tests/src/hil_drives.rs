@@ -96,6 +96,65 @@ pub fn ms(ns: i128) -> f64 {
     ns as f64 / 1e6
 }
 
+/// A number from the configuration the services run with: `key` (a
+/// dotted path, e.g. `"arte.max_age_s"`) of `file` in `config_dir`. The
+/// tests' bounds read their figures here, so that a configuration change
+/// cannot leave a copy behind.
+pub fn config_number(config_dir: &Path, file: &str, key: &str) -> anyhow::Result<f64> {
+    let path = config_dir.join(file);
+    let text =
+        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let doc: toml::Table = text
+        .parse()
+        .with_context(|| format!("parsing {}", path.display()))?;
+    let mut parts = key.split('.');
+    let last = parts.next_back().unwrap_or(key);
+    let mut table = &doc;
+    for part in parts {
+        table = table
+            .get(part)
+            .and_then(toml::Value::as_table)
+            .with_context(|| format!("{}: no table [{part}] (for {key})", path.display()))?;
+    }
+    match table.get(last) {
+        Some(toml::Value::Float(v)) => Ok(*v),
+        Some(toml::Value::Integer(v)) => Ok(*v as f64),
+        Some(v) => bail!("{}: {key} is {v}, not a number", path.display()),
+        None => bail!("{}: no {key}", path.display()),
+    }
+}
+
+/// A time setting of a systemd unit in `config_dir/systemd` (`key=` with
+/// systemd's units: `1s`, `500ms`, `2min`, or plain seconds), in ms.
+pub fn unit_setting_ms(config_dir: &Path, unit: &str, key: &str) -> anyhow::Result<f64> {
+    let path = config_dir.join("systemd").join(unit);
+    let text =
+        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let value = text
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix(key)?.strip_prefix('='))
+        .next_back()
+        .with_context(|| format!("{}: no {key}=", path.display()))?
+        .trim();
+    let split = value
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(value.len());
+    let (number, unit_name) = value.split_at(split);
+    let scale = match unit_name.trim() {
+        "" | "s" | "sec" => 1e3,
+        "ms" | "msec" => 1.0,
+        "min" | "m" => 60e3,
+        u => bail!(
+            "{}: {key}={value}: unit {u:?} not understood",
+            path.display()
+        ),
+    };
+    let n: f64 = number
+        .parse()
+        .with_context(|| format!("{}: {key}={value}: not a time", path.display()))?;
+    Ok(n * scale)
+}
+
 pub struct Setup {
     pub out: PathBuf,
     pub config: PathBuf,
@@ -413,4 +472,69 @@ pub fn cansend(iface: &str, id: u32, data: &[u8]) -> anyhow::Result<()> {
         .status()?;
     ensure!(st.success(), "cansend {iface} {arg}: {st}");
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn configuration_figures_are_read_with_their_units_and_clear_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let c = dir.path();
+        std::fs::write(
+            c.join("a.toml"),
+            "top = 7\n[arte]\nmax_age_s = 0.3\nname = \"x\"\n",
+        )
+        .unwrap();
+        assert_eq!(config_number(c, "a.toml", "top").unwrap(), 7.0);
+        assert_eq!(config_number(c, "a.toml", "arte.max_age_s").unwrap(), 0.3);
+        let e = format!("{:#}", config_number(c, "a.toml", "arte.nope").unwrap_err());
+        assert!(e.contains("a.toml") && e.contains("arte.nope"), "{e}");
+        let e = format!("{:#}", config_number(c, "a.toml", "arte.name").unwrap_err());
+        assert!(e.contains("not a number"), "{e}");
+        assert!(config_number(c, "missing.toml", "top").is_err());
+
+        std::fs::create_dir(c.join("systemd")).unwrap();
+        for (value, want) in [
+            ("1s", 1000.0),
+            ("500ms", 500.0),
+            ("2", 2000.0),
+            ("1.5min", 90e3),
+        ] {
+            std::fs::write(
+                c.join("systemd/u.service"),
+                format!("[Service]\nRestart=always\nRestartSec={value}\n"),
+            )
+            .unwrap();
+            assert_eq!(
+                unit_setting_ms(c, "u.service", "RestartSec").unwrap(),
+                want,
+                "{value}"
+            );
+        }
+        std::fs::write(c.join("systemd/u.service"), "RestartSec=3h\n").unwrap();
+        let e = format!(
+            "{:#}",
+            unit_setting_ms(c, "u.service", "RestartSec").unwrap_err()
+        );
+        assert!(
+            e.contains("u.service") && e.contains("not understood"),
+            "{e}"
+        );
+        let e = format!(
+            "{:#}",
+            unit_setting_ms(c, "u.service", "WatchdogSec").unwrap_err()
+        );
+        assert!(e.contains("no WatchdogSec="), "{e}");
+    }
+
+    #[test]
+    fn the_shipped_configuration_has_every_figure_the_fault_matrix_reads() {
+        let c = Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
+        assert!(config_number(&c, "tcs-loop.toml", "safety.recover_ms").unwrap() > 0.0);
+        assert!(config_number(&c, "controllers.toml", "arte.max_age_s").unwrap() > 0.0);
+        assert!(config_number(&c, "recorder.toml", "flush_interval_ms").unwrap() > 0.0);
+        assert!(unit_setting_ms(&c, "grip-recorder.service", "RestartSec").unwrap() > 0.0);
+    }
 }
