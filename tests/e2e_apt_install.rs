@@ -83,6 +83,18 @@ struct AptRoot {
     dir: tempfile::TempDir,
 }
 
+/// Runs `cmd` (a tool from `package`) and asserts that it succeeded.
+fn succeeds(cmd: &mut Command, package: &str) {
+    let out = cmd
+        .output()
+        .unwrap_or_else(|e| panic!("{package} cannot be run: {e}"));
+    assert!(
+        out.status.success(),
+        "{cmd:?} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 /// Builds `NAME.deb` (package NAME, VERSION, Depends DEPENDS) holding one
 /// file `path` in `repo`; returns its "Size:" and "SHA256:" lines.
 fn build_deb(repo: &Path, name: &str, version: &str, depends: &str, path: &str) -> String {
@@ -105,16 +117,12 @@ fn build_deb(repo: &Path, name: &str, version: &str, depends: &str, path: &str) 
     std::fs::create_dir_all(file.parent().unwrap()).unwrap();
     std::fs::write(&file, format!("{name} {version}\n")).unwrap();
     let deb = repo.join(format!("{name}.deb"));
-    let out = Command::new("dpkg-deb")
-        .args(["--root-owner-group", "--build"])
-        .arg(&tree)
-        .arg(&deb)
-        .output()
-        .expect("dpkg-deb is not installed (Debian: dpkg)");
-    assert!(
-        out.status.success(),
-        "dpkg-deb --build {name}: {}",
-        String::from_utf8_lossy(&out.stderr)
+    succeeds(
+        Command::new("dpkg-deb")
+            .args(["--root-owner-group", "--build"])
+            .arg(&tree)
+            .arg(&deb),
+        "dpkg-deb (Debian: dpkg)",
     );
     std::fs::remove_dir_all(&tree).unwrap();
     let sum = Command::new("sha256sum").arg(&deb).output().unwrap();
@@ -187,15 +195,11 @@ impl AptRoot {
         );
         std::fs::write(d.join("apt.conf"), conf).unwrap();
         let root = AptRoot { dir };
-        let out = Command::new("apt-get")
-            .args(["update", "-q"])
-            .env("APT_CONFIG", root.conf())
-            .output()
-            .expect("apt-get is not installed (Debian: apt)");
-        assert!(
-            out.status.success(),
-            "apt-get update of the private root failed:\n{}",
-            String::from_utf8_lossy(&out.stderr)
+        succeeds(
+            Command::new("apt-get")
+                .args(["update", "-q"])
+                .env("APT_CONFIG", root.conf()),
+            "apt-get (Debian: apt)",
         );
         root
     }
