@@ -103,7 +103,7 @@ impl Default for PreviewParams {
     fn default() -> Self {
         Self {
             cap_share: 1.0,
-            recover_share: 0.7,
+            recover_share: 0.4,
             recover_slip_factor: 1.5,
             horizon_s: 1.0,
             lag_margin_s: 0.02,
