@@ -97,6 +97,16 @@ pub struct PreviewParams {
     /// older drive logs' attached configuration still loads and replays).
     #[serde(default)]
     pub approach_floor: f64,
+    /// When a spinning wheel's cut ends, [0, 2]: the cut to `recover_share`
+    /// ends once the wheel's excess angular momentum over the road's peak
+    /// slip, `J_w ω (λ − λ_opt) / (1 − λ_opt)`, is no more than this share
+    /// of what the motor's return to the cap through its lag will still take
+    /// from it, `(cap − T) τ_m`. 0: only when the slip is back under λ_opt
+    /// (the motor, then far below the cap, lets the slip fall well under the
+    /// target before it is back). Absent from a file: 0 (the rule before
+    /// this field existed, so that older drive logs still replay).
+    #[serde(default)]
+    pub recover_landing: f64,
 }
 
 impl Default for PreviewParams {
@@ -113,6 +123,7 @@ impl Default for PreviewParams {
             release_slip_share: 0.7,
             release_s: 0.02,
             approach_floor: 0.7,
+            recover_landing: 0.5,
         }
     }
 }
@@ -130,6 +141,7 @@ impl PreviewParams {
         in_range("release_slip_share", self.release_slip_share, 0.0, 1.0)?;
         in_range("release_s", self.release_s, 0.0, 10.0)?;
         in_range("approach_floor", self.approach_floor, 0.0, 0.99)?;
+        in_range("recover_landing", self.recover_landing, 0.0, 2.0)?;
         if self.min_hits == 0 {
             return Err(InvalidField::new("min_hits", "must be >= 1 (got 0)"));
         }
@@ -180,6 +192,11 @@ pub struct RoadAware {
     last_cap: f64,
     /// Whether the wheel spun last cycle (see `recover_slip_factor`).
     spinning: bool,
+    /// The slip at which the last spin's cut ended early (`recover_landing`)
+    /// while the wheel still lands, back under λ_opt: `None`.
+    landing_from: Option<f64>,
+    /// Wheel inertia, kg m².
+    j_w: f64,
     /// The measured slip, low-passed over `release_s / 2` (the release check).
     slip_lp: LowPass,
 }
@@ -235,6 +252,8 @@ impl RoadAware {
             released: None,
             last_cap: f64::INFINITY,
             spinning: false,
+            landing_from: None,
+            j_w: vehicle.j_w,
             slip_lp: LowPass::new(0.5 * preview.release_s, dt),
         })
     }
@@ -248,6 +267,7 @@ impl RoadAware {
         self.released = None;
         self.last_cap = f64::INFINITY;
         self.spinning = false;
+        self.landing_from = None;
         self.slip_lp.reset();
     }
 
@@ -335,6 +355,36 @@ impl RoadAware {
         (g, out)
     }
 
+    /// Whether the wheel spins this cycle, at slip `lambda` on the believed
+    /// road `info`: from `recover_slip_factor · λ_opt` on, until the slip is
+    /// back under λ_opt or (`recover_landing`) the motor's return to the cap
+    /// through its lag will take the rest of the wheel's excess speed. After
+    /// such an early end the wheel is landing: a new spin needs the slip to
+    /// rise again by the entry band above where the cut ended.
+    fn spin(&mut self, m: &Measurement, lambda: f64, info: &crate::knowledge::RoadInfo) -> bool {
+        let lo = info.lambda_opt;
+        let band = (self.p.recover_slip_factor - 1.0) * lo;
+        if !lambda.is_finite() || lambda <= lo {
+            self.landing_from = None;
+            return false;
+        }
+        if self.spinning {
+            let excess = self.j_w * m.omega.abs() * (lambda - lo) / (1.0 - lo).max(0.1);
+            let back = self.p.recover_landing
+                * (self.p.cap_share * info.mu_peak * self.nr - m.torque)
+                * self.tau_m;
+            if back > 0.0 && excess <= back {
+                self.landing_from = Some(lambda);
+                return false;
+            }
+            return true;
+        }
+        match self.landing_from {
+            Some(from) => lambda > from.max(lo + band) + band,
+            None => lambda > lo + band,
+        }
+    }
+
     /// One cycle at time `m.t` and odometer `x` (m). Allocation-free.
     pub fn step(&mut self, m: &Measurement, x: f64) -> Guidance {
         let view = self.queue.view(x);
@@ -355,12 +405,7 @@ impl RoadAware {
         // The wheel spins from recover_slip_factor · λ_opt on, and goes on
         // spinning until its slip is back under λ_opt (hysteresis: a noisy
         // slip at the threshold must not flip the cap every cycle).
-        let spin_from = if self.spinning {
-            info.lambda_opt
-        } else {
-            self.p.recover_slip_factor * info.lambda_opt
-        };
-        let spinning = lambda > spin_from;
+        let spinning = self.spin(m, lambda, &info);
         self.spinning = spinning;
         // The wheel's word on a binding cap, in the grippy direction: the
         // motor delivers the cap and the wheel slips well below what the
@@ -651,6 +696,74 @@ mod tests {
             let g = a.step(&slipping(t, 0.037, snow_cap), 5.0 * t);
             assert!(g.torque_cap <= snow_cap + 1.0, "{t}: {g:?}");
         }
+    }
+
+    /// Believed snow; the wheel spins at 30 % slip under 300 N m, then, the
+    /// motor at 80 N m, comes back 0.5 % every 2 ms. The slip at which the
+    /// cap is back at snow's cap (None: never above λ_opt).
+    fn spin_and_land(landing: f64) -> (Option<f64>, RoadAware, f64) {
+        let p = PreviewParams {
+            recover_landing: landing,
+            ..PreviewParams::default()
+        };
+        let mut a = aware_with(0.0, p);
+        a.decision(1, 0.95, 0.0, -0.5, 0.0);
+        a.decision(1, 0.95, 0.0, -0.5, 0.0);
+        let snow_cap = 0.19 * 3433.5 * 0.28;
+        let mut t = 0.0;
+        for _ in 0..20 {
+            t += 1e-3;
+            let g = a.step(&slipping(t, 0.3, 300.0), 5.0 * t);
+            assert_eq!(g.belief.0, 1, "{g:?}");
+        }
+        let g = a.step(&slipping(t + 1e-3, 0.3, 300.0), 5.0 * t);
+        let cut = p.recover_share * snow_cap;
+        assert!((g.torque_cap - cut).abs() < 1.0, "the spin is cut: {g:?}");
+        let lo = roads()[1].lambda_opt();
+        let mut lambda = 0.3;
+        while lambda > lo {
+            for _ in 0..2 {
+                t += 1e-3;
+                let g = a.step(&slipping(t, lambda, 80.0), 5.0 * t);
+                if g.torque_cap > cut + 1.0 {
+                    assert!((g.torque_cap - snow_cap).abs() < 1.0, "{g:?}");
+                    return (Some(lambda), a, t);
+                }
+            }
+            lambda -= 0.005;
+        }
+        (None, a, t)
+    }
+
+    #[test]
+    fn a_spinning_wheels_cut_ends_when_the_motors_return_will_take_the_rest() {
+        // recover_landing 0: the cut holds until the slip is under λ_opt.
+        assert_eq!(spin_and_land(0.0).0, None);
+        // 0.5: it ends where the wheel's excess angular momentum over the
+        // peak, J_w ω (λ − λ_opt) / (1 − λ_opt), is half of what the motor's
+        // return from 80 N m to the cap through its lag takes, (cap − 80) τ_m.
+        let (landed, mut a, t0) = spin_and_land(0.5);
+        let landed = landed.expect("the cut ends above λ_opt");
+        let lo = roads()[1].lambda_opt();
+        let v = VehicleParams::default();
+        let excess = |l: f64| v.j_w * 5.0 / (1.0 - l) / 0.28 * (l - lo) / (1.0 - lo);
+        let back = 0.5 * (0.19 * 3433.5 * 0.28 - 80.0) * v.tau_m;
+        assert!(
+            excess(landed) <= back && excess(landed + 0.005) > back,
+            "{landed}"
+        );
+        assert!(landed > 2.0 * lo, "well before the slip is back: {landed}");
+        // Landing: the slip wobbling where the cut ended starts no new cut;
+        // rising again by the entry band (0.5 λ_opt) above it does.
+        let snow_cap = 0.19 * 3433.5 * 0.28;
+        for k in 1..=20 {
+            let t = t0 + k as f64 * 1e-3;
+            let g = a.step(&slipping(t, landed + 0.01, 120.0), 5.0 * t);
+            assert!((g.torque_cap - snow_cap).abs() < 1.0, "{g:?}");
+        }
+        let t = t0 + 0.021;
+        let g = a.step(&slipping(t, landed + 0.6 * lo, 120.0), 5.0 * t);
+        assert!(g.torque_cap < 0.5 * snow_cap, "a new spin is cut: {g:?}");
     }
 
     #[test]
