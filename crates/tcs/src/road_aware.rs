@@ -38,7 +38,7 @@ use serde::Deserialize;
 
 use crate::filters::LowPass;
 use crate::fusion::{FusionParams, RoadBelief};
-use crate::knowledge::RoadTable;
+use crate::knowledge::{RoadInfo, RoadTable};
 use crate::params::{ArteUse, in_range, positive};
 use crate::preview::{PreviewQueue, PreviewView};
 use crate::types::{ControlOutput, Controller, Measurement, RoadKnowledge};
@@ -361,7 +361,7 @@ impl RoadAware {
     /// through its lag will take the rest of the wheel's excess speed. After
     /// such an early end the wheel is landing: a new spin needs the slip to
     /// rise again by the entry band above where the cut ended.
-    fn spin(&mut self, m: &Measurement, lambda: f64, info: &crate::knowledge::RoadInfo) -> bool {
+    fn spin(&mut self, m: &Measurement, lambda: f64, info: &RoadInfo) -> bool {
         let lo = info.lambda_opt;
         let band = (self.p.recover_slip_factor - 1.0) * lo;
         if !lambda.is_finite() || lambda <= lo {
@@ -402,9 +402,9 @@ impl RoadAware {
         // no-ARTE behaviour (`[arte] max_age_s`): no knowledge, no cap.
         let usable = alive && self.arte.usable(Some(&knowledge)).is_some();
         let (_, lambda) = self.belief.measured();
-        // The wheel spins from recover_slip_factor · λ_opt on, and goes on
-        // spinning until its slip is back under λ_opt (hysteresis: a noisy
-        // slip at the threshold must not flip the cap every cycle).
+        // The wheel spins from recover_slip_factor · λ_opt on (hysteresis: a
+        // noisy slip at the threshold must not flip the cap every cycle), and
+        // its cut ends in time for the motor's lag (`spin`).
         let spinning = self.spin(m, lambda, &info);
         self.spinning = spinning;
         // The wheel's word on a binding cap, in the grippy direction: the
