@@ -190,15 +190,25 @@ pub struct RoadAware {
     released: Option<usize>,
     /// Last cycle's cap, N m.
     last_cap: f64,
-    /// Whether the wheel spun last cycle (see `recover_slip_factor`).
-    spinning: bool,
-    /// The slip at which the last spin's cut ended early (`recover_landing`)
-    /// while the wheel still lands, back under λ_opt: `None`.
-    landing_from: Option<f64>,
+    /// The wheel's spin and its cut, as of last cycle (see `spin`).
+    spin: Spin,
     /// Wheel inertia, kg m².
     j_w: f64,
     /// The measured slip, low-passed over `release_s / 2` (the release check).
     slip_lp: LowPass,
+}
+
+/// A spinning wheel and its cut (`RoadAware::spins`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Spin {
+    /// No spin: the slip under the entry threshold, or back under λ_opt.
+    Gripping,
+    /// Spinning: the torque is cut to `recover_share`.
+    Cut,
+    /// The cut ended early at slip `from` (`recover_landing`) and the wheel
+    /// is coming back; a new cut needs the slip to rise again by the entry
+    /// band above `from`.
+    Landing { from: f64 },
 }
 
 impl RoadAware {
@@ -251,8 +261,7 @@ impl RoadAware {
             contradicted_s: 0.0,
             released: None,
             last_cap: f64::INFINITY,
-            spinning: false,
-            landing_from: None,
+            spin: Spin::Gripping,
             j_w: vehicle.j_w,
             slip_lp: LowPass::new(0.5 * preview.release_s, dt),
         })
@@ -266,8 +275,7 @@ impl RoadAware {
         self.contradicted_s = 0.0;
         self.released = None;
         self.last_cap = f64::INFINITY;
-        self.spinning = false;
-        self.landing_from = None;
+        self.spin = Spin::Gripping;
         self.slip_lp.reset();
     }
 
@@ -361,28 +369,37 @@ impl RoadAware {
     /// through its lag will take the rest of the wheel's excess speed. After
     /// such an early end the wheel is landing: a new spin needs the slip to
     /// rise again by the entry band above where the cut ended.
-    fn spin(&mut self, m: &Measurement, lambda: f64, info: &RoadInfo) -> bool {
+    fn spins(&mut self, m: &Measurement, lambda: f64, info: &RoadInfo) -> bool {
         let lo = info.lambda_opt;
         let band = (self.p.recover_slip_factor - 1.0) * lo;
-        if !lambda.is_finite() || lambda <= lo {
-            self.landing_from = None;
-            return false;
-        }
-        if self.spinning {
-            let excess = self.j_w * m.omega.abs() * (lambda - lo) / (1.0 - lo).max(0.1);
-            let back = self.p.recover_landing
-                * (self.p.cap_share * info.mu_peak * self.nr - m.torque)
-                * self.tau_m;
-            if back > 0.0 && excess <= back {
-                self.landing_from = Some(lambda);
-                return false;
+        self.spin = if !lambda.is_finite() || lambda <= lo {
+            Spin::Gripping
+        } else {
+            match self.spin {
+                Spin::Cut => {
+                    let excess = self.j_w * m.omega.abs() * (lambda - lo) / (1.0 - lo).max(0.1);
+                    let back = self.p.recover_landing
+                        * (self.torque(self.p.cap_share, info.mu_peak) - m.torque)
+                        * self.tau_m;
+                    if back > 0.0 && excess <= back {
+                        Spin::Landing { from: lambda }
+                    } else {
+                        Spin::Cut
+                    }
+                }
+                Spin::Landing { from } if lambda <= from.max(lo + band) + band => {
+                    Spin::Landing { from }
+                }
+                Spin::Gripping if lambda <= lo + band => Spin::Gripping,
+                Spin::Landing { .. } | Spin::Gripping => Spin::Cut,
             }
-            return true;
-        }
-        match self.landing_from {
-            Some(from) => lambda > from.max(lo + band) + band,
-            None => lambda > lo + band,
-        }
+        };
+        self.spin == Spin::Cut
+    }
+
+    /// The torque at the wheel of `share` of a road's `mu_peak`: share · μ_peak · N · r.
+    fn torque(&self, share: f64, mu_peak: f64) -> f64 {
+        share * mu_peak * self.nr
     }
 
     /// One cycle at time `m.t` and odometer `x` (m). Allocation-free.
@@ -404,9 +421,8 @@ impl RoadAware {
         let (_, lambda) = self.belief.measured();
         // The wheel spins from recover_slip_factor · λ_opt on (hysteresis: a
         // noisy slip at the threshold must not flip the cap every cycle), and
-        // its cut ends in time for the motor's lag (`spin`).
-        let spinning = self.spin(m, lambda, &info);
-        self.spinning = spinning;
+        // its cut ends in time for the motor's lag (`spins`).
+        let spinning = self.spins(m, lambda, &info);
         // The wheel's word on a binding cap, in the grippy direction: the
         // motor delivers the cap and the wheel slips well below what the
         // believed road would need for it.
@@ -449,7 +465,7 @@ impl RoadAware {
         {
             let h = self.table.info(here.road);
             if (h.mu_peak < info.mu_peak || !usable) && released != Some(here.road) {
-                cap = self.p.cap_share * h.mu_peak * self.nr;
+                cap = self.torque(self.p.cap_share, h.mu_peak);
             }
         }
         if usable && released.is_none() {
@@ -458,7 +474,7 @@ impl RoadAware {
             } else {
                 self.p.cap_share
             };
-            cap = cap.min(share * info.mu_peak * self.nr);
+            cap = cap.min(self.torque(share, info.mu_peak));
         }
         if alive {
             // Every confirmed lower-friction road ahead within the horizon
@@ -477,7 +493,7 @@ impl RoadAware {
                     && e.peak_confidence >= self.arte.min_confidence
                     && e.hits >= self.p.min_hits
                 {
-                    let target = self.p.cap_share * e_info.mu_peak * self.nr;
+                    let target = self.torque(self.p.cap_share, e_info.mu_peak);
                     cap = cap.min(self.approach(m.torque, m.demand, target, t_arrive));
                 }
             }
