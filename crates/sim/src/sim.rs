@@ -145,15 +145,13 @@ impl<'a> Sim<'a> {
             AnyController::new(variant.kind, setup.controllers(), &vehicle, setup.dt())
                 .map_err(|e| SimError::from_field("controllers", e))?;
         let mut aware = if variant.arte {
-            let c = setup.controllers();
             Some(
                 RoadAware::new(
+                    variant.kind,
                     setup.roads(),
                     setup.road_table().clone(),
                     &vehicle,
-                    c.arte,
-                    c.preview,
-                    c.fusion,
+                    setup.controllers(),
                     setup.dt(),
                 )
                 .map_err(|e| SimError::from_field("controllers", e))?,

@@ -28,7 +28,7 @@ pub use mfc::Mfc;
 pub use mtte::Mtte;
 pub use params::{ArteUse, ControllersConfig, LoopParams, MfcParams, MtteParams, SrcParams};
 pub use preview::{PREVIEW_CAPACITY, PreviewQueue, PreviewView, RoadAhead};
-pub use road_aware::{Guidance, PreviewParams, RoadAware, odometer_speed};
+pub use road_aware::{Guidance, PreviewParams, PreviewTrade, RoadAware, odometer_speed};
 pub use slip_control::Src;
 pub use types::{ControlOutput, Controller, Measurement, RoadKnowledge};
 

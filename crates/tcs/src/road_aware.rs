@@ -36,10 +36,11 @@
 use grip_physics::{InvalidField, RoadCatalogue, VehicleParams};
 use serde::Deserialize;
 
+use crate::any::ControllerKind;
 use crate::filters::LowPass;
-use crate::fusion::{FusionParams, RoadBelief};
+use crate::fusion::RoadBelief;
 use crate::knowledge::{RoadInfo, RoadTable};
-use crate::params::{ArteUse, in_range, positive};
+use crate::params::{ArteUse, ControllersConfig, in_range, positive};
 use crate::preview::{PreviewQueue, PreviewView};
 use crate::types::{ControlOutput, Controller, Measurement, RoadKnowledge};
 
@@ -107,6 +108,41 @@ pub struct PreviewParams {
     /// this field existed, so that older drive logs still replay).
     #[serde(default)]
     pub recover_landing: f64,
+    /// `[preview.mfc]`: MFC-ARTE's own trade of slip for traction, in place
+    /// of the two values above (see [`PreviewTrade`]). Absent: none.
+    #[serde(default)]
+    pub mfc: PreviewTrade,
+    /// `[preview.src]`: SRC-ARTE's own trade.
+    #[serde(default)]
+    pub src: PreviewTrade,
+    /// `[preview.mtte]`: MTTE-ARTE's own trade.
+    #[serde(default)]
+    pub mtte: PreviewTrade,
+}
+
+/// One controller's own `cap_share` and `slip_share` (`[preview.mfc]`,
+/// `[preview.src]`, `[preview.mtte]`): the two values that decide how much
+/// traction its ARTE variant gives up for less slip. A value left out is
+/// `[preview]`'s. [`PreviewParams::for_controller`] applies it.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PreviewTrade {
+    /// In place of [`PreviewParams::cap_share`], (0, 1.5].
+    pub cap_share: Option<f64>,
+    /// In place of [`PreviewParams::slip_share`], (0, 1].
+    pub slip_share: Option<f64>,
+}
+
+impl PreviewTrade {
+    fn validate(&self) -> Result<(), InvalidField> {
+        if let Some(v) = self.cap_share {
+            in_range("cap_share", v, 1e-3, 1.5)?;
+        }
+        if let Some(v) = self.slip_share {
+            in_range("slip_share", v, 1e-3, 1.0)?;
+        }
+        Ok(())
+    }
 }
 
 impl Default for PreviewParams {
@@ -124,6 +160,12 @@ impl Default for PreviewParams {
             release_s: 0.02,
             approach_floor: 0.7,
             recover_landing: 0.5,
+            mfc: PreviewTrade::default(),
+            src: PreviewTrade {
+                cap_share: Some(0.9),
+                slip_share: None,
+            },
+            mtte: PreviewTrade::default(),
         }
     }
 }
@@ -145,7 +187,29 @@ impl PreviewParams {
         if self.min_hits == 0 {
             return Err(InvalidField::new("min_hits", "must be >= 1 (got 0)"));
         }
+        self.mfc.validate().map_err(|e| e.prefixed("mfc"))?;
+        self.src.validate().map_err(|e| e.prefixed("src"))?;
+        self.mtte.validate().map_err(|e| e.prefixed("mtte"))?;
         Ok(())
+    }
+
+    /// What `kind`'s ARTE variant runs with: these values with its own
+    /// `[preview.<kind>]` trade applied (and no per-controller trades left
+    /// in the result).
+    pub fn for_controller(&self, kind: ControllerKind) -> PreviewParams {
+        let t = match kind {
+            ControllerKind::Mfc => self.mfc,
+            ControllerKind::Src => self.src,
+            ControllerKind::Mtte => self.mtte,
+        };
+        PreviewParams {
+            cap_share: t.cap_share.unwrap_or(self.cap_share),
+            slip_share: t.slip_share.unwrap_or(self.slip_share),
+            mfc: PreviewTrade::default(),
+            src: PreviewTrade::default(),
+            mtte: PreviewTrade::default(),
+            ..*self
+        }
     }
 }
 
@@ -212,19 +276,25 @@ enum Spin {
 }
 
 impl RoadAware {
-    /// For `roads` (with their knowledge `table`), `vehicle` (its
-    /// `mic_lead_m`, N and r), the controllers' `[arte]`, `[preview]` and
-    /// `[fusion]`, at sample time `dt`. Errors name the field.
+    /// For the ARTE variant of `kind` on `roads` (with their knowledge
+    /// `table`), `vehicle` (its `mic_lead_m`, N and r), with `controllers`'
+    /// `[arte]`, `[fusion]` and `[preview]` (with `kind`'s own trade,
+    /// [`PreviewParams::for_controller`]), at sample time `dt`. Errors name
+    /// the field.
     pub fn new(
+        kind: ControllerKind,
         roads: &RoadCatalogue,
         table: RoadTable,
         vehicle: &VehicleParams,
-        arte: ArteUse,
-        preview: PreviewParams,
-        fusion: FusionParams,
+        controllers: &ControllersConfig,
         dt: f64,
     ) -> Result<Self, InvalidField> {
-        preview.validate().map_err(|e| e.prefixed("preview"))?;
+        controllers
+            .preview
+            .validate()
+            .map_err(|e| e.prefixed("preview"))?;
+        let preview = controllers.preview.for_controller(kind);
+        let (arte, fusion) = (controllers.arte, controllers.fusion);
         positive("dt", dt)?;
         let belief =
             RoadBelief::new(roads, vehicle, fusion, dt).map_err(|e| e.prefixed("fusion"))?;
@@ -554,13 +624,18 @@ mod tests {
             mic_lead_m: lead,
             ..Default::default()
         };
+        // MTTE: its ARTE variant has no trade of its own by default, so
+        // `preview` is what it runs with.
+        let controllers = ControllersConfig {
+            preview,
+            ..ControllersConfig::default()
+        };
         RoadAware::new(
+            ControllerKind::Mtte,
             &roads,
             RoadTable::new(&roads, &KnowledgeConfig::default()).unwrap(),
             &v,
-            ArteUse::default(),
-            preview,
-            FusionParams::default(),
+            &controllers,
             1e-3,
         )
         .unwrap()
@@ -810,6 +885,88 @@ mod tests {
         assert!((0.012..0.016).contains(&at_cap), "{at_cap}");
         assert!(!slip_run(at_cap), "released at the slip snow needs");
         assert!(slip_run(0.005), "kept on a road that carries more");
+    }
+
+    /// A road aware of `kind` under `preview`, the wheel at lead 0 on snow
+    /// (heard twice) for 0.15 s: the cap it gives.
+    fn snow_cap_of(kind: ControllerKind, preview: PreviewParams) -> f64 {
+        let roads = roads();
+        let controllers = ControllersConfig {
+            preview,
+            ..ControllersConfig::default()
+        };
+        let mut a = RoadAware::new(
+            kind,
+            &roads,
+            RoadTable::new(&roads, &KnowledgeConfig::default()).unwrap(),
+            &VehicleParams::default(),
+            &controllers,
+            1e-3,
+        )
+        .unwrap();
+        a.decision(1, 0.95, 0.0, -0.5, 0.0);
+        a.decision(1, 0.95, 0.025, -0.4, 0.1);
+        run(&mut a, 0.03, 0.0, 1, 150).torque_cap
+    }
+
+    #[test]
+    fn each_controller_runs_with_its_own_trade() {
+        let snow_peak = 0.19 * 3433.5 * 0.28;
+        let p = PreviewParams {
+            cap_share: 1.0,
+            mfc: PreviewTrade {
+                cap_share: Some(0.8),
+                slip_share: Some(0.9),
+            },
+            src: PreviewTrade {
+                cap_share: None,
+                slip_share: Some(0.85),
+            },
+            mtte: PreviewTrade::default(),
+            ..PreviewParams::default()
+        };
+        let mfc = p.for_controller(ControllerKind::Mfc);
+        assert_eq!((mfc.cap_share, mfc.slip_share), (0.8, 0.9));
+        assert_eq!(mfc.mfc, PreviewTrade::default(), "applied, not left");
+        let src = p.for_controller(ControllerKind::Src);
+        assert_eq!((src.cap_share, src.slip_share), (1.0, 0.85));
+        let mtte = p.for_controller(ControllerKind::Mtte);
+        assert_eq!((mtte.cap_share, mtte.slip_share), (1.0, 0.95));
+        assert_eq!(mtte.recover_share, p.recover_share);
+        // In the loop: MFC's cap on snow is its own 0.8 of the peak, MTTE's
+        // the shared 1.0.
+        let cap = snow_cap_of(ControllerKind::Mfc, p);
+        assert!((cap - 0.8 * snow_peak).abs() < 1.0, "{cap}");
+        let cap = snow_cap_of(ControllerKind::Mtte, p);
+        assert!((cap - snow_peak).abs() < 1.0, "{cap}");
+        // As shipped (the defaults): SRC-ARTE 0.9, the others 1.0.
+        let d = PreviewParams::default();
+        let cap = snow_cap_of(ControllerKind::Src, d);
+        assert!((cap - 0.9 * snow_peak).abs() < 1.0, "{cap}");
+        let cap = snow_cap_of(ControllerKind::Mfc, d);
+        assert!((cap - snow_peak).abs() < 1.0, "{cap}");
+    }
+
+    #[test]
+    fn a_bad_per_controller_trade_is_named() {
+        let mut p = PreviewParams::default();
+        p.src.cap_share = Some(0.0);
+        let e = p.validate().unwrap_err().prefixed("preview");
+        assert_eq!(e.field, "preview.src.cap_share", "{e:?}");
+        let mut p = PreviewParams::default();
+        p.mtte.slip_share = Some(1.2);
+        assert_eq!(p.validate().unwrap_err().field, "mtte.slip_share");
+        let text = "cap_share = 1.0\nrecover_share = 0.4\nrecover_slip_factor = 1.5\n\
+                    horizon_s = 1.0\nlag_margin_s = 0.02\nchange_at = 0.0\nmin_hits = 2\n\
+                    slip_share = 0.95\nrelease_slip_share = 0.7\nrelease_s = 0.02\n";
+        let p: PreviewParams = toml::from_str(text).unwrap();
+        assert_eq!(p.src, PreviewTrade::default(), "absent: none");
+        let p: PreviewParams = toml::from_str(&format!("{text}[mfc]\ncap_share = 0.9\n")).unwrap();
+        assert_eq!(p.mfc.cap_share, Some(0.9));
+        let e = toml::from_str::<PreviewParams>(&format!("{text}[src]\ncap = 0.9\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("unknown field `cap`"), "{e}");
     }
 
     #[test]

@@ -260,12 +260,11 @@ impl TcsLoop {
             return Ok(self);
         }
         let aware = RoadAware::new(
+            self.controller.kind(),
             roads,
             table,
             vehicle,
-            controllers.arte,
-            controllers.preview,
-            controllers.fusion,
+            controllers,
             self.dt,
         )
         .map_err(|e| LoopError::Controller {

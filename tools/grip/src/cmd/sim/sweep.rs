@@ -24,13 +24,13 @@ use super::Loaded;
 /// Most grid points one sweep may have.
 pub const MAX_POINTS: usize = 200;
 
-/// One `--sweep` axis: `SECTION.KEY=V1,V2,...`.
+/// One `--sweep` axis: `SECTION.KEY=V1,V2,...` (or `SECTION.TABLE.KEY`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Axis {
     /// The `[section]` of controllers.toml, or `vehicle`/`sensors` of the
     /// vehicle file.
     pub section: String,
-    /// The key in it.
+    /// The key in it (`TABLE.KEY` for a table inside the section).
     pub key: String,
     /// The values, as TOML values.
     pub values: Vec<toml::Value>,
@@ -64,10 +64,15 @@ fn is_name(s: &str) -> bool {
 pub fn parse_axis(s: &str) -> Result<Axis, String> {
     let usage = "expected SECTION.KEY=V1,V2,... (e.g. preview.cap_share=0.8,0.9,1.0)";
     let (name, list) = s.split_once('=').ok_or_else(|| format!("`{s}`: {usage}"))?;
+    // SECTION.KEY, or SECTION.TABLE.KEY for a table inside a section
+    // (e.g. preview.src.cap_share, `[preview.src]`).
     let (section, key) = name
         .trim()
         .split_once('.')
-        .filter(|(a, b)| is_name(a) && is_name(b))
+        .filter(|(a, b)| {
+            let parts = b.split('.').count();
+            is_name(a) && parts <= 2 && b.split('.').all(is_name)
+        })
         .ok_or_else(|| format!("`{name}`: not a SECTION.KEY of controllers.toml; {usage}"))?;
     let mut values = Vec::new();
     let mut texts = Vec::new();
@@ -136,7 +141,24 @@ pub fn apply(
                     sections.join(", ")
                 )
             })?;
-        sec.insert(a.key.clone(), a.values[i].clone());
+        let (sec, key) = match a.key.split_once('.') {
+            // A table inside the section: added if the file lacks it.
+            Some((sub, key)) => (
+                sec.entry(sub)
+                    .or_insert_with(|| toml::Value::Table(toml::Table::new()))
+                    .as_table_mut()
+                    .ok_or_else(|| {
+                        format!(
+                            "--sweep {}: {}.{sub} in {file} is a value, not a table",
+                            a.name(),
+                            a.section
+                        )
+                    })?,
+                key,
+            ),
+            None => (sec, a.key.as_str()),
+        };
+        sec.insert(key.to_owned(), a.values[i].clone());
     }
     Ok(t)
 }
@@ -671,6 +693,8 @@ mod tests {
             ("preview.cap share=0.8", "not a SECTION.KEY"),
             ("preview.cap_share=0.8,,1", "an empty value"),
             ("preview.cap_share=0.8,abc", "`abc` is not a TOML value"),
+            ("preview.src.x.cap_share=0.8", "not a SECTION.KEY"),
+            ("preview.src..cap_share=0.8", "not a SECTION.KEY"),
         ] {
             let e = parse_axis(bad).unwrap_err();
             assert!(e.contains(says), "{bad}: {e}");
@@ -702,6 +726,23 @@ mod tests {
         let e = apply(&base, "controllers.toml", &[(&b, 0)]).unwrap_err();
         assert!(
             e.contains("controllers.toml has no [previw]") && e.contains("mfc, preview"),
+            "{e}"
+        );
+        // A table inside a section: set where it is, added where it is not.
+        let base: toml::Table =
+            toml::from_str("[preview]\ncap_share = 1.0\n[preview.src]\ncap_share = 0.9\n").unwrap();
+        let c = parse_axis("preview.src.cap_share=0.7,0.8").unwrap();
+        assert_eq!(c.name(), "preview.src.cap_share");
+        let t = apply(&base, "controllers.toml", &[(&c, 1)]).unwrap();
+        assert_eq!(t["preview"]["src"]["cap_share"], toml::Value::Float(0.8));
+        assert_eq!(t["preview"]["cap_share"], toml::Value::Float(1.0));
+        let m = parse_axis("preview.mfc.slip_share=0.9").unwrap();
+        let t = apply(&base, "controllers.toml", &[(&m, 0)]).unwrap();
+        assert_eq!(t["preview"]["mfc"]["slip_share"], toml::Value::Float(0.9));
+        let v = parse_axis("preview.cap_share.x=0.9").unwrap();
+        let e = apply(&base, "controllers.toml", &[(&v, 0)]).unwrap_err();
+        assert!(
+            e.contains("preview.cap_share in controllers.toml is a value"),
             "{e}"
         );
         assert!(parse_axis("vehicle.mic_lead_m=0,1").unwrap().of_vehicle());
