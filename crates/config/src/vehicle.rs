@@ -47,6 +47,26 @@ mod tests {
     }
 
     #[test]
+    fn the_shipped_profiles_load_and_differ_where_they_say() {
+        let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
+        let (quarter, _) = load_vehicle(config.join("vehicle.toml")).unwrap();
+        let (front, fs) = load_vehicle(config.join("vehicles/front-mic.toml")).unwrap();
+        let (rear, rs) = load_vehicle(config.join("vehicles/rear-mic.toml")).unwrap();
+        assert_eq!(quarter.mic_lead_m, 0.0);
+        assert_eq!(front.mic_lead_m, 2.77);
+        // rear-mic is front-mic with the microphone at the driven wheel.
+        assert_eq!(
+            rear,
+            VehicleParams {
+                mic_lead_m: 0.0,
+                ..front
+            }
+        );
+        assert_eq!(rs, fs);
+        assert_eq!(rear.n_driven, 2.0);
+    }
+
+    #[test]
     fn empty_file_gives_defaults() {
         assert_eq!(
             parse("").unwrap(),
