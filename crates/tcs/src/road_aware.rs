@@ -193,15 +193,20 @@ impl PreviewParams {
         Ok(())
     }
 
+    /// `kind`'s own trade, `[preview.<kind>]` (empty where none is set).
+    pub fn trade(&self, kind: ControllerKind) -> PreviewTrade {
+        match kind {
+            ControllerKind::Mfc => self.mfc,
+            ControllerKind::Src => self.src,
+            ControllerKind::Mtte => self.mtte,
+        }
+    }
+
     /// What `kind`'s ARTE variant runs with: these values with its own
     /// `[preview.<kind>]` trade applied (and no per-controller trades left
     /// in the result).
     pub fn for_controller(&self, kind: ControllerKind) -> PreviewParams {
-        let t = match kind {
-            ControllerKind::Mfc => self.mfc,
-            ControllerKind::Src => self.src,
-            ControllerKind::Mtte => self.mtte,
-        };
+        let t = self.trade(kind);
         PreviewParams {
             cap_share: t.cap_share.unwrap_or(self.cap_share),
             slip_share: t.slip_share.unwrap_or(self.slip_share),

@@ -40,6 +40,13 @@ fn a_preview_sweep_reports_each_point_against_the_same_baseline() {
     );
     assert!(text.contains("preview.cap_share = 0.8"), "{text}");
     assert!(text.contains("Target (--sweep-target)"), "{text}");
+    assert!(
+        text.contains(
+            "Note: --sweep preview.cap_share does not reach SRC-ARTE: its own [preview.src] cap_share = 0.9 wins"
+        ),
+        "{text}"
+    );
+    assert!(!text.contains("reach MTTE-ARTE"), "{text}");
     let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
@@ -58,7 +65,15 @@ fn a_preview_sweep_reports_each_point_against_the_same_baseline() {
             .unwrap_or_else(|| panic!("no row {point} {ctl} in {csv}"));
         r[col(c)].parse().unwrap()
     };
-    for ctl in ["src", "mtte"] {
+    // SRC-ARTE has its own cap ([preview.src] cap_share = 0.9 as shipped):
+    // the shared value does not move it, its baseline neither.
+    for p in ["1", "2"] {
+        for c in ["slip_arte", "accel_arte", "slip_base"] {
+            assert_eq!(get("0", "src", c), get(p, "src", c), "src {c} {p}");
+        }
+    }
+    {
+        let ctl = "mtte";
         // controllers.toml ships cap_share = 1.0: point 2 is point 0 again.
         for c in ["slip_arte", "accel_arte", "cmd_tv_arte"] {
             assert_eq!(get("0", ctl, c), get("2", ctl, c), "{ctl} {c}");
@@ -85,6 +100,36 @@ fn a_preview_sweep_reports_each_point_against_the_same_baseline() {
             .unwrap()
             .contains("as configured")
     );
+}
+
+#[test]
+fn a_controllers_own_trade_is_swept_as_section_table_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("own");
+    let text = run_ok(
+        sim("src,src-arte,mtte,mtte-arte")
+            .args(["--sweep", "preview.src.cap_share=0.8,0.9", "--out"])
+            .arg(&out),
+    );
+    assert!(text.contains("preview.src.cap_share = 0.8"), "{text}");
+    let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(header[2], "preview.src.cap_share", "{csv}");
+    let slip_arte = header.iter().position(|h| *h == "slip_arte").unwrap();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 6, "{csv}");
+    let get = |point: &str, ctl: &str| -> &str {
+        rows.iter()
+            .find(|r| r[0] == point && r[3] == ctl)
+            .unwrap_or_else(|| panic!("no row {point} {ctl} in {csv}"))[slip_arte]
+    };
+    // Shipped 0.9: point 2 is point 0 again; 0.8 moves SRC-ARTE alone.
+    assert_eq!(get("0", "src"), get("2", "src"), "{csv}");
+    assert_ne!(get("0", "src"), get("1", "src"), "{csv}");
+    for p in ["1", "2"] {
+        assert_eq!(get("0", "mtte"), get(p, "mtte"), "{csv}");
+    }
 }
 
 #[test]
@@ -132,6 +177,14 @@ fn bad_sweeps_name_the_key_and_the_reason() {
             "`x` is not a TOML value",
         ),
         (vec!["--sweep", "cap_share=0.8"], "not a SECTION.KEY"),
+        (
+            vec!["--sweep", "preview.src.cap_share=2"],
+            "preview.src.cap_share",
+        ),
+        (
+            vec!["--sweep", "preview.src.cap=0.8"],
+            "unknown field `cap`",
+        ),
         (
             vec![
                 "--variants",

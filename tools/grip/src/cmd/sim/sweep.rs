@@ -301,7 +301,8 @@ pub fn run(
     let path = ConfigDir::new(config_dir).file("controllers.toml");
     let text = read_file(&path)?;
     // The files as loaded (errors name their line and field) ...
-    parse_controllers(&path, &text)?;
+    let controllers = parse_controllers(&path, &text)?;
+    let unreached = unreached(req.axes, &kinds, &controllers.preview);
     let vehicle_text = read_file(req.vehicle)?;
     parse_vehicle(req.vehicle, &vehicle_text)?;
     // ... and every point checked before the first run.
@@ -405,7 +406,10 @@ pub fn run(
     }
     bar.finish_and_clear();
 
-    let report = format_report(req, &kinds, &rows);
+    let mut report = format_report(req, &kinds, &rows);
+    for n in &unreached {
+        report.push_str(&format!("Note: {n}\n"));
+    }
     print!("{report}");
     if let Some(dir) = req.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -424,6 +428,38 @@ pub fn run(
         eprintln!("wrote {}", dir.display());
     }
     Ok(())
+}
+
+/// The shared `[preview]` trade values swept that a controller's own
+/// `[preview.<kind>]` overrides (so the sweep does not move that ARTE
+/// variant), one sentence each.
+fn unreached(
+    axes: &[Axis],
+    kinds: &[ControllerKind],
+    preview: &grip_tcs::PreviewParams,
+) -> Vec<String> {
+    let mut notes = Vec::new();
+    for a in axes.iter().filter(|a| a.section == "preview") {
+        for &k in kinds {
+            let own = preview.trade(k);
+            let value = match a.key.as_str() {
+                "cap_share" => own.cap_share,
+                "slip_share" => own.slip_share,
+                _ => None,
+            };
+            if let Some(v) = value {
+                let name = k.as_str();
+                notes.push(format!(
+                    "--sweep {} does not reach {}-ARTE: its own [preview.{name}] {} = {v} wins; sweep preview.{name}.{} for it.",
+                    a.name(),
+                    name.to_ascii_uppercase(),
+                    a.key,
+                    a.key
+                ));
+            }
+        }
+    }
+    notes
 }
 
 fn format_report(req: &Request<'_>, kinds: &[ControllerKind], rows: &[Row]) -> String {
