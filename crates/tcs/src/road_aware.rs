@@ -153,7 +153,7 @@ impl Default for PreviewParams {
             recover_slip_factor: 1.5,
             horizon_s: 1.0,
             lag_margin_s: 0.02,
-            change_at: 0.0,
+            change_at: 0.375,
             min_hits: 2,
             slip_share: 0.95,
             release_slip_share: 0.7,
