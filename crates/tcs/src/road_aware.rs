@@ -134,6 +134,16 @@ pub struct PreviewTrade {
 }
 
 impl PreviewTrade {
+    /// The value set for `key` (`cap_share` or `slip_share`, as in the
+    /// file); `None` when not set or not one of the two.
+    pub fn get(&self, key: &str) -> Option<f64> {
+        match key {
+            "cap_share" => self.cap_share,
+            "slip_share" => self.slip_share,
+            _ => None,
+        }
+    }
+
     fn validate(&self) -> Result<(), InvalidField> {
         if let Some(v) = self.cap_share {
             in_range("cap_share", v, 1e-3, 1.5)?;
@@ -624,19 +634,25 @@ mod tests {
     }
 
     fn aware_with(lead: f64, preview: PreviewParams) -> RoadAware {
+        // MTTE: its ARTE variant has no trade of its own by default, so
+        // `preview` is what it runs with.
+        aware_for(ControllerKind::Mtte, lead, preview)
+    }
+
+    /// The road awareness of `kind`'s ARTE variant under `preview`, the
+    /// microphone `lead` m ahead of the driven wheel.
+    fn aware_for(kind: ControllerKind, lead: f64, preview: PreviewParams) -> RoadAware {
         let roads = roads();
         let v = VehicleParams {
             mic_lead_m: lead,
             ..Default::default()
         };
-        // MTTE: its ARTE variant has no trade of its own by default, so
-        // `preview` is what it runs with.
         let controllers = ControllersConfig {
             preview,
             ..ControllersConfig::default()
         };
         RoadAware::new(
-            ControllerKind::Mtte,
+            kind,
             &roads,
             RoadTable::new(&roads, &KnowledgeConfig::default()).unwrap(),
             &v,
@@ -895,20 +911,7 @@ mod tests {
     /// A road aware of `kind` under `preview`, the wheel at lead 0 on snow
     /// (heard twice) for 0.15 s: the cap it gives.
     fn snow_cap_of(kind: ControllerKind, preview: PreviewParams) -> f64 {
-        let roads = roads();
-        let controllers = ControllersConfig {
-            preview,
-            ..ControllersConfig::default()
-        };
-        let mut a = RoadAware::new(
-            kind,
-            &roads,
-            RoadTable::new(&roads, &KnowledgeConfig::default()).unwrap(),
-            &VehicleParams::default(),
-            &controllers,
-            1e-3,
-        )
-        .unwrap();
+        let mut a = aware_for(kind, 0.0, preview);
         a.decision(1, 0.95, 0.0, -0.5, 0.0);
         a.decision(1, 0.95, 0.025, -0.4, 0.1);
         run(&mut a, 0.03, 0.0, 1, 150).torque_cap

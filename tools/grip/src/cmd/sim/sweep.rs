@@ -441,13 +441,7 @@ fn unreached(
     let mut notes = Vec::new();
     for a in axes.iter().filter(|a| a.section == "preview") {
         for &k in kinds {
-            let own = preview.trade(k);
-            let value = match a.key.as_str() {
-                "cap_share" => own.cap_share,
-                "slip_share" => own.slip_share,
-                _ => None,
-            };
-            if let Some(v) = value {
+            if let Some(v) = preview.trade(k).get(&a.key) {
                 let name = k.as_str();
                 notes.push(format!(
                     "--sweep {} does not reach {}-ARTE: its own [preview.{name}] {} = {v} wins; sweep preview.{name}.{} for it.",
