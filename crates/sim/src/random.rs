@@ -74,6 +74,97 @@ pub fn sounding_roads(roads: &RoadCatalogue) -> Vec<usize> {
 }
 
 impl RandomSpec {
+    /// The field names [`RandomSpec::parse`] takes, as in the struct.
+    pub const KEYS: [&'static str; 6] = [
+        "v0_kmh",
+        "torque",
+        "min_len_m",
+        "max_len_m",
+        "cover_m",
+        "duration",
+    ];
+
+    /// `KEY=VALUE[,KEY=VALUE...]` (`grip sim --random`) on top of the
+    /// default recipe, e.g. `v0_kmh=30,min_len_m=3,max_len_m=12`. Each key is
+    /// a field of this struct ([`RandomSpec::KEYS`]) and may appear once.
+    /// When `v0_kmh` or `duration` is set and `cover_m` is not, the segments
+    /// cover at least 1.5 times the distance the run's initial speed alone
+    /// would travel plus 12 m (the default's 24 m at least), so a faster or
+    /// longer run still meets changes to its end. With nothing set the
+    /// result is the default, so seeds keep their roads.
+    pub fn parse(text: &str) -> Result<RandomSpec, SimError> {
+        let mut spec = RandomSpec::default();
+        let mut seen: Vec<&str> = Vec::new();
+        for item in text.split(',').map(str::trim).filter(|i| !i.is_empty()) {
+            let Some((key, value)) = item.split_once('=') else {
+                return Err(SimError::invalid(
+                    "random",
+                    format!(
+                        "`{item}` is not KEY=VALUE (keys: {})",
+                        Self::KEYS.join(", ")
+                    ),
+                ));
+            };
+            let key = key.trim();
+            let field = format!("random.{key}");
+            let Some(&name) = Self::KEYS.iter().find(|k| **k == key) else {
+                return Err(SimError::invalid(
+                    field,
+                    format!("unknown key (keys: {})", Self::KEYS.join(", ")),
+                ));
+            };
+            if seen.contains(&name) {
+                return Err(SimError::invalid(field, "given twice"));
+            }
+            seen.push(name);
+            let v: f64 = value.trim().parse().map_err(|_| {
+                SimError::invalid(&field, format!("`{}` is not a number", value.trim()))
+            })?;
+            let (lo, hi) = match name {
+                "v0_kmh" => (0.0, 200.0),
+                "torque" => (0.0, 10_000.0),
+                "duration" => (0.01, 600.0),
+                _ => (0.01, 10_000.0),
+            };
+            if !(v.is_finite() && (lo..=hi).contains(&v)) {
+                return Err(SimError::invalid(
+                    field,
+                    format!("must be in {lo}..={hi} (got {v})"),
+                ));
+            }
+            match name {
+                "v0_kmh" => spec.v0_kmh = v,
+                "torque" => spec.torque = v,
+                "min_len_m" => spec.min_len_m = v,
+                "max_len_m" => spec.max_len_m = v,
+                "cover_m" => spec.cover_m = v,
+                _ => spec.duration = v,
+            }
+        }
+        if !seen.contains(&"cover_m") && (seen.contains(&"v0_kmh") || seen.contains(&"duration")) {
+            let travel = spec.v0_kmh / 3.6 * spec.duration;
+            spec.cover_m = spec.cover_m.max((1.5 * travel + 12.0).ceil());
+        }
+        if spec.max_len_m < spec.min_len_m {
+            return Err(SimError::invalid(
+                "random.max_len_m",
+                format!(
+                    "must be at least min_len_m ({} < {})",
+                    spec.max_len_m, spec.min_len_m
+                ),
+            ));
+        }
+        Ok(spec)
+    }
+
+    /// One line: the recipe's values, as the report prints them.
+    pub fn describe(&self) -> String {
+        format!(
+            "distance segments of {}-{} m from the roads with a sound (covering {} m), constant {} N m from {} km/h, {} s",
+            self.min_len_m, self.max_len_m, self.cover_m, self.torque, self.v0_kmh, self.duration
+        )
+    }
+
     /// The scenario of run seed `seed`, resolved against `roads`. Fails when
     /// the catalogue has fewer than two roads with a sound or the spec is
     /// out of range.
@@ -164,4 +255,48 @@ pub fn describe_segments(segments: &[Segment]) -> String {
         .map(|s| format!("{} {:.2} m", s.road_name, s.span))
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parse_sets_the_named_fields_and_nothing_else() {
+        assert_eq!(RandomSpec::parse("").unwrap(), RandomSpec::default());
+        let s = RandomSpec::parse("torque=250, min_len_m=2,max_len_m=8").unwrap();
+        assert_eq!(s.torque, 250.0);
+        assert_eq!((s.min_len_m, s.max_len_m), (2.0, 8.0));
+        assert_eq!(s.cover_m, 24.0, "cover unchanged without speed or duration");
+        assert_eq!((s.v0_kmh, s.duration), (10.0, 2.4));
+    }
+
+    #[test]
+    fn a_faster_run_covers_more_road_unless_told() {
+        let s = RandomSpec::parse("v0_kmh=30").unwrap();
+        // 30 km/h for 2.4 s: 20 m; 1.5 x 20 + 12 = 42 m.
+        assert_eq!(s.cover_m, 42.0);
+        let s = RandomSpec::parse("v0_kmh=30,cover_m=30").unwrap();
+        assert_eq!(s.cover_m, 30.0);
+        // the default's speed and duration stay at the default's cover
+        assert_eq!(RandomSpec::parse("v0_kmh=10").unwrap().cover_m, 24.0);
+    }
+
+    #[test]
+    fn bad_input_names_the_key_and_the_reason() {
+        let field = |t: &str| RandomSpec::parse(t).unwrap_err().to_string();
+        assert!(
+            field("speed=3").contains("`random.speed`"),
+            "{}",
+            field("speed=3")
+        );
+        assert!(field("speed=3").contains("v0_kmh"));
+        assert!(field("v0_kmh").contains("not KEY=VALUE"));
+        assert!(field("v0_kmh=fast").contains("not a number"));
+        assert!(field("v0_kmh=-1").contains("`random.v0_kmh`"));
+        assert!(field("duration=0").contains("`random.duration`"));
+        assert!(field("torque=NaN").contains("`random.torque`"));
+        assert!(field("torque=1,torque=2").contains("given twice"));
+        assert!(field("min_len_m=5,max_len_m=2").contains("`random.max_len_m`"));
+    }
 }

@@ -91,3 +91,77 @@ fn entry_plot_draws_both_vehicles() {
         "{err}"
     );
 }
+
+#[test]
+fn the_random_recipe_can_be_changed_and_a_bad_key_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = run_ok(
+        grip()
+            .args([
+                "sim",
+                "--scenario",
+                "random",
+                "--random",
+                "v0_kmh=30,min_len_m=3,max_len_m=12",
+                "--seed0",
+                "1000",
+                "--seeds",
+                "2",
+                "--variants",
+                "mtte",
+                "--out",
+            ])
+            .arg(dir.path()),
+    );
+    assert!(
+        text.contains("distance segments of 3-12 m") && text.contains("from 30 km/h"),
+        "{text}"
+    );
+    let csv = std::fs::read_to_string(dir.path().join("scenarios.csv")).unwrap();
+    let mut covered = std::collections::HashMap::<String, f64>::new();
+    for r in csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect::<Vec<_>>())
+    {
+        let len: f64 = r[3].parse().unwrap();
+        assert!((3.0..=12.0).contains(&len), "{r:?}");
+        *covered.entry(r[0].to_owned()).or_default() += len;
+    }
+    // 30 km/h for 2.4 s is 20 m; the recipe covers 1.5 x that + 12 m.
+    assert!(covered.values().all(|&m| m >= 42.0), "{covered:?}");
+    // the runs start at 30 km/h: every final speed is above it
+    let summary = std::fs::read_to_string(dir.path().join("summary.csv")).unwrap();
+    let mut lines = summary.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = head.iter().position(|c| *c == "final_speed_kmh").unwrap();
+    for l in lines {
+        let v: f64 = l.split(',').nth(col).unwrap().parse().unwrap();
+        assert!(v > 30.0, "{l}");
+    }
+
+    for (args, says) in [
+        (
+            vec!["--scenario", "random", "--random", "speed=30"],
+            "`random.speed`: unknown key",
+        ),
+        (
+            vec!["--scenario", "random", "--random", "v0_kmh=-5"],
+            "`random.v0_kmh`: must be in",
+        ),
+        (
+            vec!["--scenario", "paper", "--random", "v0_kmh=30"],
+            "the scenario here is `paper`",
+        ),
+    ] {
+        let out = grip()
+            .arg("sim")
+            .args(&args)
+            .args(["--seeds", "1"])
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+}

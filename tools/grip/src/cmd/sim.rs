@@ -59,6 +59,13 @@ pub struct Args {
     /// scenarios.csv with --out.
     #[arg(long, default_value = "paper")]
     scenario: String,
+    /// With `--scenario random`: the recipe's values to change,
+    /// KEY=VALUE,... with KEY one of v0_kmh, torque, min_len_m, max_len_m,
+    /// cover_m, duration (e.g. v0_kmh=30,min_len_m=3,max_len_m=12: the same
+    /// roads drawn at 30 km/h in longer segments). Seeds keep their road
+    /// sequence only with the default lengths.
+    #[arg(long, value_name = "KEY=VALUE,...")]
+    random: Option<String>,
     /// Number of seeds per variant.
     #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=100_000))]
     seeds: u64,
@@ -174,6 +181,7 @@ pub fn load(
     arte_config: Option<&Path>,
     vehicle: Option<&Path>,
     seeds: &[u64],
+    spec: &RandomSpec,
 ) -> anyhow::Result<Loaded> {
     let dir = ConfigDir::new(config_dir);
     let (vehicle, sensors) = match vehicle {
@@ -182,7 +190,6 @@ pub fn load(
     };
     let roads = dir.roads()?;
     let random = scenario == RANDOM;
-    let spec = RandomSpec::default();
     let scenario_path = if random {
         PathBuf::from(RANDOM)
     } else {
@@ -236,12 +243,21 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
                 .context("--seed0 + --seeds overflows u64")
         })
         .collect::<anyhow::Result<_>>()?;
+    let spec = match &args.random {
+        Some(_) if args.scenario != RANDOM => anyhow::bail!(
+            "--random changes the recipe of `--scenario random`; the scenario here is `{}`",
+            args.scenario
+        ),
+        Some(text) => RandomSpec::parse(text).map_err(|e| anyhow::anyhow!("--random: {e}"))?,
+        None => RandomSpec::default(),
+    };
     let mut loaded = load(
         &ctx.config_dir,
         &args.scenario,
         args.arte_config.as_deref(),
         args.vehicle.as_deref(),
         &seeds,
+        &spec,
     )?;
     if let Some(h) = args.max_substep {
         loaded.setup.set_max_substep(h).context("--max-substep")?;
@@ -373,10 +389,9 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     let description = if per_seed.is_empty() {
         sc.description.clone()
     } else {
-        let spec = RandomSpec::default();
         let mut d = format!(
-            "one random road sequence per seed (sub-seed stream {SCENARIO_STREAM}): distance segments of {}-{} m from the roads with a sound, constant {} N m from {} km/h, {} s:",
-            spec.min_len_m, spec.max_len_m, spec.torque, spec.v0_kmh, spec.duration
+            "one random road sequence per seed (sub-seed stream {SCENARIO_STREAM}): {}:",
+            spec.describe()
         );
         for (seed, s) in per_seed {
             d.push_str(&format!(
@@ -446,6 +461,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
                         args.arte_config.as_deref(),
                         Some(v),
                         &seeds[..1],
+                        &spec,
                     )?;
                     let other_setup = other
                         .per_seed
