@@ -142,8 +142,7 @@ impl RandomSpec {
             }
         }
         if !seen.contains(&"cover_m") && (seen.contains(&"v0_kmh") || seen.contains(&"duration")) {
-            let travel = spec.v0_kmh / 3.6 * spec.duration;
-            spec.cover_m = spec.cover_m.max((1.5 * travel + 12.0).ceil());
+            spec = spec.covering_travel();
         }
         if spec.max_len_m < spec.min_len_m {
             return Err(SimError::invalid(
@@ -155,6 +154,18 @@ impl RandomSpec {
             ));
         }
         Ok(spec)
+    }
+
+    /// This recipe with `cover_m` raised to at least 1.5 times the distance
+    /// the initial speed alone travels in `duration`, plus 12 m (never
+    /// lowered: the default's 24 m stays), so a faster or longer run still
+    /// meets road changes to its end.
+    pub fn covering_travel(self) -> RandomSpec {
+        let travel = self.v0_kmh / 3.6 * self.duration;
+        RandomSpec {
+            cover_m: self.cover_m.max((1.5 * travel + 12.0).ceil()),
+            ..self
+        }
     }
 
     /// One line: the recipe's values, as the report prints them.
@@ -280,6 +291,10 @@ mod tests {
         assert_eq!(s.cover_m, 30.0);
         // the default's speed and duration stay at the default's cover
         assert_eq!(RandomSpec::parse("v0_kmh=10").unwrap().cover_m, 24.0);
+        assert_eq!(
+            RandomSpec::default().covering_travel(),
+            RandomSpec::default()
+        );
     }
 
     #[test]

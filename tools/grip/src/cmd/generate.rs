@@ -335,7 +335,8 @@ fn write_scenario(dir: &Path, s: &LogSpec) -> anyhow::Result<String> {
             v0_kmh: s.v0_kmh.unwrap_or(10.0),
             torque: s.torque.unwrap_or(300.0),
             ..grip_sim::random::RandomSpec::default()
-        };
+        }
+        .covering_travel();
         let sc = spec
             .scenario(s.seed, &roads)
             .map_err(|e| anyhow::anyhow!("--scenario random (seed {}): {e}", s.seed))?;
