@@ -73,20 +73,30 @@ pub fn sounding_roads(roads: &RoadCatalogue) -> Vec<usize> {
         .collect()
 }
 
+/// One field `RandomSpec::parse` sets: its name, the range it accepts, and
+/// the field.
+type SpecField = (&'static str, f64, f64, fn(&mut RandomSpec) -> &mut f64);
+
 impl RandomSpec {
-    /// The field names [`RandomSpec::parse`] takes, as in the struct.
-    pub const KEYS: [&'static str; 6] = [
-        "v0_kmh",
-        "torque",
-        "min_len_m",
-        "max_len_m",
-        "cover_m",
-        "duration",
+    /// The fields [`RandomSpec::parse`] sets: name as in the struct, the
+    /// range it accepts, and the field itself.
+    const FIELDS: [SpecField; 6] = [
+        ("v0_kmh", 0.0, 200.0, |s| &mut s.v0_kmh),
+        ("torque", 0.0, 10_000.0, |s| &mut s.torque),
+        ("min_len_m", 0.01, 10_000.0, |s| &mut s.min_len_m),
+        ("max_len_m", 0.01, 10_000.0, |s| &mut s.max_len_m),
+        ("cover_m", 0.01, 10_000.0, |s| &mut s.cover_m),
+        ("duration", 0.01, 600.0, |s| &mut s.duration),
     ];
+
+    /// The keys [`RandomSpec::parse`] takes, as in the struct.
+    pub fn keys() -> String {
+        Self::FIELDS.map(|f| f.0).join(", ")
+    }
 
     /// `KEY=VALUE[,KEY=VALUE...]` (`grip sim --random`) on top of the
     /// default recipe, e.g. `v0_kmh=30,min_len_m=3,max_len_m=12`. Each key is
-    /// a field of this struct ([`RandomSpec::KEYS`]) and may appear once.
+    /// a field of this struct ([`RandomSpec::keys`]) and may appear once.
     /// When `v0_kmh` or `duration` is set and `cover_m` is not, the segments
     /// cover at least 1.5 times the distance the run's initial speed alone
     /// would travel plus 12 m (the default's 24 m at least), so a faster or
@@ -99,18 +109,15 @@ impl RandomSpec {
             let Some((key, value)) = item.split_once('=') else {
                 return Err(SimError::invalid(
                     "random",
-                    format!(
-                        "`{item}` is not KEY=VALUE (keys: {})",
-                        Self::KEYS.join(", ")
-                    ),
+                    format!("`{item}` is not KEY=VALUE (keys: {})", Self::keys()),
                 ));
             };
             let key = key.trim();
             let field = format!("random.{key}");
-            let Some(&name) = Self::KEYS.iter().find(|k| **k == key) else {
+            let Some(&(name, lo, hi, slot)) = Self::FIELDS.iter().find(|f| f.0 == key) else {
                 return Err(SimError::invalid(
                     field,
-                    format!("unknown key (keys: {})", Self::KEYS.join(", ")),
+                    format!("unknown key (keys: {})", Self::keys()),
                 ));
             };
             if seen.contains(&name) {
@@ -120,26 +127,13 @@ impl RandomSpec {
             let v: f64 = value.trim().parse().map_err(|_| {
                 SimError::invalid(&field, format!("`{}` is not a number", value.trim()))
             })?;
-            let (lo, hi) = match name {
-                "v0_kmh" => (0.0, 200.0),
-                "torque" => (0.0, 10_000.0),
-                "duration" => (0.01, 600.0),
-                _ => (0.01, 10_000.0),
-            };
             if !(v.is_finite() && (lo..=hi).contains(&v)) {
                 return Err(SimError::invalid(
                     field,
                     format!("must be in {lo}..={hi} (got {v})"),
                 ));
             }
-            match name {
-                "v0_kmh" => spec.v0_kmh = v,
-                "torque" => spec.torque = v,
-                "min_len_m" => spec.min_len_m = v,
-                "max_len_m" => spec.max_len_m = v,
-                "cover_m" => spec.cover_m = v,
-                _ => spec.duration = v,
-            }
+            *slot(&mut spec) = v;
         }
         if !seen.contains(&"cover_m") && (seen.contains(&"v0_kmh") || seen.contains(&"duration")) {
             spec = spec.covering_travel();
