@@ -98,6 +98,18 @@ pub struct PreviewParams {
     /// older drive logs' attached configuration still loads and replays).
     #[serde(default)]
     pub approach_floor: f64,
+    /// How far a previewed drop may dip under its target, as a share of
+    /// the drop itself (>= 0): the constant command never goes below
+    /// `target − approach_dip · (T − target)` either (T: what the motor has
+    /// or the driver asks, the higher), whichever of the two bounds is
+    /// higher. A bound in proportion to the drop starts every drop it
+    /// shapes the same `tau_m ln((1 + d) / d)` ahead, and moves the command
+    /// at most `1 + 2 d` times the drop, so a small drop (200 N m onto
+    /// snow's 183) is not shaped as deep as a large one. Absent from a
+    /// file: no such bound (the drop before this field existed, so that
+    /// older drive logs still replay).
+    #[serde(default)]
+    pub approach_dip: Option<f64>,
     /// When a spinning wheel's cut ends, [0, 2]: the cut to `recover_share`
     /// ends once the wheel's excess angular momentum over the road's peak
     /// slip, `J_w ω (λ − λ_opt) / (1 − λ_opt)`, is no more than this share
@@ -169,6 +181,7 @@ impl Default for PreviewParams {
             release_slip_share: 0.7,
             release_s: 0.02,
             approach_floor: 0.7,
+            approach_dip: Some(0.5),
             recover_landing: 0.5,
             mfc: PreviewTrade::default(),
             src: PreviewTrade {
@@ -193,6 +206,9 @@ impl PreviewParams {
         in_range("release_slip_share", self.release_slip_share, 0.0, 1.0)?;
         in_range("release_s", self.release_s, 0.0, 10.0)?;
         in_range("approach_floor", self.approach_floor, 0.0, 0.99)?;
+        if let Some(d) = self.approach_dip {
+            in_range("approach_dip", d, 1e-3, 100.0)?;
+        }
         in_range("recover_landing", self.recover_landing, 0.0, 2.0)?;
         if self.min_hits == 0 {
             return Err(InvalidField::new("min_hits", "must be >= 1 (got 0)"));
@@ -389,10 +405,11 @@ impl RoadAware {
     /// The command that brings the motor torque (first-order lag `tau_m`)
     /// from `torque` down to `target` by the time the wheel arrives in
     /// `t_arrive` s: full freedom (no cap) until the drop no longer fits
-    /// (with the constant command `approach_floor · target`, a zero command
-    /// by default: `tau_m ln((torque - f target) / ((1 - f) target))` plus
-    /// the margin); then the constant command that reaches `target` at
-    /// arrival, and `target` itself from arrival on.
+    /// (with the constant command at the floor F, the higher of
+    /// `approach_floor · target` and `target − approach_dip · (T − target)`:
+    /// `tau_m ln((T − F) / (target − F))` plus the margin, T the higher of
+    /// the motor's torque and the demand); then the constant command that
+    /// reaches `target` at arrival, and `target` itself from arrival on.
     fn approach(&self, torque: f64, demand: f64, target: f64, t_arrive: f64) -> f64 {
         if self.tau_m <= 0.0 {
             return if t_arrive <= self.p.lag_margin_s {
@@ -405,7 +422,12 @@ impl RoadAware {
         // driver asks for.
         let high = torque.max(demand);
         let target_pos = target.max(1e-9);
-        let floor = self.p.approach_floor * target_pos;
+        let floor = match self.p.approach_dip {
+            Some(d) => {
+                (target_pos - d * (high - target_pos)).max(self.p.approach_floor * target_pos)
+            }
+            None => self.p.approach_floor * target_pos,
+        };
         let t_drop = if high > target {
             self.tau_m * ((high - floor) / (target_pos - floor)).ln()
         } else {
@@ -728,14 +750,19 @@ mod tests {
     /// motor (τ_m = 50 ms, 1 ms steps), arriving in 0.5 s: the commands, the
     /// motor torque at arrival and the first capped cycle.
     fn drop_to(a: &RoadAware, target: f64) -> (Vec<f64>, f64, usize) {
+        drop_from(a, 300.0, target)
+    }
+
+    /// [`drop_to`] from a demand of `demand` N m.
+    fn drop_from(a: &RoadAware, demand: f64, target: f64) -> (Vec<f64>, f64, usize) {
         let (dt, tau) = (1e-3, a.tau_m);
-        let mut torque = 300.0;
+        let mut torque = demand;
         let mut cmds = Vec::new();
         let mut first = usize::MAX;
         for k in 0..500 {
             let t_arrive = 0.5 - k as f64 * dt;
-            let cmd = a.approach(torque, 300.0, target, t_arrive).min(300.0);
-            if cmd < 300.0 && first == usize::MAX {
+            let cmd = a.approach(torque, demand, target, t_arrive).min(demand);
+            if cmd < demand && first == usize::MAX {
                 first = k;
             }
             cmds.push(cmd);
@@ -751,6 +778,7 @@ mod tests {
         // The latest drop: a zero command, then the target.
         let mut fast = aware(2.77);
         fast.p.approach_floor = 0.0;
+        fast.p.approach_dip = None;
         let (cmds, at, first_fast) = drop_to(&fast, target);
         assert!(cmds.contains(&0.0), "a zero command");
         assert!((at - target).abs() < 3.0, "arrives at {at}");
@@ -759,6 +787,7 @@ mod tests {
         // the target, and the motor still arrives at the cap.
         let mut smooth = aware(2.77);
         smooth.p.approach_floor = 0.5;
+        smooth.p.approach_dip = None;
         let (cmds, at, first) = drop_to(&smooth, target);
         assert!(first < first_fast, "earlier: {first} vs {first_fast}");
         let lowest = cmds.iter().copied().fold(f64::INFINITY, f64::min);
@@ -768,6 +797,49 @@ mod tests {
             tv(&cmds) < (300.0 - target) + 1.1 * target,
             "down to half the cap and up: {}",
             tv(&cmds)
+        );
+    }
+
+    #[test]
+    fn an_approach_dip_shapes_a_small_drop_shallow_and_leaves_a_large_one_alone() {
+        let target = 183.0;
+        let tv = |c: &[f64], from: f64| {
+            c.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f64>() + from - c[0]
+        };
+        let mut floor_only = aware(2.77);
+        floor_only.p.approach_floor = 0.7;
+        floor_only.p.approach_dip = None;
+        let mut dip = aware(2.77);
+        dip.p.approach_floor = 0.7;
+        dip.p.approach_dip = Some(0.5);
+        // 200 N m onto snow's cap (a 17 N m drop): the floor alone dips to
+        // 0.7 of the cap, 72 N m down and 55 back up; the dip bound keeps
+        // the command within half the drop of the cap, started earlier.
+        let (deep, at_deep, first_deep) = drop_from(&floor_only, 200.0, target);
+        let (shallow, at, first) = drop_from(&dip, 200.0, target);
+        let lowest = shallow.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(lowest >= target - 0.5 * 17.0 - 1e-6, "lowest {lowest}");
+        assert!(
+            deep.iter().copied().fold(f64::INFINITY, f64::min) < 0.71 * target,
+            "the floor alone goes deep"
+        );
+        assert!(first < first_deep, "earlier: {first} vs {first_deep}");
+        assert!((at - target).abs() < 0.03 * target, "arrives at {at}");
+        assert!(
+            (at_deep - target).abs() < 0.03 * target,
+            "arrives at {at_deep}"
+        );
+        assert!(
+            tv(&shallow, 200.0) <= 2.0 * 17.0 + 1e-6,
+            "tv {}",
+            tv(&shallow, 200.0)
+        );
+        assert!(tv(&deep, 200.0) > 100.0, "tv {}", tv(&deep, 200.0));
+        // 300 N m onto the same cap: the floor (128 N m) is above the dip
+        // bound (124.5 N m), so the drop is the floor's, command for command.
+        assert_eq!(
+            drop_from(&dip, 300.0, target),
+            drop_from(&floor_only, 300.0, target)
         );
     }
 
