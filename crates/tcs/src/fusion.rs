@@ -74,6 +74,16 @@ pub struct FusionParams {
     /// so that older drive logs still replay).
     #[serde(default)]
     pub tau_slip_s: f64,
+    /// Speed below which a cycle adds no evidence, m/s: the slip's
+    /// denominator, the faster of the wheel's rim speed and the car's, must
+    /// reach it (none below, full from twice it, linear in between). The
+    /// slip's noise grows as one over that speed (at 0.2 m/s, pulling away,
+    /// the speed sensors' few cm/s are tens of per cent of slip), and
+    /// where a noisy slip lands only ice's flat curve fits; a wheel that
+    /// spins is fast and still counts. Absent from a file: 0 (no such
+    /// gate; older drive logs replay as recorded).
+    #[serde(default)]
+    pub min_speed_evidence: f64,
 }
 
 impl Default for FusionParams {
@@ -88,6 +98,7 @@ impl Default for FusionParams {
             max_evidence: 10.0,
             min_slip_evidence: 0.02,
             tau_slip_s: 0.002,
+            min_speed_evidence: 1.2,
         }
     }
 }
@@ -102,6 +113,7 @@ impl FusionParams {
         positive("sigma_mu", self.sigma_mu)?;
         in_range("sigma_lambda", self.sigma_lambda, 0.0, 1.0)?;
         in_range("tau_slip_s", self.tau_slip_s, 0.0, 10.0)?;
+        in_range("min_speed_evidence", self.min_speed_evidence, 0.0, 100.0)?;
         in_range(
             "max_acoustic_confidence",
             self.max_acoustic_confidence,
@@ -209,12 +221,13 @@ impl RoadBelief {
         for e in &mut self.evidence[..self.n] {
             *e *= self.decay;
         }
-        let lambda = match m.v {
+        let (lambda, speed) = match m.v {
             Some(v) if v.is_finite() && m.omega.is_finite() => {
                 let rw = self.r * m.omega;
-                (rw - v) / rw.max(v).max(self.v_eps)
+                let speed = rw.abs().max(v.abs());
+                ((rw - v) / rw.max(v).max(self.v_eps), speed)
             }
-            _ => f64::NAN,
+            _ => (f64::NAN, f64::NAN),
         };
         self.lambda = lambda;
         // The slip the curves are asked about: through the same kind of
@@ -249,6 +262,13 @@ impl RoadBelief {
             ((lambda.abs() - 0.5 * floor) / (0.5 * floor)).clamp(0.0, 1.0)
         } else {
             1.0
+        };
+        // Too slow for the slip to mean anything (pulling away): none.
+        let v_min = self.p.min_speed_evidence;
+        let excite = if v_min > 0.0 {
+            excite * ((speed - v_min) / v_min).clamp(0.0, 1.0)
+        } else {
+            excite
         };
         if self.cycles > self.warm_up && lambda.is_finite() && excite > 0.0 && mu_hat.is_finite() {
             let s2l = self.p.sigma_lambda * self.p.sigma_lambda;
@@ -481,6 +501,44 @@ mod tests {
         let (mean, max) = ice_on_stone_held_at_ice_s_limit(tau);
         assert!(mean < 0.6, "filtered slip: ice at {mean} on average");
         assert!(max < 0.7, "filtered slip: ice at up to {max}");
+    }
+
+    /// Pulling away from rest on asphalt at about 0.2 m/s with a little
+    /// torque (μ̂ 0.05), the measured slip noisy by ±0.3 (a few cm/s of
+    /// speed noise over a slip denominator of 0.2 m/s): the belief over
+    /// asphalt, snow and ice after 0.3 s, with the speed gate
+    /// `min_speed_evidence` (m/s).
+    fn pulling_away(min_speed_evidence: f64, rim_speed: f64) -> (usize, f64) {
+        let p = FusionParams {
+            min_speed_evidence,
+            ..FusionParams::default()
+        };
+        let v = VehicleParams::default();
+        let mut b = RoadBelief::new(&roads(), &v, p, 1e-3).unwrap();
+        let torque = 0.05 * v.normal_force() * v.r;
+        for k in 0..300u32 {
+            let jitter = if k.is_multiple_of(2) { 0.06 } else { -0.02 };
+            b.step(&Measurement {
+                t: f64::from(k) * 1e-3,
+                omega: (rim_speed + jitter) / v.r,
+                v: Some(0.2),
+                torque,
+                demand: 220.0,
+            });
+        }
+        b.best()
+    }
+
+    #[test]
+    fn pulling_away_from_rest_adds_no_evidence_but_a_spinning_wheel_does() {
+        // Without the gate the noise, filtered or not, makes it ice.
+        assert_eq!(pulling_away(0.0, 0.2).0, 2, "no gate: ice");
+        // With it: under 1 m/s no evidence, the uniform prior stands.
+        let (_, p) = pulling_away(1.0, 0.2);
+        assert!((p - 1.0 / 3.0).abs() < 1e-9, "gate: {p}");
+        // A wheel spinning at 3 m/s rim speed with the car at 0.2 m/s (slip
+        // 0.93, a transmitted μ of 0.05): fast enough to count, and ice.
+        assert_eq!(pulling_away(1.0, 3.0).0, 2, "a spinning wheel counts");
     }
 
     #[test]
