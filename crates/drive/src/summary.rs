@@ -208,6 +208,9 @@ pub struct PreviewEvent {
     /// How long (s) and how far (m) before the wheel arrived the command
     /// was continuously at or below `limit` (None: it was not at arrival).
     pub ahead: Option<(f64, f64)>,
+    /// The command was at or below `limit` from the drive's first cycle on
+    /// (`ahead` then counts from there: the road change needed no drop).
+    pub ahead_since_start: bool,
     /// Command and motor torque when the wheel arrived, N m.
     pub cmd_at_arrival: f64,
     /// Motor torque (truth) at arrival, N m.
@@ -254,10 +257,17 @@ fn preview_events(
             continue;
         };
         let mut since: Option<u64> = None;
+        // Whether the scan got back to the drive's start (the cycles before
+        // its window, start-up, are not counted).
+        let mut reached_start = true;
         for c in log.cycles[..upto].iter().rev() {
+            if c.stamp_ns < start_ns {
+                break;
+            }
             if c.safe_state == 0 && c.torque_cmd <= limit + LIMIT_TOL_NM {
                 since = Some(c.stamp_ns);
             } else {
+                reached_start = false;
                 break;
             }
         }
@@ -277,6 +287,7 @@ fn preview_events(
             to: rb.name().to_owned(),
             limit,
             ahead,
+            ahead_since_start: since.is_some() && reached_start,
             cmd_at_arrival: at.torque_cmd,
             torque_at_arrival: b.torque,
             max_slip_after,
@@ -293,6 +304,9 @@ impl PreviewEvent {
             self.from, self.to, self.t, self.x, self.limit
         );
         let capped = match self.ahead {
+            Some((s, m)) if self.ahead_since_start => format!(
+                "command at or below it since the drive began ({s:.3} s / {m:.2} m before the wheel arrived: no drop needed)"
+            ),
             Some((s, m)) => {
                 format!("command at or below it from {s:.3} s / {m:.2} m before the wheel arrived")
             }
@@ -1070,6 +1084,22 @@ mod tests {
         let q = &off.preview.as_ref().unwrap()[0];
         assert_eq!(q.ahead, None);
         assert!((q.max_slip_after - 0.3).abs() < 1e-12);
+        assert!(!e.ahead_since_start);
+        // A command under snow's limit from the first cycle on (the driver
+        // asks less than snow carries): no drop was needed, and the report
+        // says so instead of a lead longer than the drive.
+        let mut low = make(true);
+        for c in &mut low.cycles {
+            c.torque_cmd = limit - 1.0;
+        }
+        let l = summarize(&low, &v, "test", Some(&roads));
+        let e = &l.preview.as_ref().unwrap()[0];
+        assert!(e.ahead_since_start, "{e:?}");
+        assert!(
+            l.render().contains("since the drive began"),
+            "{}",
+            l.render()
+        );
         let c = compare(&s, &off);
         assert!(c.contains("A / B"), "{c}");
         assert!(c.contains("NOT at or below"), "{c}");
