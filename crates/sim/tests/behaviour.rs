@@ -187,23 +187,18 @@ fn mfc_arte_pulls_away_from_rest_without_believing_ice() {
     let setup = base.with_scenario(scenario).unwrap();
     let ice = setup.roads().index_of("ice").unwrap() as u32;
     let asphalt = setup.roads().index_of("asphalt").unwrap() as u32;
+    let mfc = |arte: bool, seed: u64| {
+        let mut e = est.clone();
+        grip_sim::run(
+            &setup,
+            Variant::new(ControllerKind::Mfc, arte),
+            seed,
+            &mut e,
+        )
+        .unwrap()
+    };
     for seed in 1..=3u64 {
-        let mut e = est.clone();
-        let with = grip_sim::run(
-            &setup,
-            Variant::new(ControllerKind::Mfc, true),
-            seed,
-            &mut e,
-        )
-        .unwrap();
-        let mut e = est.clone();
-        let without = grip_sim::run(
-            &setup,
-            Variant::new(ControllerKind::Mfc, false),
-            seed,
-            &mut e,
-        )
-        .unwrap();
+        let (with, without) = (mfc(true, seed), mfc(false, seed));
         let tr = with.trace.unwrap();
         let on_ice = (0..tr.t.len())
             .filter(|&k| {
