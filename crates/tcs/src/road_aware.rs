@@ -99,7 +99,7 @@ pub struct PreviewParams {
     #[serde(default)]
     pub approach_floor: f64,
     /// How far a previewed drop may dip under its target, as a share of
-    /// the drop itself (>= 0): the constant command never goes below
+    /// the drop itself (0.001-100): the constant command never goes below
     /// `target − approach_dip · (T − target)` either (T: what the motor has
     /// or the driver asks, the higher), whichever of the two bounds is
     /// higher. A bound in proportion to the drop starts every drop it
