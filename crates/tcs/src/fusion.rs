@@ -380,24 +380,22 @@ mod tests {
     }
 
     fn belief() -> RoadBelief {
-        RoadBelief::new(
-            &roads(),
-            &VehicleParams::default(),
-            FusionParams::default(),
-            1e-3,
-        )
-        .unwrap()
+        belief_with(FusionParams::default())
+    }
+
+    /// A belief over [`roads`] with `p`, at 1 kHz.
+    fn belief_with(p: FusionParams) -> RoadBelief {
+        RoadBelief::new(&roads(), &VehicleParams::default(), p, 1e-3).unwrap()
     }
 
     /// [`belief`] comparing the raw slip with the curves (`tau_slip_s` 0):
     /// for the gates' tests, whose ±3 % cycle-to-cycle jitter the slip
     /// filter alone would already average away.
     fn belief_raw_slip() -> RoadBelief {
-        let p = FusionParams {
+        belief_with(FusionParams {
             tau_slip_s: 0.0,
             ..FusionParams::default()
-        };
-        RoadBelief::new(&roads(), &VehicleParams::default(), p, 1e-3).unwrap()
+        })
     }
 
     #[test]
@@ -452,15 +450,12 @@ mod tests {
         let stone = Road::burckhardt("stone", 1.3713, 6.4565, 0.6691).unwrap();
         let speed = 2.78;
         let torque = 0.05 * v.normal_force() * v.r;
-        let (mut lo, mut hi) = (0.0, 0.2);
-        for _ in 0..50 {
-            let mid = 0.5 * (lo + hi);
-            if stone.mu(mid) < 0.05 {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
+        let lo = crate::road_aware::slip_at_share(
+            |l| stone.mu(l),
+            stone.lambda_opt(),
+            stone.mu_peak(),
+            0.05 / stone.mu_peak(),
+        );
         assert!((0.005..0.008).contains(&lo), "stone carries 0.05 at {lo}");
         let mut seed: u64 = 12345;
         let (mut sum, mut max) = (0.0, 0.0_f64);
@@ -509,12 +504,11 @@ mod tests {
     /// asphalt, snow and ice after 0.3 s, with the speed gate
     /// `min_speed_evidence` (m/s).
     fn pulling_away(min_speed_evidence: f64, rim_speed: f64) -> (usize, f64) {
-        let p = FusionParams {
+        let v = VehicleParams::default();
+        let mut b = belief_with(FusionParams {
             min_speed_evidence,
             ..FusionParams::default()
-        };
-        let v = VehicleParams::default();
-        let mut b = RoadBelief::new(&roads(), &v, p, 1e-3).unwrap();
+        });
         let torque = 0.05 * v.normal_force() * v.r;
         for k in 0..300u32 {
             let jitter = if k.is_multiple_of(2) { 0.06 } else { -0.02 };

@@ -422,12 +422,10 @@ impl RoadAware {
         // driver asks for.
         let high = torque.max(demand);
         let target_pos = target.max(1e-9);
-        let floor = match self.p.approach_dip {
-            Some(d) => {
-                (target_pos - d * (high - target_pos)).max(self.p.approach_floor * target_pos)
-            }
-            None => self.p.approach_floor * target_pos,
-        };
+        let share_floor = self.p.approach_floor * target_pos;
+        let floor = self.p.approach_dip.map_or(share_floor, |d| {
+            (target_pos - d * (high - target_pos)).max(share_floor)
+        });
         let t_drop = if high > target {
             self.tau_m * ((high - floor) / (target_pos - floor)).ln()
         } else {
@@ -625,7 +623,12 @@ pub fn odometer_speed(v: Option<f64>, omega: f64, r: f64) -> f64 {
 
 /// The slip in (0, λ_opt] where `mu` reaches `share · mu_peak` (bisection;
 /// λ_opt when the share is 1 or the curve is odd).
-fn slip_at_share(mu: impl Fn(f64) -> f64, lambda_opt: f64, mu_peak: f64, share: f64) -> f64 {
+pub(crate) fn slip_at_share(
+    mu: impl Fn(f64) -> f64,
+    lambda_opt: f64,
+    mu_peak: f64,
+    share: f64,
+) -> f64 {
     if !(lambda_opt > 0.0 && mu_peak > 0.0 && share < 1.0) {
         return lambda_opt;
     }
@@ -771,10 +774,14 @@ mod tests {
         (cmds, torque, first)
     }
 
+    /// Total variation of the commands `c` of a drop from `from` N m.
+    fn tv(c: &[f64], from: f64) -> f64 {
+        c.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f64>() + from - c[0]
+    }
+
     #[test]
     fn an_approach_floor_starts_the_drop_earlier_and_still_arrives_at_the_cap() {
         let target = 183.0;
-        let tv = |c: &[f64]| c.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f64>() + 300.0 - c[0];
         // The latest drop: a zero command, then the target.
         let mut fast = aware(2.77);
         fast.p.approach_floor = 0.0;
@@ -782,7 +789,11 @@ mod tests {
         let (cmds, at, first_fast) = drop_to(&fast, target);
         assert!(cmds.contains(&0.0), "a zero command");
         assert!((at - target).abs() < 3.0, "arrives at {at}");
-        assert!(tv(&cmds) > 2.0 * target, "down to 0 and up: {}", tv(&cmds));
+        assert!(
+            tv(&cmds, 300.0) > 2.0 * target,
+            "down to 0 and up: {}",
+            tv(&cmds, 300.0)
+        );
         // With approach_floor 0.5 the drop starts earlier, never below half
         // the target, and the motor still arrives at the cap.
         let mut smooth = aware(2.77);
@@ -794,18 +805,15 @@ mod tests {
         assert!(lowest > 0.49 * target, "never below half the cap: {lowest}");
         assert!((at - target).abs() < 3.0, "arrives at {at}");
         assert!(
-            tv(&cmds) < (300.0 - target) + 1.1 * target,
+            tv(&cmds, 300.0) < (300.0 - target) + 1.1 * target,
             "down to half the cap and up: {}",
-            tv(&cmds)
+            tv(&cmds, 300.0)
         );
     }
 
     #[test]
     fn an_approach_dip_shapes_a_small_drop_shallow_and_leaves_a_large_one_alone() {
         let target = 183.0;
-        let tv = |c: &[f64], from: f64| {
-            c.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f64>() + from - c[0]
-        };
         let mut floor_only = aware(2.77);
         floor_only.p.approach_floor = 0.7;
         floor_only.p.approach_dip = None;
