@@ -158,26 +158,15 @@ fn a_setup_per_seed_gives_what_each_seed_alone_gives() {
 /// variant may act on an ice belief on roads without ice.
 #[test]
 fn slip_noise_at_a_launch_does_not_make_a_road_ice() {
-    let dir = ConfigDir::new(common::config_dir());
+    let (base, est) = common::reference();
     let (vehicle, sensors) =
         grip_config::load_vehicle(common::config_dir().join("vehicles/front-mic.toml")).unwrap();
-    let roads = dir.roads().unwrap();
-    let knowledge = dir.knowledge(&roads).unwrap();
-    let (controllers, arte) = common::controllers_and_arte();
-    let est = grip_sim::ConfusionArte::new(&arte.confusion, &roads).unwrap();
-    let ice = roads.index_of("ice").unwrap() as u32;
+    let front_mic = base.with_vehicle(vehicle, sensors).unwrap();
+    let ice = front_mic.roads().index_of("ice").unwrap() as u32;
     let spec = RandomSpec::parse("torque=200").unwrap().covering_travel();
     for seed in [5u64, 15] {
-        let scenario = spec.scenario(seed, &roads).unwrap();
-        let setup = SimSetup::new(
-            vehicle,
-            sensors,
-            roads.clone(),
-            scenario,
-            controllers,
-            &knowledge,
-        )
-        .unwrap();
+        let scenario = spec.scenario(seed, front_mic.roads()).unwrap();
+        let setup = front_mic.with_scenario(scenario).unwrap();
         for kind in grip_tcs::ControllerKind::ALL {
             let mut e = est.clone();
             let r = grip_sim::run(&setup, Variant::new(kind, true), seed, &mut e).unwrap();
