@@ -104,6 +104,42 @@ impl Default for FusionParams {
 }
 
 impl FusionParams {
+    /// How much of one cycle's slip evidence counts, in [0, 1]: the product
+    /// of three gates, each a linear ramp (a step would make the closed
+    /// loop's result jump with it). Non-finite `lambda` or `speed` give NaN,
+    /// which the caller treats as no evidence.
+    ///
+    /// - **Demand.** A wheel the driver asks nothing of rolls freely: at
+    ///   λ ≈ 0 every curve passes through μ = 0, so its slip "evidence" is
+    ///   sensor noise (measured in a live drive: 1 s of rolling at 0 N m
+    ///   before the pedal took the belief to ice at 0.98, and the ice cap
+    ///   then held the wheel on asphalt where it could show nothing else).
+    ///   None without a demand; what there is fades.
+    /// - **Slip floor.** None below half of `min_slip_evidence`, full from
+    ///   it: every curve fits a small slip, where a jittery μ̂ must not
+    ///   decide the road.
+    /// - **Speed.** None while the slip's denominator, `speed` (the faster
+    ///   of rim speed and car speed, m/s), is under `min_speed_evidence`,
+    ///   full from twice it: pulling away from rest the slip is mostly
+    ///   sensor noise.
+    pub fn evidence_weight(&self, demanded: bool, lambda: f64, speed: f64) -> f64 {
+        if !demanded {
+            return 0.0;
+        }
+        let floor = self.min_slip_evidence;
+        let slip = if floor > 0.0 {
+            ((lambda.abs() - 0.5 * floor) / (0.5 * floor)).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        let v_min = self.min_speed_evidence;
+        if v_min > 0.0 {
+            slip * ((speed - v_min) / v_min).clamp(0.0, 1.0)
+        } else {
+            slip
+        }
+    }
+
     /// Ranges (NaN fails).
     pub fn validate(&self) -> Result<(), grip_physics::InvalidField> {
         use crate::params::{in_range, positive};
@@ -247,29 +283,7 @@ impl RoadBelief {
         }
         self.demanded = demanded;
         self.cycles = self.cycles.saturating_add(1);
-        // Evidence fades in linearly between half the slip floor and the
-        // floor (a step would make the closed loop's result jump with it).
-        let floor = self.p.min_slip_evidence;
-        // A wheel the driver asks nothing of rolls freely: at λ ≈ 0 every
-        // curve passes through μ = 0, so its slip "evidence" is sensor noise
-        // (measured in a live drive: 1 s of rolling at 0 N m before the
-        // pedal took the belief to ice at 0.98, and the ice cap then held
-        // the wheel on asphalt where it could show nothing else). No
-        // evidence is added without a demand; what there is fades.
-        let excite = if !demanded {
-            0.0
-        } else if floor > 0.0 {
-            ((lambda.abs() - 0.5 * floor) / (0.5 * floor)).clamp(0.0, 1.0)
-        } else {
-            1.0
-        };
-        // Too slow for the slip to mean anything (pulling away): none.
-        let v_min = self.p.min_speed_evidence;
-        let excite = if v_min > 0.0 {
-            excite * ((speed - v_min) / v_min).clamp(0.0, 1.0)
-        } else {
-            excite
-        };
+        let excite = self.p.evidence_weight(demanded, lambda, speed);
         if self.cycles > self.warm_up && lambda.is_finite() && excite > 0.0 && mu_hat.is_finite() {
             let s2l = self.p.sigma_lambda * self.p.sigma_lambda;
             let s2m = self.p.sigma_mu * self.p.sigma_mu;
@@ -356,6 +370,34 @@ impl RoadBelief {
 mod tests {
     use super::*;
     use grip_physics::Road;
+
+    #[test]
+    fn evidence_weight_is_the_product_of_its_three_ramps() {
+        let p = FusionParams::default(); // slip floor 0.02, speed 1.2 m/s
+        let w = |d, l, v| p.evidence_weight(d, l, v);
+        // Full: a demand, slip at the floor, speed at twice the minimum.
+        assert_eq!(w(true, 0.02, 2.4), 1.0);
+        assert_eq!(w(true, -0.05, 10.0), 1.0);
+        // Each gate alone closes it.
+        assert_eq!(w(false, 0.05, 10.0), 0.0);
+        assert_eq!(w(true, 0.01, 10.0), 0.0);
+        assert_eq!(w(true, 0.05, 1.2), 0.0);
+        // Half-way up each ramp, and both at once multiply.
+        assert!((w(true, 0.015, 10.0) - 0.5).abs() < 1e-12);
+        assert!((w(true, 0.05, 1.8) - 0.5).abs() < 1e-12);
+        assert!((w(true, 0.015, 1.8) - 0.25).abs() < 1e-12);
+        // Non-finite input gives NaN, which the caller skips (no evidence).
+        assert!(w(true, f64::NAN, 10.0).is_nan());
+        assert!(w(true, 0.05, f64::NAN).is_nan());
+        // Gates set to 0 are off: only the demand remains.
+        let off = FusionParams {
+            min_slip_evidence: 0.0,
+            min_speed_evidence: 0.0,
+            ..p
+        };
+        assert_eq!(off.evidence_weight(true, 0.0, 0.0), 1.0);
+        assert_eq!(off.evidence_weight(false, 0.3, 5.0), 0.0);
+    }
 
     fn roads() -> RoadCatalogue {
         RoadCatalogue::burckhardt(&["asphalt", "snow", "ice"]).unwrap()
