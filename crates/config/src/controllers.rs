@@ -46,6 +46,22 @@ mod tests {
     }
 
     #[test]
+    fn a_file_without_the_launch_keys_loads_as_the_papers_law() {
+        // Files (and drive logs) from before `[src] v_launch` and `[mtte]
+        // spin_share`: both 0, the controllers as they were.
+        let text = std::fs::read_to_string(shipped()).unwrap();
+        let old = text
+            .replace("v_launch = 2.0\n", "")
+            .replace("spin_share = 0.1\n", "");
+        let c = parse_controllers(Path::new("controllers.toml"), &old).unwrap();
+        assert_eq!(c.src.v_launch, 0.0);
+        assert_eq!(c.mtte.spin_share, 0.0);
+        let shipped = ControllersConfig::default();
+        assert_eq!(shipped.src.v_launch, 2.0);
+        assert_eq!(shipped.mtte.spin_share, 0.1);
+    }
+
+    #[test]
     fn errors_name_file_field_and_reason() {
         let text = std::fs::read_to_string(shipped()).unwrap();
         let f = Path::new("controllers.toml");
@@ -73,6 +89,16 @@ mod tests {
         let bad = text.replace("tau_noise = 0.004\n", "");
         let e = parse_controllers(f, &bad).unwrap_err();
         assert!(e.reason.contains("missing field `tau_noise`"), "{e}");
+
+        let bad = text.replace("v_launch = 2.0", "v_launch = -1.0");
+        let e = parse_controllers(f, &bad).unwrap_err();
+        assert_eq!(e.field, "src.v_launch", "{e}");
+        assert!(e.reason.contains("[0, 10]"), "{e}");
+
+        let bad = text.replace("spin_share = 0.1", "spin_share = 2.0");
+        let e = parse_controllers(f, &bad).unwrap_err();
+        assert_eq!(e.field, "mtte.spin_share", "{e}");
+        assert!(e.reason.contains("[0, 1]"), "{e}");
 
         let bad = text.replace("rate_hz = 1000.0", "rate_hz = nan");
         let e = parse_controllers(f, &bad).unwrap_err();

@@ -220,3 +220,37 @@ fn mfc_arte_pulls_away_from_rest_without_believing_ice() {
         );
     }
 }
+
+/// The baselines SRC and MTTE pull away from rest with the driver's ramped
+/// pedal (`stop-and-go`: 0 -> 220 N m over 0.3 s, from standstill) and
+/// climb the hill of `incline` (0 -> 400 N m over 1 s from 5 km/h), seeds
+/// 1-2, `config/vehicle.toml`: each ends at no less than 90 % of MFC's
+/// speed. Before the demand's rises passed into SRC's integrator and MTTE's
+/// limit while the wheel grips (and SRC's slip had a launch speed), SRC
+/// ended stop-and-go at 0 km/h (command at most 20 N m) and rolled back on
+/// the hill, MTTE ended stop-and-go at 0.7 km/h (55 N m).
+#[test]
+fn src_and_mtte_pull_away_with_a_ramped_pedal() {
+    let (base, est) = common::reference();
+    let dir = grip_config::ConfigDir::new(common::config_dir());
+    for name in ["stop-and-go", "incline"] {
+        let scenario = dir.scenario_with(name, base.roads()).unwrap();
+        let setup = base.with_scenario(scenario).unwrap();
+        let speed = |kind, seed| {
+            let mut e = est.clone();
+            let r = grip_sim::run(&setup, Variant::new(kind, false), seed, &mut e).unwrap();
+            r.final_state.v * 3.6
+        };
+        for seed in 1..=2u64 {
+            let mfc = speed(ControllerKind::Mfc, seed);
+            assert!(mfc > 10.0, "{name} seed {seed}: MFC ends at {mfc} km/h");
+            for kind in [ControllerKind::Src, ControllerKind::Mtte] {
+                let v = speed(kind, seed);
+                assert!(
+                    v >= 0.9 * mfc,
+                    "{name} seed {seed}: {kind:?} ends at {v} km/h, MFC at {mfc}"
+                );
+            }
+        }
+    }
+}

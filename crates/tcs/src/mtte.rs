@@ -25,6 +25,16 @@
 //! T_floor and is kept >= T_floor. See README for why this is our choice and
 //! not a verified detail of the original.
 //!
+//! **A ramped pedal** (`spin_share`, not in the paper, whose demands are
+//! constant). The limiter starts inactive only at the first positive demand;
+//! a demand that rises from there (a driver's pedal) would meet the limit's
+//! slow growth and stay near T_floor. So every rise of the demand passes into
+//! T_max while the wheel grips, i.e. takes no more than `spin_share` of the
+//! torque to spin itself up (J_w dω/dt <= spin_share · LPF(T) from the
+//! observer; 1-2 % while it grips), and the low-pass does not pull the limit
+//! down meanwhile. A constant demand never passes anything (the paper's
+//! drives are unchanged); once the wheel spins, MTTE's own law takes over.
+//!
 //! `internal` is T_max (N m); `mu_hat` is μ̂.
 
 use crate::filters::LowPass;
@@ -48,6 +58,8 @@ pub struct Mtte {
     /// The torque command of the previous cycle (the torque reference the
     /// observer is fed with); `None` before the first positive demand.
     last_cmd: Option<f64>,
+    /// The demand of the previous cycle.
+    last_demand: f64,
 }
 
 impl Mtte {
@@ -73,6 +85,7 @@ impl Mtte {
             observer: DrivingForceObserver::new(vehicle, params.tau_obs, dt),
             lpf: LowPass::new(params.tau_lpf, dt),
             last_cmd: None,
+            last_demand: 0.0,
         })
     }
 
@@ -109,17 +122,37 @@ impl Controller for Mtte {
             self.lpf.reset();
         }
         let t_ref = self.last_cmd.unwrap_or(m.demand);
+        let previous = self.lpf.value();
         let f_hat = self.observer.step(t_ref, m.omega);
         let raw = self.gain(alpha) * f_hat;
         let filtered = self.lpf.step(raw);
-        let t_max = if filtered.is_finite() {
+        let mut t_max = if filtered.is_finite() {
             filtered.max(self.floor)
         } else {
             self.floor
         };
+        // The driver asks for more while the wheel grips (it takes no more
+        // than spin_share of the torque to spin itself up, J_w dω/dt <=
+        // spin_share · LPF(T); gripping, the car's share of the inertia
+        // leaves it 1-2 %): the rise passes into the limit, as the first
+        // demand did, and the limit is not pulled down meanwhile (the raw
+        // limit trails a rising command by the filters' lag, not because
+        // the road carries less). A ramped pedal is a sequence of small
+        // steps; without this the limit grew only by the (1/α − 1) J_w
+        // share of the torque per τ₁ and a ramp from 0 stayed at T_floor.
+        // A constant demand never gets here.
+        if self.last_cmd.is_some()
+            && m.demand > self.last_demand
+            && self.r * self.observer.force()
+                >= (1.0 - self.params.spin_share) * self.observer.torque()
+            && previous.is_finite()
+        {
+            t_max = t_max.max(previous) + (m.demand - self.last_demand);
+        }
         self.lpf.set(t_max);
         let torque_cmd = limit_to_demand(t_max.min(m.demand), m.demand);
         self.last_cmd = if positive { Some(torque_cmd) } else { None };
+        self.last_demand = if positive { m.demand } else { 0.0 };
         ControlOutput {
             torque_cmd,
             used_arte: known.is_some(),
@@ -133,6 +166,7 @@ impl Controller for Mtte {
         self.observer.reset();
         self.lpf.reset();
         self.last_cmd = None;
+        self.last_demand = 0.0;
     }
 }
 
@@ -239,5 +273,73 @@ mod tests {
         assert!(out.used_arte);
         let expected = (v.j_w / (0.6 * v.mass_share() * v.r) + v.r) * 200.0 / v.r;
         assert!((out.internal - expected).abs() < 1e-6);
+    }
+
+    /// The wheel with the whole share's inertia (it grips) or alone on a road
+    /// that transmits `f_road` N (it spins once the torque passes r F), the
+    /// motor a 50 ms lag; the demand ramps from 0 to `top` N m over `rise_s`
+    /// and is then held, 1.5 s in all. Returns the commands.
+    fn ramp(p: MtteParams, f_road: Option<f64>, top: f64, rise_s: f64) -> Vec<f64> {
+        let v = VehicleParams::default();
+        let dt = 1e-3;
+        let mut c = Mtte::new(p, ArteUse::default(), &v, dt).unwrap();
+        let (mut omega, mut torque) = (3.0 / v.r, 0.0);
+        (0..1500)
+            .map(|k| {
+                let demand = (top * (k + 1) as f64 * dt / rise_s).min(top);
+                let out = c.step(&meas(omega, torque, demand), None);
+                torque += dt / 0.05 * (out.torque_cmd - torque);
+                omega += dt
+                    * match f_road {
+                        None => torque / v.j_model(),
+                        Some(f) => (torque - v.r * f) / v.j_w,
+                    };
+                out.torque_cmd
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_ramped_demand_passes_while_the_wheel_grips() {
+        // Gripping: the command follows the ramp (within the first cycle's
+        // lag) and holds the demand after it.
+        let cmds = ramp(MtteParams::default(), None, 220.0, 0.3);
+        for (k, c) in cmds.iter().enumerate() {
+            let demand = (220.0 * (k + 1) as f64 * 1e-3 / 0.3).min(220.0);
+            assert!(*c >= demand - 1.0, "cycle {k}: {c} against {demand}");
+        }
+        // Without the rise passing (spin_share 0), the limit stays near the
+        // start-up floor (ice's 48 N m): the car would not pull away.
+        let p = MtteParams {
+            spin_share: 0.0,
+            ..MtteParams::default()
+        };
+        let stuck = ramp(p, None, 220.0, 0.3);
+        assert!(stuck[1499] < 60.0, "{}", stuck[1499]);
+    }
+
+    #[test]
+    fn a_ramped_demand_does_not_pass_into_a_spinning_wheel() {
+        // On a road that transmits 500 N (r F = 140 N m) a ramp to 300 N m
+        // over 1 s spins the wheel once the motor passes r F (at about
+        // 0.5 s); the rise stops passing a little later (the motor's and the
+        // observer's lag, then the 10 % share) and the limit falls to about
+        // r F, as after a step.
+        let v = VehicleParams::default();
+        let rf = v.r * 500.0;
+        let cmds = ramp(MtteParams::default(), Some(500.0), 300.0, 1.0);
+        let end = cmds[1499];
+        assert!((end - rf).abs() < 0.05 * rf, "{end} vs {rf}");
+        let peak = cmds.iter().copied().fold(0.0, f64::max);
+        assert!(peak < 1.4 * rf, "peak command {peak} against r F = {rf}");
+        // Were every rise to pass (any share), the command would follow the
+        // ramp to the demand before the limit came down.
+        let p = MtteParams {
+            spin_share: 1.0,
+            ..MtteParams::default()
+        };
+        let blind = ramp(p, Some(500.0), 300.0, 1.0);
+        let blind_peak = blind.iter().copied().fold(0.0, f64::max);
+        assert!(blind_peak > 1.8 * rf, "{blind_peak}");
     }
 }

@@ -60,6 +60,11 @@ impl DrivingForceObserver {
         self.f_hat
     }
 
+    /// Latest filtered torque LPF(T), N m (= r F̂_d + J_w dω/dt).
+    pub fn torque(&self) -> f64 {
+        self.torque_lp.value()
+    }
+
     /// Latest μ̂ = F̂_d / N.
     pub fn mu(&self) -> f64 {
         self.f_hat / self.normal_force

@@ -106,6 +106,17 @@ pub struct SrcParams {
     pub lambda_min: f64,
     /// Upper bound on λ*.
     pub lambda_max: f64,
+    /// Launch speed, m/s: below it (pulling away, crawling) the slip SRC
+    /// controls is the speed difference over `v_launch`,
+    /// (r ω − V) / max(r ω, V, v_launch), and the gain schedule's wheel
+    /// speed is at least `v_launch / r`. The paper's controllers are for
+    /// 10-30 km/h; at a few cm/s the slip over the `v_eps` floor is mostly
+    /// sensor noise, far above λ*, and SRC cut the torque of a car pulling
+    /// away to next to nothing. 2 m/s as shipped; absent from a file: 0,
+    /// `v_eps`, the paper's law at every speed (older drive logs replay as
+    /// recorded). Above `v_launch` nothing changes.
+    #[serde(default)]
+    pub v_launch: f64,
 }
 
 impl Default for SrcParams {
@@ -120,13 +131,14 @@ impl Default for SrcParams {
             tau_ref: 0.05,
             lambda_min: 0.02,
             lambda_max: 0.45,
+            v_launch: 2.0,
         }
     }
 }
 
 impl SrcParams {
     /// Ranges: time constants > 0 (tau_obs, tau_ref >= 0), gains >= 0,
-    /// 0 < lambda_min < lambda_max < 1.
+    /// 0 < lambda_min < lambda_max < 1, 0 <= v_launch <= 10 m/s.
     pub fn validate(&self) -> Result<(), InvalidField> {
         non_negative("tau_obs", self.tau_obs)?;
         non_negative("kp", self.kp)?;
@@ -137,6 +149,7 @@ impl SrcParams {
         non_negative("tau_ref", self.tau_ref)?;
         in_range("lambda_min", self.lambda_min, 1e-4, 0.99)?;
         in_range("lambda_max", self.lambda_max, 1e-4, 0.99)?;
+        in_range("v_launch", self.v_launch, 0.0, 10.0)?;
         if self.lambda_max <= self.lambda_min {
             return Err(InvalidField::new(
                 "lambda_max",
@@ -162,6 +175,15 @@ pub struct MtteParams {
     pub tau_lpf: f64,
     /// Start-up floor for T_max as a friction coefficient: T_max >= mu_floor · N · r.
     pub mu_floor: f64,
+    /// A rise of the driver's demand passes into T_max while the wheel takes
+    /// no more than this share of the torque to spin itself up
+    /// (J_w dω/dt <= spin_share · LPF(T), from the observer; 1-2 % while it
+    /// grips). Not in the paper, whose demands are constant: without it
+    /// T_max grows only by the (1/α − 1) J_w share per τ₁ and a ramped
+    /// pedal from rest stays at T_floor. 0.1 as shipped; absent from a
+    /// file: 0, no rise passes (older drive logs replay as recorded).
+    #[serde(default)]
+    pub spin_share: f64,
 }
 
 impl Default for MtteParams {
@@ -171,12 +193,14 @@ impl Default for MtteParams {
             alpha: 0.9,
             tau_lpf: 0.05,
             mu_floor: 0.05,
+            spin_share: 0.1,
         }
     }
 }
 
 impl MtteParams {
-    /// tau_obs, tau_lpf >= 0; 0 < alpha <= 1; 0 <= mu_floor <= 2.
+    /// tau_obs, tau_lpf >= 0; 0 < alpha <= 1; 0 <= mu_floor <= 2;
+    /// 0 <= spin_share <= 1.
     pub fn validate(&self) -> Result<(), InvalidField> {
         non_negative("tau_obs", self.tau_obs)?;
         if !(self.alpha.is_finite() && self.alpha > 0.0 && self.alpha <= 1.0) {
@@ -187,6 +211,7 @@ impl MtteParams {
         }
         non_negative("tau_lpf", self.tau_lpf)?;
         in_range("mu_floor", self.mu_floor, 0.0, 2.0)?;
+        in_range("spin_share", self.spin_share, 0.0, 1.0)?;
         Ok(())
     }
 }

@@ -2,16 +2,17 @@
 //! (paper §III-B; README.md, "SRC").
 //!
 //! ```text
-//! λ      = (r ω − V) / max(r ω, V, v_eps)                       (measured slip, clamped to [−1, 1])
+//! λ      = (r ω − V) / max(r ω, V, v_f)                         (measured slip, clamped to [−1, 1])
 //! F̂_d    = (LPF(T) − J_w dω/dt) / r,   μ̂ = F̂_d / N           (observer, τ_o = tau_obs)
 //! a      = dμ̂/dλ   (SlopeEstimator on LPF_τo(λ) and μ̂)
 //! λ*     = ARTE usable ? λ_opt(road)
 //!                      : LPF_τref( clamp( fuzzy(λ_f, μ̂, a λ_f/μ̂), λ_min, λ_max ) )
-//! K_p    = kp · max(|ω|, v_eps / r) / (1 − λ)     ((1 − λ) clamped to [0.1, 1])
-//! K_i    = (e > 0 ? kp_recover : kp) · max(|ω|, v_eps / r) / T_i
+//! K_p    = kp · max(|ω|, v_f / r) / (1 − λ)       ((1 − λ) clamped to [0.1, 1])
+//! K_i    = (e > 0 ? kp_recover : kp) · max(|ω|, v_f / r) / T_i
 //! u      = K_p e + I + K_i e dt,   e = λ* − λ
 //! T_PI   = clamp(u, 0, T_d);   I ← T_PI − K_p e                 (tracking anti-windup)
 //! T*     = min(T_d, T_PI)
+//! v_f    = max(v_eps, v_launch)
 //! ```
 //!
 //! - The proportional gain is scheduled with the wheel speed and the slip
@@ -23,8 +24,17 @@
 //!   T* = T_d is passed through, `ControlOutput::passthrough` is true and the
 //!   integrator is set to T_d so that the PI resumes bumplessly.
 //! - The integrator starts at T_d on the first positive demand (start of the
-//!   drive or after coasting), so SRC applies the demand until the slip
-//!   exceeds λ*.
+//!   drive or after coasting), and every rise of the demand while the slip
+//!   is below λ* (e > 0) is added to it, so SRC applies the demand, a
+//!   ramped one too, until the slip exceeds λ*. A constant demand, the
+//!   paper's only case, is unaffected.
+//! - **Pulling away** (`v_launch`, not in the paper, whose controllers are
+//!   for 10-30 km/h): below `v_launch` the slip's denominator and the gain
+//!   schedule's speed are floored at it, so at a crawl SRC controls the
+//!   speed difference r ω − V against λ* · v_launch instead of a ratio of
+//!   two sensor noises (over the `v_eps` = 0.1 m/s floor the measured slip
+//!   jitters by about 0.2 at a few cm/s, far above λ*). Above `v_launch`
+//!   the law is the paper's.
 //! - `T_d <= 0`: passed through (SRC is a traction controller); the
 //!   integrator is reset to 0.
 //! - `internal` is λ* (the slip reference in use).
@@ -44,13 +54,18 @@ pub struct Src {
     arte: ArteUse,
     dt: f64,
     r: f64,
-    v_eps: f64,
+    /// The slip denominator's floor, m/s: the vehicle's `v_eps`, or
+    /// `v_launch` if higher.
+    slip_floor: f64,
     observer: DrivingForceObserver,
     lambda_lp: LowPass,
     slope: SlopeEstimator,
     reference: LowPass,
     integral: f64,
     pi_active: bool,
+    /// The demand of the previous cycle (its rises pass into the integrator
+    /// while the slip is below the reference).
+    last_demand: f64,
 }
 
 impl Src {
@@ -72,13 +87,14 @@ impl Src {
             arte,
             dt,
             r: vehicle.r,
-            v_eps: vehicle.v_eps,
+            slip_floor: vehicle.v_eps.max(params.v_launch),
             observer: DrivingForceObserver::new(vehicle, params.tau_obs, dt),
             lambda_lp: LowPass::new(params.tau_obs, dt),
             slope: SlopeEstimator::new(params.tau_slope, params.slope_excitation, dt),
             reference,
             integral: 0.0,
             pi_active: false,
+            last_demand: 0.0,
         })
     }
 
@@ -87,10 +103,12 @@ impl Src {
         &self.params
     }
 
-    /// Measured slip with the plant's definition (crates/physics/README.md, "Plant"), clamped to [−1, 1].
+    /// Measured slip with the plant's definition (crates/physics/README.md,
+    /// "Plant"), its denominator floored at `v_launch` if that is above the
+    /// vehicle's `v_eps`, clamped to [−1, 1].
     pub fn slip(&self, omega: f64, v: f64) -> f64 {
         let rw = self.r * omega;
-        let l = (rw - v) / rw.max(v).max(self.v_eps);
+        let l = (rw - v) / rw.max(v).max(self.slip_floor);
         if l.is_nan() { 0.0 } else { l.clamp(-1.0, 1.0) }
     }
 }
@@ -105,6 +123,7 @@ impl Controller for Src {
             let torque_cmd = limit_to_demand(m.demand, m.demand);
             self.integral = torque_cmd.max(0.0);
             self.pi_active = torque_cmd > 0.0;
+            self.last_demand = torque_cmd.max(0.0);
             return ControlOutput {
                 torque_cmd,
                 used_arte: false,
@@ -128,21 +147,29 @@ impl Controller for Src {
         };
 
         let torque_cmd = if m.demand > 0.0 && m.demand.is_finite() {
+            let e = lambda_ref - lambda;
             if !self.pi_active {
                 // First positive demand (start, or after coasting): start from it.
                 self.integral = m.demand;
                 self.pi_active = true;
+            } else if e > 0.0 && m.demand > self.last_demand {
+                // The driver asks for more while the wheel slips less than
+                // the reference: the rise passes, as the first demand did
+                // (a ramped pedal is a sequence of small steps; without this
+                // the command followed it only at the recovery gain's rate).
+                // A constant demand never gets here.
+                self.integral += m.demand - self.last_demand;
             }
-            let e = lambda_ref - lambda;
             // Slip plant (paper eqs. 6-8, corrected): dλ/dt = (1 − λ)/(J_w ω) · T
             // at the peak, so the symmetric optimum is K_p = J_w ω / (2 τ_m (1 − λ)).
             let one_minus = (1.0 - lambda.clamp(0.0, 0.9)).max(0.1);
-            let kp = self.params.kp * m.omega.abs().max(self.v_eps / self.r) / one_minus;
+            let kp = self.params.kp * m.omega.abs().max(self.slip_floor / self.r) / one_minus;
             // Below the reference the wheel is coupled to the vehicle (inertia
             // J_w + (M/n) r²), so the recovery uses that plant's gain; above
             // it (slipping), the wheel alone (J_w).
             let ki = if e > 0.0 {
-                self.params.kp_recover * m.omega.abs().max(self.v_eps / self.r) / self.params.ti
+                self.params.kp_recover * m.omega.abs().max(self.slip_floor / self.r)
+                    / self.params.ti
             } else {
                 kp / self.params.ti
             };
@@ -158,10 +185,12 @@ impl Controller for Src {
             // slip error changes sign.
             let i = t_pi - kp * e;
             self.integral = if i.is_finite() { i } else { t_pi };
+            self.last_demand = m.demand;
             limit_to_demand(t_pi, m.demand)
         } else {
             self.pi_active = false;
             self.integral = 0.0;
+            self.last_demand = 0.0;
             limit_to_demand(m.demand, m.demand)
         };
 
@@ -182,6 +211,7 @@ impl Controller for Src {
         self.reference.set(self.params.lambda_min);
         self.integral = 0.0;
         self.pi_active = false;
+        self.last_demand = 0.0;
     }
 }
 
@@ -224,5 +254,80 @@ mod tests {
         let out = c.step(&m, None);
         assert!(!out.passthrough);
         assert!(out.torque_cmd < 300.0);
+    }
+
+    /// A car pulling away from rest on a gripping road (wheel and car share
+    /// one inertia, 0.3 % slip), the motor a 50 ms lag, wheel speed and car
+    /// speed read with uniform noise of +-0.05 rad/s and +-0.02 m/s; the
+    /// demand ramps 0 -> 220 N m over 0.3 s and is then held for 0.7 s.
+    /// Returns the commands.
+    fn pull_away(p: SrcParams) -> Vec<f64> {
+        let v = VehicleParams::default();
+        let dt = 1e-3;
+        let mut c = Src::new(p, ArteUse::default(), &v, dt).unwrap();
+        let (mut omega, mut torque) = (0.0f64, 0.0);
+        let mut seed = 12345u64;
+        let mut noise = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        (0..1000)
+            .map(|k| {
+                let demand = (220.0 * (k + 1) as f64 / 300.0).min(220.0);
+                let m = Measurement {
+                    t: k as f64 * dt,
+                    omega: omega + 0.05 * noise(),
+                    v: Some((omega * v.r * 0.997 + 0.02 * noise()).max(0.0)),
+                    torque,
+                    demand,
+                };
+                let out = c.step(&m, None);
+                torque += dt / 0.05 * (out.torque_cmd - torque);
+                omega += dt * torque / v.j_model();
+                out.torque_cmd
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_car_pulls_away_from_rest_with_a_ramped_pedal() {
+        // The command follows the ramp and holds the demand: the rises pass
+        // while the slip is under the reference, and below v_launch the
+        // slip is a speed difference over v_launch, not sensor noise over
+        // v_eps.
+        let cmds = pull_away(SrcParams::default());
+        let late = cmds[300..].iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(late > 0.95 * 220.0, "least command after the ramp {late}");
+        // With the paper's slip at every speed (v_launch 0) the same noise
+        // reads as slip far above lambda*, the PI cuts and the rises stop.
+        let p = SrcParams {
+            v_launch: 0.0,
+            ..SrcParams::default()
+        };
+        let cut = pull_away(p);
+        let mean = cut[300..].iter().sum::<f64>() / 700.0;
+        assert!(mean < 0.8 * 220.0, "mean command after the ramp {mean}");
+    }
+
+    #[test]
+    fn a_rising_demand_does_not_pass_while_the_wheel_slips_above_the_reference() {
+        // 10 m/s, the wheel at 30 % slip (far above any lambda*): a rising
+        // demand is not passed on, the PI cuts.
+        let v = VehicleParams::default();
+        let mut c = Src::new(SrcParams::default(), ArteUse::default(), &v, 1e-3).unwrap();
+        let mut out = ControlOutput::default();
+        for k in 0..200 {
+            let m = Measurement {
+                t: k as f64 * 1e-3,
+                omega: 10.0 / 0.7 / v.r,
+                v: Some(10.0),
+                torque: 100.0,
+                demand: 100.0 + k as f64,
+            };
+            out = c.step(&m, None);
+        }
+        assert!(out.torque_cmd < 100.0, "{}", out.torque_cmd);
     }
 }
