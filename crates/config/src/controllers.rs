@@ -65,44 +65,50 @@ mod tests {
     fn errors_name_file_field_and_reason() {
         let text = std::fs::read_to_string(shipped()).unwrap();
         let f = Path::new("controllers.toml");
-
-        let bad = text.replace("tau_hpf = 1.0", "tau_hpf = -1.0");
-        let e = parse_controllers(f, &bad).unwrap_err();
-        assert_eq!(e.field, "mfc.tau_hpf", "{e}");
-        assert!(e.reason.contains("> 0"), "{e}");
-        assert_eq!(e.file, f);
-
-        let bad = text.replace("alpha = 0.9", "alpha = 0.9\nbeta = 1.0");
-        let e = parse_controllers(f, &bad).unwrap_err();
-        assert_eq!(e.field, "mtte.beta", "{e}");
-        assert!(e.reason.contains("unknown field"), "{e}");
-
-        let bad = text.replace("kp = 6.0\n", "");
-        let e = parse_controllers(f, &bad).unwrap_err();
-        assert!(e.reason.contains("missing field `kp`"), "{e}");
-
-        let bad = text.replace("tau_noise = 0.004", "tau_noise = 0.5");
-        let e = parse_controllers(f, &bad).unwrap_err();
-        assert_eq!(e.field, "mfc.tau_noise", "{e}");
-        assert!(e.reason.contains("[0, 0.1]"), "{e}");
-
-        let bad = text.replace("tau_noise = 0.004\n", "");
-        let e = parse_controllers(f, &bad).unwrap_err();
-        assert!(e.reason.contains("missing field `tau_noise`"), "{e}");
-
-        let bad = text.replace("v_launch = 2.0", "v_launch = -1.0");
-        let e = parse_controllers(f, &bad).unwrap_err();
-        assert_eq!(e.field, "src.v_launch", "{e}");
-        assert!(e.reason.contains("[0, 10]"), "{e}");
-
-        let bad = text.replace("spin_share = 0.1", "spin_share = 2.0");
-        let e = parse_controllers(f, &bad).unwrap_err();
-        assert_eq!(e.field, "mtte.spin_share", "{e}");
-        assert!(e.reason.contains("[0, 1]"), "{e}");
-
-        let bad = text.replace("rate_hz = 1000.0", "rate_hz = nan");
-        let e = parse_controllers(f, &bad).unwrap_err();
-        assert_eq!(e.field, "loop.rate_hz", "{e}");
+        // The shipped file with `from` replaced by `to`, which must be refused.
+        let refused = |from: &str, to: &str| {
+            assert!(text.contains(from), "{from}");
+            parse_controllers(f, &text.replace(from, to)).unwrap_err()
+        };
+        // (replace, by, field named, reason contains)
+        for (from, to, field, reason) in [
+            ("tau_hpf = 1.0", "tau_hpf = -1.0", "mfc.tau_hpf", "> 0"),
+            (
+                "alpha = 0.9",
+                "alpha = 0.9\nbeta = 1.0",
+                "mtte.beta",
+                "unknown field",
+            ),
+            (
+                "tau_noise = 0.004",
+                "tau_noise = 0.5",
+                "mfc.tau_noise",
+                "[0, 0.1]",
+            ),
+            (
+                "v_launch = 2.0",
+                "v_launch = -1.0",
+                "src.v_launch",
+                "[0, 10]",
+            ),
+            (
+                "spin_share = 0.1",
+                "spin_share = 2.0",
+                "mtte.spin_share",
+                "[0, 1]",
+            ),
+            ("rate_hz = 1000.0", "rate_hz = nan", "loop.rate_hz", ""),
+        ] {
+            let e = refused(from, to);
+            assert_eq!(e.field, field, "{e}");
+            assert!(e.reason.contains(reason), "{e}");
+            assert_eq!(e.file, f);
+        }
+        for key in ["kp = 6.0\n", "tau_noise = 0.004\n"] {
+            let e = refused(key, "");
+            let name = key.split(' ').next().unwrap();
+            assert!(e.reason.contains(&format!("missing field `{name}`")), "{e}");
+        }
 
         let e = load_controllers("/nonexistent/controllers.toml").unwrap_err();
         assert!(e.reason.contains("cannot read"), "{e}");
