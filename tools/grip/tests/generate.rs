@@ -29,6 +29,15 @@ fn generate(out: &Path, extra: &[&str]) {
     assert!(stdout.contains("generated"), "{stdout}");
 }
 
+/// `grip generate --out OUT EXTRA...`, which must fail; its stderr.
+fn refused(out: &Path, extra: &[&str]) -> String {
+    let mut args = vec![os("generate"), os("--out"), out.as_os_str()];
+    args.extend(extra.iter().map(|s| os(s)));
+    let (ok, _, err) = grip(&args);
+    assert!(!ok, "grip generate {extra:?} was not refused");
+    err
+}
+
 fn json_of(args: &[&std::ffi::OsStr]) -> Value {
     let (_, stdout, stderr) = grip(args);
     let line = stdout
@@ -178,24 +187,56 @@ fn start_speed_and_demand_are_drawn_per_log_and_a_seed_repeats() {
 #[test]
 fn bad_options_are_refused_with_the_reason() {
     let d = tempfile::tempdir().unwrap();
-    let (ok, _, err) = grip(&[
-        os("generate"),
-        os("--out"),
-        d.path().as_os_str(),
-        os("--v0-kmh"),
-        os("30:10"),
-    ]);
-    assert!(!ok);
+    let err = refused(d.path(), &["--v0-kmh", "30:10"]);
     assert!(err.contains("LO must not exceed HI"), "{err}");
-    let (ok, _, err) = grip(&[
-        os("generate"),
-        os("--out"),
-        d.path().as_os_str(),
-        os("--count"),
-        os("1"),
-        os("--scenario"),
-        os("no-such-scenario"),
-    ]);
-    assert!(!ok);
+    let err = refused(
+        d.path(),
+        &["--count", "1", "--scenario", "no-such-scenario"],
+    );
     assert!(err.contains("no-such-scenario"), "{err}");
+}
+
+#[test]
+fn the_random_recipe_is_taken_as_grip_sim_takes_it() {
+    // `--random` changes the road sequence's recipe: segments of 3-5 m at
+    // 150 N m, as `grip sim --scenario random --random ...` would draw them.
+    let d = tempfile::tempdir().unwrap();
+    generate(
+        d.path(),
+        &[
+            "--count",
+            "1",
+            "--seed0",
+            "4",
+            "--random",
+            "min_len_m=3,max_len_m=5,torque=150",
+            "--hold-s",
+            "0.2",
+        ],
+    );
+    let log = DriveLog::load(&d.path().join("gen-00000-s4.mcap")).unwrap();
+    let sc: toml::Table = log
+        .attachment_text("scenarios/random-s4.toml")
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert_eq!(sc["demand"]["torque"].as_float(), Some(150.0), "{sc}");
+    let segs = sc["segment"].as_array().unwrap();
+    assert!(segs.len() >= 2, "{sc}");
+    // every segment but the last (which runs to the end of the cover)
+    for g in &segs[..segs.len() - 1] {
+        let len = g["length"].as_float().unwrap();
+        assert!((3.0..=5.0).contains(&len), "segment of {len} m: {sc}");
+    }
+    // refused: a bad key (named), and --random with another scenario
+    let err = refused(d.path(), &["--random", "min_len=3"]);
+    assert!(
+        err.contains("random.min_len") && err.contains("unknown key"),
+        "{err}"
+    );
+    let err = refused(
+        d.path(),
+        &["--scenario", "paper", "--random", "min_len_m=3"],
+    );
+    assert!(err.contains("--random changes the recipe"), "{err}");
 }

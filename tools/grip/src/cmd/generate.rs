@@ -53,6 +53,7 @@ use grip_io::clock::{Clock, ManualClock};
 use grip_io::mcaplog::McapWriter;
 use grip_io::service::{ConfigArgs, ServiceConfig};
 use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
+use grip_sim::random::RandomSpec;
 use grip_tcs_loop::{CycleTick, RecordSink, RoadSource};
 use rand::{Rng, SeedableRng};
 
@@ -96,6 +97,12 @@ pub struct Args {
     /// constant.
     #[arg(long, value_parser = parse_range)]
     torque: Option<(f64, f64)>,
+    /// The recipe of `--scenario random`, as `grip sim --random`:
+    /// KEY=VALUE,... with KEY one of v0_kmh, torque, min_len_m, max_len_m,
+    /// cover_m, duration (e.g. min_len_m=3,max_len_m=12). --v0-kmh and
+    /// --torque, drawn per log, take the place of its v0_kmh and torque.
+    #[arg(long)]
+    random: Option<String>,
     /// Rain and car noise mixed into the synthetic audio at this SNR, dB:
     /// one value or LO:HI per log (default: audio-acq.toml's setting).
     #[arg(long, value_parser = parse_range)]
@@ -147,6 +154,9 @@ pub struct LogSpec {
     pub v0_kmh: Option<f64>,
     /// Constant demand override, N m.
     pub torque: Option<f64>,
+    /// The recipe of `--scenario random` (`--random`; the default's
+    /// otherwise).
+    pub random: RandomSpec,
     /// Audio noise SNR, dB (None: the configuration's).
     pub snr_db: Option<f64>,
     /// Vehicle file.
@@ -179,7 +189,7 @@ fn controller_name(c: Controller) -> &'static str {
 }
 
 /// The per-log specs of `args`.
-fn specs(args: &Args) -> Vec<LogSpec> {
+fn specs(args: &Args, random: &RandomSpec) -> Vec<LogSpec> {
     let nc = args.controllers.len().max(1);
     let na = args.arte.len().max(1);
     (0..args.count)
@@ -208,6 +218,7 @@ fn specs(args: &Args) -> Vec<LogSpec> {
                 arte: args.arte[(i / nc) % na] == OnOff::On,
                 v0_kmh,
                 torque,
+                random: random.clone(),
                 snr_db,
                 vehicle: args.vehicle.clone(),
                 hold_s: args.hold_s,
@@ -225,7 +236,15 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
-    let specs = specs(&args);
+    let random = match &args.random {
+        Some(_) if args.scenario != "random" => bail!(
+            "--random changes the recipe of `--scenario random`; the scenario here is `{}`",
+            args.scenario
+        ),
+        Some(text) => RandomSpec::parse(text).map_err(|e| anyhow::anyhow!("--random: {e}"))?,
+        None => RandomSpec::default(),
+    };
+    let specs = specs(&args, &random);
     let config = std::path::absolute(&ctx.config_dir)
         .with_context(|| format!("resolving {}", ctx.config_dir.display()))?;
     let t0 = Instant::now();
@@ -331,12 +350,18 @@ fn write_scenario(dir: &Path, s: &LogSpec) -> anyhow::Result<String> {
     let cdir = grip_config::ConfigDir::new(dir);
     if s.scenario == "random" {
         let roads = cdir.roads()?;
-        let spec = grip_sim::random::RandomSpec {
-            v0_kmh: s.v0_kmh.unwrap_or(10.0),
-            torque: s.torque.unwrap_or(300.0),
-            ..grip_sim::random::RandomSpec::default()
-        }
-        .covering_travel();
+        let spec = RandomSpec {
+            v0_kmh: s.v0_kmh.unwrap_or(s.random.v0_kmh),
+            torque: s.torque.unwrap_or(s.random.torque),
+            ..s.random.clone()
+        };
+        // A start speed of this log's own reaches as far as `--random`'s
+        // would (`RandomSpec::parse` raised the cover for its own speed).
+        let spec = if s.v0_kmh.is_some() {
+            spec.covering_travel()
+        } else {
+            spec
+        };
         let sc = spec
             .scenario(s.seed, &roads)
             .map_err(|e| anyhow::anyhow!("--scenario random (seed {}): {e}", s.seed))?;
