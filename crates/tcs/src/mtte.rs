@@ -147,7 +147,10 @@ impl Controller for Mtte {
                 >= (1.0 - self.params.spin_share) * self.observer.torque()
             && previous.is_finite()
         {
-            t_max = t_max.max(previous) + (m.demand - self.last_demand);
+            // Never above the demand by this rule: a pedal pumped while
+            // the wheel grips must not ratchet the limit up, far from where
+            // a spin would have to pull it down from.
+            t_max = t_max.max((previous + (m.demand - self.last_demand)).min(m.demand));
         }
         self.lpf.set(t_max);
         let torque_cmd = limit_to_demand(t_max.min(m.demand), m.demand);
@@ -341,5 +344,25 @@ mod tests {
         let blind = ramp(p, Some(500.0), 300.0, 1.0);
         let blind_peak = blind.iter().copied().fold(0.0, f64::max);
         assert!(blind_peak > 1.8 * rf, "{blind_peak}");
+    }
+
+    #[test]
+    fn a_pumped_pedal_does_not_ratchet_the_limit_above_the_demand() {
+        // Gripping, the demand pumped 150 <-> 250 N m every 20 ms for 1 s:
+        // the rises pass, but the limit never ends up above the largest
+        // demand by more than MTTE's own margin.
+        let v = VehicleParams::default();
+        let dt = 1e-3;
+        let mut c = Mtte::new(MtteParams::default(), ArteUse::default(), &v, dt).unwrap();
+        let (mut omega, mut torque) = (3.0 / v.r, 0.0);
+        let mut top = 0.0f64;
+        for k in 0..1000 {
+            let demand = if (k / 20) % 2 == 0 { 250.0 } else { 150.0 };
+            let out = c.step(&meas(omega, torque, demand), None);
+            torque += dt / 0.05 * (out.torque_cmd - torque);
+            omega += dt * torque / v.j_model();
+            top = top.max(out.internal);
+        }
+        assert!(top < 1.05 * 250.0, "limit rose to {top} N m");
     }
 }
