@@ -49,6 +49,30 @@ pub(crate) fn limit_to_demand(candidate: f64, demand: f64) -> f64 {
     }
 }
 
+/// How much a positive demand rose since the previous cycle (SRC and MTTE
+/// pass a rise on while the wheel grips: "Pulling away and a ramped pedal"
+/// in the README). Call once per cycle; 0 when the demand fell, stayed, or
+/// is not a positive finite number, whose cycle counts as a demand of 0.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct DemandRise {
+    last: f64,
+}
+
+impl DemandRise {
+    /// The rise of `demand` over the previous cycle's, N m (>= 0).
+    #[inline]
+    pub(crate) fn step(&mut self, demand: f64) -> f64 {
+        let now = if demand > 0.0 && demand.is_finite() {
+            demand
+        } else {
+            0.0
+        };
+        let rise = (now - self.last).max(0.0);
+        self.last = now;
+        rise
+    }
+}
+
 /// `dt` must be finite and > 0.
 pub(crate) fn valid_dt(dt: f64) -> Result<(), grip_physics::InvalidField> {
     if dt.is_finite() && dt > 0.0 {

@@ -41,7 +41,7 @@ use crate::filters::LowPass;
 use crate::observer::DrivingForceObserver;
 use crate::params::{ArteUse, MtteParams};
 use crate::types::{ControlOutput, Controller, Measurement, RoadKnowledge};
-use crate::{limit_to_demand, valid_dt};
+use crate::{DemandRise, limit_to_demand, valid_dt};
 use grip_physics::{InvalidField, VehicleParams};
 
 /// Maximum transmissible torque estimation controller.
@@ -58,8 +58,8 @@ pub struct Mtte {
     /// The torque command of the previous cycle (the torque reference the
     /// observer is fed with); `None` before the first positive demand.
     last_cmd: Option<f64>,
-    /// The demand of the previous cycle.
-    last_demand: f64,
+    /// The demand's rise since the previous cycle.
+    rise: DemandRise,
 }
 
 impl Mtte {
@@ -85,7 +85,7 @@ impl Mtte {
             observer: DrivingForceObserver::new(vehicle, params.tau_obs, dt),
             lpf: LowPass::new(params.tau_lpf, dt),
             last_cmd: None,
-            last_demand: 0.0,
+            rise: DemandRise::default(),
         })
     }
 
@@ -123,6 +123,7 @@ impl Controller for Mtte {
         }
         let t_ref = self.last_cmd.unwrap_or(m.demand);
         let previous = self.lpf.value();
+        let rise = self.rise.step(m.demand);
         let f_hat = self.observer.step(t_ref, m.omega);
         let raw = self.gain(alpha) * f_hat;
         let filtered = self.lpf.step(raw);
@@ -142,7 +143,7 @@ impl Controller for Mtte {
         // share of the torque per τ₁ and a ramp from 0 stayed at T_floor.
         // A constant demand never gets here.
         if self.last_cmd.is_some()
-            && m.demand > self.last_demand
+            && rise > 0.0
             && self.r * self.observer.force()
                 >= (1.0 - self.params.spin_share) * self.observer.torque()
             && previous.is_finite()
@@ -150,12 +151,11 @@ impl Controller for Mtte {
             // Never above the demand by this rule: a pedal pumped while
             // the wheel grips must not ratchet the limit up, far from where
             // a spin would have to pull it down from.
-            t_max = t_max.max((previous + (m.demand - self.last_demand)).min(m.demand));
+            t_max = t_max.max((previous + rise).min(m.demand));
         }
         self.lpf.set(t_max);
         let torque_cmd = limit_to_demand(t_max.min(m.demand), m.demand);
         self.last_cmd = if positive { Some(torque_cmd) } else { None };
-        self.last_demand = if positive { m.demand } else { 0.0 };
         ControlOutput {
             torque_cmd,
             used_arte: known.is_some(),
@@ -169,7 +169,7 @@ impl Controller for Mtte {
         self.observer.reset();
         self.lpf.reset();
         self.last_cmd = None;
-        self.last_demand = 0.0;
+        self.rise = DemandRise::default();
     }
 }
 

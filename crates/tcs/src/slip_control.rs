@@ -44,7 +44,7 @@ use crate::fuzzy::{SlopeEstimator, infer};
 use crate::observer::DrivingForceObserver;
 use crate::params::{ArteUse, SrcParams};
 use crate::types::{ControlOutput, Controller, Measurement, RoadKnowledge};
-use crate::{limit_to_demand, valid_dt};
+use crate::{DemandRise, limit_to_demand, valid_dt};
 use grip_physics::{InvalidField, VehicleParams};
 
 /// Slip ratio controller.
@@ -63,9 +63,9 @@ pub struct Src {
     reference: LowPass,
     integral: f64,
     pi_active: bool,
-    /// The demand of the previous cycle (its rises pass into the integrator
-    /// while the slip is below the reference).
-    last_demand: f64,
+    /// The demand's rise since the previous cycle (passed into the
+    /// integrator while the slip is below the reference).
+    rise: DemandRise,
 }
 
 impl Src {
@@ -94,7 +94,7 @@ impl Src {
             reference,
             integral: 0.0,
             pi_active: false,
-            last_demand: 0.0,
+            rise: DemandRise::default(),
         })
     }
 
@@ -118,12 +118,12 @@ impl Controller for Src {
         self.observer.step(m.torque, m.omega);
         let mu_hat = self.observer.mu();
         let known = self.arte.usable(road);
+        let rise = self.rise.step(m.demand);
 
         let Some(v) = m.v.filter(|v| v.is_finite()) else {
             let torque_cmd = limit_to_demand(m.demand, m.demand);
             self.integral = torque_cmd.max(0.0);
             self.pi_active = torque_cmd > 0.0;
-            self.last_demand = torque_cmd.max(0.0);
             return ControlOutput {
                 torque_cmd,
                 used_arte: false,
@@ -152,13 +152,13 @@ impl Controller for Src {
                 // First positive demand (start, or after coasting): start from it.
                 self.integral = m.demand;
                 self.pi_active = true;
-            } else if e > 0.0 && m.demand > self.last_demand {
+            } else if e > 0.0 && rise > 0.0 {
                 // The driver asks for more while the wheel slips less than
                 // the reference: the rise passes, as the first demand did
                 // (a ramped pedal is a sequence of small steps; without this
                 // the command followed it only at the recovery gain's rate).
                 // A constant demand never gets here.
-                self.integral += m.demand - self.last_demand;
+                self.integral += rise;
             }
             // Slip plant (paper eqs. 6-8, corrected): dλ/dt = (1 − λ)/(J_w ω) · T
             // at the peak, so the symmetric optimum is K_p = J_w ω / (2 τ_m (1 − λ)).
@@ -185,12 +185,10 @@ impl Controller for Src {
             // slip error changes sign.
             let i = t_pi - kp * e;
             self.integral = if i.is_finite() { i } else { t_pi };
-            self.last_demand = m.demand;
             limit_to_demand(t_pi, m.demand)
         } else {
             self.pi_active = false;
             self.integral = 0.0;
-            self.last_demand = 0.0;
             limit_to_demand(m.demand, m.demand)
         };
 
@@ -211,7 +209,7 @@ impl Controller for Src {
         self.reference.set(self.params.lambda_min);
         self.integral = 0.0;
         self.pi_active = false;
-        self.last_demand = 0.0;
+        self.rise = DemandRise::default();
     }
 }
 

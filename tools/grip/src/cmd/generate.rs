@@ -236,14 +236,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
-    let random = match &args.random {
-        Some(_) if args.scenario != "random" => bail!(
-            "--random changes the recipe of `--scenario random`; the scenario here is `{}`",
-            args.scenario
-        ),
-        Some(text) => RandomSpec::parse(text).map_err(|e| anyhow::anyhow!("--random: {e}"))?,
-        None => RandomSpec::default(),
-    };
+    let random = super::sim::random_spec(args.random.as_deref(), &args.scenario)?;
     let specs = specs(&args, &random);
     let config = std::path::absolute(&ctx.config_dir)
         .with_context(|| format!("resolving {}", ctx.config_dir.display()))?;
@@ -348,7 +341,7 @@ fn write_table(path: &Path, head: &str, t: &toml::Table) -> anyhow::Result<()> {
 /// Writes the log's scenario into `dir/scenarios`; returns its name.
 fn write_scenario(dir: &Path, s: &LogSpec) -> anyhow::Result<String> {
     let cdir = grip_config::ConfigDir::new(dir);
-    if s.scenario == "random" {
+    if s.scenario == super::sim::RANDOM {
         let roads = cdir.roads()?;
         let spec = RandomSpec {
             v0_kmh: s.v0_kmh.unwrap_or(s.random.v0_kmh),

@@ -172,6 +172,19 @@ pub struct Loaded {
 /// The `--scenario` value that asks for one random road sequence per seed.
 pub const RANDOM: &str = "random";
 
+/// The recipe `--random TEXT` asks of `--scenario random` (the default's
+/// without it); refused with any other scenario (`grip sim` and `grip
+/// generate` alike).
+pub fn random_spec(text: Option<&str>, scenario: &str) -> anyhow::Result<RandomSpec> {
+    match text {
+        Some(_) if scenario != RANDOM => anyhow::bail!(
+            "--random changes the recipe of `--scenario random`; the scenario here is `{scenario}`"
+        ),
+        Some(text) => RandomSpec::parse(text).map_err(|e| anyhow::anyhow!("--random: {e}")),
+        None => Ok(RandomSpec::default()),
+    }
+}
+
 /// Load vehicle, roads, scenario, controllers and ARTE configuration. With
 /// `scenario` = [`RANDOM`], the setup is that of the first of `seeds` and
 /// [`Loaded::per_seed`] holds one per seed.
@@ -243,14 +256,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
                 .context("--seed0 + --seeds overflows u64")
         })
         .collect::<anyhow::Result<_>>()?;
-    let spec = match &args.random {
-        Some(_) if args.scenario != RANDOM => anyhow::bail!(
-            "--random changes the recipe of `--scenario random`; the scenario here is `{}`",
-            args.scenario
-        ),
-        Some(text) => RandomSpec::parse(text).map_err(|e| anyhow::anyhow!("--random: {e}"))?,
-        None => RandomSpec::default(),
-    };
+    let spec = random_spec(args.random.as_deref(), &args.scenario)?;
     let mut loaded = load(
         &ctx.config_dir,
         &args.scenario,
