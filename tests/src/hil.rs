@@ -1474,9 +1474,10 @@ pub fn drive_specs(
     Ok(grip_drive::Service::START_ORDER
         .iter()
         .map(|s| {
-            grip_drive::ProcSpec::new(s.name(), &bin.join(s.binary()), &plan.args(*s)).output(
-                grip_drive::Output::File(log_dir.join(format!("{}.log", s.name()))),
-            )
+            s.spec(&bin, &plan.args(*s))
+                .output(grip_drive::Output::File(
+                    log_dir.join(format!("{}.log", s.name())),
+                ))
         })
         .collect())
 }

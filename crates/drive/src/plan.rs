@@ -14,7 +14,7 @@ use grip_physics::VehicleParams;
 
 use crate::log::DriveLog;
 use crate::services::Service;
-use crate::supervisor::{Output, ProcSpec, SuperviseError, Supervisor, describe_status};
+use crate::supervisor::{Output, SuperviseError, Supervisor, describe_status};
 
 /// The service binaries are not where they are looked for.
 #[derive(Debug, thiserror::Error)]
@@ -265,12 +265,18 @@ pub fn run_services(
     let t_start = Instant::now();
     let mut failure: Option<String> = None;
     for svc in Service::START_ORDER {
-        let spec = ProcSpec::new(svc.name(), &bin.join(svc.binary()), &plan.args(svc)).output(
-            Output::Pipe {
-                keep: crate::supervisor::TAIL_LINES,
-                echo_all: verbose,
-            },
-        );
+        let spec = svc.spec(bin, &plan.args(svc)).output(Output::Pipe {
+            keep: crate::supervisor::TAIL_LINES,
+            echo_all: verbose,
+        });
+        if spec.placement.usable_cpus().len() < spec.placement.cpus.len() {
+            progress(format!(
+                "drive: {:<9} its unit pins it to CPUs {:?}, of which this machine lets it use {:?}",
+                svc.name(),
+                spec.placement.cpus,
+                spec.placement.usable_cpus(),
+            ));
+        }
         match sup.start(&spec, plan.ready_timeout) {
             Ok(d) => {
                 let pid = sup.get(svc.name()).map(|p| p.pid()).unwrap_or(0);

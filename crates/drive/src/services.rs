@@ -9,6 +9,23 @@
 
 use grip_msgs::topics::node;
 
+/// Where and how nicely the kernel runs a service's process, as its
+/// systemd unit says (`CPUAffinity=`, `Nice=`, `IOSchedulingClass=` +
+/// `IOSchedulingPriority=`): `grip drive`, the bench and the HIL
+/// supervisor apply it at the start, so a drive runs as the car does (a
+/// test compares it with the units). The services' own `[rt]` settings
+/// (SCHED_FIFO, their threads' CPUs) come on top, from their config files.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Placement {
+    /// CPUs the process may run on (`CPUAffinity=`); empty: any.
+    pub cpus: &'static [usize],
+    /// Nice value (`Nice=`), 0 = the default.
+    pub nice: i32,
+    /// Best-effort I/O priority 0-7 (`IOSchedulingClass=best-effort`,
+    /// `IOSchedulingPriority=`); `None`: the kernel's default.
+    pub io_best_effort: Option<u8>,
+}
+
 /// Where the units expect the service binaries.
 pub const UNIT_BIN_DIR: &str = "/usr/lib/grip/bin";
 /// The configuration directory of the units.
@@ -27,6 +44,56 @@ pub enum Service {
     Arte,
     /// The 1 kHz traction-control loop.
     TcsLoop,
+}
+
+impl Placement {
+    /// Whether it asks for nothing (the kernel's defaults).
+    pub fn is_default(&self) -> bool {
+        *self == Placement::default()
+    }
+
+    /// The CPUs of [`Placement::cpus`] this process may run on now (a
+    /// machine with fewer CPUs, or a caller itself pinned elsewhere, has
+    /// fewer); empty when it asks for none.
+    pub fn usable_cpus(&self) -> Vec<usize> {
+        if self.cpus.is_empty() {
+            return Vec::new();
+        }
+        // SAFETY: an all-zero cpu_set_t is a valid empty set.
+        let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
+        // SAFETY: sched_getaffinity(2) fills `set` for this process, told
+        // its size.
+        let rc =
+            unsafe { libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set) };
+        let max = 8 * std::mem::size_of::<libc::cpu_set_t>();
+        let allowed = |c: usize| {
+            if c >= max {
+                return false;
+            }
+            // SAFETY: `c < max` keeps the index inside the set.
+            rc != 0 || unsafe { libc::CPU_ISSET(c, &set) }
+        };
+        self.cpus.iter().copied().filter(|&c| allowed(c)).collect()
+    }
+}
+
+impl std::fmt::Display for Placement {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut parts = Vec::new();
+        if !self.cpus.is_empty() {
+            parts.push(format!("CPUs {:?}", self.cpus));
+        }
+        if self.nice != 0 {
+            parts.push(format!("nice {}", self.nice));
+        }
+        if let Some(l) = self.io_best_effort {
+            parts.push(format!("I/O best-effort {l}"));
+        }
+        if parts.is_empty() {
+            parts.push("the kernel's defaults".into());
+        }
+        f.write_str(&parts.join(", "))
+    }
 }
 
 impl Service {
@@ -70,6 +137,34 @@ impl Service {
         format!("grip-{}.service", self.name())
     }
 
+    /// The unit's placement (see [`Placement`]): the recorder, which
+    /// writes the log, runs on CPU 0 at nice 10 and the lowest best-effort
+    /// I/O priority, away from tcs-loop's CPU 1 (on a kernel without
+    /// PREEMPT_RT a process inside a long `write` holds its CPU until the
+    /// call returns); tcs-loop is pinned to CPU 1 (its thread pins itself
+    /// too, `config/tcs-loop.toml` `[rt] cpus`).
+    pub fn placement(self) -> Placement {
+        match self {
+            Service::Recorder => Placement {
+                cpus: &[0],
+                nice: 10,
+                io_best_effort: Some(7),
+            },
+            Service::TcsLoop => Placement {
+                cpus: &[1],
+                ..Placement::default()
+            },
+            Service::PlantSim | Service::AudioAcq | Service::Arte => Placement::default(),
+        }
+    }
+
+    /// What starts the service from `bin_dir` with `args`, placed as its
+    /// unit places it (the drive, the bench and the HIL tests use this).
+    pub fn spec(self, bin_dir: &std::path::Path, args: &[String]) -> crate::ProcSpec {
+        crate::ProcSpec::new(self.name(), &bin_dir.join(self.binary()), args)
+            .placement(self.placement())
+    }
+
     /// The base arguments every start of the service uses.
     pub fn base_args(self, config_dir: &str) -> Vec<String> {
         vec!["--config-dir".to_owned(), config_dir.to_owned()]
@@ -111,6 +206,56 @@ mod tests {
                 path.display()
             );
             assert_eq!(lines[0].trim(), s.exec_start(), "{}", path.display());
+        }
+    }
+
+    /// Values of `key=` in a unit (comments and other keys skipped).
+    fn unit_values(text: &str, key: &str) -> Vec<String> {
+        text.lines()
+            .filter_map(|l| l.trim().strip_prefix(key)?.strip_prefix('='))
+            .map(|v| v.trim().to_owned())
+            .collect()
+    }
+
+    /// `grip drive` places every service as its unit does (CPUs, nice,
+    /// I/O priority), and a unit sets nothing of this kind that
+    /// [`Service::placement`] leaves out.
+    #[test]
+    fn placement_equals_the_units() {
+        for s in Service::START_ORDER {
+            let path = unit_dir().join(s.unit());
+            let text = std::fs::read_to_string(&path)
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            let p = s.placement();
+            let cpus: Vec<String> = p.cpus.iter().map(|c| c.to_string()).collect();
+            let want_cpus: Vec<String> = if cpus.is_empty() {
+                vec![]
+            } else {
+                vec![cpus.join(" ")]
+            };
+            assert_eq!(unit_values(&text, "CPUAffinity"), want_cpus, "{}", s.unit());
+            let want_nice: Vec<String> = if p.nice == 0 {
+                vec![]
+            } else {
+                vec![p.nice.to_string()]
+            };
+            assert_eq!(unit_values(&text, "Nice"), want_nice, "{}", s.unit());
+            let (class, prio): (Vec<String>, Vec<String>) = match p.io_best_effort {
+                Some(l) => (vec!["best-effort".into()], vec![l.to_string()]),
+                None => (vec![], vec![]),
+            };
+            assert_eq!(
+                unit_values(&text, "IOSchedulingClass"),
+                class,
+                "{}",
+                s.unit()
+            );
+            assert_eq!(
+                unit_values(&text, "IOSchedulingPriority"),
+                prio,
+                "{}",
+                s.unit()
+            );
         }
     }
 

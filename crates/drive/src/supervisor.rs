@@ -21,6 +21,8 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use crate::services::Placement;
+
 /// Lines of output kept per service by default.
 pub const TAIL_LINES: usize = 40;
 
@@ -147,6 +149,8 @@ pub struct ProcSpec {
     pub env: Vec<(String, String)>,
     /// Output handling.
     pub output: Output,
+    /// CPUs, nice and I/O priority of the process (its unit's).
+    pub placement: Placement,
 }
 
 impl ProcSpec {
@@ -161,7 +165,15 @@ impl ProcSpec {
                 keep: TAIL_LINES,
                 echo_all: false,
             },
+            placement: Placement::default(),
         }
+    }
+
+    /// Placed by `placement` (applied between fork and exec, as systemd
+    /// applies a unit's `CPUAffinity=`, `Nice=` and I/O priority).
+    pub fn placement(mut self, placement: Placement) -> Self {
+        self.placement = placement;
+        self
     }
 
     /// With `output`.
@@ -176,6 +188,51 @@ impl ProcSpec {
             .chain(self.args.iter().cloned())
             .collect::<Vec<_>>()
             .join(" ")
+    }
+}
+
+/// Applies `p` in the child between fork and exec: affinity to the CPUs
+/// of `p.cpus` that this process may use (none usable: left as it is; the
+/// caller reports it, see [`Placement::usable_cpus`]), then the nice
+/// value, then the I/O priority. A refused call fails the start with the
+/// kernel's error, as a unit whose placement fails does not start.
+fn place(cmd: &mut Command, p: &Placement) {
+    if p.is_default() {
+        return;
+    }
+    let cpus = p.usable_cpus();
+    // SAFETY: an all-zero cpu_set_t is a valid empty set.
+    let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
+    for &c in &cpus {
+        // SAFETY: usable_cpus keeps only CPUs inside the set's size.
+        unsafe { libc::CPU_SET(c, &mut set) };
+    }
+    let pin = !cpus.is_empty();
+    let nice = p.nice;
+    let io = p.io_best_effort;
+    // SAFETY: the closure makes only async-signal-safe system calls
+    // (sched_setaffinity, setpriority, ioprio_set) on data copied in
+    // before the fork, and allocates nothing.
+    unsafe {
+        cmd.pre_exec(move || {
+            if pin && libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) != 0
+            {
+                return Err(std::io::Error::last_os_error());
+            }
+            if nice != 0 && libc::setpriority(libc::PRIO_PROCESS, 0, nice) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            if let Some(level) = io {
+                // ioprio_set(IOPRIO_WHO_PROCESS, self, class best-effort << 13 | level)
+                const IOPRIO_WHO_PROCESS: libc::c_long = 1;
+                const IOPRIO_CLASS_BE: libc::c_long = 2;
+                let prio = (IOPRIO_CLASS_BE << 13) | libc::c_long::from(level);
+                if libc::syscall(libc::SYS_ioprio_set, IOPRIO_WHO_PROCESS, 0, prio) != 0 {
+                    return Err(std::io::Error::last_os_error());
+                }
+            }
+            Ok(())
+        });
     }
 }
 
@@ -229,6 +286,7 @@ impl Proc {
             .envs(spec.env.iter().map(|(k, v)| (k, v)))
             .stdin(Stdio::null())
             .process_group(0);
+        place(&mut cmd, &spec.placement);
         let mut file = None;
         let (keep, echo) = match &spec.output {
             Output::Pipe { keep, echo_all } => {
@@ -254,9 +312,14 @@ impl Proc {
             }
         };
         let cmdline = spec.cmdline();
+        let placed = if spec.placement.is_default() {
+            String::new()
+        } else {
+            format!(" (placed: {})", spec.placement)
+        };
         let mut child = cmd
             .spawn()
-            .map_err(io(format!("starting {}: {cmdline}", spec.name)))?;
+            .map_err(io(format!("starting {}: {cmdline}{placed}", spec.name)))?;
         let lines = Arc::new(Mutex::new(VecDeque::new()));
         let reader = child.stderr.take().map(|err| {
             let lines = Arc::clone(&lines);
@@ -642,6 +705,48 @@ mod tests {
         let st = s.stop("silent", Duration::from_secs(5)).unwrap();
         assert_eq!(st.signal(), Some(libc::SIGTERM));
         assert!(s.get("nobody").is_err());
+    }
+
+    /// A placed process runs on its CPU, at its nice value and I/O
+    /// priority from its first instruction (read back from /proc and
+    /// ioprio_get(2)); an unplaced one keeps the caller's.
+    #[test]
+    fn placement_is_applied_before_exec() {
+        let mut s = Supervisor::new(&format!("test-sup3-{}", std::process::id())).unwrap();
+        let placed = Placement {
+            cpus: &[0],
+            nice: 10,
+            io_best_effort: Some(7),
+        };
+        let pid = s
+            .spawn(&sh("placed", "exec sleep 30").placement(placed))
+            .unwrap()
+            .pid();
+        let plain = s.spawn(&sh("plain", "exec sleep 30")).unwrap().pid();
+        let status = |pid: u32, key: &str| -> String {
+            let text = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
+            text.lines()
+                .find_map(|l| l.strip_prefix(key))
+                .unwrap()
+                .trim()
+                .to_owned()
+        };
+        // Field 19 of /proc/PID/stat (after the parenthesised name) is nice.
+        let nice = |pid: u32| -> i64 {
+            let text = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap();
+            let after = &text[text.rfind(')').unwrap() + 2..];
+            after.split(' ').nth(16).unwrap().parse().unwrap()
+        };
+        // SAFETY: ioprio_get(IOPRIO_WHO_PROCESS, pid) reads a number.
+        let ioprio = |pid: u32| unsafe { libc::syscall(libc::SYS_ioprio_get, 1, pid as i64) };
+        assert_eq!(status(pid, "Cpus_allowed_list:"), "0");
+        assert_eq!(nice(pid), 10);
+        assert_eq!(ioprio(pid), (2 << 13) | 7, "best-effort, level 7");
+        assert_eq!(
+            status(plain, "Cpus_allowed_list:"),
+            status(std::process::id(), "Cpus_allowed_list:")
+        );
+        assert_eq!(nice(plain), nice(std::process::id()));
     }
 
     /// A process that ignores SIGTERM is killed and reported; dropping the

@@ -168,7 +168,13 @@ struct DriveResult {
     msg_per_s: Option<f64>,
 }
 
-fn drive(a: &Args, cfg: &Path, out: &Path, secs: u64) -> anyhow::Result<DriveResult> {
+fn drive(
+    a: &Args,
+    cfg: &Path,
+    out: &Path,
+    secs: u64,
+    period_us: f64,
+) -> anyhow::Result<DriveResult> {
     let scen = out.join("bench-scenario.toml");
     std::fs::write(&scen, scenario_toml(secs))
         .with_context(|| format!("writing {}", scen.display()))?;
@@ -262,6 +268,11 @@ fn drive(a: &Args, cfg: &Path, out: &Path, secs: u64) -> anyhow::Result<DriveRes
         wakeup_us: us(&tm.wakeup),
         compute_us: us(&tm.compute),
         deadline_misses: tm.deadline_misses,
+        late_wakeups: tm
+            .wakeup_ns
+            .iter()
+            .filter(|&&w| w as f64 > period_us * 1e3)
+            .count() as u64,
         safe_cycles: tm.safe_cycles,
     };
     let span = match (dlog.cycles.first(), dlog.cycles.last()) {
@@ -508,7 +519,7 @@ fn run() -> anyhow::Result<ExitCode> {
         out.display()
     );
     eprintln!("[1/5] drive: the five services, sampled from /proc every 0.25 s");
-    let d = drive(&a, &cfg, &out, secs)?;
+    let d = drive(&a, &cfg, &out, secs, budget.period_us)?;
     eprintln!("[2/5] cyclictest at tcs-loop's priority and CPU, {secs} s");
     let ct = cyclictest_run(&cfg, &out, secs, budget.period_us.round() as u64);
     eprintln!("[3/5] audio block: iceoryx2 vs Unix socket");

@@ -112,6 +112,9 @@ pub struct LoopTiming {
     pub compute_us: [f64; 4],
     /// Cycles whose work ended after the next deadline (the loop's counter).
     pub deadline_misses: u64,
+    /// Cycles woken more than one period late: the loop's stalls, each of
+    /// which may cost several deadlines (compare cyclictest's `over_limit`).
+    pub late_wakeups: u64,
     /// Cycles in the safe state.
     pub safe_cycles: u64,
 }
@@ -221,6 +224,15 @@ pub fn judge(m: &Measurements, b: &Budget) -> Vec<Line> {
                 ),
             ));
             let rate = t.deadline_misses as f64 / t.cycles as f64;
+            // Whose stalls: the loop's late wake-ups beside those of the
+            // bare scheduler (cyclictest, same CPU, priority and period).
+            let floor = match &m.cyclictest {
+                Ok(c) => format!(
+                    "; woken > {period:.0} µs late {} times, cyclictest alone {} times in as long",
+                    t.late_wakeups, c.over_limit
+                ),
+                Err(_) => format!("; woken > {period:.0} µs late {} times", t.late_wakeups),
+            };
             let mut l = limit_line(
                 "tcs-loop deadline misses per cycle",
                 rate,
@@ -228,7 +240,7 @@ pub fn judge(m: &Measurements, b: &Budget) -> Vec<Line> {
                 "",
                 4,
                 &format!(
-                    "{} of {} cycles ended after the next deadline (max wake-up {:.0} µs)",
+                    "{} of {} cycles ended after the next deadline (max wake-up {:.0} µs){floor}",
                     t.deadline_misses, t.cycles, t.wakeup_us[3]
                 ),
             );

@@ -42,6 +42,7 @@ fn good() -> Measurements {
             wakeup_us: [15.0, 40.0, 90.0, 800.0],
             compute_us: [5.0, 10.0, 20.0, 60.0],
             deadline_misses: 3,
+            late_wakeups: 1,
             safe_cycles: 0,
         }),
         cyclictest: Ok(Stats {
@@ -143,9 +144,18 @@ fn each_rule_fails_over_its_limit_with_its_reason() {
     let mut m = good();
     if let Ok(t) = &mut m.loop_timing {
         t.deadline_misses = 61; // > 1e-3 of 60 000
+        t.late_wakeups = 17;
+    }
+    if let Ok(c) = &mut m.cyclictest {
+        c.over_limit = 23;
     }
     let why = check(m, "tcs-loop deadline misses");
     assert!(why.contains("61 of 60000"), "{why}");
+    // whose stalls: the loop's late wake-ups beside the bare scheduler's
+    assert!(
+        why.contains("woken > 1000 µs late 17 times, cyclictest alone 23 times"),
+        "{why}"
+    );
 
     let mut m = good();
     if let Ok(c) = &mut m.cyclictest {
