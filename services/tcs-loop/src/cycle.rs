@@ -152,6 +152,10 @@ pub struct TcsLoop {
     road_names: Vec<[u8; NAME_LEN]>,
     /// Integral of the measured vehicle speed since start, m.
     odometer: f64,
+    /// The previous cycle's deadline, ns: periods skipped after a stall
+    /// (the timer skips them, it never bursts) still count on the
+    /// odometer.
+    last_deadline_ns: Option<u64>,
     dt: f64,
     r: f64,
     sensor_timeout_ns: u64,
@@ -213,6 +217,7 @@ impl TcsLoop {
             aware: None,
             road_names: Vec::new(),
             odometer: 0.0,
+            last_deadline_ns: None,
             dt: controllers.loop_.dt(),
             r: vehicle.r,
             sensor_timeout_ns: safety.sensor_timeout_ns(),
@@ -296,6 +301,10 @@ impl TcsLoop {
         let Some(road) = self.road_names.iter().position(|n| *n == e.class_name) else {
             return;
         };
+        // a confidence that is no number is no decision
+        if !e.confidence.is_finite() {
+            return;
+        }
         let (x_from, x_to) = if e.x_from.is_finite() && e.x_to.is_finite() {
             (e.x_from, e.x_to)
         } else {
@@ -311,8 +320,10 @@ impl TcsLoop {
                 self.odometer - v * ago(e.frame_t1_ns),
             )
         };
-        let stamp = (e.stamp_ns as i128 - t0 as i128) as f64 * 1e-9;
-        aware.decision(road, e.confidence, stamp, x_from, x_to);
+        // a stamp ahead of this loop's clock (a clock fault) counts as
+        // taken now: it must not keep a stream alive that has stopped
+        let stamp = (e.stamp_ns.min(now) as i128 - t0 as i128) as f64 * 1e-9;
+        aware.decision(road, e.confidence.clamp(0.0, 1.0), stamp, x_from, x_to);
     }
 
     /// The status shared with the helper thread.
@@ -415,16 +426,30 @@ impl TcsLoop {
         self.rx.poll_timeouts(now);
 
         // measured vehicle speed (V = r·OmegaRef when valid, else the
-        // VehicleSpeed frame when valid and fresh)
-        let omega = self.ws.map_or(0.0, |(w, _)| w.omega_driven);
-        let v = match self.ws {
-            Some((w, _)) if w.ref_valid => Some(self.r * w.omega_ref),
+        // VehicleSpeed frame when valid and fresh), from fresh frames only:
+        // a wheel-speed frame older than `sensor_timeout_ms` is no
+        // measurement (the loop is then in its safe state; its record says
+        // V unknown, and the odometer does not run on a frozen speed)
+        let ws = Self::fresh(&self.ws, now, self.sensor_timeout_ns);
+        let omega = ws.map_or(0.0, |w| w.omega_driven);
+        let v = match ws {
+            Some(w) if w.ref_valid => Some(self.r * w.omega_ref),
             _ => Self::fresh(&self.vs, now, self.vspeed_timeout_ns)
                 .filter(|s| s.valid)
                 .map(|s| s.speed),
         };
         // the odometer's speed: V, else the wheel's r·ω (as grip sim)
         let v_odo = grip_tcs::odometer_speed(v, omega, self.r);
+        // periods the timer skipped since the last cycle (a stall): the car
+        // moved on meanwhile, at about this speed
+        if let Some(prev) = self.last_deadline_ns {
+            let periods = tick.deadline_ns.saturating_sub(prev) as f64 * 1e-9 / self.dt;
+            let skipped = periods.round() - 1.0;
+            if skipped >= 1.0 {
+                self.odometer += v_odo * self.dt * skipped;
+            }
+        }
+        self.last_deadline_ns = Some(tick.deadline_ns);
 
         // 2. road estimate (latest value wins)
         let mut road_taken = 0;
@@ -438,7 +463,6 @@ impl TcsLoop {
         }
 
         // 3. safe state
-        let ws = Self::fresh(&self.ws, now, self.sensor_timeout_ns);
         let ms = Self::fresh(&self.ms, now, self.sensor_timeout_ns);
         let dd = Self::fresh(&self.dd, now, self.demand_timeout_ns);
         let inputs_ok = ws.is_some() && ms.is_some() && dd.is_some();

@@ -54,7 +54,7 @@ struct Args {
     #[arg(long, value_enum)]
     arte: Option<OnOff>,
     /// Stop after this many seconds (benchmarks).
-    #[arg(long)]
+    #[arg(long, value_parser = seconds)]
     run_for: Option<f64>,
     /// The vehicle's TOML (default: <config-dir>/vehicle.toml).
     #[arg(long)]
@@ -71,4 +71,16 @@ fn main() -> ExitCode {
         vehicle: args.vehicle,
     };
     Service::new().run(|signals| run(&opts, &signals.stop).map(drop))
+}
+
+/// `--run-for`: a finite number of seconds, at least 0 and at most a year.
+fn seconds(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .parse()
+        .map_err(|_| format!("{s:?} is not a number of seconds"))?;
+    if v.is_finite() && (0.0..=3.2e7).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{s:?}: seconds from 0 to 3.2e7 (a year) expected"))
+    }
 }

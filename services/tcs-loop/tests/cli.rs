@@ -83,6 +83,12 @@ fn bad_flag_is_a_usage_error() {
     assert!(err.contains("pid"), "{err}");
     let (code, _) = run(&["--arte", "maybe"]);
     assert_eq!(code, 2);
+    // a run length that is no finite number of seconds
+    for bad in ["inf", "NaN", "-1", "1e30", "soon"] {
+        let (code, err) = run(&[&format!("--run-for={bad}")]);
+        assert_eq!(code, 2, "--run-for {bad}: {err}");
+        assert!(err.contains("--run-for") && err.contains(bad), "{err}");
+    }
 }
 
 #[test]

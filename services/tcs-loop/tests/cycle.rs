@@ -624,6 +624,117 @@ fn snow_heard_ahead_caps_the_torque_before_the_wheel_gets_there() {
     }
 }
 
+/// A stall (the timer skipped periods, it never bursts) still counts on
+/// the odometer: the car moved on meanwhile. A wheel-speed frame older than
+/// the sensor timeout is no speed: the record says V unknown and the
+/// odometer does not run on the frozen value.
+#[test]
+fn the_odometer_counts_skipped_periods_and_no_stale_speed() {
+    let mut r = Rig::new(ControllerKind::Mtte, false);
+    r.run_ok(100);
+    let v = VehicleParams::default().r * 9.9; // V = r · OmegaRef
+    let dt = 1e-3;
+    let x0 = r.lp.odometer();
+    r.run_ok(1);
+    assert!((r.lp.odometer() - x0 - v * dt).abs() < 1e-12);
+    // a 10 ms stall: the next deadline the timer keeps is 10 periods on
+    let x0 = r.lp.odometer();
+    r.clock.advance_ns(9 * MS);
+    r.run_ok(1);
+    let moved = r.lp.odometer() - x0;
+    assert!(
+        (moved - 10.0 * v * dt).abs() < 1e-9,
+        "{moved} m over a 10 ms stall at {v} m/s"
+    );
+
+    // WheelSpeeds stop: after the 10 ms sensor timeout, no speed
+    let mut rec = None;
+    for _ in 0..30 {
+        r.feed(false, true, true);
+        rec = Some(r.cycle().0);
+    }
+    let rec = rec.unwrap();
+    assert_eq!(rec.safe_state, 1);
+    assert_eq!(rec.v_valid, 0, "{rec:?}");
+    assert!(rec.v.is_nan() && rec.omega == 0.0, "{rec:?}");
+    let x1 = r.lp.odometer();
+    r.feed(false, true, true);
+    r.cycle();
+    assert_eq!(r.lp.odometer(), x1, "no speed, no distance");
+}
+
+/// The live path (road knowledge tied to places): an estimate stamped
+/// ahead of the loop's clock (a clock fault) keeps the stream alive no
+/// longer than `[arte] max_age_s` after it came, and an estimate whose
+/// confidence is no number is no decision.
+#[test]
+fn a_future_stamp_or_a_nan_confidence_does_not_keep_knowledge_alive() {
+    let dir = grip_config::ConfigDir::new(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config"),
+    );
+    let roads = dir.roads().unwrap();
+    let table = dir.road_table(&roads).unwrap();
+    let controllers = grip_config::load_controllers(dir.file("controllers.toml")).unwrap();
+    let (vehicle, _) = grip_config::load_vehicle(dir.file("vehicle.toml")).unwrap();
+    let max_age_ms = (controllers.arte.max_age_s * 1e3).round() as usize;
+    let build = || {
+        TcsLoop::new(
+            ControllerKind::Mtte,
+            true,
+            &controllers,
+            &vehicle,
+            &SafetyConfig::default(),
+        )
+        .unwrap()
+        .with_road_aware(&roads, table.clone(), &controllers, &vehicle)
+        .unwrap()
+    };
+    // one estimate of asphalt under the wheel, then arte falls silent;
+    // returns the cycles ARTE was used in over the next second
+    let used_after = |stamp_ahead_ns: u64, confidence: f64| {
+        let mut r = Rig::new(ControllerKind::Mtte, true);
+        r.lp = build();
+        r.run_ok(100);
+        let x = r.lp.odometer();
+        let mut road = SetRoad {
+            next: Some(RoadEstimate {
+                seq: 1,
+                stamp_ns: r.now() + stamp_ahead_ns,
+                frame_t0_ns: r.now() - 100 * MS,
+                frame_t1_ns: r.now(),
+                class_index: 0,
+                n_classes: 4,
+                class_name: grip_msgs::name_to_bytes("asphalt"),
+                confidence,
+                x_from: x - 0.3,
+                x_to: x,
+                ..RoadEstimate::zeroed()
+            }),
+        };
+        let mut used = 0;
+        for _ in 0..1_000 {
+            r.feed(true, true, true);
+            used += usize::from(r.cycle_with(&mut road).0.used_arte);
+        }
+        used
+    };
+    let on_time = used_after(0, 0.95);
+    assert!(
+        on_time > 0 && on_time <= max_age_ms + 1,
+        "an estimate on time: used {on_time} ms (max age {max_age_ms} ms)"
+    );
+    let ahead = used_after(10_000 * MS, 0.95);
+    assert!(
+        ahead <= max_age_ms + 1,
+        "stamped 10 s ahead: used {ahead} ms after arte stopped (max age {max_age_ms} ms)"
+    );
+    assert_eq!(
+        used_after(0, f64::NAN),
+        0,
+        "a NaN confidence is no decision"
+    );
+}
+
 /// A bus that counts the frames sent on it, shared with [`OrderSink`].
 struct CountingBus {
     inner: MemBus,
