@@ -273,15 +273,16 @@ fn preview_events(
         }
         let ahead = since.map(|t| {
             let x_then = truth_at(&log.truth, t).map_or(b.x, |g| g.x);
-            ((tc - t) as f64 * 1e-9, b.x - x_then)
+            // signed: cycles out of time order can put `t` after `tc`
+            (secs_between(t, tc), b.x - x_then)
         });
         let max_slip_after = log.truth[k..]
             .iter()
-            .take_while(|g| g.stamp_ns < tc + 200_000_000)
+            .take_while(|g| g.stamp_ns < tc.saturating_add(200_000_000))
             .map(|g| g.lambda)
             .fold(f64::MIN, f64::max);
         out.push(PreviewEvent {
-            t: (tc as i128 - start_ns as i128) as f64 * 1e-9,
+            t: secs_between(start_ns, tc),
             x: b.x,
             from: ra.name().to_owned(),
             to: rb.name().to_owned(),
@@ -317,6 +318,23 @@ impl PreviewEvent {
             self.cmd_at_arrival, self.torque_at_arrival, self.max_slip_after
         )
     }
+}
+
+/// `to - from` in seconds, signed (stamps out of time order give a
+/// negative time, never a wrapped one).
+fn secs_between(from_ns: u64, to_ns: u64) -> f64 {
+    (i128::from(to_ns) - i128::from(from_ns)) as f64 * 1e-9
+}
+
+/// Messages stamped earlier than the message before them on their topic.
+pub fn out_of_time_order(stamps: impl IntoIterator<Item = u64>) -> u64 {
+    let mut last: Option<u64> = None;
+    let mut n = 0;
+    for s in stamps {
+        n += u64::from(last.is_some_and(|l| s < l));
+        last = Some(s);
+    }
+    n
 }
 
 /// Sequence gaps and resets of a sequence.
@@ -463,6 +481,30 @@ pub fn summarize(
             log.report.first_error.as_deref().unwrap_or("?")
         ));
     }
+    let late: Vec<String> = [
+        (
+            topics::CYCLE,
+            out_of_time_order(log.cycles.iter().map(|c| c.stamp_ns)),
+        ),
+        (
+            topics::TRUTH,
+            out_of_time_order(log.truth.iter().map(|g| g.stamp_ns)),
+        ),
+        (
+            topics::ROAD,
+            out_of_time_order(log.roads.iter().map(|e| e.stamp_ns)),
+        ),
+    ]
+    .into_iter()
+    .filter(|(_, n)| *n > 0)
+    .map(|(t, n)| format!("{t} {n}"))
+    .collect();
+    if !late.is_empty() {
+        s.warnings.push(format!(
+            "messages out of time order (stamped before the one logged before them): {}; the times computed from them may be off",
+            late.join(", ")
+        ));
+    }
     if log.recorder.is_none() {
         s.warnings
             .push("no grip.recorder summary: the recorder did not finish (crash or kill)".into());
@@ -519,7 +561,8 @@ pub fn summarize(
             }
         };
         let start_ns = log.truth[i0].stamp_ns;
-        let end_ns = scenario_duration(log).map_or(u64::MAX, |d| start_ns + (d * 1e9) as u64);
+        let end_ns =
+            scenario_duration(log).map_or(u64::MAX, |d| start_ns.saturating_add((d * 1e9) as u64));
         let mut acc = MetricsAccumulator::new(vehicle);
         let mut last_in = i0;
         // The command in force at each truth sample: the latest cycle
@@ -540,7 +583,7 @@ pub fn summarize(
             let next = log
                 .truth
                 .get(k + 1)
-                .map_or(g.stamp_ns + 1_000_000, |n| n.stamp_ns);
+                .map_or(g.stamp_ns.saturating_add(1_000_000), |n| n.stamp_ns);
             let next = next.min(end_ns);
             acc.push(&Sample {
                 dt: next.saturating_sub(g.stamp_ns) as f64 * 1e-9,
@@ -555,7 +598,10 @@ pub fn summarize(
         s.metrics = Some(acc.finish());
         let rel = |ns: u64| ns.saturating_sub(t_first) as f64 * 1e-9;
         let last_ns = log.truth[last_in].stamp_ns;
-        s.window = Some((rel(start_ns), rel(end_ns.min(last_ns + 1_000_000))));
+        s.window = Some((
+            rel(start_ns),
+            rel(end_ns.min(last_ns.saturating_add(1_000_000))),
+        ));
         s.speed_kmh = Some((log.truth[i0].v * 3.6, log.truth[last_in].v * 3.6));
 
         // ARTE
@@ -604,7 +650,7 @@ pub fn summarize(
                 .find(|e| name_of_est(e).as_deref() == Some(to.as_str()))
                 .map(|e| (e.stamp_ns - tc) as f64 * 1e-9);
             a.changes.push(RoadChange {
-                t: (tc - start_ns) as f64 * 1e-9,
+                t: secs_between(start_ns, *tc),
                 from: from.clone(),
                 to: to.clone(),
                 delay,
@@ -1105,6 +1151,66 @@ mod tests {
         assert!(c.contains("NOT at or below"), "{c}");
         // snow -> asphalt carries more: no event; no catalogue: no report
         assert!(summarize(&make(true), &v, "test", None).preview.is_none());
+    }
+
+    /// A user's log with messages out of time order (a truth sample and a
+    /// cycle record stamped before the one logged before them): the times
+    /// computed from them stay small and signed (no wrap to "18446744073.709
+    /// s", no panic in a debug build), and a warning counts them per topic.
+    #[test]
+    fn messages_out_of_time_order_give_signed_times_and_a_warning() {
+        let roads = RoadCatalogue::burckhardt(&["asphalt", "snow"]).unwrap();
+        let v = VehicleParams::default();
+        let limit = roads[1].mu_peak() * v.normal_force() * v.r;
+        let mut t = Vec::new();
+        let mut c = Vec::new();
+        for k in 0..300u64 {
+            let x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
+            let (r, n) = if k < 110 { (0, "asphalt") } else { (1, "snow") };
+            let mut g = truth(k, k, x, r, n);
+            if k >= 50 {
+                // the microphone reaches snow at the sample logged 50th
+                g.mic_road_index = 1;
+                g.mic_road_name = grip_msgs::name_to_bytes("snow");
+            }
+            t.push(g);
+            let mut rec = CycleRecord::zeroed();
+            rec.seq = k;
+            rec.stamp_ns = k * 1_000_000;
+            rec.torque_cmd = if k >= 80 { limit } else { 300.0 };
+            c.push(rec);
+        }
+        // stamped 5 ms, before the scenario's start (9 ms), logged after it
+        t[50].stamp_ns = 5_000_000;
+        // the first capped cycle stamped after the wheel reaches snow (110 ms)
+        c[80].stamp_ns = 150_000_000;
+        let log = DriveLog {
+            truth: t,
+            cycles: c,
+            ..DriveLog::default()
+        };
+        let s = summarize(&log, &v, "test", Some(&roads));
+        let ch = &s.arte.changes;
+        assert_eq!(ch.len(), 1, "{ch:?}");
+        assert!((ch[0].t + 0.004).abs() < 1e-9, "{ch:?}");
+        let p = s.preview.as_ref().unwrap();
+        assert_eq!(p.len(), 1, "{p:?}");
+        assert!((p[0].t - 0.101).abs() < 1e-9, "{p:?}");
+        let (dt, _) = p[0].ahead.unwrap();
+        assert!((dt + 0.040).abs() < 1e-9, "{dt}");
+        let w = s.warnings.join("\n");
+        assert!(
+            w.contains("messages out of time order")
+                && w.contains("grip/tcs/cycle 1")
+                && w.contains("grip/plant/truth 1")
+                && !w.contains("grip/arte/road"),
+            "{w}"
+        );
+        let r = s.render();
+        assert!(r.contains("change at -0.004 s asphalt -> snow"), "{r}");
+        assert!(!r.contains("18446744073"), "{r}");
+        assert_eq!(out_of_time_order([1, 2, 2, 3]), 0);
+        assert_eq!(out_of_time_order([3, 1, 2, 0]), 2);
     }
 
     #[test]

@@ -153,6 +153,7 @@ pub fn receive_pass(
     subs: &Subscribers,
     q: &Queue,
     stats: &mut RecvStats,
+    errors: &mut ErrorReport,
     max: usize,
     probe: &RxProbe,
     beat: &AtomicU64,
@@ -172,8 +173,9 @@ pub fn receive_pass(
                         beat.fetch_add(1, Ordering::Relaxed);
                     }
                     Ok(None) => break,
-                    Err(_) => {
+                    Err(e) => {
                         stats.topic($topic).receive_errors += 1;
+                        errors.warn($topic, &e, Instant::now());
                         break;
                     }
                 }
@@ -198,8 +200,9 @@ pub fn receive_pass(
                 beat.fetch_add(1, Ordering::Relaxed);
             }
             Ok(None) => break,
-            Err(_) => {
+            Err(e) => {
                 stats.topic(topics::CAN_LOG).receive_errors += 1;
+                errors.warn(topics::CAN_LOG, &e, Instant::now());
                 break;
             }
         }
@@ -303,10 +306,11 @@ pub fn spawn_receiver(
                     return stats;
                 }
             };
+            let mut errors = ErrorReport::default();
             // only receiving and sleeping here: the topics' peers are
             // watched by a thread of their own (monitor::spawn_peer_watch)
             while !stop.load(Ordering::Relaxed) {
-                let n = receive_pass(&subs, &q, &mut stats, 4096, &probe, &heartbeat);
+                let n = receive_pass(&subs, &q, &mut stats, &mut errors, 4096, &probe, &heartbeat);
                 heartbeat.fetch_add(1, Ordering::Relaxed);
                 if n == 0 {
                     probe.enter(RxStep::Sleep, 0);
@@ -314,7 +318,7 @@ pub fn spawn_receiver(
                 }
             }
             // drain what is still waiting in the subscribers
-            while receive_pass(&subs, &q, &mut stats, 4096, &probe, &heartbeat) > 0 {}
+            while receive_pass(&subs, &q, &mut stats, &mut errors, 4096, &probe, &heartbeat) > 0 {}
             stats
         })
 }
@@ -335,6 +339,43 @@ pub fn error_chain(e: &dyn std::error::Error) -> String {
         cur = c.source();
     }
     s
+}
+
+/// Rate-limits the receive thread's warning about receive errors (every
+/// one is counted in `receive_errors`): the first at once, then at most
+/// one a second, each with the errors since the last warning.
+#[derive(Debug, Default)]
+pub struct ErrorReport {
+    last: Option<Instant>,
+    since: u64,
+}
+
+impl ErrorReport {
+    /// One receive error at `now`: the errors to report (this one and those
+    /// held back since the last report), when a report is due.
+    pub fn observe(&mut self, now: Instant) -> Option<u64> {
+        self.since += 1;
+        if self
+            .last
+            .is_some_and(|t| now.duration_since(t) < Duration::from_secs(1))
+        {
+            return None;
+        }
+        self.last = Some(now);
+        Some(std::mem::take(&mut self.since))
+    }
+
+    /// [`ErrorReport::observe`], logging the warning when due.
+    fn warn(&mut self, topic: &str, e: &IpcError, now: Instant) {
+        if let Some(n) = self.observe(now) {
+            tracing::warn!(
+                topic,
+                error = %e,
+                errors = n,
+                "receive error (counted in grip.recorder's receive_errors; at most one warning a second, `errors` counts those since the last)"
+            );
+        }
+    }
 }
 
 /// Messages waiting in the queue from which the writer counts as behind:
@@ -447,6 +488,18 @@ pub fn write_loop(
 #[cfg(test)]
 mod error_tests {
     use super::*;
+
+    #[test]
+    fn receive_errors_are_reported_at_once_then_at_most_once_a_second() {
+        let mut r = ErrorReport::default();
+        let t0 = Instant::now();
+        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        assert_eq!(r.observe(at(0)), Some(1), "the first at once");
+        assert_eq!(r.observe(at(10)), None, "within the second");
+        assert_eq!(r.observe(at(900)), None);
+        assert_eq!(r.observe(at(1000)), Some(3), "the errors since the last");
+        assert_eq!(r.observe(at(5000)), Some(1));
+    }
 
     #[test]
     fn a_backlog_is_reported_at_most_once_a_second_with_its_peak() {

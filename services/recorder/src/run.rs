@@ -18,6 +18,7 @@ use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, to
 use crate::config::RecorderConfig;
 use crate::cycle::{Summary, queue, spawn_receiver, write_loop};
 use crate::monitor::RxProbe;
+use crate::stats::RecvStats;
 
 /// The grip revision this binary was built from (build.rs).
 pub const GIT_REV: &str = env!("GRIP_GIT_REV");
@@ -59,6 +60,24 @@ pub enum RunError {
     /// A thread could not be started.
     #[error("cannot start the receive thread: {0}")]
     Thread(std::io::Error),
+    /// The receive thread panicked: recording ended there, its counters are lost.
+    #[error(
+        "the receive thread panicked ({0}): recording stopped there; its counters are lost (no grip.recorder summary); the log holds what was written"
+    )]
+    ReceiveThread(String),
+}
+
+/// The receive thread's counters; its panic is an error, never counters of
+/// zero.
+fn join_receiver(h: std::thread::JoinHandle<RecvStats>) -> Result<RecvStats, RunError> {
+    h.join().map_err(|p| {
+        let why = p
+            .downcast_ref::<&str>()
+            .map(|s| (*s).to_owned())
+            .or_else(|| p.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "no message".to_owned());
+        RunError::ReceiveThread(why)
+    })
 }
 
 /// A file to attach: its name in the log, path, and whether it is a model.
@@ -275,19 +294,33 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         &probe,
         &mut summary,
     );
-    summary.recv = handle.join().unwrap_or_default();
+    let rx_failed = match join_receiver(handle) {
+        Ok(recv) => {
+            summary.recv = recv;
+            None
+        }
+        Err(e) => {
+            tracing::error!(error = %e, "receive thread failed");
+            Some(e)
+        }
+    };
     if let Some(p) = peers {
         let _ = p.join();
     }
     summary.queue_high_water = high.load(Ordering::Relaxed);
     if !failed {
-        w.write_metadata("grip.recorder", &summary.metadata())?;
+        // without the receive thread's counters the summary would claim
+        // nothing was received: none is written
+        if rx_failed.is_none() {
+            w.write_metadata("grip.recorder", &summary.metadata())?;
+        }
         w.finish()?;
     }
     let total_rx: u64 = summary.recv.topics.values().map(|s| s.received).sum();
     let total_w: u64 = summary.written.values().sum();
     let gaps: u64 = summary.recv.topics.values().map(|s| s.seq.gaps).sum();
     let dropped: u64 = summary.recv.topics.values().map(|s| s.queue_dropped).sum();
+    let receive_errors: u64 = summary.recv.topics.values().map(|s| s.receive_errors).sum();
     tracing::info!(
         file = %path.display(),
         received = total_rx,
@@ -295,6 +328,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         seq_gaps = gaps,
         can_counter_gaps = summary.recv.can.gaps,
         queue_dropped = dropped,
+        receive_errors,
         queue_high_water = summary.queue_high_water,
         write_errors = summary.write_errors,
         "recorder stopped"
@@ -305,5 +339,41 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
             source: std::io::Error::other("a write failed during the recording (see above)"),
         }));
     }
+    if let Some(e) = rx_failed {
+        return Err(e);
+    }
     Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A panicked receive thread is an error naming the panic, not "0
+    /// received, 0 dropped" and exit 0.
+    #[test]
+    fn a_panicked_receive_thread_is_an_error() {
+        let h = std::thread::spawn(|| -> RecvStats { panic!("subscriber on fire") });
+        let e = join_receiver(h).unwrap_err();
+        assert!(matches!(e, RunError::ReceiveThread(_)), "{e:?}");
+        let text = e.to_string();
+        assert!(
+            text.contains("receive thread panicked (subscriber on fire)"),
+            "{text}"
+        );
+        let h = std::thread::spawn(|| -> RecvStats { panic!("{} errors", 3) });
+        assert!(
+            join_receiver(h)
+                .unwrap_err()
+                .to_string()
+                .contains("(3 errors)")
+        );
+        let h = std::thread::spawn(|| {
+            let mut s = RecvStats::default();
+            s.topic(topics::CYCLE).received = 7;
+            s
+        });
+        let s = join_receiver(h).unwrap();
+        assert_eq!(s.topics[topics::CYCLE].received, 7);
+    }
 }

@@ -196,6 +196,22 @@ fn bad_options_are_refused_with_the_reason() {
     assert!(err.contains("no-such-scenario"), "{err}");
 }
 
+/// Log i has seed --seed0 + i: past u64 it is refused with the reason (was
+/// an overflow: a panic in a debug build), before anything is written.
+#[test]
+fn a_seed_range_past_u64_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("logs");
+    let err = refused(&out, &["--seed0", "18446744073709551615", "--count", "2"]);
+    assert!(
+        err.contains("--seed0 18446744073709551615 with --count 2")
+            && err.contains("overflows u64")
+            && err.contains("the largest --seed0 for 2 logs is 18446744073709551614"),
+        "{err}"
+    );
+    assert!(!out.exists(), "the output directory was created");
+}
+
 #[test]
 fn the_random_recipe_is_taken_as_grip_sim_takes_it() {
     // `--random` changes the road sequence's recipe: segments of 3-5 m at

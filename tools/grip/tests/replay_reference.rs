@@ -93,6 +93,58 @@ fn a_damaged_reference_is_refused_by_name() {
     );
 }
 
+/// `--out` naming the log being replayed (the file, or the directory of
+/// logs) is refused with both named, and the log's bytes are unchanged
+/// (the writer would truncate it; its recorder metadata is not rewritten).
+#[test]
+fn out_onto_the_replayed_log_is_refused_and_the_log_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = std::fs::read(root().join("tests/data/reference-drive.mcap")).unwrap();
+    let log = dir.path().join("d.mcap");
+    std::fs::write(&log, &bytes).unwrap();
+    let run = |args: &[&std::ffi::OsStr]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_grip"))
+            .arg("--config-dir")
+            .arg(root().join("config"))
+            .arg("replay")
+            .args(args)
+            .output()
+            .expect("running grip replay");
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    // the file, spelled another way
+    let other = dir.path().join(".").join("d.mcap");
+    let (ok, err) = run(&[log.as_os_str(), "--out".as_ref(), other.as_os_str()]);
+    assert!(!ok, "--out onto the log was not refused");
+    assert!(
+        err.contains(&format!("--out {}", other.display()))
+            && err.contains(&format!("is the log being replayed ({})", log.display())),
+        "{err}"
+    );
+    assert!(std::fs::read(&log).unwrap() == bytes, "the log was changed");
+    // the directory form: logs/ --out logs/
+    let with_slash = format!("{}/", dir.path().display());
+    let (ok, err) = run(&[
+        dir.path().as_os_str(),
+        "--out".as_ref(),
+        with_slash.as_ref(),
+    ]);
+    assert!(!ok, "--out onto the directory of logs was not refused");
+    assert!(
+        err.contains(&format!("--out {with_slash}"))
+            && err.contains(&format!(
+                "is the directory being replayed ({})",
+                dir.path().display()
+            )),
+        "{err}"
+    );
+    assert!(std::fs::read(&log).unwrap() == bytes, "the log was changed");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}
+
 /// `--closed-loop` with nothing changed reproduces the logged drive's plant
 /// metrics within 2 % (measured: within 0.6 %, 2026-12-01).
 #[test]

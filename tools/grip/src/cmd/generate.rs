@@ -188,13 +188,22 @@ fn controller_name(c: Controller) -> &'static str {
     }
 }
 
-/// The per-log specs of `args`.
-fn specs(args: &Args, random: &RandomSpec) -> Vec<LogSpec> {
+/// The per-log specs of `args`; log i has seed `--seed0` + i, refused when
+/// that overflows u64.
+fn specs(args: &Args, random: &RandomSpec) -> anyhow::Result<Vec<LogSpec>> {
     let nc = args.controllers.len().max(1);
     let na = args.arte.len().max(1);
     (0..args.count)
         .map(|i| {
-            let seed = args.seed0 + i as u64;
+            let seed = args.seed0.checked_add(i as u64).with_context(|| {
+                format!(
+                    "--seed0 {} with --count {}: log {i}'s seed (--seed0 + {i}) overflows u64; the largest --seed0 for {} logs is {}",
+                    args.seed0,
+                    args.count,
+                    args.count,
+                    u64::MAX - (args.count as u64 - 1)
+                )
+            })?;
             let mut rng =
                 rand_chacha::ChaCha8Rng::seed_from_u64(grip_sim::sub_seed(seed, SCENARIO_DRAWS));
             let mut draw = |r: Option<(f64, f64)>| {
@@ -210,7 +219,7 @@ fn specs(args: &Args, random: &RandomSpec) -> Vec<LogSpec> {
             let v0_kmh = draw(args.v0_kmh);
             let torque = draw(args.torque);
             let snr_db = draw(args.snr_db);
-            LogSpec {
+            Ok(LogSpec {
                 file: args.out.join(format!("gen-{i:05}-s{seed}.mcap")),
                 seed,
                 scenario: args.scenario.clone(),
@@ -222,7 +231,7 @@ fn specs(args: &Args, random: &RandomSpec) -> Vec<LogSpec> {
                 snr_db,
                 vehicle: args.vehicle.clone(),
                 hold_s: args.hold_s,
-            }
+            })
         })
         .collect()
 }
@@ -234,10 +243,10 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     if !(args.hold_s.is_finite() && (0.0..=60.0).contains(&args.hold_s)) {
         bail!("--hold-s must be within 0..=60 s (got {})", args.hold_s);
     }
+    let random = super::sim::random_spec(args.random.as_deref(), &args.scenario)?;
+    let specs = specs(&args, &random)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
-    let random = super::sim::random_spec(args.random.as_deref(), &args.scenario)?;
-    let specs = specs(&args, &random);
     let config = std::path::absolute(&ctx.config_dir)
         .with_context(|| format!("resolving {}", ctx.config_dir.display()))?;
     let t0 = Instant::now();

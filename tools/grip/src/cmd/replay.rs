@@ -7,7 +7,7 @@
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, bail};
@@ -95,7 +95,7 @@ pub struct Replayed {
 }
 
 /// The `--json` object of a log that could not be replayed.
-fn error_json(path: &std::path::Path, e: &anyhow::Error) -> serde_json::Value {
+fn error_json(path: &Path, e: &anyhow::Error) -> serde_json::Value {
     serde_json::json!({
         "file": path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned()),
         "path": path.display().to_string(),
@@ -146,6 +146,13 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
 fn replay_dir(args: &Args, what: &WhatIf) -> anyhow::Result<()> {
     let logs = crate::drive::many::logs_in(&args.log)?;
     if let Some(o) = &args.out {
+        if same_path(&args.log, o) {
+            bail!(
+                "--out {} is the directory being replayed ({}): the replayed logs would overwrite the logs themselves; choose another directory",
+                o.display(),
+                args.log.display()
+            );
+        }
         std::fs::create_dir_all(o).with_context(|| format!("creating {}", o.display()))?;
     }
     let pb = crate::drive::many::bar(logs.len(), "replays");
@@ -275,14 +282,90 @@ fn command_figures(cycles: &[CycleRecord]) -> Vec<(&'static str, f64)> {
     ]
 }
 
+/// `p` resolved (symbolic links, `..`) as far as it exists: a path that does
+/// not exist yet (an output) is its parent's canonical path plus its name.
+fn resolved(p: &Path) -> PathBuf {
+    if let Ok(c) = p.canonicalize() {
+        return c;
+    }
+    match (p.parent(), p.file_name()) {
+        (Some(dir), Some(name)) => {
+            let dir = if dir.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                dir
+            };
+            dir.canonicalize()
+                .map_or_else(|_| p.to_path_buf(), |d| d.join(name))
+        }
+        _ => p.to_path_buf(),
+    }
+}
+
+/// Whether `a` and `b` name the same file or directory (also through a
+/// symbolic or hard link).
+fn same_path(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt as _;
+    if let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b))
+        && (x.dev(), x.ino()) == (y.dev(), y.ino())
+    {
+        return true;
+    }
+    resolved(a) == resolved(b)
+}
+
+/// The time the cycle records span, s: from the earliest stamp to the
+/// latest (a log whose messages are out of time order gives its span, not
+/// a wrapped difference of its first and last).
+fn stamp_span_s(cycles: &[CycleRecord]) -> f64 {
+    let lo = cycles.iter().map(|c| c.stamp_ns).min();
+    let hi = cycles.iter().map(|c| c.stamp_ns).max();
+    match (lo, hi) {
+        (Some(a), Some(b)) => (b - a) as f64 * 1e-9,
+        _ => 0.0,
+    }
+}
+
+/// The report's ARTE accuracy row, old and new; `-` where nothing was
+/// judged (a log without ground truth).
+fn accuracy_row(
+    old: &grip_drive::summary::ArteEval,
+    new: &grip_drive::summary::ArteEval,
+) -> String {
+    let pct = |a: &grip_drive::summary::ArteEval| {
+        if a.judged == 0 {
+            "-".to_owned()
+        } else {
+            format!("{:.1}", 100.0 * a.accuracy())
+        }
+    };
+    format!(
+        "  {:<44} {:>12} {:>12}",
+        "ARTE accuracy vs ground truth, %",
+        pct(old),
+        pct(new)
+    )
+}
+
 /// Replays `log` with `what` changed (in closed loop with the plant if
 /// `closed`); writes `out` if given.
 pub fn replay(
-    path: &std::path::Path,
+    path: &Path,
     what: &WhatIf,
-    out: Option<&std::path::Path>,
+    out: Option<&Path>,
     closed: bool,
 ) -> anyhow::Result<Replayed> {
+    if let Some(out) = out
+        && same_path(path, out)
+    {
+        // the writer would truncate the log being replayed (its recorder
+        // metadata is not rewritten: lost for good)
+        bail!(
+            "--out {} is the log being replayed ({}): writing it would destroy the original; choose another file",
+            out.display(),
+            path.display()
+        );
+    }
     let t0 = Instant::now();
     let log = DriveLog::load_with(path, LoadOptions { audio: true })?;
     if let Some(t) = &log.report.truncated {
@@ -380,10 +463,7 @@ pub fn replay(
         compare::compare("grip/can/log (tx)", &tx(&log.can), &tx(&outs.can)),
         compare::compare("grip/can/log (rx)", &rx(&log.can), &rx(&outs.can)),
     ];
-    let span_s = match (log.cycles.first(), log.cycles.last()) {
-        (Some(a), Some(b)) => (b.stamp_ns - a.stamp_ns) as f64 * 1e-9,
-        _ => 0.0,
-    };
+    let span_s = stamp_span_s(&log.cycles);
 
     let mut o = String::new();
     let _ = writeln!(o, "replay of {}", path.display());
@@ -470,14 +550,7 @@ pub fn replay(
     {
         let _ = writeln!(o, "  {name:<44} {a:>12.3} {b:>12.3}");
     }
-    let acc = |s: &grip_drive::Summary| 100.0 * s.arte.accuracy();
-    let _ = writeln!(
-        o,
-        "  {:<44} {:>12.1} {:>12.1}",
-        "ARTE accuracy vs ground truth, %",
-        acc(&s_old),
-        acc(&s_new)
-    );
+    let _ = writeln!(o, "{}", accuracy_row(&s_old.arte, &s_new.arte));
     for (a, b) in s_old.arte.changes.iter().zip(&s_new.arte.changes) {
         let d = |x: Option<f64>| x.map_or("missed".to_owned(), |v| format!("{v:.3}"));
         let _ = writeln!(
@@ -599,4 +672,72 @@ pub fn replay(
         text: o,
         json,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use grip_drive::summary::ArteEval;
+
+    /// A log without ground truth judges nothing: the row says `-`, not NaN.
+    #[test]
+    fn accuracy_row_is_a_dash_when_nothing_was_judged() {
+        let none = ArteEval {
+            estimates: 12,
+            ..ArteEval::default()
+        };
+        let row = accuracy_row(&none, &none);
+        assert!(!row.contains("NaN"), "{row}");
+        assert!(row.trim_end().ends_with("-            -"), "{row}");
+        let judged = ArteEval {
+            judged: 4,
+            correct: 3,
+            ..ArteEval::default()
+        };
+        let row = accuracy_row(&judged, &none);
+        assert!(
+            row.contains("75.0") && row.trim_end().ends_with('-'),
+            "{row}"
+        );
+    }
+
+    /// Cycle records out of time order: the span from the earliest to the
+    /// latest stamp, not a wrapped (or, in debug, panicking) difference.
+    #[test]
+    fn the_span_of_cycles_out_of_time_order() {
+        let c = |ms: u64| {
+            let mut r = CycleRecord::zeroed();
+            r.stamp_ns = ms * 1_000_000;
+            r
+        };
+        let span = stamp_span_s(&[c(5), c(1), c(9), c(3)]);
+        assert!((span - 0.008).abs() < 1e-12, "{span}");
+        assert_eq!(stamp_span_s(&[]), 0.0);
+    }
+
+    /// An output that is the input, by another spelling, a symbolic link or
+    /// a hard link, or in a directory given as `DIR/..`; one that does not
+    /// exist yet is not.
+    #[test]
+    fn an_output_that_is_the_input_is_recognised() {
+        let d = tempfile::tempdir().unwrap();
+        let log = d.path().join("d.mcap");
+        std::fs::write(&log, b"log").unwrap();
+        std::fs::create_dir(d.path().join("sub")).unwrap();
+        std::os::unix::fs::symlink(&log, d.path().join("link.mcap")).unwrap();
+        std::fs::hard_link(&log, d.path().join("hard.mcap")).unwrap();
+        for same in [
+            "d.mcap",
+            "sub/../d.mcap",
+            "./d.mcap",
+            "link.mcap",
+            "hard.mcap",
+        ] {
+            assert!(same_path(&log, &d.path().join(same)), "{same}");
+        }
+        assert!(!same_path(&log, &d.path().join("new.mcap")));
+        assert!(!same_path(&log, &d.path().join("sub/d.mcap")));
+        assert!(same_path(d.path(), &d.path().join("sub/..")));
+        assert!(!same_path(d.path(), &d.path().join("sub")));
+    }
 }

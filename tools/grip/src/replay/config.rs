@@ -239,6 +239,15 @@ pub fn set_key(dir: &Path, spec: &str) -> anyhow::Result<String> {
         Err(_) => toml::Value::String(value.to_owned()),
     };
     let mut files: Vec<PathBuf> = match file {
+        // a plain file name of the configuration directory: an absolute
+        // path or one with `..` would rewrite a file outside the copy the
+        // replay reads (the user's own, its comments and layout lost)
+        Some(f) if !safe_name(f) || f.contains(['/', '\\']) => bail!(
+            "--set {spec}: FILE {f:?} is not a file name of the configuration directory: the replay changes its own copy of the configuration, never a file elsewhere; name the file alone (--set {}:{path}={value})",
+            Path::new(f)
+                .file_name()
+                .map_or("controllers.toml".into(), |n| n.to_string_lossy())
+        ),
         Some(f) => vec![dir.join(f)],
         None => std::fs::read_dir(dir)?
             .flatten()
@@ -330,5 +339,36 @@ mod tests {
         let e = set_key(d.path(), "mfc.nope=1").unwrap_err().to_string();
         assert!(e.contains("no configuration file has [mfc] nope"), "{e}");
         assert!(set_key(d.path(), "mfc.k").is_err());
+    }
+
+    /// `--set FILE:...` names a file of the replay's own configuration copy:
+    /// a path (absolute, with `..` or a directory) is refused, naming the
+    /// `--set` value and why, and the file it points at is not touched.
+    #[test]
+    fn set_refuses_a_file_outside_the_configuration_directory() {
+        let cfg = tempfile::tempdir().unwrap();
+        std::fs::write(cfg.path().join("controllers.toml"), "[mfc]\nk = 1.0\n").unwrap();
+        let user = tempfile::tempdir().unwrap();
+        let real = user.path().join("controllers.toml");
+        let text = "# the user's own comment\n[mfc]\nk   =   1.0   # tuned\n";
+        std::fs::write(&real, text).unwrap();
+        let abs = format!("{}:mfc.k=1.2", real.display());
+        let rel = format!(
+            "{}:mfc.k=1.2",
+            Path::new("..")
+                .join(user.path().file_name().unwrap())
+                .join("controllers.toml")
+                .display()
+        );
+        for spec in [abs.as_str(), rel.as_str(), "sub/controllers.toml:mfc.k=1.2"] {
+            let e = set_key(cfg.path(), spec).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("--set {spec}")) && e.contains("not a file name"),
+                "{e}"
+            );
+        }
+        assert_eq!(std::fs::read_to_string(&real).unwrap(), text);
+        let own = std::fs::read_to_string(cfg.path().join("controllers.toml")).unwrap();
+        assert_eq!(own, "[mfc]\nk = 1.0\n");
     }
 }
