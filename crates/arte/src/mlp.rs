@@ -103,6 +103,12 @@ pub enum MlpError {
         /// Given count.
         got: usize,
     },
+    /// The architecture's weight count does not fit a `usize`.
+    #[error("the architecture {sizes:?} needs more weights than can be counted")]
+    TooManyWeights {
+        /// Layer sizes.
+        sizes: Vec<usize>,
+    },
     /// A weight is NaN or infinite.
     #[error("weight {0} is not finite")]
     WeightNotFinite(usize),
@@ -130,8 +136,12 @@ pub struct MlpScratch {
     deltas: Vec<Vec<f64>>,
 }
 
-fn n_weights_for(sizes: &[usize]) -> usize {
-    sizes.windows(2).map(|w| (w[0] + 1) * w[1]).sum()
+/// The weight count of `sizes`; `None` if it does not fit a `usize` (a
+/// crafted model file).
+fn n_weights_for(sizes: &[usize]) -> Option<usize> {
+    sizes.windows(2).try_fold(0usize, |n, w| {
+        w[0].checked_add(1)?.checked_mul(w[1])?.checked_add(n)
+    })
 }
 
 impl Mlp {
@@ -147,7 +157,9 @@ impl Mlp {
         if let Some(layer) = sizes.iter().position(|&s| s == 0) {
             return Err(MlpError::EmptyLayer { layer });
         }
-        let expected = n_weights_for(&sizes);
+        let Some(expected) = n_weights_for(&sizes) else {
+            return Err(MlpError::TooManyWeights { sizes });
+        };
         if weights.len() != expected {
             return Err(MlpError::WeightCount {
                 sizes,
@@ -178,7 +190,10 @@ impl Mlp {
         sizes.push(n_in);
         sizes.extend_from_slice(hidden);
         sizes.push(n_out);
-        let zeros = vec![0.0; n_weights_for(&sizes)];
+        let n = n_weights_for(&sizes).ok_or_else(|| MlpError::TooManyWeights {
+            sizes: sizes.clone(),
+        })?;
+        let zeros = vec![0.0; n];
         let mut net = Self::from_weights(sizes, output, zeros)?;
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let n_layers = net.sizes.len() - 1;

@@ -135,9 +135,14 @@ pub enum ModelError {
 pub struct Standardiser {
     /// Means.
     pub mean: Vec<f64>,
-    /// Standard deviations (population), floored: below 1e-12 stored as 1.
+    /// Standard deviations (population), floored: below [`MIN_STD`] stored
+    /// as 1.
     pub std: Vec<f64>,
 }
+
+/// The smallest standard deviation a standardiser holds: [`Standardiser::fit`]
+/// stores a smaller one as 1, and a model file with one is refused.
+pub const MIN_STD: f64 = 1e-12;
 
 impl Standardiser {
     /// Fits means and standard deviations of the rows of `s`.
@@ -159,7 +164,7 @@ impl Standardiser {
         let std = var
             .iter()
             .map(|v| (v / n).sqrt())
-            .map(|s| if s < 1e-12 { 1.0 } else { s })
+            .map(|s| if s < MIN_STD { 1.0 } else { s })
             .collect();
         Self { mean, std }
     }
@@ -405,10 +410,19 @@ impl Model {
         if let Some(i) = st.mean.iter().position(|v| !v.is_finite()) {
             return mm("standardiser.mean", format!("entry {i} is not finite"));
         }
-        if let Some(i) = st.std.iter().position(|v| !(v.is_finite() && *v > 0.0)) {
+        // the writer stores a std below MIN_STD as 1; a smaller one would
+        // blow a feature up to infinity
+        if let Some(i) = st
+            .std
+            .iter()
+            .position(|v| !(v.is_finite() && *v >= MIN_STD))
+        {
             return mm(
                 "standardiser.std",
-                format!("entry {i} = {} is not finite and positive", st.std[i]),
+                format!(
+                    "entry {i} = {:?} is not finite and at least {MIN_STD:e}",
+                    st.std[i]
+                ),
             );
         }
         match &self.classifier {
@@ -594,7 +608,8 @@ impl Predictor {
 
     /// Class probabilities of one feature vector into `out` (one per class,
     /// summing to 1); returns the most probable class (ties: lower index).
-    /// Allocates nothing.
+    /// A classifier output with a non-finite value or summing to 0 is
+    /// replaced by the uniform distribution (class 0). Allocates nothing.
     pub fn predict_proba(
         &mut self,
         features: &[f64],
@@ -622,6 +637,14 @@ impl Predictor {
             (Classifier::Mlp(m), Some(s), _) => m.predict_proba(&self.z, s, out),
             (Classifier::Svm(m), _, Some(s)) => m.predict_proba(&self.z, s, out),
             _ => unreachable!("scratch built for the classifier kind"),
+        }
+        // a classifier that says nothing usable (NaN, infinite, all zero:
+        // e.g. extreme weights of a crafted model) gives no information
+        // rather than a NaN confidence downstream
+        let sum: f64 = out.iter().sum();
+        let usable = sum > 0.0 && out.iter().all(|p| p.is_finite());
+        if !usable {
+            out.fill(1.0 / k as f64);
         }
         let mut best = 0;
         for (i, &p) in out.iter().enumerate() {

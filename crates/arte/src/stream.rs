@@ -399,7 +399,16 @@ impl<C: Classify> StreamEstimator<C> {
         self.classifier.predict_proba(&self.features, &mut self.raw);
         let k = self.post.len();
         match self.cfg.smoothing {
-            Smoothing::None => self.post.copy_from_slice(&self.raw),
+            Smoothing::None => {
+                // a classifier's NaN, infinite or all-zero output says
+                // nothing: no road preferred (the HMM below floors it)
+                let sum: f64 = self.raw.iter().sum();
+                if sum > 0.0 && self.raw.iter().all(|p| p.is_finite()) {
+                    self.post.copy_from_slice(&self.raw);
+                } else {
+                    self.post.fill(1.0 / k as f64);
+                }
+            }
             Smoothing::Hmm { stay, floor } => {
                 let off = if k > 1 {
                     (1.0 - stay) / (k - 1) as f64

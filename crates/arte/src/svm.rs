@@ -892,7 +892,16 @@ impl Svm {
             ));
         }
         let n_sv = self.sv.len() / self.dim;
-        let want = self.n_classes * (self.n_classes - 1) / 2;
+        let Some(want) = self
+            .n_classes
+            .checked_mul(self.n_classes - 1)
+            .map(|n| n / 2)
+        else {
+            return bad(format!(
+                "{} classes: too many for one-vs-one pair machines",
+                self.n_classes
+            ));
+        };
         if self.pairs.len() != want {
             return bad(format!(
                 "{} pair machines for {} classes (need {want})",
@@ -908,10 +917,24 @@ impl Svm {
         if self.sv.iter().any(|v| !v.is_finite()) {
             return bad("non-finite support vector".into());
         }
+        // want = n(n-1)/2 machines are in memory, so n·n cannot overflow
+        let mut first: Vec<Option<usize>> = vec![None; self.n_classes * self.n_classes];
         for (k, p) in self.pairs.iter().enumerate() {
             if p.a >= self.n_classes || p.b >= self.n_classes || p.a == p.b {
                 return bad(format!("pair {k} has classes {} and {}", p.a, p.b));
             }
+            // each unordered pair of classes exactly once: as many machines
+            // as pairs and none twice means none is missing (a missing one
+            // would leave its pairwise probabilities at 0, and the coupling
+            // would divide by zero)
+            let (lo, hi) = (p.a.min(p.b), p.a.max(p.b));
+            let slot = &mut first[lo * self.n_classes + hi];
+            if let Some(j) = *slot {
+                return bad(format!(
+                    "field `pairs`: pair {k} is a second machine for classes {lo} and {hi} (the first is pair {j}); each pair of classes needs exactly one"
+                ));
+            }
+            *slot = Some(k);
             if p.sv.len() != p.coef.len() {
                 return bad(format!(
                     "pair {k}: {} indices but {} coefficients",

@@ -267,6 +267,158 @@ fn mismatched_parts_are_refused() {
     }
 }
 
+/// Loads a payload edited by `edit` (checksum recomputed).
+fn load_edited(m: &Model, edit: impl FnOnce(&mut serde_json::Value)) -> Result<Model, ModelError> {
+    let mut j = payload_json(m);
+    edit(&mut j);
+    Model::from_bytes(&with_payload(&serde_json::to_vec(&j).unwrap()))
+}
+
+#[test]
+fn svm_pair_tables_need_each_pair_of_classes_once() {
+    let m = &models()[1];
+    let pairs = |j: &serde_json::Value| j["classifier"]["svm"]["pairs"].clone();
+    let ab = |j: &serde_json::Value, k: usize| {
+        let p = &pairs(j)[k];
+        (p["a"].as_u64().unwrap(), p["b"].as_u64().unwrap())
+    };
+    let j = payload_json(m);
+    assert_eq!(pairs(&j).as_array().unwrap().len(), 6, "4 classes, 6 pairs");
+    let (a0, b0) = ab(&j, 0);
+    // pair 3 made a second machine for pair 0's classes, as stored and
+    // the other way round: 6 machines, but one pair of classes has none
+    // (its probabilities would stay 0 and the coupling divide by zero)
+    for (a, b) in [(a0, b0), (b0, a0)] {
+        let e = load_edited(m, |j| {
+            let p = &mut j["classifier"]["svm"]["pairs"][3];
+            p["a"] = a.into();
+            p["b"] = b.into();
+        })
+        .unwrap_err();
+        assert!(matches!(e, ModelError::Svm(_)), "{e}");
+        let e = e.to_string();
+        assert!(
+            e.contains("field `pairs`")
+                && e.contains("pair 3")
+                && e.contains("pair 0")
+                && e.contains(&format!("classes {} and {}", a0.min(b0), a0.max(b0))),
+            "{e}"
+        );
+    }
+    // the pairs in another order are the same machines
+    let mut reordered = load_edited(m, |j| {
+        j["classifier"]["svm"]["pairs"]
+            .as_array_mut()
+            .unwrap()
+            .reverse();
+    })
+    .unwrap()
+    .predictor();
+    let mut out = [0.0; 4];
+    reordered.predict_proba(&[100.0; 7], &mut out).unwrap();
+    assert!((out.iter().sum::<f64>() - 1.0).abs() < 1e-9, "{out:?}");
+}
+
+#[test]
+fn absurd_dimensions_are_refused_not_overflowed() {
+    let ms = models();
+    // an SVM of 2^33 classes: n(n-1) does not fit 64 bits
+    let e = load_edited(&ms[1], |j| {
+        j["classifier"]["svm"]["n_classes"] = (1u64 << 33).into();
+    })
+    .unwrap_err();
+    assert!(matches!(e, ModelError::Svm(_)), "{e}");
+    assert!(e.to_string().contains("too many"), "{e}");
+    // an MLP whose weight count (2^32 + 1) · 2^32 does not fit 64 bits
+    let e = load_edited(&ms[0], |j| {
+        j["classifier"]["mlp"]["sizes"] = serde_json::json!([7, 1u64 << 32, 1u64 << 32, 4]);
+    })
+    .unwrap_err();
+    assert!(matches!(e, ModelError::Mlp(_)), "{e}");
+    assert!(
+        e.to_string().contains("more weights than can be counted"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_std_below_the_writers_floor_is_refused() {
+    let m = &models()[0];
+    // the writer stores a std below 1e-12 as 1, so a file with one is not
+    // its own, and it would blow the feature up towards infinity
+    let e = load_edited(m, |j| j["standardiser"]["std"][2] = 1e-300.into()).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ModelError::Mismatch {
+                field: "standardiser.std",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().contains("entry 2 = 1e-300"), "{e}");
+    load_edited(m, |j| j["standardiser"]["std"][2] = 1e-12.into()).unwrap();
+}
+
+/// Weights of `sizes` (layer by layer; per unit its inputs' weights, then
+/// its bias): hidden units 0 weights and bias 1, output units `w` everywhere.
+fn saturated_weights(sizes: &[usize], w: f64) -> Vec<f64> {
+    let mut out = Vec::new();
+    let last = sizes.len() - 2;
+    for (l, p) in sizes.windows(2).enumerate() {
+        for _ in 0..p[1] {
+            for _ in 0..p[0] {
+                out.push(if l == last { w } else { 0.0 });
+            }
+            out.push(if l == last { w } else { 1.0 });
+        }
+    }
+    out
+}
+
+#[test]
+fn a_classifier_output_that_is_not_finite_reads_as_uniform() {
+    let m = &models()[0];
+    let sizes: Vec<usize> =
+        serde_json::from_value(payload_json(m)["classifier"]["mlp"]["sizes"].clone()).unwrap();
+    assert!(sizes.len() >= 3, "{sizes:?}: needs a hidden layer");
+    // valid weights (finite), but every output unit sums to +inf: the
+    // softmax gives inf − inf = NaN
+    let huge = load_edited(m, |j| {
+        j["classifier"]["mlp"]["weights"] = serde_json::json!(saturated_weights(&sizes, f64::MAX));
+    })
+    .unwrap();
+    let mut p = huge.predictor();
+    let mut out = [0.0; 4];
+    let class = p.predict_proba(&[100.0; 7], &mut out).unwrap();
+    assert_eq!((class, out), (0, [0.25; 4]));
+    // what the stream makes of it without smoothing: a finite confidence
+    let cfg = StreamConfig {
+        smoothing: grip_arte::stream::Smoothing::None,
+        ..StreamConfig::default()
+    };
+    let mut est = StreamEstimator::new(huge.predictor(), huge.feature_config(), &cfg).unwrap();
+    let x: Vec<f32> = (0..8820)
+        .map(|i| ((i * 7919) % 200) as f32 / 1000.0 - 0.1)
+        .collect();
+    let mut decisions = 0;
+    est.push(&x, |d| {
+        decisions += 1;
+        assert_eq!(d.confidence, 0.25, "{:?}", d.probs);
+        assert!(d.probs.iter().chain(d.raw).all(|v| v.is_finite()));
+    });
+    assert!(decisions > 0);
+    // an ordinary model is untouched by the guard: its probabilities as before
+    let mut q = m.predictor();
+    let test = dataset(1, 5);
+    q.predict_proba(test.row(0), &mut out).unwrap();
+    assert!(
+        out.iter().all(|v| v.is_finite() && *v > 0.0 && *v < 1.0),
+        "{out:?}"
+    );
+}
+
 #[test]
 fn predictor_refuses_bad_vectors() {
     let m = &models()[1];

@@ -156,6 +156,60 @@ fn hmm_ignores_a_single_unconfident_wrong_frame() {
     }
 }
 
+/// A classifier's NaN, infinite or all-zero output says nothing: with
+/// either smoothing every decision stays a finite distribution (uniform
+/// without smoothing), never a NaN confidence.
+#[test]
+fn unusable_classifier_output_gives_finite_decisions() {
+    struct Broken {
+        dim: usize,
+        n: usize,
+    }
+    impl Classify for Broken {
+        fn n_classes(&self) -> usize {
+            2
+        }
+        fn n_features(&self) -> usize {
+            self.dim
+        }
+        fn predict_proba(&mut self, _x: &[f64], out: &mut [f64]) {
+            self.n += 1;
+            out.copy_from_slice(match self.n % 4 {
+                0 => &[f64::NAN, 0.5],
+                1 => &[0.0, 0.0],
+                2 => &[f64::INFINITY, 0.0],
+                _ => &[0.2, 0.8],
+            });
+        }
+    }
+    let f = fcfg();
+    let dim = FeatureExtractor::new(&f).unwrap().dim();
+    for smoothing in [StreamConfig::default().smoothing, Smoothing::None] {
+        let cfg = StreamConfig {
+            smoothing,
+            ..StreamConfig::default()
+        };
+        let mut s = StreamEstimator::new(Broken { dim, n: 0 }, &f, &cfg).unwrap();
+        let mut seen = Vec::new();
+        s.push(&tone(500.0, 44_100, 0), |d| {
+            assert!(
+                d.confidence.is_finite() && d.probs.iter().all(|p| p.is_finite()),
+                "{smoothing:?}: {:?}",
+                d.probs
+            );
+            assert!((d.probs.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+            seen.push(d.confidence);
+        });
+        if smoothing == Smoothing::None {
+            // three of every four frames say nothing; the fourth is its own
+            for (i, c) in seen.iter().enumerate() {
+                let want = if (i + 1) % 4 == 3 { 0.8 } else { 0.5 };
+                assert_eq!(*c, want, "decision {i}");
+            }
+        }
+    }
+}
+
 #[test]
 fn construction_errors_are_clear() {
     let f = fcfg();

@@ -97,6 +97,16 @@ impl DriveLog {
             source,
         };
         let log = McapLog::open(path).map_err(err)?;
+        Self::from_mcap(&log, path, opts)
+    }
+
+    /// The drive log of an opened `log` (named `path` in errors), keeping
+    /// what `opts` asks for (the fuzz target reads logs from memory).
+    pub fn from_mcap(log: &McapLog, path: &Path, opts: LoadOptions) -> Result<Self, LogError> {
+        let err = |source| LogError {
+            path: path.to_path_buf(),
+            source,
+        };
         let mut me = DriveLog {
             path: path.to_path_buf(),
             ..Self::default()

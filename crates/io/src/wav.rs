@@ -145,9 +145,13 @@ impl WavErrorKind {
 
 /// Reads a WAV file as mono at its own sample rate.
 pub fn read_mono(path: &Path) -> Result<Audio, WavError> {
-    hound::WavReader::open(path)
+    let file = std::fs::File::open(path).map_err(|e| WavErrorKind::Open(e).at(path))?;
+    // what the file can hold bounds the samples reserved for (0: unknown,
+    // no reservation)
+    let size = file.metadata().map_or(0, |m| m.len());
+    hound::WavReader::new(std::io::BufReader::new(file))
         .map_err(WavErrorKind::open)
-        .and_then(decode)
+        .and_then(|r| decode(r, size))
         .map_err(|k| k.at(path))
 }
 
@@ -170,11 +174,17 @@ pub fn read_mono_at(path: &Path, rate: u32) -> Result<Audio, WavError> {
 pub fn decode_mono(bytes: &[u8], path: &Path) -> Result<Audio, WavError> {
     hound::WavReader::new(std::io::Cursor::new(bytes))
         .map_err(WavErrorKind::open)
-        .and_then(decode)
+        .and_then(|r| decode(r, bytes.len() as u64))
         .map_err(|k| k.at(path))
 }
 
-fn decode<R: std::io::Read>(mut reader: hound::WavReader<R>) -> Result<Audio, WavErrorKind> {
+/// Decodes `reader`, from a file of `file_bytes` bytes: the samples are
+/// reserved for up to what the file can hold, not what its header claims
+/// (a data-chunk length of 0xFFFFFFFF would ask for 17 GB).
+fn decode<R: std::io::Read>(
+    mut reader: hound::WavReader<R>,
+    file_bytes: u64,
+) -> Result<Audio, WavErrorKind> {
     let spec = reader.spec();
     let ch = spec.channels;
     if ch == 0 {
@@ -184,7 +194,9 @@ fn decode<R: std::io::Read>(mut reader: hound::WavReader<R>) -> Result<Audio, Wa
         return Err(WavErrorKind::NoSampleRate);
     }
     let expected = reader.len() as usize;
-    let mut inter: Vec<f32> = Vec::with_capacity(expected);
+    let sample_bytes = u64::from(spec.bits_per_sample.div_ceil(8).max(1));
+    let fits = usize::try_from(file_bytes / sample_bytes).unwrap_or(usize::MAX);
+    let mut inter: Vec<f32> = Vec::with_capacity(expected.min(fits));
     let corrupt = |got: usize, error: hound::Error| WavErrorKind::Corrupt {
         got,
         expected,

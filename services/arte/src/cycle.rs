@@ -340,8 +340,10 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
 
     /// Takes one tcs-loop cycle record: if `v_valid = 1` and `v` is finite,
     /// its |v| becomes the vehicle speed unless a record with a later stamp
-    /// was taken before. Other records change nothing (the kept speed ages
-    /// out). Allocation-free.
+    /// was taken before and is still fresh ([`Self::current_speed`]; a kept
+    /// record stamped far in the future is not, so it cannot lock out every
+    /// later one). Other records change nothing (the kept speed ages out).
+    /// Allocation-free.
     pub fn on_cycle(&mut self, r: &CycleRecord, stats: &ArteCounters) {
         stats.cycle_records.fetch_add(1, Ordering::Relaxed);
         if r.v_valid != 1 {
@@ -351,7 +353,11 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             stats.bad_speeds.fetch_add(1, Ordering::Relaxed);
             return;
         }
-        if self.speed.is_none_or(|(_, t)| r.stamp_ns >= t) {
+        let now = self.clock.now_ns();
+        if self
+            .speed
+            .is_none_or(|(_, t)| r.stamp_ns >= t || now.abs_diff(t) > self.speed_timeout_ns)
+        {
             // reversing: the tyre noise depends on the speed's magnitude
             self.speed = Some((r.v.abs(), r.stamp_ns));
             self.odometer = if r.odometer.is_finite() {
@@ -504,7 +510,7 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             self.restart(stats);
         }
         self.expected_seq = Some(b.seq.wrapping_add(1));
-        self.next_stamp = Some(b.stamp_ns + samples_ns(n as u64, self.fs));
+        self.next_stamp = Some(b.stamp_ns.saturating_add(samples_ns(n as u64, self.fs)));
         // after a restart, which may reset the estimator's speed
         let speed = self.current_speed();
         self.est.set_speed(speed);
@@ -528,9 +534,14 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
         // the microphone's faults: no classification of unusable audio
         let new_xrun = self.last_xruns.is_some_and(|last| last != b.xruns);
         self.last_xruns = Some(b.xruns);
-        if new_xrun {
-            self.xrun_hold_until = b.stamp_ns.saturating_add(self.quality.xrun_hold_ns);
-        }
+        // never more than the hold past this block: a block stamped far in
+        // the future must not hold every later one back for good
+        let hold_end = b.stamp_ns.saturating_add(self.quality.xrun_hold_ns);
+        self.xrun_hold_until = if new_xrun {
+            hold_end
+        } else {
+            self.xrun_hold_until.min(hold_end)
+        };
         let held = b.stamp_ns < self.xrun_hold_until;
         if let Some(why) = self.quality.judge(x, new_xrun || held) {
             let c = match why {
@@ -543,7 +554,7 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             let e = &mut self.est_buf;
             *e = RoadEstimate::zeroed();
             e.seq = self.out_seq;
-            e.frame_t1_ns = b.stamp_ns + samples_ns(n as u64, self.fs);
+            e.frame_t1_ns = b.stamp_ns.saturating_add(samples_ns(n as u64, self.fs));
             e.frame_t0_ns = e.frame_t1_ns.saturating_sub(self.frame_ns);
             e.n_classes = self.roads.len().min(MAX_ROAD_CLASSES) as u32;
             e.confidence = 0.0;
@@ -575,7 +586,7 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
         let mut sent = 0;
         self.est.push(&self.scratch[..n], |d| {
             let end = (d.t_end * f64::from(fs)).round().max(0.0) as u64;
-            let t1 = stamp + samples_ns(end.saturating_sub(start), fs);
+            let t1 = stamp.saturating_add(samples_ns(end.saturating_sub(start), fs));
             let k = d.probs.len().min(MAX_ROAD_CLASSES);
             let class = d.class.min(k.saturating_sub(1));
             e.seq = *out_seq;
@@ -594,7 +605,10 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             for (p, &q) in e.probabilities.iter_mut().zip(d.probs) {
                 *p = q as f32;
             }
-            e.confidence = d.probs.get(class).copied().unwrap_or(0.0).clamp(0.0, 1.0);
+            let c = d.probs.get(class).copied().unwrap_or(0.0);
+            // clamp keeps a NaN; the estimator gives none, but a NaN must
+            // never reach tcs-loop as a confidence
+            e.confidence = if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };
             let r = &roads[class];
             e.class_name = r.name;
             e.lambda_opt = r.lambda_opt;

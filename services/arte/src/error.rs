@@ -35,6 +35,18 @@ pub enum ArteError {
         /// Why.
         reason: String,
     },
+    /// The model's confidence calibration was fitted for other `[stream]`
+    /// settings (hop, smoothing) than the configuration file's: the
+    /// confidence arte would publish is not calibrated for them.
+    #[error("{}: {reason}", config_file.display())]
+    CalibrationMismatch {
+        /// The configuration file (`arte-svc.toml`).
+        config_file: PathBuf,
+        /// The model file.
+        model_path: PathBuf,
+        /// The differing field(s), both settings and the remedy.
+        reason: String,
+    },
     /// The streaming estimator refused model or settings.
     #[error("streaming estimator: {0}")]
     Stream(#[from] StreamError),

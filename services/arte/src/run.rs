@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use grip_arte::stream::{Smoothing, StreamConfig};
 use grip_io::clock::{Clock, MonotonicClock};
 use grip_io::ipc::{IpcNode, SubscriberMode};
 use grip_msgs::{AudioBlock, CycleRecord, RoadEstimate, topics};
@@ -63,6 +64,12 @@ pub struct Prepared<K: Clock = MonotonicClock> {
     /// What every estimate of each class carries (class order): the one
     /// road-knowledge rule applied to the configuration directory.
     pub table: Vec<crate::ClassKnowledge>,
+    /// `Some` when the model's confidence calibration was fitted for other
+    /// `[stream]` settings than the configuration's
+    /// ([`ArteError::CalibrationMismatch`]): [`prepare`], the service's
+    /// start-up, refuses with it; [`prepare_with_clock`] (a replay's
+    /// what-if, a generated drive) logs it as a warning and runs.
+    pub calibration_mismatch: Option<ArteError>,
 }
 
 fn resolve(dir: &Path, p: &Path) -> PathBuf {
@@ -74,13 +81,88 @@ fn resolve(dir: &Path, p: &Path) -> PathBuf {
 }
 
 /// Loads config, model and road catalogue and builds the loop; every
-/// start-up error names its file.
+/// start-up error names its file. Refuses a model whose confidence
+/// calibration was fitted for other `[stream]` settings than the
+/// configuration's ([`ArteError::CalibrationMismatch`]).
 pub fn prepare(opts: &Options) -> Result<Prepared, ArteError> {
-    prepare_with_clock(opts, MonotonicClock)
+    let mut p = load(opts, MonotonicClock)?;
+    match p.calibration_mismatch.take() {
+        Some(e) => Err(e),
+        None => Ok(p),
+    }
 }
 
-/// [`prepare`] with the loop on `clock`.
+fn smoothing_toml(s: Smoothing) -> String {
+    match s {
+        Smoothing::None => "\"none\"".into(),
+        Smoothing::Hmm { stay, floor } => {
+            format!("{{ hmm = {{ stay = {stay}, floor = {floor} }} }}")
+        }
+    }
+}
+
+/// The refusal when `model`'s confidence calibration was fitted for other
+/// stream settings than `stream` (`[stream]` of `config_file`); `None` when
+/// they agree or the model has no calibration.
+fn calibration_mismatch(
+    config_file: &Path,
+    stream: &StreamConfig,
+    model_path: &Path,
+    model: &grip_arte::model::Model,
+) -> Option<ArteError> {
+    let fitted = &model.calibration()?.stream;
+    if fitted == stream {
+        return None;
+    }
+    let mut fields = Vec::new();
+    if fitted.hop_s != stream.hop_s {
+        fields.push(format!("`stream.hop_s` = {}", stream.hop_s));
+    }
+    if fitted.smoothing != stream.smoothing {
+        fields.push(format!(
+            "`stream.smoothing` = {}",
+            smoothing_toml(stream.smoothing)
+        ));
+    }
+    let calib_args = match stream.smoothing {
+        Smoothing::None => format!("--calib-hop {} --calib-stay 0", stream.hop_s),
+        Smoothing::Hmm { stay, floor } => format!(
+            "--calib-hop {} --calib-stay {stay} --calib-floor {floor}",
+            stream.hop_s
+        ),
+    };
+    let model_file = model_path.display();
+    Some(ArteError::CalibrationMismatch {
+        config_file: config_file.to_owned(),
+        model_path: model_path.to_owned(),
+        reason: format!(
+            "field{} {}: the confidence calibration of model file {model_file} was fitted at \
+             [stream] hop_s = {}, smoothing = {}, so the confidence arte would publish \
+             is not calibrated for these settings. Recalibrate the model for them \
+             (`grip calibrate --model {model_file} --data CHANGE-RECORDINGS --out FILE \
+             {calib_args}`) or set [stream] back to the settings it was fitted at",
+            if fields.len() > 1 { "s" } else { "" },
+            fields.join(", "),
+            fitted.hop_s,
+            smoothing_toml(fitted.smoothing),
+        ),
+    })
+}
+
+/// [`prepare`] with the loop on `clock`, for what replays the service's
+/// work offline (`grip replay`, `grip generate`): a calibration fitted for
+/// other `[stream]` settings is a warning here (a what-if may change them),
+/// kept in [`Prepared::calibration_mismatch`].
 pub fn prepare_with_clock<K: Clock>(opts: &Options, clock: K) -> Result<Prepared<K>, ArteError> {
+    let p = load(opts, clock)?;
+    if let Some(e) = &p.calibration_mismatch {
+        tracing::warn!("{e} (running anyway; the arte service refuses this)");
+    }
+    Ok(p)
+}
+
+/// Config, model, road table and loop, with any calibration mismatch.
+fn load<K: Clock>(opts: &Options, clock: K) -> Result<Prepared<K>, ArteError> {
     let config_file = opts.config.own_file::<ArteServiceConfig>();
     let cfg = ArteServiceConfig::load(&config_file)?;
     let model_path = match &opts.model {
@@ -102,7 +184,9 @@ pub fn prepare_with_clock<K: Clock>(opts: &Options, clock: K) -> Result<Prepared
     )?
     .with_speed_timeout(cfg.input.speed_timeout_s)
     .with_max_lag(cfg.input.max_lag_s);
+    let calibration_mismatch = calibration_mismatch(&config_file, &cfg.stream, &model_path, &model);
     Ok(Prepared {
+        calibration_mismatch,
         config_file,
         model_path,
         classes: model.classes().to_vec(),

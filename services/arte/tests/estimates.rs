@@ -269,6 +269,194 @@ fn model_and_class_errors_name_the_file_and_class() {
     assert_eq!(m.classes(), model.classes());
 }
 
+/// The shipped model's confidence calibration was fitted at hop 0.025 s
+/// with the HMM (0.9, 0.01): an `arte-svc.toml` with other `[stream]`
+/// settings is refused at start-up, naming the file, the field(s), the
+/// model and the remedy; a replay or generated drive
+/// (`prepare_with_clock`) runs with it, the mismatch kept as a warning.
+#[test]
+fn stream_settings_the_calibration_was_not_fitted_for_are_refused() {
+    use grip_arte_svc::{Options, prepare, prepare_with_clock};
+    let model = config_dir().join("models/default.model");
+    let dir = tempfile::tempdir().unwrap();
+    let opts = |name: &str, stream: &str| {
+        let f = dir.path().join(name);
+        std::fs::write(
+            &f,
+            format!(
+                "model = {:?}\n[stream]\n{stream}\n",
+                model.display().to_string()
+            ),
+        )
+        .unwrap();
+        Options {
+            config: grip_io::service::ConfigArgs {
+                config_dir: config_dir(),
+                config: Some(f),
+            },
+            model: None,
+            run_for: None,
+        }
+    };
+    let hmm = "smoothing = { hmm = { stay = 0.9, floor = 0.01 } }";
+    // as fitted: starts
+    prepare(&opts("fitted.toml", &format!("hop_s = 0.025\n{hmm}"))).unwrap();
+    let cases = [
+        (
+            "hop.toml",
+            format!("hop_s = 0.05\n{hmm}"),
+            vec![
+                "field `stream.hop_s` = 0.05:",
+                "--calib-hop 0.05 --calib-stay 0.9 --calib-floor 0.01",
+            ],
+        ),
+        (
+            "none.toml",
+            "hop_s = 0.025\nsmoothing = \"none\"".to_owned(),
+            vec![
+                "field `stream.smoothing` = \"none\":",
+                "--calib-hop 0.025 --calib-stay 0`",
+            ],
+        ),
+        (
+            "both.toml",
+            "hop_s = 0.1\nsmoothing = { hmm = { stay = 0.8, floor = 0.01 } }".to_owned(),
+            vec![
+                "fields `stream.hop_s` = 0.1, `stream.smoothing` = { hmm = { stay = 0.8, floor = 0.01 } }:",
+            ],
+        ),
+    ];
+    for (name, stream, says) in cases {
+        let e = prepare(&opts(name, &stream)).unwrap_err();
+        assert!(matches!(e, ArteError::CalibrationMismatch { .. }), "{e}");
+        let m = e.to_string();
+        let file = dir.path().join(name);
+        assert!(m.starts_with(&format!("{}: ", file.display())), "{m}");
+        for s in says.iter().chain(&[
+            model.display().to_string().as_str(),
+            "was fitted at [stream] hop_s = 0.025, smoothing = { hmm = { stay = 0.9, floor = 0.01 } }",
+            "grip calibrate --model",
+            "or set [stream] back to the settings it was fitted at",
+        ]) {
+            assert!(m.contains(s), "{name}: no {s:?} in: {m}");
+        }
+        // what-ifs run, the mismatch kept for the caller
+        let p = prepare_with_clock(&opts(name, &stream), ManualClock::new(T0)).unwrap();
+        assert_eq!(p.calibration_mismatch.unwrap().to_string(), m);
+    }
+}
+
+fn toy_road(name: &str) -> grip_arte_svc::ClassKnowledge {
+    grip_arte_svc::ClassKnowledge {
+        name: grip_msgs::name_to_bytes(name),
+        lambda_opt: 0.1,
+        mu_peak: 1.0,
+        alpha: 0.9,
+    }
+}
+
+/// Contiguous blocks of `n` samples of a little noise from `T0`.
+fn noise_blocks(count: usize, n: usize) -> Vec<AudioBlock> {
+    (0..count)
+        .map(|k| {
+            let mut b = AudioBlock::zeroed();
+            b.seq = k as u64;
+            b.sample_rate = RATE;
+            b.n_samples = n as u32;
+            b.stamp_ns = T0 + (k * n) as u64 * 1_000_000_000 / u64::from(RATE);
+            for (i, s) in b.samples[..n].iter_mut().enumerate() {
+                *s = (((k * n + i) * 7919) % 2000) as i16 - 1000;
+            }
+            b
+        })
+        .collect()
+}
+
+/// A block stamped far in the future (up to u64::MAX) that reports a new
+/// capture overrun: no overflow, and the overrun hold it starts ends at
+/// most `xrun_hold_ns` after the blocks that follow on the right time base
+/// (before, it held every later block for good: no estimate ever again).
+#[test]
+fn a_far_future_block_neither_overflows_nor_holds_for_good() {
+    for future in [T0 + 3_600_000_000_000, u64::MAX - 1_000, u64::MAX] {
+        let f =
+            grip_arte::features::FeatureConfig::new(RATE, grip_arte::features::FeatureSet::Rich);
+        let clock = ManualClock::new(T0);
+        let mut lp = ArteLoop::new(
+            Toy {
+                dim: f.dim(),
+                probs: &[0.3, 0.7],
+            },
+            &f,
+            &StreamConfig::default(),
+            vec![toy_road("asphalt"), toy_road("snow")],
+            0.2,
+            clock.clone(),
+        )
+        .unwrap();
+        let stats = ArteCounters::default();
+        let mut sink = VecSink::default();
+        let mut bl = noise_blocks(130, 1024); // 3 s
+        bl[20].stamp_ns = future;
+        for b in &mut bl[20..] {
+            b.xruns = 1;
+        }
+        let mut good_after = 0;
+        for (k, b) in bl.iter().enumerate() {
+            let from = sink.0.len();
+            lp.on_block(b, &mut sink, &stats);
+            if k > 20 {
+                good_after += sink.0[from..]
+                    .iter()
+                    .filter(|e| e.class_index != grip_msgs::NO_CLASS)
+                    .count();
+            }
+        }
+        // the block itself and at most 0.5 s of the ones after it
+        let held = stats.xrun_blocks.load(Ordering::Relaxed);
+        assert!((2..=24).contains(&held), "{future}: {held} blocks held");
+        // estimates again after the hold: 2.5 s of blocks after it, 0.5 s
+        // held, a frame to fill, then one per 25 ms (76)
+        assert!(
+            good_after >= 70,
+            "{future}: {good_after} estimates after it"
+        );
+    }
+}
+
+/// A classifier that gives NaN, without smoothing: what is published is
+/// a finite confidence (the estimator reads the frame as uniform), never NaN.
+#[test]
+fn a_nan_classifier_output_publishes_a_finite_confidence() {
+    let f = grip_arte::features::FeatureConfig::new(RATE, grip_arte::features::FeatureSet::Rich);
+    let clock = ManualClock::new(T0);
+    let mut lp = ArteLoop::new(
+        Toy {
+            dim: f.dim(),
+            probs: &[f64::NAN, f64::NAN],
+        },
+        &f,
+        &StreamConfig {
+            smoothing: grip_arte::stream::Smoothing::None,
+            ..StreamConfig::default()
+        },
+        vec![toy_road("asphalt"), toy_road("snow")],
+        0.2,
+        clock.clone(),
+    )
+    .unwrap();
+    let stats = ArteCounters::default();
+    let mut sink = VecSink::default();
+    for b in noise_blocks(40, 1024) {
+        lp.on_block(&b, &mut sink, &stats);
+    }
+    assert!(!sink.0.is_empty());
+    for e in &sink.0 {
+        assert_eq!(e.confidence, 0.5, "{e:?}");
+        assert!(e.probabilities[..2].iter().all(|p| p.is_finite()), "{e:?}");
+    }
+}
+
 /// The microphone's faults (`AudioQuality`): silent, clipped and
 /// overrun blocks are not classified. Each gives one estimate with
 /// `NO_CLASS` and confidence 0 (counted per kind); the estimator restarts,

@@ -12,7 +12,7 @@ use std::sync::atomic::Ordering;
 use grip_arte::features::{FeatureConfig, FeatureSet, SpeedNorm};
 use grip_arte::stream::StreamConfig;
 use grip_arte_svc::{ArteCounters, ArteLoop, ClassKnowledge, EstimateSink};
-use grip_io::clock::ManualClock;
+use grip_io::clock::{Clock, ManualClock};
 use grip_io::ipc::IpcError;
 use grip_msgs::{AudioBlock, CycleRecord, RoadEstimate, name_to_bytes};
 
@@ -164,6 +164,37 @@ fn fresh_valid_records_give_the_speed_stale_or_absent_give_none() {
     assert_eq!(w + wo, stats.blocks.load(Ordering::Relaxed) - 1);
     assert_eq!(w, before.0 + n);
     assert!(sink.0 > 0);
+}
+
+/// One record stamped far in the future (a corrupt clock, a restarted
+/// tcs-loop on another time base) is not trusted, and it does not lock out
+/// the records after it: a kept record that is no longer fresh is replaced
+/// by the next valid one, whatever its stamp.
+#[test]
+fn a_far_future_record_does_not_lock_out_later_ones() {
+    let fcfg = FeatureConfig::new(RATE, FeatureSet::Rich);
+    let clock = ManualClock::new(T0);
+    let mut lp = new_loop(&fcfg, &clock);
+    let stats = ArteCounters::default();
+    let mut sink = Count::default();
+    let mut bl = Blocks(0);
+    for future in [T0 + 3_600_000_000_000, u64::MAX] {
+        lp.on_cycle(&record(10.0, true, future), &stats);
+        assert_eq!(lp.current_speed(), None, "{future}");
+        // the next record, stamped now
+        lp.on_cycle(&record(12.0, true, clock.now_ns()), &stats);
+        assert_eq!(lp.current_speed(), Some(12.0), "{future}");
+        lp.on_block(&bl.next(), &mut sink, &stats);
+        assert_eq!(stats.speed_in_use(), Some(12.0));
+        // and the ones after it, as before
+        clock.set_ns(clock.now_ns() + MS);
+        lp.on_cycle(&record(12.5, true, clock.now_ns()), &stats);
+        assert_eq!(lp.current_speed(), Some(12.5));
+        // an older record still does not replace a fresh newer one
+        lp.on_cycle(&record(9.0, true, clock.now_ns() - MS), &stats);
+        assert_eq!(lp.current_speed(), Some(12.5));
+        clock.set_ns(clock.now_ns() + 10 * MS);
+    }
 }
 
 #[test]

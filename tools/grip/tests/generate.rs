@@ -256,3 +256,43 @@ fn the_random_recipe_is_taken_as_grip_sim_takes_it() {
     );
     assert!(err.contains("--random changes the recipe"), "{err}");
 }
+
+/// A generated drive is a drive: with `[stream]` settings the model's
+/// confidence calibration was not fitted for, arte's start-up refuses it as
+/// the service does, naming the field.
+#[test]
+fn a_calibration_fitted_for_other_stream_settings_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let cfg = d.path().join("config");
+    copy_dir(&common::config_dir(), &cfg);
+    let f = cfg.join("arte-svc.toml");
+    let text = std::fs::read_to_string(&f).unwrap();
+    assert!(text.contains("hop_s = 0.025"), "the shipped hop changed");
+    std::fs::write(&f, text.replace("hop_s = 0.025", "hop_s = 0.05")).unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_grip"))
+        .arg("--config-dir")
+        .arg(&cfg)
+        .args(["generate", "--count", "1", "--out"])
+        .arg(d.path().join("logs"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "not refused: {err}");
+    assert!(
+        err.contains("arte's start-up") && err.contains("stream.hop_s"),
+        "{err}"
+    );
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let dst = to.join(e.file_name());
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &dst);
+        } else {
+            std::fs::copy(e.path(), &dst).unwrap();
+        }
+    }
+}

@@ -625,6 +625,11 @@ pub fn generate(config: &Path, s: &LogSpec) -> anyhow::Result<Generated> {
         arte_clock.clone(),
     )
     .context("arte's start-up")?;
+    // a generated drive is a drive: arte's start-up refuses what the
+    // service refuses (a calibration fitted for other stream settings)
+    if let Some(e) = arte.calibration_mismatch.take() {
+        return Err(anyhow::Error::new(e).context("arte's start-up"));
+    }
     let (_, acfg) = grip_audio_acq::run::effective_config(&grip_audio_acq::Options {
         config: cargs.clone(),
         ..grip_audio_acq::Options::default()

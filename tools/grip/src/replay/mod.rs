@@ -135,18 +135,23 @@ pub fn arte_window(log: &DriveLog) -> (usize, usize) {
     };
     let last = blocks
         .iter()
-        .position(|b| b.stamp_ns < e1.frame_t1_ns && e1.frame_t1_ns <= b.stamp_ns + block_ns(b))
+        .position(|b| {
+            b.stamp_ns < e1.frame_t1_ns && e1.frame_t1_ns <= b.stamp_ns.saturating_add(block_ns(b))
+        })
         .map_or(blocks.len(), |i| i + 1);
     let first = (0..last)
         .find(|&i| {
             let fs = u128::from(blocks[i].sample_rate.max(1));
             // the frame length in samples, from the estimate's span
-            let frame = (u128::from(e0.frame_t1_ns - e0.frame_t0_ns) * fs).div_ceil(1_000_000_000);
+            let frame = (u128::from(e0.frame_t1_ns.saturating_sub(e0.frame_t0_ns)) * fs)
+                .div_ceil(1_000_000_000);
             let mut before = 0u128;
             for b in &blocks[i..last] {
                 let n = u128::from(b.n_samples);
                 if before + n >= frame {
-                    let t1 = b.stamp_ns + ((frame - before) * 1_000_000_000 / fs) as u64;
+                    let t1 = b
+                        .stamp_ns
+                        .saturating_add(((frame - before) * 1_000_000_000 / fs) as u64);
                     return t1 == e0.frame_t1_ns;
                 }
                 before += n;
@@ -170,7 +175,7 @@ pub fn replay_arte<C: grip_arte::stream::Classify>(
     let mut k = 0usize; // next logged estimate
     let (first, last) = arte_window(log);
     for b in &log.audio_blocks[first..last] {
-        let end = b.stamp_ns + block_ns(b);
+        let end = b.stamp_ns.saturating_add(block_ns(b));
         let first = k;
         while k < log.roads.len() && log.roads[k].frame_t1_ns <= end {
             k += 1;
