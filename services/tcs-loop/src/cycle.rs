@@ -121,6 +121,9 @@ pub struct SharedStatus {
     pub bus_errors: AtomicU64,
     /// Deadline misses so far.
     pub deadline_misses: AtomicU64,
+    /// The controller passed the driver's demand through in the last
+    /// cycle for want of a measurement (SRC without a vehicle speed).
+    pub passthrough: AtomicBool,
 }
 
 /// Errors building the loop.
@@ -509,6 +512,7 @@ impl TcsLoop {
         };
         let mut rec = CycleRecord::zeroed();
         let (cmd, enable) = if self.safe {
+            self.status.passthrough.store(false, Ordering::Relaxed);
             rec.internal = f64::NAN;
             rec.mu_hat = f64::NAN;
             (0.0, false)
@@ -535,6 +539,9 @@ impl TcsLoop {
             rec.internal = out.internal;
             rec.mu_hat = out.mu_hat;
             rec.used_arte = u8::from(out.used_arte);
+            self.status
+                .passthrough
+                .store(out.passthrough, Ordering::Relaxed);
             if out.used_arte {
                 rec.road_class = self.road.map_or(NO_CLASS, |e| e.class_index);
             }

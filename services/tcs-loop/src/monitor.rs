@@ -17,7 +17,9 @@ use crate::cycle::SharedStatus;
 /// SCHED_FIFO so the helper stays SCHED_OTHER). It wakes every 50 ms (or at
 /// half the watchdog period if shorter), sends `WATCHDOG=1` at half the
 /// watchdog period only if the heartbeat advanced since the last ping, and
-/// logs transitions: safe state entered/left, ARTE estimates stopped
+/// logs transitions: safe state entered/left, traction control inactive
+/// (the controller passing the demand through without a vehicle speed) and
+/// active again, ARTE estimates stopped
 /// (none for 1 s while ARTE is on) / resumed, new E2E faults, bus errors and
 /// deadline misses (at most one line per kind per second). Ends when `done`
 /// is set.
@@ -28,6 +30,7 @@ pub fn spawn_helper(
 ) -> Result<JoinHandle<()>, HelperError> {
     let m = TcsMonitor {
         safe: Changed::new(status.safe_state.load(Ordering::Relaxed)),
+        passthrough: Changed::new(false),
         road: arte.then(|| Flow::new(0, Instant::now(), Duration::from_secs(1))),
         faults: Count::default(),
         bus_errors: Count::default(),
@@ -40,6 +43,8 @@ pub fn spawn_helper(
 struct TcsMonitor {
     s: Arc<SharedStatus>,
     safe: Changed<bool>,
+    /// The controller passing the demand through for want of a speed.
+    passthrough: Changed<bool>,
     /// ARTE's estimates (only while ARTE is on).
     road: Option<Flow>,
     faults: Count,
@@ -67,6 +72,16 @@ impl Monitor for TcsMonitor {
                 "SAFE STATE entered: sensor or driver-demand frames missing; commanding 0 N m, enable cleared"
             ),
             Some(false) => tracing::info!("safe state left: inputs valid again; controller reset"),
+            None => {}
+        }
+        match self
+            .passthrough
+            .update(s.passthrough.load(Ordering::Relaxed))
+        {
+            Some(true) => tracing::warn!(
+                "TRACTION CONTROL INACTIVE: no vehicle speed (OmegaRef invalid and no fresh VehicleSpeed frame); the driver's demand is passed through"
+            ),
+            Some(false) => tracing::info!("vehicle speed back: traction control active again"),
             None => {}
         }
         if let Some(road) = &mut self.road {

@@ -735,6 +735,35 @@ fn a_future_stamp_or_a_nan_confidence_does_not_keep_knowledge_alive() {
     );
 }
 
+/// SRC without a vehicle speed (OmegaRef invalid, no VehicleSpeed frame)
+/// passes the driver's demand through: the status the helper thread logs
+/// its transitions from says so, and says so no longer once V is back.
+#[test]
+fn src_without_a_vehicle_speed_reports_the_passthrough() {
+    use std::sync::atomic::Ordering::Relaxed;
+    let mut r = Rig::new(ControllerKind::Src, false);
+    let st = r.lp.status();
+    r.run_ok(100);
+    assert!(!st.passthrough.load(Relaxed));
+    for _ in 0..20 {
+        let now = r.now();
+        let w = WheelSpeeds {
+            ref_valid: false,
+            ..r.feed.wheel()
+        };
+        let f = r.feed.ws.encode(&w, now);
+        r.bus.inject(f);
+        r.feed(false, true, true);
+        let (rec, _) = r.cycle();
+        assert_eq!(rec.safe_state, 0, "no speed is no safe state");
+        assert_eq!(rec.v_valid, 0);
+    }
+    assert!(st.passthrough.load(Relaxed));
+    assert_eq!(r.lp.last_record().torque_cmd, r.feed.demand);
+    r.run_ok(5);
+    assert!(!st.passthrough.load(Relaxed), "V back: active again");
+}
+
 /// A bus that counts the frames sent on it, shared with [`OrderSink`].
 struct CountingBus {
     inner: MemBus,
