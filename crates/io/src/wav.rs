@@ -117,6 +117,18 @@ pub enum WavErrorKind {
     /// Resampling to 0 Hz was asked for.
     #[error("cannot resample to 0 Hz")]
     ZeroTargetRate,
+    /// Resampling would multiply the samples by more than
+    /// [`MAX_UPSAMPLE`] (a header claiming, say, 1 Hz: a 1 MB file would
+    /// ask for about 96 GB at 48 kHz).
+    #[error(
+        "header says sample rate {from} Hz: resampling to {to} Hz would multiply the samples by more than {MAX_UPSAMPLE} (a recording of road noise has a rate of kHz)"
+    )]
+    RateTooLow {
+        /// The file's rate, Hz.
+        from: u32,
+        /// The rate asked for, Hz.
+        to: u32,
+    },
     /// The file cannot be created.
     #[error("cannot create: {0}")]
     Create(hound::Error),
@@ -155,6 +167,10 @@ pub fn read_mono(path: &Path) -> Result<Audio, WavError> {
         .map_err(|k| k.at(path))
 }
 
+/// The most [`read_mono_at`] multiplies a file's samples by when it
+/// resamples (8 kHz telephone audio to 96 kHz is 12).
+pub const MAX_UPSAMPLE: u64 = 16;
+
 /// Reads a WAV file as mono at `rate` Hz, resampling ([`resample`]) if the
 /// file has another rate.
 pub fn read_mono_at(path: &Path, rate: u32) -> Result<Audio, WavError> {
@@ -162,6 +178,13 @@ pub fn read_mono_at(path: &Path, rate: u32) -> Result<Audio, WavError> {
     if a.sample_rate != rate {
         if rate == 0 {
             return Err(WavErrorKind::ZeroTargetRate.at(path));
+        }
+        if u64::from(rate) > MAX_UPSAMPLE * u64::from(a.sample_rate) {
+            return Err(WavErrorKind::RateTooLow {
+                from: a.sample_rate,
+                to: rate,
+            }
+            .at(path));
         }
         a.samples = resample(&a.samples, a.sample_rate, rate);
         a.sample_rate = rate;
@@ -445,6 +468,36 @@ mod tests {
         assert!(err < 0.01, "max error {err}");
         let e = read_mono_at(&p, 0).unwrap_err();
         assert!(matches!(e.kind, WavErrorKind::ZeroTargetRate), "{e}");
+    }
+
+    /// A header claiming a rate of a few Hz is refused by name, not
+    /// resampled into a buffer the size of the ratio (1 Hz to 48 kHz: 48 000
+    /// samples out per sample in).
+    #[test]
+    fn a_rate_far_below_the_target_is_refused_not_upsampled() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("one_hertz.wav");
+        write_mono_i16(&p, 1, &[0.1; 1000]).unwrap();
+        let e = read_mono_at(&p, 48_000).unwrap_err();
+        assert!(
+            matches!(
+                e.kind,
+                WavErrorKind::RateTooLow {
+                    from: 1,
+                    to: 48_000
+                }
+            ),
+            "{e}"
+        );
+        let text = e.to_string();
+        assert!(
+            text.contains("one_hertz.wav") && text.contains("1 Hz"),
+            "{text}"
+        );
+        // 8 kHz telephone audio still goes to 96 kHz
+        let p = dir.path().join("phone.wav");
+        write_mono_i16(&p, 8_000, &[0.1; 800]).unwrap();
+        assert_eq!(read_mono_at(&p, 96_000).unwrap().samples.len(), 9_600);
     }
 
     #[test]

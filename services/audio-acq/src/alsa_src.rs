@@ -138,7 +138,7 @@ impl AlsaPcm {
                 return Err(AcqError::AlsaParams {
                     device: dev.into(),
                     reason: format!(
-                        "rate {rate} Hz not available, nearest is {got} Hz (use a plug: device to resample, or set [audio] sample_rate)"
+                        "rate {rate} Hz not available, nearest is {got} Hz: set [audio] sample_rate to a rate the device offers (audio-acq turns alsa-lib's resampling off, for plug: devices too)"
                     ),
                 });
             }

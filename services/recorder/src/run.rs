@@ -308,14 +308,19 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         let _ = p.join();
     }
     summary.queue_high_water = high.load(Ordering::Relaxed);
-    if !failed {
+    // the file's end: a failure here (a disk that filled up at the stop)
+    // is returned after the stop line, so the counters are still logged
+    let end = if failed {
+        Ok(())
+    } else {
         // without the receive thread's counters the summary would claim
         // nothing was received: none is written
-        if rx_failed.is_none() {
-            w.write_metadata("grip.recorder", &summary.metadata())?;
-        }
-        w.finish()?;
-    }
+        let meta = match rx_failed {
+            None => w.write_metadata("grip.recorder", &summary.metadata()),
+            Some(_) => Ok(()),
+        };
+        meta.and_then(|()| w.finish())
+    };
     let total_rx: u64 = summary.recv.topics.values().map(|s| s.received).sum();
     let total_w: u64 = summary.written.values().sum();
     let gaps: u64 = summary.recv.topics.values().map(|s| s.seq.gaps).sum();
@@ -333,6 +338,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         write_errors = summary.write_errors,
         "recorder stopped"
     );
+    end?;
     if failed {
         return Err(RunError::Mcap(McapLogError::Io {
             path,
