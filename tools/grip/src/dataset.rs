@@ -199,7 +199,12 @@ impl Dataset {
                 .headers()
                 .with_context(|| format!("manifest {}: bad header", manifest.display()))?
                 .clone();
-            let col = |n: &str| headers.iter().position(|h| h.trim() == n);
+            // column names as written or in another case (`Speed_kmh`)
+            let col = |n: &str| {
+                headers
+                    .iter()
+                    .position(|h| h.trim().eq_ignore_ascii_case(n))
+            };
             let Some(fcol) = col("file") else {
                 bail!(
                     "manifest {}: no `file` column (header: {:?})",
@@ -211,20 +216,40 @@ impl Dataset {
             let scol = col("speed_kmh");
             let by_rel: BTreeMap<&str, &Entry> =
                 self.entries.iter().map(|e| (e.rel.as_str(), e)).collect();
-            for (line, rec) in rdr.records().enumerate() {
+            let root_abs = std::fs::canonicalize(&self.root).ok();
+            // for the line numbers of errors (the reader skips blank lines
+            // and does not count them)
+            let text = std::fs::read_to_string(&manifest).unwrap_or_default();
+            for (k, rec) in rdr.records().enumerate() {
                 let rec = rec.with_context(|| {
-                    format!("manifest {}: record {}", manifest.display(), line + 1)
+                    format!("manifest {}: record {}", manifest.display(), k + 1)
                 })?;
-                let file = rec.get(fcol).unwrap_or("").trim().replace('\\', "/");
+                // the file's line (blank lines and quoted line breaks
+                // counted); the record's number + 1 if the reader has none
+                let line = rec.position().map_or(k + 2, |p| {
+                    // the record's position is where the reader began it,
+                    // before the blank lines it skipped
+                    let b = text.as_bytes();
+                    let mut at = (p.byte() as usize).min(b.len());
+                    while at < b.len() && (b[at] == b'\n' || b[at] == b'\r') {
+                        at += 1;
+                    }
+                    1 + b[..at].iter().filter(|&&c| c == b'\n').count()
+                });
+                let file =
+                    manifest_file(rec.get(fcol).unwrap_or(""), &self.root, root_abs.as_deref());
                 let Some(entry) = by_rel.get(file.as_str()) else {
                     let top = file.split('/').next().unwrap_or("");
-                    if self.root.join(top).is_dir() && !self.classes.iter().any(|c| c == top) {
+                    if !matches!(top, "" | "." | "..")
+                        && self.root.join(top).is_dir()
+                        && !self.classes.iter().any(|c| c == top)
+                    {
                         continue; // a class left out by `scan_classes`
                     }
                     bail!(
                         "manifest {} line {}: file `{file}` is not a .wav inside a class folder of {}",
                         manifest.display(),
-                        line + 2,
+                        line,
                         self.root.display()
                     );
                 };
@@ -235,7 +260,7 @@ impl Dataset {
                     bail!(
                         "manifest {} line {}: file `{file}` is labelled `{c}` but lies in class folder `{}`",
                         manifest.display(),
-                        line + 2,
+                        line,
                         self.classes[entry.class]
                     );
                 }
@@ -249,7 +274,7 @@ impl Dataset {
                         _ => bail!(
                             "manifest {} line {}: speed_kmh `{v}` of file `{file}` is not a speed in km/h (a number >= 0)",
                             manifest.display(),
-                            line + 2
+                            line
                         ),
                     }
                 }
@@ -291,6 +316,26 @@ pub fn read_wav(path: &Path) -> Result<(Audio, String)> {
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
     let sha256 = sha256_hex(&bytes);
     Ok((decode_mono(&bytes, path)?, sha256))
+}
+
+/// A manifest's `file` as a path relative to the dataset `root`, with `/`:
+/// `./asphalt/a1.wav` (what `find .` prints) and a path under the root,
+/// absolute or not, name the same file as `asphalt/a1.wav`.
+fn manifest_file(raw: &str, root: &Path, root_abs: Option<&Path>) -> String {
+    let mut f = raw.trim().replace('\\', "/");
+    let p = Path::new(&f);
+    let under = |base: &Path| {
+        p.strip_prefix(base)
+            .ok()
+            .map(|r| r.to_string_lossy().replace('\\', "/"))
+    };
+    if let Some(r) = under(root).or_else(|| root_abs.and_then(under)) {
+        f = r;
+    }
+    while let Some(rest) = f.strip_prefix("./") {
+        f = rest.trim_start_matches('/').to_owned();
+    }
+    f
 }
 
 #[cfg(test)]
@@ -396,6 +441,41 @@ mod tests {
         assert!(e.contains("nope.wav"), "{e}");
         let e = scan_err("path\nasphalt/a1.wav\n");
         assert!(e.contains("no `file` column"), "{e}");
+        // the line of the file, blank lines counted
+        let e = scan_err("file,speed_kmh\n\nasphalt/a1.wav,fast\n");
+        assert!(e.contains("manifest.csv line 3"), "{e}");
+    }
+
+    /// A manifest written with `find .` (`./asphalt/a1.wav`), with paths
+    /// under the dataset (absolute or not), or with column names in another
+    /// case names the same files: none of its rows is skipped in silence
+    /// (they were: the recordings then fell apart into single files and
+    /// cross-validation mixed one drive's clips into both sides of a fold).
+    #[test]
+    fn manifest_paths_and_column_names_as_users_write_them() {
+        let d = tempfile::tempdir().unwrap();
+        for f in ["asphalt/a1.wav", "asphalt/a2.wav", "gravel/g1.wav"] {
+            write_wav(&d.path().join(f), 10);
+        }
+        let abs = std::fs::canonicalize(d.path()).unwrap();
+        let manifest = format!(
+            "File,Recording,Speed_kmh\n./asphalt/a1.wav,drive1,10\n{}/asphalt/a2.wav,drive1,20\n",
+            abs.display()
+        );
+        std::fs::write(d.path().join("manifest.csv"), manifest).unwrap();
+        let ds = Dataset::scan(d.path()).unwrap();
+        assert_eq!(ds.entries[0].recording, ds.entries[1].recording);
+        assert_eq!(ds.recordings_per_class(), [1, 1]);
+        assert_eq!(ds.entries[0].speed_kmh, Some(10.0));
+        assert_eq!(ds.entries[1].speed_kmh, Some(20.0));
+        // a path outside the dataset is an error naming it, not skipped
+        std::fs::write(
+            d.path().join("manifest.csv"),
+            "file\n/elsewhere/asphalt/a1.wav\n",
+        )
+        .unwrap();
+        let e = format!("{:#}", Dataset::scan(d.path()).unwrap_err());
+        assert!(e.contains("/elsewhere/asphalt/a1.wav"), "{e}");
     }
 
     #[test]

@@ -70,10 +70,8 @@ pub fn classify(
     ex.set_speed(speed_kmh.map(|v| v / 3.6));
     let frame = ex.frame_len();
     let hop = match hop_s {
-        Some(h) if h > 0.0 && h.is_finite() => {
-            ((h * f64::from(sample_rate)).round() as usize).max(1)
-        }
-        Some(h) => bail!("--hop must be a positive number of seconds, got {h}"),
+        Some(h) if h > 0.0 && h <= 10.0 => ((h * f64::from(sample_rate)).round() as usize).max(1),
+        Some(h) => bail!("--hop: {h} s is outside (0, 10]"),
         None => frame,
     };
     if samples.len() < frame {

@@ -336,14 +336,37 @@ fn print_eval(report: &mut String, title: &str, e: &EvalSummary) {
 }
 
 /// Trains and returns the model and the Markdown report (no file written).
+/// `--calib-data` must be held out: a folder that is, holds or lies in the
+/// training data (`--data`) or a `--test` folder is refused (a confidence
+/// map fitted on what the classifier was trained on is optimistic, and
+/// the controller's gate would trust wrong roads).
+fn held_out_calibration(args: &Args) -> Result<()> {
+    let canon = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    let used: Vec<(&str, PathBuf)> = std::iter::once(("--data", canon(&args.data)))
+        .chain(args.test.iter().map(|t| ("--test", canon(t))))
+        .collect();
+    for c in &args.calib_data {
+        let cc = canon(c);
+        if let Some((flag, u)) = used
+            .iter()
+            .find(|(_, u)| cc.starts_with(u) || u.starts_with(&cc))
+        {
+            bail!(
+                "--calib-data {}: it is (or holds, or lies in) {flag} {}; the calibration must be fitted on held-out road-change recordings (other seeds: `grip dataset synth --changes N --seed S`), or the confidence it gives is optimistic",
+                c.display(),
+                u.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     let _ = ctx_config;
-    if args.hop <= 0.0 || !args.hop.is_finite() {
-        bail!(
-            "--hop must be a positive number of seconds, got {}",
-            args.hop
-        );
+    if !(args.hop > 0.0 && args.hop <= 10.0) {
+        bail!("--hop: {} s is outside (0, 10]", args.hop);
     }
+    held_out_calibration(args)?;
     let only = (!args.classes.is_empty()).then_some(args.classes.as_slice());
     let ds = Dataset::scan_classes(&args.data, only)?;
     let per_class = ds.recordings_per_class();
@@ -767,13 +790,41 @@ mod tests {
         let back = Model::from_bytes(&a.to_bytes().unwrap()).unwrap();
         assert_eq!(back, a);
         // A calibration folder that is not one is a clear error.
+        let not_changes = d.path().join("not-changes");
+        make_dataset(&not_changes);
         let mut argv = base.to_vec();
-        argv.extend_from_slice(&["--calib-data", data.to_str().unwrap()]);
+        argv.extend_from_slice(&["--calib-data", not_changes.to_str().unwrap()]);
         let e = format!(
             "{:#}",
             train(d.path(), &Cli::parse_from(&argv).args).unwrap_err()
         );
         assert!(e.contains("segments.csv"), "{e}");
+        // The training data (or a folder in it) as calibration data is
+        // refused before anything is trained: it is not held out.
+        for calib in [data.clone(), data.join("asphalt")] {
+            let mut argv = base.to_vec();
+            argv.extend_from_slice(&["--calib-data", calib.to_str().unwrap()]);
+            let e = format!(
+                "{:#}",
+                train(d.path(), &Cli::parse_from(&argv).args).unwrap_err()
+            );
+            assert!(e.contains("held-out") && e.contains("--data"), "{e}");
+        }
+    }
+
+    /// A hop past 10 s is refused by name (1e20 s wrapped the frame's end
+    /// and panicked on the slice).
+    #[test]
+    fn a_hop_beyond_ten_seconds_is_refused() {
+        for hop in ["1e20", "0", "-1", "NaN"] {
+            let hop = format!("--hop={hop}");
+            let a = Cli::parse_from(["t", "--data", "no-such-dir", &hop]).args;
+            let e = format!("{:#}", train(Path::new("."), &a).unwrap_err());
+            assert!(
+                e.contains("--hop") && e.contains("outside (0, 10]"),
+                "{hop}: {e}"
+            );
+        }
     }
 
     #[test]
