@@ -382,6 +382,21 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
             .collect::<Vec<_>>()
             .join(", ")
     );
+    // folds by recording need as many recordings of every class: said
+    // before any feature is extracted, naming the class folder
+    if args.folds >= 2
+        && let Some((c, n)) = ds
+            .classes
+            .iter()
+            .zip(&per_class)
+            .find(|(_, n)| **n < args.folds)
+    {
+        bail!(
+            "{}: class folder `{c}` has {n} recording(s), fewer than the {} folds of cross-validation by recording; add recordings, group fewer files per `recording` in manifest.csv, or lower --folds",
+            ds.root.display(),
+            args.folds
+        );
+    }
     let set = FeatureSet::from_name(&args.features).context("--features")?;
     let rate = dataset_rate(&ds)?;
     let mut model_cfg = FeatureConfig::new(rate, set);
@@ -810,6 +825,21 @@ mod tests {
             );
             assert!(e.contains("held-out") && e.contains("--data"), "{e}");
         }
+    }
+
+    /// Too few recordings of a class for the folds: refused up front,
+    /// naming the class folder (it was "class 2", after every feature).
+    #[test]
+    fn too_few_recordings_for_the_folds_names_the_class_folder() {
+        let d = tempfile::tempdir().unwrap();
+        let data = d.path().join("data");
+        make_dataset(&data); // 5 recordings per class
+        let a = Cli::parse_from(["t", "--data", data.to_str().unwrap(), "--folds", "6"]).args;
+        let e = format!("{:#}", train(d.path(), &a).unwrap_err());
+        assert!(
+            e.contains("class folder `asphalt` has 5 recording(s)") && e.contains("6 folds"),
+            "{e}"
+        );
     }
 
     /// A hop past 10 s is refused by name (1e20 s wrapped the frame's end
