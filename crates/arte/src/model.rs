@@ -785,11 +785,26 @@ pub fn cross_validate(
     folds: usize,
     seed: u64,
 ) -> Result<Confusion, ModelError> {
+    cross_validate_with(classes, feature_config, spec, data, folds, seed, |_, _| {})
+}
+
+/// [`cross_validate`], calling `done(k, folds)` after the k-th fold (for a
+/// progress bar: a fold fits a whole model).
+pub fn cross_validate_with(
+    classes: &[String],
+    feature_config: &FeatureConfig,
+    spec: &ClassifierSpec,
+    data: &Samples,
+    folds: usize,
+    seed: u64,
+    mut done: impl FnMut(usize, usize),
+) -> Result<Confusion, ModelError> {
     let split = stratified_group_kfold(&data.y, &data.group, classes.len(), folds, seed)?;
     let mut total = Confusion::new(classes.to_vec());
-    for f in &split {
+    for (k, f) in split.iter().enumerate() {
         let (model, _) = fit(classes, feature_config, spec, &data.subset(&f.train))?;
         total.merge(&model.evaluate(&data.subset(&f.test))?);
+        done(k + 1, split.len());
     }
     Ok(total)
 }

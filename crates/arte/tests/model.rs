@@ -4,7 +4,9 @@ use grip_arte::calib::{Calibration, StreamCalibration};
 use grip_arte::eval::Samples;
 use grip_arte::features::{FeatureConfig, FeatureSet};
 use grip_arte::mlp::LmConfig;
-use grip_arte::model::{ClassifierSpec, Model, ModelError, cross_validate, fit};
+use grip_arte::model::{
+    ClassifierSpec, Model, ModelError, cross_validate, cross_validate_with, fit,
+};
 use grip_arte::stream::{StreamConfig, StreamEstimator};
 use grip_arte::svm::{Kernel, SvmConfig};
 use grip_arte::synth::{Segment, SynthConfig, render};
@@ -149,6 +151,14 @@ fn cross_validation_scores_every_frame_once() {
     let conf = cross_validate(&classes(), &paper7(), &mlp_spec(), &data, 5, 1).unwrap();
     assert_eq!(conf.total() as usize, data.len());
     assert!(conf.metrics().macro_recall > 0.85, "{}", conf.metrics());
+    // the progress callback: once per fold, in order, and the same result
+    let mut calls = Vec::new();
+    let again = cross_validate_with(&classes(), &paper7(), &mlp_spec(), &data, 5, 1, |k, n| {
+        calls.push((k, n))
+    })
+    .unwrap();
+    assert_eq!(calls, [(1, 5), (2, 5), (3, 5), (4, 5), (5, 5)]);
+    assert_eq!(again.total(), conf.total());
 }
 
 #[test]

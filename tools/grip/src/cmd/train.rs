@@ -24,7 +24,7 @@ use grip_arte::eval::{Confusion, Samples};
 use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet, SpeedNorm};
 use grip_arte::mlp::{LmConfig, OutputKind};
 use grip_arte::model::{
-    ClassifierSpec, EvalSummary, FitReport, Model, cross_validate, fit, grid_search_svm,
+    ClassifierSpec, EvalSummary, FitReport, Model, cross_validate_with, fit, grid_search_svm,
 };
 use grip_arte::svm::{Kernel, SvmConfig};
 use grip_digest::sha256_hex;
@@ -336,6 +336,19 @@ fn print_eval(report: &mut String, title: &str, e: &EvalSummary) {
 }
 
 /// Trains and returns the model and the Markdown report (no file written).
+/// `pb` styled by `template` with `prefix`, redrawn twice a second (a fold
+/// or a fit takes long and reports nothing in between).
+fn busy(pb: ProgressBar, template: &str, prefix: String) -> ProgressBar {
+    pb.set_style(
+        ProgressStyle::with_template(template)
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    pb.set_prefix(prefix);
+    pb.enable_steady_tick(std::time::Duration::from_millis(500));
+    pb
+}
+
 /// `--calib-data` must be held out: a folder that is, holds or lies in the
 /// training data (`--data`) or a `--test` folder is refused (a confidence
 /// map fitted on what the classifier was trained on is optimistic, and
@@ -522,7 +535,22 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     let mut report = String::new();
     let _ = writeln!(report, "`{}`\n", args.command_line());
     let cv = if args.folds >= 2 {
-        let conf = cross_validate(&classes, &model_cfg, &spec, &data, args.folds, args.seed)?;
+        let pb = busy(
+            ProgressBar::new(args.folds as u64),
+            "{prefix} [{bar:30}] {pos}/{len} folds, {elapsed}",
+            format!("{}-fold cross-validation by recording", args.folds),
+        );
+        let conf = cross_validate_with(
+            &classes,
+            &model_cfg,
+            &spec,
+            &data,
+            args.folds,
+            args.seed,
+            |k, _| pb.set_position(k as u64),
+        );
+        pb.finish_and_clear();
+        let conf = conf?;
         let e = summary(
             format!("{}-fold cross-validation by recording", args.folds),
             conf,
@@ -532,7 +560,14 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     } else {
         None
     };
-    let (mut model, fit_report) = fit(&classes, &model_cfg, &spec, &data)?;
+    let pb = busy(
+        ProgressBar::new_spinner(),
+        "{prefix} {spinner} {elapsed}",
+        format!("fitting the model on all {} frames", data.len()),
+    );
+    let fitted = fit(&classes, &model_cfg, &spec, &data);
+    pb.finish_and_clear();
+    let (mut model, fit_report) = fitted?;
     match &fit_report {
         FitReport::Mlp(r) => {
             let n = format!(
