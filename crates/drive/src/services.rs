@@ -187,28 +187,6 @@ mod tests {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/systemd")
     }
 
-    /// The shipped units start the services with exactly the command line
-    /// `grip drive` uses (with the units' directories).
-    #[test]
-    fn unit_exec_start_equals_drive_command_line() {
-        for s in Service::START_ORDER {
-            let path = unit_dir().join(s.unit());
-            let text = std::fs::read_to_string(&path)
-                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-            let lines: Vec<&str> = text
-                .lines()
-                .filter_map(|l| l.trim().strip_prefix("ExecStart="))
-                .collect();
-            assert_eq!(
-                lines.len(),
-                1,
-                "{}: one ExecStart= expected",
-                path.display()
-            );
-            assert_eq!(lines[0].trim(), s.exec_start(), "{}", path.display());
-        }
-    }
-
     /// Values of `key=` in a unit (comments and other keys skipped).
     fn unit_values(text: &str, key: &str) -> Vec<String> {
         text.lines()
@@ -217,15 +195,36 @@ mod tests {
             .collect()
     }
 
+    /// Each service's unit file, read.
+    fn units() -> impl Iterator<Item = (Service, String)> {
+        Service::START_ORDER.into_iter().map(|s| {
+            let path = unit_dir().join(s.unit());
+            let text = std::fs::read_to_string(&path)
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            (s, text)
+        })
+    }
+
+    /// The shipped units start the services with exactly the command line
+    /// `grip drive` uses (with the units' directories).
+    #[test]
+    fn unit_exec_start_equals_drive_command_line() {
+        for (s, text) in units() {
+            assert_eq!(
+                unit_values(&text, "ExecStart"),
+                [s.exec_start()],
+                "{}",
+                s.unit()
+            );
+        }
+    }
+
     /// `grip drive` places every service as its unit does (CPUs, nice,
     /// I/O priority), and a unit sets nothing of this kind that
     /// [`Service::placement`] leaves out.
     #[test]
     fn placement_equals_the_units() {
-        for s in Service::START_ORDER {
-            let path = unit_dir().join(s.unit());
-            let text = std::fs::read_to_string(&path)
-                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        for (s, text) in units() {
             let p = s.placement();
             let cpus: Vec<String> = p.cpus.iter().map(|c| c.to_string()).collect();
             let want_cpus: Vec<String> = if cpus.is_empty() {

@@ -355,6 +355,27 @@ fn toy_road(name: &str) -> grip_arte_svc::ClassKnowledge {
     }
 }
 
+/// An arte loop over asphalt and snow whose classifier always says `probs`.
+fn toy_loop(
+    f: &grip_arte::features::FeatureConfig,
+    probs: &'static [f64],
+    stream: &StreamConfig,
+    clock: &ManualClock,
+) -> ArteLoop<Toy, ManualClock> {
+    ArteLoop::new(
+        Toy {
+            dim: f.dim(),
+            probs,
+        },
+        f,
+        stream,
+        vec![toy_road("asphalt"), toy_road("snow")],
+        0.2,
+        clock.clone(),
+    )
+    .unwrap()
+}
+
 /// Contiguous blocks of `n` samples of a little noise from `T0`.
 fn noise_blocks(count: usize, n: usize) -> Vec<AudioBlock> {
     (0..count)
@@ -382,18 +403,7 @@ fn a_far_future_block_neither_overflows_nor_holds_for_good() {
         let f =
             grip_arte::features::FeatureConfig::new(RATE, grip_arte::features::FeatureSet::Rich);
         let clock = ManualClock::new(T0);
-        let mut lp = ArteLoop::new(
-            Toy {
-                dim: f.dim(),
-                probs: &[0.3, 0.7],
-            },
-            &f,
-            &StreamConfig::default(),
-            vec![toy_road("asphalt"), toy_road("snow")],
-            0.2,
-            clock.clone(),
-        )
-        .unwrap();
+        let mut lp = toy_loop(&f, &[0.3, 0.7], &StreamConfig::default(), &clock);
         let stats = ArteCounters::default();
         let mut sink = VecSink::default();
         let mut bl = noise_blocks(130, 1024); // 3 s
@@ -430,21 +440,11 @@ fn a_far_future_block_neither_overflows_nor_holds_for_good() {
 fn a_nan_classifier_output_publishes_a_finite_confidence() {
     let f = grip_arte::features::FeatureConfig::new(RATE, grip_arte::features::FeatureSet::Rich);
     let clock = ManualClock::new(T0);
-    let mut lp = ArteLoop::new(
-        Toy {
-            dim: f.dim(),
-            probs: &[f64::NAN, f64::NAN],
-        },
-        &f,
-        &StreamConfig {
-            smoothing: grip_arte::stream::Smoothing::None,
-            ..StreamConfig::default()
-        },
-        vec![toy_road("asphalt"), toy_road("snow")],
-        0.2,
-        clock.clone(),
-    )
-    .unwrap();
+    let none = StreamConfig {
+        smoothing: grip_arte::stream::Smoothing::None,
+        ..StreamConfig::default()
+    };
+    let mut lp = toy_loop(&f, &[f64::NAN, f64::NAN], &none, &clock);
     let stats = ArteCounters::default();
     let mut sink = VecSink::default();
     for b in noise_blocks(40, 1024) {
