@@ -24,6 +24,8 @@ pub struct AcqStatus {
     pub truth_received: AtomicU64,
     /// Synth: truth samples naming an unknown road.
     pub unknown_road: AtomicU64,
+    /// Synth: failed reads of the ground truth.
+    pub truth_errors: AtomicU64,
     /// Source waits that timed out (ALSA).
     pub timeouts: AtomicU64,
 }
@@ -97,6 +99,9 @@ impl<S: Source> AcqLoop<S> {
         self.status
             .unknown_road
             .store(st.unknown_road, Ordering::Relaxed);
+        self.status
+            .truth_errors
+            .store(st.truth_errors, Ordering::Relaxed);
         match r {
             Read::Block { n, stamp_ns } => {
                 let n = n.min(self.block_samples);

@@ -17,7 +17,7 @@ use crate::AcqStatus;
 /// the helper stays SCHED_OTHER). Every 50 ms (or half the watchdog period
 /// if shorter) it sends `WATCHDOG=1` at half the watchdog period if the
 /// block counter advanced, and logs: new xruns, truth lost / back, unknown
-/// roads, publish errors, a stalled source (no block for 1 s); at most one
+/// roads, publish errors, failed truth reads, a stalled source (no block for 1 s); at most one
 /// line per kind per second. Ends when `done` is set.
 pub fn spawn_helper(
     status: Arc<AcqStatus>,
@@ -33,6 +33,7 @@ pub fn spawn_helper(
         truth_lost: Changed::new(None),
         xruns: Count::default(),
         pub_err: Count::default(),
+        truth_err: Count::default(),
         unknown: Count::default(),
         s: status,
         synth,
@@ -47,6 +48,7 @@ struct AcqMonitor {
     truth_lost: Changed<Option<bool>>,
     xruns: Count,
     pub_err: Count,
+    truth_err: Count,
     unknown: Count,
 }
 
@@ -104,6 +106,11 @@ impl Monitor for AcqMonitor {
             self.pub_err,
             s.publish_errors.load(Ordering::Relaxed),
             "publishing audio blocks failed"
+        );
+        warn_if_grew!(
+            self.truth_err,
+            s.truth_errors.load(Ordering::Relaxed),
+            "reading the ground truth failed (the synthesiser keeps its last road until the truth timeout)"
         );
         let first_unknown = self.unknown.last() == 0;
         if self

@@ -255,6 +255,7 @@ fn serve<S: Source>(
         blocks = summary.blocks,
         xruns = summary.xruns,
         publish_errors = summary.publish_errors,
+        truth_errors = status.truth_errors.load(Ordering::Relaxed),
         source_ended = ended,
         "audio-acq stopped"
     );

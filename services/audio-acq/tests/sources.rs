@@ -258,6 +258,42 @@ fn synth_unknown_road_is_vehicle_noise_and_counted() {
     assert_eq!(lp.source().stats().unknown_road, 20);
 }
 
+/// Ground truth that cannot be read: every failed read is counted in the
+/// status the helper thread warns from (it was counted in the source only,
+/// and reached no log line).
+#[test]
+fn synth_truth_read_errors_reach_the_status() {
+    struct Broken;
+    impl TruthInput for Broken {
+        fn poll_latest(&mut self) -> Result<Option<GroundTruth>, TruthReadError> {
+            Err(TruthReadError)
+        }
+    }
+    let clock = ManualClock::new(0);
+    let src = SynthSource::new(
+        &SynthSection::default(),
+        44_100,
+        1024,
+        Broken,
+        clock,
+        200_000_000,
+    )
+    .unwrap();
+    let status = Arc::new(AcqStatus::default());
+    let mut lp = AcqLoop::new(src, 1024, 0, Arc::clone(&status));
+    let mut sink = VecSink::default();
+    for _ in 0..7 {
+        lp.step(&mut sink).unwrap();
+    }
+    assert_eq!(lp.source().stats().truth_errors, 7);
+    assert_eq!(
+        status
+            .truth_errors
+            .load(std::sync::atomic::Ordering::Relaxed),
+        7
+    );
+}
+
 /// A fake capture device: a ramp of samples (2 channels: ramp and −ramp),
 /// with scripted overruns and time stamps.
 struct FakePcm {
