@@ -1078,6 +1078,29 @@ mod tests {
         assert!(truth_at(&t, 0).is_some());
     }
 
+    /// 300 ms at 1 kHz: standing for 10 ms, then 3 mm a cycle, asphalt
+    /// under the wheel until 110 ms and snow after; `each(k, truth,
+    /// record)` sets the rest of sample k.
+    fn snow_entry_log(mut each: impl FnMut(u64, &mut GroundTruth, &mut CycleRecord)) -> DriveLog {
+        let mut t = Vec::new();
+        let mut c = Vec::new();
+        for k in 0..300u64 {
+            let x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
+            let (r, n) = if k < 110 { (0, "asphalt") } else { (1, "snow") };
+            let mut g = truth(k, k, x, r, n);
+            let mut rec = CycleRecord::zeroed();
+            rec.stamp_ns = k * 1_000_000;
+            each(k, &mut g, &mut rec);
+            t.push(g);
+            c.push(rec);
+        }
+        DriveLog {
+            truth: t,
+            cycles: c,
+            ..DriveLog::default()
+        }
+    }
+
     /// The wheel reaches snow at 100 ms: the command came down to snow's
     /// limit 30 ms before (at 0.003 m per ms: 0.09 m ahead) in the first
     /// log, never in the second; `compare` puts them side by side.
@@ -1087,29 +1110,15 @@ mod tests {
         let v = VehicleParams::default();
         let limit = roads[1].mu_peak() * v.normal_force() * v.r;
         let make = |capped: bool| {
-            let mut t = Vec::new();
-            let mut c = Vec::new();
-            for k in 0..300u64 {
-                let x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
-                let (r, n) = if k < 110 { (0, "asphalt") } else { (1, "snow") };
-                let mut g = truth(k, k, x, r, n);
+            snow_entry_log(|k, g, rec| {
                 g.lambda = if k >= 110 && !capped { 0.3 } else { 0.02 };
                 g.torque = 150.0;
-                t.push(g);
-                let mut rec = CycleRecord::zeroed();
-                rec.stamp_ns = k * 1_000_000;
                 rec.torque_cmd = if capped && (80..300).contains(&k) {
                     limit
                 } else {
                     300.0
                 };
-                c.push(rec);
-            }
-            DriveLog {
-                truth: t,
-                cycles: c,
-                ..DriveLog::default()
-            }
+            })
         };
         let s = summarize(&make(true), &v, "test", Some(&roads));
         let p = s.preview.as_ref().unwrap();
@@ -1162,33 +1171,19 @@ mod tests {
         let roads = RoadCatalogue::burckhardt(&["asphalt", "snow"]).unwrap();
         let v = VehicleParams::default();
         let limit = roads[1].mu_peak() * v.normal_force() * v.r;
-        let mut t = Vec::new();
-        let mut c = Vec::new();
-        for k in 0..300u64 {
-            let x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
-            let (r, n) = if k < 110 { (0, "asphalt") } else { (1, "snow") };
-            let mut g = truth(k, k, x, r, n);
+        let mut log = snow_entry_log(|k, g, rec| {
             if k >= 50 {
                 // the microphone reaches snow at the sample logged 50th
                 g.mic_road_index = 1;
                 g.mic_road_name = grip_msgs::name_to_bytes("snow");
             }
-            t.push(g);
-            let mut rec = CycleRecord::zeroed();
             rec.seq = k;
-            rec.stamp_ns = k * 1_000_000;
             rec.torque_cmd = if k >= 80 { limit } else { 300.0 };
-            c.push(rec);
-        }
+        });
         // stamped 5 ms, before the scenario's start (9 ms), logged after it
-        t[50].stamp_ns = 5_000_000;
+        log.truth[50].stamp_ns = 5_000_000;
         // the first capped cycle stamped after the wheel reaches snow (110 ms)
-        c[80].stamp_ns = 150_000_000;
-        let log = DriveLog {
-            truth: t,
-            cycles: c,
-            ..DriveLog::default()
-        };
+        log.cycles[80].stamp_ns = 150_000_000;
         let s = summarize(&log, &v, "test", Some(&roads));
         let ch = &s.arte.changes;
         assert_eq!(ch.len(), 1, "{ch:?}");

@@ -341,12 +341,32 @@ pub fn error_chain(e: &dyn std::error::Error) -> String {
     s
 }
 
+/// A warning's gate: open the first time, then at most once a second.
+#[derive(Debug, Default)]
+struct OncePerSecond {
+    last: Option<Instant>,
+}
+
+impl OncePerSecond {
+    /// Whether a warning may go out at `now` (it then counts as sent).
+    fn due(&mut self, now: Instant) -> bool {
+        if self
+            .last
+            .is_some_and(|t| now.duration_since(t) < Duration::from_secs(1))
+        {
+            return false;
+        }
+        self.last = Some(now);
+        true
+    }
+}
+
 /// Rate-limits the receive thread's warning about receive errors (every
 /// one is counted in `receive_errors`): the first at once, then at most
 /// one a second, each with the errors since the last warning.
 #[derive(Debug, Default)]
 pub struct ErrorReport {
-    last: Option<Instant>,
+    gate: OncePerSecond,
     since: u64,
 }
 
@@ -355,14 +375,7 @@ impl ErrorReport {
     /// held back since the last report), when a report is due.
     pub fn observe(&mut self, now: Instant) -> Option<u64> {
         self.since += 1;
-        if self
-            .last
-            .is_some_and(|t| now.duration_since(t) < Duration::from_secs(1))
-        {
-            return None;
-        }
-        self.last = Some(now);
-        Some(std::mem::take(&mut self.since))
+        self.gate.due(now).then(|| std::mem::take(&mut self.since))
     }
 
     /// [`ErrorReport::observe`], logging the warning when due.
@@ -387,7 +400,7 @@ pub const BACKLOG_WARN: usize = 2500;
 /// naming the deepest queue since the last.
 #[derive(Debug, Default)]
 pub struct Backlog {
-    last: Option<Instant>,
+    gate: OncePerSecond,
     peak: usize,
 }
 
@@ -399,14 +412,7 @@ impl Backlog {
             return None;
         }
         self.peak = self.peak.max(waiting);
-        if self
-            .last
-            .is_some_and(|t| now.duration_since(t) < Duration::from_secs(1))
-        {
-            return None;
-        }
-        self.last = Some(now);
-        Some(std::mem::take(&mut self.peak))
+        self.gate.due(now).then(|| std::mem::take(&mut self.peak))
     }
 }
 
