@@ -353,11 +353,7 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
             stats.bad_speeds.fetch_add(1, Ordering::Relaxed);
             return;
         }
-        let now = self.clock.now_ns();
-        if self
-            .speed
-            .is_none_or(|(_, t)| r.stamp_ns >= t || now.abs_diff(t) > self.speed_timeout_ns)
-        {
+        if self.speed.is_none_or(|(_, t)| r.stamp_ns >= t) || self.current_speed().is_none() {
             // reversing: the tyre noise depends on the speed's magnitude
             self.speed = Some((r.v.abs(), r.stamp_ns));
             self.odometer = if r.odometer.is_finite() {
