@@ -98,6 +98,11 @@ impl PlantTick {
 pub trait TruthSink {
     /// One sample per cycle.
     fn truth(&mut self, g: &GroundTruth);
+    /// Samples this sink failed to deliver so far (the cycle copies it into
+    /// [`PlantStatus::truth_errors`], which the helper thread warns about).
+    fn errors(&self) -> u64 {
+        0
+    }
 }
 
 /// Discards the truth.
@@ -144,8 +149,10 @@ pub struct PlantStatus {
     pub cmd_timeouts: AtomicU64,
     /// E2E faults on the command path so far.
     pub faults_total: AtomicU64,
-    /// CAN / publish errors so far.
+    /// CAN errors so far.
     pub io_errors: AtomicU64,
+    /// Ground-truth samples the truth sink failed to publish so far.
+    pub truth_errors: AtomicU64,
 }
 
 /// Errors building the simulator.
@@ -557,6 +564,7 @@ impl PlantSim {
         st.faults_total
             .store(self.rx.faults().total(), Ordering::Relaxed);
         st.io_errors.store(self.io_errors, Ordering::Relaxed);
+        st.truth_errors.store(truth.errors(), Ordering::Relaxed);
 
         if self.phase == Phase::Ended
             && self.exit_at_end

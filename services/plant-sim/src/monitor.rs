@@ -17,8 +17,8 @@ use crate::cycle::PlantStatus;
 /// Spawns the helper thread (before the caller goes SCHED_FIFO). Every
 /// 50 ms (or half the watchdog period if shorter) it pings the watchdog if
 /// the heartbeat advanced and logs transitions: scenario started/ended,
-/// command timeout entered (with the episode count)/left, new E2E faults and
-/// I/O errors (at most once per second).
+/// command timeout entered (with the episode count)/left, new E2E faults,
+/// CAN errors and failed ground-truth publishes (at most once per second).
 pub fn spawn_helper(
     status: Arc<PlantStatus>,
     done: Arc<AtomicBool>,
@@ -28,6 +28,7 @@ pub fn spawn_helper(
         timed_out: Changed::new(status.cmd_timed_out.load(Ordering::Relaxed)),
         faults: Count::default(),
         io_errors: Count::default(),
+        truth_errors: Count::default(),
         s: status,
     };
     monitor::spawn("plant-helper", m, done)
@@ -39,6 +40,7 @@ struct PlantMonitor {
     timed_out: Changed<bool>,
     faults: Count,
     io_errors: Count,
+    truth_errors: Count,
 }
 
 impl Monitor for PlantMonitor {
@@ -94,7 +96,12 @@ impl Monitor for PlantMonitor {
         warn_if_grew!(
             self.io_errors,
             s.io_errors.load(Ordering::Relaxed),
-            "CAN / publish errors"
+            "CAN errors"
+        );
+        warn_if_grew!(
+            self.truth_errors,
+            s.truth_errors.load(Ordering::Relaxed),
+            "publishing the ground truth failed (audio-acq's synthesiser and the recorder miss those samples)"
         );
     }
 }

@@ -108,6 +108,10 @@ impl TruthSink for IpcTruth {
             Err(_) => self.errors += 1,
         }
     }
+
+    fn errors(&self) -> u64 {
+        self.errors
+    }
 }
 
 /// Runs until `stop` (SIGTERM/SIGINT) or, with `exit_at_end`, the scenario's

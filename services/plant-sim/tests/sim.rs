@@ -350,6 +350,26 @@ fn truth_names_the_road_at_the_microphone() {
     assert_eq!(g.mic_road_index, g.road_index);
 }
 
+/// A truth sink that fails to publish (what `IpcTruth` counts when the
+/// iceoryx2 publish fails) reaches the shared status the helper thread warns
+/// from, count for count; the loop goes on.
+#[test]
+fn failed_truth_publishes_reach_the_status() {
+    use std::sync::atomic::Ordering;
+    let mut r = Rig::new(&immediate());
+    r.cycle();
+    assert_eq!(r.sim.status().truth_errors.load(Ordering::Relaxed), 0);
+    r.truth.failing = true;
+    for _ in 0..3 {
+        r.cycle();
+    }
+    assert_eq!(r.sim.status().truth_errors.load(Ordering::Relaxed), 3);
+    r.truth.failing = false;
+    r.cycle();
+    assert_eq!(r.sim.status().truth_errors.load(Ordering::Relaxed), 3);
+    assert_eq!(r.truth.n, 2, "the loop went on");
+}
+
 /// The pre-roll (front-mic vehicle, 2.77 m lead, paper from 10 km/h): the
 /// car is held 2.77 m before the scenario's start (rounded up to whole
 /// cycles, as `grip sim`'s pre-roll) with the microphone over x = 0; once

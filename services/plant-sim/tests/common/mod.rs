@@ -10,17 +10,28 @@ pub use grip_io::can::MemBus;
 use grip_msgs::GroundTruth;
 use grip_plant_sim::{PlantSim, PlantSimConfig, TruthSink};
 
-/// Keeps the last truth sample and counts them.
+/// Keeps the last truth sample and counts them; while `failing`, each
+/// sample counts as a failed publish instead.
 #[derive(Default)]
 pub struct LastTruth {
     pub last: Option<GroundTruth>,
     pub n: u64,
+    pub failing: bool,
+    pub failed: u64,
 }
 
 impl TruthSink for LastTruth {
     fn truth(&mut self, g: &GroundTruth) {
+        if self.failing {
+            self.failed += 1;
+            return;
+        }
         self.last = Some(*g);
         self.n += 1;
+    }
+
+    fn errors(&self) -> u64 {
+        self.failed
     }
 }
 
