@@ -57,6 +57,13 @@ pub struct PlantSimConfig {
     /// Upper bound on the plant's internal integration step, s (default 1e-4).
     #[serde(default = "default_substep")]
     pub max_substep_s: f64,
+    /// Whether plant-sim may open a CAN interface backed by a device (a real
+    /// CAN controller). Off by default: plant-sim plays the inverter, the
+    /// wheel-speed sensors and the driver, and on a car's bus its frames
+    /// would reach the real ECUs (a bench bus with no inverter on it is
+    /// the case for `true`).
+    #[serde(default)]
+    pub allow_physical_bus: bool,
     /// `[rt]`
     #[serde(default)]
     pub rt: RtConfig,
@@ -97,6 +104,7 @@ impl PlantSimConfig {
             exit_at_end: false,
             end_hold_ms: default_end_hold(),
             max_substep_s: default_substep(),
+            allow_physical_bus: false,
             rt: RtConfig::default(),
         }
     }

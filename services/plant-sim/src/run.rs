@@ -2,12 +2,12 @@
 //! publisher, applies the real-time set-up and runs [`PlantSim`] on the
 //! absolute-deadline timer until stopped or (with `exit_at_end`) finished.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use grip_config::{ConfigDir, ConfigError};
-use grip_io::can::{CanBus, CanBusConfig, CanError, open_bus};
+use grip_io::can::{CanBus, CanBusConfig, CanError, Transport, open_bus};
 use grip_io::clock::MonotonicClock;
 use grip_io::ipc::{IpcError, IpcNode, Publisher};
 use grip_io::rt::{self, PeriodicTimer};
@@ -59,6 +59,41 @@ pub enum RunError {
     /// The helper thread could not be started.
     #[error(transparent)]
     Helper(#[from] HelperError),
+    /// can.toml names a CAN interface backed by a real controller.
+    #[error(
+        "can.toml: interface {iface:?} is a physical CAN interface ({} exists): plant-sim plays the inverter, the wheel-speed sensors and the driver, and its frames would reach the real ECUs on that bus. Use a virtual bus (ip link add dev vcan0 type vcan && ip link set vcan0 up, and interface = \"vcan0\" in can.toml), or set allow_physical_bus = true in {} for a bench bus with nothing else on it",
+        device.display(),
+        own_file.display()
+    )]
+    PhysicalBus {
+        /// The interface.
+        iface: String,
+        /// Its sysfs device link.
+        device: PathBuf,
+        /// plant-sim's own configuration file.
+        own_file: PathBuf,
+    },
+}
+
+/// Refuses a CAN interface backed by a device (under the sysfs root
+/// `sys_class_net`) unless `allow`; the simulated transport is never refused.
+pub fn check_bus(
+    can: &CanBusConfig,
+    allow: bool,
+    own_file: &Path,
+    sys_class_net: &Path,
+) -> Result<(), RunError> {
+    if allow || can.transport == Transport::Sim {
+        return Ok(());
+    }
+    match grip_io::can::physical_interface_in(sys_class_net, &can.interface) {
+        Some(device) => Err(RunError::PhysicalBus {
+            iface: can.interface.clone(),
+            device,
+            own_file: own_file.to_owned(),
+        }),
+        None => Ok(()),
+    }
 }
 
 /// Everything a run reads, loaded and validated, overrides applied.
@@ -81,6 +116,12 @@ pub fn load(opts: &Options) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), 
     let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
     let (vehicle, sensors) = grip_config::load_vehicle(&vehicle_path)?;
     let can = load_can(&dir)?;
+    check_bus(
+        &can,
+        cfg.allow_physical_bus,
+        &own_path,
+        Path::new("/sys/class/net"),
+    )?;
     let sim = PlantSim::new(&cfg, scenario, roads, &vehicle, &sensors).map_err(|source| {
         RunError::Model {
             file: vehicle_path,
@@ -195,4 +236,46 @@ pub fn run(
     );
     drop(report);
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use grip_io::can::Transport;
+
+    fn can(transport: Transport, iface: &str) -> CanBusConfig {
+        CanBusConfig {
+            transport,
+            interface: iface.into(),
+            ..CanBusConfig::default()
+        }
+    }
+
+    /// A fake /sys/class/net with a real controller `can0` and a `vcan0`:
+    /// plant-sim refuses can0 (socketcan or auto) unless allowed, naming
+    /// the interface, the device and its own file; vcan0 and the simulated
+    /// transport are always fine.
+    #[test]
+    fn a_physical_can_interface_is_refused_unless_allowed() {
+        let sys = tempfile::tempdir().unwrap();
+        std::fs::create_dir_all(sys.path().join("can0/device")).unwrap();
+        std::fs::create_dir_all(sys.path().join("vcan0")).unwrap();
+        let own = Path::new("/etc/grip/plant-sim.toml");
+        for t in [Transport::Socketcan, Transport::Auto] {
+            let e = check_bus(&can(t, "can0"), false, own, sys.path()).unwrap_err();
+            let msg = e.to_string();
+            assert!(
+                msg.contains("\"can0\" is a physical CAN interface"),
+                "{msg}"
+            );
+            assert!(msg.contains("can0/device"), "{msg}");
+            assert!(
+                msg.contains("allow_physical_bus = true in /etc/grip/plant-sim.toml"),
+                "{msg}"
+            );
+            check_bus(&can(t, "can0"), true, own, sys.path()).unwrap();
+            check_bus(&can(t, "vcan0"), false, own, sys.path()).unwrap();
+        }
+        check_bus(&can(Transport::Sim, "can0"), false, own, sys.path()).unwrap();
+    }
 }

@@ -16,7 +16,9 @@ use core::time::Duration;
 pub use grip_msgs::CanFrame;
 pub use mem::{FrameQueue, MEM_BUS_CAPACITY, MemBus, frame_queue};
 pub use sim::SimBus;
-pub use socket::{SocketCanBus, af_can_available, interface_exists};
+pub use socket::{
+    SocketCanBus, af_can_available, interface_exists, physical_interface, physical_interface_in,
+};
 
 use crate::ipc::{IpcError, IpcNode};
 

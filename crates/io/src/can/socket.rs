@@ -31,6 +31,26 @@ pub fn interface_exists(iface: &str) -> bool {
     unsafe { libc::if_nametoindex(c.as_ptr()) != 0 }
 }
 
+/// The sysfs path that shows network interface `iface` is backed by a
+/// device (a CAN controller on a bus: PCI, USB, SPI, a SoC's own), if it
+/// is: virtual interfaces (`vcan`, `vxcan`) have no `device` link in
+/// `/sys/class/net/<iface>/`.
+pub fn physical_interface(iface: &str) -> Option<std::path::PathBuf> {
+    physical_interface_in(std::path::Path::new("/sys/class/net"), iface)
+}
+
+/// [`physical_interface`] under another sysfs root (tests).
+pub fn physical_interface_in(
+    sys_class_net: &std::path::Path,
+    iface: &str,
+) -> Option<std::path::PathBuf> {
+    if iface.is_empty() || iface.contains('/') || iface == "." || iface == ".." {
+        return None;
+    }
+    let dev = sys_class_net.join(iface).join("device");
+    dev.exists().then_some(dev)
+}
+
 /// A raw CAN socket on one interface, non-blocking; receive waits use poll(2).
 #[derive(Debug)]
 pub struct SocketCanBus {
@@ -169,5 +189,30 @@ impl CanBus for SocketCanBus {
 
     fn kind(&self) -> BusKind {
         BusKind::SocketCan
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fake `/sys/class/net`: `can0` with a `device` link (a controller on
+    /// a bus), `vcan0` without (virtual).
+    #[test]
+    fn physical_interfaces_are_those_with_a_device() {
+        let sys = tempfile::tempdir().unwrap();
+        std::fs::create_dir_all(sys.path().join("can0/device")).unwrap();
+        std::fs::create_dir_all(sys.path().join("vcan0")).unwrap();
+        assert_eq!(
+            physical_interface_in(sys.path(), "can0"),
+            Some(sys.path().join("can0/device"))
+        );
+        assert_eq!(physical_interface_in(sys.path(), "vcan0"), None);
+        assert_eq!(physical_interface_in(sys.path(), "absent0"), None);
+        // a name cannot climb out of the directory
+        std::fs::create_dir_all(sys.path().join("device")).unwrap();
+        assert_eq!(physical_interface_in(sys.path(), ".."), None);
+        assert_eq!(physical_interface_in(sys.path(), "."), None);
+        assert_eq!(physical_interface_in(sys.path(), ""), None);
     }
 }
