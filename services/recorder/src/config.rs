@@ -15,7 +15,7 @@ use serde::Deserialize;
 #[serde(deny_unknown_fields)]
 pub struct RecorderConfig {
     /// Directory of the log when `--out` is not given; the file is
-    /// `grip-<unix seconds>-<pid>.mcap`.
+    /// `grip-<unix seconds>-<boot id>-<pid>.mcap` (never an existing file).
     pub out_dir: PathBuf,
     /// Chunk compression: "lz4", "zstd" or "none".
     #[serde(default)]

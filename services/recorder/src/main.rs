@@ -7,7 +7,8 @@
 //!   configuration files in it (`*.toml`, the DBC, `roads/`, `scenarios/`,
 //!   `vehicles/`, `models/`) are hashed into the `grip.run` metadata and attached.
 //! - `--config FILE` (default `DIR/recorder.toml`).
-//! - `--out FILE` (default `<out_dir>/grip-<unix s>-<pid>.mcap`).
+//! - `--out FILE` (default: a new `<out_dir>/grip-<unix s>-<boot id>-<pid>.mcap`,
+//!   never overwriting a log).
 //! - `--meta KEY=VALUE`: extra `grip.run` metadata (`grip drive` passes the
 //!   scenario, controller, ARTE switch and seed).
 //! - `--attach NAME=FILE`: one more file to hash and attach under NAME

@@ -28,7 +28,8 @@ pub const GIT_REV: &str = env!("GRIP_GIT_REV");
 pub struct Options {
     /// `--config-dir` and `--config`.
     pub config: ConfigArgs,
-    /// Output file (default: `<out_dir>/grip-<unix s>-<pid>.mcap`).
+    /// Output file (default: a new `<out_dir>/grip-<unix s>-<boot id>-<pid>.mcap`,
+    /// never an existing one: [`default_out`]).
     pub out: Option<PathBuf>,
     /// Extra `grip.run` metadata (scenario, controller, ...).
     pub meta: Vec<(String, String)>,
@@ -50,7 +51,7 @@ pub enum RunError {
     #[error(transparent)]
     Mcap(#[from] McapLogError),
     /// The output directory.
-    #[error("{path}: cannot create the log directory: {source}")]
+    #[error("{path}: cannot create the log directory or a new log file in it: {source}")]
     OutDir {
         /// Directory.
         path: PathBuf,
@@ -199,13 +200,47 @@ pub fn write_run_info(
     Ok(())
 }
 
-/// Default log path in `dir`.
-pub fn default_out(dir: &Path) -> PathBuf {
+/// A new log file in `dir`, created empty (so that no other recorder can
+/// take the name) and never one that exists: `grip-<unix s>-<boot>-<pid>.mcap`,
+/// `<boot>` the first 8 characters of this boot's id
+/// (`/proc/sys/kernel/random/boot_id`), and `-1`, `-2`, ... appended while
+/// a name is taken. An ECU without a real-time clock starts every boot at
+/// the same wall time, and its recorder often gets the same PID: the name
+/// alone repeats, and the boot id and `create_new` keep an earlier drive's
+/// log from being overwritten.
+pub fn default_out(dir: &Path) -> std::io::Result<PathBuf> {
     let secs = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_secs())
         .unwrap_or(0);
-    dir.join(format!("grip-{secs}-{}.mcap", std::process::id()))
+    let boot = std::fs::read_to_string("/proc/sys/kernel/random/boot_id")
+        .map(|b| b.trim().chars().filter(|c| *c != '-').take(8).collect())
+        .unwrap_or_else(|_| String::from("noboot"));
+    let stem = format!("grip-{secs}-{boot}-{}", std::process::id());
+    new_file(dir, &stem)
+}
+
+/// Creates `dir/<stem>.mcap`, or `dir/<stem>-N.mcap` with the smallest N
+/// not taken, with `create_new` (never truncating a file that exists).
+pub fn new_file(dir: &Path, stem: &str) -> std::io::Result<PathBuf> {
+    for n in 0u32.. {
+        let name = if n == 0 {
+            format!("{stem}.mcap")
+        } else {
+            format!("{stem}-{n}.mcap")
+        };
+        let path = dir.join(name);
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&path)
+        {
+            Ok(_) => return Ok(path),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(e),
+        }
+    }
+    Err(std::io::Error::other("no free log file name"))
 }
 
 /// Runs the recorder until `stop` (SIGTERM/SIGINT): opens the subscribers
@@ -217,13 +252,12 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
     let cfg = RecorderConfig::load(&own)?;
     let path = match &opts.out {
         Some(p) => p.clone(),
-        None => {
-            std::fs::create_dir_all(&cfg.out_dir).map_err(|source| RunError::OutDir {
+        None => std::fs::create_dir_all(&cfg.out_dir)
+            .and_then(|()| default_out(&cfg.out_dir))
+            .map_err(|source| RunError::OutDir {
                 path: cfg.out_dir.clone(),
                 source,
-            })?;
-            default_out(&cfg.out_dir)
-        }
+            })?,
     };
     let mut w = McapWriter::create(&path, cfg.writer_options())?;
     for t in grip_msgs::topics::ALL {
@@ -354,6 +388,29 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A log name that is taken (an earlier boot at the same wall time and
+    /// PID) gets `-1`, `-2`: the earlier log keeps its bytes.
+    #[test]
+    fn a_new_log_never_overwrites_an_existing_one() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("grip-5-ab-7.mcap"), b"earlier drive").unwrap();
+        let p1 = new_file(dir.path(), "grip-5-ab-7").unwrap();
+        assert_eq!(p1, dir.path().join("grip-5-ab-7-1.mcap"));
+        let p2 = new_file(dir.path(), "grip-5-ab-7").unwrap();
+        assert_eq!(p2, dir.path().join("grip-5-ab-7-2.mcap"));
+        assert_eq!(
+            std::fs::read(dir.path().join("grip-5-ab-7.mcap")).unwrap(),
+            b"earlier drive"
+        );
+        let d = default_out(dir.path()).unwrap();
+        let name = d.file_name().unwrap().to_str().unwrap().to_owned();
+        assert!(
+            d.exists() && name.starts_with("grip-") && name.ends_with(".mcap"),
+            "{name}"
+        );
+        assert_eq!(name.split('-').count(), 4, "grip-<s>-<boot>-<pid>: {name}");
+    }
 
     /// A panicked receive thread is an error naming the panic, not "0
     /// received, 0 dropped" and exit 0.
