@@ -504,7 +504,7 @@ fn grip_package_under_systemd() -> anyhow::Result<()> {
         wd_floor_us / 1_000_000
     );
     // a unit pinned to a CPU this guest lacks (tools/hil/run's deterministic
-    // emulation has one CPU; tcs-loop ships CPUAffinity=1) would fail its
+    // emulation has one CPU; no unit ships such a pin today) would fail its
     // start (systemd's exec step CPUAFFINITY): the pin is reset, and said
     let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
     for s in ORDER {

@@ -141,8 +141,9 @@ impl Service {
     /// writes the log, runs on CPU 0 at nice 10 and the lowest best-effort
     /// I/O priority, away from tcs-loop's CPU 1 (on a kernel without
     /// PREEMPT_RT a process inside a long `write` holds its CPU until the
-    /// call returns); tcs-loop is pinned to CPU 1 (its thread pins itself
-    /// too, `config/tcs-loop.toml` `[rt] cpus`).
+    /// call returns). tcs-loop's unit pins nothing: its loop thread pins
+    /// itself to CPU 1 (`config/tcs-loop.toml` `[rt] cpus`) and its
+    /// SCHED_OTHER watchdog helper may run on either CPU.
     pub fn placement(self) -> Placement {
         match self {
             Service::Recorder => Placement {
@@ -150,11 +151,9 @@ impl Service {
                 nice: 10,
                 io_best_effort: Some(7),
             },
-            Service::TcsLoop => Placement {
-                cpus: &[1],
-                ..Placement::default()
-            },
-            Service::PlantSim | Service::AudioAcq | Service::Arte => Placement::default(),
+            Service::TcsLoop | Service::PlantSim | Service::AudioAcq | Service::Arte => {
+                Placement::default()
+            }
         }
     }
 
