@@ -3,7 +3,7 @@
 use std::time::Duration;
 
 use grip_io::can::protocol::*;
-use grip_io::can::{BusKind, CanBus, CanBusConfig, SimBus, Transport, open_bus};
+use grip_io::can::{BusKind, CanBus, CanBusConfig, SimBus, Transport, open_bus, open_bus_as};
 use grip_io::ipc::{IpcNode, SubscriberMode};
 use grip_msgs::{CanFrame, CycleRecord, can_dir};
 
@@ -129,7 +129,7 @@ fn auto_transport_falls_back_to_sim_without_the_interface() {
         sim_bus: Some(unique("auto")),
         bus_id: 3,
     };
-    let mut bus = open_bus(&cfg, &node).unwrap();
+    let mut bus = open_bus_as(&cfg, &node, false).unwrap();
     assert_eq!(bus.kind(), BusKind::Sim);
     let mut other = SimBus::open(&node, cfg.sim_bus_name(), 3).unwrap();
     other.send(&CanFrame::new(0x120, &[1; 8])).unwrap();
@@ -145,6 +145,34 @@ fn auto_transport_falls_back_to_sim_without_the_interface() {
         e.contains("AF_CAN") || (e.contains("gripnonexist0") && e.contains("ip link add")),
         "{e}"
     );
+}
+
+/// As a systemd unit (the car) `auto` does not fall back to the simulated
+/// bus, whose frames never reach an inverter: an error saying why and what
+/// to set (systemd's Restart= then retries until the interface is up).
+#[test]
+fn auto_transport_does_not_fall_back_under_systemd() {
+    let node = IpcNode::create("simbus-test-auto-unit").unwrap();
+    let cfg = CanBusConfig {
+        transport: Transport::Auto,
+        interface: "gripnonexist1".into(),
+        sim_bus: Some(unique("auto-unit")),
+        bus_id: 0,
+    };
+    let e = open_bus_as(&cfg, &node, true).unwrap_err().to_string();
+    assert!(e.contains("transport = \"auto\""), "{e}");
+    assert!(e.contains("systemd unit"), "{e}");
+    assert!(
+        e.contains("AF_CAN") || e.contains("\"gripnonexist1\" does not exist"),
+        "{e}"
+    );
+    assert!(e.contains("transport = \"socketcan\""), "{e}");
+    // a simulated bus asked for by name is still one (a bench without CAN)
+    let sim = CanBusConfig {
+        transport: Transport::Sim,
+        ..cfg
+    };
+    assert_eq!(open_bus_as(&sim, &node, true).unwrap().kind(), BusKind::Sim);
 }
 
 #[test]

@@ -114,6 +114,16 @@ pub enum CanError {
     /// Simulated bus (iceoryx2) error.
     #[error(transparent)]
     Ipc(#[from] IpcError),
+    /// `transport = "auto"` found no usable SocketCAN interface while the
+    /// service runs as a systemd unit: on the car the simulated bus would
+    /// leave the inverter without commands while the unit looks healthy.
+    #[error(
+        "can.toml: transport = \"auto\" found no usable SocketCAN interface ({why}), and this service runs as a systemd unit (the car), where the simulated bus instead would carry no frame to or from the inverter: refused. Set transport = \"socketcan\" and interface = your bus (e.g. \"can0\", brought up with `ip link set can0 up type can bitrate 1000000 restart-ms 100`), or transport = \"sim\" for a bench without CAN"
+    )]
+    AutoUnderSystemd {
+        /// Why SocketCAN was not used.
+        why: String,
+    },
 }
 
 /// A CAN transport. Implementations allocate nothing in `send`, `try_recv`
@@ -229,8 +239,20 @@ impl CanBus for AnyBus {
 
 /// Opens the bus `cfg` asks for. `auto`: SocketCAN when AF_CAN works and
 /// the interface exists, else the simulated bus, with a loud warning saying
-/// which and why.
+/// which and why; but under systemd (`INVOCATION_ID` set, as systemd sets it
+/// for every unit it starts, and `grip drive` does not) that fallback is
+/// [`CanError::AutoUnderSystemd`]: a unit on the car must not run on a bus
+/// that reaches no inverter (and Restart= retries until the interface is up).
 pub fn open_bus(cfg: &CanBusConfig, node: &IpcNode) -> Result<AnyBus, CanError> {
+    open_bus_as(cfg, node, std::env::var_os("INVOCATION_ID").is_some())
+}
+
+/// [`open_bus`], saying whether the caller runs as a systemd unit.
+pub fn open_bus_as(
+    cfg: &CanBusConfig,
+    node: &IpcNode,
+    under_systemd: bool,
+) -> Result<AnyBus, CanError> {
     match cfg.transport {
         Transport::Socketcan => {
             let b = SocketCanBus::open(&cfg.interface, cfg.bus_id)?;
@@ -256,6 +278,9 @@ pub fn open_bus(cfg: &CanBusConfig, node: &IpcNode) -> Result<AnyBus, CanError> 
                     Err(e) => format!("opening {:?} failed: {e}", cfg.interface),
                 },
             };
+            if under_systemd {
+                return Err(CanError::AutoUnderSystemd { why });
+            }
             let b = SimBus::open(node, cfg.sim_bus_name(), cfg.bus_id)?;
             tracing::warn!(
                 bus = %cfg.sim_bus_name(),
