@@ -140,7 +140,7 @@ impl FusionParams {
         }
     }
 
-    /// Ranges (NaN fails).
+    /// Ranges (NaN fails); `max_evidence` > 0, `min_slip_evidence` in [0, 1].
     pub fn validate(&self) -> Result<(), grip_physics::InvalidField> {
         use crate::params::{in_range, positive};
         positive("tau_obs_s", self.tau_obs_s)?;
@@ -156,6 +156,12 @@ impl FusionParams {
             0.0,
             1.0,
         )?;
+        // 0 or less would switch the slip evidence off (every road's lead
+        // clipped to nothing), NaN would remove the limit.
+        positive("max_evidence", self.max_evidence)?;
+        // Below 0 there is no slip floor (the "ice trap" of small slip
+        // returns); a slip share above 1 cannot occur.
+        in_range("min_slip_evidence", self.min_slip_evidence, 0.0, 1.0)?;
         Ok(())
     }
 }
@@ -658,6 +664,49 @@ mod tests {
         assert_eq!(b.best().0, 2);
         b.reset();
         assert!((b.best().1 - 1.0 / 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn limits_that_would_switch_the_evidence_off_are_refused() {
+        // max_evidence <= 0 clips every road's evidence to the same value
+        // (no slip evidence at all), NaN removes the limit; a negative
+        // min_slip_evidence removes the small-slip floor.
+        let bad = [
+            ("max_evidence", -1.0, "> 0"),
+            ("max_evidence", 0.0, "> 0"),
+            ("max_evidence", f64::NAN, "> 0"),
+            ("max_evidence", f64::INFINITY, "> 0"),
+            ("min_slip_evidence", -0.02, "[0, 1]"),
+            ("min_slip_evidence", 1.5, "[0, 1]"),
+            ("min_slip_evidence", f64::NAN, "[0, 1]"),
+        ];
+        for (field, v, want) in bad {
+            let mut p = FusionParams::default();
+            match field {
+                "max_evidence" => p.max_evidence = v,
+                _ => p.min_slip_evidence = v,
+            }
+            let e = p.validate().unwrap_err();
+            assert_eq!(e.field, field, "{v}");
+            assert!(e.reason.contains(want), "{field} = {v}: {}", e.reason);
+            assert!(e.reason.contains(&format!("(got {v})")), "{}", e.reason);
+            let e = RoadBelief::new(&roads(), &VehicleParams::default(), p, 1e-3).unwrap_err();
+            assert_eq!(e.field, field);
+            let c = crate::ControllersConfig {
+                fusion: p,
+                ..Default::default()
+            };
+            assert_eq!(c.validate().unwrap_err().field, format!("fusion.{field}"));
+        }
+        for (max_evidence, min_slip_evidence) in [(1e-3, 0.0), (1e6, 1.0)] {
+            FusionParams {
+                max_evidence,
+                min_slip_evidence,
+                ..FusionParams::default()
+            }
+            .validate()
+            .unwrap();
+        }
     }
 
     #[test]

@@ -69,11 +69,45 @@ impl Default for MfcParams {
     }
 }
 
+/// The largest `[mfc] k_mfc` accepted, N m s/rad. The paper's analysis
+/// gives no stability limit (its eq. (3) is Hurwitz for every K_MFC >= 0,
+/// README.md, "Analysis", item 3), but the loop as it runs is sampled, sees
+/// the wheel a sample late and passes the noise filter, and it loses
+/// stability at a finite gain. 500 keeps a gain margin of 2 (twice it still
+/// settles) with the shipped cars' wheel gripping at the catalogue's λ_opt
+/// from snow's 0.06 to stone's 0.40 (ice's 0.015 mismatches less), with
+/// every `tau_noise` accepted and the configured τ₂ = 1 s
+/// (`tests/mfc_gain_bound.rs`); it is above the
+/// real-pole rule (4) that gave the shipped 177 (0.9 × 196.7 at stone),
+/// which for the front-mic car's heavier wheel share gives 382 at stone.
+const K_MFC_MAX: f64 = 500.0;
+
+/// The largest `[mtte] mu_floor` accepted. The floor T_floor = mu_floor · N
+/// · r is a lower bound on MTTE's limit T_max: on a road whose μ_peak is
+/// below mu_floor the floor alone spins the wheel and MTTE cannot limit
+/// there, so it must stay under the lowest μ_peak of the roads driven on
+/// (shipped 0.05, ice's). The validation does not see the catalogue: 0.5
+/// (above snow's 0.19 and wet stone's 0.38, below gravel's 0.60) bounds
+/// what a floor can mean at all; keeping it under the lowest road's peak
+/// is the configuration's part.
+const MU_FLOOR_MAX: f64 = 0.5;
+
 impl MfcParams {
-    /// k_mfc >= 0, tau_hpf > 0, 0 <= tau_noise <= 0.1 s (a longer filter
-    /// would be slower than the motor lag it must stay well inside).
+    /// 0 <= k_mfc <= 500 N m s/rad (`K_MFC_MAX`: a gain margin of 2 for
+    /// the sampled loop on a gripping wheel), tau_hpf > 0,
+    /// 0 <= tau_noise <= 0.1 s (a longer filter would be slower than the
+    /// motor lag it must stay well inside).
     pub fn validate(&self) -> Result<(), InvalidField> {
-        non_negative("k_mfc", self.k_mfc)?;
+        if !(self.k_mfc >= 0.0 && self.k_mfc <= K_MFC_MAX) {
+            return Err(InvalidField::new(
+                "k_mfc",
+                format!(
+                    "must be in [0, {K_MFC_MAX}] N m s/rad, where the sampled MFC loop keeps a \
+                     gain margin of 2 on a gripping wheel (got {})",
+                    self.k_mfc
+                ),
+            ));
+        }
         positive("tau_hpf", self.tau_hpf)?;
         in_range("tau_noise", self.tau_noise, 0.0, 0.1)?;
         Ok(())
@@ -137,13 +171,16 @@ impl Default for SrcParams {
 }
 
 impl SrcParams {
-    /// Ranges: time constants > 0 (tau_obs, tau_ref >= 0), gains >= 0,
-    /// 0 < lambda_min < lambda_max < 1, 0 <= v_launch <= 10 m/s.
+    /// Ranges: time constants > 0 (tau_obs, tau_ref >= 0), kp and
+    /// kp_recover > 0 (with kp = 0 the PI never cuts: SRC passes the demand
+    /// through; with kp_recover = 0 its integrator never rises again after
+    /// a cut), other
+    /// gains >= 0, 0 < lambda_min < lambda_max < 1, 0 <= v_launch <= 10 m/s.
     pub fn validate(&self) -> Result<(), InvalidField> {
         non_negative("tau_obs", self.tau_obs)?;
-        non_negative("kp", self.kp)?;
+        positive("kp", self.kp)?;
         positive("ti", self.ti)?;
-        non_negative("kp_recover", self.kp_recover)?;
+        positive("kp_recover", self.kp_recover)?;
         positive("tau_slope", self.tau_slope)?;
         positive("slope_excitation", self.slope_excitation)?;
         non_negative("tau_ref", self.tau_ref)?;
@@ -199,8 +236,9 @@ impl Default for MtteParams {
 }
 
 impl MtteParams {
-    /// tau_obs, tau_lpf >= 0; 0 < alpha <= 1; 0 <= mu_floor <= 2;
-    /// 0 <= spin_share <= 1.
+    /// tau_obs, tau_lpf >= 0; 0 < alpha <= 1; 0 < mu_floor <= 0.5
+    /// (`MU_FLOOR_MAX`; with 0, T_max can fall to 0, from where only a rise
+    /// of the demand lifts it); 0 <= spin_share <= 1.
     pub fn validate(&self) -> Result<(), InvalidField> {
         non_negative("tau_obs", self.tau_obs)?;
         if !(self.alpha.is_finite() && self.alpha > 0.0 && self.alpha <= 1.0) {
@@ -210,7 +248,16 @@ impl MtteParams {
             ));
         }
         non_negative("tau_lpf", self.tau_lpf)?;
-        in_range("mu_floor", self.mu_floor, 0.0, 2.0)?;
+        if !(self.mu_floor > 0.0 && self.mu_floor <= MU_FLOOR_MAX) {
+            return Err(InvalidField::new(
+                "mu_floor",
+                format!(
+                    "must be in (0, {MU_FLOOR_MAX}]: T_max never drops below mu_floor · N · r, \
+                     so MTTE cannot limit on a road whose mu_peak is below it (got {})",
+                    self.mu_floor
+                ),
+            ));
+        }
         in_range("spin_share", self.spin_share, 0.0, 1.0)?;
         Ok(())
     }
@@ -373,6 +420,51 @@ mod tests {
         let mut c = ControllersConfig::default();
         c.loop_.rate_hz = 0.0;
         assert_eq!(c.validate().unwrap_err().field, "loop.rate_hz");
+    }
+
+    #[test]
+    fn values_that_switch_a_controller_off_are_refused() {
+        let field = |c: ControllersConfig| c.validate().unwrap_err();
+        // SRC: kp = 0 never cuts (a passthrough), with kp_recover = 0 the
+        // integrator never rises again after a cut.
+        for bad in [0.0, -1.0, f64::NAN] {
+            let mut c = ControllersConfig::default();
+            c.src.kp = bad;
+            let e = field(c);
+            assert_eq!(e.field, "src.kp", "{bad}");
+            assert!(e.reason.contains("> 0"), "{}", e.reason);
+            let mut c = ControllersConfig::default();
+            c.src.kp_recover = bad;
+            assert_eq!(field(c).field, "src.kp_recover", "{bad}");
+        }
+        // MTTE: a floor of 0 lets T_max collapse to 0; one above what a
+        // road carries keeps MTTE from limiting there (2.0: ~1900 N m).
+        for bad in [0.0, -0.01, 0.51, 2.0, f64::NAN, f64::INFINITY] {
+            let mut c = ControllersConfig::default();
+            c.mtte.mu_floor = bad;
+            let e = field(c);
+            assert_eq!(e.field, "mtte.mu_floor", "{bad}");
+            assert!(e.reason.contains("(0, 0.5]"), "{}", e.reason);
+            assert!(e.reason.contains(&format!("(got {bad})")), "{}", e.reason);
+        }
+        // MFC: no gain above the bound of the sampled loop.
+        for bad in [500.5, 2000.0, f64::INFINITY, f64::NAN, -1.0] {
+            let mut c = ControllersConfig::default();
+            c.mfc.k_mfc = bad;
+            let e = field(c);
+            assert_eq!(e.field, "mfc.k_mfc", "{bad}");
+            assert!(e.reason.contains("[0, 500]"), "{}", e.reason);
+        }
+        // The edges that stay.
+        let mut c = ControllersConfig::default();
+        c.src.kp = 1e-6;
+        c.src.kp_recover = 1e-6;
+        c.mtte.mu_floor = 0.5;
+        c.mfc.k_mfc = 500.0;
+        c.validate().unwrap();
+        c.mtte.mu_floor = 1e-6;
+        c.mfc.k_mfc = 0.0;
+        c.validate().unwrap();
     }
 
     #[test]

@@ -13,13 +13,31 @@
 //! - the middle of the stretch when it carries more (the decision goes to
 //!   the new road once about half its frame is on it).
 //!
+//! The queue places what it is given: [`crate::RoadAware::decision`] hands it
+//! a frame from its `change_at` point on (`[preview] change_at` of the frame
+//! from its start), so a lower-friction road begins at `change_at` of the
+//! frame and a grippier one at `(1 + change_at) / 2` of it (0.6875 as
+//! shipped).
+//!
 //! Decisions for the road already last in the queue refresh its confidence.
 //! [`PreviewQueue::view`] at the wheel's odometer `x` gives the road under
 //! the wheel (the last entry that begins at or before `x`) and the next one
-//! ahead with its distance. Entries the wheel has passed are dropped; when
-//! the queue is full the oldest upcoming entry is overwritten last-in wins
-//! (a decision stream that flickers faster than the capacity covers is
-//! counted in [`PreviewQueue::overflows`]).
+//! ahead with its distance. Entries the wheel has passed are dropped.
+//!
+//! **A full queue** (a decision stream that flickers faster than the
+//! capacity covers, e.g. 32 changes within the 2.77 m lead) makes room
+//! among the farthest entries, never at the road under the wheel: the two
+//! farthest queued entries become one, beginning where the nearer of them
+//! began and naming the road that carries less (by μ_peak; a road the
+//! catalogue does not know, which caps nothing, gives way to one it knows),
+//! with the higher of their decision counts and peak confidences. Over their joint span the merged entry therefore
+//! caps wherever either of them would have, and never above what either
+//! would have: it may cap a stretch the grippier road would have left free
+//! (traction given up), never the other way round (slip). The span lies
+//! ahead of the wheel (as of the last `view`), and the decision being
+//! queued keeps its own entry. Merges are counted in
+//! [`PreviewQueue::overflows`]; after one, two neighbouring entries may
+//! name the same road.
 //!
 //! With `lead = 0` the road under the wheel is simply the latest decision
 //! (what the paper's set-up gives); nothing is ever ahead.
@@ -30,6 +48,10 @@
 
 /// Entries the queue holds (the road under the wheel and those ahead).
 pub const PREVIEW_CAPACITY: usize = 32;
+
+// A full queue merges its two farthest entries; the one under the wheel
+// (the first, after `view`) must not be one of them.
+const _: () = assert!(PREVIEW_CAPACITY >= 3);
 
 /// One stretch of road: where it begins and what was heard.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -114,7 +136,8 @@ impl PreviewQueue {
         self.len == 0
     }
 
-    /// Entries lost because the queue was full.
+    /// Merges of the two farthest entries because the queue was full (see
+    /// the module docs).
     pub fn overflows(&self) -> u64 {
         self.overflows
     }
@@ -212,8 +235,22 @@ impl PreviewQueue {
             self.len -= 1;
         }
         if self.len == PREVIEW_CAPACITY {
-            // Full: drop the oldest entry (the road furthest behind).
-            self.buf.copy_within(1.., 0);
+            // Full: the two farthest entries become one (module docs); the
+            // road under the wheel, the first entry, is never touched.
+            let (near, far) = (self.buf[self.len - 2], self.buf[self.len - 1]);
+            // A road not known (NaN) caps nothing: a known one is kept.
+            let (m_near, m_far) = (mu(near.road), mu(far.road));
+            let keep = if m_far < m_near || (m_near.is_nan() && !m_far.is_nan()) {
+                far
+            } else {
+                near
+            };
+            self.buf[self.len - 2] = RoadAhead {
+                x_start: near.x_start,
+                hits: near.hits.max(far.hits),
+                peak_confidence: near.peak_confidence.max(far.peak_confidence),
+                ..keep
+            };
             self.len -= 1;
             self.overflows += 1;
         }
@@ -343,6 +380,110 @@ mod tests {
         assert_eq!(q.overflows(), 5);
         let e = q.entries();
         assert!(e.windows(2).all(|w| w[0].x_start < w[1].x_start));
+    }
+
+    /// Queue `road` twice (confirmed) over two frames of `frame` m from `x`.
+    fn confirmed(q: &mut PreviewQueue, road: usize, x: f64, frame: f64) {
+        q.push(road, 0.9, x, x, x + frame, mu);
+        q.push(road, 0.9, x + frame, x + frame, x + 2.0 * frame, mu);
+    }
+
+    #[test]
+    fn a_full_queue_keeps_the_road_under_the_wheel() {
+        // The wheel is on snow; ahead a classifier flickers between asphalt
+        // and gravel in confirmed pairs, 4 cm frames (1.6 m/s at a 25 ms
+        // hop), far more changes than the queue holds within the lead.
+        let mut q = PreviewQueue::new();
+        confirmed(&mut q, 2, 0.0, 0.5);
+        let x = 1.0;
+        assert_eq!(q.view(x).here.unwrap().road, 2);
+        for i in 0..(2 * PREVIEW_CAPACITY) {
+            confirmed(&mut q, i % 2, 1.5 + 0.08 * i as f64, 0.04);
+            let v = q.view(x);
+            let here = v.here.unwrap_or_else(|| panic!("lost after {i}: {q:?}"));
+            assert_eq!((here.road, here.x_start), (2, 0.0), "after {i}");
+        }
+        assert!(q.overflows() > 0, "the queue never filled");
+        assert_eq!(q.len(), PREVIEW_CAPACITY);
+        let e = q.entries();
+        assert!(e.windows(2).all(|w| w[0].x_start < w[1].x_start));
+        // Under the wheel the road still caps: confirmed, confident snow.
+        assert_eq!((e[0].road, e[0].hits, e[0].peak_confidence), (2, 2, 0.9));
+    }
+
+    /// A full queue whose last two entries are `near` then `far` (both
+    /// first heard at `x_near`, `x_far`), ahead of snow under the wheel.
+    fn full_with(near: (usize, u32, f64), far: (usize, u32, f64)) -> PreviewQueue {
+        let mut q = PreviewQueue::new();
+        confirmed(&mut q, 2, 0.0, 0.5);
+        let mut x = 2.0;
+        // Alternating asphalt and stone (both grippier than gravel and
+        // snow), confirmed, up to two short of full.
+        while q.len() < PREVIEW_CAPACITY - 2 {
+            let road = if q.len().is_multiple_of(2) { 0 } else { 3 };
+            confirmed(&mut q, road, x, 0.1);
+            x += 1.0;
+        }
+        for (road, hits, conf) in [near, far] {
+            for h in 0..hits {
+                let x0 = x + 0.1 * h as f64;
+                q.push(road, conf, x0, x0, x0 + 0.1, mu);
+            }
+            x += 1.0;
+        }
+        assert_eq!(q.len(), PREVIEW_CAPACITY, "{q:?}");
+        q
+    }
+
+    #[test]
+    fn the_merged_farthest_span_carries_the_lower_friction_road() {
+        let lead = |q: &PreviewQueue, i: usize| q.entries()[PREVIEW_CAPACITY - 2 + i];
+        // Gravel near, asphalt far: gravel is kept and carries on over
+        // asphalt's stretch. A stone decision beyond keeps its own entry.
+        let mut q = full_with((1, 2, 0.8), (0, 3, 0.9));
+        let (near, far) = (lead(&q, 0), lead(&q, 1));
+        q.push(3, 0.7, 99.0, 99.0, 99.1, mu);
+        assert_eq!(q.overflows(), 1);
+        assert_eq!(q.len(), PREVIEW_CAPACITY);
+        let m = q.entries()[PREVIEW_CAPACITY - 2];
+        assert_eq!(
+            (m.road, m.x_start, m.x_sure),
+            (1, near.x_start, near.x_sure)
+        );
+        assert_eq!((m.hits, m.peak_confidence), (3, 0.9));
+        let last = q.entries()[PREVIEW_CAPACITY - 1];
+        assert_eq!((last.road, last.hits), (3, 1));
+        assert!(far.x_start < last.x_start);
+        // Asphalt near, snow far: snow is kept and begins where asphalt
+        // began (earlier: the cautious direction), with the stronger
+        // confirmation of the two (the snow was heard once only).
+        let mut q = full_with((0, 2, 0.9), (2, 1, 0.95));
+        let (near, far) = (lead(&q, 0), lead(&q, 1));
+        q.push(1, 0.8, 99.0, 99.0, 99.1, mu);
+        let m = q.entries()[PREVIEW_CAPACITY - 2];
+        assert_eq!((m.road, m.x_start), (2, near.x_start));
+        assert_eq!(
+            (m.x_sure, m.confidence, m.stamp),
+            (far.x_sure, 0.95, far.stamp)
+        );
+        assert_eq!((m.hits, m.peak_confidence), (2, 0.95));
+        // A road the catalogue does not know caps nothing: the known one
+        // stays (gravel unknown to this decision's table).
+        let mut q = full_with((1, 2, 0.9), (2, 2, 0.9));
+        q.push(0, 0.8, 99.0, 99.0, 99.1, |i| {
+            if i == 1 { f64::NAN } else { mu(i) }
+        });
+        let m = q.entries()[PREVIEW_CAPACITY - 2];
+        assert_eq!(m.road, 2);
+        // Nothing before the two farthest moved, the road under the wheel
+        // least of all.
+        let before = full_with((0, 2, 0.9), (1, 2, 0.9));
+        let mut after = before.clone();
+        after.push(3, 0.8, 99.0, 99.0, 99.1, mu);
+        assert_eq!(
+            before.entries()[..PREVIEW_CAPACITY - 2],
+            after.entries()[..PREVIEW_CAPACITY - 2]
+        );
     }
 
     #[test]

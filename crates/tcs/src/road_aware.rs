@@ -445,7 +445,7 @@ impl RoadAware {
         if a >= 1.0 {
             return floor;
         }
-        ((target - torque * a) / (1.0 - a)).clamp(floor, target)
+        ((target - torque * a) / (1.0 - a)).clamp(floor.min(target), target)
     }
 
     /// One cycle of a "with ARTE" controller at time `m.t` and odometer `x`

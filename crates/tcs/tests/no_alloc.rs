@@ -1,13 +1,14 @@
 //! Allocation-free proof: a counting global allocator; 10 000 `step`s of each
 //! controller (with and without road knowledge, through `AnyController`) and
-//! 10 000 `MetricsAccumulator::push`es allocate nothing after construction.
+//! 10 000 `MetricsAccumulator::push`es allocate nothing after construction,
+//! nor does a preview queue that overflows (its farthest entries merged).
 //! Counted on this (the only working) thread: the test harness's main thread
 //! may allocate while the test runs and must not count.
 
 use grip_physics::VehicleParams;
 use grip_tcs::{
     AnyController, Controller, ControllerKind, ControllersConfig, Measurement, MetricsAccumulator,
-    RoadKnowledge, Sample,
+    PREVIEW_CAPACITY, PreviewQueue, RoadKnowledge, Sample,
 };
 
 #[global_allocator]
@@ -65,4 +66,28 @@ fn steps_allocate_nothing() {
     assert_eq!(after - before, 0, "allocations during 30 000 steps");
     assert!(sink.is_finite() && m.samples == 30_000);
     assert!(m.cmd_tv_per_s > 0.0 && m.cmd_hf_rms > 0.0);
+}
+
+#[test]
+fn a_full_preview_queue_allocates_nothing() {
+    let mu = |i: usize| [1.0, 0.5, 0.2].get(i).copied().unwrap_or(f64::NAN);
+    let mut q = PreviewQueue::new();
+    let mut sink = 0.0;
+    let before = grip_testkit::thread_allocations();
+    for k in 0..10_000_u32 {
+        // Confirmed pairs, alternating, 5 cm apart: far more than the
+        // queue holds ahead of the wheel.
+        let x = f64::from(k / 2) * 0.05;
+        q.push(((k / 2) % 3) as usize, 0.9, x, x + 2.0, x + 2.05, mu);
+        let v = q.view(x);
+        sink += v.here.map_or(0.0, |h| h.x_start);
+    }
+    let after = grip_testkit::thread_allocations();
+    assert_eq!(after - before, 0, "allocations during 10 000 decisions");
+    assert!(
+        q.overflows() > 0 && q.len() == PREVIEW_CAPACITY,
+        "{}",
+        q.len()
+    );
+    assert!(sink.is_finite());
 }
