@@ -26,12 +26,14 @@
 //!    when the next road ahead carries less and the wheel reaches it within
 //!    `horizon_s` (enough for the motor's lag), that road's cap already.
 //!    On a road that carries more, the cap is released when the wheel
-//!    arrives (the queue places a grippier road at the latest point it can
-//!    begin).
+//!    arrives (the queue places a grippier road at `(1 + change_at) / 2` of
+//!    the frame that named it, 0.6875 as shipped: later than a road that
+//!    carries less, at `change_at`).
 //!
 //! The cap is applied as `T* = min(T*_controller, cap)`: the controllers
-//! stay as they are and still react to slip themselves (a TCS that is
-//! preconditioned, not replaced). The variants without ARTE never see this.
+//! stay as they are and react to slip themselves below the cap (MTTE's
+//! observer, fed its own command, does not see a binding cap: crates/tcs
+//! README, "Known limits"). The variants without ARTE never see this.
 
 use grip_physics::{InvalidField, RoadCatalogue, VehicleParams};
 use serde::Deserialize;
