@@ -38,18 +38,20 @@ impl RecordSink for NullSink {
     fn can(&mut self, _: &CanFrame) {}
 }
 
-/// The ROAD subscriber. A receive error counts and reads as "nothing new".
+/// The ROAD subscriber. A receive error counts and reads as "nothing new";
+/// without a subscriber (the topic could not be opened at start-up) there
+/// is never anything new.
 #[derive(Debug)]
 pub struct IpcRoad {
-    /// Subscriber in latest-value mode.
-    pub sub: Subscriber<RoadEstimate>,
+    /// Subscriber in latest-value mode, if the topic opened.
+    pub sub: Option<Subscriber<RoadEstimate>>,
     /// Receive errors so far.
     pub errors: u64,
 }
 
 impl RoadSource for IpcRoad {
     fn poll_latest(&mut self) -> Option<RoadEstimate> {
-        match self.sub.latest() {
+        match self.sub.as_ref()?.latest() {
             Ok(v) => v,
             Err(_) => {
                 self.errors += 1;
@@ -60,13 +62,14 @@ impl RoadSource for IpcRoad {
 }
 
 /// The recorder topics. A publish error (all samples loaned: a stuck
-/// subscriber) is counted, never fatal: the loop keeps its deadline.
+/// subscriber) is counted, never fatal: the loop keeps its deadline. A
+/// topic that could not be opened at start-up is `None` and skipped.
 #[derive(Debug)]
 pub struct IpcSink {
-    /// `CYCLE` publisher.
-    pub cycle: Publisher<CycleRecord>,
-    /// `CAN_LOG` publisher.
-    pub can: Publisher<CanFrame>,
+    /// `CYCLE` publisher, if the topic opened.
+    pub cycle: Option<Publisher<CycleRecord>>,
+    /// `CAN_LOG` publisher, if the topic opened.
+    pub can: Option<Publisher<CanFrame>>,
     /// Failed publishes so far.
     pub errors: u64,
     /// `CycleRecord`s published.
@@ -77,7 +80,7 @@ pub struct IpcSink {
 
 impl IpcSink {
     /// A sink on the two publishers, counters at zero.
-    pub fn new(cycle: Publisher<CycleRecord>, can: Publisher<CanFrame>) -> Self {
+    pub fn new(cycle: Option<Publisher<CycleRecord>>, can: Option<Publisher<CanFrame>>) -> Self {
         Self {
             cycle,
             can,
@@ -90,15 +93,62 @@ impl IpcSink {
 
 impl RecordSink for IpcSink {
     fn cycle(&mut self, rec: &CycleRecord) {
-        match self.cycle.publish(rec) {
+        let Some(p) = &self.cycle else { return };
+        match p.publish(rec) {
             Ok(_) => self.cycle_published += 1,
             Err(_) => self.errors += 1,
         }
     }
     fn can(&mut self, frame: &CanFrame) {
-        match self.can.publish(frame) {
+        let Some(p) = &self.can else { return };
+        match p.publish(frame) {
             Ok(_) => self.can_published += 1,
             Err(_) => self.errors += 1,
         }
+    }
+}
+
+/// The loop's iceoryx2 ports besides the CAN bus, opened at start-up. None
+/// of them is needed to control the wheel: a topic that cannot be opened
+/// (another grip version's payload on it after a partial upgrade, a full
+/// service) leaves its port out and is named in `missing`, so traction
+/// control still starts, without road knowledge (ROAD) or without what the
+/// recorder and arte read (CYCLE, CAN_LOG).
+#[derive(Debug)]
+pub struct Ports {
+    /// CYCLE and CAN_LOG.
+    pub sink: IpcSink,
+    /// ROAD.
+    pub road: IpcRoad,
+    /// (topic, error) of each port left out.
+    pub missing: Vec<(String, String)>,
+}
+
+/// Opens the ports on `node` for the topics `cycle`, `can_log` and `road`
+/// (`grip_msgs::topics` in the service; other names in tests).
+pub fn open_ports(node: &grip_io::ipc::IpcNode, cycle: &str, can_log: &str, road: &str) -> Ports {
+    let mut missing = Vec::new();
+    let mut keep = |topic: &str, e: grip_io::ipc::IpcError| {
+        missing.push((topic.to_owned(), e.to_string()));
+    };
+    let cycle_pub = node
+        .publisher::<CycleRecord>(cycle)
+        .map_err(|e| keep(cycle, e))
+        .ok();
+    let can_pub = node
+        .publisher::<CanFrame>(can_log)
+        .map_err(|e| keep(can_log, e))
+        .ok();
+    let road_sub = node
+        .subscriber::<RoadEstimate>(road, grip_io::ipc::SubscriberMode::Latest)
+        .map_err(|e| keep(road, e))
+        .ok();
+    Ports {
+        sink: IpcSink::new(cycle_pub, can_pub),
+        road: IpcRoad {
+            sub: road_sub,
+            errors: 0,
+        },
+        missing,
     }
 }

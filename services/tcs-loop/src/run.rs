@@ -9,17 +9,17 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use grip_config::{ConfigDir, ConfigError, load_controllers};
 use grip_io::can::{CanBus, CanBusConfig, CanError, open_bus};
 use grip_io::clock::{Clock, MonotonicClock};
-use grip_io::ipc::{IpcError, IpcNode, SubscriberMode};
+use grip_io::ipc::{IpcError, IpcNode};
 use grip_io::rt::{self, LatencyHistogram, PeriodicTimer};
 use grip_io::service::monitor::HelperError;
 use grip_io::service::{ConfigArgs, ServiceConfig, load_can};
-use grip_msgs::{CanFrame, CycleRecord, RoadEstimate, topics};
+use grip_msgs::topics;
 use grip_tcs::ControllerKind;
 
 use crate::config::TcsLoopConfig;
 use crate::cycle::{CycleTick, LoopError, TcsLoop};
 use crate::monitor;
-use crate::ports::{IpcRoad, IpcSink};
+use crate::ports::{Ports, open_ports};
 
 /// Command-line choices (see `main.rs` for the flags).
 #[derive(Debug, Clone, Default)]
@@ -193,14 +193,23 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
 
     let node = IpcNode::create(topics::node::TCS_LOOP)?;
     let mut bus = open_bus(&cfg.can, &node)?;
-    let mut sink = IpcSink::new(
-        node.publisher::<CycleRecord>(topics::CYCLE)?,
-        node.publisher::<CanFrame>(topics::CAN_LOG)?,
-    );
-    let mut road = IpcRoad {
-        sub: node.subscriber::<RoadEstimate>(topics::ROAD, SubscriberMode::Latest)?,
-        errors: 0,
-    };
+    let Ports {
+        mut sink,
+        mut road,
+        missing,
+    } = open_ports(&node, topics::CYCLE, topics::CAN_LOG, topics::ROAD);
+    for (topic, error) in &missing {
+        tracing::error!(
+            topic = %topic,
+            error = %error,
+            "tcs-loop: cannot open this topic; traction control runs without it ({})",
+            if topic.as_str() == topics::ROAD {
+                "no road knowledge: the controller as without ARTE"
+            } else {
+                "no cycle records or CAN copies for the recorder and arte"
+            }
+        );
+    }
 
     // helper first, so it stays SCHED_OTHER and unpinned
     let done = Arc::new(AtomicBool::new(false));
@@ -213,11 +222,17 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
     let end_ns = opts
         .run_for_s
         .map(|s| clock.now_ns() + (s.max(0.0) * 1e9) as u64);
+    let degraded: Vec<&str> = missing.iter().map(|(t, _)| t.as_str()).collect();
     grip_io::systemd::notify_ready(&format!(
-        "{} arte={} at {rate} Hz, bus {:?}",
+        "{} arte={} at {rate} Hz, bus {:?}{}",
         kind,
         if cfg.own.arte { "on" } else { "off" },
-        bus.kind()
+        bus.kind(),
+        if degraded.is_empty() {
+            String::new()
+        } else {
+            format!(", DEGRADED: without {}", degraded.join(", "))
+        }
     ));
     tracing::info!("tcs-loop ready");
 
