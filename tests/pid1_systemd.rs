@@ -440,6 +440,10 @@ fn grip_package_under_systemd() -> anyhow::Result<()> {
         Path::new("/usr/bin/grip").is_file(),
         "/usr/bin/grip not installed"
     );
+    ensure!(
+        Path::new("/usr/lib/udev/rules.d/60-grip.rules").is_file(),
+        "the udev rule for /dev/cpu_dma_latency (60-grip.rules) not installed"
+    );
     let conffiles = run("dpkg-query", &["-W", "-f", "${Conffiles}", "grip"])?;
     for f in [
         "can.toml",
