@@ -380,7 +380,8 @@ proptest! {
 /// Every cut and many single-byte corruptions of a chunked log open without
 /// a panic or an abort (the mcap reader alone aborts on some corrupt chunk
 /// lengths) and read the intact chunks before the damage in order; a cut or
-/// a corruption that loses data is reported as truncated.
+/// a corruption that loses data is reported as truncated. (What a
+/// corruption leaves readable after it: `mcap_damage.rs`.)
 #[test]
 fn damaged_logs_read_up_to_the_damage() {
     let dir = tempfile::tempdir().unwrap();

@@ -13,7 +13,10 @@
 //! (default 1 s) has passed since the last flush, and the recorder calls
 //! [`McapWriter::maybe_flush`] when idle, so a crash loses at most about one
 //! interval. A log cut off that way is read by [`McapLog`] up to the last
-//! complete chunk and reported as truncated.
+//! complete chunk and reported as truncated. A damaged part inside a log (a
+//! chunk or attachment whose CRC fails, any record whose fields do not
+//! check) is left out and named in the report; the rest is read
+//! (`damage.rs`).
 //!
 //! Never write MCAP from a real-time thread: a write may compress a chunk
 //! (~0.25 ms lz4) or fsync.
@@ -21,7 +24,7 @@
 mod damage;
 pub mod json;
 
-pub use damage::first_damage;
+pub use damage::{Skipped, SkippedKind, first_damage};
 
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
@@ -31,7 +34,7 @@ use std::time::{Duration, Instant};
 
 use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate};
 pub use json::{JsonError, McapRecord};
-use mcap::records::MessageHeader;
+use mcap::records::{MessageHeader, Record, op};
 
 /// MCAP errors.
 #[derive(Debug, thiserror::Error)]
@@ -483,8 +486,88 @@ pub struct ReadReport {
     pub bad: u64,
     /// First decode error.
     pub first_error: Option<String>,
-    /// Reading stopped early (truncated file, e.g. after a crash): why.
+    /// The log was not read whole: why, in one line. The damaged parts
+    /// skipped, counted by kind, with their byte ranges ([`Self::skipped`]);
+    /// messages lost with the channel that defined them
+    /// ([`Self::unlinked`]); where reading stopped early ([`Self::stopped`]).
+    /// `None`: every part of the file was read.
     pub truncated: Option<String>,
+    /// The damaged parts left out, in file order; reading went on after
+    /// each (each one is a hole in the log).
+    pub skipped: Vec<Skipped>,
+    /// Reading stopped before the end of the file (a crash-truncated tail,
+    /// a length damaged beyond repair, no footer): where and why.
+    pub stopped: Option<String>,
+    /// Messages whose channel or schema was defined only in a skipped part
+    /// (not read: their topic and type are unknown).
+    pub unlinked: u64,
+}
+
+impl ReadReport {
+    /// Chunks skipped.
+    pub fn skipped_chunks(&self) -> usize {
+        self.skipped
+            .iter()
+            .filter(|s| s.kind == SkippedKind::Chunk)
+            .count()
+    }
+
+    /// Attachments skipped.
+    pub fn skipped_attachments(&self) -> usize {
+        self.skipped
+            .iter()
+            .filter(|s| matches!(s.kind, SkippedKind::Attachment { .. }))
+            .count()
+    }
+
+    /// The one line of [`Self::truncated`].
+    fn damage_line(&self) -> Option<String> {
+        /// Skipped parts listed one by one; the rest are counted.
+        const LISTED: usize = 4;
+        let mut parts = Vec::new();
+        if !self.skipped.is_empty() {
+            let n = self.skipped.len();
+            let (chunks, atts) = (self.skipped_chunks(), self.skipped_attachments());
+            let mut kinds = Vec::new();
+            let plural = |n: usize, one: &str, many: &str| {
+                format!("{n} {}", if n == 1 { one } else { many })
+            };
+            if chunks > 0 {
+                kinds.push(plural(chunks, "chunk", "chunks"));
+            }
+            if atts > 0 {
+                kinds.push(plural(atts, "attachment", "attachments"));
+            }
+            if n > chunks + atts {
+                kinds.push(plural(n - chunks - atts, "other record", "other records"));
+            }
+            let mut list: Vec<String> = self
+                .skipped
+                .iter()
+                .take(LISTED)
+                .map(|s| s.to_string())
+                .collect();
+            if n > LISTED {
+                list.push(format!("and {} more", n - LISTED));
+            }
+            parts.push(format!(
+                "{} skipped ({}), the rest read: {}",
+                plural(n, "damaged part", "damaged parts"),
+                kinds.join(", "),
+                list.join("; ")
+            ));
+        }
+        if self.unlinked > 0 {
+            parts.push(format!(
+                "{} messages not read: their channel was defined in a skipped part",
+                self.unlinked
+            ));
+        }
+        if let Some(s) = &self.stopped {
+            parts.push(s.clone());
+        }
+        (!parts.is_empty()).then(|| parts.join("; "))
+    }
 }
 
 /// Key-value map of a metadata record.
@@ -504,11 +587,56 @@ pub struct LogAttachment {
 /// A whole MCAP file in memory.
 #[derive(Debug)]
 pub struct McapLog {
-    /// The file's bytes up to the first damage ([`first_damage`]).
+    /// The file's bytes.
     data: Vec<u8>,
     path: PathBuf,
-    /// Where and why the file was cut short on opening.
-    damage: Option<String>,
+    /// Its records that read and its damaged parts; `None`: not MCAP.
+    scan: Option<damage::Scan>,
+}
+
+/// Schemas and channels as the messages refer to them: those read so far
+/// in the data, then, for what a skipped part defined, those outside chunks
+/// (the summary repeats every schema and channel of a finished file).
+#[derive(Default)]
+struct Links {
+    schemas: HashMap<u16, String>,
+    channels: HashMap<u16, (String, u16)>,
+    spare_schemas: HashMap<u16, String>,
+    spare_channels: HashMap<u16, (String, u16)>,
+}
+
+impl Links {
+    /// Adds a schema or channel record (the first of an id wins).
+    fn add(&mut self, rec: &Record<'_>, spare: bool) {
+        let (schemas, channels) = if spare {
+            (&mut self.spare_schemas, &mut self.spare_channels)
+        } else {
+            (&mut self.schemas, &mut self.channels)
+        };
+        match rec {
+            Record::Schema { header, .. } => {
+                schemas
+                    .entry(header.id)
+                    .or_insert_with(|| header.name.clone());
+            }
+            Record::Channel(c) => {
+                channels
+                    .entry(c.id)
+                    .or_insert_with(|| (c.topic.clone(), c.schema_id));
+            }
+            _ => {}
+        }
+    }
+
+    /// Topic and schema name of channel `id` (schema "" for none).
+    fn resolve(&self, id: u16) -> Option<(&str, &str)> {
+        let (topic, sid) = self.channels.get(&id).or(self.spare_channels.get(&id))?;
+        let schema = match sid {
+            0 => "",
+            s => self.schemas.get(s).or(self.spare_schemas.get(s))?,
+        };
+        Some((topic, schema))
+    }
 }
 
 fn decode(schema: &str, data: &[u8]) -> Result<Option<LogMessage>, String> {
@@ -533,10 +661,11 @@ fn decode(schema: &str, data: &[u8]) -> Result<Option<LogMessage>, String> {
 }
 
 impl McapLog {
-    /// Reads `path` into memory, up to its first damaged record or chunk
-    /// (a crash-truncated tail, an implausible chunk header, a chunk whose
-    /// CRC fails): what follows is not read, and [`ReadReport::truncated`]
-    /// says where and why.
+    /// Reads `path` into memory and finds its damaged parts (`damage.rs`):
+    /// a damaged chunk, attachment or other record is left out and the
+    /// rest read ([`ReadReport::skipped`]); at a crash-truncated tail, or a
+    /// length damaged beyond repair, reading stops
+    /// ([`ReadReport::stopped`]). [`ReadReport::truncated`] says both.
     pub fn open(path: impl AsRef<Path>) -> Result<Self, McapLogError> {
         let path = path.as_ref().to_path_buf();
         let data = std::fs::read(&path).map_err(|source| McapLogError::Io {
@@ -548,57 +677,60 @@ impl McapLog {
 
     /// A log from the bytes of a file already in memory, as [`McapLog::open`]
     /// reads it; `path` names the file in errors.
-    pub fn from_bytes(mut data: Vec<u8>, path: impl Into<PathBuf>) -> Self {
-        let path = path.into();
-        let damage = if data.starts_with(mcap::MAGIC) {
-            first_damage(&data).map(|(off, why)| {
-                data.truncate(off);
-                format!("read up to byte {off}: {why}")
-            })
-        } else {
-            None
-        };
-        Self { data, path, damage }
+    pub fn from_bytes(data: Vec<u8>, path: impl Into<PathBuf>) -> Self {
+        let scan = damage::scan(&data);
+        Self {
+            data,
+            path: path.into(),
+            scan,
+        }
     }
 
-    /// Calls `f` for every grip message in file order. Stops quietly at a
-    /// truncated end (reported in [`ReadReport::truncated`]); a file that is
-    /// not MCAP at all is an error.
+    /// The damaged parts left out, in file order (also in every
+    /// [`ReadReport`]); empty for a file that is not MCAP.
+    pub fn skipped(&self) -> &[Skipped] {
+        self.scan.as_ref().map_or(&[], |s| &s.skipped)
+    }
+
+    fn body(&self, r: &damage::Rec) -> &[u8] {
+        &self.data[r.body.0..r.body.1]
+    }
+
+    /// Calls `f` for every grip message in file order. Damaged parts are
+    /// left out and reading stops quietly at a truncated end (both in
+    /// [`ReadReport::truncated`]); a file that is not MCAP at all is an
+    /// error.
     pub fn for_each(&self, mut f: impl FnMut(LogEntry)) -> Result<ReadReport, McapLogError> {
-        let mut rep = ReadReport::default();
-        if !self.data.starts_with(mcap::MAGIC) {
+        let Some(scan) = &self.scan else {
             return Err(McapLogError::NotMcap {
                 path: self.path.clone(),
             });
-        }
-        let opts = mcap::read::Options::IgnoreEndMagic.into();
-        let stream = mcap::MessageStream::new_with_options(&self.data, opts).map_err(|source| {
-            McapLogError::Mcap {
-                path: self.path.clone(),
-                source,
+        };
+        let mut rep = ReadReport::default();
+        let mut links = Links::default();
+        for r in &scan.records {
+            if matches!(r.op, op::SCHEMA | op::CHANNEL)
+                && let Ok(rec) = mcap::parse_record(r.op, self.body(r))
+            {
+                links.add(&rec, true);
             }
-        })?;
-        for m in stream {
-            let m = match m {
-                Ok(m) => m,
-                Err(e) => {
-                    rep.truncated = Some(e.to_string());
-                    break;
-                }
+        }
+        let mut handle = |rec: Record<'_>| {
+            let Record::Message { header, data } = rec else {
+                links.add(&rec, false);
+                return;
             };
-            let schema = m
-                .channel
-                .schema
-                .as_ref()
-                .map(|s| s.name.as_str())
-                .unwrap_or("");
-            match decode(schema, &m.data) {
+            let Some((topic, schema)) = links.resolve(header.channel_id) else {
+                rep.unlinked += 1;
+                return;
+            };
+            match decode(schema, &data) {
                 Ok(Some(msg)) => {
                     rep.messages += 1;
                     f(LogEntry {
-                        topic: m.channel.topic.clone(),
-                        log_time_ns: m.log_time,
-                        sequence: m.sequence,
+                        topic: topic.to_owned(),
+                        log_time_ns: header.log_time,
+                        sequence: header.sequence,
                         msg,
                     });
                 }
@@ -606,16 +738,47 @@ impl McapLog {
                 Err(e) => {
                     rep.bad += 1;
                     if rep.first_error.is_none() {
-                        rep.first_error = Some(format!("topic {}: {e}", m.channel.topic));
+                        rep.first_error = Some(format!("topic {topic}: {e}"));
                     }
                 }
             }
+        };
+        let mut skipped = scan.skipped.clone();
+        for r in &scan.records {
+            let body = self.body(r);
+            match r.op {
+                op::CHUNK => {
+                    // checked when opened, so this does not fail
+                    let read = damage::for_each_in_chunk(body, |o, b| {
+                        handle(mcap::parse_record(o, b).map_err(|e| e.to_string())?);
+                        Ok(())
+                    });
+                    if let Err(reason) = read {
+                        skipped.push(Skipped {
+                            kind: SkippedKind::Chunk,
+                            start: (r.body.0 - damage::HEAD) as u64,
+                            end: r.body.1 as u64,
+                            log_time_ns: None,
+                            reason,
+                        });
+                    }
+                }
+                op::SCHEMA | op::CHANNEL | op::MESSAGE => {
+                    if let Ok(rec) = mcap::parse_record(r.op, body) {
+                        handle(rec);
+                    }
+                }
+                _ => {}
+            }
         }
-        if let Some(d) = &self.damage {
-            rep.truncated = Some(d.clone());
-        } else if rep.truncated.is_none() && mcap::read::footer(&self.data).is_err() {
-            rep.truncated = Some("no footer: the writer did not finish (crash?)".into());
-        }
+        skipped.sort_by_key(|s| s.start);
+        rep.skipped = skipped;
+        rep.stopped = match &scan.stop {
+            Some((off, why)) => Some(format!("read up to byte {off}: {why}")),
+            None if !scan.finished => Some("no footer: the writer did not finish (crash?)".into()),
+            None => None,
+        };
+        rep.truncated = rep.damage_line();
         Ok(rep)
     }
 
@@ -626,18 +789,13 @@ impl McapLog {
         Ok((v, rep))
     }
 
-    fn records(&self, mut f: impl FnMut(mcap::records::Record<'_>)) -> Result<(), McapLogError> {
-        let opts = mcap::read::Options::IgnoreEndMagic.into();
-        let r = mcap::read::LinearReader::new_with_options(&self.data, opts).map_err(|source| {
-            McapLogError::Mcap {
-                path: self.path.clone(),
-                source,
-            }
-        })?;
-        for rec in r {
-            match rec {
-                Ok(rec) => f(rec),
-                Err(_) => break, // truncated tail
+    /// Calls `f` with every top-level record of type `opcode` that reads.
+    fn records(&self, opcode: u8, mut f: impl FnMut(Record<'_>)) -> Result<(), McapLogError> {
+        for r in self.scan.iter().flat_map(|s| &s.records) {
+            if r.op == opcode
+                && let Ok(rec) = mcap::parse_record(r.op, self.body(r))
+            {
+                f(rec);
             }
         }
         Ok(())
@@ -646,19 +804,20 @@ impl McapLog {
     /// Metadata records (name, map), in file order.
     pub fn metadata(&self) -> Result<Vec<(String, MetadataMap)>, McapLogError> {
         let mut v = Vec::new();
-        self.records(|r| {
-            if let mcap::records::Record::Metadata(m) = r {
+        self.records(op::METADATA, |r| {
+            if let Record::Metadata(m) = r {
                 v.push((m.name, m.metadata));
             }
         })?;
         Ok(v)
     }
 
-    /// Attachments, in file order.
+    /// Attachments, in file order (a damaged one is left out and named in
+    /// [`McapLog::skipped`]).
     pub fn attachments(&self) -> Result<Vec<LogAttachment>, McapLogError> {
         let mut v = Vec::new();
-        self.records(|r| {
-            if let mcap::records::Record::Attachment { header, data, .. } = r {
+        self.records(op::ATTACHMENT, |r| {
+            if let Record::Attachment { header, data, .. } = r {
                 v.push(LogAttachment {
                     name: header.name,
                     media_type: header.media_type,
