@@ -2,6 +2,8 @@
 //!
 //! - [`log`]: a drive's MCAP log read back, typed ([`DriveLog`]): topics,
 //!   metadata, attachments, the reader's report (truncation, bad messages).
+//! - [`roads`]: the road catalogue a drive ran with
+//!   ([`DriveLog::road_catalogue`]: the log's attached `roads.toml`).
 //! - [`summary`]: the drive summary and metrics computed from a log alone
 //!   ([`summarize`]; `grip drive` and `grip inspect` print it).
 //! - [`services`]: the five services, their start and stop order and base
@@ -18,6 +20,7 @@
 
 pub mod log;
 pub mod plan;
+pub mod roads;
 pub mod services;
 pub mod summary;
 pub mod supervisor;
@@ -27,6 +30,7 @@ pub use plan::{
     DriveOutcome, DrivePlan, MissingBinaries, check_binaries, new_instance, run_services,
     vehicle_for,
 };
+pub use roads::LogRoads;
 pub use services::Service;
 pub use summary::{Summary, summarize};
 pub use supervisor::{Output, Proc, ProcSpec, SuperviseError, Supervisor, describe_status};

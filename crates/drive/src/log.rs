@@ -1,8 +1,9 @@
 //! A drive's MCAP log in memory, typed: every payload (audio samples only
 //! when asked, [`DriveLog::load_with`]; else audio is counted), the run and
 //! recorder metadata, every metadata record, the attachments. A damaged
-//! file reads up to its first damage ([`McapLog::open`]'s tolerance) and
-//! says so in [`DriveLog::report`]. Shared by `grip drive` (its summary),
+//! file reads all it can (a damaged chunk or attachment skipped, the rest
+//! read; a cut-off tail up to the cut: [`McapLog::open`]'s tolerance) and
+//! says what was left out in [`DriveLog::report`]. Shared by `grip drive` (its summary),
 //! `grip inspect`, `grip replay` and the tests.
 
 use std::collections::BTreeMap;
@@ -85,7 +86,7 @@ pub struct DriveLog {
 
 impl DriveLog {
     /// Reads `path`. A file that is not MCAP, or unreadable, is an error; a
-    /// truncated one reads up to the damage (see `report.truncated`).
+    /// damaged one reads all it can (see `report.truncated`).
     pub fn load(path: &Path) -> Result<Self, LogError> {
         Self::load_with(path, LoadOptions::default())
     }

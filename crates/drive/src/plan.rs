@@ -52,6 +52,12 @@ pub fn check_binaries(dir: &Path) -> Result<(), MissingBinaries> {
     Ok(())
 }
 
+/// How [`vehicle_for`] names a vehicle it took from the log's attachment
+/// `name` (the summary finds the attachment, and its SHA-256, by it).
+pub fn attached_label(name: &str) -> String {
+    format!("{name} (attached to the log)")
+}
+
 /// The vehicle a drive ran with, for the metrics (kinetic energy: M/n and
 /// J_w) and the preview report (N · r): the drive's `--vehicle` file as the
 /// recorder attached it ([`VEHICLE_ATTACHMENT`]); else, with `grip.run`
@@ -73,11 +79,7 @@ pub fn vehicle_for(log: &DriveLog, config_dir: &Path) -> (VehicleParams, String,
         }
     };
     if let Some(v) = attached(VEHICLE_ATTACHMENT, &mut warnings) {
-        return (
-            v,
-            format!("{VEHICLE_ATTACHMENT} (attached to the log)"),
-            warnings,
-        );
+        return (v, attached_label(VEHICLE_ATTACHMENT), warnings);
     }
     if let Some(p) = log.run.get("vehicle") {
         let name = log
@@ -88,7 +90,7 @@ pub fn vehicle_for(log: &DriveLog, config_dir: &Path) -> (VehicleParams, String,
         if let Some(name) = name
             && let Some(v) = attached(name, &mut warnings)
         {
-            return (v, format!("{name} (attached to the log)"), warnings);
+            return (v, attached_label(name), warnings);
         }
         match grip_config::load_vehicle(p) {
             Ok((v, _)) => {
@@ -100,7 +102,7 @@ pub fn vehicle_for(log: &DriveLog, config_dir: &Path) -> (VehicleParams, String,
         }
     }
     if let Some(v) = attached("vehicle.toml", &mut warnings) {
-        return (v, "vehicle.toml (attached to the log)".into(), warnings);
+        return (v, attached_label("vehicle.toml"), warnings);
     }
     let dir = ConfigDir::new(config_dir);
     match dir.vehicle() {

@@ -5,14 +5,20 @@
 //! - messages per topic, gaps by sequence number in the log, and the
 //!   recorder's own counters (`grip.recorder`: received, queue drops);
 //! - loop timing from the `CycleRecord`s: wake-up latency and compute time
-//!   (p50/p99/max), deadline misses, safe-state cycles;
+//!   (p50/p99/max), deadline misses, safe-state cycles and entries, during
+//!   the scenario and over the whole log (start-up and stop included);
+//! - the scenario window (from the plant's start for the scenario's
+//!   duration) and how much of it the log covers ([`WindowStatus`]);
 //! - the metrics (`grip_tcs::metrics`) via `grip_tcs::MetricsAccumulator` (the
 //!   code the offline simulator uses) on the plant's ground truth over the
-//!   scenario window;
+//!   scenario window (none when the log has no scenario window);
 //! - CAN: frames per message and direction, E2E rejections, the loop's
 //!   fault counters;
-//! - ARTE: accuracy against the ground truth, per-road recall, detection
-//!   delay at each road change, how often the controller used the estimate.
+//! - ARTE: accuracy against the ground truth during the scenario (and over
+//!   the whole log, labelled so), per-road recall, detection delay at each
+//!   change of the road at the microphone (from the first truth sample, so
+//!   a front-mic car's pre-roll counts), how often the controller used the
+//!   estimate.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -23,6 +29,19 @@ use grip_physics::{RoadCatalogue, VehicleParams};
 use grip_tcs::{Metrics, MetricsAccumulator, Sample};
 
 use crate::log::DriveLog;
+use crate::roads::LogRoads;
+
+/// The plant's period, ns: a truth sample stands for this long (the last
+/// one of the stream too).
+const TRUTH_PERIOD_NS: u64 = 1_000_000;
+
+/// A window this much shorter than the scenario still covers it (the
+/// plant's stamps jitter by a fraction of a period), s.
+const COVER_TOL_S: f64 = 0.005;
+
+/// Consecutive truth samples further apart than this leave a gap in the
+/// ground truth, s (five plant periods).
+const GAP_S: f64 = 0.005;
 
 /// p50 / p99 / max of a set of values (ns), and the count.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -74,10 +93,11 @@ pub struct TopicLine {
     pub recorder: Option<(u64, u64, u64)>,
 }
 
-/// A detected (or missed) road change.
+/// A detected (or missed) change of the road at the microphone.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RoadChange {
-    /// Time of the change from the scenario start (or the first truth), s.
+    /// Time of the change from the scenario start, s (negative before it:
+    /// a microphone ahead of the wheel reaches a road during the pre-roll).
     pub t: f64,
     /// Road before.
     pub from: String,
@@ -91,16 +111,27 @@ pub struct RoadChange {
 /// Width of the speed bands of [`ArteEval::per_speed_band`], km/h.
 pub const SPEED_BAND_KMH: f64 = 5.0;
 
-/// ARTE against the ground truth.
+/// ARTE against the ground truth: an estimate is judged against the road
+/// at the microphone at its frame's midpoint. `judged`, `correct`,
+/// `per_road`, `confusion` and `per_speed_band` count the estimates whose
+/// midpoint lies in the scenario window; `log_judged` and `log_correct`
+/// every estimate whose midpoint has ground truth (hold, pre-roll and stop
+/// included; none after the truth stream ends).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ArteEval {
     /// Estimates in the log.
     pub estimates: u64,
-    /// Estimates with a class and a ground truth at their frame's midpoint.
+    /// Estimates with a class whose frame's midpoint lies in the scenario
+    /// window (and has ground truth).
     pub judged: u64,
     /// Of those, equal to the true road.
     pub correct: u64,
-    /// Per true road: (judged, correct).
+    /// Estimates with a class and ground truth at their frame's midpoint,
+    /// anywhere in the log.
+    pub log_judged: u64,
+    /// Of those, equal to the true road.
+    pub log_correct: u64,
+    /// Per true road: (judged, correct), in the scenario window.
     pub per_road: BTreeMap<String, (u64, u64)>,
     /// Judged estimates per (true road, estimated road): the confusion
     /// counts behind `per_road` (fleet tables add them up across drives).
@@ -108,7 +139,9 @@ pub struct ArteEval {
     /// Per speed band of [`SPEED_BAND_KMH`] (key: band index, speed
     /// `|v|` of the truth at the frame's midpoint): (judged, correct).
     pub per_speed_band: BTreeMap<u32, (u64, u64)>,
-    /// Road changes in the scenario window.
+    /// Changes of the road at the microphone from the first truth sample
+    /// to the scenario window's end (before the start: the pre-roll of a
+    /// microphone ahead of the wheel).
     pub changes: Vec<RoadChange>,
     /// Cycles (scenario window, out of safe state) the controller used the estimate.
     pub used_cycles: u64,
@@ -117,12 +150,22 @@ pub struct ArteEval {
 }
 
 impl ArteEval {
-    /// correct / judged (NaN with nothing judged).
+    /// correct / judged in the scenario window (NaN with nothing judged).
     pub fn accuracy(&self) -> f64 {
         if self.judged == 0 {
             f64::NAN
         } else {
             self.correct as f64 / self.judged as f64
+        }
+    }
+
+    /// log_correct / log_judged: over the whole log (NaN with nothing
+    /// judged).
+    pub fn accuracy_whole_log(&self) -> f64 {
+        if self.log_judged == 0 {
+            f64::NAN
+        } else {
+            self.log_correct as f64 / self.log_judged as f64
         }
     }
 }
@@ -140,23 +183,101 @@ pub struct CanSummary {
     pub faults_in_window: Option<E2eFaults>,
 }
 
-/// Loop timing.
+/// Loop timing of the cycles stamped in the scenario window.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct Timing {
-    /// Cycle records.
+pub struct WindowTiming {
+    /// Cycle records in the window.
     pub cycles: u64,
     /// Wake-up latency, ns.
     pub wakeup: Percentiles,
     /// Compute time (wake-up to command sent), ns.
     pub compute: Percentiles,
+    /// Deadline misses counted by the window's cycles (the last one's
+    /// count minus the count of the record before the first).
+    pub deadline_misses: u64,
+    /// Entries into the safe state (active → safe) at the window's cycles.
+    pub safe_entries: u64,
+}
+
+/// Loop timing. The fields without `in_scenario` cover the whole log:
+/// start-up before the scenario and the stop after it included.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Timing {
+    /// Cycle records.
+    pub cycles: u64,
+    /// Wake-up latency, ns (whole log).
+    pub wakeup: Percentiles,
+    /// Compute time (wake-up to command sent), ns (whole log).
+    pub compute: Percentiles,
     /// Deadline misses over the log (last record minus first).
     pub deadline_misses: u64,
     /// Cycles in the safe state (whole log).
     pub safe_cycles: u64,
+    /// Entries into the safe state (active → safe) over the log; a log
+    /// that starts in the safe state does not count its start. A `grip
+    /// drive` log's stop is one: plant-sim stops sending, and the loop's
+    /// input timeout puts it in the safe state after the scenario.
+    pub safe_entries: u64,
     /// Cycle period from the stamps (median), ns.
     pub period_ns: i64,
-    /// Wake-up latencies, ns (for the histogram).
+    /// Wake-up latencies, ns (for the histogram; whole log).
     pub wakeup_ns: Vec<i64>,
+    /// The same figures for the cycles in the scenario window (None: no
+    /// scenario window).
+    pub in_scenario: Option<WindowTiming>,
+}
+
+/// How much of the scenario the log's scenario window covers.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub enum WindowStatus {
+    /// Fewer than two ground-truth samples (a log from the car): no window.
+    #[default]
+    NoTruth,
+    /// The log is incomplete and its ground truth ends before the plant
+    /// started the scenario (held, or pre-rolling): no window.
+    EndsBeforeStart,
+    /// A complete log whose plant never started the scenario: no window.
+    NeverStarted,
+    /// The window covers the scenario's duration.
+    Complete,
+    /// The ground truth ends before the scenario's end, or has gaps in the
+    /// window: it covers `covered_s` of `duration_s`.
+    Partial {
+        /// Seconds covered.
+        covered_s: f64,
+        /// The scenario's duration, s.
+        duration_s: f64,
+    },
+    /// The scenario's duration is unknown (no `grip.run`
+    /// `scenario_duration_s`, no attached scenario file): the window runs
+    /// to the end of the ground truth.
+    DurationUnknown,
+}
+
+impl WindowStatus {
+    /// `no_truth`, `ends_before_start`, `never_started`, `complete`,
+    /// `partial` or `duration_unknown` (`grip inspect --json`'s
+    /// `scenario_window`).
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Self::NoTruth => "no_truth",
+            Self::EndsBeforeStart => "ends_before_start",
+            Self::NeverStarted => "never_started",
+            Self::Complete => "complete",
+            Self::Partial { .. } => "partial",
+            Self::DurationUnknown => "duration_unknown",
+        }
+    }
+
+    /// Why there is no scenario window (None: there is one).
+    pub fn no_window_reason(&self) -> Option<&'static str> {
+        match self {
+            Self::NoTruth => Some("no ground truth in the log"),
+            Self::EndsBeforeStart => Some("the log ends before the scenario start"),
+            Self::NeverStarted => Some("the scenario never started"),
+            _ => None,
+        }
+    }
 }
 
 /// Everything `grip drive` / `grip inspect` print.
@@ -172,10 +293,33 @@ pub struct Summary {
     pub topics: Vec<TopicLine>,
     /// Loop timing.
     pub timing: Timing,
-    /// The `grip_tcs::metrics` metrics over the scenario window (None: no truth).
+    /// The `grip_tcs::metrics` metrics over the scenario window (None: no
+    /// scenario window, see `window_status`).
     pub metrics: Option<Metrics>,
     /// Scenario window, s from the first truth: (start, end).
     pub window: Option<(f64, f64)>,
+    /// How much of the scenario the window covers.
+    pub window_status: WindowStatus,
+    /// The scenario's duration, s (`grip.run` `scenario_duration_s`, else
+    /// the attached scenario file; None: unknown).
+    pub scenario_duration_s: Option<f64>,
+    /// The scenario (`grip.run` `scenario`).
+    pub scenario: Option<String>,
+    /// SHA-256 of the scenario file the drive ran (`grip.run`
+    /// `config.scenarios/NAME.toml`, else of the attachment).
+    pub scenario_sha256: Option<String>,
+    /// SHA-256 of the vehicle file the summary used, when it came from the
+    /// log's attachments.
+    pub vehicle_sha256: Option<String>,
+    /// The vehicle parameters used.
+    pub vehicle_params: VehicleParams,
+    /// Where the preview report's road catalogue came from (None: not said,
+    /// [`summarize`] without [`summarize_with_roads`]).
+    pub roads_from: Option<String>,
+    /// Why this summary is not that of a complete drive, one reason each
+    /// (log truncated or damaged, recorder not finished, window shorter
+    /// than the scenario or none): what `compare` warns about.
+    pub incomplete: Vec<String>,
     /// CAN.
     pub can: CanSummary,
     /// ARTE.
@@ -223,28 +367,49 @@ pub struct PreviewEvent {
 /// (the CAN signal's resolution is 0.1 N m).
 const LIMIT_TOL_NM: f64 = 0.2;
 
+/// The catalogue's road of a truth sample's road under the wheel, by name
+/// (by index only when the sample carries no name).
+fn road_of<'a>(
+    roads: &'a RoadCatalogue,
+    g: &GroundTruth,
+) -> Result<&'a grip_physics::Road, String> {
+    match g.road_name() {
+        Some(n) => roads.get(n).ok_or_else(|| n.to_owned()),
+        None => roads
+            .by_index(g.road_index as usize)
+            .ok_or_else(|| format!("road index {}", g.road_index)),
+    }
+}
+
 /// Preview events over the truth samples `truth[i0..=i1]` (see
-/// [`PreviewEvent`]).
+/// [`PreviewEvent`]), and the roads of the ground truth the catalogue
+/// lacks.
 fn preview_events(
     log: &DriveLog,
     i0: usize,
     i1: usize,
     roads: &RoadCatalogue,
     vehicle: &VehicleParams,
-) -> Vec<PreviewEvent> {
+) -> (Vec<PreviewEvent>, Vec<String>) {
     let nr = vehicle.normal_force() * vehicle.r;
     let start_ns = log.truth[i0].stamp_ns;
     let mut out = Vec::new();
+    let mut missing: Vec<String> = Vec::new();
     for k in i0 + 1..=i1 {
         let (a, b) = (&log.truth[k - 1], &log.truth[k]);
-        if a.road_index == b.road_index {
+        if a.road_index == b.road_index && a.road_name == b.road_name {
             continue;
         }
-        let (Some(ra), Some(rb)) = (
-            roads.by_index(a.road_index as usize),
-            roads.by_index(b.road_index as usize),
-        ) else {
-            continue;
+        let (ra, rb) = match (road_of(roads, a), road_of(roads, b)) {
+            (Ok(ra), Ok(rb)) => (ra, rb),
+            (x, y) => {
+                for n in [x.err(), y.err()].into_iter().flatten() {
+                    if !missing.contains(&n) {
+                        missing.push(n);
+                    }
+                }
+                continue;
+            }
         };
         if rb.mu_peak() >= ra.mu_peak() {
             continue;
@@ -294,7 +459,7 @@ fn preview_events(
             max_slip_after,
         });
     }
-    out
+    (out, missing)
 }
 
 impl PreviewEvent {
@@ -356,18 +521,63 @@ pub fn seq_gaps(seqs: impl IntoIterator<Item = u64>) -> (u64, u64) {
 
 /// The scenario's duration, s: `grip.run` `scenario_duration_s`, else the
 /// `duration` of the attached `scenarios/<scenario>.toml`.
+/// A duration that is not finite and positive is no duration.
 pub fn scenario_duration(log: &DriveLog) -> Option<f64> {
+    let valid = |d: f64| (d.is_finite() && d > 0.0).then_some(d);
     if let Some(d) = log
         .run
         .get("scenario_duration_s")
         .and_then(|s| s.parse::<f64>().ok())
+        .and_then(valid)
     {
         return Some(d);
     }
     let name = log.run.get("scenario")?;
     let text = log.attachment_text(&format!("scenarios/{name}.toml"))?;
     let v: toml::Value = toml::from_str(text).ok()?;
-    v.get("duration")?.as_float()
+    v.get("duration")?.as_float().and_then(valid)
+}
+
+/// SHA-256 of the attachment `name`: the one `grip.run` records for it
+/// (`config.NAME`) when it records one, else of the attached bytes; a
+/// recorded hash the attachment does not match is a warning.
+fn attachment_sha256(log: &DriveLog, name: &str, warnings: &mut Vec<String>) -> Option<String> {
+    let data = log.attachments.get(name);
+    let recorded = log.run.get(&format!("config.{name}")).cloned();
+    match (data, recorded) {
+        (Some(d), Some(r)) => {
+            let got = grip_digest::sha256_hex(d);
+            if got != r {
+                warnings.push(format!(
+                    "attachment {name}: its SHA-256 {got} is not the one grip.run records ({r}): the attachment is damaged"
+                ));
+            }
+            Some(got)
+        }
+        (Some(d), None) => Some(grip_digest::sha256_hex(d)),
+        (None, r) => r,
+    }
+}
+
+/// SHA-256 of the scenario file the drive ran
+/// (`scenarios/<grip.run scenario>.toml`).
+fn scenario_sha256(log: &DriveLog, warnings: &mut Vec<String>) -> Option<String> {
+    let name = log.run.get("scenario")?;
+    attachment_sha256(log, &format!("scenarios/{name}.toml"), warnings)
+}
+
+/// SHA-256 of the vehicle file the summary used, when [`crate::vehicle_for`]
+/// took it from an attachment (`vehicle_from` names it).
+fn vehicle_sha256(
+    log: &DriveLog,
+    vehicle_from: &str,
+    warnings: &mut Vec<String>,
+) -> Option<String> {
+    let name = log
+        .attachments
+        .keys()
+        .find(|n| crate::plan::attached_label(n) == vehicle_from)?;
+    attachment_sha256(log, name, warnings)
 }
 
 /// Index of the first truth sample of the running scenario: plant-sim
@@ -433,15 +643,84 @@ fn timing(cycles: &[CycleRecord]) -> Timing {
             _ => 0,
         },
         safe_cycles: cycles.iter().filter(|c| c.safe_state != 0).count() as u64,
+        safe_entries: cycles
+            .windows(2)
+            .filter(|w| w[0].safe_state == 0 && w[1].safe_state != 0)
+            .count() as u64,
         period_ns: Percentiles::of(&mut periods).p50,
         wakeup_ns,
+        in_scenario: None,
     }
+}
+
+/// The timing of the cycles stamped in `[start_ns, end_ns)`.
+fn window_timing(cycles: &[CycleRecord], start_ns: u64, end_ns: u64) -> WindowTiming {
+    let idx: Vec<usize> = (0..cycles.len())
+        .filter(|&i| (start_ns..end_ns).contains(&cycles[i].stamp_ns))
+        .collect();
+    let (Some(&first), Some(&last)) = (idx.first(), idx.last()) else {
+        return WindowTiming::default();
+    };
+    let mut wake: Vec<i64> = idx.iter().map(|&i| cycles[i].wakeup_latency_ns).collect();
+    let mut comp: Vec<i64> = idx.iter().map(|&i| cycles[i].compute_ns as i64).collect();
+    // a cycle's count includes the deadlines missed just before it
+    let base = cycles[first.saturating_sub(1)].deadline_misses;
+    WindowTiming {
+        cycles: idx.len() as u64,
+        wakeup: Percentiles::of(&mut wake),
+        compute: Percentiles::of(&mut comp),
+        deadline_misses: cycles[last].deadline_misses.saturating_sub(base),
+        safe_entries: idx
+            .iter()
+            .filter(|&&i| i > 0 && cycles[i - 1].safe_state == 0 && cycles[i].safe_state != 0)
+            .count() as u64,
+    }
+}
+
+/// The truth sample in effect at `t_ns` if the truth stream covers it: the
+/// last sample at or before it, as long as `t_ns` is within one plant
+/// period of the stream's last sample (after the stream ends there is no
+/// truth to judge against).
+fn truth_covering(truth: &[GroundTruth], t_ns: u64) -> Option<&GroundTruth> {
+    let last = truth.last()?;
+    if t_ns >= last.stamp_ns.saturating_add(TRUTH_PERIOD_NS) {
+        return None;
+    }
+    truth_at(truth, t_ns)
+}
+
+/// The scenario window in the truth stream.
+struct Window {
+    /// Its first sample (the last one of the hold or pre-roll).
+    i0: usize,
+    /// Its last sample.
+    last_in: usize,
+    /// The stamp of `truth[i0]`, ns.
+    start_ns: u64,
+    /// Its end (exclusive), ns: the scenario's end, or where the truth
+    /// stream ends if that is earlier.
+    end_ns: u64,
+}
+
+/// [`summarize`], saying where `roads` came from in the report and adding
+/// the catalogue's warnings to the summary's (what `grip inspect` uses).
+pub fn summarize_with_roads(
+    log: &DriveLog,
+    vehicle: &VehicleParams,
+    vehicle_from: &str,
+    roads: &LogRoads,
+) -> Summary {
+    let mut s = summarize(log, vehicle, vehicle_from, roads.catalogue.as_ref());
+    s.roads_from = Some(roads.from.clone());
+    s.warnings.extend(roads.warnings.iter().cloned());
+    s
 }
 
 /// Computes the summary of `log`; `vehicle` (the one the drive ran with,
 /// [`crate::vehicle_for`], described by `vehicle_from`) gives M/n and J_w
 /// for the kinetic-energy metric and N · r for the preview report, which
-/// needs the road catalogue `roads` (None: no preview report).
+/// needs the road catalogue `roads` (None: no preview report; the drive's
+/// own: [`DriveLog::road_catalogue`] and [`summarize_with_roads`]).
 pub fn summarize(
     log: &DriveLog,
     vehicle: &VehicleParams,
@@ -451,6 +730,9 @@ pub fn summarize(
     let mut s = Summary {
         file: log.path.display().to_string(),
         vehicle: vehicle_from.to_owned(),
+        vehicle_params: *vehicle,
+        scenario: log.run.get("scenario").cloned(),
+        scenario_duration_s: scenario_duration(log),
         ..Summary::default()
     };
     for k in [
@@ -471,15 +753,18 @@ pub fn summarize(
     }
     if let Some(t) = &log.report.truncated {
         s.warnings.push(format!(
-            "log is incomplete (read up to the damage; later data lost): {t}"
+            "log is incomplete (not all of the file could be read): {t}"
         ));
+        s.incomplete.push(format!("the log is incomplete: {t}"));
     }
     if log.report.bad > 0 {
-        s.warnings.push(format!(
+        let w = format!(
             "{} messages did not decode (first: {})",
             log.report.bad,
             log.report.first_error.as_deref().unwrap_or("?")
-        ));
+        );
+        s.incomplete.push(w.clone());
+        s.warnings.push(w);
     }
     let late: Vec<String> = [
         (
@@ -508,7 +793,13 @@ pub fn summarize(
     if log.recorder.is_none() {
         s.warnings
             .push("no grip.recorder summary: the recorder did not finish (crash or kill)".into());
+        s.incomplete
+            .push("no grip.recorder summary: the recorder did not finish".into());
     }
+    let mut hash_warnings = Vec::new();
+    s.scenario_sha256 = scenario_sha256(log, &mut hash_warnings);
+    s.vehicle_sha256 = vehicle_sha256(log, vehicle_from, &mut hash_warnings);
+    s.warnings.extend(hash_warnings);
 
     // topics
     for (t, _) in topics::ALL {
@@ -547,97 +838,57 @@ pub fn summarize(
 
     s.timing = timing(&log.cycles);
 
-    // scenario window and metrics
-    if log.truth.len() >= 2 {
-        let t_first = log.truth[0].stamp_ns;
-        let i0 = match scenario_start(&log.truth) {
-            Some(i) => i,
-            None => {
-                s.warnings.push(
-                    "the scenario never started: the plant's state never changed (metrics over the whole log)"
-                        .into(),
-                );
-                0
-            }
-        };
-        let start_ns = log.truth[i0].stamp_ns;
-        let end_ns =
-            scenario_duration(log).map_or(u64::MAX, |d| start_ns.saturating_add((d * 1e9) as u64));
-        let mut acc = MetricsAccumulator::new(vehicle);
-        let mut last_in = i0;
-        // The command in force at each truth sample: the latest cycle
-        // record stamped at or before it (NaN before the first).
-        let mut next_cycle = 0usize;
-        let mut cmd = f64::NAN;
-        for k in i0..log.truth.len() {
-            let g = &log.truth[k];
-            if g.stamp_ns >= end_ns {
-                break;
-            }
-            while let Some(c) = log.cycles.get(next_cycle)
-                && c.stamp_ns <= g.stamp_ns
-            {
-                cmd = c.torque_cmd;
-                next_cycle += 1;
-            }
-            let next = log
-                .truth
-                .get(k + 1)
-                .map_or(g.stamp_ns.saturating_add(1_000_000), |n| n.stamp_ns);
-            let next = next.min(end_ns);
-            acc.push(&Sample {
-                dt: next.saturating_sub(g.stamp_ns) as f64 * 1e-9,
-                lambda: g.lambda,
-                torque: g.torque,
-                omega: g.omega,
-                v: g.v,
-                torque_cmd: cmd,
-            });
-            last_in = k;
-        }
-        s.metrics = Some(acc.finish());
-        let rel = |ns: u64| ns.saturating_sub(t_first) as f64 * 1e-9;
-        let last_ns = log.truth[last_in].stamp_ns;
-        s.window = Some((
-            rel(start_ns),
-            rel(end_ns.min(last_ns.saturating_add(1_000_000))),
-        ));
-        s.speed_kmh = Some((log.truth[i0].v * 3.6, log.truth[last_in].v * 3.6));
+    // the scenario window and its metrics
+    let window = scenario_window(log, vehicle, &mut s);
 
-        // ARTE
-        let mut a = ArteEval {
-            estimates: log.roads.len() as u64,
-            ..ArteEval::default()
+    // ARTE: every estimate whose frame's midpoint has ground truth is
+    // judged for the whole-log figure; those in the window for the
+    // scenario's (the headline)
+    let mut a = ArteEval {
+        estimates: log.roads.len() as u64,
+        ..ArteEval::default()
+    };
+    for e in &log.roads {
+        let mid = e.frame_t0_ns / 2 + e.frame_t1_ns / 2;
+        let (Some(est), Some(g)) = (name_of_est(e), truth_covering(&log.truth, mid)) else {
+            continue;
         };
-        for e in &log.roads {
-            let mid = e.frame_t0_ns / 2 + e.frame_t1_ns / 2;
-            let (Some(est), Some(g)) = (name_of_est(e), truth_at(&log.truth, mid)) else {
-                continue;
-            };
-            let truth_name = name_of_mic_truth(g);
-            a.judged += 1;
-            let ok = est == truth_name;
-            a.correct += u64::from(ok);
-            let band = (g.v.abs() * 3.6 / SPEED_BAND_KMH).floor();
-            if band.is_finite() {
-                let b = a.per_speed_band.entry(band as u32).or_default();
-                b.0 += 1;
-                b.1 += u64::from(ok);
-            }
-            *a.confusion.entry((truth_name.clone(), est)).or_default() += 1;
-            let r = a.per_road.entry(truth_name).or_default();
-            r.0 += 1;
-            r.1 += u64::from(ok);
+        let truth_name = name_of_mic_truth(g);
+        let ok = est == truth_name;
+        a.log_judged += 1;
+        a.log_correct += u64::from(ok);
+        if !window
+            .as_ref()
+            .is_some_and(|w| (w.start_ns..w.end_ns).contains(&mid))
+        {
+            continue;
         }
-        // changes of the true road at the microphone inside the window
-        let window: Vec<&GroundTruth> = log.truth[i0..=last_in].iter().collect();
+        a.judged += 1;
+        a.correct += u64::from(ok);
+        let band = (g.v.abs() * 3.6 / SPEED_BAND_KMH).floor();
+        if band.is_finite() {
+            let b = a.per_speed_band.entry(band as u32).or_default();
+            b.0 += 1;
+            b.1 += u64::from(ok);
+        }
+        *a.confusion.entry((truth_name.clone(), est)).or_default() += 1;
+        let r = a.per_road.entry(truth_name).or_default();
+        r.0 += 1;
+        r.1 += u64::from(ok);
+    }
+
+    if let Some(w) = &window {
+        // changes of the true road at the microphone from the first truth
+        // sample (a microphone ahead of the wheel reaches a road during
+        // the pre-roll, before the scenario clock starts) to the window's
+        // end
         let mut change_at: Vec<(u64, String, String)> = Vec::new();
-        for w in window.windows(2) {
-            if w[1].mic_road_index != w[0].mic_road_index {
+        for p in log.truth[..=w.last_in].windows(2) {
+            if p[1].mic_road_index != p[0].mic_road_index {
                 change_at.push((
-                    w[1].stamp_ns,
-                    name_of_mic_truth(w[0]),
-                    name_of_mic_truth(w[1]),
+                    p[1].stamp_ns,
+                    name_of_mic_truth(&p[0]),
+                    name_of_mic_truth(&p[1]),
                 ));
             }
         }
@@ -648,19 +899,21 @@ pub fn summarize(
                 .iter()
                 .filter(|e| e.stamp_ns >= *tc && e.stamp_ns < until)
                 .find(|e| name_of_est(e).as_deref() == Some(to.as_str()))
-                .map(|e| (e.stamp_ns - tc) as f64 * 1e-9);
+                .map(|e| secs_between(*tc, e.stamp_ns));
             a.changes.push(RoadChange {
-                t: secs_between(start_ns, *tc),
+                t: secs_between(w.start_ns, *tc),
                 from: from.clone(),
                 to: to.clone(),
                 delay,
             });
         }
+
+        // the loop during the scenario
         let mut safe_in = 0;
         let mut first_in: Option<&CycleRecord> = None;
         let mut last_in_c: Option<&CycleRecord> = None;
         for c in &log.cycles {
-            if c.stamp_ns >= start_ns && c.stamp_ns < end_ns {
+            if (w.start_ns..w.end_ns).contains(&c.stamp_ns) {
                 first_in.get_or_insert(c);
                 last_in_c = Some(c);
                 if c.safe_state == 0 {
@@ -672,14 +925,22 @@ pub fn summarize(
             }
         }
         s.safe_cycles_in_window = Some(safe_in);
-        s.preview = roads.map(|r| preview_events(log, i0, last_in, r, vehicle));
+        s.timing.in_scenario = Some(window_timing(&log.cycles, w.start_ns, w.end_ns));
+        if let Some(r) = roads {
+            let (events, missing) = preview_events(log, w.i0, w.last_in, r, vehicle);
+            if !missing.is_empty() {
+                s.warnings.push(format!(
+                    "preview: the road catalogue has no road {} of the ground truth; its changes are left out",
+                    missing.join(", ")
+                ));
+            }
+            s.preview = Some(events);
+        }
         if let (Some(a0), Some(a1)) = (first_in, last_in_c) {
             s.can.faults_in_window = Some(fault_delta(&a0.faults, &a1.faults));
         }
-        s.arte = a;
-    } else {
-        s.arte.estimates = log.roads.len() as u64;
     }
+    s.arte = a;
 
     // CAN
     for f in &log.can {
@@ -698,6 +959,148 @@ pub fn summarize(
         s.can.faults = c.faults;
     }
     s
+}
+
+/// Finds the scenario window of `log`, sets the summary's window, its
+/// status, the metrics and the start and end speeds, and warns when the
+/// log has no window or a window shorter than the scenario.
+fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> Option<Window> {
+    if log.truth.len() < 2 {
+        s.window_status = WindowStatus::NoTruth;
+        return None;
+    }
+    let t_first = log.truth[0].stamp_ns;
+    let rel = |ns: u64| secs_between(t_first, ns);
+    let truth_s = rel(log.truth[log.truth.len() - 1].stamp_ns);
+    let Some(i0) = scenario_start(&log.truth) else {
+        // a log that stops early (truncated, or the recorder did not
+        // finish) has simply not reached the start; a complete one shows a
+        // plant that never started
+        if log.report.truncated.is_some() || log.recorder.is_none() {
+            s.window_status = WindowStatus::EndsBeforeStart;
+            let w = format!(
+                "the log ends before the scenario start: its ground truth stops after {truth_s:.3} s with the car still held or pre-rolling; no metrics, no figures during the scenario"
+            );
+            s.incomplete.push(w.clone());
+            s.warnings.push(w);
+        } else {
+            s.window_status = WindowStatus::NeverStarted;
+            let w = format!(
+                "the scenario never started: the plant stayed held (or pre-rolling) through the log's {truth_s:.3} s of ground truth; no metrics, no figures during the scenario"
+            );
+            s.incomplete.push(w.clone());
+            s.warnings.push(w);
+        }
+        return None;
+    };
+    let start_ns = log.truth[i0].stamp_ns;
+    let end_ns = s
+        .scenario_duration_s
+        .map_or(u64::MAX, |d| start_ns.saturating_add((d * 1e9) as u64));
+    let mut acc = MetricsAccumulator::new(vehicle);
+    let mut last_in = i0;
+    // The command in force at each truth sample: the latest cycle
+    // record stamped at or before it (NaN before the first).
+    let mut next_cycle = 0usize;
+    let mut cmd = f64::NAN;
+    for k in i0..log.truth.len() {
+        let g = &log.truth[k];
+        if g.stamp_ns >= end_ns {
+            break;
+        }
+        while let Some(c) = log.cycles.get(next_cycle)
+            && c.stamp_ns <= g.stamp_ns
+        {
+            cmd = c.torque_cmd;
+            next_cycle += 1;
+        }
+        let next = log
+            .truth
+            .get(k + 1)
+            .map_or(g.stamp_ns.saturating_add(TRUTH_PERIOD_NS), |n| n.stamp_ns);
+        let next = next.min(end_ns);
+        acc.push(&Sample {
+            dt: next.saturating_sub(g.stamp_ns) as f64 * 1e-9,
+            lambda: g.lambda,
+            torque: g.torque,
+            omega: g.omega,
+            v: g.v,
+            torque_cmd: cmd,
+        });
+        last_in = k;
+    }
+    s.metrics = Some(acc.finish());
+    let last_ns = log.truth[last_in].stamp_ns;
+    let w_end = end_ns.min(last_ns.saturating_add(TRUTH_PERIOD_NS));
+    s.window = Some((rel(start_ns), rel(w_end)));
+    s.speed_kmh = Some((log.truth[i0].v * 3.6, log.truth[last_in].v * 3.6));
+    let span_s = secs_between(start_ns, w_end);
+    // holes in the ground truth inside the window (a damaged part of the
+    // file skipped, samples lost): each beyond one plant period is time
+    // the metrics do not see
+    let (mut gaps_s, mut longest) = (0.0, (0.0, 0.0));
+    for p in log.truth[i0..=last_in].windows(2) {
+        let dt = secs_between(p[0].stamp_ns, p[1].stamp_ns);
+        if dt > GAP_S {
+            gaps_s += dt - TRUTH_PERIOD_NS as f64 * 1e-9;
+            if dt > longest.0 {
+                longest = (dt, secs_between(start_ns, p[0].stamp_ns));
+            }
+        }
+    }
+    let covered_s = span_s - gaps_s;
+    let gap_words = (gaps_s > 0.0).then(|| {
+        format!(
+            "the ground truth has gaps of {gaps_s:.3} s in all in the window (the longest {:.3} s, {:.3} s after the start)",
+            longest.0, longest.1
+        )
+    });
+    let incomplete_log = log.report.truncated.is_some() || log.recorder.is_none();
+    s.window_status = match s.scenario_duration_s {
+        None => {
+            s.warnings.push(format!(
+                "the scenario's duration is unknown (no grip.run scenario_duration_s, no attached scenarios/{}.toml): the scenario window runs to the end of the ground truth ({span_s:.3} s)",
+                log.run.get("scenario").map_or("?", String::as_str)
+            ));
+            if let Some(g) = gap_words {
+                s.incomplete.push(g.clone());
+                s.warnings.push(g);
+            }
+            WindowStatus::DurationUnknown
+        }
+        Some(d) if covered_s < d - COVER_TOL_S => {
+            let mut why = Vec::new();
+            if span_s < d - COVER_TOL_S {
+                why.push(format!(
+                    "the ground truth ends {:.3} s before the scenario's end",
+                    d - span_s
+                ));
+            }
+            why.extend(gap_words);
+            let w = format!(
+                "metrics cover {covered_s:.3} of {d:.3} s of the scenario: {}{}",
+                why.join("; "),
+                if incomplete_log {
+                    " (the log is incomplete)"
+                } else {
+                    ""
+                }
+            );
+            s.incomplete.push(w.clone());
+            s.warnings.push(w);
+            WindowStatus::Partial {
+                covered_s,
+                duration_s: d,
+            }
+        }
+        Some(_) => WindowStatus::Complete,
+    };
+    Some(Window {
+        i0,
+        last_in,
+        start_ns,
+        end_ns: w_end,
+    })
 }
 
 fn us(ns: i64) -> String {
@@ -769,26 +1172,53 @@ impl Summary {
             tm.cycles,
             us(tm.period_ns)
         );
-        for (label, p) in [
-            ("wake-up latency", &tm.wakeup),
-            ("compute time", &tm.compute),
-        ] {
+        let lat = |o: &mut String, label: &str, p: &Percentiles| {
             let _ = writeln!(
                 o,
-                "  {label:<17}p50 {} µs  p99 {} µs  p99.9 {} µs  max {} µs",
+                "    {label:<17}p50 {} µs  p99 {} µs  p99.9 {} µs  max {} µs",
                 us(p.p50),
                 us(p.p99),
                 us(p.p999),
                 us(p.max)
             );
+        };
+        match (&tm.in_scenario, self.window) {
+            (Some(w), Some((t0, t1))) => {
+                let _ = writeln!(
+                    o,
+                    "  during the scenario ({} cycles, {t0:.3}-{t1:.3} s of the truth stream):",
+                    w.cycles
+                );
+                lat(&mut o, "wake-up latency", &w.wakeup);
+                lat(&mut o, "compute time", &w.compute);
+                let _ = writeln!(
+                    o,
+                    "    deadline misses {}   cycles in safe state {}   safe-state entries {}",
+                    w.deadline_misses,
+                    self.safe_cycles_in_window.unwrap_or(0),
+                    w.safe_entries
+                );
+            }
+            _ => {
+                let _ = writeln!(
+                    o,
+                    "  during the scenario: - ({})",
+                    self.window_status
+                        .no_window_reason()
+                        .unwrap_or("no scenario window")
+                );
+            }
         }
         let _ = writeln!(
             o,
-            "  deadline misses {}   cycles in safe state {} (during the scenario: {})",
-            tm.deadline_misses,
-            tm.safe_cycles,
-            self.safe_cycles_in_window
-                .map_or("-".to_owned(), |n| n.to_string())
+            "  whole log (incl. start-up before the scenario and the stop after it):"
+        );
+        lat(&mut o, "wake-up latency", &tm.wakeup);
+        lat(&mut o, "compute time", &tm.compute);
+        let _ = writeln!(
+            o,
+            "    deadline misses {}   cycles in safe state {}   safe-state entries {}",
+            tm.deadline_misses, tm.safe_cycles, tm.safe_entries
         );
 
         if let (Some(m), Some((t0, t1))) = (&self.metrics, self.window) {
@@ -796,6 +1226,24 @@ impl Summary {
                 o,
                 "\nmetrics (grip_tcs::metrics, ground truth, scenario window {t0:.3}-{t1:.3} s of the truth stream)"
             );
+            match self.window_status {
+                WindowStatus::Partial {
+                    covered_s,
+                    duration_s,
+                } => {
+                    let _ = writeln!(
+                        o,
+                        "  PARTIAL: these cover {covered_s:.3} of the scenario's {duration_s:.3} s (see the warning above)"
+                    );
+                }
+                WindowStatus::DurationUnknown => {
+                    let _ = writeln!(
+                        o,
+                        "  the scenario's duration is unknown: the window runs to the end of the ground truth"
+                    );
+                }
+                _ => {}
+            }
             let _ = writeln!(
                 o,
                 "  slip deviation (1/T)∫|λ|dt      {:.4}",
@@ -843,7 +1291,13 @@ impl Summary {
             );
             let _ = writeln!(o, "  vehicle: {}", self.vehicle);
         } else {
-            let _ = writeln!(o, "\nmetrics: no ground truth in the log");
+            let _ = writeln!(
+                o,
+                "\nmetrics: none ({})",
+                self.window_status
+                    .no_window_reason()
+                    .unwrap_or("no scenario window")
+            );
         }
 
         let _ = writeln!(o, "\nCAN frames (logged by tcs-loop)");
@@ -871,11 +1325,15 @@ impl Summary {
         );
 
         let a = &self.arte;
-        let _ = writeln!(o, "\nARTE ({} estimates)", a.estimates);
+        let _ = writeln!(
+            o,
+            "\nARTE ({} estimates; judged against the road at the microphone at each frame's midpoint)",
+            a.estimates
+        );
         if a.judged > 0 {
             let _ = writeln!(
                 o,
-                "  accuracy vs ground truth {:.1} % ({}/{} frames, the road at the microphone at each frame's midpoint)",
+                "  accuracy during the scenario {:.1} % ({}/{} frames with their midpoint in the scenario window)",
                 100.0 * a.accuracy(),
                 a.correct,
                 a.judged
@@ -887,6 +1345,23 @@ impl Summary {
                     100.0 * *c as f64 / *n as f64
                 );
             }
+        } else if a.log_judged > 0 {
+            let _ = writeln!(
+                o,
+                "  accuracy during the scenario: - ({})",
+                self.window_status
+                    .no_window_reason()
+                    .unwrap_or("no frame in the scenario window")
+            );
+        }
+        if a.log_judged > 0 {
+            let _ = writeln!(
+                o,
+                "  accuracy over the whole log {:.1} % ({}/{} frames with ground truth at their midpoint, incl. the hold, pre-roll and stop)",
+                100.0 * a.accuracy_whole_log(),
+                a.log_correct,
+                a.log_judged
+            );
         }
         for c in &a.changes {
             let d = c
@@ -910,6 +1385,9 @@ impl Summary {
                 o,
                 "\npreview (the driven wheel reaching a road that carries less; limit = that road's μ_peak · N · r)"
             );
+            if let Some(f) = &self.roads_from {
+                let _ = writeln!(o, "  road catalogue: {f}");
+            }
             if p.is_empty() {
                 let _ = writeln!(o, "  no such road change in the scenario window");
             }
@@ -921,9 +1399,63 @@ impl Summary {
     }
 }
 
+/// The first 12 hex digits of a SHA-256, or `-`.
+fn short_sha(h: Option<&String>) -> String {
+    h.map_or("-".to_owned(), |h| h.chars().take(12).collect())
+}
+
+/// Why the two drives' figures do not compare like for like: different
+/// scenarios (name or file), vehicles (file or parameters), window
+/// lengths, or a side that is not a complete drive.
+pub fn comparability(a: &Summary, b: &Summary) -> Vec<String> {
+    let mut w = Vec::new();
+    let scen = |s: &Summary| {
+        format!(
+            "{} (sha256 {})",
+            s.scenario.as_deref().unwrap_or("?"),
+            short_sha(s.scenario_sha256.as_ref())
+        )
+    };
+    let hashes_differ =
+        |x: &Option<String>, y: &Option<String>| matches!((x, y), (Some(x), Some(y)) if x != y);
+    if a.scenario != b.scenario || hashes_differ(&a.scenario_sha256, &b.scenario_sha256) {
+        w.push(format!(
+            "the scenarios differ: A {}, B {}",
+            scen(a),
+            scen(b)
+        ));
+    }
+    let veh_differ = match (&a.vehicle_sha256, &b.vehicle_sha256) {
+        (Some(x), Some(y)) => x != y,
+        _ => a.vehicle_params != b.vehicle_params,
+    };
+    if veh_differ {
+        w.push(format!(
+            "the vehicles differ: A {} (sha256 {}), B {} (sha256 {})",
+            a.vehicle,
+            short_sha(a.vehicle_sha256.as_ref()),
+            b.vehicle,
+            short_sha(b.vehicle_sha256.as_ref())
+        ));
+    }
+    let len = |s: &Summary| s.window.map(|(t0, t1)| t1 - t0);
+    if let (Some(x), Some(y)) = (len(a), len(b))
+        && (x - y).abs() > COVER_TOL_S
+    {
+        w.push(format!("the metrics cover {x:.3} s in A and {y:.3} s in B"));
+    }
+    for (tag, s) in [("A", a), ("B", b)] {
+        for r in &s.incomplete {
+            w.push(format!("{tag} is not a complete drive: {r}"));
+        }
+    }
+    w
+}
+
 /// `grip inspect A B`: the two drives' metrics side by side with A / B
 /// (`grip inspect on.mcap off.mcap`: what ARTE changed), then each one's
-/// preview events.
+/// preview events. A warning heads the table when the two are not
+/// comparable ([`comparability`]); each side's warnings follow it.
 pub fn compare(a: &Summary, b: &Summary) -> String {
     let mut o = String::new();
     let run = |s: &Summary, k: &str| {
@@ -938,63 +1470,118 @@ pub fn compare(a: &Summary, b: &Summary) -> String {
 B: {}",
         a.file, b.file
     );
+    let issues = comparability(a, b);
+    if !issues.is_empty() {
+        let _ = writeln!(
+            o,
+            "WARNING: A and B are not comparable as they stand; the ratios below compare unlike drives:"
+        );
+        for i in &issues {
+            let _ = writeln!(o, "  - {i}");
+        }
+    }
     let _ = writeln!(o, "{:<34} {:>12} {:>12} {:>8}", "", "A", "B", "A / B");
     for k in ["scenario", "controller", "arte", "seed"] {
         let _ = writeln!(o, "{k:<34} {:>12} {:>12}", run(a, k), run(b, k));
     }
-    let (Some(ma), Some(mb)) = (&a.metrics, &b.metrics) else {
-        let _ = writeln!(o, "(no ground-truth metrics in one of the logs)");
-        return o;
+    let _ = writeln!(
+        o,
+        "{:<34} {:>12} {:>12}",
+        "scenario file (sha256)",
+        short_sha(a.scenario_sha256.as_ref()),
+        short_sha(b.scenario_sha256.as_ref())
+    );
+    let _ = writeln!(
+        o,
+        "{:<34} {:>12} {:>12}",
+        "vehicle file (sha256)",
+        short_sha(a.vehicle_sha256.as_ref()),
+        short_sha(b.vehicle_sha256.as_ref())
+    );
+    let win = |s: &Summary| {
+        s.window
+            .map_or("-".to_owned(), |(t0, t1)| format!("{:.3}", t1 - t0))
     };
-    let rows: [(&str, f64, f64, &str); 8] = [
-        (
-            "slip deviation (1/T)∫|λ|dt",
-            ma.slip_deviation,
-            mb.slip_deviation,
-            "{:.4}",
-        ),
-        (
-            "mean acceleration (m/s²)",
-            ma.mean_accel,
-            mb.mean_accel,
-            "{:.3}",
-        ),
-        ("max torque (N m)", ma.max_torque, mb.max_torque, "{:.1}"),
-        (
-            "torque effort (N m)",
-            ma.torque_effort,
-            mb.torque_effort,
-            "{:.1}",
-        ),
-        ("distance (m)", ma.distance, mb.distance, "{:.2}"),
-        ("energy ∫Tω dt (J)", ma.energy, mb.energy, "{:.0}"),
-        (
-            "kinetic energy gained (J)",
-            ma.kinetic_energy_gain,
-            mb.kinetic_energy_gain,
-            "{:.0}",
-        ),
-        (
-            "final speed (km/h)",
-            a.speed_kmh.map_or(f64::NAN, |v| v.1),
-            b.speed_kmh.map_or(f64::NAN, |v| v.1),
-            "{:.2}",
-        ),
-    ];
-    for (name, x, y, fmt) in rows {
-        let f = |v: f64| match fmt {
-            "{:.4}" => format!("{v:.4}"),
-            "{:.3}" => format!("{v:.3}"),
-            "{:.2}" => format!("{v:.2}"),
-            "{:.1}" => format!("{v:.1}"),
-            _ => format!("{v:.0}"),
-        };
-        let ratio = if y != 0.0 && x.is_finite() && y.is_finite() {
-            format!("{:.3}x", x / y)
-        } else {
-            "-".to_owned()
-        };
-        let _ = writeln!(o, "{name:<34} {:>12} {:>12} {ratio:>8}", f(x), f(y));
+    let dur = |s: &Summary| {
+        s.scenario_duration_s
+            .map_or("-".to_owned(), |d| format!("{d:.3}"))
+    };
+    let _ = writeln!(
+        o,
+        "{:<34} {:>12} {:>12}",
+        "scenario window (s) / duration (s)",
+        format!("{} / {}", win(a), dur(a)),
+        format!("{} / {}", win(b), dur(b))
+    );
+    let missing: Vec<String> = [("A", a), ("B", b)]
+        .into_iter()
+        .filter(|(_, s)| s.metrics.is_none())
+        .map(|(tag, s)| {
+            format!(
+                "{tag} ({})",
+                s.window_status
+                    .no_window_reason()
+                    .unwrap_or("no scenario window")
+            )
+        })
+        .collect();
+    if let (Some(ma), Some(mb)) = (&a.metrics, &b.metrics) {
+        let rows: [(&str, f64, f64, &str); 8] = [
+            (
+                "slip deviation (1/T)∫|λ|dt",
+                ma.slip_deviation,
+                mb.slip_deviation,
+                "{:.4}",
+            ),
+            (
+                "mean acceleration (m/s²)",
+                ma.mean_accel,
+                mb.mean_accel,
+                "{:.3}",
+            ),
+            ("max torque (N m)", ma.max_torque, mb.max_torque, "{:.1}"),
+            (
+                "torque effort (N m)",
+                ma.torque_effort,
+                mb.torque_effort,
+                "{:.1}",
+            ),
+            ("distance (m)", ma.distance, mb.distance, "{:.2}"),
+            ("energy ∫Tω dt (J)", ma.energy, mb.energy, "{:.0}"),
+            (
+                "kinetic energy gained (J)",
+                ma.kinetic_energy_gain,
+                mb.kinetic_energy_gain,
+                "{:.0}",
+            ),
+            (
+                "final speed (km/h)",
+                a.speed_kmh.map_or(f64::NAN, |v| v.1),
+                b.speed_kmh.map_or(f64::NAN, |v| v.1),
+                "{:.2}",
+            ),
+        ];
+        for (name, x, y, fmt) in rows {
+            let f = |v: f64| match fmt {
+                "{:.4}" => format!("{v:.4}"),
+                "{:.3}" => format!("{v:.3}"),
+                "{:.2}" => format!("{v:.2}"),
+                "{:.1}" => format!("{v:.1}"),
+                _ => format!("{v:.0}"),
+            };
+            let ratio = if y != 0.0 && x.is_finite() && y.is_finite() {
+                format!("{:.3}x", x / y)
+            } else {
+                "-".to_owned()
+            };
+            let _ = writeln!(o, "{name:<34} {:>12} {:>12} {ratio:>8}", f(x), f(y));
+        }
+    } else {
+        let _ = writeln!(
+            o,
+            "(no ground-truth metrics in {}: nothing to compare)",
+            missing.join(" and ")
+        );
     }
     let safe = |s: &Summary| {
         s.safe_cycles_in_window
@@ -1007,12 +1594,51 @@ B: {}",
         safe(a),
         safe(b)
     );
+    let misses = |s: &Summary| {
+        s.timing
+            .in_scenario
+            .as_ref()
+            .map_or("-".to_owned(), |w| w.deadline_misses.to_string())
+    };
     let _ = writeln!(
         o,
-        "vehicle A: {}
-vehicle B: {}",
-        a.vehicle, b.vehicle
+        "{:<34} {:>12} {:>12}",
+        "deadline misses in the scenario",
+        misses(a),
+        misses(b)
     );
+    let acc = |s: &Summary| {
+        let x = s.arte.accuracy();
+        if x.is_finite() {
+            format!("{:.1}", 100.0 * x)
+        } else {
+            "-".to_owned()
+        }
+    };
+    let _ = writeln!(
+        o,
+        "{:<34} {:>12} {:>12}",
+        "ARTE accuracy in the scenario (%)",
+        acc(a),
+        acc(b)
+    );
+    let _ = writeln!(
+        o,
+        "vehicle A: {} (sha256 {})
+vehicle B: {} (sha256 {})",
+        a.vehicle,
+        short_sha(a.vehicle_sha256.as_ref()),
+        b.vehicle,
+        short_sha(b.vehicle_sha256.as_ref())
+    );
+    for (tag, s) in [("A", a), ("B", b)] {
+        if !s.warnings.is_empty() {
+            let _ = writeln!(o, "warnings {tag}:");
+            for w in &s.warnings {
+                let _ = writeln!(o, "  {w}");
+            }
+        }
+    }
     for (tag, s) in [("A", a), ("B", b)] {
         if let Some(p) = &s.preview {
             let _ = writeln!(

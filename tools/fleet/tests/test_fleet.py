@@ -71,7 +71,12 @@ def test_summarize_gives_a_row_per_log_and_names_the_bad_ones(summary: tuple[dic
     assert good["simulated"].all()
     assert set(good["controller"]) == {"mfc", "mtte"}
     assert (good["cycles"] > 2000).all()
-    assert (good["deadline_misses"] == 0).all()
+    assert (good["deadline_misses_in_scenario"] == 0).all()
+    assert (good["deadline_misses_whole_log"] == 0).all()
+    # the scenario fully covered, the loop never in the safe state during it
+    assert (good["scenario_window"] == "complete").all()
+    assert (good["safe_state_entries_in_scenario"] == 0).all()
+    assert good["arte_accuracy_whole_log"].between(0.5, 1.0).all()
     assert good["arte_accuracy"].between(0.5, 1.0).all()
     assert (good["distance_m"] > 5).all()
     for what in ("confusion", "speed_bands"):

@@ -25,7 +25,13 @@ def _f(x: Any) -> float:
 
 
 def drive_rows(objs: list[dict[str, Any]]) -> pd.DataFrame:
-    """One row per log (bad ones too, with their status and reason)."""
+    """One row per log (bad ones too, with their status and reason). The
+    loop's figures come twice: during the scenario (``_in_scenario``, what
+    to ask "which drives missed deadlines or entered the safe state") and
+    over the whole log (``_whole_log``: start-up and the stop included; a
+    ``grip drive`` log's stop enters the safe state once, when plant-sim has
+    ended). ARTE's are the scenario's, its whole-log accuracy labelled
+    ``_whole_log``."""
     roads = sorted({r for o in objs for r in (o.get("arte_per_road") or {})})
     rows = []
     for o in objs:
@@ -45,6 +51,8 @@ def drive_rows(objs: list[dict[str, Any]]) -> pd.DataFrame:
             "revision": o.get("revision"),
             "version": o.get("version"),
             "cycles": o.get("cycles"),
+            "scenario_window": o.get("scenario_window"),
+            "scenario_duration_s": _f(o.get("scenario_duration_s")),
             "scenario_s": _f(o.get("scenario_s")),
             "speed_kmh_start": _f(o.get("speed_kmh_start")),
             "speed_kmh_end": _f(o.get("speed_kmh_end")),
@@ -57,13 +65,21 @@ def drive_rows(objs: list[dict[str, Any]]) -> pd.DataFrame:
                 "arte_judged": o.get("arte_judged"),
                 "arte_correct": o.get("arte_correct"),
                 "arte_accuracy": _f(o.get("arte_accuracy")),
+                "arte_judged_whole_log": o.get("arte_judged_whole_log"),
+                "arte_correct_whole_log": o.get("arte_correct_whole_log"),
+                "arte_accuracy_whole_log": _f(o.get("arte_accuracy_whole_log")),
                 "changes_detected": o.get("changes_detected"),
                 "changes_missed": o.get("changes_missed"),
                 "mean_delay_s": _f(o.get("mean_delay_s")),
                 "max_delay_s": _f(o.get("max_delay_s")),
-                "deadline_misses": o.get("deadline_misses"),
-                "safe_state_entries": o.get("safe_state_entries"),
+                "deadline_misses_in_scenario": o.get("deadline_misses_in_scenario"),
+                "wakeup_p99_ns_in_scenario": o.get("wakeup_p99_ns_in_scenario"),
+                "wakeup_max_ns_in_scenario": o.get("wakeup_max_ns_in_scenario"),
+                "safe_state_entries_in_scenario": o.get("safe_state_entries_in_scenario"),
                 "safe_cycles_in_scenario": o.get("safe_cycles_in_scenario"),
+                "deadline_misses_whole_log": o.get("deadline_misses"),
+                "wakeup_max_ns_whole_log": o.get("wakeup_max_ns"),
+                "safe_state_entries_whole_log": o.get("safe_state_entries"),
                 "e2e_faults": e2e.get("total"),
                 "e2e_faults_in_scenario": e2e_in.get("total"),
                 "command_timeouts": o.get("command_timeouts"),
@@ -78,7 +94,7 @@ def drive_rows(objs: list[dict[str, Any]]) -> pd.DataFrame:
         rows.append(row)
     df = pd.DataFrame(rows)
     for c in df.columns:
-        if c.startswith(("arte_judged", "arte_correct", "cycles", "deadline", "safe_", "e2e", "command_", "changes_", "arte_estimates")):
+        if c.startswith(("arte_judged", "arte_correct", "cycles", "deadline", "wakeup_", "safe_", "e2e", "command_", "changes_", "arte_estimates")):
             df[c] = df[c].astype("Int64")
     return df
 

@@ -42,8 +42,8 @@ pub struct Args {
 }
 
 /// The summary of the log at `path`, with the vehicle the drive ran with
-/// and the configuration directory's road catalogue (for the preview
-/// report; without it, a warning and no preview report).
+/// and its road catalogue (for the preview report: the log's attached
+/// `roads.toml`, else the configuration directory's with a warning).
 fn summary_of(
     ctx: &Ctx,
     path: &std::path::Path,
@@ -53,14 +53,9 @@ fn summary_of(
     for w in warnings {
         eprintln!("{w}");
     }
-    let roads = match grip_config::ConfigDir::new(&ctx.config_dir).roads() {
-        Ok(r) => Some(r),
-        Err(e) => {
-            eprintln!("warning: {e}; no preview report");
-            None
-        }
-    };
-    let s = summary::summarize(&log, &vehicle, &from, roads.as_ref());
+    // the log's own road catalogue (its warnings go into the summary)
+    let roads = log.road_catalogue(&ctx.config_dir);
+    let s = summary::summarize_with_roads(&log, &vehicle, &from, &roads);
     Ok((log, vehicle.r, s))
 }
 
@@ -109,9 +104,6 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         "loop wake-up latency histogram:\n{}",
         summary::latency_histogram(&s.timing.wakeup_ns)
     );
-    println!(
-        "road timeline (ground truth vs the latest ARTE estimate, every 0.1 s; t from the scenario start, negative while plant-sim held the vehicle):"
-    );
     println!("{}", road_timeline(&log));
     if let Some(dir) = &args.csv {
         for p in export::write_csv(&log, dir)? {
@@ -119,55 +111,141 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         }
     }
     if let Some(dir) = &args.plot {
-        let title = format!(
-            "grip drive: {}, ARTE {}, scenario {}",
-            log.run
-                .get("controller")
-                .map_or("?", String::as_str)
-                .to_uppercase(),
-            log.run.get("arte").map_or("?", String::as_str),
-            log.run.get("scenario").map_or("?", String::as_str)
-        );
-        for p in plot::write_plots(&log, dir, r, &title)? {
+        for p in plot::write_plots(&log, dir, r)? {
             println!("wrote {}", p.display());
         }
     }
     Ok(())
 }
 
-/// One line per 0.1 s: true road and the latest ARTE class published by then.
+/// The road timeline: a header, then one line per 0.1 s (on the grid of
+/// the scenario start when the log shows it, else of the first message):
+/// the road under the driven wheel, the road at the microphone, and the
+/// latest ARTE class published by then, marked when it is not the road at
+/// the microphone (what ARTE hears; ahead of the wheel on a front-mic car).
 pub fn road_timeline(log: &DriveLog) -> String {
-    let Some(first) = log.truth.first() else {
-        return "  (no ground truth in the log)".into();
+    let tb = export::TimeBase::of(log);
+    let (Some(first), Some(last)) = (log.truth.first(), log.truth.last()) else {
+        return "road timeline: none (no ground truth in the log)\n".into();
     };
-    let last = log.truth.last().map_or(first.stamp_ns, |g| g.stamp_ns);
-    let origin = summary::scenario_start(&log.truth)
-        .and_then(|i| log.truth.get(i))
-        .map_or(first.stamp_ns, |g| g.stamp_ns);
-    let mut out = String::new();
-    let step = 100_000_000u64;
-    let mut t = first.stamp_ns;
-    let mut k_est = 0usize;
-    let mut latest: Option<String> = None;
-    while t <= last {
-        while k_est < log.roads.len() && log.roads[k_est].stamp_ns <= t {
-            let e = &log.roads[k_est];
-            latest = (e.class_index != grip_msgs::NO_CLASS)
-                .then(|| e.class_name().unwrap_or("?").to_owned());
-            k_est += 1;
+    let mut out = format!(
+        "road timeline (every 0.1 s; {}):\n  wheel: the road under the driven wheel; microphone: the road at the microphone, which ARTE hears and is judged against; ARTE: the latest estimate published by then (\"late\": right for the audio frame it heard, but the microphone has reached another road since)\n",
+        if tb.scenario_ns.is_some() {
+            "t from the scenario start, negative while plant-sim held the vehicle and during the pre-roll if any"
+        } else {
+            "t from the first message of the log: the ground truth does not show the scenario start"
         }
-        let truth = summary::truth_at(&log.truth, t)
-            .and_then(|g| g.road_name().map(str::to_owned))
-            .unwrap_or_else(|| "?".into());
-        let est = latest.clone().unwrap_or_else(|| "-".into());
-        let mark = if est == truth { "" } else { "  <- differs" };
-        out.push_str(&format!(
-            "  {:>7.1} s  truth {:<10} ARTE {:<10}{mark}\n",
-            (t as i128 - origin as i128) as f64 * 1e-9,
-            truth,
-            est
-        ));
-        t += step;
+    );
+    out.push_str(&format!(
+        "  {:>7}    {:<12} {:<12} ARTE\n",
+        "t", "wheel", "microphone"
+    ));
+    const STEP: i128 = 100_000_000;
+    let origin = i128::from(tb.origin_ns());
+    let name = |n: Option<&str>| n.unwrap_or("?").to_owned();
+    // the first grid time at or after the first sample
+    let mut k = (i128::from(first.stamp_ns) - origin).div_euclid(STEP);
+    if origin + k * STEP < i128::from(first.stamp_ns) {
+        k += 1;
+    }
+    let mut next_est = 0usize;
+    let mut latest: Option<&grip_msgs::RoadEstimate> = None;
+    while origin + k * STEP <= i128::from(last.stamp_ns) {
+        let t = u64::try_from(origin + k * STEP).unwrap_or(0);
+        while let Some(e) = log.roads.get(next_est)
+            && e.stamp_ns <= t
+        {
+            latest = Some(e);
+            next_est += 1;
+        }
+        let g = summary::truth_at(&log.truth, t);
+        let wheel = name(g.and_then(|g| g.road_name()));
+        let mic = name(g.and_then(|g| g.mic_road_name()));
+        let est = latest
+            .filter(|e| e.class_index != grip_msgs::NO_CLASS)
+            .map(|e| name(e.class_name()));
+        let mark = match (&est, latest) {
+            (Some(est), Some(e)) if *est != mic => {
+                // what the microphone heard during the estimate's frame
+                let mid = e.frame_t0_ns / 2 + e.frame_t1_ns / 2;
+                let heard = summary::truth_at(&log.truth, mid).map(|g| name(g.mic_road_name()));
+                if heard.as_deref() == Some(est.as_str()) {
+                    "  <- differs (late)"
+                } else {
+                    "  <- differs"
+                }
+            }
+            _ => "",
+        };
+        let line = format!(
+            "  {:>7.1} s  {:<12} {:<12} {:<12}{mark}",
+            (k * STEP) as f64 * 1e-9,
+            wheel,
+            mic,
+            est.as_deref().unwrap_or("-"),
+        );
+        out.push_str(line.trim_end());
+        out.push('\n');
+        k += 1;
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::drive::export::test_log;
+
+    /// The row of time `t` ("0.3 s") of a road timeline.
+    fn row<'a>(timeline: &'a str, t: &str) -> &'a str {
+        timeline
+            .lines()
+            .find(|l| l.trim_start().starts_with(&format!("{t} s ")))
+            .unwrap_or_else(|| panic!("no row at {t} s in\n{timeline}"))
+    }
+
+    /// ARTE is judged against the road at the microphone: on a front-mic
+    /// car the microphone reaches snow 2 m before the driven wheel, and a
+    /// right estimate of snow while the wheel is still on asphalt is not
+    /// marked; a wrong one (asphalt while the microphone hears snow, the
+    /// wheel still on asphalt) is.
+    #[test]
+    fn the_timeline_judges_arte_by_the_road_at_the_microphone() {
+        let log = test_log::drive();
+        let tl = super::road_timeline(&log);
+        // 0.0 s: wheel on asphalt, microphone on snow, ARTE says snow
+        let r = row(&tl, "0.0");
+        assert!(r.contains("snow"), "{r}");
+        assert!(!r.contains("differs"), "a right estimate marked: {r}\n{tl}");
+        // 0.3 s: the wrong estimate (published at 0.23 s), wheel on asphalt
+        let r = row(&tl, "0.3");
+        assert!(r.contains("asphalt"), "{r}");
+        assert!(
+            r.contains("<- differs") && !r.contains("late"),
+            "a wrong estimate not marked: {r}\n{tl}"
+        );
+        // both roads are shown: the wheel on asphalt, the microphone on snow
+        let cols: Vec<&str> = r.split_whitespace().collect();
+        assert_eq!(
+            &cols[..5],
+            ["0.3", "s", "asphalt", "snow", "asphalt"],
+            "{r}"
+        );
+        // -0.5 s: the microphone has just reached snow; the latest estimate
+        // heard asphalt, rightly: late, not wrong
+        let r = row(&tl, "-0.5");
+        assert!(r.contains("<- differs (late)"), "{r}\n{tl}");
+        // the rows are on the grid of the scenario start, which the header
+        // names
+        assert!(tl.contains("t from the scenario start"), "{tl}");
+        assert!(
+            tl.lines().any(|l| l.trim_start().starts_with("-1.2 s ")),
+            "{tl}"
+        );
+    }
+
+    #[test]
+    fn the_timeline_without_ground_truth_says_so() {
+        let tl = super::road_timeline(&test_log::drive_without_truth());
+        assert!(tl.contains("no ground truth"), "{tl}");
+    }
 }

@@ -194,7 +194,7 @@ fn today() -> String {
 }
 
 /// `YYYY-MM-DD` (UTC) of a Unix time, by H. Hinnant's `civil_from_days`.
-fn civil_date(secs: i64) -> String {
+pub(crate) fn civil_date(secs: i64) -> String {
     let z = secs.div_euclid(86_400) + 719_468;
     let era = z.div_euclid(146_097);
     let doe = z - era * 146_097;

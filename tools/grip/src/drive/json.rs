@@ -1,9 +1,12 @@
 //! `grip inspect --json`: one JSON object per drive log, everything a fleet
 //! table needs, computed by the same summary `grip inspect` prints
-//! ([`grip_drive::summary::summarize`]): run metadata, metrics, ARTE
-//! accuracy (per road, per speed band, the confusion counts), road-change
-//! detection delays, deadline misses, safe-state entries, E2E faults and
-//! the inverter's command timeouts. Counts are given as counts (judged,
+//! ([`grip_drive::summary::summarize`]): run metadata, the scenario window
+//! and how much of the scenario it covers, metrics, ARTE accuracy (per
+//! road, per speed band, the confusion counts; during the scenario, and
+//! over the whole log as `_whole_log`), road-change detection delays,
+//! deadline misses, wake-up latency and safe-state entries (over the whole
+//! log, and during the scenario as `_in_scenario`), E2E faults and the
+//! inverter's command timeouts. Counts are given as counts (judged,
 //! correct) so that a fleet can add them up without re-implementing any
 //! of this; NaN and missing figures are `null`.
 
@@ -11,7 +14,7 @@ use std::path::Path;
 
 use grip_drive::{DriveLog, summary};
 use grip_io::can::protocol::InverterMsg;
-use grip_msgs::{CycleRecord, E2eFaults, can_dir};
+use grip_msgs::{E2eFaults, can_dir};
 use serde_json::{Value, json};
 
 /// A finite number, else `null`.
@@ -29,15 +32,6 @@ fn faults(f: &E2eFaults) -> Value {
         "timeout": f.timeout,
         "total": f.total(),
     })
-}
-
-/// Times the loop went from active into the safe state (a log that starts
-/// in the safe state does not count its start).
-pub fn safe_state_entries(cycles: &[CycleRecord]) -> u64 {
-    cycles
-        .windows(2)
-        .filter(|w| w[0].safe_state == 0 && w[1].safe_state != 0)
-        .count() as u64
 }
 
 /// Command-timeout episodes of the inverter, as its `MotorStatus` frames on
@@ -96,8 +90,8 @@ pub fn log_json(path: &Path, config_dir: &Path) -> Value {
         }
     };
     let (vehicle, from, warnings) = grip_drive::vehicle_for(&log, config_dir);
-    let roads = grip_config::ConfigDir::new(config_dir).roads().ok();
-    let s = summary::summarize(&log, &vehicle, &from, roads.as_ref());
+    let roads = log.road_catalogue(config_dir);
+    let s = summary::summarize_with_roads(&log, &vehicle, &from, &roads);
     summary_json(path, &log, &s, &warnings)
 }
 
@@ -173,6 +167,7 @@ pub fn summary_json(
     });
     let mut warnings: Vec<String> = vehicle_warnings.to_vec();
     warnings.extend(s.warnings.iter().cloned());
+    let in_scn = s.timing.in_scenario.as_ref();
     json!({
         "file": file_name(path),
         "path": path.display().to_string(),
@@ -187,7 +182,12 @@ pub fn summary_json(
         "revision": get("git_revision"),
         "version": get("version"),
         "vehicle": s.vehicle,
+        "vehicle_sha256": s.vehicle_sha256,
+        "scenario_sha256": s.scenario_sha256,
+        "roads_from": s.roads_from,
         "cycles": s.timing.cycles,
+        "scenario_window": s.window_status.as_str(),
+        "scenario_duration_s": s.scenario_duration_s.map_or(Value::Null, num),
         "scenario_s": s.window.map_or(Value::Null, |(a, b)| num(b - a)),
         "speed_kmh_start": s.speed_kmh.map_or(Value::Null, |v| num(v.0)),
         "speed_kmh_end": s.speed_kmh.map_or(Value::Null, |v| num(v.1)),
@@ -196,6 +196,9 @@ pub fn summary_json(
         "arte_judged": a.judged,
         "arte_correct": a.correct,
         "arte_accuracy": num(a.accuracy()),
+        "arte_judged_whole_log": a.log_judged,
+        "arte_correct_whole_log": a.log_correct,
+        "arte_accuracy_whole_log": num(a.accuracy_whole_log()),
         "arte_used_cycles": a.used_cycles,
         "arte_active_cycles": a.active_cycles,
         "arte_per_road": per_road,
@@ -208,10 +211,15 @@ pub fn summary_json(
         "mean_delay_s": mean_delay,
         "max_delay_s": max_delay,
         "deadline_misses": s.timing.deadline_misses,
+        "deadline_misses_in_scenario": in_scn.map(|w| w.deadline_misses),
         "wakeup_p99_ns": s.timing.wakeup.p99,
+        "wakeup_max_ns": s.timing.wakeup.max,
+        "wakeup_p99_ns_in_scenario": in_scn.map(|w| w.wakeup.p99),
+        "wakeup_max_ns_in_scenario": in_scn.map(|w| w.wakeup.max),
         "safe_cycles": s.timing.safe_cycles,
         "safe_cycles_in_scenario": s.safe_cycles_in_window,
-        "safe_state_entries": safe_state_entries(&log.cycles),
+        "safe_state_entries": s.timing.safe_entries,
+        "safe_state_entries_in_scenario": in_scn.map(|w| w.safe_entries),
         "e2e_faults": faults(&s.can.faults),
         "e2e_faults_in_scenario": s.can.faults_in_window.as_ref().map_or(Value::Null, faults),
         "e2e_rejected_frames": s.can.rejected,

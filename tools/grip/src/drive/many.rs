@@ -7,7 +7,8 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
-use grip_drive::{DriveLog, summarize};
+use grip_drive::DriveLog;
+use grip_drive::summary::summarize_with_roads;
 
 use crate::cmd::Ctx;
 
@@ -38,8 +39,9 @@ pub fn bar(n: usize, what: &str) -> indicatif::ProgressBar {
     b
 }
 
-/// The table's columns.
-pub const COLUMNS: [&str; 22] = [
+/// The table's columns (the loop's, the E2E and the ARTE figures are those
+/// of the scenario window; `_whole_log` ones cover the whole log).
+pub const COLUMNS: [&str; 27] = [
     "file",
     "status",
     "reason",
@@ -59,9 +61,14 @@ pub const COLUMNS: [&str; 22] = [
     "changes_missed",
     "mean_delay_s",
     "max_delay_s",
-    "deadline_misses",
+    "deadline_misses_in_scenario",
     "safe_cycles_in_scenario",
     "e2e_faults_in_scenario",
+    "scenario_window",
+    "safe_state_entries_in_scenario",
+    "wakeup_max_ns_in_scenario",
+    "deadline_misses_whole_log",
+    "arte_accuracy_whole_log",
 ];
 
 fn num(x: f64) -> String {
@@ -89,8 +96,8 @@ pub fn row(path: &Path, config_dir: &Path) -> (Vec<String>, bool) {
         }
     };
     let (vehicle, from, _) = grip_drive::vehicle_for(&log, config_dir);
-    let roads = grip_config::ConfigDir::new(config_dir).roads().ok();
-    let s = summarize(&log, &vehicle, &from, roads.as_ref());
+    let roads = log.road_catalogue(config_dir);
+    let s = summarize_with_roads(&log, &vehicle, &from, &roads);
     let mut good = true;
     if let Some(t) = &log.report.truncated {
         r[1] = "incomplete".into();
@@ -129,7 +136,8 @@ pub fn row(path: &Path, config_dir: &Path) -> (Vec<String>, bool) {
         r[17] = num(delays.iter().sum::<f64>() / delays.len() as f64);
         r[18] = num(delays.iter().copied().fold(0.0, f64::max));
     }
-    r[19] = s.timing.deadline_misses.to_string();
+    let in_scn = s.timing.in_scenario.as_ref();
+    r[19] = in_scn.map_or(String::new(), |w| w.deadline_misses.to_string());
     r[20] = s
         .safe_cycles_in_window
         .map_or(String::new(), |n| n.to_string());
@@ -137,6 +145,11 @@ pub fn row(path: &Path, config_dir: &Path) -> (Vec<String>, bool) {
         .can
         .faults_in_window
         .map_or(String::new(), |f| f.total().to_string());
+    r[22] = s.window_status.as_str().to_owned();
+    r[23] = in_scn.map_or(String::new(), |w| w.safe_entries.to_string());
+    r[24] = in_scn.map_or(String::new(), |w| w.wakeup.max.to_string());
+    r[25] = s.timing.deadline_misses.to_string();
+    r[26] = num(s.arte.accuracy_whole_log());
     (r, good)
 }
 
@@ -167,7 +180,7 @@ pub fn inspect_dir(ctx: &Ctx, dir: &Path, csv: Option<&Path>, strict: bool) -> a
     let mut text = String::new();
     let _ = writeln!(
         text,
-        "{:<28} {:<11} {:>8} {:>10} {:>9} {:>9} {:>8} {:>9} {:>7} {:>6}",
+        "{:<28} {:<11} {:>8} {:>10} {:>9} {:>9} {:>8} {:>9} {:>7} {:>6}  window",
         "file",
         "status",
         "cycles",
@@ -182,10 +195,14 @@ pub fn inspect_dir(ctx: &Ctx, dir: &Path, csv: Option<&Path>, strict: bool) -> a
     for r in &rows {
         let _ = writeln!(
             text,
-            "{:<28} {:<11} {:>8} {:>10.10} {:>9.9} {:>9.9} {:>8.8} {:>9.9} {:>7} {:>6}",
-            r[0], r[1], r[6], r[8], r[10], r[11], r[14], r[17], r[19], r[21]
+            "{:<28} {:<11} {:>8} {:>10.10} {:>9.9} {:>9.9} {:>8.8} {:>9.9} {:>7} {:>6}  {}",
+            r[0], r[1], r[6], r[8], r[10], r[11], r[14], r[17], r[19], r[21], r[22]
         );
     }
+    let _ = writeln!(
+        text,
+        "(metrics, arte_acc, misses and faults: during the scenario window; window: how much of the scenario the log covers)"
+    );
     print!("{text}");
     println!(
         "{} logs, {} bad{}",

@@ -1,69 +1,167 @@
-//! `grip inspect --plot DIR`: `drive.png` (speeds, slip, torque over the
-//! true-road bands, and a strip of ARTE's estimate, in the manner of the
-//! offline simulator's figures) and `timing.png` (wake-up latency histogram
-//! of the control loop).
+//! `grip inspect --plot DIR`: `drive.png` (speeds, slip and torque over the
+//! bands of the road under the driven wheel, then three strips: the road at
+//! the microphone, ARTE's estimate and the road under the wheel) and
+//! `timing.png` (wake-up latency histogram of the control loop).
+//!
+//! Time runs from the scenario start (marked) when the log shows it, else
+//! from the first message; the x range is that of the data the log holds
+//! (ground truth and cycle records), so a log without ground truth (from
+//! the car) still shows the command. The title names the log, its run and
+//! when it was recorded (or generated).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::anyhow;
 use plotters::prelude::*;
 
-use crate::plot::{
-    Area, Band, Line, PlotResult as Res, estimate_strip, init_fonts, road_colour, road_panel, runs,
-};
+use super::export::TimeBase;
+use crate::plot::{Area, Band, PlotResult as Res, init_fonts, road_colour, runs};
 use grip_drive::DriveLog;
 use grip_drive::summary::Percentiles;
 
 const W: u32 = 1600;
+const TITLE_H: u32 = 80;
 const PANEL_H: u32 = 330;
-const STRIP_H: u32 = 80;
-const TITLE_H: u32 = 50;
+const STRIPS_H: u32 = 180;
+/// Width of the key column at the right of every panel (outside the data).
+const LEGEND_W: u32 = 210;
+/// Width of the y labels (and of the strips' row names).
+const LABEL_W: u32 = 100;
 
+const ROW_MIC: f64 = 2.0;
+const ROW_ARTE: f64 = 1.0;
+const ROW_WHEEL: f64 = 0.0;
+
+/// The drive's series, times on [`TimeBase::axis`].
 struct Series {
+    tb: TimeBase,
+    /// x range of the figure.
+    span: (f64, f64),
+    /// Ground truth.
     t: Vec<f64>,
     v: Vec<f64>,
     r_omega: Vec<f64>,
     lambda: Vec<f64>,
     torque: Vec<f64>,
-    road: Vec<String>,
+    wheel: Vec<String>,
+    mic: Vec<String>,
+    /// Cycle records.
     ct: Vec<f64>,
     demand: Vec<f64>,
     cmd: Vec<f64>,
+    meas_torque: Vec<f64>,
+    meas_r_omega: Vec<f64>,
+    /// Cycles with a valid measured vehicle speed, and that speed.
+    cvt: Vec<f64>,
+    meas_v: Vec<f64>,
+    /// ARTE: (frame start, publication, class name or "").
     est: Vec<(f64, f64, String)>,
+    /// Every road name in the figure, sorted (the colour palette's order).
+    names: Vec<String>,
+}
+
+/// The smallest and largest of `ns`.
+fn lohi(ns: impl Iterator<Item = u64>) -> Option<(u64, u64)> {
+    ns.fold(None, |acc, n| {
+        Some(acc.map_or((n, n), |(a, b): (u64, u64)| (a.min(n), b.max(n))))
+    })
+}
+
+/// The x range of the figure on `tb`'s axis: from the first to the last
+/// ground-truth sample or cycle record, else estimate or CAN frame.
+fn x_span(log: &DriveLog, tb: &TimeBase) -> (f64, f64) {
+    let main = log
+        .truth
+        .iter()
+        .map(|g| g.stamp_ns)
+        .chain(log.cycles.iter().map(|c| c.stamp_ns));
+    let other = log
+        .roads
+        .iter()
+        .map(|e| e.stamp_ns)
+        .chain(log.can.iter().map(|c| c.stamp_ns));
+    let Some((lo, hi)) = lohi(main).or_else(|| lohi(other)) else {
+        return (0.0, 1.0);
+    };
+    let (lo, hi) = (tb.axis(lo), tb.axis(hi));
+    (lo, hi.max(lo + 1e-3))
 }
 
 fn series(log: &DriveLog, r: f64) -> Series {
-    let t0 = log.truth.first().map_or(0, |g| g.stamp_ns);
-    let rel = |ns: u64| (ns as i128 - t0 as i128) as f64 * 1e-9;
+    let tb = TimeBase::of(log);
+    let x = |ns: u64| tb.axis(ns);
+    let name = |n: Option<&str>| n.unwrap_or("?").to_owned();
+    let valid_v: Vec<_> = log.cycles.iter().filter(|c| c.v_valid != 0).collect();
+    let est: Vec<(f64, f64, String)> = log
+        .roads
+        .iter()
+        .map(|e| {
+            (
+                x(e.frame_t0_ns),
+                x(e.stamp_ns),
+                if e.class_index == grip_msgs::NO_CLASS {
+                    String::new()
+                } else {
+                    name(e.class_name())
+                },
+            )
+        })
+        .collect();
+    let wheel: Vec<String> = log.truth.iter().map(|g| name(g.road_name())).collect();
+    let mic: Vec<String> = log.truth.iter().map(|g| name(g.mic_road_name())).collect();
+    let mut names: Vec<String> = wheel
+        .iter()
+        .chain(&mic)
+        .chain(est.iter().map(|e| &e.2))
+        .filter(|n| !n.is_empty())
+        .cloned()
+        .collect();
+    names.sort();
+    names.dedup();
     Series {
-        t: log.truth.iter().map(|g| rel(g.stamp_ns)).collect(),
+        tb,
+        span: x_span(log, &tb),
+        t: log.truth.iter().map(|g| x(g.stamp_ns)).collect(),
         v: log.truth.iter().map(|g| g.v).collect(),
         r_omega: log.truth.iter().map(|g| r * g.omega).collect(),
         lambda: log.truth.iter().map(|g| g.lambda).collect(),
         torque: log.truth.iter().map(|g| g.torque).collect(),
-        road: log
-            .truth
-            .iter()
-            .map(|g| g.road_name().unwrap_or("?").to_owned())
-            .collect(),
-        ct: log.cycles.iter().map(|c| rel(c.stamp_ns)).collect(),
+        wheel,
+        mic,
+        ct: log.cycles.iter().map(|c| x(c.stamp_ns)).collect(),
         demand: log.cycles.iter().map(|c| c.demand).collect(),
         cmd: log.cycles.iter().map(|c| c.torque_cmd).collect(),
-        est: log
-            .roads
-            .iter()
-            .map(|e| {
-                (
-                    rel(e.frame_t0_ns),
-                    rel(e.stamp_ns),
-                    if e.class_index == grip_msgs::NO_CLASS {
-                        String::new()
-                    } else {
-                        e.class_name().unwrap_or("?").to_owned()
-                    },
-                )
+        meas_torque: log.cycles.iter().map(|c| c.torque).collect(),
+        meas_r_omega: log.cycles.iter().map(|c| r * c.omega).collect(),
+        cvt: valid_v.iter().map(|c| x(c.stamp_ns)).collect(),
+        meas_v: valid_v.iter().map(|c| c.v).collect(),
+        est,
+        names,
+    }
+}
+
+impl Series {
+    fn has_truth(&self) -> bool {
+        !self.t.is_empty()
+    }
+
+    fn colour(&self, road: &str) -> RGBColor {
+        let idx = self.names.iter().position(|n| n == road).unwrap_or(0);
+        road_colour(road, idx)
+    }
+
+    /// Bands of a per-truth-sample road sequence.
+    fn bands(&self, roads: &[String]) -> Vec<Band> {
+        let t_end = self.t.last().copied().unwrap_or(self.span.1);
+        runs(roads)
+            .into_iter()
+            .map(|(a, b, road)| Band {
+                t0: self.t[a],
+                t1: self.t.get(b).copied().unwrap_or(t_end),
+                colour: self.colour(&road),
+                label: road,
             })
-            .collect(),
+            .collect()
     }
 }
 
@@ -80,123 +178,385 @@ fn range(xs: impl Iterator<Item = f64>) -> (f64, f64) {
     (lo - 0.05 * span, hi + 0.08 * span)
 }
 
-/// The true-road bands of `s` (colours by name, else by sorted position).
-fn bands(s: &Series) -> Vec<Band> {
-    let t_end = s.t.last().copied().unwrap_or(1.0);
-    let mut names = s.road.clone();
-    names.sort();
-    names.dedup();
-    runs(&s.road)
-        .into_iter()
-        .map(|(a, b, road)| {
-            let idx = names.iter().position(|n| *n == road).unwrap_or(0);
-            Band {
-                t0: s.t[a],
-                t1: s.t.get(b).copied().unwrap_or(t_end),
-                colour: road_colour(&road, idx),
-                label: road,
-            }
-        })
-        .collect()
+/// A key entry at the right of a panel.
+enum Key<'a> {
+    Line(&'a str, RGBColor),
+    Text(&'a str),
 }
 
-/// A panel of `s` with its road bands and `lines` (label, times, values, colour).
+/// The key column `area` (outside the data): one entry per row.
+fn key(area: &Area<'_>, top: i32, entries: &[Key<'_>]) -> Res {
+    let font = ("sans-serif", 15).into_font().color(&BLACK);
+    for (i, e) in entries.iter().enumerate() {
+        let y = top + 22 * i as i32;
+        match e {
+            Key::Line(label, c) => {
+                area.draw(&PathElement::new(
+                    vec![(10, y + 8), (38, y + 8)],
+                    c.stroke_width(3),
+                ))?;
+                area.draw_text(label, &font, (46, y))?;
+            }
+            Key::Text(t) => area.draw_text(t, &font, (10, y))?,
+        }
+    }
+    Ok(())
+}
+
+/// A panel of `s`: the bands of the road under the driven wheel drawn pale
+/// behind (named if `label_roads`), the scenario start marked, `lines`
+/// (label, times, values, colour) on top, their key at the right, and
+/// `note` written across the panel (e.g. that the data is missing).
 fn panel(
     area: &Area<'_>,
     s: &Series,
     caption: &str,
-    y: (f64, f64),
+    (y_lo, y_hi): (f64, f64),
     label_roads: bool,
     lines: &[(&str, &[f64], &[f64], RGBColor)],
+    note: Option<&str>,
 ) -> Res {
-    let lines: Vec<Line<'_>> = lines
+    let (plot, side) = area.split_horizontally(W - LEGEND_W);
+    let (t_lo, t_hi) = s.span;
+    let span = t_hi - t_lo;
+    let mut chart = ChartBuilder::on(&plot)
+        .margin(8)
+        .caption(caption, ("sans-serif", 20))
+        .x_label_area_size(34)
+        .y_label_area_size(LABEL_W)
+        .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?;
+    for b in s.bands(&s.wheel) {
+        let (b0, b1) = (b.t0.max(t_lo), b.t1.min(t_hi));
+        if b1 <= b0 {
+            continue;
+        }
+        chart.draw_series(std::iter::once(Rectangle::new(
+            [(b0, y_lo), (b1, y_hi)],
+            b.colour.mix(0.25).filled(),
+        )))?;
+        if label_roads {
+            chart.draw_series(std::iter::once(Text::new(
+                b.label.clone(),
+                (b0 + 0.005 * span, y_hi - 0.03 * (y_hi - y_lo)),
+                ("sans-serif", 15).into_font().color(&BLACK),
+            )))?;
+        }
+    }
+    if s.tb.scenario_ns.is_some() && (t_lo..=t_hi).contains(&0.0) {
+        chart.draw_series(LineSeries::new(
+            [(0.0, y_lo), (0.0, y_hi)],
+            BLACK.mix(0.7).stroke_width(1),
+        ))?;
+        if label_roads {
+            chart.draw_series(std::iter::once(Text::new(
+                "scenario start",
+                (0.005 * span, y_hi - 0.12 * (y_hi - y_lo)),
+                ("sans-serif", 15).into_font().color(&BLACK),
+            )))?;
+        }
+    }
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(s.tb.axis_label())
+        .label_style(("sans-serif", 15))
+        .axis_desc_style(("sans-serif", 15))
+        .draw()?;
+    for &(_, ts, ys, c) in lines {
+        let step = (ts.len() / 3000).max(1);
+        chart.draw_series(LineSeries::new(
+            ts.iter()
+                .zip(ys)
+                .step_by(step)
+                .filter(|&(t, y)| y.is_finite() && (t_lo..=t_hi).contains(t))
+                .map(|(&t, &y)| (t, y.clamp(y_lo, y_hi))),
+            c.stroke_width(2),
+        ))?;
+    }
+    if let Some(note) = note {
+        chart.draw_series(std::iter::once(Text::new(
+            note.to_owned(),
+            (t_lo + 0.3 * span, (y_lo + y_hi) / 2.0),
+            ("sans-serif", 22).into_font().color(&BLACK),
+        )))?;
+    }
+    let mut entries: Vec<Key<'_>> = lines
         .iter()
-        .map(|&(label, ts, ys, colour)| Line {
-            label,
-            colour,
-            points: ts.iter().copied().zip(ys.iter().copied()).collect(),
-        })
+        .filter(|l| !l.1.is_empty())
+        .map(|&(label, _, _, c)| Key::Line(label, c))
         .collect();
-    road_panel(
-        area,
-        s.t.last().copied().unwrap_or(1.0),
-        caption,
-        "t (s, from the first ground-truth sample)",
-        y,
-        &bands(s),
-        label_roads,
-        &lines,
-    )
+    if label_roads && s.has_truth() {
+        entries.extend([
+            Key::Text(""),
+            Key::Text("background: the road"),
+            Key::Text("under the driven wheel"),
+        ]);
+    }
+    key(&side, 40, &entries)
 }
 
-/// ARTE's estimates as a strip (colours as the road bands).
-fn strip(area: &Area<'_>, s: &Series) -> Res {
-    let mut names: Vec<String> = s.road.clone();
-    names.extend(s.est.iter().map(|e| e.2.clone()));
-    names.sort();
-    names.dedup();
-    let spans: Vec<_> = s
-        .est
-        .iter()
-        .map(|(t0, t1, name)| {
-            let colour = (!name.is_empty()).then(|| {
-                let idx = names.iter().position(|n| n == name).unwrap_or(0);
-                road_colour(name, idx)
-            });
-            (*t0, *t1, colour)
-        })
-        .collect();
-    estimate_strip(
-        area,
-        s.t.last().copied().unwrap_or(1.0),
-        "ARTE estimate (from the frame's start to its publication; white: no class)",
-        &spans,
-        &[],
-    )
+/// The three road strips: the road at the microphone (what ARTE hears),
+/// ARTE's estimate (from its frame's start to its publication) and the road
+/// under the driven wheel, with the colour key at the right.
+fn strips(area: &Area<'_>, s: &Series) -> Res {
+    let (plot, side) = area.split_horizontally(W - LEGEND_W);
+    let (t_lo, t_hi) = s.span;
+    let mut chart = ChartBuilder::on(&plot)
+        .margin(8)
+        .caption(
+            "roads: at the microphone (what ARTE hears and is judged against), ARTE's estimate (from its audio frame's start to its publication; white: no class), under the driven wheel",
+            ("sans-serif", 15),
+        )
+        .x_label_area_size(34)
+        .y_label_area_size(LABEL_W)
+        .build_cartesian_2d(t_lo..t_hi, 0.0..3.0)?;
+    let row = |row: f64, t0: f64, t1: f64, fill: ShapeStyle| {
+        Rectangle::new(
+            [(t0.max(t_lo), row + 0.12), (t1.min(t_hi), row + 0.88)],
+            fill,
+        )
+    };
+    for (r, roads) in [(ROW_MIC, &s.mic), (ROW_WHEEL, &s.wheel)] {
+        chart.draw_series(
+            s.bands(roads)
+                .into_iter()
+                .filter(|b| b.t1 > t_lo && b.t0 < t_hi)
+                .map(|b| row(r, b.t0, b.t1, b.colour.mix(0.85).filled())),
+        )?;
+    }
+    chart.draw_series(
+        s.est
+            .iter()
+            .filter(|(t0, t1, _)| *t1 > t_lo && *t0 < t_hi)
+            .map(|(t0, t1, name)| {
+                let fill = if name.is_empty() {
+                    WHITE.filled()
+                } else {
+                    s.colour(name).mix(0.85).filled()
+                };
+                row(ROW_ARTE, *t0, *t1, fill)
+            }),
+    )?;
+    if !s.has_truth() {
+        for r in [ROW_MIC, ROW_WHEEL] {
+            chart.draw_series(std::iter::once(Text::new(
+                "no ground truth in this log",
+                (t_lo + 0.01 * (t_hi - t_lo), r + 0.72),
+                ("sans-serif", 15).into_font().color(&BLACK),
+            )))?;
+        }
+    }
+    for r in [ROW_MIC, ROW_ARTE, ROW_WHEEL] {
+        chart.draw_series(std::iter::once(Rectangle::new(
+            [(t_lo, r + 0.12), (t_hi, r + 0.88)],
+            BLACK.stroke_width(1),
+        )))?;
+    }
+    if s.tb.scenario_ns.is_some() && (t_lo..=t_hi).contains(&0.0) {
+        chart.draw_series(LineSeries::new(
+            [(0.0, 0.0), (0.0, 3.0)],
+            BLACK.mix(0.7).stroke_width(1),
+        ))?;
+    }
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .y_labels(0)
+        .x_desc(s.tb.axis_label())
+        .label_style(("sans-serif", 15))
+        .axis_desc_style(("sans-serif", 15))
+        .draw()?;
+    // the rows' names, in the y label area
+    let base = area.get_base_pixel();
+    let font = ("sans-serif", 15).into_font().color(&BLACK);
+    for (r, label) in [
+        (ROW_MIC, "microphone"),
+        (ROW_ARTE, "ARTE"),
+        (ROW_WHEEL, "wheel"),
+    ] {
+        let (_, py) = chart.backend_coord(&(t_lo, r + 0.5));
+        area.draw_text(label, &font, (14, py - base.1 - 8))?;
+    }
+    // colour key
+    let mut names: Vec<&str> = s.names.iter().map(String::as_str).collect();
+    if s.est.iter().any(|e| e.2.is_empty()) {
+        names.push("");
+    }
+    let rows_per_col = 6;
+    for (i, name) in names.iter().enumerate() {
+        let x = 10 + 100 * (i / rows_per_col) as i32;
+        let y = 36 + 22 * (i % rows_per_col) as i32;
+        let fill = if name.is_empty() {
+            WHITE.filled()
+        } else {
+            s.colour(name).mix(0.85).filled()
+        };
+        side.draw(&Rectangle::new([(x, y), (x + 16, y + 16)], fill))?;
+        side.draw(&Rectangle::new(
+            [(x, y), (x + 16, y + 16)],
+            BLACK.stroke_width(1),
+        ))?;
+        side.draw_text(
+            if name.is_empty() { "no class" } else { name },
+            &font,
+            (x + 22, y),
+        )?;
+    }
+    Ok(())
 }
 
-fn drive_png(path: &Path, log: &DriveLog, r: f64, title: &str) -> Res {
+/// The title of `drive.png`: the log's file name and run (controller, ARTE,
+/// scenario, vehicle, seed), then whether it was recorded or generated,
+/// when, and the code's revision.
+pub fn title_of(log: &DriveLog) -> (String, String) {
+    let get = |k: &str| log.run.get(k).map(String::as_str);
+    let file = log.path.file_name().map_or_else(
+        || log.path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let mut run = Vec::new();
+    if let Some(c) = get("controller") {
+        run.push(c.to_uppercase());
+    }
+    if let Some(a) = get("arte") {
+        run.push(format!("ARTE {a}"));
+    }
+    if let Some(s) = get("scenario") {
+        run.push(format!("scenario {s}"));
+    }
+    // `grip drive --vehicle FILE` records the file; without it the drive ran
+    // with the configuration's vehicle.toml
+    let vehicle = get("vehicle").map_or("vehicle.toml", |p| {
+        p.rsplit(['/', '\\']).next().unwrap_or(p)
+    });
+    if !log.run.is_empty() {
+        run.push(format!("vehicle {vehicle}"));
+    }
+    if let Some(s) = get("seed") {
+        run.push(format!("seed {s}"));
+    }
+    let line1 = if run.is_empty() {
+        format!("{file}: no run metadata (grip.run)")
+    } else {
+        format!("{file}: {}", run.join(", "))
+    };
+
+    let generated = get("source") == Some("generated");
+    let clock = log.metadata.get("grip.clock");
+    let num = |k: &str| {
+        clock
+            .and_then(|m| m.get(k))
+            .and_then(|v| v.parse::<i128>().ok())
+    };
+    // log times are CLOCK_MONOTONIC on a drive (wall = log time -
+    // monotonic_ns + realtime_ns); a generated log's are scripted, so only
+    // the moment its file was created is wall time
+    let wall_ns = match (num("realtime_ns"), num("monotonic_ns")) {
+        (Some(real), _) if generated => Some(real),
+        (Some(real), Some(mono)) => Some(i128::from(super::export::t0_ns(log)) - mono + real),
+        _ => None,
+    };
+    let when = wall_ns.map(|ns| {
+        let secs = i64::try_from(ns.div_euclid(1_000_000_000)).unwrap_or(0);
+        let tod = secs.rem_euclid(86_400);
+        format!(
+            "{} {:02}:{:02}:{:02} UTC",
+            crate::cmd::train::civil_date(secs),
+            tod / 3600,
+            tod / 60 % 60,
+            tod % 60
+        )
+    });
+    let mut line2 = vec![match (generated, when) {
+        (true, Some(w)) => format!("generated {w} by grip generate (simulated, scripted clock)"),
+        (true, None) => "generated by grip generate (simulated, scripted clock)".to_owned(),
+        (false, Some(w)) => format!("recorded {w}"),
+        (false, None) => "recording date not in the log".to_owned(),
+    }];
+    if let Some(rev) = get("git_revision") {
+        line2.push(format!("revision {}", rev.get(..10).unwrap_or(rev)));
+    }
+    if let Some(v) = get("version") {
+        line2.push(format!("grip {v}"));
+    }
+    (line1, line2.join(", "))
+}
+
+/// Draws drive.png's figure onto `root` (W × [`drive_height`]).
+fn draw_drive(root: &Area<'_>, log: &DriveLog, r: f64) -> Res {
     let s = series(log, r);
-    let h = TITLE_H + 3 * PANEL_H + STRIP_H;
-    let root = BitMapBackend::new(path, (W, h)).into_drawing_area();
     root.fill(&WHITE)?;
     let (top, rest) = root.split_vertically(TITLE_H);
+    let (line1, line2) = title_of(log);
     top.draw_text(
-        title,
-        &("sans-serif", 26).into_font().color(&BLACK),
-        (20, 12),
+        &line1,
+        &("sans-serif", 24).into_font().color(&BLACK),
+        (20, 10),
+    )?;
+    top.draw_text(
+        &line2,
+        &("sans-serif", 17).into_font().color(&BLACK),
+        (20, 46),
     )?;
     let (p1, r1) = rest.split_vertically(PANEL_H);
     let (p2, r2) = r1.split_vertically(PANEL_H);
     let (p3, p4) = r2.split_vertically(PANEL_H);
-    panel(
-        &p1,
-        &s,
-        "speeds (m/s, ground truth)",
-        range(s.v.iter().chain(&s.r_omega).copied()),
-        true,
-        &[
-            ("V", &s.t, &s.v, RGBColor(0, 0, 200)),
-            ("r ω", &s.t, &s.r_omega, RGBColor(200, 0, 0)),
-        ],
-    )?;
+    let truth = s.has_truth();
+    let no_truth = (!truth).then_some("no ground truth in this log");
+    if truth {
+        panel(
+            &p1,
+            &s,
+            "speeds (m/s, ground truth)",
+            range(s.v.iter().chain(&s.r_omega).copied()),
+            true,
+            &[
+                ("V", &s.t, &s.v, RGBColor(0, 0, 200)),
+                ("r ω", &s.t, &s.r_omega, RGBColor(200, 0, 0)),
+            ],
+            None,
+        )?;
+    } else {
+        panel(
+            &p1,
+            &s,
+            "speeds (m/s, measured by tcs-loop: the log has no ground truth)",
+            range(s.meas_v.iter().chain(&s.meas_r_omega).copied()),
+            true,
+            &[
+                ("V measured", &s.cvt, &s.meas_v, RGBColor(0, 0, 200)),
+                ("r ω measured", &s.ct, &s.meas_r_omega, RGBColor(200, 0, 0)),
+            ],
+            None,
+        )?;
+    }
     panel(
         &p2,
         &s,
         "slip λ (ground truth)",
-        range(s.lambda.iter().copied().chain([0.0])),
+        if truth {
+            range(s.lambda.iter().copied().chain([0.0]))
+        } else {
+            (0.0, 0.1)
+        },
         false,
         &[("λ", &s.t, &s.lambda, RGBColor(200, 0, 0))],
+        no_truth,
     )?;
+    let (t_label, t_times, t_values) = if truth {
+        ("T (plant)", &s.t, &s.torque)
+    } else {
+        ("T (measured)", &s.ct, &s.meas_torque)
+    };
     panel(
         &p3,
         &s,
-        "torque (N m): demand and command from tcs-loop, T from the plant",
+        "torque (N m): demand T_d and command T* from tcs-loop, motor torque T",
         range(
             s.demand
                 .iter()
                 .chain(&s.cmd)
-                .chain(&s.torque)
+                .chain(t_values)
                 .copied()
                 .chain([0.0]),
         ),
@@ -204,10 +564,22 @@ fn drive_png(path: &Path, log: &DriveLog, r: f64, title: &str) -> Res {
         &[
             ("T_d", &s.ct, &s.demand, RGBColor(0, 0, 0)),
             ("T*", &s.ct, &s.cmd, RGBColor(230, 130, 0)),
-            ("T", &s.t, &s.torque, RGBColor(0, 0, 200)),
+            (t_label, t_times, t_values, RGBColor(0, 0, 200)),
         ],
+        None,
     )?;
-    strip(&p4, &s)?;
+    strips(&p4, &s)?;
+    Ok(())
+}
+
+/// Height of drive.png.
+const fn drive_height() -> u32 {
+    TITLE_H + 3 * PANEL_H + STRIPS_H
+}
+
+fn drive_png(path: &Path, log: &DriveLog, r: f64) -> Res {
+    let root = BitMapBackend::new(path, (W, drive_height())).into_drawing_area();
+    draw_drive(&root, log, r)?;
     root.present()?;
     Ok(())
 }
@@ -233,7 +605,10 @@ fn timing_png(path: &Path, log: &DriveLog) -> Res {
     let root = BitMapBackend::new(path, (1200, 600)).into_drawing_area();
     root.fill(&WHITE)?;
     let caption = format!(
-        "tcs-loop wake-up latency: {} cycles, p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs, {} above {} µs",
+        "{}: tcs-loop wake-up latency: {} cycles, p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs, {} above {} µs",
+        log.path
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
         p.n,
         p.p50 as f64 / 1e3,
         p.p99 as f64 / 1e3,
@@ -276,17 +651,127 @@ fn timing_png(path: &Path, log: &DriveLog) -> Res {
 }
 
 /// Writes `drive.png` and `timing.png` into `dir` (created).
-pub fn write_plots(
-    log: &DriveLog,
-    dir: &Path,
-    r: f64,
-    title: &str,
-) -> anyhow::Result<Vec<PathBuf>> {
+pub fn write_plots(log: &DriveLog, dir: &Path, r: f64) -> anyhow::Result<Vec<PathBuf>> {
     init_fonts();
     std::fs::create_dir_all(dir).map_err(|e| anyhow!("creating {}: {e}", dir.display()))?;
     let a = dir.join("drive.png");
-    drive_png(&a, log, r, title).map_err(|e| anyhow!("drawing {}: {e}", a.display()))?;
+    drive_png(&a, log, r).map_err(|e| anyhow!("drawing {}: {e}", a.display()))?;
     let b = dir.join("timing.png");
     timing_png(&b, log).map_err(|e| anyhow!("drawing {}: {e}", b.display()))?;
     Ok(vec![a, b])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::drive::export::test_log::{self, MS, START, T0};
+
+    /// drive.png of `log` as RGB pixels.
+    fn render(log: &DriveLog) -> Vec<u8> {
+        init_fonts();
+        let mut buf = vec![0u8; (W * drive_height() * 3) as usize];
+        {
+            let root =
+                BitMapBackend::with_buffer(&mut buf, (W, drive_height())).into_drawing_area();
+            draw_drive(&root, log, test_log::R).unwrap();
+            root.present().unwrap();
+        }
+        buf
+    }
+
+    /// Pixels of colour `c` in rows `ys` and columns `xs`.
+    fn count(buf: &[u8], c: RGBColor, ys: std::ops::Range<u32>, xs: std::ops::Range<u32>) -> usize {
+        ys.flat_map(|y| xs.clone().map(move |x| ((y * W + x) * 3) as usize))
+            .filter(|&i| buf[i..i + 3] == [c.0, c.1, c.2])
+            .count()
+    }
+
+    /// A log without ground truth (from the car) is plotted over its cycle
+    /// records: the command T* is drawn across the torque panel's data
+    /// area (the drawing used a 0-1 s range from a time origin of 0 before,
+    /// and drew nothing).
+    #[test]
+    fn a_log_without_ground_truth_still_shows_the_command() {
+        let log = test_log::drive_without_truth();
+        let tb = TimeBase::of(&log);
+        assert_eq!(tb.scenario_ns, None);
+        let (lo, hi) = x_span(&log, &tb);
+        let (c0, c1) = (log.cycles[0].stamp_ns, log.cycles.last().unwrap().stamp_ns);
+        assert!(lo <= tb.axis(c0) && hi >= tb.axis(c1), "{lo}..{hi}");
+        assert!((hi - lo - 2.999).abs() < 1e-9, "{lo}..{hi}");
+
+        let buf = render(&log);
+        // the torque panel, left of the key column: the command's orange
+        let top = TITLE_H + 2 * PANEL_H;
+        let orange = RGBColor(230, 130, 0);
+        for (x0, x1) in [(LABEL_W + 20, W / 3), (W / 3, 2 * W / 3)] {
+            let n = count(&buf, orange, top..top + PANEL_H, x0..x1);
+            assert!(n > 100, "columns {x0}..{x1}: {n} pixels of the command");
+        }
+    }
+
+    /// With ground truth, the x axis counts from the scenario start (the
+    /// summary's clock) and covers the hold and the pre-roll before it.
+    #[test]
+    fn the_axis_counts_from_the_scenario_start() {
+        let log = test_log::drive();
+        let tb = TimeBase::of(&log);
+        assert_eq!(tb.scenario_ns, Some(START));
+        assert_eq!(tb.axis(START), 0.0);
+        let (lo, hi) = x_span(&log, &tb);
+        assert!(
+            (lo + 1.29).abs() < 1e-9 && (hi - 1.71).abs() < 1e-9,
+            "{lo}..{hi}"
+        );
+        assert!(tb.axis_label().contains("scenario start"));
+        let buf = render(&log);
+        let top = TITLE_H + 2 * PANEL_H;
+        let n = count(
+            &buf,
+            RGBColor(230, 130, 0),
+            top..top + PANEL_H,
+            LABEL_W + 20..W / 3,
+        );
+        assert!(n > 100, "{n} pixels of the command");
+    }
+
+    /// The title names the log, its run and when it was recorded; a
+    /// generated log is called so.
+    #[test]
+    fn the_title_says_which_drive() {
+        let mut log = test_log::drive();
+        let (a, b) = title_of(&log);
+        assert_eq!(
+            a,
+            "front-mic-drive.mcap: MTTE, ARTE on, scenario paper, vehicle front-mic.toml, seed 7"
+        );
+        assert_eq!(
+            b,
+            "recorded 2026-12-05 00:33:51 UTC, revision 0123456789, grip 0.1.0"
+        );
+        // 1.29 s after the first message's wall time, on a drive's clock
+        log.metadata
+            .get_mut("grip.clock")
+            .unwrap()
+            .insert("monotonic_ns".into(), (T0 - 1290 * MS).to_string());
+        assert!(
+            title_of(&log)
+                .1
+                .starts_with("recorded 2026-12-05 00:33:52 UTC")
+        );
+        log.run.insert("source".into(), "generated".into());
+        log.run.insert("clock".into(), "scripted".into());
+        let (_, b) = title_of(&log);
+        assert!(
+            b.starts_with(
+                "generated 2026-12-05 00:33:51 UTC by grip generate (simulated, scripted clock)"
+            ),
+            "{b}"
+        );
+        log.run.clear();
+        log.metadata.clear();
+        let (a, b) = title_of(&log);
+        assert_eq!(a, "front-mic-drive.mcap: no run metadata (grip.run)");
+        assert_eq!(b, "recording date not in the log");
+    }
 }
