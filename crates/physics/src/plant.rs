@@ -124,7 +124,11 @@ impl Plant {
         Ok(p)
     }
 
-    /// Set the upper bound on the internal integration step (s, > 0).
+    /// Set the upper bound on the internal integration step (s, > 0). A
+    /// call of [`Plant::step`] takes at most [`MAX_SUBSTEPS_PER_CALL`]
+    /// sub-steps, so a bound below `dt / MAX_SUBSTEPS_PER_CALL` is not
+    /// honoured for a step of `dt` (`grip-sim` refuses one below its
+    /// controller period's).
     pub fn set_max_substep(&mut self, h: f64) -> Result<(), InvalidField> {
         validate::positive("max_substep", h)?;
         self.max_substep = h;

@@ -379,6 +379,23 @@ impl ConfusionArte {
         self.frame_s
     }
 
+    /// The catalogue roads (indices) outside the matrix's classes and not
+    /// mapped onto one: estimated as themselves, always right, with
+    /// [`ConfusionArte::outside_confidence`].
+    pub fn pass_through(&self) -> Vec<usize> {
+        self.route
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| **r == Route::PassThrough)
+            .map(|(i, _)| i)
+            .collect()
+    }
+
+    /// The confidence given with a road that passes through.
+    pub fn outside_confidence(&self) -> f64 {
+        self.outside_confidence
+    }
+
     /// Classify one frame whose actual road is catalogue index `actual`.
     fn classify(&mut self, actual: usize) -> (usize, f64) {
         match self

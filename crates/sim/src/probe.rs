@@ -2,7 +2,8 @@
 //! the true road changes of a run, for the in-loop accuracy and detection
 //! delays `grip sim` reports ([`InLoopStats`], returned with every run's
 //! [`crate::RunResult`]); it allocates nothing per cycle (buffers sized to
-//! the run's cycle count).
+//! the run's cycle count, reserved at the first reset: a probe that no ARTE
+//! run resets holds none).
 
 use grip_arte::stream::detection_delays;
 
@@ -30,6 +31,9 @@ pub struct InLoopStats {
     /// indices; rows estimated, columns true: the paper's Table II layout),
     /// over every decision against the true road of its arrival cycle.
     pub confusion: Vec<Vec<u64>>,
+    /// Time the estimator heard each catalogue road, s (catalogue index;
+    /// the pre-roll included).
+    pub heard_s: Vec<f64>,
 }
 
 /// Records an estimator's decisions and the true road changes of a run
@@ -50,7 +54,11 @@ pub struct InLoopProbe {
     end: f64,
     /// Row-major n × n, `[estimated * n + true]`.
     confusion: Vec<u64>,
+    /// Per catalogue road, s.
+    heard_s: Vec<f64>,
     n_roads: usize,
+    /// Room the buffers get at the first reset, cycles.
+    room: usize,
 }
 
 impl std::fmt::Debug for InLoopProbe {
@@ -66,7 +74,9 @@ impl InLoopProbe {
     /// Wrap `inner` whose decisions analyse frames of `frame_s`; room for
     /// `cycles` cycles, the pre-roll's included (at most one decision and
     /// one change per cycle, so recording never allocates; counts go on
-    /// beyond it, the delays then see the first `cycles` decisions only);
+    /// beyond it, the delays then see the first `cycles` decisions only),
+    /// reserved at the first [`RoadEstimator::reset`] (which every ARTE run
+    /// calls before its first cycle), [`InLoopProbe::bytes_for`] of them;
     /// stable detection needs `hold_s`; the catalogue has `n_roads` roads
     /// (larger indices are not counted in the confusion matrix).
     pub fn new(
@@ -80,8 +90,8 @@ impl InLoopProbe {
             inner,
             frame_s,
             hold_s,
-            decisions: Vec::with_capacity(cycles),
-            changes: Vec::with_capacity(cycles),
+            decisions: Vec::new(),
+            changes: Vec::new(),
             n_decisions: 0,
             correct: 0,
             single_road: 0,
@@ -90,8 +100,16 @@ impl InLoopProbe {
             last_change: f64::NEG_INFINITY,
             end: 0.0,
             confusion: vec![0; n_roads * n_roads],
+            heard_s: vec![0.0; n_roads],
             n_roads,
+            room: cycles,
         }
+    }
+
+    /// Bytes a probe with room for `cycles` cycles holds once reset (its
+    /// decision and change buffers).
+    pub fn bytes_for(cycles: usize) -> u64 {
+        2 * cycles as u64 * std::mem::size_of::<(f64, usize)>() as u64
     }
 
     /// The statistics of the run since the last reset, or `None` when the
@@ -112,6 +130,7 @@ impl InLoopProbe {
                 .chunks(self.n_roads.max(1))
                 .map(<[u64]>::to_vec)
                 .collect(),
+            heard_s: self.heard_s.clone(),
         })
     }
 }
@@ -121,6 +140,10 @@ impl RoadEstimator for InLoopProbe {
         self.inner.reset(seed);
         self.decisions.clear();
         self.changes.clear();
+        // Room for the run, once (a later reset keeps it).
+        self.decisions.reserve_exact(self.room);
+        self.changes.reserve_exact(self.room);
+        self.heard_s.fill(0.0);
         self.n_decisions = 0;
         self.correct = 0;
         self.single_road = 0;
@@ -150,6 +173,9 @@ impl RoadEstimator for InLoopProbe {
         }
         self.last_road = Some(true_road_index);
         self.end = t + dt;
+        if let Some(h) = self.heard_s.get_mut(true_road_index) {
+            *h += dt;
+        }
         let e = self.inner.update(t, dt, true_road_index, speed_mps)?;
         self.n_decisions += 1;
         if self.decisions.len() < self.decisions.capacity() {

@@ -11,8 +11,9 @@
 //! - lengths: uniform in [`RandomSpec::min_len_m`, `RandomSpec::max_len_m`]
 //!   (1-4 m: 0.36-1.4 s at 10 km/h, 0.12-0.5 s at 30 km/h), drawn until the
 //!   segments cover [`RandomSpec::cover_m`] (24 m, more than any variant
-//!   travels in 2.4 s from 10 km/h at 300 N m; the last segment runs to the
-//!   end of the run anyway);
+//!   travels in 2.4 s from 10 km/h at 300 N m), raised by
+//!   [`RandomSpec::sized_for`] to the most distance the car can cover
+//!   ([`RandomSpec::reach_m`]) unless `cover_m` was given;
 //! - distance segments (`segments_by = "distance"`, so a microphone ahead
 //!   of the driven wheel hears each road first), level, constant 300 N m
 //!   demand, v0 10 km/h, 2.4 s: the reference scenario's drive.
@@ -23,7 +24,7 @@
 //! always gives the same road sequence, identical for every variant of `s`,
 //! and independent of the sensor noise and ARTE draws of that seed.
 
-use grip_physics::{Demand, RoadCatalogue, Scenario, Segment, SegmentMode};
+use grip_physics::{Demand, RoadCatalogue, Scenario, Segment, SegmentMode, VehicleParams};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -41,6 +42,9 @@ pub struct RandomSpec {
     pub max_len_m: f64,
     /// Segments are drawn until they cover this distance, m.
     pub cover_m: f64,
+    /// Whether [`RandomSpec::sized_for`] may raise `cover_m` to the most
+    /// distance the car can cover (true unless `cover_m` was given).
+    pub cover_to_reach: bool,
     /// Initial speed, km/h.
     pub v0_kmh: f64,
     /// Constant driver demand, N m.
@@ -55,6 +59,7 @@ impl Default for RandomSpec {
             min_len_m: 1.0,
             max_len_m: 4.0,
             cover_m: 24.0,
+            cover_to_reach: true,
             v0_kmh: 10.0,
             torque: 300.0,
             duration: 2.4,
@@ -99,9 +104,11 @@ impl RandomSpec {
     /// a field of this struct ([`RandomSpec::keys`]) and may appear once.
     /// When `v0_kmh` or `duration` is set and `cover_m` is not, the segments
     /// cover at least 1.5 times the distance the run's initial speed alone
-    /// would travel plus 12 m (the default's 24 m at least), so a faster or
-    /// longer run still meets changes to its end. With nothing set the
-    /// result is the default, so seeds keep their roads.
+    /// would travel plus 12 m (the default's 24 m at least); that alone
+    /// ignores the car speeding up, so [`RandomSpec::sized_for`] raises it
+    /// further to what the car can reach. A given `cover_m` is kept as
+    /// given. With nothing set the result is the default, so seeds keep
+    /// their roads.
     pub fn parse(text: &str) -> Result<RandomSpec, SimError> {
         let mut spec = RandomSpec::default();
         let mut seen: Vec<&str> = Vec::new();
@@ -135,6 +142,9 @@ impl RandomSpec {
             }
             *slot(&mut spec) = v;
         }
+        if seen.contains(&"cover_m") {
+            spec.cover_to_reach = false;
+        }
         if !seen.contains(&"cover_m") && (seen.contains(&"v0_kmh") || seen.contains(&"duration")) {
             spec = spec.covering_travel();
         }
@@ -158,6 +168,59 @@ impl RandomSpec {
         let travel = self.v0_kmh / 3.6 * self.duration;
         RandomSpec {
             cover_m: self.cover_m.max((1.5 * travel + 12.0).ceil()),
+            ..self
+        }
+    }
+
+    /// The most distance (m) a run of this recipe can cover on `vehicle`,
+    /// plus the microphone's lead (the road it hears ahead of the wheel):
+    /// an upper bound, for sizing the road list. The driven wheel's share
+    /// of the car, M/n, is pushed by at most the demand (clamped to
+    /// `torque_max`) over the tyre radius and at most what the grippiest
+    /// road the recipe draws from transmits (μ_peak N), less the drag
+    /// (rolling resistance and grade left out); the wheel's own inertia
+    /// may add its spin-down, J ω0 / (r M/n), to the start speed; 5 % and
+    /// 1 m on top.
+    pub fn reach_m(&self, vehicle: &VehicleParams, roads: &RoadCatalogue) -> f64 {
+        let v = vehicle;
+        let share = v.mass / v.n_driven;
+        let normal = v.driven_load_share * v.mass * grip_physics::G / v.n_driven;
+        let mu_best = sounding_roads(roads)
+            .into_iter()
+            .filter_map(|i| roads.by_index(i).map(|r| r.mu_peak()))
+            .fold(0.0, f64::max);
+        let force = (self.torque.min(v.torque_max) / v.r).min(mu_best * normal);
+        let a_push = force / share;
+        let k_drag = 0.5 * v.rho * v.c_d_a / v.mass;
+        let v0 = self.v0_kmh / 3.6;
+        // Explicit Euler on dv/dt = a_push - k v², whose right-hand side
+        // falls as v grows: each step's slope is the interval's largest, and
+        // the distance takes each step's end speed, so both stay above the
+        // exact solution.
+        const STEPS: usize = 10_000;
+        let h = self.duration / STEPS as f64;
+        let mut speed = v0 + v.j_w * v0 / (v.r * v.r * share);
+        let mut x = 0.0;
+        for _ in 0..STEPS {
+            speed += h * (a_push - k_drag * speed * speed).max(0.0);
+            x += h * speed;
+        }
+        1.05 * x + 1.0 + v.mic_lead_m.max(0.0)
+    }
+
+    /// This recipe with `cover_m` raised to [`RandomSpec::reach_m`] on
+    /// `vehicle` (rounded up to a metre), unless `cover_m` was given
+    /// (`cover_to_reach` false); never lowered, so a recipe whose cover
+    /// already reaches far enough (the default's 24 m on the shipped
+    /// vehicles) draws the same roads. A longer cover only appends segments:
+    /// the draws of the first ones are the same.
+    pub fn sized_for(self, vehicle: &VehicleParams, roads: &RoadCatalogue) -> RandomSpec {
+        if !self.cover_to_reach {
+            return self;
+        }
+        let reach = self.reach_m(vehicle, roads).ceil();
+        RandomSpec {
+            cover_m: self.cover_m.max(reach),
             ..self
         }
     }

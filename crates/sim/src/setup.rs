@@ -1,6 +1,8 @@
 //! [`SimSetup`]: everything a run needs, validated once.
 
-use grip_physics::{RoadCatalogue, Scenario, SensorParams, VehicleParams, plant};
+use grip_physics::{
+    Demand, RoadCatalogue, Scenario, SegmentMode, SensorParams, VehicleParams, plant,
+};
 use grip_tcs::{ControllersConfig, KnowledgeConfig, RoadTable};
 
 use crate::SimError;
@@ -20,6 +22,10 @@ pub struct SimSetup {
     dt: f64,
     cycles: usize,
 }
+
+/// Share of a scenario's total span (m or s) a run may go past its roads
+/// before [`SimSetup::beyond_roads`] reports it.
+pub const BEYOND_TOLERANCE: f64 = 0.05;
 
 impl SimSetup {
     /// Validate and assemble. The controller period is
@@ -70,6 +76,7 @@ impl SimSetup {
         validate(&self.vehicle, &self.sensors, &controllers)?;
         let dt = controllers.loop_.dt();
         let cycles = check_scenario(&self.vehicle, &self.roads, &self.scenario, dt)?;
+        check_substep(self.max_substep, dt)?;
         Ok(Self {
             controllers,
             dt,
@@ -97,16 +104,38 @@ impl SimSetup {
         })
     }
 
-    /// Set the plant's internal integration step bound (s, finite, > 0).
+    /// Set the plant's internal integration step bound (s, finite, > 0,
+    /// and at least the controller period over
+    /// [`plant::MAX_SUBSTEPS_PER_CALL`]: the plant takes no more sub-steps
+    /// per cycle, so a smaller bound would not be honoured).
     pub fn set_max_substep(&mut self, h: f64) -> Result<(), SimError> {
-        if !(h.is_finite() && h > 0.0) {
-            return Err(SimError::invalid(
-                "max_substep",
-                format!("must be a finite number > 0 s (got {h})"),
-            ));
-        }
+        check_substep(h, self.dt)?;
         self.max_substep = h;
         Ok(())
+    }
+
+    /// How far the run whose final plant position is `final_x` (m) went
+    /// beyond the scenario's roads, where the last road simply continues:
+    /// in m past the sum of the segment lengths (distance segments), or in
+    /// s past the sum of the segment durations (time segments); `None`
+    /// when it stayed within them or went past them by no more than
+    /// [`BEYOND_TOLERANCE`] of that sum (at least 1 m for distance
+    /// segments): a scenario whose last road is meant to go on to the end
+    /// (the reference scenario's "snow to the end", passed by up to 0.26 m
+    /// of its 12.71 m) is not worth a warning; a random sequence that ran
+    /// out of roads is.
+    pub fn beyond_roads(&self, final_x: f64) -> Option<f64> {
+        let span = self.scenario.total_span();
+        let (past, tolerance) = match self.scenario.segments_by {
+            SegmentMode::Distance => (final_x - span, (BEYOND_TOLERANCE * span).max(1.0)),
+            // The last cycle starts at (cycles - 1) dt, on the road of that
+            // instant.
+            SegmentMode::Time => {
+                let last = self.cycles.saturating_sub(1) as f64 * self.dt;
+                (last - span, BEYOND_TOLERANCE * span)
+            }
+        };
+        (past > tolerance).then_some(past)
     }
 
     /// The same setup with other sensor parameters (validated).
@@ -226,6 +255,7 @@ fn check_scenario(
             ),
         ));
     }
+    check_demand(vehicle, &scenario.demand)?;
     let cycles_f = (scenario.duration / dt).round();
     if !(1.0..=1e9).contains(&cycles_f) {
         return Err(SimError::invalid(
@@ -234,4 +264,57 @@ fn check_scenario(
         ));
     }
     Ok(cycles_f as usize)
+}
+
+/// A plant sub-step bound `h` the plant honours at controller period `dt`:
+/// finite, > 0, and no more than [`plant::MAX_SUBSTEPS_PER_CALL`] sub-steps
+/// per cycle (the plant's own count, `ceil(dt / h)`).
+fn check_substep(h: f64, dt: f64) -> Result<(), SimError> {
+    if !(h.is_finite() && h > 0.0) {
+        return Err(SimError::invalid(
+            "max_substep",
+            format!("must be a finite number > 0 s (got {h})"),
+        ));
+    }
+    let cap = plant::MAX_SUBSTEPS_PER_CALL;
+    if (dt / h).ceil() > cap as f64 {
+        return Err(SimError::invalid(
+            "max_substep",
+            format!(
+                "{h:e} s is below what the plant honours: it takes at most {cap} sub-steps per controller cycle of {dt} s, so its smallest sub-step is {:e} s",
+                dt / cap as f64
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The scenario's demand within the motor's limit: the plant clamps the
+/// command to `torque_max`, so a larger demand would drive the motor at
+/// its limit while the controllers and the command's metrics see the
+/// demand. The field is named as in the scenario file's `[demand]`.
+fn check_demand(vehicle: &VehicleParams, demand: &Demand) -> Result<(), SimError> {
+    let limit = vehicle.torque_max;
+    let fields: Vec<(String, f64)> = match demand {
+        Demand::Constant { torque } | Demand::StopAndGo { torque, .. } => {
+            vec![("torque".into(), *torque)]
+        }
+        Demand::Ramp { from, to, .. } => vec![("from".into(), *from), ("to".into(), *to)],
+        Demand::Steps { torques, .. } => torques
+            .iter()
+            .enumerate()
+            .map(|(i, &q)| (format!("torques[{i}]"), q))
+            .collect(),
+    };
+    for (field, value) in fields {
+        if value.is_nan() || value.abs() > limit {
+            return Err(SimError::invalid(
+                format!("scenario.demand.{field}"),
+                format!(
+                    "{value} N m is above the motor limit, the vehicle's torque_max = {limit} N m (the plant would clamp the command there while the controllers and the command's metrics see the demand)"
+                ),
+            ));
+        }
+    }
+    Ok(())
 }

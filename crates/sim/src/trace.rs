@@ -68,6 +68,15 @@ impl Trace {
         }
     }
 
+    /// Bytes a trace with room for `cycles` cycles holds (its columns).
+    pub fn bytes_for(cycles: usize) -> u64 {
+        let row = 13 * std::mem::size_of::<f64>()
+            + std::mem::size_of::<u32>()
+            + std::mem::size_of::<Option<u32>>()
+            + std::mem::size_of::<bool>();
+        cycles as u64 * row as u64
+    }
+
     /// Number of cycles recorded.
     pub fn len(&self) -> usize {
         self.t.len()

@@ -93,14 +93,16 @@ pub struct Args {
     /// this SNR in dB (-30..=80), or `off` for clean road sound (a range
     /// A..B, which `grip dataset synth` takes, is refused). Default 10 dB:
     /// the condition the shipped models are trained and evaluated at.
-    #[arg(long, default_value = "10", allow_hyphen_values = true, value_parser = parse_snr)]
-    snr_db: Snr,
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_snr)]
+    snr_db: Option<Snr>,
     /// `--arte acoustic`: what roads without a synthesiser model sound like,
     /// ROAD=SOUND,... with SOUND a synthesiser road or `silence` (defaults:
     /// asphalt_mf=asphalt, gravel_table=gravel, any other such road silence).
     #[arg(long)]
     sound_as: Option<String>,
-    /// Write summary.csv, traces and plots here.
+    /// Write summary.csv, traces and plots here (created if need be; the
+    /// files an earlier grip sim run wrote there are removed first, any
+    /// other file is left alone).
     #[arg(long)]
     out: Option<PathBuf>,
     /// With --out: draw `entry_<ROAD>.png`, a zoom (±0.3 s) on the first
@@ -167,6 +169,10 @@ pub struct Loaded {
     pub scenario_path: PathBuf,
     /// `--scenario random`: (seed, setup on that seed's scenario) per seed.
     pub per_seed: Vec<(u64, SimSetup)>,
+    /// The random recipe as drawn (its cover sized for the vehicle).
+    pub spec: RandomSpec,
+    /// The vehicle file.
+    pub vehicle_path: PathBuf,
 }
 
 /// The `--scenario` value that asks for one random road sequence per seed.
@@ -197,6 +203,7 @@ pub fn load(
     spec: &RandomSpec,
 ) -> anyhow::Result<Loaded> {
     let dir = ConfigDir::new(config_dir);
+    let vehicle_path = vehicle.map_or_else(|| dir.file("vehicle.toml"), Path::to_owned);
     let (vehicle, sensors) = match vehicle {
         Some(p) => grip_config::load_vehicle(p)?,
         None => dir.vehicle()?,
@@ -207,6 +214,16 @@ pub fn load(
         PathBuf::from(RANDOM)
     } else {
         dir.scenario_path(scenario)
+    };
+    // The road list long enough for the farthest this car can go.
+    let spec = &spec.clone().sized_for(&vehicle, &roads);
+    // A demand above the motor's limit is the vehicle file's business too.
+    let with_vehicle = |e: &grip_sim::SimError| {
+        if e.field().starts_with("scenario.demand") {
+            format!(" (vehicle file {})", vehicle_path.display())
+        } else {
+            String::new()
+        }
     };
     let scenario = if random {
         let seed = seeds.first().copied().unwrap_or(0);
@@ -221,15 +238,27 @@ pub fn load(
     let arte: ArteConfig = parse_toml(&apath, &read_file(&apath)?)?;
     arte.validate(&roads)
         .map_err(|e| ConfigError::new(&apath, e.field(), reason_of(&e)))?;
-    let setup = SimSetup::new(vehicle, sensors, roads, scenario, controllers, &knowledge)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", scenario_path.display()))?;
+    let setup =
+        SimSetup::new(vehicle, sensors, roads, scenario, controllers, &knowledge).map_err(|e| {
+            let at = if random {
+                format!(
+                    "--scenario random (seed {})",
+                    seeds.first().copied().unwrap_or(0)
+                )
+            } else {
+                scenario_path.display().to_string()
+            };
+            anyhow::anyhow!("{at}: {e}{}", with_vehicle(&e))
+        })?;
     let mut per_seed = Vec::new();
     if random {
         for &seed in seeds {
             let sc = spec
                 .scenario(seed, setup.roads())
                 .and_then(|sc| setup.with_scenario(sc))
-                .map_err(|e| anyhow::anyhow!("--scenario random (seed {seed}): {e}"))?;
+                .map_err(|e| {
+                    anyhow::anyhow!("--scenario random (seed {seed}): {e}{}", with_vehicle(&e))
+                })?;
             per_seed.push((seed, sc));
         }
     }
@@ -238,6 +267,8 @@ pub fn load(
         arte,
         scenario_path,
         per_seed,
+        spec: spec.clone(),
+        vehicle_path,
     })
 }
 
@@ -249,6 +280,7 @@ fn reason_of(e: &grip_sim::SimError) -> String {
 
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     let variants = Variant::parse_list(&args.variants)?;
+    check_acoustic_options(&args)?;
     let seeds: Vec<u64> = (0..args.seeds)
         .map(|i| {
             args.seed0
@@ -266,31 +298,65 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         &spec,
     )?;
     if let Some(h) = args.max_substep {
-        loaded.setup.set_max_substep(h).context("--max-substep")?;
-        for (_, s) in &mut loaded.per_seed {
-            s.set_max_substep(h).context("--max-substep")?;
-        }
+        set_max_substep(&mut loaded, h)?;
     }
     let setup = &loaded.setup;
     // The vehicle file the setup came from (the sweep's vehicle axes, the
     // entry plot's title).
-    let vehicle = args
-        .vehicle
-        .clone()
-        .unwrap_or_else(|| ctx.config_dir.join("vehicle.toml"));
-    if let Some(road) = &args.entry_plot
-        && setup.roads().index_of(road).is_none()
-    {
-        anyhow::bail!(
-            "--entry-plot {road}: not a catalogue road ({})",
-            setup.roads().names()
-        );
-    }
+    let vehicle = loaded.vehicle_path.clone();
+    let per_seed = &loaded.per_seed;
+    let setup_of = |seed: u64| -> &SimSetup {
+        per_seed
+            .iter()
+            .find(|(s, _)| *s == seed)
+            .map_or(setup, |(_, s)| s)
+    };
+    // `--entry-plot` (and the vehicle it compares with) checked before any run.
+    let compare = match &args.entry_plot {
+        Some(road) => {
+            let random = !loaded.per_seed.is_empty();
+            check_entry_plot(road, &variants, seeds[0], random, setup_of(seeds[0]))?;
+            match &args.compare_vehicle {
+                Some(v) => {
+                    let mut other = load(
+                        &ctx.config_dir,
+                        &args.scenario,
+                        args.arte_config.as_deref(),
+                        Some(v),
+                        &seeds[..1],
+                        &spec,
+                    )?;
+                    if let Some(h) = args.max_substep {
+                        set_max_substep(&mut other, h)?;
+                    }
+                    let other_setup = other
+                        .per_seed
+                        .into_iter()
+                        .next()
+                        .map_or(other.setup, |(_, s)| s);
+                    Some((v.clone(), other_setup))
+                }
+                None => None,
+            }
+        }
+        None => None,
+    };
     let threads = args
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
         .max(1);
-    let jobs = Job::grid(&variants, &seeds, args.all_traces);
+    // Traces are kept only to be written.
+    let mut jobs = Job::grid(&variants, &seeds, args.all_traces);
+    for j in &mut jobs {
+        j.keep_trace &= args.out.is_some() && args.sweep.is_empty();
+    }
+    let arte_jobs: Vec<Job> = match &compare {
+        Some(_) => {
+            let arte: Vec<Variant> = variants.iter().copied().filter(|v| v.arte).collect();
+            Job::grid(&arte, &seeds[..1], true)
+        }
+        None => Vec::new(),
+    };
 
     // One estimator prototype, checked now; each worker builds its own.
     let confusion = ConfusionArte::new(&loaded.arte.confusion, setup.roads())
@@ -308,7 +374,17 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     };
     // Room for every cycle the estimator is stepped, the pre-roll included,
     // twice over: a sweep's `vehicle.mic_lead_m` may lengthen the pre-roll.
+    // Only a worker that runs an ARTE variant reserves it (at the probe's
+    // first reset), and without one no probe is built.
     let cycles = 2 * setup.estimator_cycles();
+    let any_arte = variants.iter().any(|v| v.arte);
+    let probe_workers = if any_arte {
+        threads.min(jobs.len()).max(1)
+    } else {
+        0
+    };
+    let traced = jobs.iter().filter(|j| j.keep_trace).count() + arte_jobs.len();
+    check_memory(&loaded, &args, traced, probe_workers, cycles)?;
     let make = |/* per worker */| -> Result<Box<dyn RoadEstimator>, grip_sim::SimError> {
         let inner: Box<dyn RoadEstimator> = match (&acoustic, source) {
             (Some(a), _) => Box::new(AcousticArte::new(&a.model, setup.roads(), &a.config)?),
@@ -316,6 +392,9 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             (None, ArteSource::Oracle) => Box::new(PerfectArte::oracle(setup.dt())),
             (None, _) => Box::new(confusion.clone()),
         };
+        if !any_arte {
+            return Ok(inner);
+        }
         Ok(Box::new(InLoopProbe::new(
             inner,
             probe_frame_s,
@@ -347,7 +426,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
                 "scenario {}, vehicle {}, ARTE source: {}",
                 loaded.scenario_path.display(),
                 vehicle.display(),
-                match (source, args.snr_db) {
+                match (source, args.snr_db.unwrap_or(DEFAULT_SNR)) {
                     (ArteSource::Acoustic, Snr::Db(db)) =>
                         format!("acoustic, noise at {db} dB SNR"),
                     (ArteSource::Acoustic, _) => "acoustic, clean".into(),
@@ -356,6 +435,9 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             ),
         };
         return sweep::run(&ctx.config_dir, &loaded, &req, &make);
+    }
+    if let Some(dir) = &args.out {
+        prepare_out(dir)?;
     }
     let sc = setup.scenario();
     eprintln!(
@@ -377,18 +459,18 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let started = Instant::now();
-    let per_seed = &loaded.per_seed;
-    let setup_of = |j: &Job| -> &SimSetup {
-        per_seed
-            .iter()
-            .find(|(s, _)| *s == j.seed)
-            .map_or(setup, |(_, s)| s)
-    };
-    let results = run_batch_with(&setup_of, &jobs, threads, &make, &|_| bar.inc(1))
-        .map_err(|e| anyhow::anyhow!("simulation: {e}"))?;
+    let results = run_batch_with(&|j: &Job| setup_of(j.seed), &jobs, threads, &make, &|_| {
+        bar.inc(1)
+    })
+    .map_err(|e| anyhow::anyhow!("simulation: {e}"))?;
     let inloop: Vec<Option<InLoopStats>> = results.iter().map(|r| r.inloop.clone()).collect();
     let wall = started.elapsed().as_secs_f64();
     bar.finish_and_clear();
+
+    let beyond = beyond_roads(&results, &setup_of);
+    for line in &beyond.lines {
+        eprintln!("warning: {line}");
+    }
 
     let summaries = summarize(&results);
     let mut out = String::new();
@@ -397,12 +479,12 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     } else {
         let mut d = format!(
             "one random road sequence per seed (sub-seed stream {SCENARIO_STREAM}): {}:",
-            spec.describe()
+            loaded.spec.describe()
         );
         for (seed, s) in per_seed {
             d.push_str(&format!(
                 "\n  seed {seed}: {}",
-                describe_segments(&s.scenario().segments)
+                listed_segments(&s.scenario().segments)
             ));
         }
         d
@@ -410,9 +492,11 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     out.push_str(&format!(
         "\nScenario `{}`: {}\n{} seeds ({}..={}), mean ± std over seeds; ARTE source: {}.\n\
          slip dev. = (1/T) ∫|λ| dt; max torque = max |T|; effort = (1/T) ∫|T| dt (the paper's \"normalised area\", N m);\n\
-         mean accel = ΔV / T; ∫Tω dt = motor energy at the wheel; ΔKE = kinetic energy gained (one wheel's share, M/n);\n\
+         mean accel = (V(T − dt) − V(0)) / (T − dt), V of the first and last cycle; distance = Σ V dt over the cycles;\n\
+         ∫Tω dt = motor energy at the wheel; ΔKE = kinetic energy (one wheel's share of the car, M/n, and the wheel's\n\
+         rotation) at the last cycle, T − dt, less that at 0; V end = V at T, after the last cycle;\n\
          cmd TV = Σ|ΔT*| / T, the torque command's total variation per second; cmd >20 Hz = RMS of the command through a\n\
-         4th-order Butterworth high-pass at 20 Hz; >20 Hz share = that power over the command's variance.\n\n",
+         4th-order Butterworth high-pass at 20 Hz; >20 Hz share = that power over the command's variance.\n",
         sc.name,
         description,
         seeds.len(),
@@ -420,6 +504,15 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         seeds[seeds.len() - 1],
         source_text
     ));
+    if let Some(note) = &beyond.note {
+        out.push_str(&format!("Note: {note}\n"));
+    }
+    if source == ArteSource::Confusion
+        && let Some(note) = pass_through_note(&confusion, setup, &inloop)
+    {
+        out.push_str(&format!("Note: {note}\n"));
+    }
+    out.push('\n');
     out.push_str(&format_table(&summaries));
     out.push('\n');
     out.push_str(&format_relative(&summaries));
@@ -458,27 +551,12 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             write_scenarios_csv(dir, per_seed)?;
         }
         if let Some(road) = &args.entry_plot {
-            let setup_first = setup_of(&jobs[0]);
-            let compare = match &args.compare_vehicle {
-                Some(v) => {
-                    let other = load(
-                        &ctx.config_dir,
-                        &args.scenario,
-                        args.arte_config.as_deref(),
-                        Some(v),
-                        &seeds[..1],
-                        &spec,
-                    )?;
-                    let other_setup = other
-                        .per_seed
-                        .into_iter()
-                        .next()
-                        .map_or(other.setup, |(_, s)| s);
-                    let arte: Vec<Variant> = variants.iter().copied().filter(|v| v.arte).collect();
-                    let jobs2 = Job::grid(&arte, &seeds[..1], true);
-                    let r = run_batch(&other_setup, &jobs2, threads, &make, &|_| {})
+            let setup_first = setup_of(seeds[0]);
+            let compare = match compare {
+                Some((v, other_setup)) => {
+                    let r = run_batch(&other_setup, &arte_jobs, threads, &make, &|_| {})
                         .map_err(|e| anyhow::anyhow!("simulation ({}): {e}", v.display()))?;
-                    Some((v.clone(), other_setup, r))
+                    Some((v, other_setup, r))
                 }
                 None => None,
             };
@@ -492,6 +570,424 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             )?;
         }
         eprintln!("wrote {}", dir.display());
+    }
+    Ok(())
+}
+
+/// `--snr-db` without the option: the condition the shipped models are
+/// trained and evaluated at.
+const DEFAULT_SNR: Snr = Snr::Db(10.0);
+
+/// `--max-substep` on the setup and on every seed's.
+fn set_max_substep(loaded: &mut Loaded, h: f64) -> anyhow::Result<()> {
+    loaded
+        .setup
+        .set_max_substep(h)
+        .map_err(|e| anyhow::anyhow!("--max-substep {h:e}: {e}"))?;
+    for (_, s) in &mut loaded.per_seed {
+        s.set_max_substep(h)
+            .map_err(|e| anyhow::anyhow!("--max-substep {h:e}: {e}"))?;
+    }
+    Ok(())
+}
+
+/// The options of the acoustic source refused with any other (as
+/// `--random` is without `--scenario random`): they would change nothing.
+fn check_acoustic_options(args: &Args) -> anyhow::Result<()> {
+    if args.arte == ArteSource::Acoustic {
+        return Ok(());
+    }
+    let given: Vec<&str> = [
+        ("--model", args.model.is_some()),
+        ("--snr-db", args.snr_db.is_some()),
+        ("--sound-as", args.sound_as.is_some()),
+    ]
+    .into_iter()
+    .filter_map(|(name, set)| set.then_some(name))
+    .collect();
+    if given.is_empty() {
+        return Ok(());
+    }
+    anyhow::bail!(
+        "{} set{} the acoustic source (`--arte acoustic`); the source here is `{}`, which would ignore {}",
+        given.join(", "),
+        if given.len() == 1 { "s" } else { "" },
+        format!("{:?}", args.arte).to_lowercase(),
+        if given.len() == 1 { "it" } else { "them" }
+    )
+}
+
+/// `--entry-plot ROAD`, before any run: a catalogue road that the first
+/// seed's scenario has, and ARTE variants to draw.
+fn check_entry_plot(
+    road: &str,
+    variants: &[Variant],
+    seed: u64,
+    random: bool,
+    setup: &SimSetup,
+) -> anyhow::Result<()> {
+    let roads = setup.roads();
+    let Some(ri) = roads.index_of(road) else {
+        anyhow::bail!(
+            "--entry-plot {road}: not a catalogue road ({})",
+            roads.names()
+        );
+    };
+    if !variants.iter().any(|v| v.arte) {
+        let names: Vec<&str> = variants.iter().map(|v| v.name()).collect();
+        anyhow::bail!(
+            "--entry-plot {road} draws the ARTE variants (what each believes at the entry); --variants {} has none (add e.g. mtte-arte)",
+            names.join(",")
+        );
+    }
+    let sc = setup.scenario();
+    if !sc.segments.iter().any(|g| g.road == ri) {
+        let mut on: Vec<&str> = Vec::new();
+        for g in &sc.segments {
+            if !on.contains(&g.road_name.as_str()) {
+                on.push(&g.road_name);
+            }
+        }
+        let which = if random {
+            format!("the first seed's random scenario (seed {seed})")
+        } else {
+            format!("scenario `{}`", sc.name)
+        };
+        anyhow::bail!(
+            "--entry-plot {road}: {which} has no {road} (its roads: {})",
+            on.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// Most memory (bytes) a batch may plan to hold: the kept traces and the
+/// ARTE probes' buffers.
+const MEMORY_LIMIT: u64 = 4_000_000_000;
+
+/// Refuse a batch whose traces (`traced` runs kept whole) and ARTE probe
+/// buffers (`probe_workers` of `cycles` cycles) would hold more than
+/// [`MEMORY_LIMIT`], naming the scenario's `duration`.
+fn check_memory(
+    loaded: &Loaded,
+    args: &Args,
+    traced: usize,
+    probe_workers: usize,
+    cycles: usize,
+) -> anyhow::Result<()> {
+    let setup = &loaded.setup;
+    let trace = grip_sim::Trace::bytes_for(setup.cycles());
+    let probe = InLoopProbe::bytes_for(cycles);
+    let need = traced as u64 * trace + probe_workers as u64 * probe;
+    if need <= MEMORY_LIMIT {
+        return Ok(());
+    }
+    let gb = |b: u64| format!("{:.1} GB", b as f64 / 1e9);
+    let mut parts = Vec::new();
+    if traced > 0 {
+        parts.push(if traced == 1 {
+            format!("1 kept trace of {}", gb(trace))
+        } else {
+            format!("{traced} kept traces of {} each", gb(trace))
+        });
+    }
+    if probe_workers > 0 {
+        parts.push(if probe_workers == 1 {
+            format!("the in-loop ARTE record of 1 worker, {}", gb(probe))
+        } else {
+            format!(
+                "the in-loop ARTE records of {probe_workers} workers, {} each",
+                gb(probe)
+            )
+        });
+    }
+    let mut remedies = vec!["a shorter duration".to_owned()];
+    if traced > 0 {
+        remedies.push(if args.all_traces {
+            "no --all-traces".to_owned()
+        } else {
+            "no --out (traces are kept only to be written)".to_owned()
+        });
+    }
+    if probe_workers > 0 {
+        remedies.push("fewer --threads, or variants without ARTE".to_owned());
+    }
+    let field = if loaded.per_seed.is_empty() {
+        format!("{}: field `duration`", loaded.scenario_path.display())
+    } else {
+        "--scenario random: `--random duration`".to_owned()
+    };
+    anyhow::bail!(
+        "{field}: {} s is {} controller cycles per run; this batch would hold about {} ({}), more than the {} grip sim allows: {}",
+        setup.scenario().duration,
+        setup.cycles(),
+        gb(need),
+        parts.join(", "),
+        gb(MEMORY_LIMIT),
+        remedies.join("; ")
+    )
+}
+
+/// The runs that went beyond their scenario's roads (where the last road
+/// simply continues): one warning line per variant and a note for the
+/// report.
+#[derive(Default)]
+struct Beyond {
+    lines: Vec<String>,
+    note: Option<String>,
+    /// Runs past the end.
+    runs: usize,
+    /// The farthest past the end, in `unit`.
+    worst: f64,
+    /// m (distance segments) or s (time segments).
+    unit: &'static str,
+}
+
+fn beyond_roads<'s>(results: &[RunResult], setup_of: &dyn Fn(u64) -> &'s SimSetup) -> Beyond {
+    let mut variants: Vec<Variant> = Vec::new();
+    let mut runs = 0;
+    let mut lines = Vec::new();
+    for r in results {
+        if !variants.contains(&r.variant) {
+            variants.push(r.variant);
+        }
+    }
+    let mut worst: f64 = 0.0;
+    let mut unit = "m";
+    for v in variants {
+        let past: Vec<(u64, f64, &SimSetup)> = results
+            .iter()
+            .filter(|r| r.variant == v)
+            .filter_map(|r| {
+                let s = setup_of(r.seed);
+                s.beyond_roads(r.final_state.x).map(|d| (r.seed, d, s))
+            })
+            .collect();
+        if past.is_empty() {
+            continue;
+        }
+        runs += past.len();
+        let s0 = past[0].2.scenario();
+        let time = s0.segments_by == grip_physics::SegmentMode::Time;
+        unit = if time { "s" } else { "m" };
+        let most = past.iter().map(|p| p.1).fold(0.0, f64::max);
+        worst = worst.max(most);
+        let seeds: Vec<u64> = past.iter().map(|p| p.0).collect();
+        let ends: Vec<f64> = past.iter().map(|p| p.2.scenario().total_span()).collect();
+        let same_end = ends.iter().all(|&e| e == ends[0]);
+        lines.push(format!(
+            "{}, seed{} {}: went up to {most:.2} {unit} past the end of scenario `{}`'s roads{}; the last road{} continued under the wheel",
+            v.label(),
+            if seeds.len() == 1 { "" } else { "s" },
+            seed_ranges(&seeds),
+            s0.name,
+            if same_end {
+                format!(" ({:.2} {unit})", ends[0])
+            } else {
+                String::new()
+            },
+            if same_end && past.iter().all(|p| p.2.scenario().segments.last().map(|g| g.road) == s0.segments.last().map(|g| g.road)) {
+                s0.segments.last().map_or(String::new(), |g| format!(" ({})", g.road_name))
+            } else {
+                String::new()
+            },
+        ));
+    }
+    if runs == 0 {
+        return Beyond::default();
+    }
+    let note = format!(
+        "{runs} of {} runs went past the end of the scenario's roads (up to {worst:.2} {unit}), where the last road simply continues: {}.",
+        results.len(),
+        lines
+            .iter()
+            .map(|l| l.split(": went").next().unwrap_or(l))
+            .collect::<Vec<_>>()
+            .join("; ")
+    );
+    Beyond {
+        lines,
+        note: Some(note),
+        runs,
+        worst,
+        unit,
+    }
+}
+
+/// `1-3, 5, 7-8`: sorted seeds as ranges.
+fn seed_ranges(seeds: &[u64]) -> String {
+    let mut s: Vec<u64> = seeds.to_vec();
+    s.sort_unstable();
+    s.dedup();
+    let mut out: Vec<String> = Vec::new();
+    let mut i = 0;
+    while i < s.len() {
+        let mut j = i;
+        while j + 1 < s.len() && s[j + 1] == s[j] + 1 {
+            j += 1;
+        }
+        out.push(if j == i {
+            s[i].to_string()
+        } else {
+            format!("{}-{}", s[i], s[j])
+        });
+        i = j + 1;
+    }
+    out.join(", ")
+}
+
+/// The report's note on the roads the confusion source passes through (no
+/// class of the matrix, not mapped): which ones the ARTE runs' estimator
+/// heard and for what share of its time; `None` when it heard none.
+fn pass_through_note(
+    confusion: &ConfusionArte,
+    setup: &SimSetup,
+    stats: &[Option<InLoopStats>],
+) -> Option<String> {
+    let roads = setup.roads();
+    let mut heard = vec![0.0; roads.len()];
+    for s in stats.iter().flatten() {
+        for (h, x) in heard.iter_mut().zip(&s.heard_s) {
+            *h += x;
+        }
+    }
+    let total: f64 = heard.iter().sum();
+    if total <= 0.0 {
+        return None;
+    }
+    let through: Vec<(usize, f64)> = confusion
+        .pass_through()
+        .into_iter()
+        .filter_map(|i| {
+            let h = heard.get(i).copied().unwrap_or(0.0);
+            (h > 0.0).then_some((i, h / total))
+        })
+        .collect();
+    if through.is_empty() {
+        return None;
+    }
+    let share: f64 = through.iter().map(|t| t.1).sum();
+    Some(format!(
+        "the confusion matrix has no class for {} (and [confusion.map] maps none of them): they pass through as the true road with confidence {:.3}, always right; {:.1} % of the time the ARTE runs' estimator heard ({}). On those roads the ARTE variants get a perfect estimate, and arte_accuracy counts those decisions right.",
+        through
+            .iter()
+            .map(|&(i, _)| roads[i].name())
+            .collect::<Vec<_>>()
+            .join(", "),
+        confusion.outside_confidence(),
+        100.0 * share,
+        through
+            .iter()
+            .map(|&(i, f)| format!("{} {:.1} %", roads[i].name(), 100.0 * f))
+            .collect::<Vec<_>>()
+            .join(", ")
+    ))
+}
+
+/// A seed's road list for the report: every segment up to
+/// [`LISTED_SEGMENTS`], else the first ones and how many more
+/// (`scenarios.csv` has them all).
+fn listed_segments(segments: &[grip_physics::Segment]) -> String {
+    if segments.len() <= LISTED_SEGMENTS {
+        return describe_segments(segments);
+    }
+    let total: f64 = segments.iter().map(|g| g.span).sum();
+    format!(
+        "{}, ... and {} more segments ({:.0} m in all; scenarios.csv lists them)",
+        describe_segments(&segments[..LISTED_SEGMENTS]),
+        segments.len() - LISTED_SEGMENTS,
+        total
+    )
+}
+
+/// Most segments of a seed the report lists.
+const LISTED_SEGMENTS: usize = 40;
+
+/// The files grip sim writes into `--out` (and nothing else): what
+/// [`prepare_out`] removes of an earlier run.
+fn is_own_output(name: &str) -> bool {
+    const FIXED: [&str; 9] = [
+        "summary.csv",
+        "table.txt",
+        "arte_inloop.csv",
+        "scenarios.csv",
+        "fig10_without_arte.png",
+        "fig11_with_arte.png",
+        "sweep.csv",
+        "sweep.txt",
+        "sweep.png",
+    ];
+    if FIXED.contains(&name) {
+        return true;
+    }
+    if let Some(rest) = name
+        .strip_prefix("trace_")
+        .and_then(|r| r.strip_suffix(".csv"))
+    {
+        return Variant::ALL.iter().any(|v| {
+            rest.strip_prefix(v.name())
+                .and_then(|r| r.strip_prefix("_seed"))
+                .is_some_and(|d| !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit()))
+        });
+    }
+    name.strip_prefix("entry_")
+        .and_then(|r| r.strip_suffix(".png"))
+        .is_some_and(|road| {
+            !road.is_empty()
+                && road
+                    .bytes()
+                    .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
+        })
+}
+
+/// Make `--out DIR` ready before any run: created if need be (refused if
+/// it is a file or cannot be written), and the files an earlier grip sim
+/// run wrote there removed (only those names, [`is_own_output`]), so that
+/// what is there afterwards is this run's. Says on stderr how many it
+/// removed.
+pub(crate) fn prepare_out(dir: &Path) -> anyhow::Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        anyhow::bail!("--out {}: exists and is not a directory", dir.display());
+    }
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("--out {}: cannot create the directory", dir.display()))?;
+    let probe = dir.join(format!(".grip-sim-write-check-{}", std::process::id()));
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .open(&probe)
+        .with_context(|| format!("--out {}: cannot write there", dir.display()))?;
+    std::fs::remove_file(&probe)
+        .with_context(|| format!("--out {}: cannot remove {}", dir.display(), probe.display()))?;
+    let mut removed = 0usize;
+    let entries = std::fs::read_dir(dir)
+        .with_context(|| format!("--out {}: cannot list the directory", dir.display()))?;
+    for entry in entries {
+        let entry =
+            entry.with_context(|| format!("--out {}: cannot list the directory", dir.display()))?;
+        let is_file = entry
+            .file_type()
+            .is_ok_and(|t| t.is_file() || t.is_symlink());
+        let name = entry.file_name();
+        if is_file && name.to_str().is_some_and(is_own_output) {
+            let p = entry.path();
+            std::fs::remove_file(&p).with_context(|| {
+                format!(
+                    "--out {}: cannot remove {} of an earlier run",
+                    dir.display(),
+                    p.display()
+                )
+            })?;
+            removed += 1;
+        }
+    }
+    if removed > 0 {
+        eprintln!(
+            "--out {}: removed {removed} file{} an earlier grip sim run wrote there (summary.csv, table.txt, trace_*.csv, ...; other files are left)",
+            dir.display(),
+            if removed == 1 { "" } else { "s" }
+        );
     }
     Ok(())
 }
@@ -519,7 +1015,7 @@ fn load_acoustic(ctx: &Ctx, args: &Args, setup: &SimSetup) -> anyhow::Result<Aco
     })?;
     let model = Model::from_bytes(&bytes).with_context(|| format!("{}", path.display()))?;
     let mut config = AcousticConfig::default();
-    match args.snr_db {
+    match args.snr_db.unwrap_or(DEFAULT_SNR) {
         Snr::Off => {}
         Snr::Db(snr) => config = config.with_noise_snr(snr),
         Snr::Range(a, b) => anyhow::bail!(

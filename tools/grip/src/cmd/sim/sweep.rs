@@ -364,6 +364,9 @@ pub fn run(
         });
     }
 
+    if let Some(dir) = req.out {
+        super::prepare_out(dir)?;
+    }
     let mut jobs = Job::grid(req.variants, req.seeds, false);
     for j in &mut jobs {
         j.keep_trace = false;
@@ -383,6 +386,8 @@ pub fn run(
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let mut rows = Vec::with_capacity(setups.len());
+    // Points at which runs went past the end of their roads.
+    let mut past_end = Vec::new();
     for Point {
         label,
         values,
@@ -398,6 +403,24 @@ pub fn run(
         };
         let results = run_batch_with(&setup_of, &jobs, req.threads, make, &|_| bar.inc(1))
             .map_err(|e| anyhow::anyhow!("simulation ({label}): {e}"))?;
+        let beyond = super::beyond_roads(&results, &|seed| {
+            per_seed
+                .iter()
+                .find(|(s, _)| *s == seed)
+                .map_or(setup, |(_, s)| s)
+        });
+        if beyond.runs > 0 {
+            bar.suspend(|| {
+                eprintln!(
+                    "warning: --sweep point `{label}`: {} of {} runs went up to {:.2} {} past the end of the scenario's roads, where the last road simply continues",
+                    beyond.runs,
+                    results.len(),
+                    beyond.worst,
+                    beyond.unit
+                );
+            });
+            past_end.push((label.clone(), beyond));
+        }
         rows.push(Row {
             label: label.clone(),
             values: values.clone(),
@@ -409,6 +432,16 @@ pub fn run(
     let mut report = format_report(req, &kinds, &rows);
     for n in &unreached {
         report.push_str(&format!("Note: {n}\n"));
+    }
+    if !past_end.is_empty() {
+        let worst = past_end.iter().map(|(_, b)| b.worst).fold(0.0, f64::max);
+        let runs: usize = past_end.iter().map(|(_, b)| b.runs).sum();
+        report.push_str(&format!(
+            "Note: {runs} runs at {} of {} points went past the end of the scenario's roads (up to {worst:.2} {}), where the last road simply continues (stderr names the points).\n",
+            past_end.len(),
+            setups.len(),
+            past_end[0].1.unit
+        ));
     }
     print!("{report}");
     if let Some(dir) = req.out {
