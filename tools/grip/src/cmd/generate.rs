@@ -364,6 +364,12 @@ fn write_scenario(dir: &Path, s: &LogSpec) -> anyhow::Result<String> {
         } else {
             spec
         };
+        // ... and as far as this car can cover in the run (as `grip sim`)
+        let (vehicle, _) = match &s.vehicle {
+            Some(v) => grip_config::load_vehicle(v)?,
+            None => cdir.vehicle()?,
+        };
+        let spec = spec.sized_for(&vehicle, &roads);
         let sc = spec
             .scenario(s.seed, &roads)
             .map_err(|e| anyhow::anyhow!("--scenario random (seed {}): {e}", s.seed))?;
