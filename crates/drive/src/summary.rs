@@ -43,6 +43,10 @@ const COVER_TOL_S: f64 = 0.005;
 /// ground truth, s (five plant periods).
 const GAP_S: f64 = 0.005;
 
+/// Gaps in the ground truth of a complete log up to this much in all are
+/// plant-sim's skipped periods (scheduling pauses), not lost data, s.
+const SMALL_GAPS_S: f64 = 0.05;
+
 /// p50 / p99 / max of a set of values (ns), and the count.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Percentiles {
@@ -1048,6 +1052,15 @@ fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> 
             }
         }
     }
+    let incomplete_log = log.report.truncated.is_some() || log.recorder.is_none();
+    // A complete live drive misses a few samples where plant-sim's timer
+    // skipped periods (a scheduling pause of a few ms: the samples were
+    // never made, the log lost nothing; the sample count shows them): such
+    // gaps, up to `SMALL_GAPS_S` in all, do not make the metrics partial.
+    // In a damaged or unfinished log, or beyond that, they do.
+    if !incomplete_log && gaps_s <= SMALL_GAPS_S {
+        gaps_s = 0.0;
+    }
     let covered_s = span_s - gaps_s;
     let gap_words = (gaps_s > 0.0).then(|| {
         format!(
@@ -1055,7 +1068,6 @@ fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> 
             longest.0, longest.1
         )
     });
-    let incomplete_log = log.report.truncated.is_some() || log.recorder.is_none();
     s.window_status = match s.scenario_duration_s {
         None => {
             s.warnings.push(format!(

@@ -202,9 +202,27 @@ fn c_a_truncated_log_says_how_much_of_the_scenario_it_covers() {
     holed
         .truth
         .retain(|g| !(150_000_000..200_000_000).contains(&g.stamp_ns));
+    holed.report.truncated = Some("1 damaged part skipped (1 chunk)".into());
     let r = summary_of(&holed).render();
     assert!(
         r.contains("WARNING: metrics cover 0.150 of 0.200 s of the scenario: the ground truth has gaps of 0.050 s"),
+        "{r}"
+    );
+    // a complete live drive whose plant skipped 10 ms (a scheduling pause:
+    // samples never made, nothing lost) is not partial; 60 ms are
+    let mut paused = full.clone();
+    paused
+        .truth
+        .retain(|g| !(150_000_000..160_000_000).contains(&g.stamp_ns));
+    let r = summary_of(&paused).render();
+    assert!(!r.contains("metrics cover"), "{r}");
+    assert!(!r.contains("PARTIAL"), "{r}");
+    let mut long = full.clone();
+    long.truth
+        .retain(|g| !(120_000_000..180_000_000).contains(&g.stamp_ns));
+    let r = summary_of(&long).render();
+    assert!(
+        r.contains("WARNING: metrics cover 0.140 of 0.200 s of the scenario"),
         "{r}"
     );
 
