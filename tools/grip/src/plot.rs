@@ -121,28 +121,27 @@ pub fn road_panel(
     )
 }
 
-/// [`road_panel`] over `[t_lo, t_hi]` s (a zoom); bands and lines are
-/// clipped to it.
-#[allow(clippy::too_many_arguments)]
-pub fn road_panel_in(
-    area: &Area<'_>,
-    (t_lo, t_hi): (f64, f64),
-    caption: &str,
-    x_desc: &str,
-    (y_lo, y_hi): (f64, f64),
+/// A chart over time (s) and a value, on a bitmap.
+pub type TimeChart<'a, 'b> = plotters::chart::ChartContext<
+    'a,
+    plotters::backend::BitMapBackend<'b>,
+    plotters::coord::cartesian::Cartesian2d<
+        plotters::coord::types::RangedCoordf64,
+        plotters::coord::types::RangedCoordf64,
+    >,
+>;
+
+/// `bands` drawn pale behind `chart` over `[t_lo, t_hi]` x `[y_lo, y_hi]`
+/// (clipped to it), each named at its start when `label_roads`.
+pub fn draw_bands(
+    chart: &mut TimeChart<'_, '_>,
     bands: &[Band],
+    (t_lo, t_hi): (f64, f64),
+    (y_lo, y_hi): (f64, f64),
     label_roads: bool,
-    lines: &[Line<'_>],
 ) -> PlotResult {
     use plotters::prelude::*;
-    let t_hi = t_hi.max(t_lo + 1e-3);
     let span = t_hi - t_lo;
-    let mut chart = ChartBuilder::on(area)
-        .margin(8)
-        .caption(caption, ("sans-serif", 20))
-        .x_label_area_size(34)
-        .y_label_area_size(60)
-        .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?;
     for b in bands {
         let (b0, b1) = (b.t0.max(t_lo), b.t1.min(t_hi));
         if b1 <= b0 {
@@ -160,6 +159,31 @@ pub fn road_panel_in(
             )))?;
         }
     }
+    Ok(())
+}
+
+/// [`road_panel`] over `[t_lo, t_hi]` s (a zoom); bands and lines are
+/// clipped to it.
+#[allow(clippy::too_many_arguments)]
+pub fn road_panel_in(
+    area: &Area<'_>,
+    (t_lo, t_hi): (f64, f64),
+    caption: &str,
+    x_desc: &str,
+    (y_lo, y_hi): (f64, f64),
+    bands: &[Band],
+    label_roads: bool,
+    lines: &[Line<'_>],
+) -> PlotResult {
+    use plotters::prelude::*;
+    let t_hi = t_hi.max(t_lo + 1e-3);
+    let mut chart = ChartBuilder::on(area)
+        .margin(8)
+        .caption(caption, ("sans-serif", 20))
+        .x_label_area_size(34)
+        .y_label_area_size(60)
+        .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?;
+    draw_bands(&mut chart, bands, (t_lo, t_hi), (y_lo, y_hi), label_roads)?;
     chart
         .configure_mesh()
         .disable_mesh()

@@ -15,7 +15,7 @@ use anyhow::anyhow;
 use plotters::prelude::*;
 
 use super::export::TimeBase;
-use crate::plot::{Area, Band, PlotResult as Res, init_fonts, road_colour, runs};
+use crate::plot::{Area, Band, PlotResult as Res, draw_bands, init_fonts, road_colour, runs};
 use grip_drive::DriveLog;
 use grip_drive::summary::Percentiles;
 
@@ -225,23 +225,13 @@ fn panel(
         .x_label_area_size(34)
         .y_label_area_size(LABEL_W)
         .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?;
-    for b in s.bands(&s.wheel) {
-        let (b0, b1) = (b.t0.max(t_lo), b.t1.min(t_hi));
-        if b1 <= b0 {
-            continue;
-        }
-        chart.draw_series(std::iter::once(Rectangle::new(
-            [(b0, y_lo), (b1, y_hi)],
-            b.colour.mix(0.25).filled(),
-        )))?;
-        if label_roads {
-            chart.draw_series(std::iter::once(Text::new(
-                b.label.clone(),
-                (b0 + 0.005 * span, y_hi - 0.03 * (y_hi - y_lo)),
-                ("sans-serif", 15).into_font().color(&BLACK),
-            )))?;
-        }
-    }
+    draw_bands(
+        &mut chart,
+        &s.bands(&s.wheel),
+        (t_lo, t_hi),
+        (y_lo, y_hi),
+        label_roads,
+    )?;
     if s.tb.scenario_ns.is_some() && (t_lo..=t_hi).contains(&0.0) {
         chart.draw_series(LineSeries::new(
             [(0.0, y_lo), (0.0, y_hi)],
