@@ -506,6 +506,13 @@ pub fn out_of_time_order(stamps: impl IntoIterator<Item = u64>) -> u64 {
     n
 }
 
+/// Where an estimate is judged: the middle of the audio frame it heard
+/// (CLOCK_MONOTONIC ns); the summary's accuracy and `grip inspect`'s
+/// timeline both take the road at the microphone there.
+pub fn frame_mid_ns(e: &RoadEstimate) -> u64 {
+    e.frame_t0_ns / 2 + e.frame_t1_ns / 2
+}
+
 /// Sequence gaps and resets of a sequence.
 pub fn seq_gaps(seqs: impl IntoIterator<Item = u64>) -> (u64, u64) {
     let mut last: Option<u64> = None;
@@ -853,7 +860,7 @@ pub fn summarize(
         ..ArteEval::default()
     };
     for e in &log.roads {
-        let mid = e.frame_t0_ns / 2 + e.frame_t1_ns / 2;
+        let mid = frame_mid_ns(e);
         let (Some(est), Some(g)) = (name_of_est(e), truth_covering(&log.truth, mid)) else {
             continue;
         };

@@ -167,7 +167,7 @@ pub fn road_timeline(log: &DriveLog) -> String {
         let mark = match (&est, latest) {
             (Some(est), Some(e)) if *est != mic => {
                 // what the microphone heard during the estimate's frame
-                let mid = e.frame_t0_ns / 2 + e.frame_t1_ns / 2;
+                let mid = summary::frame_mid_ns(e);
                 let heard = summary::truth_at(&log.truth, mid).map(|g| name(g.mic_road_name()));
                 if heard.as_deref() == Some(est.as_str()) {
                     "  <- differs (late)"
