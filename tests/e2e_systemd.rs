@@ -155,6 +155,39 @@ fn units_carry_the_required_directives() {
     assert!(users.lines().any(|l| l.starts_with("u grip ")));
 }
 
+/// The units named in a unit's `After=` lines.
+fn after(name: &str) -> Vec<String> {
+    let text = std::fs::read_to_string(unit_dir().join(name)).unwrap();
+    text.lines()
+        .filter_map(|l| l.trim_start().strip_prefix("After="))
+        .flat_map(|v| v.split_whitespace().map(str::to_string))
+        .collect()
+}
+
+/// Traction control starts without waiting for the road estimate's chain:
+/// a hung audio-acq or arte start must not hold the car's torque (the
+/// behaviour itself is exercised under systemd in `tests/pid1_systemd.rs`).
+/// Its one wait, the recorder's start, is bounded well below the others'.
+#[test]
+fn tcs_loop_waits_for_nothing_but_the_recorder_and_the_rig() {
+    let tcs = after("grip-tcs-loop.service");
+    for s in ["grip-audio-acq.service", "grip-arte.service"] {
+        assert!(!tcs.contains(&s.to_string()), "tcs-loop is After={s}");
+    }
+    assert!(
+        tcs.contains(&"grip-recorder.service".to_string()),
+        "{tcs:?}"
+    );
+    let rec = std::fs::read_to_string(unit_dir().join("grip-recorder.service")).unwrap();
+    let t = rec
+        .lines()
+        .find_map(|l| l.strip_prefix("TimeoutStartSec="))
+        .expect("grip-recorder.service: no TimeoutStartSec=");
+    assert_eq!(t, "10s", "the recorder's start bounds tcs-loop's");
+    // the road-estimate chain keeps its own order
+    assert!(after("grip-arte.service").contains(&"grip-audio-acq.service".to_string()));
+}
+
 /// `systemd-analyze security --offline=true` of one unit text (binaries
 /// substituted as for verify): the overall exposure, 0.0-10.0.
 fn exposure(name: &str, text: &str) -> f64 {

@@ -12,7 +12,8 @@
 //!    started by the install.
 //! 2. `systemctl start grip-rig.target` exits 0 and every service reaches
 //!    READY (`Type=notify`: active only after `READY=1`) in the units'
-//!    order: recorder, plant-sim, audio-acq, arte, tcs-loop.
+//!    order: recorder before plant-sim before audio-acq before arte,
+//!    and recorder and plant-sim before tcs-loop.
 //! 3. The drive starts (`systemctl kill -s SIGUSR1 grip-plant-sim`).
 //! 4. Each service in turn is `SIGSTOP`ped: systemd's watchdog kills it
 //!    ("Watchdog timeout" in its journal, `NRestarts` + 1) and restarts it;
@@ -25,6 +26,8 @@
 //!    `TorqueCommand` on the wire is 0 N m, disabled; the recorder's last
 //!    log is complete (not truncated, its summary written) and `grip
 //!    inspect` reads it.
+//! 6b. With arte's start hung (a drop-in `ExecStartPre=/bin/sleep`),
+//!    tcs-loop's commands are enabled while arte is still activating.
 //! 7. `dpkg -r grip` exits 0 and takes the binaries and units away.
 //!
 //! Time bounds are function bounds (emulated machine): a watchdog kill and
@@ -37,8 +40,18 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, bail, ensure};
 use grip_tests::hil::{self, CAN_EFF_FLAG, CAN_RTR_FLAG, CAN_SFF_MASK, CanCapture, Dbc};
 
-/// The services in the units' start order (After=/Before=).
+/// The services in an order their units allow (After=/Before=).
 const ORDER: [&str; 5] = ["recorder", "plant-sim", "audio-acq", "arte", "tcs-loop"];
+/// The units' `After=` pairs (first ready before second): tcs-loop waits for
+/// the recorder and the plant, not for the road estimate's chain
+/// (audio-acq, arte), which starts in parallel.
+const AFTER: [(&str, &str); 5] = [
+    ("recorder", "plant-sim"),
+    ("plant-sim", "audio-acq"),
+    ("audio-acq", "arte"),
+    ("recorder", "tcs-loop"),
+    ("plant-sim", "tcs-loop"),
+];
 const PLAYBACK: &str = "hw:Loopback,0,0";
 const CAPTURE: &str = "hw:Loopback,1,0";
 const ETC: &str = "/etc/grip";
@@ -577,14 +590,13 @@ fn grip_package_under_systemd() -> anyhow::Result<()> {
         ready.push((s, prop_u64(&u, "ActiveEnterTimestampMonotonic")?));
     }
     let t_first = ready[0].1;
-    for w in ready.windows(2) {
+    let at = |s: &str| ready.iter().find(|r| r.0 == s).map(|r| r.1).unwrap_or(0);
+    for (a, b) in AFTER {
         ensure!(
-            w[0].1 < w[1].1,
-            "{} was ready at {} µs, not before {} at {} µs",
-            w[0].0,
-            w[0].1,
-            w[1].0,
-            w[1].1
+            at(a) < at(b),
+            "{a} was ready at {} µs, not before {b} at {} µs",
+            at(a),
+            at(b)
         );
     }
     println!(
@@ -720,6 +732,49 @@ fn grip_package_under_systemd() -> anyhow::Result<()> {
         "grip inspect: exit 0\n{}",
         inspect.lines().take(25).collect::<Vec<_>>().join("\n")
     );
+
+    // --- 6b. a start of arte that hangs does not hold traction control ------------
+    // (a microphone whose open blocks, a model on a stalled file system):
+    // tcs-loop is not ordered after arte, so it controls while arte's start
+    // job still runs. Before 2026-12-05 it was, and waited for arte's
+    // TimeoutStartSec (90 s here, 30 s as shipped) with the inverter at 0 N m.
+    let hang_dir = PathBuf::from(format!("/etc/systemd/system/{}.d", unit("arte")));
+    std::fs::create_dir_all(&hang_dir)?;
+    let hang = hang_dir.join("hil-hang.conf");
+    std::fs::write(
+        &hang,
+        "# written by tests/pid1_systemd.rs: a start that hangs\n[Service]\nExecStartPre=/bin/sleep 3600\n",
+    )?;
+    run("systemctl", &["daemon-reload"])?;
+    let t = Instant::now();
+    run("systemctl", &["start", "--no-block", "grip-rig.target"])?;
+    let pu = unit("plant-sim");
+    wait_until(&format!("{pu} active"), Duration::from_secs(120), || {
+        Ok(prop(&pu, "ActiveState")? == "active")
+    })
+    .with_context(|| report(&pu))?;
+    run("systemctl", &["kill", "-s", "SIGUSR1", &pu])?;
+    rig.wait_control("a start in which arte's start hangs")?;
+    let arte = prop(&unit("arte"), "ActiveState")?;
+    ensure!(
+        arte == "activating",
+        "arte is {arte:?} once tcs-loop controls, not still activating: the hang did not hold"
+    );
+    println!(
+        "arte's start hung (ExecStartPre sleeps): tcs-loop controls {:.1?} after the start, arte still {arte}",
+        t.elapsed()
+    );
+    run("systemctl", &["stop", "grip-rig.target", "grip.target"])?;
+    for s in ORDER {
+        let u = unit(s);
+        wait_until(&format!("{u} stopped"), Duration::from_secs(120), || {
+            let a = prop(&u, "ActiveState")?;
+            Ok(a == "inactive" || a == "failed")
+        })
+        .with_context(|| report(&u))?;
+    }
+    std::fs::remove_file(&hang)?;
+    run("systemctl", &["daemon-reload"])?;
 
     // --- 7. remove -------------------------------------------------------------------
     let t = Instant::now();

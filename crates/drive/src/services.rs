@@ -97,9 +97,10 @@ impl std::fmt::Display for Placement {
 }
 
 impl Service {
-    /// Start order of a drive (the units' `After=` order): the recorder
-    /// first so it misses nothing, the plant before the loop that needs
-    /// its frames, the loop last.
+    /// Start order of a drive, one by one (an order the units' `After=`
+    /// allows; under systemd audio-acq and arte start beside tcs-loop, not
+    /// before it): the recorder first so it misses nothing, the plant
+    /// before the loop that needs its frames, the loop last.
     pub const START_ORDER: [Service; 5] = [
         Service::Recorder,
         Service::PlantSim,
