@@ -134,6 +134,8 @@ fn messages_and_signals_agree_field_by_field() {
             assert_eq!(num(&d.min), s.min, "{ctx}: min");
             assert_eq!(num(&d.max), s.max, "{ctx}: max");
             assert_eq!(d.unit, s.unit, "{ctx}: unit");
+            // the receiver the code filters and listens by
+            assert_eq!(d.receivers, [spec.receiver.node()], "{ctx}: receivers");
             // the DBC range is exactly what the bit field holds
             assert!(
                 (s.to_phys(s.raw_min()) - s.min).abs() < 1e-9,

@@ -1,5 +1,6 @@
 //! Hot paths allocate nothing after start-up: protocol encode/decode/E2E,
-//! SimBus and subscriber receive (incl. the timed wait), the periodic timer
+//! SimBus and subscriber receive (incl. the timed wait and a receive filter
+//! dropping a foreign frame), the periodic timer
 //! and the latency histogram. Publishing allocates exactly one 48-byte Arc
 //! per message inside iceoryx2 0.10 (see the test below). A counting global
 //! allocator counts allocations made by the current thread only.
@@ -8,7 +9,7 @@ use grip_testkit::allocations;
 use std::time::Duration;
 
 use grip_io::can::protocol::*;
-use grip_io::can::{CanBus, SimBus};
+use grip_io::can::{CanBus, RxFilter, SimBus};
 use grip_io::clock::ManualClock;
 use grip_io::ipc::{IpcNode, SubscriberMode};
 use grip_io::rt::{LatencyHistogram, PeriodicTimer};
@@ -58,7 +59,11 @@ fn simbus_and_ports_hot_path_allocations() {
     let name = format!("noalloc_{}", std::process::id());
     let node = IpcNode::create("noalloc-test").unwrap();
     let mut a = SimBus::open(&node, &name, 0).unwrap();
-    let mut b = SimBus::open(&node, &name, 0).unwrap();
+    // b receives as tcs-loop does (role filter): the foreign frame a also
+    // sends is dropped inside b's receive, which must allocate nothing too
+    let mut b = SimBus::open(&node, &name, 0)
+        .unwrap()
+        .with_rx_filter(RxFilter::Role(Role::Tcs));
     let topic = format!("grip/test/noalloc_{}", std::process::id());
     let p = node.publisher::<CycleRecord>(&topic).unwrap();
     let s = node
@@ -71,10 +76,12 @@ fn simbus_and_ports_hot_path_allocations() {
         .subscriber::<AudioBlock>(&format!("{topic}_audio"), SubscriberMode::Deep)
         .unwrap();
     let frame = CanFrame::new(0x120, &[1, 2, 3, 4, 5, 6, 7, 8]);
+    let foreign = CanFrame::new(0x7FF, &[9; 8]);
     let block = AudioBlock::zeroed();
     // warm-up: first use may set up connections
     // (a subscriber builds its connections on its first receive)
     for _ in 0..100 {
+        a.send(&foreign).unwrap();
         a.send(&frame).unwrap();
         b.send(&frame).unwrap();
         a.try_recv().unwrap();
@@ -90,12 +97,13 @@ fn simbus_and_ports_hot_path_allocations() {
     let mut recv_allocs = 0;
     let send_allocs = allocations(|| {
         for i in 0..N {
+            a.send(&foreign).unwrap();
             a.send(&frame).unwrap();
             b.send(&frame).unwrap();
             let mut r = CycleRecord::zeroed();
             r.seq = i;
             p.publish(&r).unwrap();
-            sends += 3;
+            sends += 4;
             if i % 20 == 0 {
                 pa.publish(&block).unwrap();
                 sends += 1;

@@ -3,9 +3,11 @@
 use std::time::Duration;
 
 use grip_io::can::protocol::*;
-use grip_io::can::{BusKind, CanBus, CanBusConfig, SimBus, Transport, open_bus, open_bus_as};
+use grip_io::can::{
+    BusKind, CanBus, CanBusConfig, RxFilter, SimBus, Transport, open_bus, open_bus_as,
+};
 use grip_io::ipc::{IpcNode, SubscriberMode};
-use grip_msgs::{CanFrame, CycleRecord, can_dir};
+use grip_msgs::{CanFrame, CycleRecord, can_dir, can_flags};
 
 fn unique(name: &str) -> String {
     format!("test_{}_{}", name, std::process::id())
@@ -129,7 +131,7 @@ fn auto_transport_falls_back_to_sim_without_the_interface() {
         sim_bus: Some(unique("auto")),
         bus_id: 3,
     };
-    let mut bus = open_bus_as(&cfg, &node, false).unwrap();
+    let mut bus = open_bus_as(&cfg, &node, false, RxFilter::Role(Role::Tcs)).unwrap();
     assert_eq!(bus.kind(), BusKind::Sim);
     let mut other = SimBus::open(&node, cfg.sim_bus_name(), 3).unwrap();
     other.send(&CanFrame::new(0x120, &[1; 8])).unwrap();
@@ -140,7 +142,9 @@ fn auto_transport_falls_back_to_sim_without_the_interface() {
         transport: Transport::Socketcan,
         ..cfg
     };
-    let e = open_bus(&forced, &node).unwrap_err().to_string();
+    let e = open_bus(&forced, &node, RxFilter::All)
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("AF_CAN") || (e.contains("gripnonexist0") && e.contains("ip link add")),
         "{e}"
@@ -159,7 +163,9 @@ fn auto_transport_does_not_fall_back_under_systemd() {
         sim_bus: Some(unique("auto-unit")),
         bus_id: 0,
     };
-    let e = open_bus_as(&cfg, &node, true).unwrap_err().to_string();
+    let e = open_bus_as(&cfg, &node, true, RxFilter::All)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("transport = \"auto\""), "{e}");
     assert!(e.contains("systemd unit"), "{e}");
     assert!(
@@ -172,7 +178,89 @@ fn auto_transport_does_not_fall_back_under_systemd() {
         transport: Transport::Sim,
         ..cfg
     };
-    assert_eq!(open_bus_as(&sim, &node, true).unwrap().kind(), BusKind::Sim);
+    assert_eq!(
+        open_bus_as(&sim, &node, true, RxFilter::All)
+            .unwrap()
+            .kind(),
+        BusKind::Sim
+    );
+}
+
+/// What a shared bus carries besides grip's own frames: a foreign 11-bit
+/// id, extended (29-bit) frames (one numbered like a grip id), a remote
+/// frame of a grip id; and every protocol message once.
+fn mixed_traffic() -> Vec<CanFrame> {
+    let ext = |id: u32| {
+        let mut f = CanFrame::new(id, &[0xEE; 8]);
+        f.flags = can_flags::EXTENDED;
+        f
+    };
+    let mut rtr = CanFrame::new(WHEEL_SPEEDS.id, &[]);
+    rtr.flags = can_flags::RTR;
+    let mut out = vec![
+        CanFrame::new(0x7FF, &[0xDE, 0xAD, 0xBE, 0xEF]),
+        ext(0x1ABC_DEF0),
+        ext(MOTOR_STATUS.id),
+        rtr,
+        CanFrame::new(0x000, &[1]),
+    ];
+    out.extend(MESSAGES.iter().map(|m| CanFrame::new(m.id, &[0x11; 8])));
+    out.push(CanFrame::new(0x5A5, &[2; 8]));
+    out
+}
+
+/// A simulated bus opened for a role, as the services open theirs
+/// (`open_bus_as`, transport sim), delivers exactly the protocol messages
+/// that role receives, in order; foreign ids, extended and remote frames
+/// and the messages of the other role are dropped. A participant without
+/// a filter (a recorder) still sees every frame.
+#[test]
+fn a_bus_opened_for_a_role_receives_only_that_roles_ids() {
+    let node = IpcNode::create("simbus-test-filter").unwrap();
+    for (role, want) in [
+        (
+            Role::Tcs,
+            vec![
+                MOTOR_STATUS.id,
+                WHEEL_SPEEDS.id,
+                VEHICLE_SPEED.id,
+                DRIVER_DEMAND.id,
+            ],
+        ),
+        (Role::Inverter, vec![TORQUE_COMMAND.id]),
+    ] {
+        let cfg = CanBusConfig {
+            transport: Transport::Sim,
+            interface: "gripnonexist2".into(),
+            sim_bus: Some(unique(&format!("filter-{}", role.node()))),
+            bus_id: 0,
+        };
+        let mut bus = open_bus_as(&cfg, &node, false, RxFilter::Role(role)).unwrap();
+        let mut all = SimBus::open(&node, cfg.sim_bus_name(), 0).unwrap();
+        let mut other = SimBus::open(&node, cfg.sim_bus_name(), 0).unwrap();
+        let sent = mixed_traffic();
+        for f in &sent {
+            other.send(f).unwrap();
+        }
+        let got: Vec<u32> = std::iter::from_fn(|| bus.try_recv().unwrap())
+            .map(|f| f.id)
+            .collect();
+        assert_eq!(got, want, "{role:?}");
+        let seen: Vec<CanFrame> = std::iter::from_fn(|| all.try_recv().unwrap()).collect();
+        assert_eq!(seen.len(), sent.len(), "the unfiltered participant");
+        assert!(
+            seen.iter()
+                .zip(&sent)
+                .all(|(a, b)| (a.id, a.flags) == (b.id, b.flags))
+        );
+        // recv_timeout skips a foreign frame too and waits for a grip one
+        other.send(&CanFrame::new(0x7FF, &[0; 8])).unwrap();
+        assert_eq!(
+            bus.recv_timeout(Duration::from_millis(20)).unwrap(),
+            None,
+            "{role:?}: a foreign frame woke the receiver with a frame"
+        );
+    }
 }
 
 #[test]

@@ -12,7 +12,8 @@ use std::time::{Duration, Instant};
 
 use grip_io::can::protocol::*;
 use grip_io::can::{
-    BusKind, CanBus, CanBusConfig, CanError, SocketCanBus, Transport, af_can_available, open_bus,
+    BusKind, CanBus, CanBusConfig, CanError, RxFilter, SocketCanBus, Transport, af_can_available,
+    open_bus,
 };
 use grip_io::ipc::IpcNode;
 use grip_msgs::{CanFrame, can_dir};
@@ -26,8 +27,13 @@ fn iface() -> String {
     std::env::var("GRIP_VCAN_IFACE").unwrap_or_else(|_| "vcan0".into())
 }
 
+/// A bus that receives every frame (no receive filter).
 fn open() -> SocketCanBus {
-    SocketCanBus::open(&iface(), 0).unwrap_or_else(|e| panic!("HIL test needs SocketCAN: {e}"))
+    open_for(RxFilter::All)
+}
+
+fn open_for(rx: RxFilter) -> SocketCanBus {
+    SocketCanBus::open(&iface(), 0, rx).unwrap_or_else(|e| panic!("HIL test needs SocketCAN: {e}"))
 }
 
 #[test]
@@ -121,7 +127,9 @@ fn invalid_frames_are_rejected_before_the_kernel() {
 
 #[test]
 fn missing_interface_error_names_it_and_the_fix() {
-    let e = SocketCanBus::open("gripnope9", 0).unwrap_err().to_string();
+    let e = SocketCanBus::open("gripnope9", 0, RxFilter::All)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("gripnope9") && e.contains("ip link add"), "{e}");
 }
 
@@ -134,7 +142,114 @@ fn auto_transport_chooses_socketcan_when_available() {
         sim_bus: None,
         bus_id: 0,
     };
-    assert_eq!(open_bus(&cfg, &node).unwrap().kind(), BusKind::SocketCan);
+    assert_eq!(
+        open_bus(&cfg, &node, RxFilter::Role(Role::Tcs))
+            .unwrap()
+            .kind(),
+        BusKind::SocketCan
+    );
+}
+
+/// A bus opened for a role gets the kernel's receive filter
+/// (`CAN_RAW_FILTER`): of the frames a second, plain raw socket writes on
+/// the interface, the filtered bus receives the role's protocol ids, in
+/// order, and none of the foreign ones (0x7FF, 0x000, 0x5A5, extended ids,
+/// one of them numbered like a grip id, a remote frame of a grip id, the
+/// other role's message), while an unfiltered bus on the same interface
+/// receives every one of them. The other tests of this binary share the
+/// interface and send 0x100, 0x321 and 0x555 meanwhile: whatever it
+/// receives, the filtered bus never gets an id its role does not receive.
+#[test]
+fn a_bus_opened_for_a_role_receives_only_its_ids_through_the_kernel_filter() {
+    use socketcan::{
+        CanFrame as SockFrame, CanSocket, EmbeddedFrame, ExtendedId, Frame as _, Socket, StandardId,
+    };
+    let writer = CanSocket::open(&iface()).expect("second raw socket");
+    let std_id = |id: u32| StandardId::new(id as u16).unwrap();
+    let ext_id = |id: u32| ExtendedId::new(id).unwrap();
+    for (k, role) in [Role::Tcs, Role::Inverter].into_iter().enumerate() {
+        let mut filtered = open_for(RxFilter::Role(role));
+        let mut all = open();
+        // this round's frames carry a mark in their last byte
+        let mark = 0xA0 + k as u8;
+        let data = |n: u8| [n, 0, 0, 0, 0, 0, 0, mark];
+        let mut sent: Vec<(SockFrame, bool)> = Vec::new();
+        let mut push = |f: SockFrame, passes: bool| sent.push((f, passes));
+        push(SockFrame::new(std_id(0x7FF), &data(1)).unwrap(), false);
+        push(
+            SockFrame::new(ext_id(0x1ABC_DEF0), &data(2)).unwrap(),
+            false,
+        );
+        push(
+            SockFrame::new(ext_id(MOTOR_STATUS.id), &data(3)).unwrap(),
+            false,
+        );
+        push(
+            SockFrame::new(ext_id(TORQUE_COMMAND.id), &data(4)).unwrap(),
+            false,
+        );
+        push(
+            SockFrame::new_remote(std_id(WHEEL_SPEEDS.id), 8).unwrap(),
+            false,
+        );
+        push(
+            SockFrame::new_remote(std_id(TORQUE_COMMAND.id), 8).unwrap(),
+            false,
+        );
+        push(SockFrame::new(std_id(0x000), &data(5)).unwrap(), false);
+        for (n, m) in MESSAGES.iter().enumerate() {
+            push(
+                SockFrame::new(std_id(m.id), &data(10 + n as u8)).unwrap(),
+                m.receiver == role,
+            );
+        }
+        push(SockFrame::new(std_id(0x5A5), &data(6)).unwrap(), false);
+        push(SockFrame::new(std_id(0x7FF), &data(7)).unwrap(), false);
+        for (f, _) in &sent {
+            writer.write_frame(f).expect("write on the interface");
+        }
+        let want: Vec<(u32, u8)> = sent
+            .iter()
+            .filter(|(_, p)| *p)
+            .map(|(f, _)| (f.raw_id(), f.data()[0]))
+            .collect();
+        assert!(!want.is_empty());
+        // the filtered bus: the role's frames of this round, nothing foreign
+        let mut got = Vec::new();
+        let t0 = Instant::now();
+        while t0.elapsed() < Duration::from_secs(3) {
+            let Some(f) = filtered.recv_timeout(Duration::from_millis(200)).unwrap() else {
+                if got.len() >= want.len() {
+                    break;
+                }
+                continue;
+            };
+            assert!(
+                role.receives_id(f.id) && f.flags == 0,
+                "{role:?}: received id {:#x} flags {:#x}, which the filter must drop",
+                f.id,
+                f.flags
+            );
+            if f.data[7] == mark && f.dlc == 8 {
+                got.push((f.id, f.data[0]));
+            }
+        }
+        assert_eq!(got, want, "{role:?}: the role's frames, in order");
+        // the unfiltered bus saw every frame written (the remote frames are
+        // not data: SocketCanBus does not hand those over to anyone)
+        let mut seen = 0;
+        let t0 = Instant::now();
+        let n_data = sent.iter().filter(|(f, _)| !f.is_remote_frame()).count();
+        while seen < n_data && t0.elapsed() < Duration::from_secs(3) {
+            if let Some(f) = all.recv_timeout(Duration::from_millis(200)).unwrap()
+                && f.dlc == 8
+                && f.data[7] == mark
+            {
+                seen += 1;
+            }
+        }
+        assert_eq!(seen, n_data, "{role:?}: frames on the bus without a filter");
+    }
 }
 
 /// SocketCAN send / try_recv / recv_timeout allocate nothing (counted on

@@ -6,7 +6,8 @@
 //! 1. **Drain CAN** (non-blocking, at most [`MAX_RX_PER_CYCLE`] frames),
 //!    then read the clock (the cycle's "now": no command is stamped earlier
 //!    than it arrived, so the command timeout never fires early), then
-//!    check each frame through `ProtocolRx::for_inverter()` (E2E checked, faults counted):
+//!    check each frame through `ProtocolRx::for_role(ROLE)` (E2E checked,
+//!    faults counted; the bus `run` opens delivers only [`ROLE`]'s ids):
 //!    the newest valid `TorqueCommand` is held with its arrival time.
 //! 2. **Inverter**: a command is *valid* while the last accepted one is at
 //!    most `cmd_timeout_ms` old. Without a valid command the inverter applies
@@ -47,8 +48,8 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 
 use grip_io::can::protocol::{
-    DRIVER_DEMAND, DriverDemand, E2eSender, InverterMsg, MotorStatus, ProtocolRx, TorqueCommand,
-    VEHICLE_SPEED, VehicleSpeed, WheelSpeeds,
+    DRIVER_DEMAND, DriverDemand, E2eSender, InverterMsg, MotorStatus, ProtocolRx, Role,
+    TorqueCommand, VEHICLE_SPEED, VehicleSpeed, WheelSpeeds,
 };
 use grip_io::can::{CanBus, CanFrame, drain};
 use grip_io::clock::Clock;
@@ -65,6 +66,12 @@ use crate::config::{PlantSimConfig, StartOn};
 /// commands behind a burst of bad frames before the inverter's command
 /// timeout).
 pub use grip_io::can::MAX_RX_PER_CYCLE;
+
+/// The part plant-sim plays on the bus as a receiver: the DBC's inverter
+/// (`INV`). What its [`ProtocolRx`] checks and what `run` opens the bus to
+/// receive (`RxFilter::Role(ROLE)`), one constant so the two cannot differ.
+/// (It also sends as `ABS` and `VCU`, which receive nothing.)
+pub const ROLE: Role = Role::Inverter;
 /// `MotorStatus.FaultCode` while torque is zeroed because commands stopped.
 pub const FAULT_CMD_TIMEOUT: u8 = 0x01;
 
@@ -271,7 +278,7 @@ impl PlantSim {
             sensors,
             r: vehicle.r,
             dt,
-            rx: ProtocolRx::for_inverter(),
+            rx: ProtocolRx::for_role(ROLE),
             tx_ws: E2eSender::new(),
             tx_ms: E2eSender::new(),
             tx_vs: E2eSender::new(),

@@ -18,5 +18,7 @@ pub mod monitor;
 pub mod run;
 
 pub use config::{PlantSimConfig, StartOn};
-pub use cycle::{FAULT_CMD_TIMEOUT, NullTruth, Outcome, Phase, PlantSim, PlantTick, TruthSink};
+pub use cycle::{
+    FAULT_CMD_TIMEOUT, NullTruth, Outcome, Phase, PlantSim, PlantTick, ROLE, TruthSink,
+};
 pub use run::{Options, RunError, run};

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use grip_config::{ConfigDir, ConfigError};
-use grip_io::can::{CanBus, CanBusConfig, CanError, Transport, open_bus};
+use grip_io::can::{CanBus, CanBusConfig, CanError, RxFilter, Transport, open_bus};
 use grip_io::clock::MonotonicClock;
 use grip_io::ipc::{IpcError, IpcNode, Publisher};
 use grip_io::rt::{self, PeriodicTimer};
@@ -177,7 +177,9 @@ pub fn run(
         "plant-sim starting"
     );
     let node = IpcNode::create(topics::node::PLANT_SIM)?;
-    let mut bus = open_bus(&can, &node)?;
+    // only TorqueCommand reaches the inverter; anything else on the bus is
+    // filtered below it
+    let mut bus = open_bus(&can, &node, RxFilter::Role(crate::cycle::ROLE))?;
     let mut truth = IpcTruth {
         publisher: node.publisher::<GroundTruth>(topics::TRUTH)?,
         errors: 0,

@@ -5,11 +5,12 @@
 mod common;
 
 use common::{LastTruth, MemBus, sim};
+use grip_io::can::RxFilter;
 use grip_io::can::protocol::{
     E2eSender, InverterMsg, MotorStatus, ProtocolMessage, ProtocolRx, TorqueCommand, encode,
 };
 use grip_io::clock::{Clock, ManualClock};
-use grip_msgs::CanFrame;
+use grip_msgs::{CanFrame, can_flags};
 use grip_plant_sim::{
     FAULT_CMD_TIMEOUT, Outcome, Phase, PlantSim, PlantSimConfig, PlantTick, StartOn,
 };
@@ -188,6 +189,42 @@ fn corrupted_commands_are_rejected_counted_and_ignored() {
         r.cycle();
     }
     assert_eq!(r.sim.applied_torque(), 0.0);
+}
+
+/// On the bus `run` opens for the inverter (filtered for
+/// [`grip_plant_sim::ROLE`]) nothing but TorqueCommand arrives: foreign ids,
+/// an extended frame numbered like TorqueCommand and the sensor messages of
+/// another node are dropped below the loop, no fault counted, torque as
+/// commanded; unfiltered, the foreign ids count as unknown.
+#[test]
+fn only_the_torque_command_reaches_the_inverters_filtered_bus() {
+    let mut a = Rig::new(&immediate());
+    a.bus = MemBus::new().with_rx_filter(RxFilter::Role(grip_plant_sim::ROLE));
+    let mut b = Rig::new(&immediate());
+    let mut ext = CanFrame::new(0x100, &[0x55; 8]);
+    ext.flags = can_flags::EXTENDED;
+    let foreign = [
+        CanFrame::new(0x7FF, &[1; 8]),
+        CanFrame::new(0x555, &[0; 8]),
+        ext,
+        CanFrame::new(0x120, &[0; 8]),
+    ];
+    for k in 0..100 {
+        for r in [&mut a, &mut b] {
+            r.send_cmd(120.0, true);
+            if k >= 50 {
+                for f in foreign {
+                    r.bus.inject(f);
+                }
+            }
+            r.cycle();
+            assert_eq!(r.sim.applied_torque(), 120.0, "cycle {k}");
+        }
+    }
+    let fa = a.sim.protocol_rx().faults();
+    assert_eq!(fa.total(), 0, "{fa:?}");
+    let fb = b.sim.protocol_rx().faults();
+    assert_eq!(fb.unknown_id, 100, "{fb:?}");
 }
 
 #[test]

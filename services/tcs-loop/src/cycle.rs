@@ -4,9 +4,11 @@
 //! A cycle, in this order:
 //! 1. **Drain CAN** (non-blocking, at most [`MAX_RX_PER_CYCLE`] frames),
 //!    then read the clock ("now" of the cycle, so no frame is stamped
-//!    earlier than it arrived and a timeout never fires early); each
-//!    frame goes through `ProtocolRx::for_tcs()` (length, CRC, alive counter,
-//!    unknown id; faults counted) and is held for `CAN_LOG` (direction RX,
+//!    earlier than it arrived and a timeout never fires early); the bus
+//!    `run` opens delivers only the ids of [`ROLE`] (foreign traffic is
+//!    filtered below the loop); each frame goes through
+//!    `ProtocolRx::for_role(ROLE)` (length, CRC, alive counter, unknown id;
+//!    faults counted) and is held for `CAN_LOG` (direction RX,
 //!    flag `E2E_REJECTED` when rejected; logged in step 5). Accepted frames
 //!    update the latest `WheelSpeeds`, `MotorStatus`, `VehicleSpeed`, `DriverDemand`.
 //! 2. **Road**: the newest `RoadEstimate` (latest value wins) replaces the
@@ -53,7 +55,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use grip_io::can::protocol::{
     DRIVER_DEMAND, DriverDemand, E2eSender, InverterMsg, MOTOR_STATUS, MotorStatus, ProtocolRx,
-    TorqueCommand, VEHICLE_SPEED, VehicleSpeed, WHEEL_SPEEDS, WheelSpeeds,
+    Role, TorqueCommand, VEHICLE_SPEED, VehicleSpeed, WHEEL_SPEEDS, WheelSpeeds,
 };
 use grip_io::can::{CanBus, CanFrame, drain};
 use grip_io::clock::Clock;
@@ -66,6 +68,11 @@ use grip_tcs::{
 
 use crate::config::SafetyConfig;
 use crate::ports::{RecordSink, RoadSource};
+
+/// The part tcs-loop plays on the bus (the DBC's `TCS`): what its
+/// [`ProtocolRx`] checks and what `run` opens the bus to receive
+/// (`RxFilter::Role(ROLE)`), one constant so the two cannot differ.
+pub const ROLE: Role = Role::Tcs;
 
 /// Most frames drained from the bus in one cycle (grip-io's, shared with
 /// plant-sim: why 256 is written there).
@@ -204,7 +211,7 @@ impl TcsLoop {
                 field: e.field,
                 reason: e.reason,
             })?;
-        let mut rx = ProtocolRx::for_tcs();
+        let mut rx = ProtocolRx::for_role(ROLE);
         for (id, t) in [
             (WHEEL_SPEEDS.id, safety.sensor_timeout_ns()),
             (MOTOR_STATUS.id, safety.sensor_timeout_ns()),

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use grip_config::{ConfigDir, ConfigError, load_controllers};
-use grip_io::can::{CanBus, CanBusConfig, CanError, open_bus};
+use grip_io::can::{CanBus, CanBusConfig, CanError, RxFilter, open_bus};
 use grip_io::clock::{Clock, MonotonicClock};
 use grip_io::ipc::{IpcError, IpcNode};
 use grip_io::rt::{self, LatencyHistogram, PeriodicTimer};
@@ -192,7 +192,9 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
     );
 
     let node = IpcNode::create(topics::node::TCS_LOOP)?;
-    let mut bus = open_bus(&cfg.can, &node)?;
+    // only the ids tcs-loop consumes reach it: foreign traffic on a shared
+    // bus neither wakes the loop nor counts as a fault
+    let mut bus = open_bus(&cfg.can, &node, RxFilter::Role(crate::cycle::ROLE))?;
     let Ports {
         mut sink,
         mut road,

@@ -5,11 +5,12 @@
 mod common;
 
 use common::{LastSink, MemBus, SetRoad};
+use grip_io::can::RxFilter;
 use grip_io::can::protocol::{
     DriverDemand, E2eSender, MotorStatus, ProtocolMessage, TorqueCommand, WheelSpeeds, encode,
 };
 use grip_io::clock::{Clock, ManualClock};
-use grip_msgs::{CanFrame, CycleRecord, NO_CLASS, RoadEstimate};
+use grip_msgs::{CanFrame, CycleRecord, NO_CLASS, RoadEstimate, can_flags};
 use grip_physics::VehicleParams;
 use grip_tcs::{ControllerKind, ControllersConfig};
 use grip_tcs_loop::{CycleTick, NoRoad, SafetyConfig, TcsLoop};
@@ -371,6 +372,71 @@ fn corrupted_frames_are_rejected_counted_and_do_not_change_the_command() {
     // the counters of the "stopped" log line agree with what was logged
     assert_eq!(a.lp.can_tx(), a.sink.can_tx);
     assert_eq!(a.lp.can_rx(), a.sink.can_rx);
+}
+
+/// Foreign traffic of a shared bus on the bus `run` opens for the loop
+/// (filtered for [`grip_tcs_loop::ROLE`]; in memory here, the same rule as
+/// SocketCAN's kernel filter and the simulated bus): no fault counted,
+/// nothing held for `CAN_LOG`, commands bit-identical to a twin without it.
+/// A twin on an unfiltered bus (every frame, as before filters) counts each
+/// foreign frame as an unknown id. An id collision (another node sending on
+/// WheelSpeeds' id) passes the filter and is still rejected by the E2E check.
+#[test]
+fn foreign_traffic_on_the_loops_filtered_bus_never_reaches_it() {
+    let mut a = Rig::new(ControllerKind::Mtte, false);
+    a.bus = MemBus::new().with_rx_filter(RxFilter::Role(grip_tcs_loop::ROLE));
+    let mut b = Rig::new(ControllerKind::Mtte, false);
+    let mut clean = Rig::new(ControllerKind::Mtte, false);
+    let ext = |id: u32| {
+        let mut f = CanFrame::new(id, &[0x55; 8]);
+        f.flags = can_flags::EXTENDED;
+        f
+    };
+    // per cycle: an unknown 11-bit id, a J1939-style extended frame, an
+    // extended frame numbered like MotorStatus, and a TorqueCommand id (a
+    // protocol message tcs-loop only sends)
+    let foreign = [
+        CanFrame::new(0x7FF, &[1, 2, 3, 4]),
+        ext(0x18FF_50E5),
+        ext(0x110),
+        CanFrame::new(0x100, &[0; 8]),
+    ];
+    for k in 0..300 {
+        for r in [&mut a, &mut b, &mut clean] {
+            r.feed(true, true, true);
+        }
+        if (100..200).contains(&k) {
+            for f in foreign {
+                a.bus.inject(f);
+                b.bus.inject(f);
+            }
+        }
+        if k == 250 {
+            let collision = CanFrame::new(0x120, &[0x12; 8]);
+            a.bus.inject(collision);
+            b.bus.inject(collision);
+        }
+        let (ra, ca) = a.cycle();
+        let (rb, cb) = b.cycle();
+        let (_, cc) = clean.cycle();
+        assert_eq!(ca, cc, "command differs at cycle {k}");
+        assert_eq!(cb, cc, "command differs at cycle {k}");
+        assert_eq!(ra.torque_cmd.to_bits(), rb.torque_cmd.to_bits());
+        if k > 100 {
+            assert_eq!(ra.safe_state, 0);
+        }
+    }
+    let fa = a.lp.last_record().faults;
+    let fb = b.lp.last_record().faults;
+    assert_eq!((fa.unknown_id, fa.crc, fa.total()), (0, 1, 1), "{fa:?}");
+    // unfiltered: 0x7FF and the J1939 frame are unknown ids; the extended
+    // 0x110 is taken for MotorStatus by id and fails its CRC (or counter)
+    assert_eq!(fb.unknown_id, 200, "{fb:?}");
+    assert!(fb.total() > fa.total() + 200, "{fb:?}");
+    // CAN_LOG: the filtered loop logged its inputs and the collision only
+    assert_eq!(a.sink.can_rx, clean.sink.can_rx + 1);
+    assert_eq!(a.sink.can_rejected, 1);
+    assert_eq!(b.sink.can_rx, clean.sink.can_rx + 1 + 400);
 }
 
 /// A late cycle after a stall finds a burst of bad-CRC frames at the head

@@ -4,7 +4,9 @@
 //! queue; the test (or [`MemBus::pair`]'s other end) feeds and drains them.
 //! Queues are preallocated (65 536 frames), so `send` and `try_recv`
 //! allocate nothing while under that capacity (the services' no-allocation
-//! tests rely on it). Not `Send`: one thread only.
+//! tests rely on it). It receives every queued frame unless given a
+//! [`RxFilter`] ([`MemBus::with_rx_filter`]), which it applies as SocketCAN's
+//! kernel and the simulated bus do. Not `Send`: one thread only.
 
 use std::cell::RefCell;
 use std::collections::VecDeque;
@@ -12,7 +14,7 @@ use std::rc::Rc;
 
 use core::time::Duration;
 
-use super::{BusKind, CanBus, CanError};
+use super::{BusKind, CanBus, CanError, RxFilter};
 use crate::clock::ManualClock;
 use grip_msgs::{CanFrame, can_dir};
 
@@ -36,6 +38,8 @@ pub struct MemBus {
     pub tx: FrameQueue,
     /// [`MemBus::deliver_late`]: the clock advanced before the next frame.
     late: Option<(ManualClock, u64)>,
+    /// What `try_recv` hands over; the rest of `rx` is dropped unseen.
+    filter: RxFilter,
 }
 
 impl Default for MemBus {
@@ -51,7 +55,16 @@ impl MemBus {
             rx: frame_queue(),
             tx: frame_queue(),
             late: None,
+            filter: RxFilter::All,
         }
+    }
+
+    /// Receives only what `rx` lets through, as a bus opened with it by
+    /// [`super::open_bus`] would (the queue keeps everything fed to it;
+    /// `try_recv` drops what does not pass).
+    pub fn with_rx_filter(mut self, rx: RxFilter) -> Self {
+        self.filter = rx;
+        self
     }
 
     /// Two participants wired to each other (one's `tx` is the other's `rx`).
@@ -62,11 +75,13 @@ impl MemBus {
                 rx: a.clone(),
                 tx: b.clone(),
                 late: None,
+                filter: RxFilter::All,
             },
             Self {
                 rx: b,
                 tx: a,
                 late: None,
+                filter: RxFilter::All,
             },
         )
     }
@@ -100,9 +115,17 @@ impl CanBus for MemBus {
         self.tx.borrow_mut().push_back(*frame);
         Ok(())
     }
-    /// The next queued frame, marked as received.
+    /// The next queued frame the filter passes, marked as received.
     fn try_recv(&mut self) -> Result<Option<CanFrame>, CanError> {
-        let f = self.rx.borrow_mut().pop_front();
+        let f = {
+            let mut q = self.rx.borrow_mut();
+            loop {
+                match q.pop_front() {
+                    Some(f) if !self.filter.accepts(&f) => {}
+                    other => break other,
+                }
+            }
+        };
         if f.is_some()
             && let Some((clock, delay_ns)) = self.late.take()
         {
@@ -168,6 +191,69 @@ mod tests {
         assert_eq!((d.frames, d.error), (2, false));
         assert_eq!([buf[0].id, buf[1].id], [3, 4]);
         assert_eq!(super::super::drain(&mut m, &mut buf).frames, 0);
+    }
+
+    /// Filtered for a role, the in-memory bus hands over the role's ids
+    /// only, in order, and drops the rest unseen (a foreign id, an extended
+    /// frame numbered like a grip id, a remote frame, the other role's
+    /// message), as SocketCAN's kernel filter and the simulated bus do.
+    #[test]
+    fn a_role_filter_drops_foreign_frames_and_keeps_the_roles_ids() {
+        use crate::can::protocol::{
+            DRIVER_DEMAND, MOTOR_STATUS, Role, TORQUE_COMMAND, VEHICLE_SPEED, WHEEL_SPEEDS,
+        };
+        use grip_msgs::can_flags;
+        let flagged = |id, flags| {
+            let mut f = CanFrame::new(id, &[0; 8]);
+            f.flags = flags;
+            f
+        };
+        let mut m = MemBus::new().with_rx_filter(RxFilter::Role(Role::Tcs));
+        for f in [
+            CanFrame::new(0x7FF, &[1; 8]),
+            CanFrame::new(WHEEL_SPEEDS.id, &[2; 8]),
+            flagged(0x1ABC_DEF0, can_flags::EXTENDED),
+            flagged(MOTOR_STATUS.id, can_flags::EXTENDED),
+            flagged(MOTOR_STATUS.id, can_flags::RTR),
+            CanFrame::new(TORQUE_COMMAND.id, &[3; 8]),
+            CanFrame::new(MOTOR_STATUS.id, &[4; 8]),
+            CanFrame::new(VEHICLE_SPEED.id, &[5; 8]),
+            CanFrame::new(0x5A5, &[6; 8]),
+            CanFrame::new(DRIVER_DEMAND.id, &[7; 8]),
+            CanFrame::new(0x7FF, &[8; 8]),
+        ] {
+            m.inject(f);
+        }
+        let got: Vec<_> = std::iter::from_fn(|| m.try_recv().unwrap()).collect();
+        assert_eq!(
+            got.iter().map(|f| (f.id, f.data[0])).collect::<Vec<_>>(),
+            [
+                (WHEEL_SPEEDS.id, 2),
+                (MOTOR_STATUS.id, 4),
+                (VEHICLE_SPEED.id, 5),
+                (DRIVER_DEMAND.id, 7)
+            ]
+        );
+        assert!(
+            m.rx.borrow().is_empty(),
+            "the rest dropped, not left queued"
+        );
+        // the inverter's bus: the command only
+        let mut inv = MemBus::new().with_rx_filter(RxFilter::Role(Role::Inverter));
+        for id in [0x7FF, WHEEL_SPEEDS.id, TORQUE_COMMAND.id, 0x101] {
+            inv.inject(CanFrame::new(id, &[0; 8]));
+        }
+        assert_eq!(
+            inv.recv_timeout(Duration::ZERO).unwrap().map(|f| f.id),
+            Some(TORQUE_COMMAND.id)
+        );
+        assert_eq!(inv.try_recv().unwrap(), None);
+        // unfiltered (the default, RxFilter::All): everything
+        let mut all = MemBus::new();
+        all.inject(CanFrame::new(0x7FF, &[]));
+        all.inject(flagged(0x1ABC_DEF0, can_flags::EXTENDED));
+        assert_eq!(all.try_recv().unwrap().map(|f| f.id), Some(0x7FF));
+        assert_eq!(all.try_recv().unwrap().map(|f| f.id), Some(0x1ABC_DEF0));
     }
 
     #[test]

@@ -4,7 +4,8 @@
 //! [`MemBus`], in-process queues, for single-threaded tests and replay.
 //! [`open_bus`] picks one per [`CanBusConfig`]; `auto` takes SocketCAN when
 //! the interface exists and the kernel has AF_CAN, else the simulated bus,
-//! and logs which and why.
+//! and logs which and why. Each bus delivers what its [`RxFilter`] lets
+//! through: a service's bus only the ids its [`Role`] receives.
 
 mod mem;
 pub mod protocol;
@@ -21,6 +22,55 @@ pub use socket::{
 };
 
 use crate::ipc::{IpcError, IpcNode};
+pub use protocol::Role;
+
+/// Which frames a bus delivers to its owner: given to [`open_bus`] (and
+/// [`SocketCanBus::open`], [`SimBus::with_rx_filter`],
+/// [`MemBus::with_rx_filter`]). Every transport applies the same rule, so
+/// the simulated and in-memory buses deliver what SocketCAN delivers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum RxFilter {
+    /// Every data frame on the bus (the behaviour before filters): for a
+    /// recorder or bus monitor that must see foreign traffic too.
+    #[default]
+    All,
+    /// Only the protocol messages `role` receives ([`Role::receives`], read
+    /// from [`protocol::MESSAGES`]): 11-bit data frames with those ids.
+    /// Foreign ids, extended (29-bit) frames and remote frames never reach
+    /// the owner; on SocketCAN the kernel drops them (`CAN_RAW_FILTER`), so
+    /// a busy shared bus does not wake the receiver either.
+    Role(Role),
+}
+
+impl RxFilter {
+    /// True if the owner receives `frame`. Allocation-free.
+    pub fn accepts(&self, frame: &CanFrame) -> bool {
+        match self {
+            Self::All => true,
+            Self::Role(r) => {
+                let not_data = grip_msgs::can_flags::EXTENDED
+                    | grip_msgs::can_flags::RTR
+                    | grip_msgs::can_flags::ERROR;
+                frame.flags & not_data == 0 && r.receives_id(frame.id)
+            }
+        }
+    }
+}
+
+impl core::fmt::Display for RxFilter {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::All => f.write_str("every frame"),
+            Self::Role(r) => {
+                write!(f, "{}'s ids", r.node())?;
+                for m in r.receives() {
+                    write!(f, " 0x{:03X}", m.id)?;
+                }
+                Ok(())
+            }
+        }
+    }
+}
 
 /// Most frames a real-time loop (tcs-loop, plant-sim) drains from its bus
 /// in one cycle; the rest waits for the next cycle, so a flood cannot make
@@ -237,14 +287,15 @@ impl CanBus for AnyBus {
     }
 }
 
-/// Opens the bus `cfg` asks for. `auto`: SocketCAN when AF_CAN works and
+/// Opens the bus `cfg` asks for, delivering only what `rx` lets through
+/// (a service passes its [`RxFilter::Role`]). `auto`: SocketCAN when AF_CAN works and
 /// the interface exists, else the simulated bus, with a loud warning saying
 /// which and why; but under systemd (`INVOCATION_ID` set, as systemd sets it
 /// for every unit it starts, and `grip drive` does not) that fallback is
 /// [`CanError::AutoUnderSystemd`]: a unit on the car must not run on a bus
 /// that reaches no inverter (and Restart= retries until the interface is up).
-pub fn open_bus(cfg: &CanBusConfig, node: &IpcNode) -> Result<AnyBus, CanError> {
-    open_bus_as(cfg, node, std::env::var_os("INVOCATION_ID").is_some())
+pub fn open_bus(cfg: &CanBusConfig, node: &IpcNode, rx: RxFilter) -> Result<AnyBus, CanError> {
+    open_bus_as(cfg, node, std::env::var_os("INVOCATION_ID").is_some(), rx)
 }
 
 /// [`open_bus`], saying whether the caller runs as a systemd unit.
@@ -252,17 +303,23 @@ pub fn open_bus_as(
     cfg: &CanBusConfig,
     node: &IpcNode,
     under_systemd: bool,
+    rx: RxFilter,
 ) -> Result<AnyBus, CanError> {
+    let sim = || -> Result<AnyBus, CanError> {
+        Ok(AnyBus::Sim(
+            SimBus::open(node, cfg.sim_bus_name(), cfg.bus_id)?.with_rx_filter(rx),
+        ))
+    };
     match cfg.transport {
         Transport::Socketcan => {
-            let b = SocketCanBus::open(&cfg.interface, cfg.bus_id)?;
-            tracing::info!(iface = %cfg.interface, "CAN transport: SocketCAN");
+            let b = SocketCanBus::open(&cfg.interface, cfg.bus_id, rx)?;
+            tracing::info!(iface = %cfg.interface, receives = %rx, "CAN transport: SocketCAN");
             Ok(AnyBus::SocketCan(b))
         }
         Transport::Sim => {
-            let b = SimBus::open(node, cfg.sim_bus_name(), cfg.bus_id)?;
-            tracing::warn!(bus = %cfg.sim_bus_name(), "CAN transport: SIMULATED bus over iceoryx2 (configured transport = \"sim\")");
-            Ok(AnyBus::Sim(b))
+            let b = sim()?;
+            tracing::warn!(bus = %cfg.sim_bus_name(), receives = %rx, "CAN transport: SIMULATED bus over iceoryx2 (configured transport = \"sim\")");
+            Ok(b)
         }
         Transport::Auto => {
             let why = match af_can_available() {
@@ -270,9 +327,9 @@ pub fn open_bus_as(
                 Ok(()) if !interface_exists(&cfg.interface) => {
                     format!("interface {:?} does not exist", cfg.interface)
                 }
-                Ok(()) => match SocketCanBus::open(&cfg.interface, cfg.bus_id) {
+                Ok(()) => match SocketCanBus::open(&cfg.interface, cfg.bus_id, rx) {
                     Ok(b) => {
-                        tracing::info!(iface = %cfg.interface, "CAN transport: SocketCAN (auto)");
+                        tracing::info!(iface = %cfg.interface, receives = %rx, "CAN transport: SocketCAN (auto)");
                         return Ok(AnyBus::SocketCan(b));
                     }
                     Err(e) => format!("opening {:?} failed: {e}", cfg.interface),
@@ -281,13 +338,14 @@ pub fn open_bus_as(
             if under_systemd {
                 return Err(CanError::AutoUnderSystemd { why });
             }
-            let b = SimBus::open(node, cfg.sim_bus_name(), cfg.bus_id)?;
+            let b = sim()?;
             tracing::warn!(
                 bus = %cfg.sim_bus_name(),
+                receives = %rx,
                 reason = %why,
                 "CAN transport: SIMULATED bus over iceoryx2 instead of SocketCAN; frames never reach a real inverter"
             );
-            Ok(AnyBus::Sim(b))
+            Ok(b)
         }
     }
 }

@@ -158,6 +158,10 @@ pub struct MessageSpec {
     pub timeout_ms: u32,
     /// Transmitting node.
     pub sender: &'static str,
+    /// Receiving node: the receiver the DBC names for every signal of the
+    /// message. The one place that says which ids a grip service consumes
+    /// ([`Role::receives`]: its [`ProtocolRx`] and its bus's receive filter).
+    pub receiver: Role,
     /// All signals, CRC and Counter first.
     pub signals: &'static [SignalSpec],
 }
@@ -174,6 +178,7 @@ pub const TORQUE_COMMAND: MessageSpec = MessageSpec {
     cycle_ms: 1,
     timeout_ms: 20,
     sender: "TCS",
+    receiver: Role::Inverter,
     signals: &[
         CRC_SIG,
         COUNTER_SIG,
@@ -191,6 +196,7 @@ pub const MOTOR_STATUS: MessageSpec = MessageSpec {
     cycle_ms: 1,
     timeout_ms: 10,
     sender: "INV",
+    receiver: Role::Tcs,
     signals: &[
         CRC_SIG,
         COUNTER_SIG,
@@ -213,6 +219,7 @@ pub const WHEEL_SPEEDS: MessageSpec = MessageSpec {
     cycle_ms: 1,
     timeout_ms: 10,
     sender: "ABS",
+    receiver: Role::Tcs,
     signals: &[
         CRC_SIG,
         COUNTER_SIG,
@@ -232,6 +239,7 @@ pub const VEHICLE_SPEED: MessageSpec = MessageSpec {
     cycle_ms: 10,
     timeout_ms: 50,
     sender: "VCU",
+    receiver: Role::Tcs,
     signals: &[
         CRC_SIG,
         COUNTER_SIG,
@@ -250,6 +258,7 @@ pub const DRIVER_DEMAND: MessageSpec = MessageSpec {
     cycle_ms: 10,
     timeout_ms: 50,
     sender: "VCU",
+    receiver: Role::Tcs,
     signals: &[
         CRC_SIG,
         COUNTER_SIG,
@@ -272,6 +281,38 @@ pub const MESSAGES: [&MessageSpec; 5] = [
 /// The message with this id, if any.
 pub fn spec_for_id(id: u32) -> Option<&'static MessageSpec> {
     MESSAGES.iter().copied().find(|m| m.id == id)
+}
+
+/// The part a grip service plays on the bus: a DBC node that receives
+/// protocol messages. Which messages it receives is read from the messages'
+/// [`MessageSpec::receiver`], never listed again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Role {
+    /// `TCS`, the traction-control ECU (tcs-loop): receives MotorStatus,
+    /// WheelSpeeds, VehicleSpeed and DriverDemand.
+    Tcs,
+    /// `INV`, the motor inverter (played by plant-sim): receives
+    /// TorqueCommand.
+    Inverter,
+}
+
+impl Role {
+    /// The node's name in the DBC (`BU_`).
+    pub const fn node(self) -> &'static str {
+        match self {
+            Self::Tcs => "TCS",
+            Self::Inverter => "INV",
+        }
+    }
+    /// The messages this role receives, in [`MESSAGES`] order.
+    pub fn receives(self) -> impl Iterator<Item = &'static MessageSpec> + Clone {
+        MESSAGES.iter().copied().filter(move |m| m.receiver == self)
+    }
+    /// True if `id` (11-bit) is a message this role receives.
+    /// Allocation-free.
+    pub fn receives_id(self, id: u32) -> bool {
+        spec_for_id(id).is_some_and(|m| m.receiver == self)
+    }
 }
 
 // ---------------------------------------------------------------- CRC-8 ----
@@ -828,13 +869,23 @@ impl ProtocolRx {
         }
         Self { rx, unknown_id: 0 }
     }
-    /// What `tcs-loop` listens to: MotorStatus, WheelSpeeds, VehicleSpeed, DriverDemand.
-    pub fn for_tcs() -> Self {
-        Self::new(&[&MOTOR_STATUS, &WHEEL_SPEEDS, &VEHICLE_SPEED, &DRIVER_DEMAND])
+    /// Listens to what `role` receives ([`Role::receives`]).
+    pub fn for_role(role: Role) -> Self {
+        let mut rx = heapless::Vec::new();
+        for s in role.receives() {
+            let _ = rx.push(E2eReceiver::new(s));
+        }
+        Self { rx, unknown_id: 0 }
     }
-    /// What the inverter (plant-sim) listens to: TorqueCommand.
+    /// What `tcs-loop` listens to ([`Role::Tcs`]): MotorStatus, WheelSpeeds,
+    /// VehicleSpeed, DriverDemand.
+    pub fn for_tcs() -> Self {
+        Self::for_role(Role::Tcs)
+    }
+    /// What the inverter (plant-sim) listens to ([`Role::Inverter`]):
+    /// TorqueCommand.
     pub fn for_inverter() -> Self {
-        Self::new(&[&TORQUE_COMMAND])
+        Self::for_role(Role::Inverter)
     }
     /// Mutable access to the receiver of `id` (e.g. to change its timeout).
     pub fn receiver_mut(&mut self, id: u32) -> Option<&mut E2eReceiver> {

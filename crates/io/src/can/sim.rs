@@ -4,6 +4,8 @@
 //! an event service `grip/canbus/<name>/wake` wakes waiting receivers.
 //! Like a real bus it broadcasts; unlike one it has no arbitration delay and
 //! a slow reader loses its oldest frames when its 1024-frame buffer overflows.
+//! A participant's [`RxFilter`] is applied on receipt, as the kernel applies
+//! it to a SocketCAN bus: a frame it does not pass is dropped unseen.
 
 use core::time::Duration;
 
@@ -12,7 +14,7 @@ use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 
-use super::{BusKind, CanBus, CanError};
+use super::{BusKind, CanBus, CanError, RxFilter};
 use crate::clock::monotonic_now_ns;
 use crate::ipc::{IpcError, IpcNode, Publisher, Subscriber, SubscriberMode, Svc, qos};
 
@@ -24,6 +26,7 @@ pub struct SimBus {
     listener: Listener<Svc>,
     bus_id: u8,
     name: String,
+    rx: RxFilter,
 }
 
 impl core::fmt::Debug for SimBus {
@@ -33,7 +36,8 @@ impl core::fmt::Debug for SimBus {
 }
 
 impl SimBus {
-    /// Joins (creating if needed) the simulated bus `name`.
+    /// Joins (creating if needed) the simulated bus `name`, receiving every
+    /// frame the others send ([`RxFilter::All`]; see [`Self::with_rx_filter`]).
     pub fn open(node: &IpcNode, name: &str, bus_id: u8) -> Result<Self, CanError> {
         let topic = format!("{}{}", topics::SIM_BUS_PREFIX, name);
         let publisher = node.publisher::<CanFrame>(&topic)?;
@@ -78,7 +82,19 @@ impl SimBus {
             listener,
             bus_id,
             name: name.into(),
+            rx: RxFilter::All,
         })
+    }
+
+    /// Receives only what `rx` lets through (also frames already waiting).
+    pub fn with_rx_filter(mut self, rx: RxFilter) -> Self {
+        self.rx = rx;
+        self
+    }
+
+    /// What this participant receives.
+    pub fn rx_filter(&self) -> RxFilter {
+        self.rx
     }
 
     /// Bus name.
@@ -113,11 +129,16 @@ impl CanBus for SimBus {
         Ok(())
     }
 
+    /// The next frame from another participant that the filter passes;
+    /// frames it does not pass are dropped on the way (at most the
+    /// subscriber's buffer of them in one call).
     fn try_recv(&mut self) -> Result<Option<CanFrame>, CanError> {
-        Ok(self
-            .subscriber
-            .recv_not_from(self.publisher.id())?
-            .map(|f| self.stamp(f)))
+        while let Some(f) = self.subscriber.recv_not_from(self.publisher.id())? {
+            if self.rx.accepts(&f) {
+                return Ok(Some(self.stamp(f)));
+            }
+        }
+        Ok(None)
     }
 
     fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<CanFrame>, CanError> {

@@ -3,10 +3,10 @@
 use core::time::Duration;
 use std::io::ErrorKind;
 
-use socketcan::{CanDataFrame, CanFrame as SockFrame, CanSocket, Socket};
+use socketcan::{CanDataFrame, CanFilter, CanFrame as SockFrame, CanSocket, Socket, SocketOptions};
 use socketcan::{EmbeddedFrame as _, ExtendedId, Id, StandardId};
 
-use super::{BusKind, CanBus, CanError, CanFrame};
+use super::{BusKind, CanBus, CanError, CanFrame, RxFilter};
 use crate::clock::monotonic_now_ns;
 use grip_msgs::{can_dir, can_flags};
 
@@ -57,30 +57,73 @@ pub struct SocketCanBus {
     sock: CanSocket,
     iface: String,
     bus_id: u8,
+    rx: RxFilter,
 }
 
+/// The kernel receive filters (`CAN_RAW_FILTER`) of `rx`, `None` for
+/// [`RxFilter::All`] (the kernel's default: one filter that passes every
+/// frame). One filter per id the role receives; its mask covers the 11 id
+/// bits and the EFF and RTR flags, so an extended frame or a remote frame
+/// with the same number does not pass. Error frames are governed by
+/// `CAN_RAW_ERR_FILTER`, which grip leaves at the kernel's default (none
+/// subscribed) for every filter.
+fn kernel_filters(rx: RxFilter) -> Option<Vec<CanFilter>> {
+    match rx {
+        RxFilter::All => None,
+        RxFilter::Role(role) => Some(
+            role.receives()
+                .map(|m| {
+                    CanFilter::new(
+                        m.id,
+                        libc::CAN_SFF_MASK | libc::CAN_EFF_FLAG | libc::CAN_RTR_FLAG,
+                    )
+                })
+                .collect(),
+        ),
+    }
+}
+
+/// Most frames read and dropped right after the filters are set (those
+/// queued between bind(2) and setsockopt(2), which the filters do not reach).
+const FLUSH_MAX: usize = 4096;
+
 impl SocketCanBus {
-    /// Opens `iface`. Errors name the interface and say how to create it.
-    pub fn open(iface: &str, bus_id: u8) -> Result<Self, CanError> {
+    /// Opens `iface`, receiving what `rx` lets through (kernel filters, set
+    /// before the socket is handed out; frames queued in the instant between
+    /// binding and setting them are dropped). Errors name the interface and
+    /// say how to create it.
+    pub fn open(iface: &str, bus_id: u8, rx: RxFilter) -> Result<Self, CanError> {
         af_can_available().map_err(CanError::NoAfCan)?;
         if !interface_exists(iface) {
             return Err(CanError::NoInterface {
                 iface: iface.into(),
             });
         }
-        let sock = CanSocket::open(iface).map_err(|e| CanError::Io {
+        let io = |e| CanError::Io {
             iface: iface.into(),
             source: e,
-        })?;
-        sock.set_nonblocking(true).map_err(|e| CanError::Io {
-            iface: iface.into(),
-            source: e,
-        })?;
+        };
+        let sock = CanSocket::open(iface).map_err(io)?;
+        sock.set_nonblocking(true).map_err(io)?;
+        if let Some(filters) = kernel_filters(rx) {
+            sock.set_filters(&filters).map_err(io)?;
+            for _ in 0..FLUSH_MAX {
+                if sock.read_frame().is_err() {
+                    break;
+                }
+            }
+        }
         Ok(Self {
             sock,
             iface: iface.into(),
             bus_id,
+            rx,
         })
+    }
+
+    /// What this socket receives.
+    pub fn rx_filter(&self) -> RxFilter {
+        self.rx
     }
 
     /// Interface name.
@@ -195,6 +238,39 @@ impl CanBus for SocketCanBus {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::can::protocol::{MESSAGES, Role};
+
+    /// The kernel filters of a role: one per id it receives, each matching
+    /// only that 11-bit data frame (the EFF and RTR flags in the mask, not
+    /// in the id); none for `All`. How the kernel matches
+    /// (`received & mask == id & mask`), written out here.
+    #[test]
+    fn kernel_filters_pass_exactly_the_roles_standard_data_frames() {
+        assert!(kernel_filters(RxFilter::All).is_none());
+        let passes = |fs: &[CanFilter], can_id: u32| {
+            fs.iter().any(|f| {
+                let f: &libc::can_filter = f.as_ref();
+                can_id & f.can_mask == f.can_id & f.can_mask
+            })
+        };
+        for role in [Role::Tcs, Role::Inverter] {
+            let fs = kernel_filters(RxFilter::Role(role)).unwrap();
+            assert_eq!(fs.len(), role.receives().count());
+            for m in MESSAGES {
+                let mine = m.receiver == role;
+                assert_eq!(passes(&fs, m.id), mine, "{role:?} {}", m.name);
+                assert!(
+                    !passes(&fs, m.id | libc::CAN_EFF_FLAG),
+                    "extended {}",
+                    m.name
+                );
+                assert!(!passes(&fs, m.id | libc::CAN_RTR_FLAG), "remote {}", m.name);
+            }
+            for foreign in [0x000, 0x7FF, 0x5A5, 0x1ABC_DEF0 | libc::CAN_EFF_FLAG] {
+                assert!(!passes(&fs, foreign), "{role:?} {foreign:#x}");
+            }
+        }
+    }
 
     /// A fake `/sys/class/net`: `can0` with a `device` link (a controller on
     /// a bus), `vcan0` without (virtual).
