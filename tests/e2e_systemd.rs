@@ -155,13 +155,18 @@ fn units_carry_the_required_directives() {
     assert!(users.lines().any(|l| l.starts_with("u grip ")));
 }
 
-/// The units named in a unit's `After=` lines.
-fn after(name: &str) -> Vec<String> {
+/// The units named in a unit's `key` lines (`After=`, `Before=`).
+fn ordered(name: &str, key: &str) -> Vec<String> {
     let text = std::fs::read_to_string(unit_dir().join(name)).unwrap();
     text.lines()
-        .filter_map(|l| l.trim_start().strip_prefix("After="))
+        .filter_map(|l| l.trim_start().strip_prefix(key))
         .flat_map(|v| v.split_whitespace().map(str::to_string))
         .collect()
+}
+
+/// The units named in a unit's `After=` lines.
+fn after(name: &str) -> Vec<String> {
+    ordered(name, "After=")
 }
 
 /// Traction control starts without waiting for the road estimate's chain:
@@ -173,6 +178,11 @@ fn tcs_loop_waits_for_nothing_but_the_recorder_and_the_rig() {
     let tcs = after("grip-tcs-loop.service");
     for s in ["grip-audio-acq.service", "grip-arte.service"] {
         assert!(!tcs.contains(&s.to_string()), "tcs-loop is After={s}");
+        // the same order written from the other side
+        assert!(
+            !ordered(s, "Before=").contains(&"grip-tcs-loop.service".to_string()),
+            "{s} is Before=grip-tcs-loop.service"
+        );
     }
     assert!(
         tcs.contains(&"grip-recorder.service".to_string()),
