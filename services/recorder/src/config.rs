@@ -36,6 +36,39 @@ pub struct RecorderConfig {
     /// Largest file attached to the log (config files, DBC, models), bytes.
     /// Larger files are hashed but not attached (and say so).
     pub attach_max_bytes: u64,
+    /// Budget of grip's own logs in `out_dir`, MiB: the oldest finished
+    /// logs are deleted while all of them together take more
+    /// ([`crate::retention`]). 0 = no budget; otherwise 16 ..= 16777216
+    /// (16 TiB). Absent: [`DEFAULT_MAX_TOTAL_MIB`].
+    #[serde(default = "default_max_total_mib")]
+    pub max_total_mib: u64,
+    /// Free space to keep on `out_dir`'s file system, MiB (what an
+    /// unprivileged user may still write): the oldest finished logs are
+    /// deleted while less is free. 0 = no floor; at most 16777216.
+    /// Absent: [`DEFAULT_MIN_FREE_MIB`].
+    #[serde(default = "default_min_free_mib")]
+    pub min_free_mib: u64,
+}
+
+/// `max_total_mib` when the file does not set it: 8 GiB, about five hours
+/// of driving at the ~1.6 GB an hour a drive writes.
+pub const DEFAULT_MAX_TOTAL_MIB: u64 = 8192;
+/// `min_free_mib` when the file does not set it: 1 GiB left to the
+/// journal, `/tmp/iceoryx2` and everything else on the file system (and
+/// about 40 minutes of driving).
+pub const DEFAULT_MIN_FREE_MIB: u64 = 1024;
+/// Largest `max_total_mib` / `min_free_mib`: 16 TiB.
+pub const MAX_RETENTION_MIB: u64 = 1 << 24;
+/// Smallest budget other than 0 (off): a budget smaller than a few chunks
+/// would delete every finished log at once.
+pub const MIN_BUDGET_MIB: u64 = 16;
+
+fn default_max_total_mib() -> u64 {
+    DEFAULT_MAX_TOTAL_MIB
+}
+
+fn default_min_free_mib() -> u64 {
+    DEFAULT_MIN_FREE_MIB
 }
 
 impl ServiceConfig for RecorderConfig {
@@ -59,6 +92,28 @@ impl ServiceConfig for RecorderConfig {
         range("poll_interval_ms", self.poll_interval_ms, 1, 100)?;
         range("queue_capacity", self.queue_capacity as u64, 1024, 4 << 20)?;
         range("attach_max_bytes", self.attach_max_bytes, 0, 1 << 30)?;
+        if self.max_total_mib != 0
+            && !(MIN_BUDGET_MIB..=MAX_RETENTION_MIB).contains(&self.max_total_mib)
+        {
+            return Err(ConfigError::new(
+                path,
+                "max_total_mib",
+                format!(
+                    "must be 0 (no budget: logs are not deleted for their size) or in {MIN_BUDGET_MIB} ..= {MAX_RETENTION_MIB} (got {})",
+                    self.max_total_mib
+                ),
+            ));
+        }
+        if self.min_free_mib > MAX_RETENTION_MIB {
+            return Err(ConfigError::new(
+                path,
+                "min_free_mib",
+                format!(
+                    "must be 0 (no floor: logs are not deleted for free space) or in 1 ..= {MAX_RETENTION_MIB} (got {})",
+                    self.min_free_mib
+                ),
+            ));
+        }
         if self.out_dir.as_os_str().is_empty() {
             return Err(ConfigError::new(path, "out_dir", "must not be empty"));
         }
@@ -79,6 +134,15 @@ impl RecorderConfig {
     /// The receive thread's idle sleep.
     pub fn poll_interval(&self) -> Duration {
         Duration::from_millis(self.poll_interval_ms)
+    }
+
+    /// The retention limits in bytes (`None`: retention off, both keys 0).
+    pub fn retention_limits(&self) -> Option<crate::retention::Limits> {
+        let l = crate::retention::Limits {
+            max_total: self.max_total_mib << 20,
+            min_free: self.min_free_mib << 20,
+        };
+        (!l.is_off()).then_some(l)
     }
 }
 
@@ -102,6 +166,11 @@ attach_max_bytes = 16777216
         let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/recorder.toml");
         let c = RecorderConfig::load(&p).unwrap();
         assert!(c.flush_interval_ms <= 1000);
+        // the shipped file states the documented defaults
+        assert_eq!(
+            (c.max_total_mib, c.min_free_mib),
+            (DEFAULT_MAX_TOTAL_MIB, DEFAULT_MIN_FREE_MIB)
+        );
     }
 
     #[test]
@@ -128,6 +197,56 @@ attach_max_bytes = 16777216
         let e = c.validate(p).unwrap_err();
         assert_eq!(e.field, "flush_interval_ms");
         assert!(e.to_string().contains("recorder.toml"), "{e}");
+    }
+
+    /// The retention keys: defaults when absent, 0 switches each off, both
+    /// 0 switch retention off, out-of-range values named with file, field
+    /// and reason.
+    #[test]
+    fn retention_keys_default_switch_off_and_are_range_checked() {
+        let p = Path::new("recorder.toml");
+        let c: RecorderConfig = parse_toml(p, GOOD).unwrap();
+        c.validate(p).unwrap();
+        assert_eq!(
+            (c.max_total_mib, c.min_free_mib),
+            (DEFAULT_MAX_TOTAL_MIB, DEFAULT_MIN_FREE_MIB)
+        );
+        let l = c.retention_limits().unwrap();
+        assert_eq!((l.max_total, l.min_free), (8192 << 20, 1024 << 20));
+
+        let with = |extra: &str| -> Result<RecorderConfig, ConfigError> {
+            let c: RecorderConfig = parse_toml(p, &format!("{GOOD}{extra}"))?;
+            c.validate(p)?;
+            Ok(c)
+        };
+        let c = with("max_total_mib = 0\nmin_free_mib = 0\n").unwrap();
+        assert_eq!(c.retention_limits(), None, "both 0: off");
+        let c = with("max_total_mib = 0\nmin_free_mib = 500\n").unwrap();
+        assert_eq!(
+            c.retention_limits(),
+            Some(crate::retention::Limits {
+                max_total: 0,
+                min_free: 500 << 20
+            })
+        );
+        for (extra, field) in [
+            ("max_total_mib = 5\n", "max_total_mib"),
+            ("max_total_mib = 16777217\n", "max_total_mib"),
+            ("min_free_mib = 16777217\n", "min_free_mib"),
+        ] {
+            let e = with(extra).unwrap_err();
+            assert_eq!(e.field, field, "{extra}");
+            let s = e.to_string();
+            assert!(
+                s.contains("recorder.toml") && s.contains(field) && s.contains("must be 0"),
+                "{s}"
+            );
+        }
+        // a negative or fractional size is a parse error naming the field
+        for extra in ["min_free_mib = -1\n", "max_total_mib = 1.5\n"] {
+            let e = with(extra).unwrap_err();
+            assert!(e.to_string().contains("_mib"), "{extra}: {e}");
+        }
     }
 
     #[test]

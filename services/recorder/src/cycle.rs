@@ -17,6 +17,7 @@ use grip_io::systemd::{Watchdog, WatchdogPoll};
 use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
 
 use crate::monitor::{self, RxProbe, RxStep};
+use crate::retention::Retention;
 use crate::stats::{RecvStats, TopicStats};
 
 /// One message on its way to the file.
@@ -422,7 +423,10 @@ impl Backlog {
 /// its period if shorter), fed only while both the receive thread
 /// (`rx_beat`) and this loop advance. Counts into `summary`; returns whether
 /// a write failed (the first failure ends writing, later messages are
-/// discarded and counted).
+/// discarded and counted). With `retention`, sweeps the log directory
+/// between messages when its period has passed (here, never on the
+/// receive thread: a sweep delays only the writer, the queue takes up the
+/// messages meanwhile).
 pub fn write_loop(
     rx: &Receiver<Msg>,
     w: &mut McapWriter,
@@ -432,6 +436,7 @@ pub fn write_loop(
     rx_beat: &AtomicU64,
     probe: &RxProbe,
     summary: &mut Summary,
+    mut retention: Option<&mut Retention>,
 ) -> bool {
     let mut wd = Watchdog::from_env(rx_beat.load(Ordering::Relaxed));
     // the longest wait for a message: the watchdog is polled at least this
@@ -484,8 +489,12 @@ pub fn write_loop(
         }
         // fed only while both the receive thread and this loop advance
         let beat = rx_beat.load(Ordering::Relaxed);
-        if wd.poll(beat, Instant::now()) == WatchdogPoll::Stalled {
+        let now = Instant::now();
+        if wd.poll(beat, now) == WatchdogPoll::Stalled {
             monitor::receive_stalled(beat, probe);
+        }
+        if !stopping && let Some(r) = retention.as_deref_mut() {
+            r.maybe_sweep(now);
         }
     }
     failed

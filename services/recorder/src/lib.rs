@@ -6,6 +6,8 @@
 //! - [`cycle`]: the receive thread, the bounded queue and the writing loop.
 //! - [`run`]: the service: config, the log file and its run metadata,
 //!   `READY=1`, the loop until stopped, the summary.
+//! - [`retention`]: which old logs of `out_dir` to delete (the budget
+//!   `max_total_mib`, the free-space floor `min_free_mib`), and deleting them.
 //! - [`monitor`]: publishers per topic and the watchdog's stall line (the
 //!   recorder has no helper thread: see the module).
 //!
@@ -15,10 +17,12 @@
 pub mod config;
 pub mod cycle;
 pub mod monitor;
+pub mod retention;
 pub mod run;
 pub mod stats;
 
 pub use config::RecorderConfig;
 pub use cycle::{Msg, RECORDED, Subscribers, Summary};
+pub use retention::{Limits, Retention, parse_log_name, plan};
 pub use run::{ConfigFile, GIT_REV, Options, RunError, config_files, run, write_run_info};
 pub use stats::{CanCounterTracker, RecvStats, SeqTracker, TopicStats};

@@ -8,7 +8,9 @@
 //!   `vehicles/`, `models/`) are hashed into the `grip.run` metadata and attached.
 //! - `--config FILE` (default `DIR/recorder.toml`).
 //! - `--out FILE` (default: a new `<out_dir>/grip-<unix s>-<boot id>-<pid>.mcap`,
-//!   never overwriting a log).
+//!   never overwriting a log, the oldest finished logs of `out_dir` deleted
+//!   to keep `max_total_mib` and `min_free_mib`: `grip_recorder::retention`;
+//!   with `--out` nothing is deleted).
 //! - `--meta KEY=VALUE`: extra `grip.run` metadata (`grip drive` passes the
 //!   scenario, controller, ARTE switch and seed).
 //! - `--attach NAME=FILE`: one more file to hash and attach under NAME

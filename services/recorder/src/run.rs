@@ -18,6 +18,7 @@ use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, to
 use crate::config::RecorderConfig;
 use crate::cycle::{Summary, queue, spawn_receiver, write_loop};
 use crate::monitor::RxProbe;
+use crate::retention::Retention;
 use crate::stats::RecvStats;
 
 /// The grip revision this binary was built from (build.rs).
@@ -207,15 +208,14 @@ pub fn write_run_info(
 /// a name is taken. An ECU without a real-time clock starts every boot at
 /// the same wall time, and its recorder often gets the same PID: the name
 /// alone repeats, and the boot id and `create_new` keep an earlier drive's
-/// log from being overwritten.
+/// log from being overwritten. Retention ([`crate::retention`]) deletes
+/// only files named this way.
 pub fn default_out(dir: &Path) -> std::io::Result<PathBuf> {
     let secs = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_secs())
         .unwrap_or(0);
-    let boot = std::fs::read_to_string("/proc/sys/kernel/random/boot_id")
-        .map(|b| b.trim().chars().filter(|c| *c != '-').take(8).collect())
-        .unwrap_or_else(|_| String::from("noboot"));
+    let boot = crate::retention::boot_token();
     let stem = format!("grip-{secs}-{boot}-{}", std::process::id());
     new_file(dir, &stem)
 }
@@ -258,6 +258,31 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
                 path: cfg.out_dir.clone(),
                 source,
             })?,
+    };
+    // retention of out_dir, when the recorder named its file there itself
+    // (the systemd unit); with --out (grip drive, tests) nothing is deleted
+    let mut retention = match (&opts.out, cfg.retention_limits()) {
+        (None, Some(limits)) => {
+            tracing::info!(
+                dir = %cfg.out_dir.display(),
+                max_total_mib = cfg.max_total_mib,
+                min_free_mib = cfg.min_free_mib,
+                every_s = crate::retention::SWEEP_PERIOD.as_secs(),
+                "retention: the oldest finished logs are deleted while grip's logs take more than max_total_mib or less than min_free_mib is free (0: that limit off)"
+            );
+            let mut r = Retention::new(&cfg.out_dir, &path, limits);
+            // the floor before the first byte; the rest once recording
+            r.sweep_start();
+            Some(r)
+        }
+        (None, None) => {
+            tracing::info!(dir = %cfg.out_dir.display(), "retention off (max_total_mib = 0 and min_free_mib = 0): no log is ever deleted");
+            None
+        }
+        (Some(_), _) => {
+            tracing::debug!("retention: not applied to a log named by --out");
+            None
+        }
     };
     let mut w = McapWriter::create(&path, cfg.writer_options())?;
     for t in grip_msgs::topics::ALL {
@@ -327,6 +352,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         &rx_beat,
         &probe,
         &mut summary,
+        retention.as_mut(),
     );
     let rx_failed = match join_receiver(handle) {
         Ok(recv) => {
@@ -360,6 +386,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
     let gaps: u64 = summary.recv.topics.values().map(|s| s.seq.gaps).sum();
     let dropped: u64 = summary.recv.topics.values().map(|s| s.queue_dropped).sum();
     let receive_errors: u64 = summary.recv.topics.values().map(|s| s.receive_errors).sum();
+    let ret = retention.as_ref().map(Retention::stats).unwrap_or_default();
     tracing::info!(
         file = %path.display(),
         received = total_rx,
@@ -370,6 +397,10 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         receive_errors,
         queue_high_water = summary.queue_high_water,
         write_errors = summary.write_errors,
+        retention_deleted = ret.deleted,
+        retention_deleted_mib = ret.deleted_bytes >> 20,
+        retention_failed = ret.failed,
+        retention_longest_sweep_ms = ret.longest.as_secs_f64() * 1e3,
         "recorder stopped"
     );
     end?;
