@@ -3,7 +3,9 @@
 //! preallocated to the run length) and the confusion-matrix ARTE in the loop;
 //! with the paper's placement (fusion only) and with the front-arch
 //! microphone (the preview queue, the road belief and the torque cap); the
-//! MFC with its noise low-pass and the metrics with the command's figures.
+//! MFC with its noise low-pass and the metrics with the command's figures;
+//! and the front-arch ARTE variants on a hill start that rolls back (the
+//! reverse detection clearing the preview queue).
 
 mod common;
 
@@ -50,6 +52,31 @@ fn the_cycle_allocates_nothing() {
         assert_eq!(during, 0, "{v}: {during} allocations in {cycles} cycles");
         let r = sim.finish();
         assert_eq!(r.trace.as_ref().map(|t| t.len()), Some(setup.cycles()));
+    }
+    // A hill start that rolls back (tests/data/rollback.toml): the road
+    // knowledge detects the reverse, clears its queue and drops decisions.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/rollback.toml");
+    let rollback = grip_sim::SimSetup::new(
+        vehicle,
+        sensors,
+        setup.roads().clone(),
+        dir.scenario_with(path.to_str().unwrap(), setup.roads())
+            .unwrap(),
+        *setup.controllers(),
+        &dir.knowledge(setup.roads()).unwrap(),
+    )
+    .unwrap();
+    for v in Variant::ALL.iter().filter(|v| v.arte) {
+        let mut e = est.clone();
+        let mut sim = Sim::new(&rollback, *v, 11, &mut e, true).unwrap();
+        let before = allocs();
+        while sim.step() {}
+        let during = allocs() - before;
+        assert_eq!(during, 0, "{v} rolling back: {during} allocations");
+        assert!(
+            sim.finish().final_state.v > 0.0,
+            "{v}: the roll-back stopped"
+        );
     }
     // The counter works: a Vec allocates.
     let before = allocs();

@@ -17,7 +17,9 @@
 //! - `S(r)`: slip evidence, a leaky sum (time constant `tau_forget_s`) of
 //!   `−weight · (μ̂ − μ_r(λ))² / (2 σ_r²)` per cycle, with μ̂ from the
 //!   wheel's torque balance (a first-order driving-force observer,
-//!   μ̂ = (T − J_w dω/dt)/(N r)), λ measured from ω and V, and
+//!   μ̂ = (T − J_w dω/dt)/(N r)), λ measured from ω and V with the
+//!   plant's definition, (rω − V) / max(|rω|, |V|, v_eps) (also rolling
+//!   back, V < 0, where the curves, odd in λ, hold as they do forward), and
 //!   σ_r² = σ_μ² + (μ_r'(λ) σ_λ)² (a steep curve is blurred by slip noise).
 //!   Only cycles with a chassis speed and a finite μ̂ count.
 //!
@@ -265,9 +267,15 @@ impl RoadBelief {
         }
         let (lambda, speed) = match m.v {
             Some(v) if v.is_finite() && m.omega.is_finite() => {
+                // The plant's slip, (rω − V) / max(|rω|, |V|, v_eps): the
+                // magnitudes, so that a car rolling back (V < 0) under a
+                // forward demand has the slip its tyre has. Over the signed
+                // max(rω, V, v_eps) the denominator fell to v_eps there and
+                // the slip and its noise grew 10-30 times: the belief went
+                // to ice and the spin cut held a hill start at 19-48 N m.
                 let rw = self.r * m.omega;
                 let speed = rw.abs().max(v.abs());
-                ((rw - v) / rw.max(v).max(self.v_eps), speed)
+                ((rw - v) / speed.max(self.v_eps), speed)
             }
             _ => (f64::NAN, f64::NAN),
         };
@@ -581,6 +589,67 @@ mod tests {
         // A wheel spinning at 3 m/s rim speed with the car at 0.2 m/s (slip
         // 0.93, a transmitted μ of 0.05): fast enough to count, and ice.
         assert_eq!(pulling_away(1.0, 3.0).0, 2, "a spinning wheel counts");
+    }
+
+    /// The car rolling back at 3 m/s (V = −3 m/s) on asphalt under a
+    /// 400 N m forward demand (a hill start that rolled back), the wheel
+    /// turning with it: rω = V plus the speed sensors' noise (uniform
+    /// ±0.03 m/s, a fixed sequence), the motor at 400 N m; asphalt heard at
+    /// 0.95. Each cycle: the believed road, and the cap it gives as a share
+    /// of asphalt's (μ_peak of the believed road over asphalt's).
+    fn rolling_back_under_a_forward_demand() -> Vec<(usize, f64)> {
+        let v = VehicleParams::default();
+        let mut b = belief();
+        b.set_acoustic(Some((0, 0.95)));
+        let roads = roads();
+        let mut seed: u64 = 777;
+        (0..1000u32)
+            .map(|k| {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let u = (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
+                b.step(&Measurement {
+                    t: f64::from(k) * 1e-3,
+                    omega: (-3.0 + 0.03 * u) / v.r,
+                    v: Some(-3.0),
+                    torque: 400.0,
+                    demand: 400.0,
+                });
+                let best = b.best().0;
+                (best, roads[best].mu_peak() / roads[0].mu_peak())
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_car_rolling_back_under_a_forward_demand_keeps_asphalt() {
+        // The slip is the plant's, (rω − V) / max(|rω|, |V|, v_eps): about
+        // 1 % of noise at 3 m/s, under the evidence floor, so the acoustic
+        // estimate stands. (Over max(rω, V, v_eps) the denominator was
+        // v_eps = 0.1 m/s: 30 % "slip" of noise, and the belief went to a
+        // road whose cap held a hill start at 19-48 N m.)
+        for (k, (best, cap_share)) in rolling_back_under_a_forward_demand()
+            .into_iter()
+            .enumerate()
+        {
+            assert_eq!(best, 0, "cycle {k}: the belief left asphalt");
+            assert!(
+                cap_share >= 1.0,
+                "cycle {k}: cap at {cap_share} of asphalt's"
+            );
+        }
+        let mut b = belief();
+        b.step(&Measurement {
+            t: 0.0,
+            omega: -2.7 / VehicleParams::default().r,
+            v: Some(-3.0),
+            torque: 400.0,
+            demand: 400.0,
+        });
+        // The wheel 10 % slower backwards than the car: it pushes forward,
+        // slip +0.1 as the plant has it.
+        assert!((b.measured().1 - 0.1).abs() < 1e-12, "{:?}", b.measured());
     }
 
     #[test]

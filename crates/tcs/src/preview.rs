@@ -120,7 +120,8 @@ impl PreviewQueue {
         }
     }
 
-    /// Forget everything (start of a drive).
+    /// Forget everything (start of a drive, or reverse travel: see
+    /// [`crate::RoadAware::step`]).
     pub fn clear(&mut self) {
         self.len = 0;
         self.overflows = 0;

@@ -30,6 +30,13 @@
 //!    the frame that named it, 0.6875 as shipped: later than a road that
 //!    carries less, at `change_at`).
 //!
+//! Reverse travel (the car's signed distance, ∫ v dt, more than
+//! `[preview] reverse_m` below its running maximum) clears the queue and
+//! drops the decisions available within `reverse_hold_s` after it: the
+//! odometer counts forward travel only, so the queue's places no longer
+//! match the road (every change would be met early by the distance
+//! reversed). Standing still keeps the queue.
+//!
 //! The cap is applied as `T* = min(T*_controller, cap)`: the controllers
 //! stay as they are and react to slip themselves below the cap (MTTE's
 //! observer, fed its own command, does not see a binding cap: crates/tcs
@@ -122,6 +129,29 @@ pub struct PreviewParams {
     /// this field existed, so that older drive logs still replay).
     #[serde(default)]
     pub recover_landing: f64,
+    /// Reverse travel, m: when the car's signed distance (∫ v dt, v the
+    /// measured vehicle speed, else r·ω) falls more than this below its
+    /// running maximum, the car has reversed, and the road knowledge placed
+    /// on the odometer (which counts forward travel only) no longer matches
+    /// the road: the preview queue is cleared (see `reverse_hold_s`), and
+    /// the maximum starts again from there. [0.001, 10]. Absent from a file:
+    /// 0.1, the shipped value (a queue left in place after a reverse meets
+    /// every road change that many metres early, the end of a low-friction
+    /// patch included, so older files get the detection too): within the
+    /// queue's own placement error (a 0.1 s frame at 1 m/s), and 20 times
+    /// the standstill drift of ∫ v dt over 60 s with the shipped speed
+    /// sensor's noise (σ 0.02 m/s at 1 kHz: about 0.005 m).
+    #[serde(default = "default_reverse_m")]
+    pub reverse_m: f64,
+    /// After the last cycle that detected reverse travel (`reverse_m`), the
+    /// acoustic decisions available (their stamp) within this time are
+    /// dropped, s, [0, 10]: their frames may have been heard while the car
+    /// went backwards, and would be placed where the car is not. Absent
+    /// from a file: 0.6, the shipped value: a 0.1 s frame plus arte's
+    /// `max_lag_s` (0.5 s), beyond which arte drops audio unclassified, so
+    /// no decision on audio heard while reversing is kept.
+    #[serde(default = "default_reverse_hold_s")]
+    pub reverse_hold_s: f64,
     /// `[preview.mfc]`: MFC-ARTE's own trade of slip for traction, in place
     /// of the two values above (see [`PreviewTrade`]). Absent: none.
     #[serde(default)]
@@ -169,6 +199,14 @@ impl PreviewTrade {
     }
 }
 
+fn default_reverse_m() -> f64 {
+    0.1
+}
+
+fn default_reverse_hold_s() -> f64 {
+    0.6
+}
+
 impl Default for PreviewParams {
     fn default() -> Self {
         Self {
@@ -185,6 +223,8 @@ impl Default for PreviewParams {
             approach_floor: 0.7,
             approach_dip: Some(0.5),
             recover_landing: 0.5,
+            reverse_m: default_reverse_m(),
+            reverse_hold_s: default_reverse_hold_s(),
             mfc: PreviewTrade::default(),
             src: PreviewTrade {
                 cap_share: Some(0.9),
@@ -212,6 +252,10 @@ impl PreviewParams {
             in_range("approach_dip", d, 1e-3, 100.0)?;
         }
         in_range("recover_landing", self.recover_landing, 0.0, 2.0)?;
+        // 0 or less would take the standstill's speed noise for reverse
+        // travel (and clear the queue every cycle); NaN would never detect.
+        in_range("reverse_m", self.reverse_m, 1e-3, 10.0)?;
+        in_range("reverse_hold_s", self.reverse_hold_s, 0.0, 10.0)?;
         if self.min_hits == 0 {
             return Err(InvalidField::new("min_hits", "must be >= 1 (got 0)"));
         }
@@ -293,6 +337,12 @@ pub struct RoadAware {
     j_w: f64,
     /// The measured slip, low-passed over `release_s / 2` (the release check).
     slip_lp: LowPass,
+    /// The car's signed distance, ∫ v dt, m (reverse detection).
+    travel: f64,
+    /// Its running maximum since the last detected reverse, m.
+    travel_peak: f64,
+    /// Time of the last cycle that detected reverse travel, s (−∞: none).
+    reversed_at: f64,
 }
 
 /// A spinning wheel and its cut (`RoadAware::spins`).
@@ -367,6 +417,9 @@ impl RoadAware {
             spin: Spin::Gripping,
             j_w: vehicle.j_w,
             slip_lp: LowPass::new(0.5 * preview.release_s, dt),
+            travel: 0.0,
+            travel_peak: 0.0,
+            reversed_at: f64::NEG_INFINITY,
         })
     }
 
@@ -380,6 +433,9 @@ impl RoadAware {
         self.last_cap = f64::INFINITY;
         self.spin = Spin::Gripping;
         self.slip_lp.reset();
+        self.travel = 0.0;
+        self.travel_peak = 0.0;
+        self.reversed_at = f64::NEG_INFINITY;
     }
 
     /// The microphone's lead, m.
@@ -390,7 +446,16 @@ impl RoadAware {
     /// An acoustic decision for catalogue road `road` with `confidence`,
     /// available at `stamp` (s), heard while the loop's odometer went from
     /// `x_from` to `x_to` (m; the lead is added here). Allocation-free.
+    ///
+    /// A decision available within `reverse_hold_s` of the last cycle that
+    /// detected reverse travel (or before it) is not queued: its frame may
+    /// have been heard while the car went backwards. It still shows the
+    /// decision stream alive (`[arte] max_age_s`).
     pub fn decision(&mut self, road: usize, confidence: f64, stamp: f64, x_from: f64, x_to: f64) {
+        if stamp <= self.reversed_at + self.p.reverse_hold_s {
+            self.last_decision = stamp;
+            return;
+        }
         let x_from = x_from + self.p.change_at * (x_to - x_from);
         let table = &self.table;
         self.queue.push(
@@ -509,8 +574,40 @@ impl RoadAware {
         share * mu_peak * self.nr
     }
 
+    /// Whether this cycle detects reverse travel (`reverse_m`): the signed
+    /// distance ∫ v dt (v the measured vehicle speed, else r·ω, as the
+    /// odometer's speed but with its sign; a speed that is no number adds
+    /// nothing) more than `reverse_m` below its running maximum. The
+    /// maximum then starts again from here, so a reverse of d metres is
+    /// detected about every `reverse_m` of it, the last within `reverse_m`
+    /// of its end.
+    fn reversing(&mut self, m: &Measurement) -> bool {
+        let v = m.v.unwrap_or(self.r * m.omega);
+        if v.is_finite() {
+            self.travel += v * self.dt;
+        }
+        self.travel_peak = self.travel_peak.max(self.travel);
+        if self.travel_peak - self.travel > self.p.reverse_m {
+            self.travel_peak = self.travel;
+            true
+        } else {
+            false
+        }
+    }
+
     /// One cycle at time `m.t` and odometer `x` (m). Allocation-free.
+    ///
+    /// Reverse travel (`reverse_m`) clears the preview queue: the odometer
+    /// counts forward travel only, so after a reverse every queued road
+    /// would be met that many metres early. The road knowledge is then
+    /// none (the controller's no-acoustic behaviour, with the wheel's slip
+    /// evidence), and it rebuilds from the decisions after
+    /// `reverse_hold_s` ([`decision`](Self::decision)).
     pub fn step(&mut self, m: &Measurement, x: f64) -> Guidance {
+        if self.reversing(m) {
+            self.queue.clear();
+            self.reversed_at = m.t;
+        }
         let view = self.queue.view(x);
         let alive = m.t - self.last_decision <= self.arte.max_age_s;
         self.belief
@@ -617,7 +714,9 @@ impl RoadAware {
 
 /// The speed the loop's odometer integrates (the place [`RoadAware`] works
 /// in), m/s: the measured vehicle speed `v`, else the wheel's `r · omega`;
-/// never negative, 0 when not finite. `grip sim` and tcs-loop alike.
+/// never negative, 0 when not finite. `grip sim` and tcs-loop alike. (In
+/// reverse the odometer stands; [`RoadAware`] detects the reverse itself,
+/// `[preview] reverse_m`, and clears what it had placed on it.)
 pub fn odometer_speed(v: Option<f64>, omega: f64, r: f64) -> f64 {
     let s = v.unwrap_or(r * omega);
     if s.is_finite() { s.max(0.0) } else { 0.0 }
@@ -1069,6 +1168,216 @@ mod tests {
             assert!((r[i].mu(l) - 0.95 * r[i].mu_peak()).abs() < 1e-9);
         }
         assert_eq!(slip_at_share(|l| l, 0.2, 0.2, 1.0), 0.2);
+    }
+
+    /// The car at speed `v` (m/s, its wheel turning with it), `torque` at
+    /// the motor and `demand` asked, at time `t`.
+    fn moving(t: f64, v: f64, torque: f64, demand: f64) -> Measurement {
+        Measurement {
+            t,
+            omega: v / 0.28,
+            v: Some(v),
+            torque,
+            demand,
+        }
+    }
+
+    /// Snow queued 0.5 m + lead ahead (heard twice), asphalt before it;
+    /// the wheel at x = 0.
+    fn snow_ahead() -> RoadAware {
+        let mut a = aware(2.77);
+        a.decision(0, 0.95, 0.0, -2.77, -2.77);
+        a.decision(0, 0.95, 0.0, -2.77, -2.77);
+        a.decision(1, 0.95, 0.0, 0.5, 0.5);
+        a.decision(1, 0.95, 0.0, 0.5, 0.5);
+        a
+    }
+
+    #[test]
+    fn reversing_clears_the_queue_and_drops_what_was_heard_meanwhile() {
+        let snow_cap = 0.19 * 3433.5 * 0.28;
+        let mut a = snow_ahead();
+        let g = a.step(&moving(0.001, 0.0, 0.0, 0.0), 0.0);
+        assert_eq!(g.view.here.unwrap().road, 0);
+        let (next, d) = g.view.next.unwrap();
+        assert_eq!(next.road, 1);
+        assert!((d - 3.27).abs() < 1e-9, "{d}");
+        // 1 m back at 1 m/s (the odometer, forward travel only, stands at
+        // 0), the microphone's decisions going on every 0.1 s.
+        let mut t = 0.001;
+        for k in 1..=1000 {
+            t = 0.001 + k as f64 * 1e-3;
+            let g = a.step(&moving(t, -1.0, -100.0, -100.0), 0.0);
+            if k % 100 == 0 {
+                a.decision(1, 0.95, t, 0.0, 0.0);
+            }
+            if k > 100 {
+                assert!(g.torque_cap.is_infinite(), "{k}: {g:?}");
+            }
+        }
+        // The queue is empty: the snow 3.27 m ahead of x = 0 is now 4.27 m
+        // ahead of the wheel, and no place on the odometer says so.
+        assert!(a.queue.is_empty(), "{:?}", a.queue.entries());
+        let end = t;
+        assert!(
+            (end - 0.1..=end).contains(&a.reversed_at),
+            "last detected {} (reverse ended {end})",
+            a.reversed_at
+        );
+        // Standing: a decision within reverse_hold_s (0.6 s) of the last
+        // detection is dropped, and still keeps the stream alive; a later
+        // one is queued, ahead of the wheel by the lead.
+        let hold = PreviewParams::default().reverse_hold_s;
+        assert_eq!(hold, 0.6);
+        let mut queued_at = None;
+        for k in 1..=800 {
+            t = end + k as f64 * 1e-3;
+            let g = a.step(&moving(t, 0.0, 0.0, 300.0), 0.0);
+            if k % 100 == 0 {
+                a.decision(1, 0.95, t, 0.0, 0.0);
+                if queued_at.is_none() && !a.queue.is_empty() {
+                    queued_at = Some(t);
+                }
+            }
+            assert!(g.knowledge.is_some(), "{k}: the stream is alive");
+        }
+        let queued_at = queued_at.expect("a decision after the hold is queued");
+        assert!(
+            queued_at > a.reversed_at + hold && queued_at <= a.reversed_at + hold + 0.1,
+            "first queued at {queued_at}, last reverse at {}",
+            a.reversed_at
+        );
+        let e = a.queue.entries();
+        assert_eq!(e.len(), 1, "{e:?}");
+        assert!(e[0].road == 1 && e[0].hits >= 2, "{e:?}");
+        assert!((e[0].x_start - 2.77).abs() < 1e-9, "{e:?}");
+        // The snow, heard now, caps as the wheel comes to it.
+        let g = a.step(&moving(t + 0.001, 1.0, 250.0, 300.0), 2.7);
+        assert!(g.torque_cap <= snow_cap + 1e-9, "{g:?}");
+    }
+
+    #[test]
+    fn standing_still_with_speed_noise_keeps_the_queue() {
+        // Stopped on snow (heard twice under the wheel), asphalt heard
+        // ahead; 60 s of standstill with the shipped sensors' noise (V:
+        // σ 0.02 m/s, ω: σ 0.05 rad/s, Gaussian, a fixed sequence), the
+        // decisions going on: the queue stays, and the car pulls away capped.
+        let snow_cap = 0.19 * 3433.5 * 0.28;
+        let mut a = aware(2.77);
+        a.decision(1, 0.95, 0.0, -2.77, -2.77);
+        a.decision(1, 0.95, 0.0, -2.77, -2.77);
+        a.decision(0, 0.95, 0.0, 0.0, 0.0);
+        a.decision(0, 0.95, 0.0, 0.0, 0.0);
+        let before = a.queue.entries().to_vec();
+        assert_eq!(before.len(), 2);
+        let mut seed: u64 = 4242;
+        let mut uniform = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        let mut gauss = || {
+            let (u1, u2) = (uniform(), uniform());
+            (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        };
+        let (mut drift, mut lowest) = (0.0, 0.0f64);
+        let mut g = None;
+        for k in 1..=60_000u32 {
+            let t = f64::from(k) * 1e-3;
+            let v = 0.02 * gauss();
+            let omega = 0.05 * gauss();
+            drift += v * 1e-3;
+            lowest = lowest.min(drift);
+            let m = Measurement {
+                t,
+                omega,
+                v: Some(v),
+                torque: 0.0,
+                demand: if k > 59_000 { 300.0 } else { 0.0 },
+            };
+            g = Some(a.step(&m, 0.0));
+            if k % 100 == 0 {
+                a.decision(0, 0.95, t, 0.0, 0.0);
+            }
+        }
+        let g = g.unwrap();
+        assert!(lowest > -0.05, "the noise's own drift: {lowest} m");
+        assert_eq!(a.reversed_at, f64::NEG_INFINITY, "no reverse detected");
+        let after = a.queue.entries();
+        assert_eq!(after.len(), 2, "{after:?}");
+        assert_eq!((after[0].road, after[0].x_start), (1, 0.0));
+        assert_eq!((after[1].road, after[1].x_start), (0, 2.77));
+        assert_eq!(g.view.here.unwrap().road, 1);
+        assert!(g.torque_cap <= snow_cap + 1e-9, "pulls away capped: {g:?}");
+    }
+
+    #[test]
+    fn rolling_back_under_a_forward_demand_keeps_asphalt_s_cap() {
+        // A hill start that rolled back: the car at 3 m/s backwards on
+        // asphalt (heard so under the wheel), the motor at 400 N m, the
+        // wheel turning with the car (its speed sensor's noise, ±0.03 m/s).
+        // reverse_m at its largest (10 m) so that the queue stays for the
+        // second's 3 m: the belief and the spin cut alone. Neither goes
+        // below asphalt's cap: the slip is the plant's, about noise over
+        // 3 m/s (over v_eps, as before, 30 % of noise: snow's cap, the cut).
+        let asphalt_cap = roads()[0].mu_peak() * 3433.5 * 0.28;
+        let p = PreviewParams {
+            reverse_m: 10.0,
+            ..PreviewParams::default()
+        };
+        let mut a = aware_with(0.0, p);
+        let mut seed: u64 = 99;
+        for k in 0..1000u32 {
+            let t = f64::from(k) * 1e-3;
+            if k % 25 == 0 {
+                a.decision(0, 0.95, t, 0.0, 0.0);
+            }
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let u = (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
+            let m = Measurement {
+                t,
+                omega: (-3.0 + 0.03 * u) / 0.28,
+                v: Some(-3.0),
+                torque: 400.0,
+                demand: 400.0,
+            };
+            let g = a.step(&m, 0.0);
+            if k >= 1 {
+                assert_eq!(g.belief.0, 0, "{k}: {g:?}");
+                assert!(g.torque_cap >= asphalt_cap - 1e-9, "{k}: {g:?}");
+            }
+        }
+        assert!(a.queue.len() == 1, "no reverse detected within 10 m");
+    }
+
+    #[test]
+    fn reverse_limits_are_checked() {
+        for (field, v) in [
+            ("reverse_m", 0.0),
+            ("reverse_m", f64::NAN),
+            ("reverse_m", 11.0),
+            ("reverse_hold_s", -0.1),
+            ("reverse_hold_s", f64::NAN),
+        ] {
+            let mut p = PreviewParams::default();
+            match field {
+                "reverse_m" => p.reverse_m = v,
+                _ => p.reverse_hold_s = v,
+            }
+            assert_eq!(p.validate().unwrap_err().field, field, "{v}");
+        }
+        // Absent from a file: the shipped values.
+        let text = "cap_share = 1.0\nrecover_share = 0.4\nrecover_slip_factor = 1.5\n\
+                    horizon_s = 1.0\nlag_margin_s = 0.02\nchange_at = 0.0\nmin_hits = 2\n\
+                    slip_share = 0.95\nrelease_slip_share = 0.7\nrelease_s = 0.02\n";
+        let p: PreviewParams = toml::from_str(text).unwrap();
+        assert_eq!((p.reverse_m, p.reverse_hold_s), (0.1, 0.6));
+        let p: PreviewParams =
+            toml::from_str(&format!("{text}reverse_m = 0.2\nreverse_hold_s = 0\n")).unwrap();
+        assert_eq!((p.reverse_m, p.reverse_hold_s), (0.2, 0.0));
     }
 
     #[test]
