@@ -331,6 +331,14 @@ pub struct RoadAware {
     released: Option<usize>,
     /// Last cycle's cap, N m.
     last_cap: f64,
+    /// Time the wheel has contradicted the binding cap of the road the
+    /// microphone says is under it (when that carries less than the
+    /// believed road), s.
+    here_contradicted_s: f64,
+    /// The heard road under the wheel whose cap the wheel has overruled.
+    here_released: Option<usize>,
+    /// Last cycle's cap came from the heard road under the wheel: that road.
+    here_binding: Option<usize>,
     /// The wheel's spin and its cut, as of last cycle (see `spin`).
     spin: Spin,
     /// Wheel inertia, kg m².
@@ -414,6 +422,9 @@ impl RoadAware {
             contradicted_s: 0.0,
             released: None,
             last_cap: f64::INFINITY,
+            here_contradicted_s: 0.0,
+            here_released: None,
+            here_binding: None,
             spin: Spin::Gripping,
             j_w: vehicle.j_w,
             slip_lp: LowPass::new(0.5 * preview.release_s, dt),
@@ -431,6 +442,9 @@ impl RoadAware {
         self.contradicted_s = 0.0;
         self.released = None;
         self.last_cap = f64::INFINITY;
+        self.here_contradicted_s = 0.0;
+        self.here_released = None;
+        self.here_binding = None;
         self.spin = Spin::Gripping;
         self.slip_lp.reset();
         self.travel = 0.0;
@@ -656,20 +670,56 @@ impl RoadAware {
         } else {
             self.contradicted_s = 0.0;
         }
+        // The same word on the cap of the road the microphone says is under
+        // the wheel, when that cap is the one binding (it carries less than
+        // the believed road: the cautious direction, which the belief alone
+        // does not lift): a wheel that carries that road's cap at well
+        // under the slip the road would need for it is on a grippier road
+        // (wet stone heard as snow: at snow's 183 N m it slips 0.019, snow
+        // would need 0.03). Released until the heard road changes, the
+        // stream dies or the wheel spins.
+        let here_road = view.here.map(|h| h.road);
+        if self.here_released.is_some_and(|r| Some(r) != here_road) || spinning || !alive {
+            self.here_released = None;
+        }
+        match self.here_binding {
+            Some(r)
+                if Some(r) == here_road
+                    && surely_on
+                    && self.here_released.is_none()
+                    && m.torque >= 0.95 * self.last_cap
+                    && slip_lp
+                        < self.p.release_slip_share
+                            * self.lambda_release.get(r).copied().unwrap_or(f64::NAN) =>
+            {
+                self.here_contradicted_s += self.dt;
+                if self.here_contradicted_s >= self.p.release_s && self.p.release_slip_share > 0.0 {
+                    self.here_released = Some(r);
+                }
+            }
+            _ => self.here_contradicted_s = 0.0,
+        }
 
         let released = self.released;
+        let here_released = self.here_released;
+        let mut here_cap = f64::INFINITY;
         let mut cap = f64::INFINITY;
         // What the microphone says of the road under the wheel caps too when
-        // it carries less than the believed road: the wheel's evidence may
-        // override acoustics only in the cautious direction.
+        // it carries less than the believed road: the belief may override
+        // acoustics only in the cautious direction (in the grippy one only
+        // the release test above lifts it).
         if alive
             && let Some(here) = view.here
             && here.peak_confidence >= self.arte.min_confidence
             && here.hits >= self.p.min_hits
         {
             let h = self.table.info(here.road);
-            if (h.mu_peak < info.mu_peak || !usable) && released != Some(here.road) {
-                cap = self.torque(self.p.cap_share, h.mu_peak);
+            if (h.mu_peak < info.mu_peak || !usable)
+                && released != Some(here.road)
+                && here_released != Some(here.road)
+            {
+                here_cap = self.torque(self.p.cap_share, h.mu_peak);
+                cap = here_cap;
             }
         }
         if usable && released.is_none() {
@@ -702,6 +752,9 @@ impl RoadAware {
                 }
             }
         }
+        self.here_binding = (here_cap.is_finite() && here_cap <= cap)
+            .then_some(here_road)
+            .flatten();
         self.last_cap = cap;
         Guidance {
             knowledge: alive.then_some(knowledge),
@@ -989,6 +1042,78 @@ mod tests {
             let g = a.step(&slipping(t, 0.037, snow_cap), 5.0 * t);
             assert!(g.torque_cap <= snow_cap + 1.0, "{t}: {g:?}");
         }
+    }
+
+    /// Wet stone heard as snow (a confusion the acoustic model makes): the
+    /// belief, from the wheel's slip, is wet stone, so the cap that binds
+    /// is the heard road's, snow's. At snow's cap the wheel slips 1.9 %,
+    /// where snow would need about twice that: the wheel's word lifts the
+    /// heard road's cap as it lifts a believed road's. A wheel that slips
+    /// as snow would keeps it.
+    #[test]
+    fn a_wheel_that_slips_too_little_at_the_heard_roads_cap_releases_it() {
+        let roads = RoadCatalogue::burckhardt(&["asphalt", "snow", "wet_stone"]).unwrap();
+        let mk = || {
+            RoadAware::new(
+                ControllerKind::Mtte,
+                &roads,
+                RoadTable::new(&roads, &KnowledgeConfig::default()).unwrap(),
+                &VehicleParams::default(),
+                &ControllersConfig::default(),
+                1e-3,
+            )
+            .unwrap()
+        };
+        let snow_cap = roads[1].mu_peak() * 3433.5 * 0.28;
+        // (released at, cycles at snow's cap under a wet-stone belief) for a
+        // wheel at snow's cap and slip
+        // `lambda`, after 0.3 s at 4.4 % slip and 300 N m on wet stone
+        // (the belief's evidence)
+        let run = |lambda: f64| {
+            let mut a = mk();
+            let mut released = None;
+            let mut capped = 0;
+            for k in 1..800 {
+                let t = k as f64 * 1e-3;
+                if k == 300 {
+                    // snow heard under the wheel, twice: confirmed
+                    a.decision(1, 0.93, t, 5.0 * t - 0.5, 5.0 * t - 0.4);
+                }
+                if k >= 300 && k % 25 == 0 {
+                    // and on, every hop (a live stream)
+                    a.decision(1, 0.93, t, 5.0 * t - 0.4, 5.0 * t - 0.3);
+                }
+                let m = if k < 300 {
+                    slipping(t, 0.044, 300.0)
+                } else {
+                    slipping(t, lambda, snow_cap)
+                };
+                let g = a.step(&m, 5.0 * t);
+                if k > 300 && g.belief.0 == 2 && (g.torque_cap - snow_cap).abs() < 1.0 {
+                    capped += 1;
+                }
+                if k > 300 && released.is_none() && g.torque_cap > 1.5 * snow_cap {
+                    released = Some(t);
+                }
+            }
+            (released, capped)
+        };
+        let (released, capped) = run(0.019);
+        assert!(
+            capped > 0,
+            "the heard road's cap never bound under a wet-stone belief"
+        );
+        let t = released.expect("the heard road's cap is released");
+        assert!(
+            (0.32..0.40).contains(&t),
+            "after release_s of contradiction: {t}"
+        );
+        // at snow's cap a wheel on snow sits near its λ_opt, 0.06
+        let (released, _) = run(0.055);
+        assert_eq!(
+            released, None,
+            "a wheel slipping as snow would kept the cap"
+        );
     }
 
     /// Believed snow; the wheel spins at 30 % slip under 300 N m, then, the
