@@ -358,6 +358,16 @@ impl RoadBelief {
         }
     }
 
+    /// μ of catalogue road `road` at slip `lambda` (its curve), NaN for
+    /// an index outside the belief.
+    pub fn mu_of(&self, road: usize, lambda: f64) -> f64 {
+        if road < self.n {
+            self.roads[road].mu(lambda)
+        } else {
+            f64::NAN
+        }
+    }
+
     /// Probability of each road (catalogue order).
     pub fn probabilities(&self) -> &[f64] {
         &self.belief[..self.n]

@@ -353,6 +353,14 @@ pub struct RoadAware {
     reversed_at: f64,
 }
 
+/// How long a landing (`Spin::Landing`) may keep the slip above the
+/// entry threshold without a new cut, in motor time constants: by 3 τ_m
+/// the motor has made 95 % of its return, which was to take the rest of
+/// the wheel's excess momentum. A wheel that broke away at near 100 % slip
+/// (a hill start rolling back on wet stone) otherwise stayed "landing" at
+/// 0.98 slip for seconds, since its slip could not rise by the band again.
+const LANDING_TAUS: f64 = 3.0;
+
 /// A spinning wheel and its cut (`RoadAware::spins`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Spin {
@@ -360,10 +368,13 @@ enum Spin {
     Gripping,
     /// Spinning: the torque is cut to `recover_share`.
     Cut,
-    /// The cut ended early at slip `from` (`recover_landing`) and the wheel
-    /// is coming back; a new cut needs the slip to rise again by the entry
-    /// band above `from`.
-    Landing { from: f64 },
+    /// The cut ended early at slip `from` (`recover_landing`), at time `t0`,
+    /// and the wheel is coming back; a new cut needs the slip to rise again
+    /// by the entry band above `from`, or, once the motor has had
+    /// [`LANDING_TAUS`] time constants to return, to be still above the
+    /// entry threshold (a landing that does not land: a wheel still
+    /// spinning at the torque the motor returned to).
+    Landing { from: f64, t0: f64 },
 }
 
 impl RoadAware {
@@ -555,7 +566,7 @@ impl RoadAware {
     /// through its lag will take the rest of the wheel's excess speed. After
     /// such an early end the wheel is landing: a new spin needs the slip to
     /// rise again by the entry band above where the cut ended.
-    fn spins(&mut self, m: &Measurement, lambda: f64, info: &RoadInfo) -> bool {
+    fn spins(&mut self, m: &Measurement, lambda: f64, road: usize, info: &RoadInfo) -> bool {
         let lo = info.lambda_opt;
         let band = (self.p.recover_slip_factor - 1.0) * lo;
         self.spin = if !lambda.is_finite() || lambda <= lo {
@@ -564,17 +575,28 @@ impl RoadAware {
             match self.spin {
                 Spin::Cut => {
                     let excess = self.j_w * m.omega.abs() * (lambda - lo) / (1.0 - lo).max(0.1);
-                    let back = self.p.recover_landing
-                        * (self.torque(self.p.cap_share, info.mu_peak) - m.torque)
-                        * self.tau_m;
+                    // what the tyre carries at this slip, when less than the
+                    // cap: beyond λ_opt the curve falls, so on the way back
+                    // the tyre carries at least this; against the cap alone
+                    // a wheel at 98 % slip on wet stone (μ 0.28, peak 0.38)
+                    // "landed" at once and spun up again every 0.24 s
+                    let carried = self.belief.mu_of(road, lambda.min(1.0)) * self.nr;
+                    let cap = self.torque(self.p.cap_share, info.mu_peak);
+                    let back = self.p.recover_landing * (cap.min(carried) - m.torque) * self.tau_m;
                     if back > 0.0 && excess <= back {
-                        Spin::Landing { from: lambda }
+                        Spin::Landing {
+                            from: lambda,
+                            t0: m.t,
+                        }
                     } else {
                         Spin::Cut
                     }
                 }
-                Spin::Landing { from } if lambda <= from.max(lo + band) + band => {
-                    Spin::Landing { from }
+                Spin::Landing { from, t0 }
+                    if lambda <= from.max(lo + band) + band
+                        && (m.t - t0 < LANDING_TAUS * self.tau_m || lambda <= lo + band) =>
+                {
+                    Spin::Landing { from, t0 }
                 }
                 Spin::Gripping if lambda <= lo + band => Spin::Gripping,
                 Spin::Landing { .. } | Spin::Gripping => Spin::Cut,
@@ -640,7 +662,7 @@ impl RoadAware {
         // The wheel spins from recover_slip_factor · λ_opt on (hysteresis: a
         // noisy slip at the threshold must not flip the cap every cycle), and
         // its cut ends in time for the motor's lag (`spins`).
-        let spinning = self.spins(m, lambda, &info);
+        let spinning = self.spins(m, lambda, road, &info);
         // The wheel's word on a binding cap, in the grippy direction: the
         // motor delivers the cap and the wheel slips well below what the
         // believed road would need for it.
@@ -1159,15 +1181,21 @@ mod tests {
         assert_eq!(spin_and_land(0.0).0, None);
         // 0.5: it ends where the wheel's excess angular momentum over the
         // peak, J_w ω (λ − λ_opt) / (1 − λ_opt), is half of what the motor's
-        // return from 80 N m to the cap through its lag takes, (cap − 80) τ_m.
+        // return from 80 N m through its lag takes against what the tyre
+        // carries, (min(cap, μ(λ) N r) − 80) τ_m (beyond λ_opt snow carries
+        // a little less than its peak: 0.182 at 20 % slip against 0.190).
         let (landed, mut a, t0) = spin_and_land(0.5);
         let landed = landed.expect("the cut ends above λ_opt");
         let lo = roads()[1].lambda_opt();
         let v = VehicleParams::default();
         let excess = |l: f64| v.j_w * 5.0 / (1.0 - l) / 0.28 * (l - lo) / (1.0 - lo);
-        let back = 0.5 * (0.19 * 3433.5 * 0.28 - 80.0) * v.tau_m;
+        let nr = 3433.5 * 0.28;
+        let back = |l: f64| {
+            let carried = (roads()[1].mu(l) * nr).min(roads()[1].mu_peak() * nr);
+            0.5 * (carried - 80.0) * v.tau_m
+        };
         assert!(
-            excess(landed) <= back && excess(landed + 0.005) > back,
+            excess(landed) <= back(landed) && excess(landed + 0.005) > back(landed + 0.005),
             "{landed}"
         );
         assert!(landed > 2.0 * lo, "well before the slip is back: {landed}");
