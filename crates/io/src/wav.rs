@@ -4,9 +4,26 @@
 //! through it, so a recording decodes to the same samples offline and live.
 //!
 //! Reading:
-//! - PCM integer (1..=32 bit) and 32-bit float files; integers are scaled to
-//!   [−1, 1) by 2^(bits−1); float samples beyond full scale are clamped to
-//!   [−1, 1] and non-finite ones (NaN, ±∞) are read as 0.
+//! - PCM integer (8, 16, 24, 32 bit) and 32-bit float files; integers are
+//!   scaled to [−1, 1) by 2^(bits−1); float samples beyond full scale are
+//!   clamped to [−1, 1] and non-finite ones (NaN, ±∞) are read as 0, both
+//!   counted in [`Audio::clamped`] / [`Audio::non_finite`] and logged as a
+//!   warning naming the file (`tracing::warn!`).
+//! - `WAVE_FORMAT_EXTENSIBLE` (tag 0xFFFE) integer files whose valid bits are
+//!   fewer than the container's (24 valid bits in 32, 20 in 24, ...): the
+//!   valid bits are the container's most significant ones (the Microsoft
+//!   spec), so each container sample is read as a signed integer of the
+//!   container width, shifted right by container − valid bits and scaled by
+//!   2^(valid−1). hound would take the low bytes instead, so these samples
+//!   are read here (the fmt chunk found by a chunk walk of our own that
+//!   honours RIFF pad bytes). A file whose padding bits (below the valid
+//!   ones) are not all zero is refused: its samples are not laid out as the
+//!   spec says (a writer that right-aligned them), and no reading of it is
+//!   sure. A plain-PCM file (tag 1) with 24 bits in 4-byte containers
+//!   (arecord's S24_LE) keeps the low 3 bytes, as it is written.
+//! - Refused with [`WavErrorKind::Layout`]: integer containers wider than
+//!   4 bytes, valid bits above the container width, and plain-PCM widths
+//!   hound cannot read (e.g. 16 bits in 4-byte containers).
 //! - Several channels are **mixed down** to mono by averaging.
 //! - A file at another sample rate is **resampled** to the rate asked for by
 //!   [`read_mono_at`] ([`resample`]); [`read_mono`] and [`decode_mono`] keep
@@ -25,6 +42,7 @@
 //! and grip-io depending on grip-arte for it would pull the feature and
 //! classifier crate (rustfft, nalgebra) into every service.
 
+use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
 /// Mono audio decoded from a WAV file. `S` is the sample type: `f32` in
@@ -40,6 +58,11 @@ pub struct Audio<S = f32> {
     pub file_rate: u32,
     /// The file's channel count (mixed down to mono).
     pub file_channels: u16,
+    /// Float samples beyond full scale, clamped to [−1, 1] (counted per
+    /// channel sample, before the mixdown; 0 for integer files).
+    pub clamped: usize,
+    /// Non-finite float samples (NaN, ±∞), read as 0.
+    pub non_finite: usize,
 }
 
 impl<S> Audio<S> {
@@ -55,6 +78,8 @@ impl<S> Audio<S> {
             samples: self.samples.into_iter().map(f).collect(),
             file_rate: self.file_rate,
             file_channels: self.file_channels,
+            clamped: self.clamped,
+            non_finite: self.non_finite,
         }
     }
 }
@@ -90,6 +115,9 @@ pub enum WavErrorKind {
     /// Integer PCM wider than 32 bits (or 0 bits).
     #[error("unsupported PCM sample width {0} bits")]
     IntWidth(u16),
+    /// A sample layout that cannot be read correctly (see the module docs).
+    #[error("unsupported sample layout: {0}")]
+    Layout(String),
     /// Float samples other than 32-bit.
     #[error("unsupported float sample width {0} bits (only 32)")]
     FloatWidth(u16),
@@ -157,13 +185,17 @@ impl WavErrorKind {
 
 /// Reads a WAV file as mono at its own sample rate.
 pub fn read_mono(path: &Path) -> Result<Audio, WavError> {
-    let file = std::fs::File::open(path).map_err(|e| WavErrorKind::Open(e).at(path))?;
+    let mut file = std::fs::File::open(path).map_err(|e| WavErrorKind::Open(e).at(path))?;
     // what the file can hold bounds the samples reserved for (0: unknown,
     // no reservation)
     let size = file.metadata().map_or(0, |m| m.len());
+    let fmt = find_fmt(&mut file);
+    file.seek(SeekFrom::Start(0))
+        .map_err(|e| WavErrorKind::Open(e).at(path))?;
     hound::WavReader::new(std::io::BufReader::new(file))
         .map_err(WavErrorKind::open)
-        .and_then(|r| decode(r, size))
+        .and_then(|r| decode(r, fmt, size))
+        .map(|a| warn_clamped(a, path))
         .map_err(|k| k.at(path))
 }
 
@@ -195,17 +227,208 @@ pub fn read_mono_at(path: &Path, rate: u32) -> Result<Audio, WavError> {
 /// Decodes the bytes of a WAV file already in memory (`grip train` hashes
 /// them too) as mono at the file's own rate; `path` names the file in errors.
 pub fn decode_mono(bytes: &[u8], path: &Path) -> Result<Audio, WavError> {
+    let fmt = find_fmt(&mut std::io::Cursor::new(bytes));
     hound::WavReader::new(std::io::Cursor::new(bytes))
         .map_err(WavErrorKind::open)
-        .and_then(|r| decode(r, bytes.len() as u64))
+        .and_then(|r| decode(r, fmt, bytes.len() as u64))
+        .map(|a| warn_clamped(a, path))
         .map_err(|k| k.at(path))
 }
 
-/// Decodes `reader`, from a file of `file_bytes` bytes: the samples are
-/// reserved for up to what the file can hold, not what its header claims
-/// (a data-chunk length of 0xFFFFFFFF would ask for 17 GB).
+/// Logs the float samples of `a` that were clamped or read as 0.
+fn warn_clamped(a: Audio, path: &Path) -> Audio {
+    if a.clamped > 0 || a.non_finite > 0 {
+        tracing::warn!(
+            "WAV file {}: {} float samples beyond full scale clamped to [-1, 1], {} non-finite samples read as 0",
+            path.display(),
+            a.clamped,
+            a.non_finite
+        );
+    }
+    a
+}
+
+/// `WAVE_FORMAT_EXTENSIBLE`.
+const TAG_EXTENSIBLE: u16 = 0xFFFE;
+
+/// The fields of the fmt chunk hound does not hand on.
+#[derive(Clone, Copy, Debug)]
+struct Fmt {
+    /// wFormatTag.
+    tag: u16,
+    /// nChannels.
+    channels: u16,
+    /// nBlockAlign.
+    block_align: u16,
+    /// wValidBitsPerSample of an EXTENSIBLE chunk (None: other tags, or a
+    /// chunk too short to hold it).
+    valid_bits: Option<u16>,
+}
+
+/// Walks the RIFF chunks of a WAVE file (honouring the pad byte after an
+/// odd-length chunk) to its fmt chunk. None when the bytes are not a WAVE
+/// file or hold no fmt chunk before the data: hound then says why.
+fn find_fmt<R: Read + Seek>(r: &mut R) -> Option<Fmt> {
+    let mut head = [0u8; 12];
+    r.read_exact(&mut head).ok()?;
+    if &head[..4] != b"RIFF" || &head[8..] != b"WAVE" {
+        return None;
+    }
+    loop {
+        let mut ch = [0u8; 8];
+        r.read_exact(&mut ch).ok()?;
+        let len = u32::from_le_bytes([ch[4], ch[5], ch[6], ch[7]]);
+        match &ch[..4] {
+            b"fmt " => {
+                let mut b = [0u8; 40];
+                let n = (len as usize).min(40);
+                r.read_exact(&mut b[..n]).ok()?;
+                if n < 16 {
+                    return None;
+                }
+                let u16_at = |i: usize| u16::from_le_bytes([b[i], b[i + 1]]);
+                let tag = u16_at(0);
+                let extensible = tag == TAG_EXTENSIBLE && n >= 20 && u16_at(16) >= 22 && n >= 40;
+                return Some(Fmt {
+                    tag,
+                    channels: u16_at(2),
+                    block_align: u16_at(12),
+                    valid_bits: extensible.then(|| u16_at(18)),
+                });
+            }
+            b"data" => return None,
+            _ => {
+                let skip = i64::from(len) + i64::from(len & 1);
+                r.seek(SeekFrom::Current(skip)).ok()?;
+            }
+        }
+    }
+}
+
+/// How the integer samples of a file are read.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum IntLayout {
+    /// By hound: plain PCM, or EXTENSIBLE with as many valid bits as the
+    /// container has.
+    Hound,
+    /// By [`read_left_aligned`]: EXTENSIBLE, `valid` bits left-aligned in
+    /// `bytes`-byte containers.
+    LeftAligned { bytes: u16, valid: u16 },
+}
+
+/// The layout of an integer file, or why it cannot be read correctly.
+fn int_layout(spec: &hound::WavSpec, fmt: Option<Fmt>) -> Result<IntLayout, WavErrorKind> {
+    let Some(f) = fmt else {
+        // hound read a header our walk did not find: its own reading stands
+        return Ok(IntLayout::Hound);
+    };
+    if f.channels != spec.channels || f.channels == 0 {
+        return Err(WavErrorKind::NotWav("fmt chunk read two ways"));
+    }
+    let bytes = f.block_align / f.channels;
+    let bits = spec.bits_per_sample;
+    if bytes > 4 {
+        return Err(WavErrorKind::Layout(format!(
+            "{}-byte integer containers (at most 4)",
+            bytes
+        )));
+    }
+    if f.tag == TAG_EXTENSIBLE {
+        let container = bytes * 8;
+        // hound takes 0 valid bits for wBitsPerSample; so do we
+        let valid = match f.valid_bits {
+            Some(v) if v > 0 => v,
+            _ => bits,
+        };
+        if valid != bits {
+            return Err(WavErrorKind::NotWav("fmt chunk read two ways"));
+        }
+        if valid > container {
+            return Err(WavErrorKind::Layout(format!(
+                "{valid} valid bits in {container}-bit containers"
+            )));
+        }
+        if valid < container {
+            return Ok(IntLayout::LeftAligned { bytes, valid });
+        }
+    }
+    match (bytes, bits) {
+        (1, 8) | (2, 16) | (3, 24) | (4, 24) | (4, 32) => Ok(IntLayout::Hound),
+        _ => Err(WavErrorKind::Layout(format!(
+            "{bits}-bit integer samples in {bytes}-byte containers (format tag {:#06x})",
+            f.tag
+        ))),
+    }
+}
+
+/// Reads `expected` integer samples of `valid` bits left-aligned in
+/// `bytes`-byte little-endian containers from `r` (positioned at the data),
+/// scaled to [−1, 1), into `out`. 8-bit containers are unsigned (offset
+/// 128), wider ones two's complement. Refuses non-zero padding bits.
+fn read_left_aligned<R: Read>(
+    r: &mut R,
+    bytes: u16,
+    valid: u16,
+    expected: usize,
+    out: &mut Vec<f32>,
+) -> Result<(), WavErrorKind> {
+    let width = usize::from(bytes);
+    let shift = u32::from(bytes * 8 - valid);
+    let pad_mask = (1i32 << shift) - 1;
+    let scale = 1.0 / (1u64 << (valid - 1)) as f64;
+    let mut buf = vec![0u8; width * 8192];
+    while out.len() < expected {
+        let want = (expected - out.len()).min(8192) * width;
+        let got = read_full(r, &mut buf[..want]).map_err(|e| WavErrorKind::Corrupt {
+            got: out.len(),
+            expected,
+            error: hound::Error::IoError(e),
+        })?;
+        for c in buf[..got - got % width].chunks_exact(width) {
+            // the container as a signed integer in the top bits of an i32
+            let mut w = [0u8; 4];
+            w[4 - width..].copy_from_slice(c);
+            if width == 1 {
+                w[3] ^= 0x80;
+            }
+            let v = i32::from_le_bytes(w) >> (32 - 8 * width as u32);
+            if v & pad_mask != 0 {
+                return Err(WavErrorKind::Layout(format!(
+                    "WAVE_FORMAT_EXTENSIBLE with {valid} valid bits in {}-bit containers, but sample {} has non-zero padding bits below the valid ones: the samples are not left-aligned as the format requires",
+                    bytes * 8,
+                    out.len()
+                )));
+            }
+            out.push((f64::from(v >> shift) * scale) as f32);
+        }
+        if got < want {
+            break;
+        }
+    }
+    Ok(())
+}
+
+/// Reads until `buf` is full or the end of `r`; how many bytes were read.
+fn read_full<R: Read>(r: &mut R, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match r.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(n)
+}
+
+/// Decodes `reader`, from a file of `file_bytes` bytes whose fmt chunk is
+/// `fmt` (our own reading of it): the samples are reserved for up to what
+/// the file can hold, not what its header claims (a data-chunk length of
+/// 0xFFFFFFFF would ask for 17 GB).
 fn decode<R: std::io::Read>(
     mut reader: hound::WavReader<R>,
+    fmt: Option<Fmt>,
     file_bytes: u64,
 ) -> Result<Audio, WavErrorKind> {
     let spec = reader.spec();
@@ -220,6 +443,7 @@ fn decode<R: std::io::Read>(
     let sample_bytes = u64::from(spec.bits_per_sample.div_ceil(8).max(1));
     let fits = usize::try_from(file_bytes / sample_bytes).unwrap_or(usize::MAX);
     let mut inter: Vec<f32> = Vec::with_capacity(expected.min(fits));
+    let (mut clamped, mut non_finite) = (0usize, 0usize);
     let corrupt = |got: usize, error: hound::Error| WavErrorKind::Corrupt {
         got,
         expected,
@@ -230,10 +454,20 @@ fn decode<R: std::io::Read>(
             if !(1..=32).contains(&spec.bits_per_sample) {
                 return Err(WavErrorKind::IntWidth(spec.bits_per_sample));
             }
-            let scale = 1.0 / (1u64 << (spec.bits_per_sample - 1)) as f64;
-            for s in reader.samples::<i32>() {
-                let v = s.map_err(|e| corrupt(inter.len(), e))?;
-                inter.push((f64::from(v) * scale) as f32);
+            match int_layout(&spec, fmt)? {
+                IntLayout::Hound => {
+                    let scale = 1.0 / (1u64 << (spec.bits_per_sample - 1)) as f64;
+                    for s in reader.samples::<i32>() {
+                        let v = s.map_err(|e| corrupt(inter.len(), e))?;
+                        inter.push((f64::from(v) * scale) as f32);
+                    }
+                }
+                IntLayout::LeftAligned { bytes, valid } => {
+                    // hound has read the header up to the data; it cannot
+                    // give the raw containers, so they are read here
+                    let mut r = reader.into_inner();
+                    read_left_aligned(&mut r, bytes, valid, expected, &mut inter)?;
+                }
             }
         }
         hound::SampleFormat::Float => {
@@ -242,12 +476,17 @@ fn decode<R: std::io::Read>(
             }
             for s in reader.samples::<f32>() {
                 let v = s.map_err(|e| corrupt(inter.len(), e))?;
-                // over-full-scale values clamped, as the S16 conversion
-                // does: the mixdown's sum of huge samples stays finite
-                inter.push(if v.is_finite() {
+                // over-full-scale values clamped (and counted), as the S16
+                // conversion does: the mixdown's sum of huge samples stays
+                // finite
+                inter.push(if !v.is_finite() {
+                    non_finite += 1;
+                    0.0
+                } else if v.abs() > 1.0 {
+                    clamped += 1;
                     v.clamp(-1.0, 1.0)
                 } else {
-                    0.0
+                    v
                 });
             }
         }
@@ -271,6 +510,8 @@ fn decode<R: std::io::Read>(
         samples,
         file_rate: spec.sample_rate,
         file_channels: ch,
+        clamped,
+        non_finite,
     })
 }
 
@@ -510,6 +751,26 @@ mod tests {
         assert_eq!(resample(&x[..10], 44_100, 0), x[..10]);
     }
 
+    /// The fmt chunk is found behind an odd-length chunk and its pad byte.
+    #[test]
+    fn the_chunk_walk_honours_pad_bytes() {
+        let mut f = b"RIFF\0\0\0\0WAVEodd \x03\0\0\0abc\0".to_vec();
+        f.extend_from_slice(b"fmt \x28\0\0\0\xfe\xff\x02\0");
+        f.extend_from_slice(&[
+            0x80, 0xbb, 0, 0, 0, 0xee, 0x02, 0, 8, 0, 32, 0, 22, 0, 24, 0,
+        ]);
+        f.extend_from_slice(&[0; 20]);
+        let fmt = find_fmt(&mut std::io::Cursor::new(&f)).unwrap();
+        assert_eq!(
+            (fmt.tag, fmt.channels, fmt.block_align, fmt.valid_bits),
+            (TAG_EXTENSIBLE, 2, 8, Some(24))
+        );
+        // no pad byte: the walk misses the fmt chunk and says nothing
+        let mut g = f.clone();
+        g.remove(23);
+        assert!(find_fmt(&mut std::io::Cursor::new(&g)).is_none());
+    }
+
     #[test]
     fn map_converts_samples_and_keeps_the_rates() {
         let a = Audio {
@@ -517,6 +778,8 @@ mod tests {
             samples: vec![0.5f32, -1.0],
             file_rate: 16_000,
             file_channels: 2,
+            clamped: 0,
+            non_finite: 0,
         };
         let b = a.map(|s| (s * 2.0) as i32);
         assert_eq!(b.samples, [1, -2]);
