@@ -2,10 +2,14 @@
 //! `grip dataset delay` reports, as plain functions and an accumulator.
 //!
 //! Ground truth is a recording's segments `(t_start, t_end, class, extra)`
-//! in time order (the extra field, e.g. the speed, is not used here). A
-//! decision is judged against the segment holding its `t_end` (the moment
-//! it becomes available), except for the accuracy inside segments, which
-//! counts only decisions whose whole frame lies inside one segment.
+//! in time order, not overlapping (the extra field, e.g. the speed, is not
+//! used here). A decision is judged against the segment holding its
+//! `t_end` (the moment it becomes available), except for the accuracy
+//! inside segments, which counts only decisions whose whole frame lies
+//! inside one segment. A decision in a gap between segments, or more than
+//! `tail_s` (one hop) past the last segment's end, is unjudged: no truth
+//! is known there, so it counts in no accuracy, confidence bin or
+//! calibration (see [`segment_at`]).
 //!
 //! - [`crate::stream::detection_delays`]: delay of each change (the rule
 //!   lives beside the estimator).
@@ -27,30 +31,42 @@ use crate::stream::{detection_delays, percentile};
 /// A ground-truth segment: `(t_start, t_end, class, extra)` in seconds.
 pub type Seg<T> = (f64, f64, usize, T);
 
-/// The segment holding time `t` (`t_start <= t < t_end`) and its index;
-/// past the end (or in a gap), the last one; `None` without segments.
-pub fn segment_at<T>(segments: &[Seg<T>], t: f64) -> Option<(usize, &Seg<T>)> {
-    segments
+/// The segment holding time `t` (`t_start <= t < t_end`) and its index.
+/// Up to `tail_s` past the last segment's end (a recording a few samples
+/// longer than its segments; pass the stream's hop), the last one. `None`
+/// (unjudged: no truth is known) in a gap between segments, before the
+/// first, further past the last, or without segments.
+pub fn segment_at<T>(segments: &[Seg<T>], t: f64, tail_s: f64) -> Option<(usize, &Seg<T>)> {
+    if let Some(found) = segments
         .iter()
         .enumerate()
         .find(|(_, s)| t >= s.0 && t < s.1)
-        .or(segments.iter().enumerate().last())
+    {
+        return Some(found);
+    }
+    segments
+        .iter()
+        .enumerate()
+        .last()
+        .filter(|(_, s)| t >= s.1 && t <= s.1 + tail_s.max(0.0) + 1e-9)
 }
 
 /// Smoothed decisions `(t_end, class)` in time order that differ from the
 /// previous decision and name a road other than the true one at `t_end`.
 /// A switch to the right road, late or not, is not counted; nor is the
-/// first decision. Returned as (within `near_s` after a true change, i.e.
-/// on the way from the old road to the new one; elsewhere).
+/// first decision, nor an unjudged one (`tail_s`: see [`segment_at`]).
+/// Returned as (within `near_s` after a true change, i.e. on the way from
+/// the old road to the new one; elsewhere).
 pub fn count_false_switches<T>(
     dec: &[(f64, usize)],
     segments: &[Seg<T>],
     near_s: f64,
+    tail_s: f64,
 ) -> (usize, usize) {
     let (mut near, mut inside) = (0, 0);
     for w in dec.windows(2) {
         let (t, c) = w[1];
-        let Some((i, seg)) = segment_at(segments, t) else {
+        let Some((i, seg)) = segment_at(segments, t, tail_s) else {
             continue;
         };
         if c != w[0].1 && c != seg.2 {
@@ -90,7 +106,10 @@ pub struct KnowledgeUse {
 impl KnowledgeUse {
     /// Adds one recording's smoothed decisions `(t_end, class)` with their
     /// confidences, against its segments; `mu_peak[class]` is each class's
-    /// peak friction (empty: unknown, no optimistic count).
+    /// peak friction (empty: unknown, no optimistic count). Unjudged
+    /// decisions (`tail_s`: see [`segment_at`]) are skipped; returns how
+    /// many.
+    #[allow(clippy::too_many_arguments)]
     pub fn add<T>(
         &mut self,
         dec: &[(f64, usize)],
@@ -99,9 +118,12 @@ impl KnowledgeUse {
         mu_peak: &[f64],
         min_confidence: f64,
         near_s: f64,
-    ) {
+        tail_s: f64,
+    ) -> usize {
+        let mut unjudged = 0;
         for (&(t, c), &p) in dec.iter().zip(confidence) {
-            let Some((i, seg)) = segment_at(segments, t) else {
+            let Some((i, seg)) = segment_at(segments, t, tail_s) else {
+                unjudged += 1;
                 continue;
             };
             self.decisions += 1;
@@ -125,6 +147,7 @@ impl KnowledgeUse {
                 self.used_wrong_optimistic += 1;
             }
         }
+        unjudged
     }
 
     /// Used decisions naming another road than the true one.
@@ -186,6 +209,9 @@ pub struct ChangeEval {
     /// How long a new road must hold to count as detected (s); also the
     /// "near a change" window of false switches and wrong roads in use.
     hold_s: f64,
+    /// How far past the last segment a decision is still judged (s; the
+    /// stream's hop, see [`segment_at`]).
+    tail_s: f64,
     /// Delays of the detected changes (s).
     pub delays: Vec<f64>,
     /// Changes never detected.
@@ -206,6 +232,9 @@ pub struct ChangeEval {
     pub smoothed: Confusion,
     /// Single-frame decisions of the same frames.
     pub single_frame: Confusion,
+    /// Decisions with no segment at their `t_end` (in a gap, or past the
+    /// last segment): counted nowhere else.
+    pub unjudged: usize,
     /// Every decision's confidence (with a segment at its `t_end`) ...
     pub confidence: Vec<f64>,
     /// ... and whether it named the true road at that time (the pairs a
@@ -215,12 +244,20 @@ pub struct ChangeEval {
 
 impl ChangeEval {
     /// Empty accumulator for a model's `classes`; `mu_peak` per class (or
-    /// empty), the controller's gate, and the hold time (s).
-    pub fn new(classes: Vec<String>, mu_peak: Vec<f64>, min_confidence: f64, hold_s: f64) -> Self {
+    /// empty), the controller's gate, the hold time (s) and the stream's
+    /// hop (s; how far past the last segment a decision is still judged).
+    pub fn new(
+        classes: Vec<String>,
+        mu_peak: Vec<f64>,
+        min_confidence: f64,
+        hold_s: f64,
+        hop_s: f64,
+    ) -> Self {
         Self {
             mu_peak,
             min_confidence,
             hold_s,
+            tail_s: hop_s,
             delays: Vec::new(),
             missed: 0,
             n_changes: 0,
@@ -229,6 +266,7 @@ impl ChangeEval {
             false_inside: 0,
             audio_s: 0.0,
             used: KnowledgeUse::default(),
+            unjudged: 0,
             smoothed: Confusion::new(classes.clone()),
             single_frame: Confusion::new(classes),
             confidence: Vec::new(),
@@ -242,7 +280,7 @@ impl ChangeEval {
         let dec: Vec<(f64, usize)> = decisions.iter().map(|d| (d.t_end, d.class)).collect();
         let confidence: Vec<f64> = decisions.iter().map(|d| d.confidence).collect();
         for d in decisions {
-            if let Some((_, seg)) = segment_at(segments, d.t_end) {
+            if let Some((_, seg)) = segment_at(segments, d.t_end, self.tail_s) {
                 self.confidence.push(d.confidence);
                 self.right.push(d.class == seg.2);
             }
@@ -257,15 +295,16 @@ impl ChangeEval {
                 self.single_frame.add(d.raw_class, seg.2);
             }
         }
-        self.used.add(
+        self.unjudged += self.used.add(
             &dec,
             &confidence,
             segments,
             &self.mu_peak,
             self.min_confidence,
             self.hold_s,
+            self.tail_s,
         );
-        let (near, inside) = count_false_switches(&dec, segments, self.hold_s);
+        let (near, inside) = count_false_switches(&dec, segments, self.hold_s, self.tail_s);
         self.false_near += near;
         self.false_inside += inside;
         self.audio_s += duration_s;
@@ -336,18 +375,41 @@ mod tests {
             (1.5, 0),  // wrong switch
             (1.9, 0),
         ];
-        assert_eq!(count_false_switches(&dec, &segs, 0.2), (0, 2));
-        assert_eq!(count_false_switches(&dec, &segs, 0.6), (1, 1));
-        assert_eq!(count_false_switches(&dec[..1], &segs, 0.2), (0, 0));
+        assert_eq!(count_false_switches(&dec, &segs, 0.2, 0.025), (0, 2));
+        assert_eq!(count_false_switches(&dec, &segs, 0.6, 0.025), (1, 1));
+        assert_eq!(count_false_switches(&dec[..1], &segs, 0.2, 0.025), (0, 0));
+        // a switch in a gap is unjudged, not a false switch (and staying on
+        // that road afterwards is no switch)
+        let gap = [(0.0, 1.0, 0, ()), (1.5, 2.0, 1, ())];
+        assert_eq!(
+            count_false_switches(&[(0.9, 0), (1.2, 2), (1.6, 2)], &gap, 0.2, 0.025),
+            (0, 0)
+        );
+        // against the last segment's road (the old rule) it was one
+        assert_eq!(
+            count_false_switches(&[(0.9, 0), (1.6, 2)], &gap, 0.2, 0.025),
+            (1, 0)
+        );
     }
 
     #[test]
-    fn segment_at_finds_the_holding_segment_or_the_last() {
+    fn segment_at_finds_the_holding_segment_or_none_in_a_gap() {
         let segs = [(0.0, 1.0, 3, ()), (1.0, 2.0, 4, ())];
-        assert_eq!(segment_at(&segs, 0.0).map(|s| s.0), Some(0));
-        assert_eq!(segment_at(&segs, 1.0).map(|s| s.0), Some(1));
-        assert_eq!(segment_at(&segs, 7.0).map(|s| s.1.2), Some(4));
-        assert!(segment_at::<()>(&[], 0.5).is_none());
+        assert_eq!(segment_at(&segs, 0.0, 0.025).map(|s| s.0), Some(0));
+        assert_eq!(segment_at(&segs, 1.0, 0.025).map(|s| s.0), Some(1));
+        // within one hop past the end: the last segment; further: unjudged
+        assert_eq!(segment_at(&segs, 2.0, 0.025).map(|s| s.1.2), Some(4));
+        assert_eq!(segment_at(&segs, 2.02, 0.025).map(|s| s.1.2), Some(4));
+        assert!(segment_at(&segs, 2.03, 0.025).is_none());
+        assert!(segment_at(&segs, 7.0, 0.025).is_none());
+        assert!(segment_at::<()>(&[], 0.5, 0.025).is_none());
+        // a gap between segments (unlabelled audio) is unjudged, not the
+        // last segment's road
+        let gap = [(0.0, 1.0, 3, ()), (1.5, 2.0, 4, ()), (3.0, 4.0, 5, ())];
+        assert!(segment_at(&gap, 1.2, 0.025).is_none());
+        assert!(segment_at(&gap, 2.5, 0.025).is_none());
+        assert_eq!(segment_at(&gap, 1.5, 0.025).map(|s| s.0), Some(1));
+        assert!(segment_at(&gap, -0.1, 0.025).is_none());
     }
 
     #[test]
@@ -361,13 +423,13 @@ mod tests {
             (1.1, 0), // wrong, confident, 0.1 s after the change: near
             (1.5, 0), // wrong, confident, 0.5 s after it: elsewhere
             (1.6, 1), // right, confident
-            (2.5, 1), // past the end: the last segment's road
+            (2.5, 1), // past the end, within the tail: the last segment's road
         ];
         let confidence = [0.9, 0.5, 0.7, 0.8, 0.6, 0.99, 0.6];
         // road 0 grips more than road 1: hearing 0 on 1 is optimistic
         let mu_peak = [1.0, 0.5];
         let mut u = KnowledgeUse::default();
-        u.add(&dec, &confidence, &segs, &mu_peak, 0.6, 0.2);
+        assert_eq!(u.add(&dec, &confidence, &segs, &mu_peak, 0.6, 0.2, 0.5), 0);
         assert_eq!(
             u,
             KnowledgeUse {
@@ -383,12 +445,22 @@ mod tests {
         assert_eq!(u.used_wrong(), 3);
         // unknown frictions: no optimistic count
         let mut n = KnowledgeUse::default();
-        n.add(&dec, &confidence, &segs, &[], 0.6, 0.2);
+        n.add(&dec, &confidence, &segs, &[], 0.6, 0.2, 0.5);
         assert_eq!((n.used, n.used_wrong_optimistic), (6, 0));
         // no segments: nothing counted
         let mut e = KnowledgeUse::default();
-        e.add::<()>(&dec, &confidence, &[], &mu_peak, 0.6, 0.2);
+        assert_eq!(
+            e.add::<()>(&dec, &confidence, &[], &mu_peak, 0.6, 0.2, 0.5),
+            7
+        );
         assert_eq!(e.decisions, 0);
+        // a tail of one short hop: 2.5 s is unjudged
+        let mut t = KnowledgeUse::default();
+        assert_eq!(
+            t.add(&dec, &confidence, &segs, &mu_peak, 0.6, 0.2, 0.025),
+            1
+        );
+        assert_eq!((t.decisions, t.used, t.used_right), (6, 5, 2));
     }
 
     #[test]
@@ -443,7 +515,13 @@ mod tests {
             .collect();
         // one wrong, unconfident flip inside the first segment at 0.5 s
         d[4] = judged(0.5, 2, 2, 0.5);
-        let mut e = ChangeEval::new(vec!["a".into(), "b".into(), "c".into()], vec![], 0.6, 0.2);
+        let mut e = ChangeEval::new(
+            vec!["a".into(), "b".into(), "c".into()],
+            vec![],
+            0.6,
+            0.2,
+            0.1,
+        );
         e.add_recording(&d, &segs, 2.0);
         assert_eq!((e.n_changes, e.missed), (1, 0));
         assert_eq!(e.delays.len(), 1);
@@ -480,5 +558,28 @@ mod tests {
         assert_eq!((e.n_changes, e.missed), (2, 1));
         assert_eq!(e.all_delays().iter().filter(|d| d.is_infinite()).count(), 1);
         assert_eq!(e.percent_within(0.2), Some(50.0));
+        assert_eq!(e.unjudged, 0);
+    }
+
+    #[test]
+    fn change_eval_leaves_decisions_in_a_gap_unjudged() {
+        // road 0 on [0, 1), unlabelled audio on [1, 2), road 1 on [2, 3);
+        // decisions every 0.1 s from 0.1, all naming road 0.
+        let segs = [(0.0, 1.0, 0usize, ()), (2.0, 3.0, 1usize, ())];
+        let d: Vec<Judged> = (1..=30)
+            .map(|i| judged(f64::from(i) / 10.0, 0, 0, 0.95))
+            .collect();
+        let mut e = ChangeEval::new(vec!["a".into(), "b".into()], vec![], 0.6, 0.2, 0.1);
+        e.add_recording(&d, &segs, 3.0);
+        // t_end 1.0 .. 1.9 lie in the gap: 10 unjudged; 0.1 .. 0.9 right,
+        // 2.0 .. 3.0 (3.0 within one hop past the end) wrong.
+        assert_eq!(e.unjudged, 10);
+        assert_eq!(e.confidence.len(), 20);
+        assert_eq!(e.right.iter().filter(|&&r| r).count(), 9);
+        assert_eq!((e.used.decisions, e.used.used_right), (20, 9));
+        // frames inside one segment only: [0, 1) gives 0.1 .. 1.0 (10),
+        // [2, 3) gives 2.1 .. 3.0 (10)
+        assert_eq!(e.smoothed.total(), 20);
+        assert_eq!(e.smoothed.metrics().accuracy, 0.5);
     }
 }

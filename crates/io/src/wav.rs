@@ -305,6 +305,88 @@ fn find_fmt<R: Read + Seek>(r: &mut R) -> Option<Fmt> {
     }
 }
 
+/// What a WAV file's header says, read without decoding its samples
+/// ([`header`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WavHeader {
+    /// Sample rate, Hz (> 0).
+    pub sample_rate: u32,
+    /// Channels (> 0).
+    pub channels: u16,
+    /// Sample frames in the data chunk, as far as the file holds them: a
+    /// data size of 0 (an unfinalised recording) or one beyond the end of
+    /// the file (a streaming length) counts the frames that are there.
+    pub frames: u64,
+}
+
+impl WavHeader {
+    /// Length, s.
+    pub fn duration_s(&self) -> f64 {
+        self.frames as f64 / f64::from(self.sample_rate)
+    }
+}
+
+/// The header of the WAV file at `path` (rate, channels, frames), from its
+/// RIFF chunks (the pad byte after an odd-length chunk honoured), without
+/// decoding the samples. Errors name the file.
+pub fn header(path: &Path) -> Result<WavHeader, WavError> {
+    let mut f = std::fs::File::open(path).map_err(|e| WavErrorKind::Open(e).at(path))?;
+    let file_len = f
+        .metadata()
+        .map_err(|e| WavErrorKind::Open(e).at(path))?
+        .len();
+    let bad = |why: &'static str| WavErrorKind::NotWav(why).at(path);
+    let mut head = [0u8; 12];
+    f.read_exact(&mut head)
+        .map_err(|_| bad("shorter than a RIFF header"))?;
+    if &head[..4] != b"RIFF" || &head[8..] != b"WAVE" {
+        return Err(bad("no RIFF/WAVE header"));
+    }
+    let mut fmt: Option<(u32, u16, u16)> = None;
+    let mut pos = 12u64;
+    loop {
+        let mut ch = [0u8; 8];
+        f.read_exact(&mut ch).map_err(|_| bad("no `data` chunk"))?;
+        let size = u64::from(u32::from_le_bytes([ch[4], ch[5], ch[6], ch[7]]));
+        let body = pos + 8;
+        match &ch[..4] {
+            b"fmt " => {
+                let mut b = [0u8; 16];
+                f.read_exact(&mut b)
+                    .map_err(|_| bad("short `fmt ` chunk"))?;
+                let rate = u32::from_le_bytes([b[4], b[5], b[6], b[7]]);
+                let channels = u16::from_le_bytes([b[2], b[3]]);
+                let block = u16::from_le_bytes([b[12], b[13]]);
+                if channels == 0 {
+                    return Err(WavErrorKind::NoChannels.at(path));
+                }
+                if rate == 0 {
+                    return Err(WavErrorKind::NoSampleRate.at(path));
+                }
+                if block == 0 {
+                    return Err(bad("block size 0"));
+                }
+                fmt = Some((rate, channels, block));
+            }
+            b"data" => {
+                let (sample_rate, channels, block) =
+                    fmt.ok_or_else(|| bad("`data` chunk before the `fmt ` chunk"))?;
+                let rest = file_len.saturating_sub(body);
+                let bytes = if size == 0 || size > rest { rest } else { size };
+                return Ok(WavHeader {
+                    sample_rate,
+                    channels,
+                    frames: bytes / u64::from(block),
+                });
+            }
+            _ => {}
+        }
+        pos = body + size + (size & 1);
+        f.seek(SeekFrom::Start(pos))
+            .map_err(|e| WavErrorKind::Open(e).at(path))?;
+    }
+}
+
 /// How the integer samples of a file are read.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum IntLayout {
@@ -749,6 +831,28 @@ mod tests {
         assert!(rms < 0.01, "15 kHz leaked into 16 kHz output: rms {rms}");
         assert_eq!(resample(&x[..10], 44_100, 44_100), x[..10]);
         assert_eq!(resample(&x[..10], 44_100, 0), x[..10]);
+    }
+
+    /// `header` reads rate, channels and frames; an unset data size counts
+    /// what the file holds; a non-WAV file is named.
+    #[test]
+    fn the_header_gives_rate_channels_and_frames_without_decoding() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.wav");
+        write_mono_i16(&p, 22050, &vec![0.25; 4410]).unwrap();
+        let h = header(&p).unwrap();
+        assert_eq!((h.sample_rate, h.channels, h.frames), (22050, 1, 4410));
+        assert!((h.duration_s() - 0.2).abs() < 1e-12);
+        // an unfinalised recording (data size 0): the frames that are there
+        let mut b = std::fs::read(&p).unwrap();
+        let d = b.windows(4).position(|w| w == b"data").unwrap();
+        b[d + 4..d + 8].copy_from_slice(&0u32.to_le_bytes());
+        std::fs::write(&p, &b).unwrap();
+        assert_eq!(header(&p).unwrap().frames, 4410);
+        // not a WAV file: named
+        std::fs::write(&p, b"hello").unwrap();
+        let e = header(&p).unwrap_err().to_string();
+        assert!(e.contains("a.wav"), "{e}");
     }
 
     /// The fmt chunk is found behind an odd-length chunk and its pad byte.

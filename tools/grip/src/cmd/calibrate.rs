@@ -4,15 +4,19 @@
 //! The classifier, standardiser, feature config and metadata are kept byte
 //! for byte; only the `calibration` field is added (or replaced). The
 //! recordings must be neither the training set nor the set the result is
-//! evaluated on (other seeds, other cars). `grip train --calib-data DIR`
-//! runs the same step after training.
+//! evaluated on (other seeds, other cars): a `--data` folder that is, holds
+//! or lies in the model's training data (its `--data`, from the command
+//! stored in the model) is refused ([`require_held_out`]). `grip train
+//! --calib-data DIR` runs the same step after training.
 //!
 //! Fitting data: the model, uncalibrated, runs through `StreamEstimator`
 //! with the given stream settings (default: the arte service's, hop 0.025 s,
 //! HMM stay 0.9, floor 0.01) in blocks of 1024 samples, each segment at its
 //! speed; every decision is one sample: the smoothed posterior of the
 //! decided road, and whether that road is the true one at the decision's
-//! time (`t_end`). That is exactly what a controller receives.
+//! time (`t_end`). That is exactly what a controller receives. A decision
+//! whose time lies in a gap between segments (or more than one hop past the
+//! last) has no true road: it is left out, and the report says how many.
 
 use super::Ctx;
 use super::dataset::{ChangeRecording, read_changes, truth_file};
@@ -124,30 +128,74 @@ pub fn stream_recording(
 }
 
 /// Every decision's confidence and whether it named the true road at its
-/// time, over the change recordings in `dirs`.
+/// time, over the change recordings in `dirs`, and how many decisions were
+/// unjudged (no segment at their time: a gap, or more than `hop_s` past the
+/// last segment). `frame_s`: the model's frame (how far past its file's
+/// end a segment may end).
 pub fn outcomes(
     est: &mut StreamEstimator<Predictor>,
     classes: &[String],
     sample_rate: u32,
+    frame_s: f64,
+    hop_s: f64,
     dirs: &[PathBuf],
-) -> Result<(Vec<f64>, Vec<bool>)> {
-    let (mut conf, mut right) = (Vec::new(), Vec::new());
+) -> Result<(Vec<f64>, Vec<bool>, usize)> {
+    let (mut conf, mut right, mut unjudged) = (Vec::new(), Vec::new(), 0);
     for dir in dirs {
-        let recs = read_changes(dir, classes)?;
+        let recs = read_changes(dir, classes, frame_s)?;
         let pb = ProgressBar::new(recs.len() as u64);
         for r in &recs {
             let (dec, _) = stream_recording(est, r, sample_rate, dir)?;
             for d in dec {
-                if let Some((_, seg)) = segment_at(&r.segments, d.t_end) {
+                if let Some((_, seg)) = segment_at(&r.segments, d.t_end, hop_s) {
                     conf.push(d.confidence);
                     right.push(d.class == seg.2);
+                } else {
+                    unjudged += 1;
                 }
             }
             pb.inc(1);
         }
         pb.finish_and_clear();
     }
-    Ok((conf, right))
+    Ok((conf, right, unjudged))
+}
+
+/// The calibration recordings must be held out: a folder of `calib` that
+/// is, holds or lies in one of `used` (the training data, a test set; each
+/// with the option that named it) is refused, `flag` naming the option of
+/// `calib` in the error. A confidence map fitted on what the classifier was
+/// trained on is optimistic, and the controller's gate would trust wrong
+/// roads. Paths are compared canonicalised (as given when they do not
+/// exist).
+pub fn require_held_out(flag: &str, calib: &[PathBuf], used: &[(&str, PathBuf)]) -> Result<()> {
+    let canon = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    let used: Vec<(&str, PathBuf)> = used.iter().map(|(f, u)| (*f, canon(u))).collect();
+    for c in calib {
+        let cc = canon(c);
+        if let Some((what, u)) = used
+            .iter()
+            .find(|(_, u)| cc.starts_with(u) || u.starts_with(&cc))
+        {
+            bail!(
+                "{flag} {}: it is (or holds, or lies in) {what} {}; the calibration must be fitted on held-out road-change recordings (other seeds: `grip dataset synth --changes N --seed S`), or the confidence it gives is optimistic",
+                c.display(),
+                u.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The training data folder of a model, from the command stored in it
+/// (`grip train --data DIR --classifier ...`); `None` when not recorded.
+pub fn training_data(model: &Model) -> Option<PathBuf> {
+    let cmd = &model.meta.command;
+    let rest = &cmd[cmd.find(" --data ")? + " --data ".len()..];
+    // the path may hold spaces: it ends where the next option starts
+    let end = rest.find(" --").unwrap_or(rest.len());
+    let dir = rest[..end].trim();
+    (!dir.is_empty()).then(|| PathBuf::from(dir))
 }
 
 /// Reliability table of confidences against outcomes.
@@ -194,9 +242,23 @@ pub fn fit_calibration(
     let classes = uncalibrated.classes().to_vec();
     let mut est = StreamEstimator::new(Predictor::new(uncalibrated), &fcfg, &scfg)
         .context("--calib-hop / --calib-stay / --calib-floor")?;
-    let (p, right) = outcomes(&mut est, &classes, fcfg.sample_rate, dirs)?;
+    let (p, right, unjudged) = outcomes(
+        &mut est,
+        &classes,
+        fcfg.sample_rate,
+        fcfg.frame_s,
+        scfg.hop_s,
+        dirs,
+    )?;
     if p.is_empty() {
-        bail!("the calibration recordings gave no decisions");
+        bail!(
+            "the calibration recordings gave no decisions{}",
+            if unjudged > 0 {
+                format!(" with a labelled road ({unjudged} in gaps between segments)")
+            } else {
+                String::new()
+            }
+        );
     }
     let names: Vec<String> = dirs.iter().map(|d| d.display().to_string()).collect();
     let mut report = String::new();
@@ -209,6 +271,12 @@ pub fn fit_calibration(
         p.len(),
         names.join(", ")
     );
+    if unjudged > 0 {
+        let _ = writeln!(
+            report,
+            "{unjudged} decisions unjudged (their time lies in a gap between segments or past the last one: no road is labelled there) and left out.\n"
+        );
+    }
     let _ = writeln!(report, "- uncalibrated: {}", summary_line(&p, &right));
     let mut chosen = None;
     for m in Method::ALL {
@@ -235,7 +303,16 @@ pub fn fit_calibration(
     );
     print!("{report}");
     let notes = vec![
-        format!("fitted on {} ({} decisions)", names.join(", "), p.len()),
+        format!(
+            "fitted on {} ({} decisions{})",
+            names.join(", "),
+            p.len(),
+            if unjudged > 0 {
+                format!(", {unjudged} unjudged left out")
+            } else {
+                String::new()
+            }
+        ),
         format!("before: {}", summary_line(&p, &right)),
         format!("after (in-sample): {}", summary_line(&c, &right)),
         format!("command: {command}"),
@@ -255,6 +332,13 @@ pub fn run(_ctx: &Ctx, a: Args) -> Result<()> {
         .with_context(|| format!("reading model file {}", a.model.display()))?;
     let model =
         Model::from_bytes(&bytes).with_context(|| format!("model file {}", a.model.display()))?;
+    if let Some(train) = training_data(&model) {
+        require_held_out(
+            "--data",
+            &a.data,
+            &[("the model's training data (grip train --data)", train)],
+        )?;
+    }
     let data: Vec<String> = a
         .data
         .iter()
@@ -279,4 +363,81 @@ pub fn run(_ctx: &Ctx, a: Args) -> Result<()> {
         &sha256_hex(&out)[..16]
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The shipped model, its training command pointing at `train`.
+    fn model_trained_on(train: &Path, out: &Path) {
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/models/paper.model");
+        let mut m = Model::from_bytes(&std::fs::read(shipped).unwrap()).unwrap();
+        m.meta.command = format!(
+            "grip train --data {} --classifier mlp --features paper7 --folds 5",
+            train.display()
+        );
+        std::fs::write(out, m.to_bytes().unwrap()).unwrap();
+    }
+
+    fn args(model: &Path, data: Vec<PathBuf>, out: PathBuf) -> Args {
+        Args {
+            model: model.to_path_buf(),
+            data,
+            out,
+            fit: FitArgs {
+                calib_method: "isotonic".into(),
+                calib_hop: 0.025,
+                calib_stay: 0.9,
+                calib_floor: 0.01,
+            },
+        }
+    }
+
+    #[test]
+    fn calibrating_on_the_training_data_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let train = dir.path().join("my data");
+        std::fs::create_dir_all(train.join("snow")).unwrap();
+        let model = dir.path().join("m.model");
+        model_trained_on(&train, &model);
+        let ctx = Ctx {
+            config_dir: Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config"),
+            config_dir_given: false,
+        };
+        let out = dir.path().join("out.model");
+        // the training folder itself, a folder in it, or one holding it
+        for data in [train.clone(), train.join("snow"), dir.path().to_path_buf()] {
+            let e = format!(
+                "{:#}",
+                run(&ctx, args(&model, vec![data.clone()], out.clone())).unwrap_err()
+            );
+            assert!(
+                e.contains("held-out")
+                    && e.contains("training data")
+                    && e.contains(&data.display().to_string()),
+                "{e}"
+            );
+            assert!(!out.exists());
+        }
+        // another folder passes this check (and then fails on its contents)
+        let other = dir.path().join("../other-calib-not-there");
+        let e = format!(
+            "{:#}",
+            run(&ctx, args(&model, vec![other], out.clone())).unwrap_err()
+        );
+        assert!(!e.contains("held-out"), "{e}");
+    }
+
+    #[test]
+    fn the_training_folder_is_read_from_the_stored_command() {
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/models/paper.model");
+        let mut m = Model::from_bytes(&std::fs::read(shipped).unwrap()).unwrap();
+        m.meta.command = "grip train --data /x/my data --classifier mlp".into();
+        assert_eq!(training_data(&m), Some(PathBuf::from("/x/my data")));
+        m.meta.command = "grip train --data d".into();
+        assert_eq!(training_data(&m), Some(PathBuf::from("d")));
+        m.meta.command = String::new();
+        assert_eq!(training_data(&m), None);
+    }
 }

@@ -210,7 +210,13 @@ struct OneRoadRow {
 /// `segments.csv`, as `grip dataset synth` without `--changes` writes) is
 /// read as one segment per recording, its whole `duration_s`: the stream's
 /// decisions on it are then its accuracy on roads that do not change.
-pub fn read_changes(dir: &Path, classes: &[String]) -> Result<Vec<ChangeRecording>> {
+///
+/// The segments of each file of `segments.csv` must be in time order, must
+/// not overlap, and must end by the file's length (from its WAV header)
+/// plus one frame (`frame_s`, the model's); otherwise the error names the
+/// file, the csv line and the reason (times in ms, overlapping labels).
+/// Gaps between segments are allowed: audio there is unjudged.
+pub fn read_changes(dir: &Path, classes: &[String], frame_s: f64) -> Result<Vec<ChangeRecording>> {
     let truth = truth_file(dir);
     if truth.ends_with("manifest.csv") {
         return read_one_road(dir, &truth, classes);
@@ -221,12 +227,30 @@ pub fn read_changes(dir: &Path, classes: &[String]) -> Result<Vec<ChangeRecordin
             truth.display()
         );
     }
-    let mut rd =
-        csv::Reader::from_path(&truth).with_context(|| format!("opening {}", truth.display()))?;
+    let text = std::fs::read(&truth).with_context(|| format!("opening {}", truth.display()))?;
+    let mut rd = csv::Reader::from_reader(text.as_slice());
     let mut by_file: Vec<ChangeRecording> = Vec::new();
-    for (i, r) in rd.deserialize::<SegmentRow>().enumerate() {
-        let at = || format!("{}: record {}", truth.display(), i + 1);
-        let row = r.with_context(at)?;
+    // per file (same order as `by_file`): its length (s) and the csv line
+    // of its last segment
+    let mut checked: Vec<(f64, u64)> = Vec::new();
+    let headers = rd
+        .headers()
+        .with_context(|| format!("reading {}", truth.display()))?
+        .clone();
+    for (i, rec) in rd.records().enumerate() {
+        let i = i + 1;
+        let rec = rec.with_context(|| format!("{}: record {i}", truth.display()))?;
+        // the csv line where this record starts (1 = the header), counted
+        // from its byte offset (the reader's own count is off with CRLF)
+        let line = rec.position().map_or(i as u64 + 1, |p| {
+            let mut k = (p.byte() as usize).min(text.len());
+            while k < text.len() && matches!(text[k], b'\r' | b'\n') {
+                k += 1;
+            }
+            text[..k].iter().filter(|&&b| b == b'\n').count() as u64 + 1
+        });
+        let at = || format!("{}: record {i} (line {line})", truth.display());
+        let row: SegmentRow = rec.deserialize(Some(&headers)).with_context(at)?;
         let (class, p) = checked_row(dir, &at, &row.road, &row.file, row.speed_kmh, classes)?;
         if !(row.t_start.is_finite() && row.t_start >= 0.0 && row.t_end > row.t_start) {
             bail!(
@@ -234,24 +258,68 @@ pub fn read_changes(dir: &Path, classes: &[String]) -> Result<Vec<ChangeRecordin
                 at()
             );
         }
-        match by_file.iter_mut().find(|c| c.path == p) {
-            Some(c) => {
-                c.segments
-                    .push((row.t_start, row.t_end, class, row.speed_kmh));
+        let k = match by_file.iter().position(|c| c.path == p) {
+            Some(k) => k,
+            None => {
+                let len = wav_duration_s(&p).with_context(at)?;
+                by_file.push(ChangeRecording {
+                    path: p,
+                    segments: Vec::new(),
+                });
+                checked.push((len, line));
+                by_file.len() - 1
             }
-            None => by_file.push(ChangeRecording {
-                path: p,
-                segments: vec![(row.t_start, row.t_end, class, row.speed_kmh)],
-            }),
+        };
+        let (len, prev_line) = checked[k];
+        let c = &mut by_file[k];
+        if let Some(last) = c.segments.last() {
+            if row.t_start < last.0 {
+                bail!(
+                    "{}: file {}: segment {} - {} s starts before the one on line {prev_line} ({} - {} s): the segments of a file must be in time order",
+                    at(),
+                    row.file,
+                    row.t_start,
+                    row.t_end,
+                    last.0,
+                    last.1
+                );
+            }
+            if row.t_start < last.1 - 1e-9 {
+                bail!(
+                    "{}: file {}: segment {} - {} s overlaps the one on line {prev_line} ({} - {} s): a time can have only one road",
+                    at(),
+                    row.file,
+                    row.t_start,
+                    row.t_end,
+                    last.0,
+                    last.1
+                );
+            }
         }
-    }
-    for c in &mut by_file {
-        c.segments.sort_by(|a, b| a.0.total_cmp(&b.0));
+        if row.t_end > len + frame_s.max(0.0) + 1e-9 {
+            bail!(
+                "{}: file {}: segment {} - {} s ends past the end of the recording: the file is {len} s long: are the times in seconds?",
+                at(),
+                row.file,
+                row.t_start,
+                row.t_end
+            );
+        }
+        c.segments
+            .push((row.t_start, row.t_end, class, row.speed_kmh));
+        checked[k].1 = line;
     }
     if by_file.is_empty() {
         bail!("{} lists no segments", truth.display());
     }
     Ok(by_file)
+}
+
+/// Length (s) of a WAV file from its header: the `data` chunk's size over
+/// the `fmt ` chunk's block size and rate (the rest of the file when the
+/// size is unset or larger, as a stream that was cut off writes).
+fn wav_duration_s(path: &Path) -> Result<f64> {
+    Ok(grip_io::wav::header(path)?.duration_s())
 }
 
 /// The file that holds a recordings folder's ground truth for
@@ -660,7 +728,7 @@ fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
         Model::from_bytes(&bytes).with_context(|| format!("model file {}", a.model.display()))?;
     let fcfg = model.feature_config().clone();
     let classes = model.classes().to_vec();
-    let recs = read_changes(&a.dir, &classes)?;
+    let recs = read_changes(&a.dir, &classes, fcfg.frame_s)?;
     let smoothing = if a.stay == 0.0 {
         Smoothing::None
     } else {
@@ -709,7 +777,7 @@ fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
         .map(|c| roads.get(c).map(|r| r.mu_peak()))
         .collect::<Option<_>>()
         .unwrap_or_default();
-    let mut ev = ChangeEval::new(classes.clone(), mu_peak, min_confidence, a.hold);
+    let mut ev = ChangeEval::new(classes.clone(), mu_peak, min_confidence, a.hold, a.hop);
     let pb = ProgressBar::new(recs.len() as u64);
     for r in &recs {
         let (dec, duration_s) =
@@ -745,6 +813,13 @@ fn print_delay_report(
         "{} recordings, {n_changes} road changes, hop {} s, smoothing {:?}, hold {} s",
         n_recordings, a.hop, smoothing, a.hold
     );
+    if ev.unjudged > 0 {
+        println!(
+            "{} decisions unjudged (their time lies in a gap between segments or past the last one: \
+             no road is labelled there); they count in no accuracy or calibration figure",
+            ev.unjudged
+        );
+    }
     println!(
         "detection delay over all {n_changes} changes (a missed one counts as longer than any): \
          p50 {}, p95 {}; max of the detected {}; missed {missed}",
@@ -914,7 +989,7 @@ mod tests {
             rows.iter()
                 .all(|r| (10.0..=30.0).contains(&r.speed_kmh.unwrap()))
         );
-        let changes = read_changes(&dir.path().join("ds-changes"), &ds.classes).unwrap();
+        let changes = read_changes(&dir.path().join("ds-changes"), &ds.classes, 0.1).unwrap();
         assert_eq!(changes.len(), 2);
         for c in &changes {
             assert!(c.segments.len() >= 2);
@@ -960,14 +1035,16 @@ mod tests {
         assert!(e.contains("--snr-db off") && e.contains("rain,car"), "{e}");
         let dir = tempfile::tempdir().unwrap();
         let classes = vec!["asphalt".to_string()];
-        let e = read_changes(dir.path(), &classes).unwrap_err().to_string();
+        let e = read_changes(dir.path(), &classes, 0.1)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("segments.csv"), "{e}");
         std::fs::write(
             dir.path().join("segments.csv"),
             "file,t_start,t_end,road,speed_kmh,seed,noise,snr_db\nmissing.wav,0,1,asphalt,,,,\n",
         )
         .unwrap();
-        let e = format!("{:#}", read_changes(dir.path(), &classes).unwrap_err());
+        let e = format!("{:#}", read_changes(dir.path(), &classes, 0.1).unwrap_err());
         assert!(
             e.contains("segments.csv") && e.contains("missing.wav"),
             "{e}"
@@ -977,7 +1054,7 @@ mod tests {
             "file,t_start,t_end,road,speed_kmh,seed,noise,snr_db\nmissing.wav,0,1,ice,,,,\n",
         )
         .unwrap();
-        let e = format!("{:#}", read_changes(dir.path(), &classes).unwrap_err());
+        let e = format!("{:#}", read_changes(dir.path(), &classes, 0.1).unwrap_err());
         assert!(e.contains("`road`") && e.contains("ice"), "{e}");
     }
 
@@ -993,7 +1070,7 @@ mod tests {
             "file,road,speed_kmh,seed,noise,snr_db,duration_s\nsnow/snow_0000.wav,snow,12.5,7,rain+car,10.0,4.0\n",
         )
         .unwrap();
-        let c = read_changes(dir.path(), &classes).unwrap();
+        let c = read_changes(dir.path(), &classes, 0.1).unwrap();
         assert_eq!(c.len(), 1);
         assert_eq!(c[0].path, dir.path().join("snow/snow_0000.wav"));
         assert_eq!(c[0].segments, vec![(0.0, 4.0, 1, Some(12.5))]);
@@ -1003,18 +1080,84 @@ mod tests {
             "file,road,speed_kmh,seed,noise,snr_db,duration_s\nsnow/snow_0000.wav,snow,12.5,7,rain+car,10.0,\n",
         )
         .unwrap();
-        let e = format!("{:#}", read_changes(dir.path(), &classes).unwrap_err());
+        let e = format!("{:#}", read_changes(dir.path(), &classes, 0.1).unwrap_err());
         assert!(
             e.contains("manifest.csv") && e.contains("record 1") && e.contains("`duration_s`"),
             "{e}"
         );
         // segments.csv, when present, decides
+        wav::write_mono_i16(
+            &dir.path().join("snow/snow_0000.wav"),
+            1000,
+            &vec![0.0; 2000],
+        )
+        .unwrap();
         std::fs::write(
             dir.path().join("segments.csv"),
             "file,t_start,t_end,road,speed_kmh,seed,noise,snr_db\nsnow/snow_0000.wav,0,1,asphalt,,,,\nsnow/snow_0000.wav,1,2,snow,,,,\n",
         )
         .unwrap();
-        let c = read_changes(dir.path(), &classes).unwrap();
+        let c = read_changes(dir.path(), &classes, 0.1).unwrap();
         assert_eq!(c[0].segments.len(), 2);
+    }
+
+    /// A folder with two 2 s WAVs (1 kHz) and the given segments.csv rows.
+    fn changes_dir(rows: &str) -> tempfile::TempDir {
+        let dir = tempfile::tempdir().unwrap();
+        for f in ["a.wav", "b.wav"] {
+            wav::write_mono_i16(&dir.path().join(f), 1000, &vec![0.0; 2000]).unwrap();
+        }
+        std::fs::write(
+            dir.path().join("segments.csv"),
+            format!("file,t_start,t_end,road,speed_kmh,seed,noise,snr_db\n{rows}"),
+        )
+        .unwrap();
+        dir
+    }
+
+    #[test]
+    fn read_changes_refuses_overlap_disorder_and_times_past_the_end() {
+        let classes = vec!["asphalt".to_string(), "snow".to_string()];
+        let read = |rows: &str| {
+            let d = changes_dir(rows);
+            read_changes(d.path(), &classes, 0.1).map_err(|e| format!("{e:#}"))
+        };
+        // good: sorted, touching or with a gap, ending within one frame
+        // past the end (2.05 s of a 2 s file)
+        let c =
+            read("a.wav,0,1,asphalt,,,,\nb.wav,0,2,snow,,,,\na.wav,1.5,2.05,snow,,,,\n").unwrap();
+        assert_eq!(c.len(), 2);
+        assert_eq!(c[0].segments.len(), 2);
+        // overlapping segments: file, line and the other segment's line
+        let e =
+            read("a.wav,0,1.2,asphalt,,,,\nb.wav,0,2,snow,,,,\na.wav,1,2,snow,,,,\n").unwrap_err();
+        assert!(
+            e.contains("segments.csv")
+                && e.contains("a.wav")
+                && e.contains("line 4")
+                && e.contains("line 2")
+                && e.contains("overlaps"),
+            "{e}"
+        );
+        // out of order
+        let e = read("a.wav,1,2,snow,,,,\na.wav,0,1,asphalt,,,,\n").unwrap_err();
+        assert!(
+            e.contains("a.wav") && e.contains("line 3") && e.contains("time order"),
+            "{e}"
+        );
+        // times in ms
+        let e = read("b.wav,0,1000,asphalt,,,,\nb.wav,1000,2000,snow,,,,\n").unwrap_err();
+        assert!(
+            e.contains("b.wav")
+                && e.contains("line 2")
+                && e.contains("the file is 2 s long: are the times in seconds?"),
+            "{e}"
+        );
+        // past the end by more than a frame
+        let e = read("a.wav,0,2.2,asphalt,,,,\n").unwrap_err();
+        assert!(
+            e.contains("a.wav") && e.contains("are the times in seconds?"),
+            "{e}"
+        );
     }
 }

@@ -176,6 +176,8 @@ pub struct Generated {
     pub estimates: u64,
     /// Scripted time covered, s.
     pub span_s: f64,
+    /// Blocks arte did not classify: refused for their rate, silent, clipped.
+    pub blocks_refused: crate::replay::BlockCounts,
 }
 
 const SCENARIO_DRAWS: u64 = 11;
@@ -294,6 +296,18 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         done.len() as f64 / wall.max(1e-9),
         span / wall.max(1e-9)
     );
+    let mut refused = crate::replay::BlockCounts::default();
+    let mut blocks = 0u64;
+    for g in &done {
+        refused.rate_mismatch += g.blocks_refused.rate_mismatch;
+        refused.bad_rate = refused.bad_rate.max(g.blocks_refused.bad_rate);
+        refused.silent += g.blocks_refused.silent;
+        refused.clipped += g.blocks_refused.clipped;
+        blocks += g.blocks;
+    }
+    if let Some(l) = refused.line(blocks as usize, None) {
+        println!("{l}");
+    }
     let failed = failed.into_inner().unwrap_or_default();
     if !failed.is_empty() {
         bail!(
@@ -649,6 +663,17 @@ pub fn generate(config: &Path, s: &LogSpec) -> anyhow::Result<Generated> {
         );
     }
     let rate = acfg.audio.sample_rate;
+    // arte refuses every block at another rate than its model's: the log
+    // would carry no road estimate (said here, before the drive)
+    if rate != arte.lp.sample_rate() {
+        bail!(
+            "{}: field audio.sample_rate is {rate} Hz, but arte's model {} expects {} Hz: arte would refuse every audio block and the log would carry no road estimate; set [audio] sample_rate = {} in audio-acq.toml of the configuration directory, or set model in arte.toml to a model trained at {rate} Hz",
+            config.join("audio-acq.toml").display(),
+            arte.model_path.display(),
+            arte.lp.sample_rate(),
+            arte.lp.sample_rate()
+        );
+    }
     let block = acfg
         .audio
         .block_samples
@@ -803,6 +828,7 @@ pub fn generate(config: &Path, s: &LogSpec) -> anyhow::Result<Generated> {
         rec.put(topics::CAN_LOG, f, None)?;
     }
     g.span_s = (clock.now_ns() - t0) as f64 * 1e-9;
+    g.blocks_refused = crate::replay::BlockCounts::of(&stats);
     let summary = grip_recorder::Summary {
         path: s.file.clone(),
         recv: rec.recv,

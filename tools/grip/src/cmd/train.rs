@@ -354,21 +354,112 @@ fn busy(pb: ProgressBar, template: &str, prefix: String) -> ProgressBar {
 /// map fitted on what the classifier was trained on is optimistic, and
 /// the controller's gate would trust wrong roads).
 fn held_out_calibration(args: &Args) -> Result<()> {
-    let canon = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
-    let used: Vec<(&str, PathBuf)> = std::iter::once(("--data", canon(&args.data)))
-        .chain(args.test.iter().map(|t| ("--test", canon(t))))
+    let used: Vec<(&str, PathBuf)> = std::iter::once(("--data", args.data.clone()))
+        .chain(args.test.iter().map(|t| ("--test", t.clone())))
         .collect();
-    for c in &args.calib_data {
-        let cc = canon(c);
-        if let Some((flag, u)) = used
-            .iter()
-            .find(|(_, u)| cc.starts_with(u) || u.starts_with(&cc))
-        {
-            bail!(
-                "--calib-data {}: it is (or holds, or lies in) {flag} {}; the calibration must be fitted on held-out road-change recordings (other seeds: `grip dataset synth --changes N --seed S`), or the confidence it gives is optimistic",
-                c.display(),
-                u.display()
-            );
+    super::calibrate::require_held_out("--calib-data", &args.calib_data, &used)
+}
+
+/// Sample rate (Hz) and length (frames) of a WAV file from its header
+/// (RIFF chunks `fmt ` and `data`), without decoding it; `None` when the
+/// header is not one this reads (the full decoder then says why).
+fn wav_header(path: &Path) -> Option<(u32, u64)> {
+    grip_io::wav::header(path)
+        .ok()
+        .map(|h| (h.sample_rate, h.frames))
+}
+
+/// Sample rate and length (frames) of `path`: from the header, else by
+/// decoding it (whose error names the file).
+fn wav_rate_len(path: &Path) -> Result<(u32, u64)> {
+    if let Some(h) = wav_header(path) {
+        return Ok(h);
+    }
+    let a = grip_io::wav::read_mono(path)?;
+    Ok((a.sample_rate, a.samples.len() as u64))
+}
+
+/// Checks the `--test` and `--calib-data` folders against what their
+/// evaluation after the fit will need, BEFORE anything is trained (a bad
+/// held-out folder used to throw away the training): each `--test` folder
+/// scans, its classes are the training set's (`classes`), every file has
+/// the training set's rate (`rate`, the model's: no resampling there) and
+/// at least one frame (`frame_len` samples), and with `speed_norm` every
+/// recording has its `speed_kmh`; each `--calib-data` folder reads
+/// (segments.csv or manifest.csv, roads among the classes, files present,
+/// speeds when speed-normalised) and its files can be brought to `rate`.
+fn check_held_out(
+    args: &Args,
+    classes: &[String],
+    rate: u32,
+    frame_len: usize,
+    speed_norm: bool,
+    only: Option<&[String]>,
+) -> Result<()> {
+    for dir in &args.test {
+        let ds = Dataset::scan_classes(dir, only)
+            .with_context(|| format!("--test {}: held-out dataset", dir.display()))?;
+        for c in &ds.classes {
+            if !classes.contains(c) {
+                bail!(
+                    "--test {}: class folder `{c}` is not one of the training set's classes {:?} ({}); remove it, or pass --classes to use only the shared ones",
+                    dir.display(),
+                    classes,
+                    args.data.display()
+                );
+            }
+        }
+        for e in &ds.entries {
+            let (fs, n) = wav_rate_len(&e.path)
+                .with_context(|| format!("--test {}: held-out dataset", dir.display()))?;
+            if fs != rate {
+                bail!(
+                    "--test {}: {}: held-out set at {fs} Hz, training set ({}) at {rate} Hz: the model's features are computed at {rate} Hz and held-out audio is not resampled; use a held-out set recorded at {rate} Hz (e.g. `grip dataset synth --sample-rate {rate}`), or train on {fs} Hz data",
+                    dir.display(),
+                    e.path.display(),
+                    args.data.display()
+                );
+            }
+            if n < frame_len as u64 {
+                bail!(
+                    "--test {}: {}: {n} samples, shorter than one {:.3} s frame ({frame_len} samples)",
+                    dir.display(),
+                    e.path.display(),
+                    args.frame
+                );
+            }
+            if speed_norm && e.speed_kmh.is_none() {
+                bail!(
+                    "--test {}: {}: no speed_kmh for this recording in {}; the model is speed-normalised (--speed-norm) and its evaluation needs the vehicle speed of every held-out recording (column speed_kmh of manifest.csv)",
+                    dir.display(),
+                    e.path.display(),
+                    ds.root.join("manifest.csv").display()
+                );
+            }
+        }
+    }
+    for dir in &args.calib_data {
+        let at = || format!("--calib-data {}", dir.display());
+        let recs = super::dataset::read_changes(dir, classes, args.frame).with_context(at)?;
+        for r in &recs {
+            if speed_norm && r.segments.iter().any(|s| s.3.is_none()) {
+                bail!(
+                    "{}: a segment of {} has no speed_kmh in {}; the model is speed-normalised (--speed-norm) and the calibration needs the vehicle speed",
+                    at(),
+                    r.path.display(),
+                    super::dataset::truth_file(dir).display()
+                );
+            }
+            let (fs, _) = wav_rate_len(&r.path).with_context(at)?;
+            if fs == 0 || u64::from(rate) > grip_io::wav::MAX_UPSAMPLE * u64::from(fs) {
+                bail!(
+                    "{}: {}: recorded at {fs} Hz, training set ({}) at {rate} Hz: too low a rate to resample to the model's (at most {}x up)",
+                    at(),
+                    r.path.display(),
+                    args.data.display(),
+                    grip_io::wav::MAX_UPSAMPLE
+                );
+            }
         }
     }
     Ok(())
@@ -434,6 +525,18 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
         model_cfg.clone()
     };
     extract_cfg.validate().context("feature config")?;
+    // the held-out folders, checked before the long part
+    let frame_len = FeatureExtractor::new(&extract_cfg)
+        .context("feature config")?
+        .frame_len();
+    check_held_out(
+        args,
+        &ds.classes,
+        rate,
+        frame_len,
+        model_cfg.speed_norm.is_some(),
+        only,
+    )?;
     let identity: Vec<usize> = (0..ds.classes.len()).collect();
     let (data, dataset_hash) = extract_dataset(&ds, &extract_cfg, args.hop, &identity)?;
     println!(

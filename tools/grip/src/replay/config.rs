@@ -208,6 +208,7 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
     for s in &w.set {
         changes.push(set_key(&dir, s)?);
     }
+    check_model_rate(log, w, &dir, &changes)?;
     Ok(ReplayConfig {
         dir,
         _tmp: tmp,
@@ -218,6 +219,87 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
         model: w.model.clone(),
         changes,
     })
+}
+
+/// The model file arte's start-up will load from `dir` (or `--model`), and
+/// the sample rate it was trained for; `None` when it cannot be read here
+/// (arte's start-up then says why).
+fn model_rate(w: &WhatIf, dir: &Path) -> Option<(PathBuf, u32)> {
+    let path = match &w.model {
+        Some(m) => m.clone(),
+        None => {
+            let file = grip_io::service::ConfigArgs::in_dir(dir)
+                .own_file::<grip_arte_svc::ArteServiceConfig>();
+            let cfg =
+                <grip_arte_svc::ArteServiceConfig as grip_io::service::ServiceConfig>::load(&file)
+                    .ok()?;
+            if cfg.model.is_absolute() {
+                cfg.model
+            } else {
+                dir.join(cfg.model)
+            }
+        }
+    };
+    let model = grip_arte_svc::load_model(&path).ok()?;
+    Some((path, model.feature_config().sample_rate))
+}
+
+/// Refuses a replay whose model was trained for another sample rate than
+/// the log's audio blocks: arte refuses every such block (its
+/// `rate_mismatch` counter), so the replay would publish no road estimate
+/// and report a drive without ARTE as if it were the model's. The drive's
+/// own model (no `--model`, `--config-dir` or `--set` on arte.toml) is
+/// replayed as recorded, with a warning: the drive had the same mismatch.
+fn check_model_rate(
+    log: &DriveLog,
+    w: &WhatIf,
+    dir: &Path,
+    changes: &[String],
+) -> anyhow::Result<()> {
+    let mut rates: Vec<u32> = log.audio_blocks.iter().map(|b| b.sample_rate).collect();
+    rates.sort_unstable();
+    rates.dedup();
+    let Some((path, fs)) = model_rate(w, dir) else {
+        return Ok(());
+    };
+    let other: Vec<u32> = rates.iter().copied().filter(|&r| r != fs).collect();
+    if other.is_empty() {
+        return Ok(());
+    }
+    let refused = log
+        .audio_blocks
+        .iter()
+        .filter(|b| b.sample_rate != fs)
+        .count();
+    let audio = other
+        .iter()
+        .map(|r| format!("{r} Hz"))
+        .collect::<Vec<_>>()
+        .join(" and ");
+    let own = w.model.is_none()
+        && w.config_dir.is_none()
+        && !changes.iter().any(|c| c.starts_with("arte.toml:"));
+    let what = match &w.model {
+        Some(m) => format!("--model {}", m.display()),
+        None => match path.strip_prefix(dir) {
+            Ok(rel) => format!("model {} (of the replay's configuration)", rel.display()),
+            Err(_) => format!("model {}", path.display()),
+        },
+    };
+    if own {
+        eprintln!(
+            "warning: {}: the drive's own {what} expects {fs} Hz audio, but {refused} of the log's {} audio blocks are at {audio}: arte refused them in the drive and refuses them in the replay (no road estimates from them)",
+            log.path.display(),
+            log.audio_blocks.len()
+        );
+        return Ok(());
+    }
+    let first = other[0];
+    bail!(
+        "{}: {what} expects {fs} Hz audio, but the log's audio blocks are at {audio} ({refused} of {} blocks): arte would refuse every one of them and the replay would publish no road estimate. Replay with a model trained at {first} Hz (`grip train --data` a dataset recorded at {first} Hz), or without --model to use the drive's own",
+        log.path.display(),
+        log.audio_blocks.len()
+    )
 }
 
 /// Applies `[FILE:]SECTION.KEY=VALUE` to the one TOML file of `dir` whose

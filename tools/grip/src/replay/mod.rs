@@ -92,6 +92,65 @@ pub struct SpeedMatch {
     /// Blocks with estimates whose record was not found (approximated by
     /// the newest valid record before the estimate: replay may differ).
     pub approximated: u64,
+    /// Arte's per-block counters over the replayed blocks.
+    pub blocks: BlockCounts,
+}
+
+/// What arte's per-block counters said of the replayed blocks (non-zero
+/// counts are also printed as a warning by [`replay_arte`]).
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct BlockCounts {
+    /// Blocks refused for a sample rate other than the model's.
+    pub rate_mismatch: u64,
+    /// The last refused rate, Hz.
+    pub bad_rate: u64,
+    /// Blocks not classified: digital silence or near it.
+    pub silent: u64,
+    /// Blocks not classified: clipped.
+    pub clipped: u64,
+}
+
+impl BlockCounts {
+    /// The counts of `stats`.
+    pub fn of(stats: &ArteCounters) -> Self {
+        use std::sync::atomic::Ordering::Relaxed;
+        Self {
+            rate_mismatch: stats.rate_mismatch.load(Relaxed),
+            bad_rate: stats.bad_rate.load(Relaxed),
+            silent: stats.silent_blocks.load(Relaxed),
+            clipped: stats.clipped_blocks.load(Relaxed),
+        }
+    }
+
+    /// The non-zero counts as one line (`None` when all are zero), for a
+    /// report (`model_rate`: the model's rate, Hz, when one model).
+    pub fn line(&self, blocks: usize, model_rate: Option<u32>) -> Option<String> {
+        let mut parts = Vec::new();
+        if self.rate_mismatch > 0 {
+            parts.push(match model_rate {
+                Some(m) => format!(
+                    "{} refused for their sample rate ({} Hz; the model expects {m} Hz)",
+                    self.rate_mismatch, self.bad_rate
+                ),
+                None => format!(
+                    "{} refused for their sample rate (e.g. {} Hz)",
+                    self.rate_mismatch, self.bad_rate
+                ),
+            });
+        }
+        if self.silent > 0 {
+            parts.push(format!("{} silent", self.silent));
+        }
+        if self.clipped > 0 {
+            parts.push(format!("{} clipped", self.clipped));
+        }
+        (!parts.is_empty()).then(|| {
+            format!(
+                "arte's blocks not classified, of {blocks}: {}",
+                parts.join(", ")
+            )
+        })
+    }
 }
 
 /// The newest valid cycle record at or before `t_ns`.
@@ -209,6 +268,10 @@ pub fn replay_arte<C: grip_arte::stream::Classify>(
             }
         }
         lp.on_block(b, &mut out, &stats);
+    }
+    matched.blocks = BlockCounts::of(&stats);
+    if let Some(l) = matched.blocks.line(last - first, Some(lp.sample_rate())) {
+        eprintln!("warning: {}: {l}", log.path.display());
     }
     out.0
 }

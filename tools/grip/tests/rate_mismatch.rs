@@ -1,0 +1,230 @@
+//! A model and audio at different sample rates are refused up front, naming
+//! both rates: `grip replay --model` of another rate than the log's audio
+//! blocks (arte refused every block and the replay silently published no
+//! road estimate), `grip generate` with `[audio] sample_rate` other than the
+//! model's, and `grip train --test` with a held-out folder at another rate
+//! than the training set (refused before any training, no model written).
+
+mod common;
+
+use std::path::Path;
+
+use grip_arte::synth::{ROADS, Segment, SynthConfig, render};
+
+fn os(s: &str) -> &std::ffi::OsStr {
+    s.as_ref()
+}
+
+/// `grip ARGS` on `config` (the repository's when `None`): success, stdout,
+/// stderr.
+fn grip_in(config: Option<&Path>, args: &[&std::ffi::OsStr]) -> (bool, String, String) {
+    match config {
+        None => common::output(args),
+        Some(dir) => {
+            let o = std::process::Command::new(env!("CARGO_BIN_EXE_grip"))
+                .arg("--config-dir")
+                .arg(dir)
+                .args(args)
+                .output()
+                .unwrap();
+            (
+                o.status.success(),
+                String::from_utf8_lossy(&o.stdout).into_owned(),
+                String::from_utf8_lossy(&o.stderr).into_owned(),
+            )
+        }
+    }
+}
+
+/// A dataset of `classes` × 2 recordings × 0.5 s at `rate` Hz.
+fn dataset(dir: &Path, rate: u32, classes: &[&str]) {
+    let cfg = SynthConfig {
+        sample_rate: rate,
+        noise: None,
+    };
+    for road in classes {
+        let r = ROADS.iter().position(|n| n == road).unwrap();
+        std::fs::create_dir_all(dir.join(road)).unwrap();
+        for k in 0..2u64 {
+            let x = render(
+                &cfg,
+                100 * r as u64 + k,
+                &[Segment {
+                    road: r,
+                    speed_mps: (10.0 + 4.0 * k as f64) / 3.6,
+                    duration_s: 0.5,
+                }],
+            )
+            .unwrap();
+            grip_io::wav::write_mono_i16(&dir.join(road).join(format!("r{k}.wav")), rate, &x)
+                .unwrap();
+        }
+    }
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let p = e.unwrap().path();
+        let q = to.join(p.file_name().unwrap());
+        if p.is_dir() {
+            copy_dir(&p, &q);
+        } else {
+            std::fs::copy(&p, &q).unwrap();
+        }
+    }
+}
+
+#[test]
+fn replay_with_a_model_at_another_rate_is_refused_naming_both_rates() {
+    let d = tempfile::tempdir().unwrap();
+    // a log at the repository's rate (44100 Hz)
+    let logs = d.path().join("logs");
+    let (ok, out, err) = grip_in(
+        None,
+        &[
+            os("generate"),
+            os("--out"),
+            logs.as_os_str(),
+            os("--count"),
+            os("1"),
+            os("--seed0"),
+            os("3"),
+        ],
+    );
+    assert!(ok, "generate: {out}{err}");
+    let log = std::fs::read_dir(&logs)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "mcap"))
+        .unwrap();
+    // a model at 16000 Hz
+    let data = d.path().join("data16");
+    dataset(&data, 16_000, &["asphalt", "gravel", "snow"]);
+    let model = d.path().join("m16.model");
+    let (ok, out, err) = grip_in(
+        None,
+        &[
+            os("train"),
+            os("--data"),
+            data.as_os_str(),
+            os("--classifier"),
+            os("svm"),
+            os("--features"),
+            os("rich"),
+            os("--folds"),
+            os("0"),
+            os("--svm-c"),
+            os("1"),
+            os("--svm-gamma"),
+            os("1"),
+            os("--out"),
+            model.as_os_str(),
+        ],
+    );
+    assert!(ok, "train: {out}{err}");
+    let (ok, out, err) = grip_in(
+        None,
+        &[
+            os("replay"),
+            log.as_os_str(),
+            os("--model"),
+            model.as_os_str(),
+        ],
+    );
+    assert!(
+        !ok,
+        "replay with a 16 kHz model on 44.1 kHz audio ran:\n{out}"
+    );
+    assert!(
+        err.contains("expects 16000 Hz audio") && err.contains("at 44100 Hz"),
+        "{err}"
+    );
+    assert!(err.contains("--model"), "{err}");
+    assert!(!out.contains("replayed"), "{out}");
+}
+
+#[test]
+fn generate_with_audio_at_another_rate_than_the_model_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let cfg = d.path().join("config");
+    copy_dir(&common::config_dir(), &cfg);
+    let acq = cfg.join("audio-acq.toml");
+    let text = std::fs::read_to_string(&acq).unwrap();
+    assert!(text.contains("sample_rate = 44100"), "{text}");
+    std::fs::write(
+        &acq,
+        text.replace("sample_rate = 44100", "sample_rate = 48000"),
+    )
+    .unwrap();
+    let out_dir = d.path().join("logs");
+    let (ok, out, err) = grip_in(
+        Some(&cfg),
+        &[
+            os("generate"),
+            os("--out"),
+            out_dir.as_os_str(),
+            os("--count"),
+            os("1"),
+        ],
+    );
+    assert!(!ok, "generate at 48 kHz with a 44.1 kHz model ran:\n{out}");
+    assert!(
+        err.contains("audio.sample_rate is 48000 Hz") && err.contains("expects 44100 Hz"),
+        "{err}"
+    );
+}
+
+#[test]
+fn train_refuses_a_held_out_folder_at_another_rate_before_training() {
+    let d = tempfile::tempdir().unwrap();
+    let data = d.path().join("data16");
+    dataset(&data, 16_000, &["asphalt", "gravel", "snow"]);
+    let test = d.path().join("test22");
+    dataset(&test, 22_050, &["asphalt", "gravel", "snow"]);
+    let model = d.path().join("x.model");
+    let train = |test: &Path, extra: &[&str]| {
+        let mut args = vec![
+            os("train"),
+            os("--data"),
+            data.as_os_str(),
+            os("--classifier"),
+            os("svm"),
+            os("--features"),
+            os("rich"),
+            os("--folds"),
+            os("2"),
+            os("--test"),
+            test.as_os_str(),
+            os("--out"),
+            model.as_os_str(),
+        ];
+        args.extend(extra.iter().map(|s| os(s)));
+        grip_in(None, &args)
+    };
+    let (ok, out, err) = train(&test, &[]);
+    assert!(!ok, "trained with a 22050 Hz --test:\n{out}");
+    assert!(
+        err.contains("held-out set at 22050 Hz, training set")
+            && err.contains("at 16000 Hz")
+            && err.contains(&format!("--test {}", test.display())),
+        "{err}"
+    );
+    // before any feature, cross-validation or fit
+    assert!(
+        !out.contains("cross-validation") && !out.contains("frames of"),
+        "{out}"
+    );
+    assert!(!model.exists());
+
+    // a held-out class the training set lacks: refused up front too
+    let odd = d.path().join("odd16");
+    dataset(&odd, 16_000, &["asphalt", "stone"]);
+    let (ok, out, err) = train(&odd, &[]);
+    assert!(!ok, "{out}");
+    assert!(
+        err.contains("class folder `stone`") && !out.contains("frames of"),
+        "{err}"
+    );
+    assert!(!model.exists());
+}
