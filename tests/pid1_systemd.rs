@@ -26,8 +26,10 @@
 //!    `TorqueCommand` on the wire is 0 N m, disabled; the recorder's last
 //!    log is complete (not truncated, its summary written) and `grip
 //!    inspect` reads it.
-//! 6b. With arte's start hung (a drop-in `ExecStartPre=/bin/sleep`),
+//!
+//!    6b. With arte's start hung (a drop-in `ExecStartPre=/bin/sleep`),
 //!    tcs-loop's commands are enabled while arte is still activating.
+//!
 //! 7. `dpkg -r grip` exits 0 and takes the binaries and units away.
 //!
 //! Time bounds are function bounds (emulated machine): a watchdog kill and
