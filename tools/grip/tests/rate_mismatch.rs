@@ -20,19 +20,7 @@ fn os(s: &str) -> &std::ffi::OsStr {
 fn grip_in(config: Option<&Path>, args: &[&std::ffi::OsStr]) -> (bool, String, String) {
     match config {
         None => common::output(args),
-        Some(dir) => {
-            let o = std::process::Command::new(env!("CARGO_BIN_EXE_grip"))
-                .arg("--config-dir")
-                .arg(dir)
-                .args(args)
-                .output()
-                .unwrap();
-            (
-                o.status.success(),
-                String::from_utf8_lossy(&o.stdout).into_owned(),
-                String::from_utf8_lossy(&o.stderr).into_owned(),
-            )
-        }
+        Some(dir) => common::output_in(dir, args),
     }
 }
 

@@ -16,9 +16,14 @@ pub fn grip() -> Command {
 /// Run `grip --config-dir <repo>/config ARGS` (logging as configured):
 /// whether it succeeded, its stdout and its stderr.
 pub fn output(args: &[&std::ffi::OsStr]) -> (bool, String, String) {
+    output_in(&config_dir(), args)
+}
+
+/// The same with `--config-dir DIR`.
+pub fn output_in(dir: &Path, args: &[&std::ffi::OsStr]) -> (bool, String, String) {
     let o = Command::new(env!("CARGO_BIN_EXE_grip"))
         .arg("--config-dir")
-        .arg(config_dir())
+        .arg(dir)
         .args(args)
         .output()
         .unwrap();
