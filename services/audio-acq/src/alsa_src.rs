@@ -1,19 +1,37 @@
 //! The ALSA capture source.
 //!
 //! Opening (`AlsaPcm::open`, prepared; capture starts at the first read,
-//! after the real-time set-up, so `mlockall` cannot overrun it): the named PCM, non-blocking, interleaved
-//! S16_LE, the configured channel count, **exactly** the configured rate
-//! (a device that cannot do it is an error naming the rate it offered; use
-//! a `plug:` device to have alsa-lib resample), period and buffer sizes as
-//! near as the device allows (the actual ones are logged), time stamps on,
-//! type CLOCK_MONOTONIC. A device that does not open is an error naming it,
-//! with alsa-lib's reason and the list of capture PCMs alsa-lib knows (the
-//! hint API `aplay -L` uses).
+//! after the real-time set-up, so `mlockall` cannot overrun it): the named
+//! PCM, non-blocking, interleaved, the configured channel count, the
+//! sample format `[alsa] format` asks for (`"auto"`: the first of S16_LE,
+//! S32_LE, S24_3LE, S24_LE, FLOAT_LE the device offers; a format it does
+//! not offer is an error naming the device, the format and the formats it
+//! offers; the choice is logged), **exactly** the configured rate, period
+//! and buffer sizes as near as the device allows (the actual ones are
+//! logged), time stamps on, type CLOCK_MONOTONIC. A device that does not
+//! open is an error naming it, with alsa-lib's reason and the list of
+//! capture PCMs alsa-lib knows (the hint API `aplay -L` uses).
+//!
+//! **Rate.** alsa-lib's resampling is off unless `[alsa] resample = true`
+//! (`snd_pcm_hw_params_set_rate_resample`). Off, a device that cannot
+//! capture at `[audio] sample_rate` is an error naming the rates it offers,
+//! plug devices included (a `plug` PCM then only converts format and
+//! channels). On, a plug device (`plughw:CARD,DEV`, `plug:...`, or a
+//! `default` that is one) resamples from a rate its hardware has; a `hw:`
+//! device never resamples, so with it the flag changes nothing. Resampling
+//! costs CPU in the capture thread and filters the audio (alsa-lib's rate
+//! converter), so a rate the hardware has natively is better.
+//!
+//! **Formats** ([`crate::format`]): the device delivers raw interleaved
+//! bytes in the chosen format into a buffer sized at start-up; the read
+//! path converts the published channel to S16 as it picks it out of the
+//! frames, allocating nothing.
 //!
 //! Reading ([`AlsaSource::read`]): waits for data at most
 //! `wait_timeout_ms` per wait (then returns [`Read::Timeout`] so the loop
 //! can check its stop flag; the partly filled block is kept), reads what is
-//! there until the block is full, and picks the configured channel.
+//! there until the block is full, and converts the configured channel to
+//! S16.
 //!
 //! **Overruns (xruns)**: an `EPIPE` (overrun) or `ESTRPIPE` (suspend) from
 //! wait or read is counted and recovered with `snd_pcm_recover` (which
@@ -41,16 +59,21 @@ use grip_io::clock::monotonic_now_ns;
 
 use crate::AcqError;
 use crate::config::AlsaSection;
+use crate::format::{SampleFormat, extract_channel};
 use crate::source::{Read, Source, SourceStats};
 
 /// A capture device as [`AlsaSource`] uses it (the real one is [`AlsaPcm`];
 /// tests inject faults through a fake).
 pub trait CaptureDevice {
+    /// The sample format [`CaptureDevice::read`] delivers (fixed once the
+    /// device is open; [`AlsaSource::new`] sizes its buffer from it).
+    fn format(&self) -> SampleFormat;
     /// Waits up to `timeout_ms` for data; `Ok(false)` on timeout.
     fn wait(&mut self, timeout_ms: u32) -> Result<bool, alsa::Error>;
-    /// Reads interleaved frames into `buf` (length a multiple of the channel
-    /// count); returns frames read. `EAGAIN` when nothing is there.
-    fn read(&mut self, buf: &mut [i16]) -> Result<usize, alsa::Error>;
+    /// Reads interleaved frames as raw bytes in [`CaptureDevice::format`]
+    /// into `buf` (length a whole number of frames: channels × the
+    /// format's bytes); returns frames read. `EAGAIN` when nothing is there.
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, alsa::Error>;
     /// Recovers from an xrun/suspend error and restarts capture.
     fn recover(&mut self, e: alsa::Error) -> Result<(), alsa::Error>;
     /// Driver time stamp (CLOCK_MONOTONIC ns) and delay (frames) now, if
@@ -69,6 +92,8 @@ pub struct AlsaPcm {
     pcm: PCM,
     /// Device name.
     pub device: String,
+    /// The sample format it captures in.
+    pub format: SampleFormat,
     /// Actual period size, frames.
     pub period_frames: usize,
     /// Actual buffer size, frames.
@@ -94,6 +119,84 @@ fn capture_devices() -> String {
     }
 }
 
+/// The formats of alsa-lib's list that `hwp` (its configuration space as
+/// restricted so far) still allows, by name; "none" if it allows none.
+fn offered_formats(hwp: &HwParams) -> String {
+    let names: Vec<String> = Format::all()
+        .iter()
+        .filter(|f| !matches!(f, Format::Unknown) && hwp.test_format(**f).is_ok())
+        .map(|f| f.to_string())
+        .collect();
+    if names.is_empty() {
+        "none".into()
+    } else {
+        names.join(", ")
+    }
+}
+
+/// The sample format `cfg.format` selects on the device (see the module
+/// docs); logged. Start-up only.
+fn choose_format(hwp: &HwParams, cfg: &AlsaSection, dev: &str) -> Result<SampleFormat, AcqError> {
+    let offers = |f: SampleFormat| hwp.test_format(f.alsa()).is_ok();
+    let usable: Vec<&str> = SampleFormat::PREFERENCE
+        .into_iter()
+        .filter(|&f| offers(f))
+        .map(SampleFormat::name)
+        .collect();
+    let remedy = if usable.is_empty() {
+        format!(
+            "none of them is one audio-acq reads ({}): use a plughw: device, which converts",
+            reads_list()
+        )
+    } else {
+        format!(
+            "set [alsa] format = \"auto\" or one of {}; or use a plughw: device, which converts",
+            usable.join(", ")
+        )
+    };
+    let (format, how) = match cfg.format.fixed() {
+        Some(f) if offers(f) => (f, "set by [alsa] format"),
+        Some(f) => {
+            return Err(AcqError::AlsaParams {
+                device: dev.into(),
+                reason: format!(
+                    "sample format {f} ([alsa] format) is not offered; the device offers: {} ({remedy})",
+                    offered_formats(hwp),
+                ),
+            });
+        }
+        None => match SampleFormat::PREFERENCE.into_iter().find(|&f| offers(f)) {
+            Some(f) => (f, "auto: the first the device offers"),
+            None => {
+                return Err(AcqError::AlsaParams {
+                    device: dev.into(),
+                    reason: format!(
+                        "no sample format audio-acq reads is offered ([alsa] format = \"auto\"); \
+                         the device offers: {} ({remedy})",
+                        offered_formats(hwp)
+                    ),
+                });
+            }
+        },
+    };
+    tracing::info!(
+        device = dev,
+        format = format.name(),
+        offered = %offered_formats(hwp),
+        "ALSA capture sample format {format} ({how}), converted to S16"
+    );
+    Ok(format)
+}
+
+/// The formats audio-acq reads, in `"auto"`'s order.
+fn reads_list() -> String {
+    SampleFormat::PREFERENCE
+        .iter()
+        .map(|f| f.name())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 impl AlsaPcm {
     /// Opens and configures `cfg.device` for capture at `rate` Hz (see the
     /// module docs). Start-up only.
@@ -114,16 +217,25 @@ impl AlsaPcm {
             device: dev.into(),
             reason: format!("{what}: {e}"),
         };
-        let (period, buffer) = {
+        let (format, period, buffer) = {
             let hwp = HwParams::any(&pcm).map_err(|e| param("hw_params_any", e))?;
             hwp.set_access(Access::RWInterleaved)
                 .map_err(|e| param("interleaved read/write access", e))?;
-            hwp.set_format(Format::s16())
-                .map_err(|e| param("sample format S16_LE", e))?;
             hwp.set_channels(cfg.channels)
                 .map_err(|e| param(&format!("{} channel(s)", cfg.channels), e))?;
-            hwp.set_rate_resample(false)
-                .map_err(|e| param("disabling alsa-lib resampling", e))?;
+            let format = choose_format(&hwp, cfg, dev)?;
+            hwp.set_format(format.alsa())
+                .map_err(|e| param(&format!("sample format {format}"), e))?;
+            hwp.set_rate_resample(cfg.resample)
+                .map_err(|e| param("setting alsa-lib resampling", e))?;
+            let rate_hint = if cfg.resample {
+                "set [audio] sample_rate to a rate the device offers, or use a plug device \
+                 (plughw:CARD,DEV or plug:...), which resamples with [alsa] resample = true; \
+                 a hw: device never resamples"
+            } else {
+                "set [alsa] resample = true with a plug device (plughw:CARD,DEV or plug:...) \
+                 to have alsa-lib resample, or set [audio] sample_rate to a rate the device offers"
+            };
             if let Err(e) = hwp.set_rate(rate, ValueOr::Nearest) {
                 let offered = hwp
                     .get_rate_min()
@@ -131,14 +243,17 @@ impl AlsaPcm {
                     .zip(hwp.get_rate_max().ok())
                     .map(|(a, b)| format!(" (device offers {a}..={b} Hz)"))
                     .unwrap_or_default();
-                return Err(param(&format!("rate {rate} Hz{offered}"), e));
+                return Err(AcqError::AlsaParams {
+                    device: dev.into(),
+                    reason: format!("rate {rate} Hz{offered}: {e}; {rate_hint}"),
+                });
             }
             let got = hwp.get_rate().map_err(|e| param("reading the rate", e))?;
             if got != rate {
                 return Err(AcqError::AlsaParams {
                     device: dev.into(),
                     reason: format!(
-                        "rate {rate} Hz not available, nearest is {got} Hz: set [audio] sample_rate to a rate the device offers (audio-acq turns alsa-lib's resampling off, for plug: devices too)"
+                        "rate {rate} Hz not available, nearest is {got} Hz: {rate_hint}"
                     ),
                 });
             }
@@ -151,7 +266,18 @@ impl AlsaPcm {
             let cur = pcm
                 .hw_params_current()
                 .map_err(|e| param("reading hw params", e))?;
+            // reads hand the bytes to the conversion of this format
+            let got = cur
+                .get_format()
+                .map_err(|e| param("reading the format", e))?;
+            if got != format.alsa() {
+                return Err(AcqError::AlsaParams {
+                    device: dev.into(),
+                    reason: format!("asked for sample format {format}, the device set {got}"),
+                });
+            }
             (
+                format,
                 cur.get_period_size().map_err(|e| param("period size", e))? as usize,
                 cur.get_buffer_size().map_err(|e| param("buffer size", e))? as usize,
             )
@@ -171,12 +297,11 @@ impl AlsaPcm {
             pcm.sw_params(&swp)
                 .map_err(|e| param("applying sw params", e))?;
         }
-        // Check the sample format once; reads then use io_unchecked.
-        drop(pcm.io_i16().map_err(|e| param("S16 I/O", e))?);
         pcm.prepare().map_err(|e| param("prepare", e))?;
         Ok(Self {
             pcm,
             device: dev.into(),
+            format,
             period_frames: period,
             buffer_frames: buffer,
         })
@@ -193,11 +318,13 @@ impl CaptureDevice for AlsaPcm {
     fn wait(&mut self, timeout_ms: u32) -> Result<bool, alsa::Error> {
         self.pcm.wait(Some(timeout_ms))
     }
-    fn read(&mut self, buf: &mut [i16]) -> Result<usize, alsa::Error> {
-        // SAFETY: the format was verified as S16 at open (io_i16), and this
-        // is the only IO object of the PCM, dropped at the end of the call.
-        let io = unsafe { self.pcm.io_unchecked::<i16>() };
-        io.readi(buf)
+    fn format(&self) -> SampleFormat {
+        self.format
+    }
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, alsa::Error> {
+        // raw bytes in the format verified at open; alsa-lib counts frames
+        // from the PCM's own frame size. The IO object lives for this call.
+        self.pcm.io_bytes().readi(buf)
     }
     fn recover(&mut self, e: alsa::Error) -> Result<(), alsa::Error> {
         self.pcm.try_recover(e, true)?;
@@ -216,7 +343,8 @@ impl CaptureDevice for AlsaPcm {
     }
 }
 
-/// Mono S16 blocks from a [`CaptureDevice`] (see the module docs).
+/// Mono S16 blocks from a [`CaptureDevice`] in any [`SampleFormat`] (see
+/// the module docs).
 #[derive(Debug)]
 pub struct AlsaSource<D: CaptureDevice> {
     dev: D,
@@ -224,7 +352,12 @@ pub struct AlsaSource<D: CaptureDevice> {
     channels: usize,
     channel: usize,
     wait_ms: u32,
-    inter: Vec<i16>,
+    format: SampleFormat,
+    /// Bytes per interleaved frame.
+    frame_bytes: usize,
+    /// Raw interleaved frames of the block being read, sized at start-up.
+    inter: Vec<u8>,
+    /// Frames of the block read so far.
     pos: usize,
     xruns: u32,
     stamp_fallbacks: u64,
@@ -236,16 +369,21 @@ fn is_xrun(e: &alsa::Error) -> bool {
 }
 
 impl<D: CaptureDevice> AlsaSource<D> {
-    /// A source reading blocks up to `max_block` frames from `dev`.
+    /// A source reading blocks up to `max_block` frames from `dev`, in the
+    /// format `dev` delivers (the buffer for them is allocated here, once).
     pub fn new(dev: D, cfg: &AlsaSection, rate: u32, max_block: usize) -> Self {
         let channels = cfg.channels.max(1) as usize;
+        let format = dev.format();
+        let frame_bytes = channels * format.bytes();
         Self {
             dev,
             rate,
             channels,
             channel: (cfg.channel as usize).min(channels - 1),
             wait_ms: cfg.wait_timeout_ms.max(1),
-            inter: vec![0; max_block * channels],
+            format,
+            frame_bytes,
+            inter: vec![0; max_block * frame_bytes],
             pos: 0,
             xruns: 0,
             stamp_fallbacks: 0,
@@ -286,8 +424,8 @@ impl<D: CaptureDevice> Source for AlsaSource<D> {
             })?;
             self.started = true;
         }
-        let n = out.len().min(self.inter.len() / self.channels);
-        let ch = self.channels;
+        let n = out.len().min(self.inter.len() / self.frame_bytes);
+        let fb = self.frame_bytes;
         while self.pos < n {
             match self.dev.wait(self.wait_ms) {
                 Ok(true) => {}
@@ -303,7 +441,7 @@ impl<D: CaptureDevice> Source for AlsaSource<D> {
                     });
                 }
             }
-            match self.dev.read(&mut self.inter[self.pos * ch..n * ch]) {
+            match self.dev.read(&mut self.inter[self.pos * fb..n * fb]) {
                 Ok(k) => self.pos += k.min(n - self.pos),
                 Err(e) if e.errno() == libc::EAGAIN => {}
                 Err(e) if is_xrun(&e) => self.xrun(e)?,
@@ -316,9 +454,13 @@ impl<D: CaptureDevice> Source for AlsaSource<D> {
             }
         }
         self.pos = 0;
-        for (o, f) in out[..n].iter_mut().zip(self.inter.chunks_exact(ch)) {
-            *o = f[self.channel];
-        }
+        extract_channel(
+            self.format,
+            &self.inter[..n * fb],
+            self.channels,
+            self.channel,
+            &mut out[..n],
+        );
         let now = monotonic_now_ns();
         let dur = (u128::from(n as u64) * 1_000_000_000 / u128::from(self.rate.max(1))) as u64;
         let stamp_ns = match self.dev.timing() {

@@ -10,6 +10,8 @@ use grip_io::rt::RtConfig;
 use grip_io::service::{ServiceConfig, validate_rt};
 use serde::{Deserialize, Serialize};
 
+use crate::format::FormatSetting;
+
 /// Where the audio comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
@@ -65,6 +67,35 @@ pub struct AlsaSection {
     /// flag and waits again (no unbounded waits).
     #[serde(default = "default_wait_ms")]
     pub wait_timeout_ms: u32,
+    /// Sample format to capture in: `"auto"` (default: the first of S16_LE,
+    /// S32_LE, S24_3LE, S24_LE, FLOAT_LE the device offers) or one of them
+    /// (an error if the device does not offer it). Converted to S16.
+    #[serde(default)]
+    pub format: FormatSetting,
+    /// Let alsa-lib resample when the device cannot capture at `[audio]
+    /// sample_rate` itself. Takes effect only through a plug device
+    /// (`plughw:...`, `plug:...`, or a `default` that is one); `hw:`
+    /// devices never resample. Default `false`: the rate must be one the
+    /// device offers.
+    #[serde(default)]
+    pub resample: bool,
+}
+
+impl AlsaSection {
+    /// `device` with the defaults of every other field (what `--device`
+    /// uses when the file has no `[alsa]` section).
+    pub fn with_device(device: impl Into<String>) -> Self {
+        Self {
+            device: device.into(),
+            channels: 1,
+            channel: 0,
+            period_frames: 512,
+            buffer_frames: 4096,
+            wait_timeout_ms: default_wait_ms(),
+            format: FormatSetting::Auto,
+            resample: false,
+        }
+    }
 }
 
 fn one() -> u32 {
@@ -315,6 +346,8 @@ fifo_priority = 60
         let c = AcqConfig::parse(Path::new("a.toml"), GOOD).unwrap();
         assert_eq!(c.audio.source, SourceKind::Synth);
         assert_eq!(c.alsa.as_ref().unwrap().channels, 1);
+        assert_eq!(c.alsa.as_ref().unwrap().format, FormatSetting::Auto);
+        assert!(!c.alsa.as_ref().unwrap().resample);
         assert_eq!(c.synth.seed, 3);
         assert_eq!(c.synth.on_truth_lost, TruthLost::Hold);
         assert_eq!(c.rt.fifo_priority, Some(60));
@@ -353,5 +386,62 @@ fifo_priority = 60
         )
         .unwrap_err();
         assert_eq!(e.field, "alsa.buffer_frames");
+    }
+
+    #[test]
+    fn alsa_format_and_resample_parse() {
+        let with = |extra: &str| {
+            AcqConfig::parse(
+                Path::new("a.toml"),
+                &GOOD.replace(
+                    "buffer_frames = 4096",
+                    &format!("buffer_frames = 4096\n{extra}"),
+                ),
+            )
+        };
+        for (text, want) in [
+            ("auto", FormatSetting::Auto),
+            ("S16_LE", FormatSetting::S16Le),
+            ("S32_LE", FormatSetting::S32Le),
+            ("S24_3LE", FormatSetting::S24_3Le),
+            ("S24_LE", FormatSetting::S24Le),
+            ("FLOAT_LE", FormatSetting::FloatLe),
+        ] {
+            let c = with(&format!("format = \"{text}\"")).unwrap();
+            assert_eq!(c.alsa.unwrap().format, want, "{text}");
+        }
+        let c = with("resample = true").unwrap();
+        assert!(c.alsa.unwrap().resample);
+    }
+
+    #[test]
+    fn alsa_format_and_resample_errors_name_the_field() {
+        let with = |extra: &str| {
+            AcqConfig::parse(
+                Path::new("a.toml"),
+                &GOOD.replace(
+                    "buffer_frames = 4096",
+                    &format!("buffer_frames = 4096\n{extra}"),
+                ),
+            )
+            .unwrap_err()
+        };
+        for bad in ["S24_BE", "s16_le", "S8", "float", ""] {
+            let e = with(&format!("format = \"{bad}\""));
+            assert_eq!(e.field, "alsa.format", "{bad}: {e}");
+            let msg = e.to_string();
+            assert!(msg.starts_with("a.toml: field `alsa.format`"), "{msg}");
+            assert!(msg.contains("line 10"), "{msg}");
+            for name in ["auto", "S16_LE", "S32_LE", "S24_3LE", "S24_LE", "FLOAT_LE"] {
+                assert!(msg.contains(name), "the error lists {name}: {msg}");
+            }
+        }
+        let e = with("format = 32");
+        assert_eq!(e.field, "alsa.format", "{e}");
+        let e = with("resample = \"yes\"");
+        assert_eq!(e.field, "alsa.resample", "{e}");
+        assert!(e.to_string().contains("line 10"), "{e}");
+        let e = with("resampling = true");
+        assert_eq!(e.field, "alsa.resampling", "{e}");
     }
 }

@@ -4,7 +4,8 @@
 //!
 //! - [`config`]: the `audio-acq.toml` file.
 //! - [`source`]: the [`Source`] trait and the real-time [`source::Pacer`].
-//! - [`alsa_src`], [`wav`], [`synth`]: the three sources.
+//! - [`alsa_src`], [`wav`], [`synth`]: the three sources; [`format`]: the
+//!   ALSA capture sample formats and their conversion to S16.
 //! - [`cycle`]: [`AcqLoop`], one block per [`AcqLoop::step`] (source →
 //!   block → sink); allocation-free (`tests/no_alloc.rs`).
 //! - [`run`]: the service (ports, real-time set-up, readiness, watchdog,
@@ -21,6 +22,7 @@ pub mod alsa_src;
 pub mod config;
 pub mod cycle;
 pub mod error;
+pub mod format;
 pub mod monitor;
 pub mod run;
 pub mod source;

@@ -61,16 +61,7 @@ pub fn effective_config(opts: &Options) -> Result<(PathBuf, AcqConfig), AcqError
     if let Some(d) = &opts.device {
         match &mut cfg.alsa {
             Some(a) => a.device = d.clone(),
-            None => {
-                cfg.alsa = Some(AlsaSection {
-                    device: d.clone(),
-                    channels: 1,
-                    channel: 0,
-                    period_frames: 512,
-                    buffer_frames: 4096,
-                    wait_timeout_ms: 200,
-                })
-            }
+            None => cfg.alsa = Some(AlsaSection::with_device(d.clone())),
         }
     }
     if let Some(p) = &opts.wav {
@@ -122,8 +113,13 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, AcqError
             })?;
             let pcm = AlsaPcm::open(&al, rate)?;
             let what = format!(
-                "ALSA {} ({} ch, channel {}, period {} frames, buffer {} frames)",
-                pcm.device, al.channels, al.channel, pcm.period_frames, pcm.buffer_frames
+                "ALSA {} ({}, {} ch, channel {}, period {} frames, buffer {} frames)",
+                pcm.device,
+                pcm.format,
+                al.channels,
+                al.channel,
+                pcm.period_frames,
+                pcm.buffer_frames
             );
             let src = AlsaSource::new(pcm, &al, rate, block);
             serve(

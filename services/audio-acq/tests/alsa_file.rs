@@ -10,6 +10,7 @@ use std::sync::Arc;
 
 use grip_audio_acq::alsa_src::{AlsaPcm, AlsaSource};
 use grip_audio_acq::config::AlsaSection;
+use grip_audio_acq::format::FormatSetting;
 use grip_audio_acq::{AcqError, AcqLoop, AcqStatus, BlockSink, Step};
 use grip_io::ipc::IpcError;
 use grip_msgs::AudioBlock;
@@ -31,6 +32,8 @@ fn section(device: &str, channels: u32, channel: u32) -> AlsaSection {
         period_frames: 512,
         buffer_frames: 4096,
         wait_timeout_ms: 200,
+        format: FormatSetting::Auto,
+        resample: false,
     }
 }
 

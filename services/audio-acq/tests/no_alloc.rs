@@ -1,18 +1,24 @@
 //! The per-block loop allocates nothing after start-up, for the wav and the
-//! synth sources (ALSA cannot run here; its read path is the same loop over
-//! pre-sized buffers), into a test sink; into a real iceoryx2 publisher it
-//! allocates exactly iceoryx2's one per published sample.
+//! synth sources and for the ALSA source's read path and sample-format
+//! conversion through a fake capture device (S32_LE, S24_3LE, S24_LE,
+//! FLOAT_LE; no sound hardware here), into a test sink; into a real
+//! iceoryx2 publisher it allocates exactly iceoryx2's one per published
+//! sample.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use grip_audio_acq::config::{SynthNoise, SynthSection};
+use grip_audio_acq::alsa_src::AlsaSource;
+use grip_audio_acq::config::{AlsaSection, SynthNoise, SynthSection};
+use grip_audio_acq::format::SampleFormat;
 use grip_audio_acq::synth::{SynthSource, TruthInput, TruthReadError};
 use grip_audio_acq::wav::WavSource;
 use grip_audio_acq::{AcqLoop, AcqStatus, BlockSink, Source, Step};
 use grip_io::clock::{Clock, ManualClock};
 use grip_io::ipc::{IpcError, IpcNode, SubscriberMode};
 use grip_msgs::{AudioBlock, GroundTruth, name_to_bytes, topics};
+
+mod common;
 
 #[global_allocator]
 static A: grip_testkit::CountingAlloc = grip_testkit::CountingAlloc;
@@ -112,6 +118,33 @@ fn acquisition_loop_allocates_nothing() {
     assert_eq!(a, 0, "synth source: {a} allocations in 2000 blocks");
     assert!(lp.source().stats().unknown_road > 0);
     assert!(sink.0 != 0);
+
+    // --- ALSA's read path (wait, raw read, conversion of one channel to
+    // S16) through a fake device, in every format other than S16_LE
+    for format in [
+        SampleFormat::S32Le,
+        SampleFormat::S24_3Le,
+        SampleFormat::S24Le,
+        SampleFormat::FloatLe,
+    ] {
+        let dev = common::FormatFake {
+            format,
+            channels: 2,
+            chunk: 300,
+            next: 0,
+        };
+        let mut cfg = AlsaSection::with_device("fake");
+        cfg.channels = 2;
+        cfg.channel = 1;
+        let src = AlsaSource::new(dev, &cfg, 44_100, 1024);
+        let mut lp = AcqLoop::new(src, 1024, 1, Arc::new(AcqStatus::default()));
+        let mut sink = SumSink::default();
+        let a = drive(&mut lp, &mut sink, 5, 300);
+        assert_eq!(a, 0, "ALSA source, {format}: {a} allocations in 300 blocks");
+        assert_eq!(sink.1, 305);
+        assert_eq!(lp.source().device().next, 305 * 1024);
+        assert!(sink.0 != 0);
+    }
 
     // --- into a real iceoryx2 publisher, read back by a deep subscriber
     // SAFETY: single test function; set before any iceoryx2 use.

@@ -1,17 +1,21 @@
 //! The three sources through the acquisition loop, on a manual clock (wav,
-//! synth) and a fake capture device (ALSA overruns and time stamps).
+//! synth) and a fake capture device (ALSA overruns, time stamps, sample
+//! formats).
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use grip_audio_acq::alsa_src::{AlsaSource, CaptureDevice};
 use grip_audio_acq::config::{AlsaSection, SynthSection, TruthLost};
+use grip_audio_acq::format::{FormatSetting, SampleFormat};
 use grip_audio_acq::synth::{NO_ROAD, SynthSource, TruthInput, TruthReadError};
 use grip_audio_acq::wav::{WavSource, read_mono_i16};
 use grip_audio_acq::{AcqLoop, AcqStatus, BlockSink, Read, Source, Step};
 use grip_io::clock::{Clock, ManualClock, monotonic_now_ns};
 use grip_io::ipc::IpcError;
 use grip_msgs::{AudioBlock, GroundTruth, name_to_bytes};
+
+mod common;
 
 #[derive(Default)]
 struct VecSink(Vec<AudioBlock>);
@@ -306,20 +310,23 @@ struct FakePcm {
 }
 
 impl CaptureDevice for FakePcm {
+    fn format(&self) -> SampleFormat {
+        SampleFormat::S16Le
+    }
     fn wait(&mut self, _timeout_ms: u32) -> Result<bool, alsa::Error> {
         Ok(true)
     }
-    fn read(&mut self, buf: &mut [i16]) -> Result<usize, alsa::Error> {
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, alsa::Error> {
         self.reads += 1;
         if self.xrun_at_reads.contains(&self.reads) {
             self.next += 5000; // audio lost during the overrun
             return Err(alsa::Error::new("snd_pcm_readi", libc::EPIPE));
         }
-        let frames = (buf.len() / 2).min(self.chunk);
-        for f in 0..frames {
+        let frames = (buf.len() / 4).min(self.chunk);
+        for f in buf.chunks_exact_mut(4).take(frames) {
             let v = (self.next % 30_000) as i16;
-            buf[2 * f] = v;
-            buf[2 * f + 1] = -v;
+            f[..2].copy_from_slice(&v.to_le_bytes());
+            f[2..].copy_from_slice(&(-v).to_le_bytes());
             self.next += 1;
         }
         Ok(frames)
@@ -342,6 +349,8 @@ fn alsa_cfg(channel: u32) -> AlsaSection {
         period_frames: 256,
         buffer_frames: 2048,
         wait_timeout_ms: 10,
+        format: FormatSetting::Auto,
+        resample: false,
     }
 }
 
@@ -420,4 +429,41 @@ fn alsa_stamp_is_driver_time_minus_delay_and_block() {
     }
     assert_eq!(src.stamp_fallbacks(), 0);
     assert_eq!(out[5], 5);
+}
+
+#[test]
+fn alsa_every_sample_format_is_converted_to_s16_through_the_source() {
+    // 3 channels, channel 2 published, reads of 300 frames (blocks span
+    // reads); 70 blocks of 1024 cover every S16 value of the ramp, both
+    // extremes included, with low bits and padding that must be dropped
+    for format in SampleFormat::PREFERENCE {
+        let dev = common::FormatFake {
+            format,
+            channels: 3,
+            chunk: 300,
+            next: 0,
+        };
+        let cfg = AlsaSection {
+            channels: 3,
+            channel: 2,
+            ..alsa_cfg(0)
+        };
+        let mut src = AlsaSource::new(dev, &cfg, 48_000, 1024);
+        let mut out = [0i16; 1024];
+        let mut i = 0u64;
+        let (mut min, mut max) = (0i16, 0i16);
+        for _ in 0..70 {
+            match src.read(&mut out).unwrap() {
+                Read::Block { n, .. } => assert_eq!(n, 1024),
+                r => panic!("{r:?}"),
+            }
+            for &s in &out {
+                assert_eq!(s, common::expected(i, 2), "{format}: frame {i}");
+                min = min.min(s);
+                max = max.max(s);
+                i += 1;
+            }
+        }
+        assert_eq!((min, max), (i16::MIN, i16::MAX), "{format}");
+    }
 }
