@@ -108,7 +108,7 @@ pub const INPUTS: [(&str, f64); 3] = [
     ("DriverDemand", DEMAND_TIMEOUT_MS),
 ];
 /// How far before a window of [`loop_unaffected`] an input's silence is
-/// looked for: the safe state outlasts it by [`RECOVER_MS`] and more under
+/// looked for: the safe state outlasts it by `RECOVER_MS` and more under
 /// emulation.
 pub const LEAD_IN_MS: f64 = 200.0;
 /// tcs-loop's `[safety] demand_timeout_ms` (config/tcs-loop.toml).

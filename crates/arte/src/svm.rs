@@ -567,7 +567,7 @@ pub struct PairModel {
 /// Multi-class one-vs-one SVM.
 ///
 /// Serialised as its stored fields; deserialising goes through
-/// [`SvmStored`] and rebuilds the derived dimension-major copy of the
+/// `SvmStored` and rebuilds the derived dimension-major copy of the
 /// support vectors, so every `Svm` value has it from construction on.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(from = "SvmStored")]

@@ -5,7 +5,7 @@
 //! 1. The scenario gives the true road and grade at (t, x) and the demand T_d(t).
 //! 2. The sensors sample the plant's true state (noise, quantisation, delay).
 //! 3. ARTE variants: the latest estimate so far (from frames that ended at or
-//!    before t) becomes [`RoadKnowledge`] with age t − t_stamp; other
+//!    before t) becomes [`RoadKnowledge`](grip_tcs::RoadKnowledge) with age t − t_stamp; other
 //!    variants get `None`.
 //! 4. The controller computes T* from the measurement and the knowledge.
 //! 5. The cycle is recorded (trace, metrics) with the plant's true values at t.

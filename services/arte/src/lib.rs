@@ -7,9 +7,9 @@
 //!   checked at start-up.
 //! - [`cycle`]: [`ArteLoop`], one call per audio block ([`ArteLoop::on_block`]):
 //!   sequence and time checks, S16 → f32, the vehicle speed handed to
-//!   `grip_arte::stream`'s estimator, one [`RoadEstimate`] per decision.
+//!   `grip_arte::stream`'s estimator, one [`RoadEstimate`](grip_msgs::RoadEstimate) per decision.
 //!   Allocation-free (`tests/no_alloc.rs`).
-//! - [`run`]: the service: configuration, model, ports, real-time set-up,
+//! - [`run()`]: the service: configuration, model, ports, real-time set-up,
 //!   readiness, the loop until stopped.
 //! - [`monitor`]: the non-real-time helper thread (watchdog, transitions
 //!   and counters logged), on [`grip_io::service::monitor`].

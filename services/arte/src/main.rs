@@ -32,7 +32,7 @@ use grip_io::service::{ConfigArgs, Service};
 struct Args {
     #[command(flatten)]
     config: ConfigArgs,
-    /// Model file (default: the config's `model`, i.e. <config-dir>/models/default.model).
+    /// Model file (default: the config's `model`, i.e. `<config-dir>/models/default.model`).
     #[arg(long)]
     model: Option<PathBuf>,
     /// Stop after this many seconds.

@@ -4,11 +4,11 @@
 //!
 //! - [`config`]: the `audio-acq.toml` file.
 //! - [`source`]: the [`Source`] trait and the real-time [`source::Pacer`].
-//! - [`alsa_src`], [`wav`], [`synth`]: the three sources; [`format`]: the
+//! - [`alsa_src`], [`wav`], [`synth`]: the three sources; [`format`](mod@format): the
 //!   ALSA capture sample formats and their conversion to S16.
 //! - [`cycle`]: [`AcqLoop`], one block per [`AcqLoop::step`] (source →
 //!   block → sink); allocation-free (`tests/no_alloc.rs`).
-//! - [`run`]: the service (ports, real-time set-up, readiness, watchdog,
+//! - [`run()`]: the service (ports, real-time set-up, readiness, watchdog,
 //!   stop on SIGTERM/SIGINT), called by `main.rs`.
 //! - [`monitor`]: the non-real-time helper thread (watchdog, transitions
 //!   and counters logged), on [`grip_io::service::monitor`].

@@ -4,7 +4,7 @@
 //! - [`config`]: `config/plant-sim.toml` ([`PlantSimConfig`], [`StartOn`]).
 //! - [`cycle`]: [`PlantSim`], one cycle (`cycle(&tick, &clock, bus, truth)`
 //!   per [`PlantTick`]), drivable from tests with a manual clock.
-//! - [`run`]: the service: load config, open ports, real-time set-up,
+//! - [`run()`]: the service: load config, open ports, real-time set-up,
 //!   periodic timer, `READY=1`, SIGUSR1 start, loop.
 //! - [`monitor`]: the non-real-time helper thread (watchdog, transitions
 //!   and counters logged), on [`grip_io::service::monitor`].

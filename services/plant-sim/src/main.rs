@@ -44,7 +44,7 @@ use grip_plant_sim::{Options, StartOn, run};
 struct Args {
     #[command(flatten)]
     config: ConfigArgs,
-    /// Scenario name (in <config-dir>/scenarios) or path to a scenario TOML.
+    /// Scenario name (in `<config-dir>/scenarios`) or path to a scenario TOML.
     #[arg(long)]
     scenario: Option<String>,
     /// Sensor-noise seed.
@@ -56,7 +56,7 @@ struct Args {
     /// Exit 0 at the scenario's end (after the zero-torque hold).
     #[arg(long)]
     exit_at_end: bool,
-    /// The vehicle's TOML (default: <config-dir>/vehicle.toml).
+    /// The vehicle's TOML (default: `<config-dir>/vehicle.toml`).
     #[arg(long)]
     vehicle: Option<std::path::PathBuf>,
 }

@@ -1,6 +1,6 @@
 //! The recorder's loop: a receive thread drains every deep subscriber into
 //! a bounded queue (never blocking: a full queue drops and counts), and
-//! the writing thread ([`write_loop`], the caller of [`crate::run`]) turns
+//! the writing thread ([`write_loop`], the caller of [`crate::run()`]) turns
 //! the queue into MCAP.
 
 use std::collections::BTreeMap;

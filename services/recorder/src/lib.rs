@@ -4,7 +4,7 @@
 //! - [`stats`]: per-topic counters, gaps by sequence number (CAN: by alive
 //!   counter).
 //! - [`cycle`]: the receive thread, the bounded queue and the writing loop.
-//! - [`run`]: the service: config, the log file and its run metadata,
+//! - [`run()`]: the service: config, the log file and its run metadata,
 //!   `READY=1`, the loop until stopped, the summary.
 //! - [`retention`]: which old logs of `out_dir` to delete (the budget
 //!   `max_total_mib`, the free-space floor `min_free_mib`), and deleting them.

@@ -6,7 +6,7 @@
 //!   drivable from tests with a manual clock and in-memory ports.
 //! - [`ports`]: the road-estimate source and the recorder sink as traits,
 //!   with the iceoryx2 implementations.
-//! - [`run`]: the service: load config, open ports, real-time set-up,
+//! - [`run()`]: the service: load config, open ports, real-time set-up,
 //!   periodic timer, `READY=1`, loop until stopped.
 //! - [`monitor`]: the non-real-time helper thread (watchdog, transitions
 //!   and counters logged), on [`grip_io::service::monitor`].

@@ -56,7 +56,7 @@ struct Args {
     /// Stop after this many seconds (benchmarks).
     #[arg(long, value_parser = seconds)]
     run_for: Option<f64>,
-    /// The vehicle's TOML (default: <config-dir>/vehicle.toml).
+    /// The vehicle's TOML (default: `<config-dir>/vehicle.toml`).
     #[arg(long)]
     vehicle: Option<std::path::PathBuf>,
 }

@@ -3,9 +3,9 @@
 //! Convention (MATLAB `lpc`, Makhoul 1975 "Linear prediction: a tutorial
 //! review", Proc. IEEE 63(4)): the prediction-error filter is
 //! A(z) = 1 + a₁ z⁻¹ + … + a_p z⁻ᵖ, so an AR process
-//! x[n] = φ₁ x[n−1] + φ₂ x[n−2] + e[n] has a₁ = −φ₁, a₂ = −φ₂.
+//! `x[n] = φ₁ x[n−1] + φ₂ x[n−2] + e[n]` has a₁ = −φ₁, a₂ = −φ₂.
 
-/// Biased autocorrelation r[m] = (1/L) Σₙ x[n] x[n+m], m = 0..out.len().
+/// Biased autocorrelation `r[m] = (1/L) Σₙ x[n] x[n+m]`, m = 0..out.len().
 pub fn autocorrelation_biased(x: &[f64], out: &mut [f64]) {
     let l = x.len().max(1) as f64;
     for (m, o) in out.iter_mut().enumerate() {
@@ -20,11 +20,11 @@ pub fn autocorrelation_biased(x: &[f64], out: &mut [f64]) {
 }
 
 /// Levinson-Durbin: solves the Toeplitz normal equations
-/// Σⱼ aⱼ r[|i−j|] = −r[i], i = 1..=p, for a = `a[1..=p]` (`a[0]` is set to 1),
+/// `Σⱼ aⱼ r[|i−j|] = −r[i]`, i = 1..=p, for a = `a[1..=p]` (`a[0]` is set to 1),
 /// with p = `a.len() − 1` and `r.len()` ≥ p + 1. `scratch` must have length
 /// ≥ p + 1. Returns the final prediction-error power.
 ///
-/// Degenerate input (r[0] ≤ 0, non-finite, or a reflection coefficient with
+/// Degenerate input (`r[0]` ≤ 0, non-finite, or a reflection coefficient with
 /// |k| ≥ 1 from round-off) stops the recursion: the remaining coefficients
 /// are 0, so the result is always finite. Allocates nothing.
 pub fn levinson_durbin(r: &[f64], a: &mut [f64], scratch: &mut [f64]) -> f64 {

@@ -542,7 +542,7 @@ impl FeatureExtractor {
         Ok(out)
     }
 
-    /// The power spectrum |X[k]|² of the last frame, k = 0..=nfft/2 (paper
+    /// The power spectrum `|X[k]|²` of the last frame, k = 0..=nfft/2 (paper
     /// sets: Hamming-windowed whole frame, before the pre-filter; Rich: the
     /// mean of the sub-frame spectra). Bin k is at `k · bin_hz()`.
     pub fn power_spectrum(&self) -> &[f64] {

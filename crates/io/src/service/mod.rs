@@ -118,7 +118,7 @@ pub struct ConfigArgs {
     /// Shared configuration directory.
     #[arg(long, default_value = "config")]
     pub config_dir: PathBuf,
-    /// The service's TOML (default: a file in <config-dir> named for the service).
+    /// The service's TOML (default: a file in `<config-dir>` named for the service).
     #[arg(long)]
     pub config: Option<PathBuf>,
 }
