@@ -2,10 +2,15 @@
 //! both rates: `grip replay --model` of another rate than the log's audio
 //! blocks (arte refused every block and the replay silently published no
 //! road estimate), `grip generate` with `[audio] sample_rate` other than the
-//! model's, and `grip train --test` with a held-out folder at another rate
-//! than the training set (refused before any training, no model written).
+//! model's, `grip drive` with `[audio] sample_rate` other than its model's
+//! (arte-svc.toml's or `--model`'s; refused before any service starts: the
+//! drive ran, exited 0 and recorded no estimate), and `grip train --test`
+//! with a held-out folder at another rate than the training set (refused
+//! before any training, no model written).
 
 mod common;
+#[path = "common/fake_services.rs"]
+mod fake_services;
 
 use std::path::Path;
 
@@ -215,4 +220,96 @@ fn train_refuses_a_held_out_folder_at_another_rate_before_training() {
         "{err}"
     );
     assert!(!model.exists());
+}
+
+/// `config/models/paper.model` as if trained at `rate` Hz (its feature
+/// configuration's rate changed, the checksum redone), written to `path`.
+fn paper_model_at(path: &Path, rate: u32) {
+    let bytes = std::fs::read(common::config_dir().join("models/paper.model")).unwrap();
+    let nl = bytes.iter().position(|&b| b == b'\n').unwrap();
+    let payload = String::from_utf8(bytes[nl + 1..].to_vec()).unwrap();
+    assert_eq!(payload.matches("\"sample_rate\":44100").count(), 1);
+    let payload = payload.replace("\"sample_rate\":44100", &format!("\"sample_rate\":{rate}"));
+    let header = String::from_utf8(bytes[..nl].to_vec()).unwrap();
+    let version = header.split_whitespace().nth(1).unwrap();
+    let text = format!(
+        "GRIP-ARTE-MODEL {version} sha256={}\n{payload}",
+        grip_digest::sha256_hex(payload.as_bytes())
+    );
+    std::fs::write(path, text).unwrap();
+}
+
+#[test]
+fn drive_with_audio_at_another_rate_than_the_model_is_refused_before_any_service() {
+    let d = tempfile::tempdir().unwrap();
+    let cfg = d.path().join("config");
+    copy_dir(&common::config_dir(), &cfg);
+    let acq = cfg.join("audio-acq.toml");
+    let text = std::fs::read_to_string(&acq).unwrap();
+    std::fs::write(
+        &acq,
+        text.replace("sample_rate = 44100", "sample_rate = 48000"),
+    )
+    .unwrap();
+    let out = d.path().join("drive.mcap");
+    let f = fake_services::Fakes::new();
+    let (ok, so, err) = f.drive(&cfg, &[os("--out"), out.as_os_str()]);
+    assert!(
+        !ok,
+        "a drive at 48 kHz with a 44.1 kHz model started:\n{so}{err}"
+    );
+    for want in [
+        format!("{}: field audio.sample_rate is 48000 Hz", acq.display()),
+        format!(
+            "arte's model {} (the `model` of {}) expects 44100 Hz",
+            cfg.join("models/default.model").display(),
+            cfg.join("arte-svc.toml").display()
+        ),
+        format!("Set [audio] sample_rate = 44100 in {}", acq.display()),
+        "grip drive --model FILE".to_owned(),
+    ] {
+        assert!(err.contains(&want), "{want}:\n{err}");
+    }
+    assert!(
+        f.started().is_empty(),
+        "services started: {:?}",
+        f.started()
+    );
+    assert!(!out.exists());
+
+    // --model at another rate than the repository's audio
+    let m16 = d.path().join("m16.model");
+    paper_model_at(&m16, 16_000);
+    let f = fake_services::Fakes::new();
+    let (ok, so, err) = f.drive(
+        &common::config_dir(),
+        &[os("--model"), m16.as_os_str(), os("--out"), out.as_os_str()],
+    );
+    assert!(!ok, "{so}{err}");
+    assert!(
+        err.contains("field audio.sample_rate is 44100 Hz")
+            && err.contains(&format!("--model {} expects 16000 Hz", m16.display()))
+            && err.contains("a model trained at 44100 Hz"),
+        "{err}"
+    );
+    assert!(
+        f.started().is_empty(),
+        "services started: {:?}",
+        f.started()
+    );
+
+    // the same model with the audio at its rate: the check passes, the
+    // services start (the stand-in recorder then fails the drive)
+    let text = std::fs::read_to_string(&acq).unwrap();
+    std::fs::write(
+        &acq,
+        text.replace("sample_rate = 48000", "sample_rate = 16000"),
+    )
+    .unwrap();
+    let f = fake_services::Fakes::new();
+    let (_, so, err) = f.drive(
+        &cfg,
+        &[os("--model"), m16.as_os_str(), os("--out"), out.as_os_str()],
+    );
+    assert_eq!(f.started().len(), 1, "{so}{err}");
 }

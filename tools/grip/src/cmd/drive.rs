@@ -12,6 +12,7 @@ use anyhow::{Context, bail};
 use grip_config::ConfigDir;
 
 use super::Ctx;
+use crate::drive::{own_model, rates};
 use grip_drive::{self as drive, DriveLog, DrivePlan, summary};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -45,6 +46,10 @@ pub struct Args {
     /// e.g. config/vehicles/front-mic.toml.
     #[arg(long)]
     vehicle: Option<PathBuf>,
+    /// ARTE model file for arte (default: the `model` of <config-dir>/arte-svc.toml), e.g. one
+    /// from `grip train`; its sample rate must be audio-acq's [audio] sample_rate.
+    #[arg(long)]
+    model: Option<PathBuf>,
     /// Sensor-noise seed of plant-sim.
     #[arg(long, default_value_t = drive::plan::DEFAULT_SEED)]
     seed: u64,
@@ -82,6 +87,43 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         }
         None => None,
     };
+    // arte's model against the audio's rate, before any service starts:
+    // arte refuses every block at another rate, and the drive would run to
+    // the end and record no road estimate
+    let model = args.model.as_ref().map(|m| cwd.join(m));
+    let arte_model =
+        rates::arte_model(&config_dir, model.as_deref()).with_context(|| match &args.model {
+            Some(m) => format!("--model {}", m.display()),
+            None => format!(
+                "arte's model (the `model` of {})",
+                config_dir.join("arte-svc.toml").display()
+            ),
+        })?;
+    let (audio_file, audio_hz) = rates::audio_rate(&config_dir)?;
+    let model_named = match &args.model {
+        Some(_) => format!("--model {}", arte_model.path.display()),
+        None => format!(
+            "arte's model {} (the `model` of {})",
+            arte_model.path.display(),
+            config_dir.join("arte-svc.toml").display()
+        ),
+    };
+    rates::require_one_rate(
+        &audio_file,
+        audio_hz,
+        &model_named,
+        arte_model.hz,
+        "the drive would run without a single road estimate",
+        &format!(
+            "drive with a model trained at {audio_hz} Hz: `grip drive --model FILE` (`grip train --data DIR` on recordings at {audio_hz} Hz)"
+        ),
+    )?;
+    // `--model`: the services get a view of the configuration whose
+    // arte-svc.toml names the model (the log then carries it)
+    let view = match &model {
+        Some(m) => Some(own_model::view(&config_dir, m)?),
+        None => None,
+    };
     let controller = match args.controller {
         Controller::Mfc => "mfc",
         Controller::Src => "src",
@@ -93,7 +135,9 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             .with_context(|| format!("creating {}", parent.display()))?;
     }
     let plan = DrivePlan {
-        config_dir: config_dir.clone(),
+        config_dir: view
+            .as_ref()
+            .map_or_else(|| config_dir.clone(), |v| v.dir.clone()),
         scenario: args.scenario.clone(),
         duration_s: scenario.duration,
         controller: controller.into(),
@@ -105,6 +149,14 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         vehicle,
     };
     if args.dry_run {
+        if let Some(v) = &view {
+            println!(
+                "--model {}: the services' --config-dir is a view of {} made for the drive and removed after it, whose arte-svc.toml has model = \"{}\" (a copy of the file; every other entry linked)",
+                arte_model.path.display(),
+                config_dir.display(),
+                v.name
+            );
+        }
         for svc in drive::Service::START_ORDER {
             println!("{}:", svc.name());
             println!(
@@ -122,6 +174,15 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         plan.instance,
         out.display()
     );
+    if let Some(v) = &view {
+        eprintln!(
+            "drive: arte's model {} ({} Hz), as {} of a temporary view of {}",
+            arte_model.path.display(),
+            arte_model.hz,
+            v.name,
+            config_dir.display()
+        );
+    }
     let interrupt = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, Arc::clone(&interrupt))

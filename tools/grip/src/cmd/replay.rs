@@ -92,6 +92,10 @@ pub struct Replayed {
     pub text: String,
     /// The machine-readable result (`--json`).
     pub json: serde_json::Value,
+    /// arte's blocks not classified (refused for their rate, silent,
+    /// clipped, at or after an overrun, stale), one line; `None` when every
+    /// block was.
+    pub not_classified: Option<String>,
 }
 
 /// The `--json` object of a log that could not be replayed.
@@ -180,13 +184,19 @@ fn replay_dir(args: &Args, what: &WhatIf) -> anyhow::Result<()> {
                             failed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                             error_json(p, &e).to_string()
                         }
-                        Ok(r) => match r.diffs.iter().find_map(|d| d.first.as_ref()) {
-                            None => format!("{name}: identical"),
-                            Some(d) => {
-                                failed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                                format!("{name}: DIFFERENT, first divergence: {d}")
+                        Ok(r) => {
+                            let line = match r.diffs.iter().find_map(|d| d.first.as_ref()) {
+                                None => format!("{name}: identical"),
+                                Some(d) => {
+                                    failed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                                    format!("{name}: DIFFERENT, first divergence: {d}")
+                                }
+                            };
+                            match &r.not_classified {
+                                Some(n) => format!("{line}; {n}"),
+                                None => line,
                             }
-                        },
+                        }
                         Err(e) => {
                             failed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                             pb.suspend(|| eprintln!("bad log {name}: {e:#}"));
@@ -398,6 +408,10 @@ pub fn replay(
     let t1 = Instant::now();
     let roads = replay_arte(&mut prepared.lp, &clock, &log, &mut speed);
     let t_arte = t1.elapsed().as_secs_f64();
+    // arte's blocks not classified (its counters), for the report
+    let (first, last) = crate::replay::arte_window(&log);
+    let model_rate = prepared.lp.sample_rate();
+    let not_classified = speed.blocks.line(last - first, Some(model_rate));
 
     // tcs-loop
     let t_setup = Instant::now();
@@ -497,6 +511,13 @@ pub fn replay(
         o,
         "  tcs-loop's road input per cycle: {} as recorded (road_taken), {} inferred from stamps, {} not found",
         roadm.recorded, roadm.inferred, roadm.missing
+    );
+    let _ = writeln!(
+        o,
+        "  {}",
+        not_classified
+            .clone()
+            .unwrap_or_else(|| format!("arte's blocks not classified, of {}: none", last - first))
     );
     if !closed {
         let _ = writeln!(o, "  {CARRIED_OVER}");
@@ -644,6 +665,7 @@ pub fn replay(
         })).collect::<Vec<_>>(),
         "speed_match": {"exact": speed.exact, "none": speed.none, "approximated": speed.approximated},
         "road_match": {"recorded": roadm.recorded, "inferred": roadm.inferred, "missing": roadm.missing},
+        "blocks_not_classified": speed.blocks.json(last - first, model_rate),
         "old": figures(&log.cycles, &s_old),
         "new": figures(&outs.cycles, &s_new),
         "detection_delays": s_old.arte.changes.iter().zip(&s_new.arte.changes).map(|(a, b)| serde_json::json!({
@@ -664,6 +686,10 @@ pub fn replay(
             "mode".into(),
             if closed { "closed loop" } else { "open loop" }.into(),
         );
+        meta.insert(
+            "arte_blocks_not_classified".into(),
+            not_classified.clone().unwrap_or_else(|| "none".into()),
+        );
         write_log(out, &log, &truth, &outs.cycles, &outs.can, &roads, &meta)?;
         let _ = writeln!(o, "wrote {}", out.display());
     }
@@ -671,6 +697,7 @@ pub fn replay(
         diffs,
         text: o,
         json,
+        not_classified,
     })
 }
 
@@ -678,6 +705,73 @@ pub fn replay(
 mod tests {
     use super::*;
     use grip_drive::summary::ArteEval;
+
+    /// Blocks arte did not classify are in the report, not only on
+    /// stderr: the text report, `--json` and the written log's
+    /// `grip.replay` record count them (the reference drive with three
+    /// blocks made silent and a capture overrun reported later on).
+    #[test]
+    fn blocks_arte_did_not_classify_are_in_the_report() {
+        let reference =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/reference-drive.mcap");
+        let mut log = DriveLog::load_with(&reference, LoadOptions { audio: true }).unwrap();
+        let (first, last) = crate::replay::arte_window(&log);
+        assert!(last - first > 60, "{first}..{last}");
+        for b in &mut log.audio_blocks[first + 10..first + 13] {
+            b.samples.fill(0);
+        }
+        for b in &mut log.audio_blocks[first + 40..] {
+            b.xruns += 1;
+        }
+        let d = tempfile::tempdir().unwrap();
+        let bad = d.path().join("bad.mcap");
+        crate::replay::write_log(
+            &bad,
+            &log,
+            &log.truth,
+            &log.cycles,
+            &log.can,
+            &log.roads,
+            &BTreeMap::new(),
+        )
+        .unwrap();
+        let out = d.path().join("replayed.mcap");
+        let r = replay(&bad, &WhatIf::default(), Some(&out), false).unwrap();
+        let j = &r.json["blocks_not_classified"];
+        assert_eq!(j["blocks"], last - first, "{j}");
+        assert_eq!(j["silent"], 3, "{j}");
+        assert_eq!(j["clipped"], 0, "{j}");
+        assert_eq!(j["rate_mismatch"], 0, "{j}");
+        assert_eq!(j["model_rate_hz"], 44_100, "{j}");
+        let xrun = j["xrun"].as_u64().unwrap();
+        assert!(xrun > 5, "{j}");
+        let line = format!(
+            "arte's blocks not classified, of {}: 3 silent, {xrun} at or after a capture overrun",
+            last - first
+        );
+        assert!(r.text.contains(&format!("\n  {line}\n")), "{}", r.text);
+        assert_eq!(r.not_classified.as_deref(), Some(line.as_str()));
+        let written = DriveLog::load(&out).unwrap();
+        assert_eq!(
+            written.metadata["grip.replay"]
+                .get("arte_blocks_not_classified")
+                .map(String::as_str),
+            Some(line.as_str())
+        );
+
+        // the log as recorded: every block classified, said as such
+        let r = replay(&reference, &WhatIf::default(), None, false).unwrap();
+        assert!(
+            r.text.contains(&format!(
+                "\n  arte's blocks not classified, of {}: none\n",
+                last - first
+            )),
+            "{}",
+            r.text
+        );
+        assert_eq!(r.json["blocks_not_classified"]["silent"], 0);
+        assert!(r.not_classified.is_none());
+    }
 
     /// A log without ground truth judges nothing: the row says `-`, not NaN.
     #[test]

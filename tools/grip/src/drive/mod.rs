@@ -4,8 +4,13 @@
 //!
 //! - [`export`]: CSV; [`plot`]: PNGs; [`many`]: a directory of logs;
 //!   [`json`]: `grip inspect --json`.
+//! - [`rates`]: arte's model and the audio at one sample rate (the check
+//!   `grip drive` makes before any service starts, `grip replay`'s model);
+//!   [`own_model`]: `grip drive --model`'s configuration view.
 
 pub mod export;
 pub mod json;
 pub mod many;
+pub mod own_model;
 pub mod plot;
+pub mod rates;

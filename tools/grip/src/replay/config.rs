@@ -222,26 +222,11 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
 }
 
 /// The model file arte's start-up will load from `dir` (or `--model`), and
-/// the sample rate it was trained for; `None` when it cannot be read here
-/// (arte's start-up then says why).
+/// the sample rate it was trained for ([`crate::drive::rates::arte_model`]);
+/// `None` when it cannot be read here (arte's start-up then says why).
 fn model_rate(w: &WhatIf, dir: &Path) -> Option<(PathBuf, u32)> {
-    let path = match &w.model {
-        Some(m) => m.clone(),
-        None => {
-            let file = grip_io::service::ConfigArgs::in_dir(dir)
-                .own_file::<grip_arte_svc::ArteServiceConfig>();
-            let cfg =
-                <grip_arte_svc::ArteServiceConfig as grip_io::service::ServiceConfig>::load(&file)
-                    .ok()?;
-            if cfg.model.is_absolute() {
-                cfg.model
-            } else {
-                dir.join(cfg.model)
-            }
-        }
-    };
-    let model = grip_arte_svc::load_model(&path).ok()?;
-    Some((path, model.feature_config().sample_rate))
+    let m = crate::drive::rates::arte_model(dir, w.model.as_deref()).ok()?;
+    Some((m.path, m.hz))
 }
 
 /// Refuses a replay whose model was trained for another sample rate than

@@ -96,8 +96,9 @@ pub struct SpeedMatch {
     pub blocks: BlockCounts,
 }
 
-/// What arte's per-block counters said of the replayed blocks (non-zero
-/// counts are also printed as a warning by [`replay_arte`]).
+/// What arte's per-block counters said of the replayed blocks (`grip
+/// replay`'s report, `--json` and `--out` log carry them; non-zero counts
+/// are also printed as a warning by [`replay_arte`]).
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
 pub struct BlockCounts {
     /// Blocks refused for a sample rate other than the model's.
@@ -108,6 +109,12 @@ pub struct BlockCounts {
     pub silent: u64,
     /// Blocks not classified: clipped.
     pub clipped: u64,
+    /// Blocks not classified: a new capture overrun, or within the hold
+    /// after one.
+    pub xrun: u64,
+    /// Blocks dropped unclassified: their audio older than `[input]
+    /// max_lag_s` when arte took them.
+    pub stale: u64,
 }
 
 impl BlockCounts {
@@ -119,7 +126,24 @@ impl BlockCounts {
             bad_rate: stats.bad_rate.load(Relaxed),
             silent: stats.silent_blocks.load(Relaxed),
             clipped: stats.clipped_blocks.load(Relaxed),
+            xrun: stats.xrun_blocks.load(Relaxed),
+            stale: stats.stale_blocks.load(Relaxed),
         }
+    }
+
+    /// The counts for `grip replay --json` (`blocks`: the blocks replayed;
+    /// `model_rate`: the model's rate, Hz): every count, zero or not.
+    pub fn json(&self, blocks: usize, model_rate: u32) -> serde_json::Value {
+        serde_json::json!({
+            "blocks": blocks,
+            "model_rate_hz": model_rate,
+            "rate_mismatch": self.rate_mismatch,
+            "refused_rate_hz": (self.rate_mismatch > 0).then_some(self.bad_rate),
+            "silent": self.silent,
+            "clipped": self.clipped,
+            "xrun": self.xrun,
+            "stale": self.stale,
+        })
     }
 
     /// The non-zero counts as one line (`None` when all are zero), for a
@@ -143,6 +167,12 @@ impl BlockCounts {
         }
         if self.clipped > 0 {
             parts.push(format!("{} clipped", self.clipped));
+        }
+        if self.xrun > 0 {
+            parts.push(format!("{} at or after a capture overrun", self.xrun));
+        }
+        if self.stale > 0 {
+            parts.push(format!("{} stale (older than max_lag_s)", self.stale));
         }
         (!parts.is_empty()).then(|| {
             format!(
