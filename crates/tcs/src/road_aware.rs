@@ -304,6 +304,47 @@ impl PreviewParams {
     }
 }
 
+/// The wheel's word on a binding cap, in the grippy direction
+/// (`release_slip_share`, `release_s`): one rule, kept for the believed
+/// road's cap and for the cap of the road the microphone says is under
+/// the wheel.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct CapRelease {
+    /// How long the wheel has contradicted the cap, s.
+    contradicted_s: f64,
+    /// The road whose cap the wheel has overruled, if any.
+    released: Option<usize>,
+}
+
+impl CapRelease {
+    /// One cycle. A release holds while `keep` and while `key` (the road
+    /// the cap belongs to now) is the road released. The cap of
+    /// `candidate`, when there is one and nothing is released, is released
+    /// once the wheel has contradicted it (`contradicts`) for `release_s`.
+    fn step(
+        &mut self,
+        key: Option<usize>,
+        keep: bool,
+        candidate: Option<usize>,
+        contradicts: bool,
+        dt: f64,
+        p: &PreviewParams,
+    ) {
+        if !keep || self.released.is_some_and(|r| Some(r) != key) {
+            self.released = None;
+        }
+        match candidate {
+            Some(r) if self.released.is_none() && contradicts => {
+                self.contradicted_s += dt;
+                if self.contradicted_s >= p.release_s && p.release_slip_share > 0.0 {
+                    self.released = Some(r);
+                }
+            }
+            _ => self.contradicted_s = 0.0,
+        }
+    }
+}
+
 /// What [`RoadAware::step`] gives for one cycle.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Guidance {
@@ -338,19 +379,13 @@ pub struct RoadAware {
     lead: f64,
     last_decision: f64,
     dt: f64,
-    /// Time the wheel has contradicted the binding cap of the believed road, s.
-    contradicted_s: f64,
-    /// The believed road whose cap the wheel has overruled (see
-    /// `release_slip_share`), if any.
-    released: Option<usize>,
+    /// The wheel's word on the believed road's binding cap.
+    release: CapRelease,
     /// Last cycle's cap, N m.
     last_cap: f64,
-    /// Time the wheel has contradicted the binding cap of the road the
-    /// microphone says is under it (when that carries less than the
-    /// believed road), s.
-    here_contradicted_s: f64,
-    /// The heard road under the wheel whose cap the wheel has overruled.
-    here_released: Option<usize>,
+    /// The wheel's word on the binding cap of the road the microphone says
+    /// is under it (when that carries less than the believed road).
+    here_release: CapRelease,
     /// Last cycle's cap came from the heard road under the wheel: that road.
     here_binding: Option<usize>,
     /// The wheel's spin and its cut, as of last cycle (see `spin`).
@@ -444,11 +479,9 @@ impl RoadAware {
             lead: vehicle.mic_lead_m,
             last_decision: f64::NEG_INFINITY,
             dt,
-            contradicted_s: 0.0,
-            released: None,
+            release: CapRelease::default(),
             last_cap: f64::INFINITY,
-            here_contradicted_s: 0.0,
-            here_released: None,
+            here_release: CapRelease::default(),
             here_binding: None,
             spin: Spin::Gripping,
             j_w: vehicle.j_w,
@@ -464,11 +497,9 @@ impl RoadAware {
         self.belief.reset();
         self.queue.clear();
         self.last_decision = f64::NEG_INFINITY;
-        self.contradicted_s = 0.0;
-        self.released = None;
+        self.release = CapRelease::default();
         self.last_cap = f64::INFINITY;
-        self.here_contradicted_s = 0.0;
-        self.here_released = None;
+        self.here_release = CapRelease::default();
         self.here_binding = None;
         self.spin = Spin::Gripping;
         self.slip_lp.reset();
@@ -684,10 +715,6 @@ impl RoadAware {
         // The wheel's word on a binding cap, in the grippy direction: the
         // motor delivers the cap and the wheel slips well below what the
         // believed road would need for it.
-        if self.released.is_some_and(|r| r != road) || spinning || !usable {
-            self.released = None;
-        }
-        let slip_ref = self.lambda_release.get(road).copied().unwrap_or(f64::NAN);
         let slip_lp = if lambda.is_finite() {
             self.slip_lp.step(lambda)
         } else {
@@ -697,19 +724,23 @@ impl RoadAware {
         // heard ahead is placed up to a frame early, the cautious end, and
         // the wheel may still be on the grippier road before it).
         let surely_on = view.here.is_none_or(|h| x >= h.x_sure);
-        if usable
-            && surely_on
-            && self.released.is_none()
-            && m.torque >= 0.95 * self.last_cap
-            && slip_lp < self.p.release_slip_share * slip_ref
-        {
-            self.contradicted_s += self.dt;
-            if self.contradicted_s >= self.p.release_s && self.p.release_slip_share > 0.0 {
-                self.released = Some(road);
-            }
-        } else {
-            self.contradicted_s = 0.0;
-        }
+        // The wheel contradicts road `r`'s binding cap this cycle: the motor
+        // delivers the cap and the wheel slips well below what `r` would
+        // need for it.
+        let contradicts = |r: usize| {
+            surely_on
+                && m.torque >= 0.95 * self.last_cap
+                && slip_lp
+                    < self.p.release_slip_share
+                        * self.lambda_release.get(r).copied().unwrap_or(f64::NAN)
+        };
+        let (dt, p) = (self.dt, &self.p);
+        // The believed road's cap: released until the belief changes road,
+        // the wheel spins or the estimate is not usable.
+        let believed = usable.then_some(road);
+        let keep = !spinning && usable;
+        let said = believed.is_some_and(contradicts);
+        self.release.step(Some(road), keep, believed, said, dt, p);
         // The same word on the cap of the road the microphone says is under
         // the wheel, when that cap is the one binding (it carries less than
         // the believed road: the cautious direction, which the belief alone
@@ -719,29 +750,14 @@ impl RoadAware {
         // would need 0.03). Released until the heard road changes, the
         // stream dies or the wheel spins.
         let here_road = view.here.map(|h| h.road);
-        if self.here_released.is_some_and(|r| Some(r) != here_road) || spinning || !alive {
-            self.here_released = None;
-        }
-        match self.here_binding {
-            Some(r)
-                if Some(r) == here_road
-                    && surely_on
-                    && self.here_released.is_none()
-                    && m.torque >= 0.95 * self.last_cap
-                    && slip_lp
-                        < self.p.release_slip_share
-                            * self.lambda_release.get(r).copied().unwrap_or(f64::NAN) =>
-            {
-                self.here_contradicted_s += self.dt;
-                if self.here_contradicted_s >= self.p.release_s && self.p.release_slip_share > 0.0 {
-                    self.here_released = Some(r);
-                }
-            }
-            _ => self.here_contradicted_s = 0.0,
-        }
+        let binding = self.here_binding.filter(|&r| Some(r) == here_road);
+        let keep = !spinning && alive;
+        let said = binding.is_some_and(contradicts);
+        self.here_release
+            .step(here_road, keep, binding, said, dt, p);
 
-        let released = self.released;
-        let here_released = self.here_released;
+        let released = self.release.released;
+        let here_released = self.here_release.released;
         let mut here_cap = f64::INFINITY;
         let mut cap = f64::INFINITY;
         // What the microphone says of the road under the wheel caps too when
