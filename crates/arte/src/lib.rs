@@ -16,6 +16,8 @@
 //! - `model`: the versioned, checksummed model file, standardisation inside.
 //! - `eval`: cross-validation by recording, confusion matrices, macro-F1.
 //! - `calib`: confidence calibration of the stream's decisions, ECE, reliability.
+//! - `quality`: when audio is not fit to classify (silence, clipping,
+//!   overruns): one rule for the arte service and the offline commands.
 #![warn(missing_docs)]
 
 pub mod calib;
@@ -23,6 +25,7 @@ pub mod eval;
 pub mod features;
 pub mod mlp;
 pub mod model;
+pub mod quality;
 pub mod select;
 pub mod stream;
 pub mod stream_eval;

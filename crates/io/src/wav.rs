@@ -24,7 +24,12 @@
 //! - Refused with [`WavErrorKind::Layout`]: integer containers wider than
 //!   4 bytes, valid bits above the container width, and plain-PCM widths
 //!   hound cannot read (e.g. 16 bits in 4-byte containers).
-//! - Several channels are **mixed down** to mono by averaging.
+//! - Several channels are **mixed down** to mono by averaging, or one of
+//!   them is taken ([`Channel`]: [`read_channel`], [`decode_channel`],
+//!   [`read_channel_at`]; a channel beyond the file's count is
+//!   [`WavErrorKind::NoSuchChannel`]). The live ALSA source publishes one
+//!   channel; averaging a stereo pair whose channels are in opposite phase
+//!   cancels the signal (to silence, where the pair is exactly opposite).
 //! - A file at another sample rate is **resampled** to the rate asked for by
 //!   [`read_mono_at`] ([`resample`]); [`read_mono`] and [`decode_mono`] keep
 //!   the file's rate. The result, an [`Audio`], records the file's own rate
@@ -52,11 +57,12 @@ use std::path::{Path, PathBuf};
 pub struct Audio<S = f32> {
     /// Sample rate of `samples`, Hz.
     pub sample_rate: u32,
-    /// Mono samples (channels averaged).
+    /// Mono samples (the channels averaged, or the one asked for:
+    /// [`Channel`]).
     pub samples: Vec<S>,
     /// The file's own sample rate, Hz.
     pub file_rate: u32,
-    /// The file's channel count (mixed down to mono).
+    /// The file's channel count (made mono by [`Channel`]).
     pub file_channels: u16,
     /// Float samples beyond full scale, clamped to [−1, 1] (counted per
     /// channel sample, before the mixdown; 0 for integer files).
@@ -139,6 +145,14 @@ pub enum WavErrorKind {
         /// Samples the header announces.
         expected: usize,
     },
+    /// A channel beyond the file's channel count was asked for.
+    #[error("has {channels} channel(s); channel {channel} (0-based) does not exist")]
+    NoSuchChannel {
+        /// The channel asked for (0-based).
+        channel: u16,
+        /// The file's channel count.
+        channels: u16,
+    },
     /// The file holds no samples (for a caller that needs some).
     #[error("has no samples")]
     NoSamples,
@@ -183,8 +197,24 @@ impl WavErrorKind {
     }
 }
 
-/// Reads a WAV file as mono at its own sample rate.
+/// Which channels of a file make its mono signal.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Channel {
+    /// The average of all channels (a mono file's only one).
+    #[default]
+    Average,
+    /// This channel alone (0-based).
+    One(u16),
+}
+
+/// Reads a WAV file as mono (channels averaged) at its own sample rate.
 pub fn read_mono(path: &Path) -> Result<Audio, WavError> {
+    read_channel(path, Channel::Average)
+}
+
+/// Reads a WAV file's channel `channel` (or their average) at its own
+/// sample rate.
+pub fn read_channel(path: &Path, channel: Channel) -> Result<Audio, WavError> {
     let mut file = std::fs::File::open(path).map_err(|e| WavErrorKind::Open(e).at(path))?;
     // what the file can hold bounds the samples reserved for (0: unknown,
     // no reservation)
@@ -194,7 +224,7 @@ pub fn read_mono(path: &Path) -> Result<Audio, WavError> {
         .map_err(|e| WavErrorKind::Open(e).at(path))?;
     hound::WavReader::new(std::io::BufReader::new(file))
         .map_err(WavErrorKind::open)
-        .and_then(|r| decode(r, fmt, size))
+        .and_then(|r| decode(r, fmt, size, channel))
         .map(|a| warn_clamped(a, path))
         .map_err(|k| k.at(path))
 }
@@ -203,10 +233,16 @@ pub fn read_mono(path: &Path) -> Result<Audio, WavError> {
 /// resamples (8 kHz telephone audio to 96 kHz is 12).
 pub const MAX_UPSAMPLE: u64 = 16;
 
-/// Reads a WAV file as mono at `rate` Hz, resampling ([`resample`]) if the
-/// file has another rate.
+/// Reads a WAV file as mono (channels averaged) at `rate` Hz, resampling
+/// ([`resample`]) if the file has another rate.
 pub fn read_mono_at(path: &Path, rate: u32) -> Result<Audio, WavError> {
-    let mut a = read_mono(path)?;
+    read_channel_at(path, rate, Channel::Average)
+}
+
+/// [`read_channel`] at `rate` Hz, resampling ([`resample`]) if the file has
+/// another rate.
+pub fn read_channel_at(path: &Path, rate: u32, channel: Channel) -> Result<Audio, WavError> {
+    let mut a = read_channel(path, channel)?;
     if a.sample_rate != rate {
         if rate == 0 {
             return Err(WavErrorKind::ZeroTargetRate.at(path));
@@ -227,10 +263,15 @@ pub fn read_mono_at(path: &Path, rate: u32) -> Result<Audio, WavError> {
 /// Decodes the bytes of a WAV file already in memory (`grip train` hashes
 /// them too) as mono at the file's own rate; `path` names the file in errors.
 pub fn decode_mono(bytes: &[u8], path: &Path) -> Result<Audio, WavError> {
+    decode_channel(bytes, path, Channel::Average)
+}
+
+/// [`decode_mono`], taking `channel` (or the average).
+pub fn decode_channel(bytes: &[u8], path: &Path, channel: Channel) -> Result<Audio, WavError> {
     let fmt = find_fmt(&mut std::io::Cursor::new(bytes));
     hound::WavReader::new(std::io::Cursor::new(bytes))
         .map_err(WavErrorKind::open)
-        .and_then(|r| decode(r, fmt, bytes.len() as u64))
+        .and_then(|r| decode(r, fmt, bytes.len() as u64, channel))
         .map(|a| warn_clamped(a, path))
         .map_err(|k| k.at(path))
 }
@@ -505,18 +546,27 @@ fn read_full<R: Read>(r: &mut R, buf: &mut [u8]) -> std::io::Result<usize> {
 }
 
 /// Decodes `reader`, from a file of `file_bytes` bytes whose fmt chunk is
-/// `fmt` (our own reading of it): the samples are reserved for up to what
-/// the file can hold, not what its header claims (a data-chunk length of
-/// 0xFFFFFFFF would ask for 17 GB).
+/// `fmt` (our own reading of it), to the mono signal `channel` says: the
+/// samples are reserved for up to what the file can hold, not what its
+/// header claims (a data-chunk length of 0xFFFFFFFF would ask for 17 GB).
 fn decode<R: std::io::Read>(
     mut reader: hound::WavReader<R>,
     fmt: Option<Fmt>,
     file_bytes: u64,
+    channel: Channel,
 ) -> Result<Audio, WavErrorKind> {
     let spec = reader.spec();
     let ch = spec.channels;
     if ch == 0 {
         return Err(WavErrorKind::NoChannels);
+    }
+    if let Channel::One(c) = channel
+        && c >= ch
+    {
+        return Err(WavErrorKind::NoSuchChannel {
+            channel: c,
+            channels: ch,
+        });
     }
     if spec.sample_rate == 0 {
         return Err(WavErrorKind::NoSampleRate);
@@ -579,13 +629,16 @@ fn decode<R: std::io::Read>(
             expected,
         });
     }
-    let samples = if ch == 1 {
-        inter
-    } else {
-        inter
+    let samples = match channel {
+        _ if ch == 1 => inter,
+        Channel::Average => inter
             .chunks_exact(usize::from(ch))
             .map(|f| f.iter().sum::<f32>() / f32::from(ch))
-            .collect()
+            .collect(),
+        Channel::One(c) => inter
+            .chunks_exact(usize::from(ch))
+            .map(|f| f[usize::from(c)])
+            .collect(),
     };
     Ok(Audio {
         sample_rate: spec.sample_rate,
@@ -734,6 +787,35 @@ mod tests {
             let expect = (i as f32 * 100.0 - i as f32 * 50.0) / 2.0 / 32_768.0;
             assert!((s - expect).abs() < 1e-6, "{i}: {s} vs {expect}");
         }
+    }
+
+    /// One channel of a stereo file, by number (0-based), read, decoded in
+    /// memory and resampled alike; averaging a pair in opposite phase
+    /// gives silence; a channel beyond the file's count is an error naming
+    /// the file and its channel count.
+    #[test]
+    fn one_channel_is_taken_by_number() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("pair.wav");
+        let inter: Vec<i16> = (0..100i16).flat_map(|i| [i * 100, -i * 100]).collect();
+        write_spec(&p, spec(2, 8000, 16, false), &inter);
+        let left = read_channel(&p, Channel::One(0)).unwrap();
+        let right = decode_channel(&std::fs::read(&p).unwrap(), &p, Channel::One(1)).unwrap();
+        assert_eq!(left.file_channels, 2);
+        for (i, (l, r)) in left.samples.iter().zip(&right.samples).enumerate() {
+            assert_eq!(
+                (*l, *r),
+                (i as f32 * 100.0 / 32768.0, -(i as f32) * 100.0 / 32768.0)
+            );
+        }
+        assert!(read_mono(&p).unwrap().samples.iter().all(|&v| v == 0.0));
+        let up = read_channel_at(&p, 16_000, Channel::One(0)).unwrap();
+        assert_eq!((up.sample_rate, up.samples.len()), (16_000, 200));
+        let e = read_channel(&p, Channel::One(2)).unwrap_err().to_string();
+        assert!(
+            e.contains("pair.wav") && e.contains("has 2 channel(s)") && e.contains("channel 2"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -18,7 +18,13 @@
 //! folder name), and `speed_kmh` (the vehicle speed of the recording, needed
 //! to train or evaluate a speed-normalised model). Other columns (seed, SNR,
 //! ...) are ignored here. Files missing from the manifest are their own
-//! recordings; manifest rows naming missing files are an error.
+//! recordings; manifest rows naming missing files are an error, and so is
+//! a file listed twice (both lines named). Column names are matched in any
+//! case ([`column_key`], the rule of every manifest and segments reader).
+//!
+//! Also here: what the commands that read recordings share: `--channel`
+//! ([`ChannelArg`]) and the arte service's audio-quality rule applied to
+//! recordings ([`FileJudge`], [`Excluded`]).
 //!
 //! Errors name the path and the reason: a class folder without WAV files, a
 //! dataset with fewer than two classes, no WAV files at all, an unreadable
@@ -28,10 +34,225 @@
 //! in order (class, then path): `class \0 relative/path \0 sha256(file) \n`.
 
 use anyhow::{Context, Result, bail};
+use grip_arte::quality::{AudioQuality, BadAudio};
 use grip_digest::sha256_hex;
-use grip_io::wav::{Audio, decode_mono};
+use grip_io::wav::{Audio, Channel, decode_channel};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+
+/// `--channel N` of the commands that read recordings for training or
+/// evaluation.
+#[derive(clap::Args, Clone, Copy, Debug, Default)]
+pub struct ChannelArg {
+    /// Channel of multi-channel WAV files to use (0-based), as the live
+    /// ALSA source publishes one (`[alsa] channel` in audio-acq.toml).
+    /// Default: the channels averaged; a stereo pair in opposite phase
+    /// then cancels, to silence, which is excluded as the arte service
+    /// would refuse it.
+    #[arg(long)]
+    pub channel: Option<u16>,
+}
+
+impl ChannelArg {
+    /// The channel selection for `grip_io::wav`.
+    pub fn get(self) -> Channel {
+        self.channel.map_or(Channel::Average, Channel::One)
+    }
+
+    /// Whether the file at `path` has the channel asked for, from its
+    /// header (before any long work): the error names the file and its
+    /// channel count. A header this cannot read passes (the decoder says
+    /// why later).
+    pub fn check(self, path: &Path) -> Result<()> {
+        if let (Some(channel), Ok(h)) = (self.channel, grip_io::wav::header(path))
+            && channel >= h.channels
+        {
+            return Err(grip_io::wav::WavErrorKind::NoSuchChannel {
+                channel,
+                channels: h.channels,
+            }
+            .at(path)
+            .into());
+        }
+        Ok(())
+    }
+
+    /// ` --channel N`, or nothing for the default.
+    pub fn command_line(self) -> String {
+        self.channel
+            .map_or(String::new(), |c| format!(" --channel {c}"))
+    }
+}
+
+/// A CSV column name as every reader here compares it: trimmed, in lower
+/// case (`File`, ` speed_KMH` name the columns `file`, `speed_kmh`).
+pub fn column_key(name: &str) -> String {
+    name.trim().to_ascii_lowercase()
+}
+
+/// A CSV header with every name as [`column_key`] gives it, for serde.
+pub fn column_keys(headers: &csv::StringRecord) -> csv::StringRecord {
+    headers.iter().map(column_key).collect()
+}
+
+/// The line of `text` (1 = the first) where record number `k` (0-based,
+/// the header not counted) starts: from its byte position, blank lines and
+/// quoted line breaks counted (the reader's own count skips blank lines and
+/// is off with CRLF); the record's number + 2 if the reader has none.
+pub fn record_line(text: &[u8], rec: &csv::StringRecord, k: usize) -> usize {
+    rec.position().map_or(k + 2, |p| {
+        // the record's position is where the reader began it, before the
+        // blank lines it skipped
+        let mut at = (p.byte() as usize).min(text.len());
+        while at < text.len() && matches!(text[at], b'\n' | b'\r') {
+            at += 1;
+        }
+        1 + text[..at].iter().filter(|&&c| c == b'\n').count()
+    })
+}
+
+/// The line each file of a manifest was listed on: a second row for the
+/// same file is an error ([`FirstRows::first`]), not a silent override.
+#[derive(Default)]
+pub struct FirstRows(BTreeMap<String, usize>);
+
+impl FirstRows {
+    /// Notes `file` on `line` of `manifest`; an error naming the file and
+    /// both lines if it was listed before.
+    pub fn first(&mut self, manifest: &Path, file: &str, line: usize) -> Result<()> {
+        if let Some(before) = self.0.insert(file.to_owned(), line) {
+            bail!(
+                "manifest {}: file `{file}` is listed twice, on line {before} and on line {line}; keep one row per file",
+                manifest.display()
+            );
+        }
+        Ok(())
+    }
+}
+
+/// What the arte service's audio-quality rule ([`AudioQuality`]) left out
+/// of a command's recordings: the frames (or blocks) it would refuse live,
+/// per reason, and the files it refused entirely.
+#[derive(Clone, Debug, Default)]
+pub struct Excluded {
+    /// Frames judged.
+    pub judged: usize,
+    /// Frames refused, per reason ([`BadAudio::ALL`] order).
+    pub refused: [usize; 3],
+    /// Files every frame of which was refused.
+    pub files: Vec<String>,
+}
+
+impl Excluded {
+    /// Frames refused.
+    pub fn frames(&self) -> usize {
+        self.refused.iter().sum()
+    }
+
+    /// `silence 3, clipping 1` (the reasons that occurred).
+    fn reasons(refused: &[usize; 3]) -> String {
+        BadAudio::ALL
+            .iter()
+            .zip(refused)
+            .filter(|(_, n)| **n > 0)
+            .map(|(r, n)| format!("{r} {n}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// Adds `other`.
+    pub fn merge(&mut self, other: Excluded) {
+        self.judged += other.judged;
+        for (a, b) in self.refused.iter_mut().zip(other.refused) {
+            *a += b;
+        }
+        self.files.extend(other.files);
+    }
+
+    /// One line for a report: how many files and frames were excluded and
+    /// why; `None` when nothing was.
+    pub fn summary(&self, unit: &str) -> Option<String> {
+        (self.frames() > 0).then(|| {
+            format!(
+                "excluded by the arte service's audio-quality rule (it refuses such audio live): {} file(s) entirely{}, {} of {} {unit}s ({})",
+                self.files.len(),
+                if self.files.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", self.files.join(", "))
+                },
+                self.frames(),
+                self.judged,
+                Self::reasons(&self.refused)
+            )
+        })
+    }
+}
+
+/// Judges the frames (or blocks) of one file by the arte service's rule
+/// and, when done, warns of what it refused, naming the file and why.
+pub struct FileJudge {
+    quality: AudioQuality,
+    counts: Excluded,
+}
+
+impl FileJudge {
+    /// A judge for one file, by the service's default rule.
+    pub fn new() -> Self {
+        Self {
+            quality: AudioQuality::default(),
+            counts: Excluded::default(),
+        }
+    }
+
+    /// Whether `frame` is fit to classify (counted either way).
+    pub fn accept(&mut self, frame: &[f32]) -> bool {
+        self.counts.judged += 1;
+        match self.quality.judge_f32(frame) {
+            None => true,
+            Some(why) => {
+                self.counts.refused[why as usize] += 1;
+                false
+            }
+        }
+    }
+
+    /// Ends the file `name` (read as `audio`, by `channel`): a warning on
+    /// stderr naming it and the reasons when a frame was refused; its
+    /// counts (with the file among the refused ones when every frame was)
+    /// added to `total`. `unit`: "frame" or "block".
+    pub fn finish(
+        self,
+        name: &str,
+        audio: &Audio,
+        channel: Channel,
+        unit: &str,
+        total: &mut Excluded,
+    ) {
+        let mut c = self.counts;
+        let n = c.frames();
+        if n > 0 {
+            let hint = if channel == Channel::Average && audio.file_channels > 1 && c.refused[0] > 0
+            {
+                format!(
+                    "; its {} channels are averaged: a pair in opposite phase cancels, --channel N reads one",
+                    audio.file_channels
+                )
+            } else {
+                String::new()
+            };
+            eprintln!(
+                "warning: {name}: {n} of {} {unit}s excluded ({}): the arte service would refuse this audio{hint}",
+                c.judged,
+                Excluded::reasons(&c.refused)
+            );
+            if n == c.judged {
+                c.files.push(name.to_owned());
+            }
+        }
+        total.merge(c);
+    }
+}
 
 /// One WAV file of the dataset.
 #[derive(Clone, Debug)]
@@ -200,11 +421,8 @@ impl Dataset {
                 .with_context(|| format!("manifest {}: bad header", manifest.display()))?
                 .clone();
             // column names as written or in another case (`Speed_kmh`)
-            let col = |n: &str| {
-                headers
-                    .iter()
-                    .position(|h| h.trim().eq_ignore_ascii_case(n))
-            };
+            let keys = column_keys(&headers);
+            let col = |n: &str| keys.iter().position(|h| h == n);
             let Some(fcol) = col("file") else {
                 bail!(
                     "manifest {}: no `file` column (header: {:?})",
@@ -219,25 +437,16 @@ impl Dataset {
             let root_abs = std::fs::canonicalize(&self.root).ok();
             // for the line numbers of errors (the reader skips blank lines
             // and does not count them)
-            let text = std::fs::read_to_string(&manifest).unwrap_or_default();
+            let text = std::fs::read(&manifest).unwrap_or_default();
+            let mut rows = FirstRows::default();
             for (k, rec) in rdr.records().enumerate() {
                 let rec = rec.with_context(|| {
                     format!("manifest {}: record {}", manifest.display(), k + 1)
                 })?;
-                // the file's line (blank lines and quoted line breaks
-                // counted); the record's number + 1 if the reader has none
-                let line = rec.position().map_or(k + 2, |p| {
-                    // the record's position is where the reader began it,
-                    // before the blank lines it skipped
-                    let b = text.as_bytes();
-                    let mut at = (p.byte() as usize).min(b.len());
-                    while at < b.len() && (b[at] == b'\n' || b[at] == b'\r') {
-                        at += 1;
-                    }
-                    1 + b[..at].iter().filter(|&&c| c == b'\n').count()
-                });
+                let line = record_line(&text, &rec, k);
                 let file =
                     manifest_file(rec.get(fcol).unwrap_or(""), &self.root, root_abs.as_deref());
+                rows.first(&manifest, &file, line)?;
                 let Some(entry) = by_rel.get(file.as_str()) else {
                     let top = file.split('/').next().unwrap_or("");
                     if !matches!(top, "" | "." | "..")
@@ -309,19 +518,19 @@ impl Dataset {
 }
 
 /// Reads a WAV file of a dataset (PCM 1..32-bit integer or 32-bit float,
-/// any channel count, averaged to mono; `grip_io::wav` decodes it) at its
-/// own rate, and the SHA-256 of its bytes (for the dataset hash): the file
-/// is read once for both.
-pub fn read_wav(path: &Path) -> Result<(Audio, String)> {
+/// any channel count: `channel` of them, or their average; `grip_io::wav`
+/// decodes it) at its own rate, and the SHA-256 of its bytes (for the
+/// dataset hash): the file is read once for both.
+pub fn read_wav(path: &Path, channel: Channel) -> Result<(Audio, String)> {
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
     let sha256 = sha256_hex(&bytes);
-    Ok((decode_mono(&bytes, path)?, sha256))
+    Ok((decode_channel(&bytes, path, channel)?, sha256))
 }
 
 /// A manifest's `file` as a path relative to the dataset `root`, with `/`:
 /// `./asphalt/a1.wav` (what `find .` prints) and a path under the root,
 /// absolute or not, name the same file as `asphalt/a1.wav`.
-fn manifest_file(raw: &str, root: &Path, root_abs: Option<&Path>) -> String {
+pub fn manifest_file(raw: &str, root: &Path, root_abs: Option<&Path>) -> String {
     let mut f = raw.trim().replace('\\', "/");
     let p = Path::new(&f);
     let under = |base: &Path| {
@@ -389,7 +598,7 @@ mod tests {
         );
         assert!(e.contains("no class folder `ice`"), "{e}");
         assert_eq!(ds.entries[0].rel, "asphalt/sub/z.wav");
-        let (a, sha) = read_wav(&ds.entries[0].path).unwrap();
+        let (a, sha) = read_wav(&ds.entries[0].path, Channel::Average).unwrap();
         assert_eq!((a.sample_rate, a.samples.len()), (8000, 100));
         assert!(a.samples.iter().all(|v| v.abs() <= 1.0));
         assert_eq!(
@@ -444,6 +653,17 @@ mod tests {
         // the line of the file, blank lines counted
         let e = scan_err("file,speed_kmh\n\nasphalt/a1.wav,fast\n");
         assert!(e.contains("manifest.csv line 3"), "{e}");
+        // a file listed twice (here once as ./): both lines, not the last
+        // row winning in silence
+        let e =
+            scan_err("file,recording\nasphalt/a1.wav,d1\nasphalt/a2.wav,d1\n./asphalt/a1.wav,d2\n");
+        assert!(
+            e.contains("asphalt/a1.wav")
+                && e.contains("listed twice")
+                && e.contains("line 2")
+                && e.contains("line 4"),
+            "{e}"
+        );
     }
 
     /// A manifest written with `find .` (`./asphalt/a1.wav`), with paths
@@ -509,14 +729,14 @@ mod tests {
             .iter()
             .find(|e| e.rel == "gravel/bad.wav")
             .unwrap();
-        let e = format!("{:#}", read_wav(&bad.path).unwrap_err());
+        let e = format!("{:#}", read_wav(&bad.path, Channel::Average).unwrap_err());
         assert!(
             e.contains("bad.wav") && e.contains("not a valid WAV"),
             "{e}"
         );
         let e = format!(
             "{:#}",
-            read_wav(&d.path().join("gravel/none.wav")).unwrap_err()
+            read_wav(&d.path().join("gravel/none.wav"), Channel::Average).unwrap_err()
         );
         assert!(e.contains("cannot read") && e.contains("none.wav"), "{e}");
     }

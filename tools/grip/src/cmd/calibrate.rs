@@ -17,9 +17,18 @@
 //! time (`t_end`). That is exactly what a controller receives. A decision
 //! whose time lies in a gap between segments (or more than one hop past the
 //! last) has no true road: it is left out, and the report says how many.
+//!
+//! Audio the arte service would refuse (`grip_arte::quality`: silence,
+//! clipping) is treated as the service treats it: each 1024-sample block
+//! is judged before it is pushed; a refused block gives no decision and the
+//! estimator restarts at the next good one. The refused blocks are counted
+//! in the report, each file's named in a warning; recordings of which
+//! every block is refused are an error naming the folder. `--channel N`
+//! reads one channel of multi-channel files (default: their average).
 
 use super::Ctx;
 use super::dataset::{ChangeRecording, read_changes, truth_file};
+use crate::dataset::{ChannelArg, Excluded, FileJudge};
 use anyhow::{Context, Result, bail};
 use grip_arte::calib::{Calibration, Method, Reliability, StreamCalibration, gate_stats};
 use grip_arte::model::{Model, Predictor};
@@ -48,6 +57,8 @@ pub struct Args {
     pub out: PathBuf,
     #[command(flatten)]
     pub fit: FitArgs,
+    #[command(flatten)]
+    pub channel: ChannelArg,
 }
 
 /// How the calibration is fitted (shared with `grip train --calib-data`).
@@ -92,15 +103,23 @@ impl FitArgs {
     }
 }
 
-/// Runs the stream over one change recording; its decisions in time order
-/// and its length (s).
+/// The samples of a block, as the arte service receives them.
+const BLOCK: usize = 1024;
+
+/// Runs the stream over one change recording (read by `channel`) as the
+/// arte service would: its decisions in time order and its length (s).
+/// Blocks the service would refuse ([`FileJudge`]) give no decision and
+/// restart the estimator; they are added to `excluded`, the file named in
+/// a warning.
 pub fn stream_recording(
     est: &mut StreamEstimator<Predictor>,
     r: &ChangeRecording,
     sample_rate: u32,
     where_: &Path,
+    channel: wav::Channel,
+    excluded: &mut Excluded,
 ) -> Result<(Vec<Judged>, f64)> {
-    let audio = wav::read_mono_at(&r.path, sample_rate)?;
+    let audio = wav::read_channel_at(&r.path, sample_rate, channel)?;
     est.reset();
     if est.speed_normalised() && r.segments.iter().any(|s| s.3.is_none()) {
         bail!(
@@ -109,43 +128,57 @@ pub fn stream_recording(
             r.path.display(),
         );
     }
-    let block = 1024;
     let fs = f64::from(sample_rate);
     let mut dec: Vec<Judged> = Vec::new();
-    for (bi, b) in audio.samples.chunks(block).enumerate() {
-        est.set_speed(r.speed_at((bi * block) as f64 / fs).map(|v| v / 3.6));
+    let mut judge = FileJudge::new();
+    // the recording's time (s) where the estimator last restarted: its
+    // decisions' times count from there
+    let mut since = 0.0;
+    for (bi, b) in audio.samples.chunks(BLOCK).enumerate() {
+        let t0 = (bi * BLOCK) as f64 / fs;
+        if !judge.accept(b) {
+            est.reset();
+            since = t0 + b.len() as f64 / fs;
+            continue;
+        }
+        est.set_speed(r.speed_at(t0).map(|v| v / 3.6));
         est.push(b, |d| {
             dec.push(Judged {
-                t_start: d.t_start,
-                t_end: d.t_end,
+                t_start: since + d.t_start,
+                t_end: since + d.t_end,
                 class: d.class,
                 raw_class: d.raw_class,
                 confidence: d.confidence,
             });
         });
     }
+    let name = r.path.display().to_string();
+    judge.finish(&name, &audio, channel, "block", excluded);
     Ok((dec, audio.samples.len() as f64 / fs))
 }
 
 /// Every decision's confidence and whether it named the true road at its
-/// time, over the change recordings in `dirs`, and how many decisions were
-/// unjudged (no segment at their time: a gap, or more than `hop_s` past the
-/// last segment). `frame_s`: the model's frame (how far past its file's
-/// end a segment may end).
+/// time, over the change recordings in `dirs` (read by `channel`), how many
+/// decisions were unjudged (no segment at their time: a gap, or more than
+/// `hop_s` past the last segment), and the blocks left out as the arte
+/// service would refuse them. `frame_s`: the model's frame (how far past
+/// its file's end a segment may end).
 pub fn outcomes(
     est: &mut StreamEstimator<Predictor>,
     classes: &[String],
-    sample_rate: u32,
-    frame_s: f64,
-    hop_s: f64,
+    (sample_rate, frame_s, hop_s): (u32, f64, f64),
     dirs: &[PathBuf],
-) -> Result<(Vec<f64>, Vec<bool>, usize)> {
+    channel: wav::Channel,
+) -> Result<(Vec<f64>, Vec<bool>, usize, Excluded)> {
     let (mut conf, mut right, mut unjudged) = (Vec::new(), Vec::new(), 0);
+    let mut excluded = Excluded::default();
     for dir in dirs {
         let recs = read_changes(dir, classes, frame_s)?;
         let pb = ProgressBar::new(recs.len() as u64);
+        let mut here = Excluded::default();
         for r in &recs {
-            let (dec, _) = stream_recording(est, r, sample_rate, dir)?;
+            let (dec, _) =
+                pb.suspend(|| stream_recording(est, r, sample_rate, dir, channel, &mut here))?;
             for d in dec {
                 if let Some((_, seg)) = segment_at(&r.segments, d.t_end, hop_s) {
                     conf.push(d.confidence);
@@ -157,8 +190,23 @@ pub fn outcomes(
             pb.inc(1);
         }
         pb.finish_and_clear();
+        all_refused(dir, &here)?;
+        excluded.merge(here);
     }
-    Ok((conf, right, unjudged))
+    Ok((conf, right, unjudged, excluded))
+}
+
+/// A recordings folder of which the audio-quality rule refused every block
+/// is an error naming it.
+pub fn all_refused(dir: &Path, excluded: &Excluded) -> Result<()> {
+    if excluded.judged > 0 && excluded.frames() == excluded.judged {
+        bail!(
+            "{}: every block of every recording was excluded ({}); nothing is left to judge",
+            dir.display(),
+            excluded.summary("block").unwrap_or_default()
+        );
+    }
+    Ok(())
 }
 
 /// The calibration recordings must be held out: a folder of `calib` that
@@ -225,14 +273,15 @@ pub fn summary_line(conf: &[f64], right: &[bool]) -> String {
     )
 }
 
-/// Fits the calibration of `model` on the change recordings in `dirs`;
-/// returns it and a Markdown report (also printed). `command` is stored in
-/// the calibration's notes.
+/// Fits the calibration of `model` on the change recordings in `dirs`
+/// (read by `channel`); returns it and a Markdown report (also printed).
+/// `command` is stored in the calibration's notes.
 pub fn fit_calibration(
     model: &Model,
     dirs: &[PathBuf],
     fit: &FitArgs,
     command: &str,
+    channel: wav::Channel,
 ) -> Result<(StreamCalibration, String)> {
     let method = Method::from_name(&fit.calib_method)
         .with_context(|| format!("--calib-method: `{}` is unknown", fit.calib_method))?;
@@ -242,13 +291,12 @@ pub fn fit_calibration(
     let classes = uncalibrated.classes().to_vec();
     let mut est = StreamEstimator::new(Predictor::new(uncalibrated), &fcfg, &scfg)
         .context("--calib-hop / --calib-stay / --calib-floor")?;
-    let (p, right, unjudged) = outcomes(
+    let (p, right, unjudged, excluded) = outcomes(
         &mut est,
         &classes,
-        fcfg.sample_rate,
-        fcfg.frame_s,
-        scfg.hop_s,
+        (fcfg.sample_rate, fcfg.frame_s, scfg.hop_s),
         dirs,
+        channel,
     )?;
     if p.is_empty() {
         bail!(
@@ -276,6 +324,9 @@ pub fn fit_calibration(
             report,
             "{unjudged} decisions unjudged (their time lies in a gap between segments or past the last one: no road is labelled there) and left out.\n"
         );
+    }
+    if let Some(n) = excluded.summary("block") {
+        let _ = writeln!(report, "{n}; their blocks give no decision.\n");
     }
     let _ = writeln!(report, "- uncalibrated: {}", summary_line(&p, &right));
     let mut chosen = None;
@@ -345,12 +396,13 @@ pub fn run(_ctx: &Ctx, a: Args) -> Result<()> {
         .map(|d| format!("--data {}", d.display()))
         .collect();
     let command = format!(
-        "grip calibrate --model {} {} {}",
+        "grip calibrate --model {} {} {}{}",
         a.model.display(),
         data.join(" "),
-        a.fit.command_line()
+        a.fit.command_line(),
+        a.channel.command_line()
     );
-    let (cal, _) = fit_calibration(&model, &a.data, &a.fit, &command)?;
+    let (cal, _) = fit_calibration(&model, &a.data, &a.fit, &command, a.channel.get())?;
     let model = model.with_calibration(Some(cal))?;
     let out = model.to_bytes()?;
     std::fs::write(&a.out, &out)
@@ -391,6 +443,7 @@ mod tests {
                 calib_stay: 0.9,
                 calib_floor: 0.01,
             },
+            channel: ChannelArg::default(),
         }
     }
 
@@ -427,6 +480,76 @@ mod tests {
             run(&ctx, args(&model, vec![other], out.clone())).unwrap_err()
         );
         assert!(!e.contains("held-out"), "{e}");
+    }
+
+    /// A recording with 0.5 s of digital silence between two road
+    /// stretches runs as in the arte service: the silent blocks give no
+    /// decision (they were judged as the road), the estimator restarts
+    /// after them, and the later decisions keep the recording's time.
+    #[test]
+    fn silent_blocks_give_no_decision_and_time_runs_on() {
+        use grip_arte::synth::{Segment, SynthConfig, render};
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/models/paper.model");
+        let m = Model::from_bytes(&std::fs::read(shipped).unwrap()).unwrap();
+        let fs = m.feature_config().sample_rate;
+        let seg = Segment {
+            road: 0,
+            speed_mps: 5.0,
+            duration_s: 1.0,
+        };
+        let cfg = SynthConfig {
+            sample_rate: fs,
+            noise: None,
+        };
+        let road = render(&cfg, 3, &[seg]).unwrap();
+        let mut x = road.clone();
+        x.extend(std::iter::repeat_n(0.0, fs as usize / 2));
+        x.extend(&road);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("gap.wav");
+        wav::write_mono_i16(&path, fs, &x).unwrap();
+        let r = ChangeRecording {
+            path,
+            segments: vec![(0.0, 2.5, 0, Some(18.0))],
+        };
+        let fit = args(Path::new("m"), vec![], PathBuf::new()).fit;
+        let mut est = StreamEstimator::new(
+            Predictor::new(m.clone()),
+            m.feature_config(),
+            &fit.stream_config(),
+        )
+        .unwrap();
+        let mut ex = Excluded::default();
+        let (dec, len) =
+            stream_recording(&mut est, &r, fs, dir.path(), wav::Channel::Average, &mut ex).unwrap();
+        assert!((len - 2.5).abs() < 1e-3);
+        let ends: Vec<f64> = dec.iter().map(|d| d.t_end).collect();
+        assert!(ends.iter().all(|&t| !(1.1..1.55).contains(&t)), "{ends:?}");
+        assert!(ends.last().unwrap() > &2.45, "{ends:?}");
+        assert!(ends.windows(2).all(|w| w[0] < w[1]));
+        // 0.5 s of silence: 20 whole blocks of 1024 samples at 44.1 kHz
+        assert!((20..=22).contains(&ex.frames()), "{:?}", ex);
+        assert!(ex.files.is_empty());
+        // a folder of nothing but silence: an error naming it
+        let silent = dir.path().join("silent");
+        std::fs::create_dir(&silent).unwrap();
+        wav::write_mono_i16(&silent.join("s.wav"), fs, &vec![0.0; fs as usize]).unwrap();
+        std::fs::write(
+            silent.join("segments.csv"),
+            "file,t_start,t_end,road,speed_kmh\ns.wav,0,1,asphalt,18\n",
+        )
+        .unwrap();
+        let classes = m.classes().to_vec();
+        let settings = (fs, m.feature_config().frame_s, 0.025);
+        let dirs = [silent.clone()];
+        let e = outcomes(&mut est, &classes, settings, &dirs, wav::Channel::Average)
+            .map(|_| ())
+            .unwrap_err();
+        let e = format!("{e:#}");
+        assert!(
+            e.contains(&silent.display().to_string()) && e.contains("every block"),
+            "{e}"
+        );
     }
 
     #[test]

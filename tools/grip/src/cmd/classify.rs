@@ -5,8 +5,15 @@
 //! length), and prints one line per frame: start and end time, the most
 //! probable road, and every class probability; then a summary line (frames
 //! per road, the majority road and its share).
+//!
+//! Frames the arte service would refuse (`grip_arte::quality`: silence,
+//! clipping) are not classified: they get no line, a warning names the file
+//! and the reasons, and the summary counts them; a file of which every
+//! frame is refused is an error naming it. `--channel N` reads one channel
+//! of a multi-channel file (default: their average).
 
 use super::Ctx;
+use crate::dataset::{ChannelArg, Excluded, FileJudge};
 use anyhow::{Context, Result, bail};
 use grip_arte::features::FeatureExtractor;
 use grip_arte::model::Model;
@@ -15,7 +22,8 @@ use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Clone, Debug)]
 pub struct Args {
-    /// WAV recording to classify (mono or multi-channel, averaged).
+    /// WAV recording to classify (mono, or multi-channel: averaged, or one
+    /// channel by --channel).
     pub file: PathBuf,
     /// Model file (default: <config-dir>/models/default.model).
     #[arg(long)]
@@ -30,6 +38,8 @@ pub struct Args {
     /// model (the default one), ignored by others.
     #[arg(long)]
     pub speed: Option<f64>,
+    #[command(flatten)]
+    pub channel: ChannelArg,
 }
 
 /// Loads and validates a model file; errors name the path.
@@ -42,13 +52,14 @@ pub fn load_model(path: &Path) -> Result<Model> {
 /// One frame's decision: start and end time (s), class, probabilities.
 pub type FrameDecision = (f64, f64, usize, Vec<f64>);
 
-/// Per-frame decisions.
+/// Per-frame decisions of the frames `judge` accepts (the arte service's
+/// audio-quality rule).
 pub fn classify(
     model: &Model,
     samples: &[f32],
     sample_rate: u32,
-    hop_s: Option<f64>,
-    speed_kmh: Option<f64>,
+    (hop_s, speed_kmh): (Option<f64>, Option<f64>),
+    judge: &mut FileJudge,
 ) -> Result<Vec<FrameDecision>> {
     let cfg = model.feature_config();
     if cfg.speed_norm.is_some() {
@@ -84,13 +95,15 @@ pub fn classify(
     let mut feat = vec![0.0; ex.dim()];
     let mut out = Vec::new();
     let fs = f64::from(sample_rate);
-    let mut start = 0;
-    while start + frame <= samples.len() {
-        ex.extract(&samples[start..start + frame], &mut feat)?;
+    for (k, x) in samples.windows(frame).step_by(hop).enumerate() {
+        if !judge.accept(x) {
+            continue;
+        }
+        let start = k * hop;
+        ex.extract(x, &mut feat)?;
         let mut p = vec![0.0; model.classes().len()];
         let c = pred.predict_proba(&feat, &mut p)?;
         out.push((start as f64 / fs, (start + frame) as f64 / fs, c, p));
-        start += hop;
     }
     Ok(out)
 }
@@ -101,15 +114,26 @@ pub fn run(ctx: &Ctx, args: Args) -> Result<()> {
         .clone()
         .unwrap_or_else(|| ctx.config_dir.join("models").join("default.model"));
     let model = load_model(&path)?;
-    let audio = grip_io::wav::read_mono(&args.file)?;
+    let channel = args.channel.get();
+    let audio = grip_io::wav::read_channel(&args.file, channel)?;
+    let mut judge = FileJudge::new();
     let rows = classify(
         &model,
         &audio.samples,
         audio.sample_rate,
-        args.hop,
-        args.speed,
+        (args.hop, args.speed),
+        &mut judge,
     )
     .with_context(|| format!("classifying {}", args.file.display()))?;
+    let mut excluded = Excluded::default();
+    let name = args.file.display().to_string();
+    judge.finish(&name, &audio, channel, "frame", &mut excluded);
+    if rows.is_empty() {
+        bail!(
+            "{name}: every frame was excluded ({}); nothing to classify",
+            excluded.summary("frame").unwrap_or_default()
+        );
+    }
     let classes = model.classes();
     let stdout = std::io::stdout();
     let mut o = stdout.lock();
@@ -135,9 +159,14 @@ pub fn run(ctx: &Ctx, args: Args) -> Result<()> {
         .max_by_key(|&i| (counts[i], std::cmp::Reverse(i)))
         .unwrap_or(0);
     let n = rows.len().max(1);
+    let left_out = if excluded.frames() > 0 {
+        format!(" ({} more excluded)", excluded.frames())
+    } else {
+        String::new()
+    };
     writeln!(
         o,
-        "summary: {} frames, majority {} ({:.1} %); {} [model {}]",
+        "summary: {} frames{left_out}, majority {} ({:.1} %); {} [model {}]",
         rows.len(),
         classes[best],
         100.0 * counts[best] as f64 / n as f64,
@@ -150,4 +179,66 @@ pub fn run(ctx: &Ctx, args: Args) -> Result<()> {
         path.display()
     )?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use grip_arte::synth::{Segment, SynthConfig, render};
+
+    /// The shipped paper model and `x` seconds of road sound at its rate.
+    fn model_and_road(x: f64) -> (Model, Vec<f32>) {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/models/paper.model");
+        let m = load_model(&p).unwrap();
+        let cfg = SynthConfig {
+            sample_rate: m.feature_config().sample_rate,
+            noise: None,
+        };
+        let seg = Segment {
+            road: 0,
+            speed_mps: 5.0,
+            duration_s: x,
+        };
+        let road = render(&cfg, 1, &[seg]).unwrap();
+        (m, road)
+    }
+
+    /// Frames of digital silence get no decision (they were classified as
+    /// a road, with confidence): only the road's frames are, and the
+    /// judge counts the silent ones.
+    #[test]
+    fn silent_frames_are_not_classified() {
+        let (m, mut x) = model_and_road(1.0);
+        let fs = m.feature_config().sample_rate;
+        let n_road = x.len();
+        x.extend(std::iter::repeat_n(0.0, n_road));
+        let mut judge = FileJudge::new();
+        let rows = classify(&m, &x, fs, (None, Some(20.0)), &mut judge).unwrap();
+        let frame = m.feature_config().frame_s;
+        assert!(!rows.is_empty());
+        assert!(
+            rows.iter().all(|r| r.1 <= 1.0 + 1e-9),
+            "{:?}",
+            rows.last().map(|r| r.1)
+        );
+        let mut ex = Excluded::default();
+        let a = grip_io::wav::Audio {
+            sample_rate: fs,
+            samples: x,
+            file_rate: fs,
+            file_channels: 1,
+            clamped: 0,
+            non_finite: 0,
+        };
+        judge.finish(
+            "f.wav",
+            &a,
+            grip_io::wav::Channel::Average,
+            "frame",
+            &mut ex,
+        );
+        assert_eq!(ex.frames(), (1.0 / frame).round() as usize);
+        assert_eq!(ex.judged, ex.frames() + rows.len());
+        assert!(ex.files.is_empty());
+    }
 }

@@ -19,6 +19,7 @@
 
 use super::Ctx;
 use super::snr::{Snr, parse_snr};
+use crate::dataset::{FirstRows, column_keys, manifest_file, record_line};
 use anyhow::{Context, Result, bail};
 use grip_arte::synth::{
     NoiseConfig, ROADS, Segment, SnrScope, SynthConfig, render, render_scoped, road_index,
@@ -72,6 +73,8 @@ struct DelayArgs {
     /// controllers' `arte.min_confidence` in `<config-dir>/controllers.toml`.
     #[arg(long)]
     min_confidence: Option<f64>,
+    #[command(flatten)]
+    channel: crate::dataset::ChannelArg,
 }
 
 #[derive(clap::Args)]
@@ -208,8 +211,10 @@ struct OneRoadRow {
 /// model's classes); a road not in it is an error naming the file, the
 /// record and the field. A one-road dataset (`manifest.csv`, no
 /// `segments.csv`, as `grip dataset synth` without `--changes` writes) is
-/// read as one segment per recording, its whole `duration_s`: the stream's
-/// decisions on it are then its accuracy on roads that do not change.
+/// read as one segment per recording, its whole `duration_s` (which must
+/// be the file's length within one frame; each file listed once): the
+/// stream's decisions on it are then its accuracy on roads that do not
+/// change. Column names are matched in any case (`crate::dataset::column_key`).
 ///
 /// The segments of each file of `segments.csv` must be in time order, must
 /// not overlap, and must end by the file's length (from its WAV header)
@@ -219,7 +224,7 @@ struct OneRoadRow {
 pub fn read_changes(dir: &Path, classes: &[String], frame_s: f64) -> Result<Vec<ChangeRecording>> {
     let truth = truth_file(dir);
     if truth.ends_with("manifest.csv") {
-        return read_one_road(dir, &truth, classes);
+        return read_one_road(dir, &truth, classes, frame_s);
     }
     if !truth.is_file() {
         bail!(
@@ -232,23 +237,15 @@ pub fn read_changes(dir: &Path, classes: &[String], frame_s: f64) -> Result<Vec<
     let mut by_file: Vec<ChangeRecording> = Vec::new();
     // per file (same order as `by_file`): its length (s) and the csv line
     // of its last segment
-    let mut checked: Vec<(f64, u64)> = Vec::new();
-    let headers = rd
-        .headers()
-        .with_context(|| format!("reading {}", truth.display()))?
-        .clone();
-    for (i, rec) in rd.records().enumerate() {
-        let i = i + 1;
+    let mut checked: Vec<(f64, usize)> = Vec::new();
+    let headers = column_keys(
+        rd.headers()
+            .with_context(|| format!("reading {}", truth.display()))?,
+    );
+    for (k, rec) in rd.records().enumerate() {
+        let i = k + 1;
         let rec = rec.with_context(|| format!("{}: record {i}", truth.display()))?;
-        // the csv line where this record starts (1 = the header), counted
-        // from its byte offset (the reader's own count is off with CRLF)
-        let line = rec.position().map_or(i as u64 + 1, |p| {
-            let mut k = (p.byte() as usize).min(text.len());
-            while k < text.len() && matches!(text[k], b'\r' | b'\n') {
-                k += 1;
-            }
-            text[..k].iter().filter(|&&b| b == b'\n').count() as u64 + 1
-        });
+        let line = record_line(&text, &rec, k);
         let at = || format!("{}: record {i} (line {line})", truth.display());
         let row: SegmentRow = rec.deserialize(Some(&headers)).with_context(at)?;
         let (class, p) = checked_row(dir, &at, &row.road, &row.file, row.speed_kmh, classes)?;
@@ -366,21 +363,34 @@ fn checked_row(
     Ok((class, p))
 }
 
-/// A one-road dataset as change recordings of one segment each.
-fn read_one_road(dir: &Path, manifest: &Path, classes: &[String]) -> Result<Vec<ChangeRecording>> {
-    let mut rd = csv::Reader::from_path(manifest)
-        .with_context(|| format!("opening {}", manifest.display()))?;
+/// A one-road dataset as change recordings of one segment each, from 0 to
+/// its `duration_s`. A file listed twice is an error naming both lines; a
+/// `duration_s` that differs from the WAV's own length (its header) by
+/// more than one frame (`frame_s`) is an error naming the file, the line
+/// and both durations.
+fn read_one_road(
+    dir: &Path,
+    manifest: &Path,
+    classes: &[String],
+    frame_s: f64,
+) -> Result<Vec<ChangeRecording>> {
+    let text =
+        std::fs::read(manifest).with_context(|| format!("opening {}", manifest.display()))?;
+    let mut rd = csv::Reader::from_reader(text.as_slice());
+    let headers = column_keys(
+        rd.headers()
+            .with_context(|| format!("reading {}", manifest.display()))?,
+    );
+    let mut rows = FirstRows::default();
     let mut out = Vec::new();
-    for (i, r) in rd.deserialize::<OneRoadRow>().enumerate() {
-        let at = || format!("{}: record {}", manifest.display(), i + 1);
-        let row = r.with_context(at)?;
+    for (k, rec) in rd.records().enumerate() {
+        let rec = rec.with_context(|| format!("{}: record {}", manifest.display(), k + 1))?;
+        let line = record_line(&text, &rec, k);
+        let at = || format!("{}: record {} (line {line})", manifest.display(), k + 1);
+        let row: OneRoadRow = rec.deserialize(Some(&headers)).with_context(at)?;
         let (class, p) = checked_row(dir, &at, &row.road, &row.file, row.speed_kmh, classes)?;
-        let Some(d) = row.duration_s.filter(|d| d.is_finite() && *d > 0.0) else {
-            bail!(
-                "{}: field `duration_s`: needs a duration in seconds > 0 to read the recording as one segment",
-                at()
-            );
-        };
+        rows.first(manifest, &manifest_file(&row.file, dir, None), line)?;
+        let d = one_road_duration(&at, &row, &p, frame_s)?;
         out.push(ChangeRecording {
             path: p,
             segments: vec![(0.0, d, class, row.speed_kmh)],
@@ -390,6 +400,32 @@ fn read_one_road(dir: &Path, manifest: &Path, classes: &[String]) -> Result<Vec<
         bail!("{} lists no recordings", manifest.display());
     }
     Ok(out)
+}
+
+/// The `duration_s` of a one-road manifest row whose file is `path`,
+/// checked: a duration > 0 within one frame (`frame_s`) of the file's own
+/// length. `at` names the manifest and line.
+fn one_road_duration(
+    at: &dyn Fn() -> String,
+    row: &OneRoadRow,
+    path: &Path,
+    frame_s: f64,
+) -> Result<f64> {
+    let Some(d) = row.duration_s.filter(|d| d.is_finite() && *d > 0.0) else {
+        bail!(
+            "{}: field `duration_s`: needs a duration in seconds > 0 to read the recording as one segment",
+            at()
+        );
+    };
+    let len = wav_duration_s(path).with_context(at)?;
+    if (d - len).abs() > frame_s.max(0.0) + 1e-9 {
+        bail!(
+            "{}: file {}: duration_s {d} s, but the recording is {len} s long (more than one {frame_s} s frame apart): correct duration_s",
+            at(),
+            row.file
+        );
+    }
+    Ok(d)
 }
 
 fn parse_range(s: &str, what: &str) -> Result<(f64, f64)> {
@@ -779,14 +815,29 @@ fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
         .unwrap_or_default();
     let mut ev = ChangeEval::new(classes.clone(), mu_peak, min_confidence, a.hold, a.hop);
     let pb = ProgressBar::new(recs.len() as u64);
+    let mut excluded = crate::dataset::Excluded::default();
+    let channel = a.channel.get();
     for r in &recs {
-        let (dec, duration_s) =
-            super::calibrate::stream_recording(&mut est, r, fcfg.sample_rate, &a.dir)
-                .with_context(|| format!("model {}", a.model.display()))?;
+        let (dec, duration_s) = pb
+            .suspend(|| {
+                super::calibrate::stream_recording(
+                    &mut est,
+                    r,
+                    fcfg.sample_rate,
+                    &a.dir,
+                    channel,
+                    &mut excluded,
+                )
+            })
+            .with_context(|| format!("model {}", a.model.display()))?;
         ev.add_recording(&dec, &r.segments, duration_s);
         pb.inc(1);
     }
     pb.finish_and_clear();
+    super::calibrate::all_refused(&a.dir, &excluded)?;
+    if let Some(n) = excluded.summary("block") {
+        println!("{n}; their blocks give no decision and count in no figure below");
+    }
     print_delay_report(&a, &ev, smoothing, recs.len(), min_confidence);
     Ok(())
 }
@@ -1063,7 +1114,8 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let classes = vec!["asphalt".to_string(), "snow".to_string()];
         std::fs::create_dir(dir.path().join("snow")).unwrap();
-        std::fs::write(dir.path().join("snow/snow_0000.wav"), b"").unwrap();
+        let wav4 = dir.path().join("snow/snow_0000.wav");
+        wav::write_mono_i16(&wav4, 1000, &vec![0.1; 4000]).unwrap();
         let manifest = dir.path().join("manifest.csv");
         std::fs::write(
             &manifest,
@@ -1082,7 +1134,9 @@ mod tests {
         .unwrap();
         let e = format!("{:#}", read_changes(dir.path(), &classes, 0.1).unwrap_err());
         assert!(
-            e.contains("manifest.csv") && e.contains("record 1") && e.contains("`duration_s`"),
+            e.contains("manifest.csv")
+                && e.contains("record 1 (line 2)")
+                && e.contains("`duration_s`"),
             "{e}"
         );
         // segments.csv, when present, decides
@@ -1098,6 +1152,65 @@ mod tests {
         )
         .unwrap();
         let c = read_changes(dir.path(), &classes, 0.1).unwrap();
+        assert_eq!(c[0].segments.len(), 2);
+    }
+
+    /// A one-road manifest: column names in any case (as `grip train`
+    /// reads them); a file listed twice is an error naming both lines (the
+    /// second row used to win in silence); a `duration_s` more than one
+    /// frame off the WAV's length is an error naming the file, the line
+    /// and both durations (it used to be taken as the truth).
+    #[test]
+    fn one_road_manifests_are_checked_row_by_row() {
+        let dir = tempfile::tempdir().unwrap();
+        let classes = vec!["asphalt".to_string(), "snow".to_string()];
+        std::fs::create_dir(dir.path().join("snow")).unwrap();
+        for f in ["snow/a.wav", "snow/b.wav"] {
+            wav::write_mono_i16(&dir.path().join(f), 1000, &vec![0.1; 2000]).unwrap();
+        }
+        let read = |rows: &str| {
+            std::fs::write(dir.path().join("manifest.csv"), rows).unwrap();
+            read_changes(dir.path(), &classes, 0.1).map_err(|e| format!("{e:#}"))
+        };
+        // upper case, within one frame of the 2 s files
+        let c = read(
+            "File,Road,Speed_KMH,Duration_S\nsnow/a.wav,snow,10,2.05\nsnow/b.wav,snow,,1.95\n",
+        )
+        .unwrap();
+        assert_eq!(c[0].segments, vec![(0.0, 2.05, 1, Some(10.0))]);
+        let e = read(
+            "file,road,duration_s\nsnow/a.wav,snow,2\nsnow/b.wav,snow,2\n./snow/a.wav,snow,2\n",
+        )
+        .unwrap_err();
+        assert!(
+            e.contains("snow/a.wav")
+                && e.contains("listed twice")
+                && e.contains("line 2")
+                && e.contains("line 4"),
+            "{e}"
+        );
+        let e = read("file,road,duration_s\nsnow/a.wav,snow,2\nsnow/b.wav,snow,20\n").unwrap_err();
+        assert!(
+            e.contains("snow/b.wav")
+                && e.contains("line 3")
+                && e.contains("duration_s 20 s")
+                && e.contains("is 2 s long"),
+            "{e}"
+        );
+    }
+
+    /// segments.csv with its column names in another case reads as
+    /// written in lower case (it was refused: `missing field file`).
+    #[test]
+    fn segment_column_names_in_any_case() {
+        let d = changes_dir("");
+        std::fs::write(
+            d.path().join("segments.csv"),
+            "File,T_Start,T_END,Road,speed_kmh\na.wav,0,1,asphalt,\na.wav,1,2,snow,\n",
+        )
+        .unwrap();
+        let classes = vec!["asphalt".to_string(), "snow".to_string()];
+        let c = read_changes(d.path(), &classes, 0.1).unwrap();
         assert_eq!(c[0].segments.len(), 2);
     }
 

@@ -18,7 +18,7 @@
 //! else today's UTC date; `--date` fixes it).
 
 use super::Ctx;
-use crate::dataset::{Dataset, read_wav};
+use crate::dataset::{ChannelArg, Dataset, Excluded, FileJudge, read_wav};
 use anyhow::{Context, Result, bail};
 use grip_arte::eval::{Confusion, Samples};
 use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet, SpeedNorm};
@@ -123,6 +123,8 @@ pub struct Args {
     pub calib_data: Vec<PathBuf>,
     #[command(flatten)]
     pub calib: super::calibrate::FitArgs,
+    #[command(flatten)]
+    pub channel: ChannelArg,
 }
 
 impl Args {
@@ -168,6 +170,7 @@ impl Args {
         if self.fixed_bands {
             s.push_str(" --fixed-bands");
         }
+        s.push_str(&self.channel.command_line());
         let _ = write!(s, " --profile {}", self.profile);
         if !self.calib_data.is_empty() {
             for d in &self.calib_data {
@@ -207,15 +210,20 @@ pub(crate) fn civil_date(secs: i64) -> String {
     format!("{y:04}-{m:02}-{d:02}")
 }
 
-/// Features of every frame of every recording of `ds`, in `cfg`'s layout,
-/// class labels mapped through `class_map` (dataset class -> model class).
-/// Returns the samples and the dataset hash.
+/// Features of every frame of every recording of `ds` (read by `channel`),
+/// in `cfg`'s layout, class labels mapped through `class_map` (dataset
+/// class -> model class). Frames the arte service would refuse
+/// ([`FileJudge`]: silence, clipping) are left out, each file's named in a
+/// warning. Returns the samples, the dataset hash (over every file, left
+/// out or not) and what was left out; a dataset left with no frame is an
+/// error naming its folder.
 pub fn extract_dataset(
     ds: &Dataset,
     cfg: &FeatureConfig,
     hop_s: f64,
     class_map: &[usize],
-) -> Result<(Samples, String)> {
+    channel: grip_io::wav::Channel,
+) -> Result<(Samples, String, Excluded)> {
     let mut ex = FeatureExtractor::new(cfg).context("feature config")?;
     let hop = ((hop_s * f64::from(cfg.sample_rate)).round() as usize).max(1);
     let frame_len = ex.frame_len();
@@ -229,8 +237,9 @@ pub fn extract_dataset(
             .progress_chars("=> "),
     );
     pb.set_prefix(format!("features {}", ds.root.display()));
+    let mut excluded = Excluded::default();
     for e in &ds.entries {
-        let (audio, sha256) = read_wav(&e.path)?;
+        let (audio, sha256) = read_wav(&e.path, channel)?;
         if audio.sample_rate != cfg.sample_rate {
             bail!(
                 "{}: sample rate {} Hz, but the features are configured for {} Hz (all files of a dataset must share one rate)",
@@ -259,17 +268,87 @@ pub fn extract_dataset(
             };
             ex.set_speed(Some(kmh / 3.6));
         }
-        let mut start = 0;
-        while start + frame_len <= audio.samples.len() {
-            ex.extract(&audio.samples[start..start + frame_len], &mut row)
+        let mut judge = FileJudge::new();
+        for frame in good_frames(&audio.samples, frame_len, hop, &mut judge) {
+            ex.extract(frame, &mut row)
                 .with_context(|| format!("{}: feature extraction", e.path.display()))?;
             s.push(&row, class_map[e.class], e.recording);
-            start += hop;
         }
+        let name = e.path.display().to_string();
+        pb.suspend(|| judge.finish(&name, &audio, channel, "frame", &mut excluded));
         pb.inc(1);
     }
     pb.finish_and_clear();
-    Ok((s, sha256_hex(hash_input.as_bytes())))
+    if s.is_empty() {
+        bail!(
+            "dataset folder {}: every frame of every file was excluded ({}); nothing is left to train or evaluate on",
+            ds.root.display(),
+            excluded.summary("frame").unwrap_or_default()
+        );
+    }
+    Ok((s, sha256_hex(hash_input.as_bytes()), excluded))
+}
+
+/// The frames of `x` (`frame_len` samples every `hop`) that `judge`
+/// accepts (the arte service's audio-quality rule).
+fn good_frames<'a>(
+    x: &'a [f32],
+    frame_len: usize,
+    hop: usize,
+    judge: &'a mut FileJudge,
+) -> impl Iterator<Item = &'a [f32]> + 'a {
+    x.windows(frame_len)
+        .step_by(hop)
+        .filter(move |f| judge.accept(f))
+}
+
+/// Whether a file of `ds` (read by `channel`) has a frame the audio-quality
+/// rule accepts, read until the first that has: a dataset of nothing but
+/// refused audio is an error naming its folder, found before the fit.
+fn any_good_frame(
+    ds: &Dataset,
+    frame_len: usize,
+    hop: usize,
+    channel: grip_io::wav::Channel,
+) -> Result<()> {
+    for e in &ds.entries {
+        let a = grip_io::wav::read_channel(&e.path, channel)?;
+        if good_frames(&a.samples, frame_len, hop, &mut FileJudge::new())
+            .next()
+            .is_some()
+        {
+            return Ok(());
+        }
+    }
+    bail!(
+        "dataset folder {}: every frame of every file would be excluded (the arte service's audio-quality rule: silence or clipping); nothing is left to evaluate on",
+        ds.root.display()
+    )
+}
+
+/// After the audio-quality rule left frames out: every class of `ds` must
+/// keep a frame, and with `folds` ≥ 2 as many recordings as folds; the
+/// error names the class folder.
+fn classes_left(ds: &Dataset, data: &Samples, folds: usize) -> Result<()> {
+    let mut groups = vec![std::collections::BTreeSet::new(); ds.classes.len()];
+    for (&c, &g) in data.y.iter().zip(&data.group) {
+        groups[c].insert(g);
+    }
+    for (c, g) in ds.classes.iter().zip(&groups) {
+        if g.is_empty() || (folds >= 2 && g.len() < folds) {
+            bail!(
+                "{}: class folder `{c}` keeps {} recording(s) after the excluded audio (see the warnings), {}",
+                ds.root.display(),
+                g.len(),
+                if g.is_empty() {
+                    "none to learn the class from".to_string()
+                } else {
+                    format!("fewer than the {folds} folds of cross-validation by recording")
+                }
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Sample rate of the first file (all files are checked during extraction).
@@ -278,14 +357,17 @@ fn dataset_rate(ds: &Dataset) -> Result<u32> {
     Ok(grip_io::wav::read_mono(&first.path)?.sample_rate)
 }
 
-/// Evaluates `model` on a held-out dataset folder (classes matched by name).
+/// Evaluates `model` on a held-out dataset folder (classes matched by
+/// name, files read by `channel`): per frame, smoothed over `window`
+/// frames, and what the audio-quality rule left out.
 pub fn evaluate_folder(
     model: &Model,
     dir: &Path,
     hop_s: f64,
     only: Option<&[String]>,
     window: usize,
-) -> Result<(Confusion, Confusion)> {
+    channel: grip_io::wav::Channel,
+) -> Result<(Confusion, Confusion, Excluded)> {
     let ds = Dataset::scan_classes(dir, only)?;
     let mut map = Vec::new();
     for c in &ds.classes {
@@ -298,10 +380,12 @@ pub fn evaluate_folder(
         };
         map.push(i);
     }
-    let (samples, _) = extract_dataset(&ds, model.feature_config(), hop_s, &map)?;
+    let (samples, _, excluded) =
+        extract_dataset(&ds, model.feature_config(), hop_s, &map, channel)?;
     Ok((
         model.evaluate(&samples)?,
         model.evaluate_smoothed(&samples, window)?,
+        excluded,
     ))
 }
 
@@ -412,6 +496,9 @@ fn check_held_out(
         for e in &ds.entries {
             let (fs, n) = wav_rate_len(&e.path)
                 .with_context(|| format!("--test {}: held-out dataset", dir.display()))?;
+            args.channel
+                .check(&e.path)
+                .with_context(|| format!("--test {}: --channel", dir.display()))?;
             if fs != rate {
                 bail!(
                     "--test {}: {}: held-out set at {fs} Hz, training set ({}) at {rate} Hz: the model's features are computed at {rate} Hz and held-out audio is not resampled; use a held-out set recorded at {rate} Hz (e.g. `grip dataset synth --sample-rate {rate}`), or train on {fs} Hz data",
@@ -437,6 +524,9 @@ fn check_held_out(
                 );
             }
         }
+        let hop = ((args.hop * f64::from(rate)).round() as usize).max(1);
+        any_good_frame(&ds, frame_len, hop, args.channel.get())
+            .with_context(|| format!("--test {}: held-out dataset", dir.display()))?;
     }
     for dir in &args.calib_data {
         let at = || format!("--calib-data {}", dir.display());
@@ -451,6 +541,7 @@ fn check_held_out(
                 );
             }
             let (fs, _) = wav_rate_len(&r.path).with_context(at)?;
+            args.channel.check(&r.path).with_context(at)?;
             if fs == 0 || u64::from(rate) > grip_io::wav::MAX_UPSAMPLE * u64::from(fs) {
                 bail!(
                     "{}: {}: recorded at {fs} Hz, training set ({}) at {rate} Hz: too low a rate to resample to the model's (at most {}x up)",
@@ -473,6 +564,9 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     held_out_calibration(args)?;
     let only = (!args.classes.is_empty()).then_some(args.classes.as_slice());
     let ds = Dataset::scan_classes(&args.data, only)?;
+    for e in &ds.entries {
+        args.channel.check(&e.path).context("--channel")?;
+    }
     let per_class = ds.recordings_per_class();
     println!(
         "dataset {}: {} classes, {} files, recordings per class: {}",
@@ -538,7 +632,8 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
         only,
     )?;
     let identity: Vec<usize> = (0..ds.classes.len()).collect();
-    let (data, dataset_hash) = extract_dataset(&ds, &extract_cfg, args.hop, &identity)?;
+    let (data, dataset_hash, excluded) =
+        extract_dataset(&ds, &extract_cfg, args.hop, &identity, args.channel.get())?;
     println!(
         "{} frames of {} features ({} at {} Hz, hop {} s)",
         data.len(),
@@ -547,9 +642,14 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
         rate,
         args.hop
     );
+    classes_left(&ds, &data, args.folds)?;
     let classes = ds.classes.clone();
     let dim = model_cfg.dim();
     let mut notes = Vec::new();
+    if let Some(n) = excluded.summary("frame") {
+        println!("{n}");
+        notes.push(n);
+    }
     let speeds: Vec<f64> = ds.entries.iter().filter_map(|e| e.speed_kmh).collect();
     if speeds.len() == ds.entries.len() {
         let lo = speeds.iter().copied().fold(f64::INFINITY, f64::min);
@@ -637,6 +737,9 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     };
     let mut report = String::new();
     let _ = writeln!(report, "`{}`\n", args.command_line());
+    if let Some(n) = excluded.summary("frame") {
+        let _ = writeln!(report, "{n}\n");
+    }
     let cv = if args.folds >= 2 {
         let pb = busy(
             ProgressBar::new(args.folds as u64),
@@ -718,7 +821,12 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     model.meta.notes = notes;
     model.meta.cv = cv;
     for dir in &args.test {
-        let (conf, smooth) = evaluate_folder(&model, dir, args.hop, only, args.window)?;
+        let (conf, smooth, excluded) =
+            evaluate_folder(&model, dir, args.hop, only, args.window, args.channel.get())?;
+        if let Some(n) = excluded.summary("frame") {
+            println!("\nheld-out {}: {n}", dir.display());
+            let _ = writeln!(report, "\nheld-out {}: {n}", dir.display());
+        }
         let e = summary(format!("held-out {}, per frame", dir.display()), conf);
         print_eval(&mut report, &e.what.clone(), &e);
         if args.window > 1 {
@@ -739,6 +847,7 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
             &args.calib_data,
             &args.calib,
             &args.command_line(),
+            args.channel.get(),
         )?;
         report.push_str(&rep);
         model = model.with_calibration(Some(cal))?;
@@ -863,6 +972,13 @@ mod tests {
         }
     }
 
+    /// The arguments of a quick training run on `data`: no
+    /// cross-validation, a fixed date.
+    fn no_cv(data: &Path) -> Vec<&str> {
+        let data = data.to_str().unwrap();
+        vec!["t", "--data", data, "--folds", "0", "--date", "2026-01-01"]
+    }
+
     /// Two change recordings (asphalt, gravel, snow segments) at 16 kHz.
     fn make_changes(dir: &Path) {
         let cfg = SynthConfig {
@@ -899,22 +1015,10 @@ mod tests {
         make_dataset(&data);
         let changes = d.path().join("changes");
         make_changes(&changes);
-        let base = [
-            "t",
-            "--data",
-            data.to_str().unwrap(),
-            "--folds",
-            "0",
-            "--date",
-            "2026-01-01",
-            "--hop",
-            "0.05",
-            "--classifier",
-            "mlp",
-            "--features",
-            "paper7",
-        ];
-        let plain = train(d.path(), &Cli::parse_from(base).args).unwrap().0;
+        let mut base = no_cv(&data);
+        base.extend_from_slice(&["--hop", "0.05", "--classifier", "mlp"]);
+        base.extend_from_slice(&["--features", "paper7"]);
+        let plain = train(d.path(), &Cli::parse_from(&base).args).unwrap().0;
         assert_eq!(plain.format_version(), 1);
         let mut argv = base.to_vec();
         argv.extend_from_slice(&["--calib-data", changes.to_str().unwrap()]);
@@ -993,6 +1097,104 @@ mod tests {
                 "{hop}: {e}"
             );
         }
+    }
+
+    /// Writes `x` (mono) or the pair (`x`, −`x`) as 16-bit at 16 kHz.
+    fn write_16k(path: &Path, x: &[f32], opposite_pair: bool) {
+        let spec = hound::WavSpec {
+            channels: if opposite_pair { 2 } else { 1 },
+            sample_rate: 16_000,
+            bits_per_sample: 16,
+            sample_format: hound::SampleFormat::Int,
+        };
+        let mut w = hound::WavWriter::create(path, spec).unwrap();
+        for &v in x {
+            let s = (v * 32767.0) as i16;
+            w.write_sample(s).unwrap();
+            if opposite_pair {
+                w.write_sample(-s).unwrap();
+            }
+        }
+        w.finalize().unwrap();
+    }
+
+    /// A silent file and a stereo pair in opposite phase (silence when
+    /// averaged) are left out of training as the arte service would refuse
+    /// them, named in the report; `--channel 0` reads the pair's first
+    /// channel, which is road sound; a channel the files lack is an error
+    /// naming the file and its channel count; a dataset of nothing but
+    /// refused audio is an error naming the folder. (Before, the silent
+    /// frames were trained on as asphalt.)
+    #[test]
+    fn audio_the_service_would_refuse_is_left_out_of_training() {
+        let d = tempfile::tempdir().unwrap();
+        let data = d.path().join("data");
+        make_dataset(&data);
+        write_16k(&data.join("asphalt/silent.wav"), &[0.0; 16_000], false);
+        let road = grip_io::wav::read_mono(&data.join("gravel/r0.wav")).unwrap();
+        write_16k(&data.join("gravel/pair.wav"), &road.samples, true);
+        let base = no_cv(&data);
+        let (m, report) = train(d.path(), &Cli::parse_from(&base).args).unwrap();
+        // 3 roads x 5 recordings x 10 frames: the two added files add none
+        assert!(report.contains("2 file(s) entirely"), "{report}");
+        assert!(
+            report.contains("asphalt/silent.wav") && report.contains("gravel/pair.wav"),
+            "{report}"
+        );
+        assert!(report.contains("20 of 170 frames (silence 20)"), "{report}");
+        assert!(m.meta.notes.iter().any(|n| n.contains("silent.wav")));
+        // a held-out folder of nothing but silence: refused before the fit
+        let quiet = d.path().join("quiet");
+        for c in ["asphalt", "gravel"] {
+            std::fs::create_dir_all(quiet.join(c)).unwrap();
+            write_16k(&quiet.join(c).join("q.wav"), &[0.0; 16_000], false);
+        }
+        let mut argv = base.clone();
+        argv.extend_from_slice(&["--test", quiet.to_str().unwrap()]);
+        let e = format!(
+            "{:#}",
+            train(d.path(), &Cli::parse_from(&argv).args).unwrap_err()
+        );
+        assert!(
+            e.contains("--test") && e.contains("quiet") && e.contains("would be excluded"),
+            "{e}"
+        );
+        let mut argv = base.to_vec();
+        argv.extend_from_slice(&["--channel", "1"]);
+        let e = format!(
+            "{:#}",
+            train(d.path(), &Cli::parse_from(&argv).args).unwrap_err()
+        );
+        assert!(
+            e.contains("asphalt/r0.wav") && e.contains("has 1 channel(s); channel 1"),
+            "{e}"
+        );
+        // the pair by its first channel: all 10 frames kept
+        let ds = Dataset::scan(&data).unwrap();
+        let cfg = FeatureConfig::new(16_000, FeatureSet::Paper20);
+        let map: Vec<usize> = (0..3).collect();
+        let pair = |c| {
+            let only = Dataset {
+                entries: ds
+                    .entries
+                    .iter()
+                    .filter(|e| e.rel == "gravel/pair.wav")
+                    .cloned()
+                    .collect(),
+                ..ds.clone()
+            };
+            extract_dataset(&only, &cfg, 0.1, &map, c).map_err(|e| format!("{e:#}"))
+        };
+        let (s, _, ex) = pair(grip_io::wav::Channel::One(0)).unwrap();
+        assert_eq!((s.len(), ex.frames()), (10, 0));
+        // averaged, nothing is left: an error naming the folder
+        let e = pair(grip_io::wav::Channel::Average).unwrap_err();
+        assert!(
+            e.contains(&data.display().to_string())
+                && e.contains("every frame of every file was excluded")
+                && e.contains("gravel/pair.wav"),
+            "{e}"
+        );
     }
 
     #[test]
