@@ -671,7 +671,7 @@ pub fn write_mono_i16(path: &Path, rate: u32, samples: &[f32]) -> Result<(), Wav
 /// Band-limited resampling from `from` Hz to `to` Hz (windowed sinc,
 /// Blackman window, 32 zero crossings, cut-off 0.95 of the lower Nyquist
 /// frequency): each output sample is
-/// Σ_k x[k] · c · sinc(c (u − k)) · w((u − k)/W) at input position
+/// `Σ_k x[k] · c · sinc(c (u − k)) · w((u − k)/W)` at input position
 /// u = n · from/to, with cut-off c = 0.95 · min(1, to/from) (of the input
 /// Nyquist), Blackman window w over |u − k| < W = 32/c. Returns `x`
 /// unchanged when the rates are equal, either is 0, or `x` is empty.

@@ -25,7 +25,7 @@ pub struct Args {
     /// WAV recording to classify (mono, or multi-channel: averaged, or one
     /// channel by --channel).
     pub file: PathBuf,
-    /// Model file (default: <config-dir>/models/default.model).
+    /// Model file (default: `<config-dir>/models/default.model`).
     #[arg(long)]
     pub model: Option<PathBuf>,
     /// Hop between frames (s); default: the model's frame length.

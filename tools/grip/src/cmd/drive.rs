@@ -30,7 +30,7 @@ pub enum Controller {
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scenario: a name under <config-dir>/scenarios or a path to a TOML file.
+    /// Scenario: a name under `<config-dir>/scenarios` or a path to a TOML file.
     #[arg(long, default_value = "paper")]
     scenario: String,
     /// Traction controller of tcs-loop.
@@ -42,12 +42,12 @@ pub struct Args {
     /// MCAP log to write.
     #[arg(long, default_value = "drive.mcap")]
     out: PathBuf,
-    /// Vehicle TOML for plant-sim and tcs-loop (default: <config-dir>/vehicle.toml),
+    /// Vehicle TOML for plant-sim and tcs-loop (default: `<config-dir>/vehicle.toml`),
     /// e.g. config/vehicles/front-mic.toml.
     #[arg(long)]
     vehicle: Option<PathBuf>,
-    /// ARTE model file for arte (default: the `model` of <config-dir>/arte-svc.toml), e.g. one
-    /// from `grip train`; its sample rate must be audio-acq's [audio] sample_rate.
+    /// ARTE model file for arte (default: the `model` of `<config-dir>/arte-svc.toml`), e.g. one
+    /// from `grip train`; its sample rate must be audio-acq's `[audio] sample_rate`.
     #[arg(long)]
     model: Option<PathBuf>,
     /// Sensor-noise seed of plant-sim.

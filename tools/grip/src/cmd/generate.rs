@@ -69,7 +69,7 @@ pub struct Args {
     #[arg(long, default_value_t = 10)]
     count: usize,
     /// `random` (a random road sequence per seed, as `grip sim --scenario
-    /// random`), or a scenario name under <config-dir>/scenarios (e.g.
+    /// random`), or a scenario name under `<config-dir>/scenarios` (e.g.
     /// `paper`), or a scenario TOML file.
     #[arg(long, default_value = "random")]
     scenario: String,
@@ -85,7 +85,7 @@ pub struct Args {
     #[arg(long, value_enum, value_delimiter = ',', default_value = "on")]
     arte: Vec<OnOff>,
     /// Vehicle TOML for plant-sim and tcs-loop (attached to each log as
-    /// `grip drive --vehicle` does); default: <config-dir>/vehicle.toml.
+    /// `grip drive --vehicle` does); default: `<config-dir>/vehicle.toml.`
     #[arg(long)]
     vehicle: Option<PathBuf>,
     /// Start speed, km/h: one value, or LO:HI drawn uniformly per log

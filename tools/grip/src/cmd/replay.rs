@@ -57,7 +57,7 @@ pub struct Args {
     /// What if: arte runs this model file.
     #[arg(long)]
     model: Option<PathBuf>,
-    /// What if: one parameter, [FILE:]SECTION.KEY=VALUE (e.g. mfc.k_mfc=1.01); repeatable.
+    /// What if: one parameter, `[FILE:]SECTION.KEY=VALUE` (e.g. `mfc.k_mfc=1.01`); repeatable.
     #[arg(long = "set", value_name = "[FILE:]SECTION.KEY=VALUE")]
     set: Vec<String>,
     /// Exit with status 1 unless every replayed topic is identical to the log.

@@ -52,7 +52,7 @@ pub enum ArteSource {
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scenario: a path to a TOML file, a name under <config-dir>/scenarios,
+    /// Scenario: a path to a TOML file, a name under `<config-dir>/scenarios`,
     /// or `random`: one random road sequence per seed (distance segments of
     /// 1-4 m drawn from the roads that have a sound, 300 N m from 10 km/h,
     /// 2.4 s; crates/sim/README.md), listed in the output and in
@@ -78,15 +78,15 @@ pub struct Args {
     /// Road-estimate source of the ARTE variants.
     #[arg(long, value_enum, default_value_t = ArteSource::Confusion)]
     arte: ArteSource,
-    /// Confusion-matrix source of `--arte confusion` (default: <config-dir>/sim-confusion.toml).
+    /// Confusion-matrix source of `--arte confusion` (default: `<config-dir>/sim-confusion.toml`).
     #[arg(long)]
     arte_config: Option<PathBuf>,
-    /// Vehicle and sensors (default: <config-dir>/vehicle.toml); e.g.
+    /// Vehicle and sensors (default: `<config-dir>/vehicle.toml`); e.g.
     /// config/vehicles/front-mic.toml (microphone one wheelbase ahead of the
     /// driven rear wheel: the ARTE variants get a preview of the road).
     #[arg(long)]
     vehicle: Option<PathBuf>,
-    /// `--arte acoustic`: the ARTE model file (default: <config-dir>/models/default.model).
+    /// `--arte acoustic`: the ARTE model file (default: `<config-dir>/models/default.model`).
     #[arg(long)]
     model: Option<PathBuf>,
     /// `--arte acoustic`: rain and passing-car noise mixed into the audio at

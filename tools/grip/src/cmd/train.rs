@@ -55,7 +55,7 @@ pub struct Args {
     /// Seed of initialisation, subsampling and fold assignment.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Output model file (default: <config-dir>/models/trained.model).
+    /// Output model file (default: `<config-dir>/models/trained.model`).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Held-out dataset folder(s) to evaluate the final model on (repeatable).
