@@ -53,15 +53,14 @@ pub trait Source {
     fn stats(&self) -> SourceStats;
 }
 
-/// f32 in [−1, 1] to S16 (rounded, saturated; NaN → 0).
+/// f32 (full scale ±1.0) to S16, the rule of the ALSA source's FLOAT_LE
+/// ([`crate::format::s16_from_float`]: `round(x · 32768)`, saturated; NaN
+/// → 0). A 16-bit WAV's samples, read as s / 32768, come back exactly;
+/// with × 32767 (until 2026-12-05) a file's full-scale 32767 arrived as
+/// 32766, and arte's clipping rule (|s| ≥ 32767) never saw it.
 #[inline]
 pub fn f32_to_i16(x: f32) -> i16 {
-    let v = (f64::from(x) * 32767.0).round();
-    if v.is_nan() {
-        0
-    } else {
-        v.clamp(-32768.0, 32767.0) as i16
-    }
+    crate::format::s16_from_float(x)
 }
 
 /// Paces a sample stream in real time: block k (n samples) is released at
@@ -148,7 +147,8 @@ mod tests {
     fn conversion_rounds_and_saturates() {
         assert_eq!(f32_to_i16(0.0), 0);
         assert_eq!(f32_to_i16(1.0), 32767);
-        assert_eq!(f32_to_i16(-1.0), -32767);
+        assert_eq!(f32_to_i16(-1.0), -32768);
+        assert_eq!(f32_to_i16(32767.0 / 32768.0), 32767);
         assert_eq!(f32_to_i16(2.0), 32767);
         assert_eq!(f32_to_i16(-2.0), -32768);
         assert_eq!(f32_to_i16(f32::NAN), 0);

@@ -44,6 +44,20 @@ fn write_wav(path: &std::path::Path, rate: u32, channels: u16, frames: &[Vec<i16
     w.finalize().unwrap();
 }
 
+/// A 16-bit file's samples reach arte as they are in the file, full scale
+/// included (arte's clipping rule counts |s| >= 32767: scaled by 32767
+/// instead of 32768, a clipped file's 32767 arrived as 32766).
+#[test]
+fn a_16_bit_file_s_samples_arrive_unchanged_full_scale_included() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("full.wav");
+    let values = [32767i16, -32768, 32766, -32767, 1, -1, 0, 12345, -23456];
+    let frames: Vec<Vec<i16>> = values.iter().map(|&v| vec![v]).collect();
+    write_wav(&p, 44_100, 1, &frames);
+    let audio = read_mono_i16(&p, 44_100).unwrap();
+    assert_eq!(audio.samples, values);
+}
+
 #[test]
 fn wav_once_is_paced_stamped_and_ends_with_a_partial_block() {
     let dir = tempfile::tempdir().unwrap();
