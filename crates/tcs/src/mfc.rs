@@ -45,6 +45,9 @@ pub struct Mfc {
     lpf: Option<LowPass>,
     omega_model: f64,
     started: bool,
+    /// The last filtered speed error, rad/s (held over a measurement that
+    /// is no number).
+    last_e: f64,
 }
 
 impl Mfc {
@@ -71,6 +74,7 @@ impl Mfc {
             lpf: (params.tau_noise > 0.0).then(|| LowPass::new(params.tau_noise, dt)),
             omega_model: 0.0,
             started: false,
+            last_e: 0.0,
         })
     }
 
@@ -89,15 +93,23 @@ impl Controller for Mfc {
     fn step(&mut self, m: &Measurement, road: Option<&RoadKnowledge>) -> ControlOutput {
         let known = self.arte.usable(road);
         let j_model = self.j_model(known.map_or(0.0, |k| k.lambda_opt));
-        if !self.started {
-            self.omega_model = m.omega;
-            self.started = true;
-        }
-        let e = self.hpf.step(m.omega - self.omega_model);
-        let e = match self.lpf.as_mut() {
-            Some(f) => f.step(e),
-            None => e,
+        // A wheel speed that is no number leaves the filters as they are and
+        // the command at the last error: fed to them it stayed in their state
+        // for good, and the command at 0 N m from then on.
+        let e = if !m.omega.is_finite() {
+            self.last_e
+        } else {
+            if !self.started {
+                self.omega_model = m.omega;
+                self.started = true;
+            }
+            let e = self.hpf.step(m.omega - self.omega_model);
+            match self.lpf.as_mut() {
+                Some(f) => f.step(e),
+                None => e,
+            }
         };
+        self.last_e = e;
         let candidate = m.demand - self.params.k_mfc * e;
         let torque_cmd = limit_to_demand(candidate, m.demand);
         let out = ControlOutput {
@@ -125,6 +137,7 @@ impl Controller for Mfc {
         }
         self.omega_model = 0.0;
         self.started = false;
+        self.last_e = 0.0;
     }
 }
 
@@ -153,6 +166,23 @@ mod tests {
             let out = c.step(&meas(omega, 300.0, 300.0), None);
             assert!((out.torque_cmd - 300.0).abs() < 1e-6, "{}", out.torque_cmd);
             assert!(!out.used_arte);
+            omega += dt * 300.0 / v.j_model();
+        }
+    }
+
+    #[test]
+    fn one_wheel_speed_that_is_no_number_does_not_latch_the_command() {
+        // A gripping wheel that follows the model, one NaN sample at 0.1 s:
+        // the command holds over it and is the demand again after it
+        // (before, the NaN stayed in the filters and the command at 0 N m).
+        let v = VehicleParams::default();
+        let dt = 1e-3;
+        let mut c = Mfc::new(MfcParams::default(), ArteUse::default(), &v, dt).unwrap();
+        let mut omega = 10.0;
+        for k in 0..400 {
+            let w = if k == 100 { f64::NAN } else { omega };
+            let out = c.step(&meas(w, 300.0, 300.0), None).torque_cmd;
+            assert!((out - 300.0).abs() < 1e-6, "{k}: {out}");
             omega += dt * 300.0 / v.j_model();
         }
     }
