@@ -149,6 +149,48 @@ mod tests {
     }
 
     #[test]
+    fn one_wheel_speed_that_is_no_number_latches_no_controller() {
+        // A gripping wheel (rω 1 % above V) at 300 N m, one NaN wheel speed
+        // at 0.2 s: 50 ms later every controller commands what it did
+        // before it.
+        let c = ControllersConfig::default();
+        let v = VehicleParams::default();
+        let dt = c.loop_.dt();
+        for k in ControllerKind::ALL {
+            let mut a = AnyController::new(k, &c, &v, dt).unwrap();
+            let (mut speed, mut before) = (5.0, f64::NAN);
+            for i in 0..400u32 {
+                let omega = if i == 200 {
+                    f64::NAN
+                } else {
+                    1.01 * speed / v.r
+                };
+                let m = Measurement {
+                    t: f64::from(i) * dt,
+                    omega,
+                    v: Some(speed),
+                    torque: 300.0,
+                    demand: 300.0,
+                };
+                let cmd = a.step(&m, None).torque_cmd;
+                if i == 199 {
+                    before = cmd;
+                }
+                if i == 250 {
+                    assert!(before > 250.0, "{k}: {before} N m on a gripping wheel");
+                }
+                if i >= 250 {
+                    assert!(
+                        cmd >= before - 1.0,
+                        "{k} at {i}: {cmd} N m, {before} before"
+                    );
+                }
+                speed += dt * 1.0;
+            }
+        }
+    }
+
+    #[test]
     fn builds_each_kind_and_rejects_bad_dt() {
         let c = ControllersConfig::default();
         let v = VehicleParams::default();
