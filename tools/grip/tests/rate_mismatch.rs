@@ -158,14 +158,34 @@ fn generate_with_audio_at_another_rate_than_the_model_is_refused() {
             os("--out"),
             out_dir.as_os_str(),
             os("--count"),
-            os("1"),
+            os("2"),
         ],
     );
     assert!(!ok, "generate at 48 kHz with a 44.1 kHz model ran:\n{out}");
-    assert!(
-        err.contains("audio.sample_rate is 48000 Hz") && err.contains("expects 44100 Hz"),
-        "{err}"
-    );
+    // the rule of `grip drive` (tools/grip/src/drive/rates.rs): the user's
+    // files (not a per-log copy), both rates and what to change
+    let acq = std::path::absolute(&acq).unwrap();
+    let cfg = std::path::absolute(&cfg).unwrap();
+    for want in [
+        format!("{}: field audio.sample_rate is 48000 Hz", acq.display()),
+        format!(
+            "arte's model {} (the `model` of {}) expects 44100 Hz",
+            cfg.join("models/default.model").display(),
+            cfg.join("arte-svc.toml").display()
+        ),
+        "the logs would carry no road estimate".to_owned(),
+        format!("Set [audio] sample_rate = 44100 in {}", acq.display()),
+        format!(
+            "set `model` in {} to a model trained at 48000 Hz",
+            cfg.join("arte-svc.toml").display()
+        ),
+    ] {
+        assert!(err.contains(&want), "{want}:\n{err}");
+    }
+    assert!(!err.contains("arte.toml"), "{err}");
+    // once, before any log: no log file, no output folder
+    assert_eq!(err.matches("expects 44100 Hz").count(), 1, "{err}");
+    assert!(!out_dir.exists(), "{}", out_dir.display());
 }
 
 #[test]

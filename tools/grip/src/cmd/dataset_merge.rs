@@ -14,10 +14,18 @@
 //! value are one recording, so cross-validation keeps them in one fold (the
 //! same car rendered at two SNRs has one `seed`). Nothing is overwritten:
 //! `DIR` must not exist yet.
+//!
+//! The manifests are read by the rules of every manifest reader
+//! (`crate::dataset`): column names in any case ([`column_key`]: `File`,
+//! `Speed_kmh` and `file`, `speed_kmh` are one column, merged as one, and
+//! `--recording-by` finds its column so too), `file` as a path relative to
+//! the source, `./asphalt/a1.wav` or a path under the source naming the
+//! same file as `asphalt/a1.wav` ([`manifest_file`]), and a file listed
+//! twice is an error naming it and both lines ([`FirstRows`]): the merged
+//! manifest has one row per file.
 
-use crate::dataset::Dataset;
+use crate::dataset::{Dataset, FirstRows, column_key, column_keys, manifest_file, record_line};
 use anyhow::{Context, Result, bail};
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
@@ -34,9 +42,23 @@ pub struct MergeArgs {
     pub recording_by: Option<String>,
 }
 
+/// A source's manifest, read as every manifest reader reads one.
 struct Manifest {
+    /// Column names as written (trimmed).
     header: Vec<String>,
-    rows: Vec<Vec<String>>,
+    /// Their [`column_key`]s.
+    keys: Vec<String>,
+    /// Rows: the `file` as a path relative to the source ([`manifest_file`])
+    /// and the fields.
+    rows: Vec<(String, Vec<String>)>,
+}
+
+impl Manifest {
+    /// The column named `name` in any case.
+    fn col(&self, name: &str) -> Option<usize> {
+        let key = column_key(name);
+        self.keys.iter().position(|k| *k == key)
+    }
 }
 
 fn read_manifest(root: &Path) -> Result<Option<Manifest>> {
@@ -44,20 +66,31 @@ fn read_manifest(root: &Path) -> Result<Option<Manifest>> {
     if !p.is_file() {
         return Ok(None);
     }
-    let mut rdr =
-        csv::Reader::from_path(&p).with_context(|| format!("cannot read {}", p.display()))?;
-    let header: Vec<String> = rdr
+    let text = std::fs::read(&p).with_context(|| format!("cannot read {}", p.display()))?;
+    let mut rdr = csv::Reader::from_reader(text.as_slice());
+    let headers = rdr
         .headers()
         .with_context(|| format!("{}: bad header", p.display()))?
-        .iter()
-        .map(|h| h.trim().to_string())
-        .collect();
+        .clone();
+    let header: Vec<String> = headers.iter().map(|h| h.trim().to_string()).collect();
+    let keys: Vec<String> = column_keys(&headers).iter().map(str::to_owned).collect();
+    let Some(fcol) = keys.iter().position(|k| k == "file") else {
+        bail!(
+            "manifest {}: no `file` column (header: {header:?})",
+            p.display()
+        );
+    };
+    let root_abs = std::fs::canonicalize(root).ok();
+    let mut first = FirstRows::default();
     let mut rows = Vec::new();
-    for (i, r) in rdr.records().enumerate() {
-        let r = r.with_context(|| format!("{} line {}", p.display(), i + 2))?;
-        rows.push(r.iter().map(str::to_string).collect());
+    for (k, r) in rdr.records().enumerate() {
+        let r = r.with_context(|| format!("manifest {}: record {}", p.display(), k + 1))?;
+        let line = record_line(&text, &r, k);
+        let file = manifest_file(r.get(fcol).unwrap_or(""), root, root_abs.as_deref());
+        first.first(&p, &file, line)?;
+        rows.push((file, r.iter().map(str::to_string).collect()));
     }
-    Ok(Some(Manifest { header, rows }))
+    Ok(Some(Manifest { header, keys, rows }))
 }
 
 fn link_or_copy(from: &Path, to: &Path) -> Result<()> {
@@ -96,7 +129,7 @@ pub fn merge(a: &MergeArgs) -> Result<usize> {
         tags.push(tag);
         let man = read_manifest(src)?;
         if let Some(col) = &a.recording_by
-            && !man.as_ref().is_some_and(|m| m.header.contains(col))
+            && man.as_ref().is_none_or(|m| m.col(col).is_none())
         {
             bail!(
                 "{}: --recording-by {col}, but its manifest.csv has no `{col}` column",
@@ -105,18 +138,21 @@ pub fn merge(a: &MergeArgs) -> Result<usize> {
         }
         sets.push((ds, man));
     }
+    // the union of the columns, one per name in any case, as first written
     let mut header: Vec<String> = vec!["file".into()];
     if a.recording_by.is_some() {
         header.push("recording".into());
     }
+    let mut keys: Vec<String> = header.clone();
     for (_, m) in &sets {
-        for h in m.iter().flat_map(|m| &m.header) {
-            if !header.contains(h) {
+        for (h, k) in m.iter().flat_map(|m| m.header.iter().zip(&m.keys)) {
+            if !keys.contains(k) {
                 header.push(h.clone());
+                keys.push(k.clone());
             }
         }
     }
-    let rec_col = header.iter().position(|h| h == "recording");
+    let rec_col = keys.iter().position(|k| k == "recording");
     let mut rows: Vec<Vec<String>> = Vec::new();
     let mut files = 0;
     for ((ds, man), tag) in sets.iter().zip(&tags) {
@@ -131,22 +167,16 @@ pub fn merge(a: &MergeArgs) -> Result<usize> {
             files += 1;
         }
         let Some(m) = man else { continue };
-        let cols: BTreeMap<&str, usize> = m
-            .header
-            .iter()
-            .enumerate()
-            .map(|(i, h)| (h.as_str(), i))
-            .collect();
-        for r in &m.rows {
+        for (file, r) in &m.rows {
             let mut out = vec![String::new(); header.len()];
-            for (j, h) in header.iter().enumerate() {
-                if let Some(v) = cols.get(h.as_str()).and_then(|&i| r.get(i)) {
+            for (j, k) in keys.iter().enumerate() {
+                if let Some(v) = m.col(k).and_then(|i| r.get(i)) {
                     out[j] = v.clone();
                 }
             }
-            out[0] = new_rel(out[0].trim());
+            out[0] = new_rel(file);
             if let (Some(rc), Some(by)) = (rec_col, &a.recording_by) {
-                let v = cols.get(by.as_str()).and_then(|&i| r.get(i));
+                let v = m.col(by).and_then(|i| r.get(i));
                 out[rc] = v.map(|v| v.trim().to_string()).unwrap_or_default();
             } else if let Some(rc) = rec_col
                 && !out[rc].trim().is_empty()
@@ -260,6 +290,109 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("no `seed` column"), "{e}");
+    }
+
+    /// Manifests as users write them (column names in any case, `./` and
+    /// paths under the source) merge into one column per name and one row
+    /// per file with the right new paths: they were merged as separate
+    /// columns (`File` beside `file`), the rows' `file` left empty or
+    /// mangled (`./a10/asphalt/...`), so the merged dataset could not be
+    /// read and its speeds and recordings were lost.
+    #[test]
+    fn manifests_merge_by_column_name_in_any_case_and_by_file() {
+        let d = tempfile::tempdir().unwrap();
+        let (a, b) = (d.path().join("a10"), d.path().join("b5"));
+        tiny(&a, &["asphalt", "snow"], None);
+        let a_abs = std::fs::canonicalize(&a).unwrap();
+        std::fs::write(
+            a.join("manifest.csv"),
+            format!(
+                "File,Recording,Speed_KMH,SEED\n./asphalt/asphalt_0.wav,r1,12,7\n{}/asphalt/asphalt_1.wav,r1,14,8\n",
+                a_abs.display()
+            ),
+        )
+        .unwrap();
+        tiny(
+            &b,
+            &["asphalt", "snow"],
+            Some("file,recording,speed_kmh,seed\nasphalt/asphalt_0.wav,r1,30,7\n"),
+        );
+        let out = d.path().join("mix");
+        merge(&MergeArgs {
+            out: out.clone(),
+            src: vec![a.clone(), b.clone()],
+            recording_by: None,
+        })
+        .unwrap();
+        let m = std::fs::read_to_string(out.join("manifest.csv")).unwrap();
+        assert_eq!(
+            m,
+            "file,Recording,Speed_KMH,SEED\n\
+             asphalt/a10/asphalt_0.wav,a10/r1,12,7\n\
+             asphalt/a10/asphalt_1.wav,a10/r1,14,8\n\
+             asphalt/b5/asphalt_0.wav,b5/r1,30,7\n"
+        );
+        let ds = Dataset::scan(&out).unwrap();
+        let get = |rel: &str| ds.entries.iter().find(|e| e.rel == rel).unwrap();
+        assert_eq!(get("asphalt/a10/asphalt_0.wav").speed_kmh, Some(12.0));
+        assert_eq!(get("asphalt/a10/asphalt_1.wav").speed_kmh, Some(14.0));
+        assert_eq!(get("asphalt/b5/asphalt_0.wav").speed_kmh, Some(30.0));
+        assert_eq!(
+            get("asphalt/a10/asphalt_0.wav").recording,
+            get("asphalt/a10/asphalt_1.wav").recording
+        );
+        assert_ne!(
+            get("asphalt/a10/asphalt_0.wav").recording,
+            get("asphalt/b5/asphalt_0.wav").recording
+        );
+        // --recording-by in another case than either manifest writes it
+        let by = d.path().join("by");
+        merge(&MergeArgs {
+            out: by.clone(),
+            src: vec![a, b],
+            recording_by: Some("Seed".into()),
+        })
+        .unwrap();
+        let ds = Dataset::scan(&by).unwrap();
+        let get = |rel: &str| ds.entries.iter().find(|e| e.rel == rel).unwrap().recording;
+        assert_eq!(
+            get("asphalt/a10/asphalt_0.wav"),
+            get("asphalt/b5/asphalt_0.wav")
+        );
+        assert_ne!(
+            get("asphalt/a10/asphalt_0.wav"),
+            get("asphalt/a10/asphalt_1.wav")
+        );
+    }
+
+    /// A source listing a file twice (here once as `./`) is refused naming
+    /// the file and both lines, before anything is written: the merged
+    /// manifest never carries a file twice.
+    #[test]
+    fn a_file_listed_twice_is_refused_before_anything_is_written() {
+        let d = tempfile::tempdir().unwrap();
+        let (a, b) = (d.path().join("a"), d.path().join("b"));
+        tiny(
+            &a,
+            &["asphalt", "snow"],
+            Some("file,speed_kmh\nasphalt/asphalt_0.wav,10\n\n./asphalt/asphalt_0.wav,20\n"),
+        );
+        tiny(&b, &["asphalt", "snow"], None);
+        let out = d.path().join("out");
+        let e = format!(
+            "{:#}",
+            merge(&MergeArgs {
+                out: out.clone(),
+                src: vec![b, a],
+                recording_by: None,
+            })
+            .unwrap_err()
+        );
+        assert!(
+            e.contains("file `asphalt/asphalt_0.wav` is listed twice, on line 2 and on line 4"),
+            "{e}"
+        );
+        assert!(!out.exists());
     }
 
     #[test]

@@ -176,7 +176,9 @@ pub struct Generated {
     pub estimates: u64,
     /// Scripted time covered, s.
     pub span_s: f64,
-    /// Blocks arte did not classify: refused for their rate, silent, clipped.
+    /// Blocks arte did not classify (refused for their rate, silent,
+    /// clipped, at or after a capture overrun, stale): its counters, as
+    /// `grip replay` reports them.
     pub blocks_refused: crate::replay::BlockCounts,
 }
 
@@ -247,10 +249,11 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     }
     let random = super::sim::random_spec(args.random.as_deref(), &args.scenario)?;
     let specs = specs(&args, &random)?;
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
     let config = std::path::absolute(&ctx.config_dir)
         .with_context(|| format!("resolving {}", ctx.config_dir.display()))?;
+    require_one_rate(&config)?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
     let t0 = Instant::now();
     let pb = crate::drive::many::bar(specs.len(), "logs generated");
     let next = AtomicUsize::new(0);
@@ -296,16 +299,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         done.len() as f64 / wall.max(1e-9),
         span / wall.max(1e-9)
     );
-    let mut refused = crate::replay::BlockCounts::default();
-    let mut blocks = 0u64;
-    for g in &done {
-        refused.rate_mismatch += g.blocks_refused.rate_mismatch;
-        refused.bad_rate = refused.bad_rate.max(g.blocks_refused.bad_rate);
-        refused.silent += g.blocks_refused.silent;
-        refused.clipped += g.blocks_refused.clipped;
-        blocks += g.blocks;
-    }
-    if let Some(l) = refused.line(blocks as usize, None) {
+    if let Some(l) = not_classified(&done) {
         println!("{l}");
     }
     let failed = failed.into_inner().unwrap_or_default();
@@ -318,6 +312,48 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// The one rule of `crate::drive::rates` before any log is generated: arte's
+/// model (the `model` of `config`'s `arte-svc.toml`; every log runs it)
+/// must be at audio-acq's `[audio] sample_rate` (every log's audio: only
+/// `[synth]` changes per log), else arte would refuse every block and the
+/// logs would carry no road estimate. The error names both files, both
+/// rates and the ways out.
+fn require_one_rate(config: &Path) -> anyhow::Result<()> {
+    use crate::drive::rates;
+    let arte_file = config.join("arte-svc.toml");
+    let model = rates::arte_model(config, None)
+        .with_context(|| format!("arte's model (the `model` of {})", arte_file.display()))?;
+    let (audio_file, audio_hz) = rates::audio_rate(config)?;
+    rates::require_one_rate(
+        &audio_file,
+        audio_hz,
+        &format!(
+            "arte's model {} (the `model` of {})",
+            model.path.display(),
+            arte_file.display()
+        ),
+        model.hz,
+        "the logs would carry no road estimate",
+        &format!(
+            "set `model` in {} to a model trained at {audio_hz} Hz (`grip train --data DIR` on recordings at {audio_hz} Hz)",
+            arte_file.display()
+        ),
+    )
+}
+
+/// The blocks arte did not classify in the logs `done`, all counts summed
+/// as one (`crate::replay::BlockCounts::add`), as one line; `None` when
+/// there were none.
+fn not_classified(done: &[Generated]) -> Option<String> {
+    let mut refused = crate::replay::BlockCounts::default();
+    let mut blocks = 0u64;
+    for g in done {
+        refused.add(&g.blocks_refused);
+        blocks += g.blocks;
+    }
+    refused.line(blocks as usize, None)
 }
 
 /// Copies what the services and the recorder read from `from` into `to`:
@@ -662,18 +698,9 @@ pub fn generate(config: &Path, s: &LogSpec) -> anyhow::Result<Generated> {
             acfg.audio.source.name()
         );
     }
+    // at arte's model's rate: `run` checked it before any log
+    // (`require_one_rate`)
     let rate = acfg.audio.sample_rate;
-    // arte refuses every block at another rate than its model's: the log
-    // would carry no road estimate (said here, before the drive)
-    if rate != arte.lp.sample_rate() {
-        bail!(
-            "{}: field audio.sample_rate is {rate} Hz, but arte's model {} expects {} Hz: arte would refuse every audio block and the log would carry no road estimate; set [audio] sample_rate = {} in audio-acq.toml of the configuration directory, or set model in arte.toml to a model trained at {rate} Hz",
-            config.join("audio-acq.toml").display(),
-            arte.model_path.display(),
-            arte.lp.sample_rate(),
-            arte.lp.sample_rate()
-        );
-    }
     let block = acfg
         .audio
         .block_samples
@@ -840,4 +867,54 @@ pub fn generate(config: &Path, s: &LogSpec) -> anyhow::Result<Generated> {
     w.write_metadata("grip.recorder", &summary.metadata())?;
     w.finish()?;
     Ok(g)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::replay::BlockCounts;
+
+    /// The logs' refused blocks are summed as `grip replay` counts them:
+    /// blocks at or after a capture overrun and stale ones included (they
+    /// were left out of the total).
+    #[test]
+    fn not_classified_counts_every_kind_over_the_logs() {
+        let log = |blocks, refused| Generated {
+            blocks,
+            blocks_refused: refused,
+            ..Generated::default()
+        };
+        assert_eq!(not_classified(&[log(10, BlockCounts::default())]), None);
+        let done = [
+            log(
+                10,
+                BlockCounts {
+                    silent: 1,
+                    xrun: 2,
+                    ..BlockCounts::default()
+                },
+            ),
+            log(
+                20,
+                BlockCounts {
+                    clipped: 3,
+                    stale: 4,
+                    ..BlockCounts::default()
+                },
+            ),
+            log(
+                5,
+                BlockCounts {
+                    xrun: 1,
+                    ..BlockCounts::default()
+                },
+            ),
+        ];
+        assert_eq!(
+            not_classified(&done).as_deref(),
+            Some(
+                "arte's blocks not classified, of 35: 1 silent, 3 clipped, 3 at or after a capture overrun, 4 stale (older than max_lag_s)"
+            )
+        );
+    }
 }

@@ -5,8 +5,8 @@
 //! model arte's start-up loads and its rate ([`arte_model`]), the rate
 //! audio-acq publishes ([`audio_rate`]), and the refusal naming both files
 //! and both rates ([`require_one_rate`]). `grip drive` checks with them
-//! before any service starts; `grip replay` finds its model with
-//! [`arte_model`].
+//! before any service starts, `grip generate` before any log is generated;
+//! `grip replay` finds its model with [`arte_model`].
 
 use std::path::{Path, PathBuf};
 

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use grip_drive::DriveLog;
 use grip_drive::plan::VEHICLE_ATTACHMENT;
+use grip_io::service::ServiceConfig;
 
 /// What the caller changes.
 #[derive(Debug, Clone, Default)]
@@ -233,7 +234,7 @@ fn model_rate(w: &WhatIf, dir: &Path) -> Option<(PathBuf, u32)> {
 /// the log's audio blocks: arte refuses every such block (its
 /// `rate_mismatch` counter), so the replay would publish no road estimate
 /// and report a drive without ARTE as if it were the model's. The drive's
-/// own model (no `--model`, `--config-dir` or `--set` on arte.toml) is
+/// own model (no `--model`, `--config-dir` or `--set` on arte-svc.toml) is
 /// replayed as recorded, with a warning: the drive had the same mismatch.
 fn check_model_rate(
     log: &DriveLog,
@@ -261,9 +262,13 @@ fn check_model_rate(
         .map(|r| format!("{r} Hz"))
         .collect::<Vec<_>>()
         .join(" and ");
+    // a `--set` line is `FILE: [SECTION] KEY ...` (`set_key`)
+    let arte_file = <grip_arte_svc::ArteServiceConfig as ServiceConfig>::FILE_NAME;
     let own = w.model.is_none()
         && w.config_dir.is_none()
-        && !changes.iter().any(|c| c.starts_with("arte.toml:"));
+        && !changes
+            .iter()
+            .any(|c| c.split_once(':').is_some_and(|(f, _)| f == arte_file));
     let what = match &w.model {
         Some(m) => format!("--model {}", m.display()),
         None => match path.strip_prefix(dir) {
@@ -384,6 +389,42 @@ pub fn set_key(dir: &Path, spec: &str) -> anyhow::Result<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The drive's own model at another rate than the log's audio is
+    /// replayed with a warning; a `--set` on arte's file (`arte-svc.toml`)
+    /// makes it the replay's configuration, and the mismatch is refused.
+    #[test]
+    fn a_set_on_arte_svc_toml_is_not_the_drives_own_model() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
+        let mut b = grip_msgs::AudioBlock::zeroed();
+        b.sample_rate = 16_000;
+        let log = DriveLog {
+            path: "d.mcap".into(),
+            audio_blocks: vec![b; 3],
+            ..DriveLog::default()
+        };
+        let w = WhatIf::default();
+        check_model_rate(&log, &w, &dir, &[]).unwrap();
+        check_model_rate(
+            &log,
+            &w,
+            &dir,
+            &["controllers.toml: [mfc] k 1.0 -> 1.1".into()],
+        )
+        .unwrap();
+        let e = check_model_rate(
+            &log,
+            &w,
+            &dir,
+            &["arte-svc.toml: [stream] hop_s 0.025 -> 0.05".into()],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("expects 44100 Hz audio") && e.contains("at 16000 Hz (3 of 3 blocks)"),
+            "{e}"
+        );
+    }
 
     #[test]
     fn set_finds_the_one_file_or_asks_for_it() {

@@ -131,6 +131,29 @@ impl BlockCounts {
         }
     }
 
+    /// Adds `other`'s counts (several logs' blocks as one: `grip generate`'s
+    /// total): every count summed, `bad_rate` the last one refused. Every
+    /// field is named here, so a count added to this type cannot be left out
+    /// of a sum.
+    pub fn add(&mut self, other: &Self) {
+        let Self {
+            rate_mismatch,
+            bad_rate,
+            silent,
+            clipped,
+            xrun,
+            stale,
+        } = *other;
+        self.rate_mismatch += rate_mismatch;
+        if rate_mismatch > 0 {
+            self.bad_rate = bad_rate;
+        }
+        self.silent += silent;
+        self.clipped += clipped;
+        self.xrun += xrun;
+        self.stale += stale;
+    }
+
     /// The counts for `grip replay --json` (`blocks`: the blocks replayed;
     /// `model_rate`: the model's rate, Hz): every count, zero or not.
     pub fn json(&self, blocks: usize, model_rate: u32) -> serde_json::Value {
@@ -657,5 +680,50 @@ pub fn fields<T: McapRecord>(r: &T) -> serde_json::Map<String, serde_json::Value
     match serde_json::from_slice(&buf) {
         Ok(serde_json::Value::Object(m)) => m,
         _ => serde_json::Map::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Summed counts keep every kind of refusal, the overrun and stale
+    /// blocks included, and the line names each.
+    #[test]
+    fn block_counts_add_up_every_count() {
+        let a = BlockCounts {
+            rate_mismatch: 2,
+            bad_rate: 48_000,
+            silent: 1,
+            clipped: 0,
+            xrun: 3,
+            stale: 0,
+        };
+        let b = BlockCounts {
+            rate_mismatch: 0,
+            bad_rate: 0,
+            silent: 0,
+            clipped: 4,
+            xrun: 1,
+            stale: 5,
+        };
+        let mut sum = BlockCounts::default();
+        sum.add(&a);
+        sum.add(&b);
+        assert_eq!(
+            sum,
+            BlockCounts {
+                rate_mismatch: 2,
+                bad_rate: 48_000,
+                silent: 1,
+                clipped: 4,
+                xrun: 4,
+                stale: 5,
+            }
+        );
+        assert_eq!(
+            sum.line(100, None).unwrap(),
+            "arte's blocks not classified, of 100: 2 refused for their sample rate (e.g. 48000 Hz), 1 silent, 4 clipped, 4 at or after a capture overrun, 5 stale (older than max_lag_s)"
+        );
     }
 }
