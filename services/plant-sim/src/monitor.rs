@@ -75,10 +75,17 @@ impl Monitor for PlantMonitor {
             .timed_out
             .update(s.cmd_timed_out.load(Ordering::Relaxed))
         {
-            Some(true) => tracing::warn!(
-                episodes = s.cmd_timeouts.load(Ordering::Relaxed),
-                "inverter: no valid TorqueCommand within the timeout: torque zeroed (CmdTimeout=1)"
-            ),
+            // The inverter starts timed out (no command yet, not counted as
+            // an episode): that is the start, not a fault.
+            Some(true) => match s.cmd_timeouts.load(Ordering::Relaxed) {
+                0 => tracing::info!(
+                    "inverter: no TorqueCommand yet: torque zero until the first valid one (CmdTimeout=1)"
+                ),
+                episodes => tracing::warn!(
+                    episodes,
+                    "inverter: no valid TorqueCommand within the timeout: torque zeroed (CmdTimeout=1)"
+                ),
+            },
             Some(false) => {
                 tracing::info!("inverter: valid TorqueCommand frames again: torque resumed")
             }
