@@ -1,7 +1,10 @@
 //! The summary of a drive, computed from its MCAP log alone (so `grip drive`
 //! and `grip inspect` print the same thing for the same file):
 //!
-//! - run description (`grip.run` metadata) and what the reader found;
+//! - run description (`grip.run` metadata), the model arte ran
+//!   ([`model_of`]: the attached `arte-svc.toml`'s `model`), whether the
+//!   log is a replay's (`grip replay --out`: [`replay_of`]), and what the
+//!   reader found;
 //! - messages per topic, gaps by sequence number in the log, and the
 //!   recorder's own counters (`grip.recorder`: received, queue drops);
 //! - loop timing from the `CycleRecord`s: wake-up latency and compute time
@@ -337,6 +340,133 @@ pub struct Summary {
     /// What the torque did before each change of the road under the driven
     /// wheel to one that carries less (None: no road catalogue).
     pub preview: Option<Vec<PreviewEvent>>,
+    /// The model arte ran ([`model_of`]; None: the log does not say).
+    pub model: Option<ModelInfo>,
+    /// The log was written by `grip replay --out` (its `grip.replay`
+    /// record); None: a drive's (or the recorder's) log.
+    pub replay: Option<ReplayInfo>,
+    /// The scenario window in log time, ns: [start, end) (None: no window).
+    pub window_ns: Option<(u64, u64)>,
+}
+
+/// The model arte ran, as the log says it ([`model_of`]).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ModelInfo {
+    /// The model file as arte's configuration names it (`arte-svc.toml`'s
+    /// `model`, e.g. `models/default.model`), or as `grip replay --model`
+    /// was given it.
+    pub name: String,
+    /// Its SHA-256 (`grip.run` `model.NAME`, else of the attachment;
+    /// None: neither).
+    pub sha256: Option<String>,
+    /// Where the summary found it, for the report.
+    pub from: String,
+}
+
+impl ModelInfo {
+    /// `models/NAME (sha256 0123456789ab, FROM)`.
+    pub fn line(&self) -> String {
+        format!(
+            "{} (sha256 {}, {})",
+            self.name,
+            short_sha(self.sha256.as_ref()),
+            self.from
+        )
+    }
+}
+
+/// A log written by `grip replay --out` (its `grip.replay` metadata).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ReplayInfo {
+    /// The log that was replayed.
+    pub source: String,
+    /// `open loop` or `closed loop`.
+    pub mode: String,
+    /// The configuration the replay ran with.
+    pub configuration: String,
+    /// The what-if changes (empty: none).
+    pub changes: String,
+    /// The controller and ARTE switch the replay ran (None: a replay log
+    /// written before they were recorded; `grip.run`'s are the source's).
+    pub controller: Option<String>,
+    /// `on` or `off`.
+    pub arte: Option<String>,
+    /// Whether the source log's recorder finished it (None: not recorded).
+    pub source_finished: Option<bool>,
+}
+
+impl ReplayInfo {
+    /// Whether the plant (ground truth) is the logged drive's, copied: the
+    /// metrics are then not a consequence of the replayed commands.
+    pub fn open_loop(&self) -> bool {
+        self.mode != "closed loop"
+    }
+
+    /// `replay of SOURCE (open loop)`.
+    pub fn headline(&self) -> String {
+        format!("replay of {} ({})", self.source, self.mode)
+    }
+}
+
+/// The `grip.replay` record of a log written by `grip replay --out`.
+pub fn replay_of(log: &DriveLog) -> Option<ReplayInfo> {
+    let m = log.metadata.get("grip.replay")?;
+    let get = |k: &str| m.get(k).cloned().unwrap_or_default();
+    Some(ReplayInfo {
+        source: m.get("source").cloned().unwrap_or_else(|| "?".into()),
+        mode: m.get("mode").cloned().unwrap_or_else(|| "open loop".into()),
+        configuration: get("configuration"),
+        changes: get("changes"),
+        controller: m.get("controller").cloned(),
+        arte: m.get("arte").cloned(),
+        source_finished: m.get("source_recorder_finished").map(|v| v != "false"),
+    })
+}
+
+/// Whether the log was finished by its writer: the recorder's
+/// `grip.recorder` summary, or the `grip.replay` record `grip replay --out`
+/// writes (a replay has no recorder; it writes the whole log at once).
+pub fn log_finished(log: &DriveLog) -> bool {
+    log.recorder.is_some() || replay_of(log).is_some_and(|r| r.source_finished != Some(false))
+}
+
+/// The model arte ran: for a log of `grip replay --out` the one its
+/// `grip.replay` record names (`model`, `model_sha256`), else the `model`
+/// of the `arte-svc.toml` attached to the log (the recorder attaches the
+/// configuration arte started with, and every model file of it, so
+/// `grip.run`'s `model.*` keys alone do not say which one ran), with its
+/// SHA-256 from `grip.run` (`model.NAME`), else of the attached file.
+/// None when the log carries no `arte-svc.toml` naming a model.
+pub fn model_of(log: &DriveLog) -> Option<ModelInfo> {
+    if let Some(m) = log.metadata.get("grip.replay")
+        && let Some(name) = m.get("model").filter(|n| !n.is_empty())
+    {
+        return Some(ModelInfo {
+            name: name.clone(),
+            sha256: m.get("model_sha256").cloned().filter(|h| !h.is_empty()),
+            from: "the model grip replay ran".into(),
+        });
+    }
+    let text = log.attachment_text("arte-svc.toml")?;
+    let v: toml::Table = toml::from_str(text).ok()?;
+    let name = v.get("model")?.as_str()?.to_owned();
+    let recorded = log.run.get(&format!("model.{name}")).cloned();
+    let (sha256, from) = match (log.attachments.get(&name), recorded) {
+        (Some(d), _) => (
+            Some(grip_digest::sha256_hex(d)),
+            "arte-svc.toml's model, attached to the log".to_owned(),
+        ),
+        (None, Some(h)) => (
+            Some(h),
+            "arte-svc.toml's model; grip.run records its SHA-256, the file is not attached"
+                .to_owned(),
+        ),
+        (None, None) => (
+            None,
+            "arte-svc.toml's model; neither attached nor in grip.run".to_owned(),
+        ),
+    };
+    Some(ModelInfo { name, sha256, from })
 }
 
 /// The wheel reaching a road that carries less (`grip inspect`'s
@@ -801,7 +931,26 @@ pub fn summarize(
             late.join(", ")
         ));
     }
-    if log.recorder.is_none() {
+    s.replay = replay_of(log);
+    s.model = model_of(log);
+    // a replay's controller and ARTE switch are its own (`grip.run` is
+    // the source's, copied)
+    if let Some(r) = &s.replay {
+        for (k, v) in [("controller", &r.controller), ("arte", &r.arte)] {
+            let Some(v) = v else { continue };
+            match s.run.iter_mut().find(|(kk, _)| kk == k) {
+                Some(e) => e.1 = v.clone(),
+                None => s.run.push((k.to_owned(), v.clone())),
+            }
+        }
+    }
+    if s.replay.is_some() && !log_finished(log) {
+        s.warnings.push(
+            "the replayed log's recorder did not finish it (crash or kill; its grip.replay record says so): the replay covers what it had".into(),
+        );
+        s.incomplete
+            .push("the replayed log's recorder did not finish it".into());
+    } else if !log_finished(log) {
         s.warnings
             .push("no grip.recorder summary: the recorder did not finish (crash or kill)".into());
         s.incomplete
@@ -987,7 +1136,7 @@ fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> 
         // a log that stops early (truncated, or the recorder did not
         // finish) has simply not reached the start; a complete one shows a
         // plant that never started
-        if log.report.truncated.is_some() || log.recorder.is_none() {
+        if log.report.truncated.is_some() || !log_finished(log) {
             s.window_status = WindowStatus::EndsBeforeStart;
             let w = format!(
                 "the log ends before the scenario start: its ground truth stops after {truth_s:.3} s with the car still held or pre-rolling; no metrics, no figures during the scenario"
@@ -1044,6 +1193,7 @@ fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> 
     let last_ns = log.truth[last_in].stamp_ns;
     let w_end = end_ns.min(last_ns.saturating_add(TRUTH_PERIOD_NS));
     s.window = Some((rel(start_ns), rel(w_end)));
+    s.window_ns = Some((start_ns, w_end));
     s.speed_kmh = Some((log.truth[i0].v * 3.6, log.truth[last_in].v * 3.6));
     let span_s = secs_between(start_ns, w_end);
     // holes in the ground truth inside the window (a damaged part of the
@@ -1059,7 +1209,7 @@ fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> 
             }
         }
     }
-    let incomplete_log = log.report.truncated.is_some() || log.recorder.is_none();
+    let incomplete_log = log.report.truncated.is_some() || !log_finished(log);
     // A complete live drive misses a few samples where plant-sim's timer
     // skipped periods (a scheduling pause of a few ms: the samples were
     // never made, the log lost nothing; the sample count shows them): such
@@ -1162,6 +1312,43 @@ impl Summary {
         if !self.run.is_empty() {
             let parts: Vec<String> = self.run.iter().map(|(k, v)| format!("{k}={v}")).collect();
             let _ = writeln!(o, "  {}", parts.join("  "));
+        }
+        if let Some(r) = &self.replay {
+            let _ = writeln!(
+                o,
+                "  {}: written by grip replay --out, not by the recorder (no grip.recorder summary; grip.run is the source's){}",
+                r.headline(),
+                if r.open_loop() {
+                    "; the ground truth, and so the metrics, are the source drive's, not a consequence of the replayed commands"
+                } else {
+                    ""
+                }
+            );
+            let _ = writeln!(
+                o,
+                "  replay configuration: {}; changes: {}",
+                if r.configuration.is_empty() {
+                    "?"
+                } else {
+                    &r.configuration
+                },
+                if r.changes.is_empty() {
+                    "none"
+                } else {
+                    &r.changes
+                }
+            );
+        }
+        match &self.model {
+            Some(m) => {
+                let _ = writeln!(o, "  model: {}", m.line());
+            }
+            None => {
+                let _ = writeln!(
+                    o,
+                    "  model: - (the log carries no arte-svc.toml naming a model)"
+                );
+            }
         }
         for w in &self.warnings {
             let _ = writeln!(o, "  WARNING: {w}");
@@ -1419,7 +1606,7 @@ impl Summary {
 }
 
 /// The first 12 hex digits of a SHA-256, or `-`.
-fn short_sha(h: Option<&String>) -> String {
+pub fn short_sha(h: Option<&String>) -> String {
     h.map_or("-".to_owned(), |h| h.chars().take(12).collect())
 }
 
@@ -1471,6 +1658,47 @@ pub fn comparability(a: &Summary, b: &Summary) -> Vec<String> {
     w
 }
 
+/// Whether A and B ran different models (by SHA-256, else by name; a side
+/// whose log does not say is not flagged).
+pub fn models_differ(a: &Summary, b: &Summary) -> bool {
+    match (&a.model, &b.model) {
+        (Some(x), Some(y)) => match (&x.sha256, &y.sha256) {
+            (Some(p), Some(q)) => p != q,
+            _ => x.name != y.name,
+        },
+        _ => false,
+    }
+}
+
+/// What `grip inspect A B` says of a side written by `grip replay --out`,
+/// and of two different models: one line each.
+pub fn replay_notes(a: &Summary, b: &Summary) -> Vec<String> {
+    let mut n = Vec::new();
+    for (tag, s) in [("A", a), ("B", b)] {
+        let Some(r) = &s.replay else { continue };
+        if r.open_loop() {
+            n.push(format!(
+                "{tag} is a {}: its ground truth is the source drive's, copied, so its plant metrics (slip deviation to final speed, and the preview's slip and motor torque) are the source's, not a consequence of its replayed commands; its torque commands, safe-state cycles and ARTE accuracy are the replay's",
+                r.headline()
+            ));
+        } else {
+            n.push(format!(
+                "{tag} is a {}: the plant was re-simulated with the replayed commands; its loop timing is carried over from the source",
+                r.headline()
+            ));
+        }
+    }
+    if models_differ(a, b) {
+        let m = |s: &Summary| s.model.as_ref().map_or("-".to_owned(), ModelInfo::line);
+        n.push(format!(
+            "A and B ran different models: A {}, B {}",
+            m(a),
+            m(b)
+        ));
+    }
+    n
+}
+
 /// `grip inspect A B`: the two drives' metrics side by side with A / B
 /// (`grip inspect on.mcap off.mcap`: what ARTE changed), then each one's
 /// preview events. A warning heads the table when the two are not
@@ -1499,6 +1727,9 @@ B: {}",
             let _ = writeln!(o, "  - {i}");
         }
     }
+    for n in replay_notes(a, b) {
+        let _ = writeln!(o, "NOTE: {n}");
+    }
     let _ = writeln!(o, "{:<34} {:>12} {:>12} {:>8}", "", "A", "B", "A / B");
     for k in ["scenario", "controller", "arte", "seed"] {
         let _ = writeln!(o, "{k:<34} {:>12} {:>12}", run(a, k), run(b, k));
@@ -1517,6 +1748,15 @@ B: {}",
         short_sha(a.vehicle_sha256.as_ref()),
         short_sha(b.vehicle_sha256.as_ref())
     );
+    let model_sha = |s: &Summary| short_sha(s.model.as_ref().and_then(|m| m.sha256.as_ref()));
+    let row = format!(
+        "{:<34} {:>12} {:>12} {:>8}",
+        "model (sha256)",
+        model_sha(a),
+        model_sha(b),
+        if models_differ(a, b) { "DIFFER" } else { "" }
+    );
+    let _ = writeln!(o, "{}", row.trim_end());
     let win = |s: &Summary| {
         s.window
             .map_or("-".to_owned(), |(t0, t1)| format!("{:.3}", t1 - t0))
@@ -1650,6 +1890,8 @@ vehicle B: {} (sha256 {})",
         b.vehicle,
         short_sha(b.vehicle_sha256.as_ref())
     );
+    let model = |s: &Summary| s.model.as_ref().map_or("-".to_owned(), ModelInfo::line);
+    let _ = writeln!(o, "model A: {}\nmodel B: {}", model(a), model(b));
     for (tag, s) in [("A", a), ("B", b)] {
         if !s.warnings.is_empty() {
             let _ = writeln!(o, "warnings {tag}:");
@@ -1851,6 +2093,46 @@ mod tests {
         assert!(!r.contains("18446744073"), "{r}");
         assert_eq!(out_of_time_order([1, 2, 2, 3]), 0);
         assert_eq!(out_of_time_order([3, 1, 2, 0]), 2);
+    }
+
+    /// A log of `grip replay --out` has no `grip.recorder` record: its
+    /// `grip.replay` record stands for it (no crash warning, the replay's
+    /// own controller shown), unless it says the replayed log's recorder
+    /// did not finish.
+    #[test]
+    fn a_replay_log_is_not_a_crashed_recording() {
+        let mut log = DriveLog::default();
+        log.run.insert("controller".into(), "mtte".into());
+        let mut m = BTreeMap::new();
+        m.insert("source".into(), "drive.mcap".to_owned());
+        m.insert("mode".into(), "open loop".to_owned());
+        m.insert("controller".into(), "src".to_owned());
+        m.insert("source_recorder_finished".into(), "true".to_owned());
+        log.metadata.insert("grip.replay".into(), m.clone());
+        let v = VehicleParams::default();
+        let s = summarize(&log, &v, "test", None);
+        assert!(s.incomplete.is_empty(), "{:?}", s.incomplete);
+        let r = s.render();
+        assert!(r.contains("replay of drive.mcap (open loop)"), "{r}");
+        assert!(r.contains("controller=src"), "{r}");
+        assert!(!r.contains("recorder did not finish"), "{r}");
+        m.insert("source_recorder_finished".into(), "false".to_owned());
+        log.metadata.insert("grip.replay".into(), m);
+        let s = summarize(&log, &v, "test", None);
+        assert!(
+            s.incomplete
+                .iter()
+                .any(|w| w.contains("replayed log's recorder did not finish")),
+            "{:?}",
+            s.incomplete
+        );
+        // without either record: the recorder did not finish
+        let s = summarize(&DriveLog::default(), &v, "test", None);
+        assert!(
+            s.warnings.iter().any(|w| w.contains("grip.recorder")),
+            "{:?}",
+            s.warnings
+        );
     }
 
     #[test]

@@ -164,3 +164,226 @@ fn inspect_json_separates_the_scenario_from_the_whole_log() {
         "{out}"
     );
 }
+
+/// `grip replay REFERENCE --out DIR/NAME [ARGS]`: the written log and the
+/// report.
+fn replayed(dir: &Path, name: &str, extra: &[&std::ffi::OsStr]) -> (PathBuf, String) {
+    let p = dir.join(name);
+    let r = reference();
+    let mut args: Vec<&std::ffi::OsStr> = vec![
+        "replay".as_ref(),
+        r.as_os_str(),
+        "--out".as_ref(),
+        p.as_os_str(),
+    ];
+    args.extend_from_slice(extra);
+    let (ok, out, err) = common::output(&args);
+    assert!(ok, "{out}{err}");
+    (p, out)
+}
+
+/// A log of `grip replay --out` has no `grip.recorder` record (there is no
+/// recorder): `grip inspect` recognises its `grip.replay` record and says
+/// whose replay it is instead of a crash warning, `grip inspect A B`
+/// compares it with its drive (saying what an open-loop replay's plant
+/// metrics are) instead of calling it incomplete, and the directory table
+/// and `--json` agree.
+#[test]
+fn a_replay_log_is_recognised_and_compares_with_its_drive() {
+    let d = tempfile::tempdir().unwrap();
+    let (rep, _) = replayed(d.path(), "replay.mcap", &[]);
+    let (ok, out, err) = common::output(&["inspect".as_ref(), rep.as_os_str()]);
+    assert!(ok, "{out}{err}");
+    assert!(
+        out.contains(&format!("replay of {} (open loop)", reference().display())),
+        "{out}"
+    );
+    assert!(!out.contains("the recorder did not finish"), "{out}");
+    assert!(!out.contains("WARNING"), "{out}");
+
+    let (ok, out, err) =
+        common::output(&["inspect".as_ref(), reference().as_os_str(), rep.as_os_str()]);
+    assert!(ok, "{out}{err}");
+    assert!(!out.contains("not a complete drive"), "{out}");
+    assert!(!out.contains("not comparable"), "{out}");
+    assert!(
+        out.contains("NOTE: B is a replay of") && out.contains("its plant metrics"),
+        "{out}"
+    );
+
+    let j = json_of(&rep);
+    assert_eq!(j["status"], "ok", "{j}");
+    assert_eq!(j["replay"]["mode"], "open loop", "{j}");
+    assert_eq!(
+        j["replay"]["source"].as_str(),
+        Some(reference().display().to_string().as_str())
+    );
+    assert!(
+        !j["warnings"].to_string().contains("grip.recorder"),
+        "{}",
+        j["warnings"]
+    );
+    assert!(json_of(&reference())["replay"].is_null());
+
+    // a what-if replay: its own controller, not the source's grip.run
+    let (src, _) = replayed(
+        d.path(),
+        "src.mcap",
+        &["--controller".as_ref(), "src".as_ref()],
+    );
+    assert_eq!(json_of(&src)["controller"], "src");
+    let (ok, out, err) =
+        common::output(&["inspect".as_ref(), reference().as_os_str(), src.as_os_str()]);
+    assert!(ok, "{out}{err}");
+    let row: Vec<&str> = out
+        .lines()
+        .find(|l| l.starts_with("controller "))
+        .unwrap()
+        .split_whitespace()
+        .collect();
+    assert_eq!(row, ["controller", "mtte", "src"], "{out}");
+}
+
+/// The model arte ran is named (arte-svc.toml's `model`, attached to the
+/// log, with its SHA-256), in the summary, `--json` and `grip inspect A B`,
+/// which flags two logs that ran different models (here a replay with
+/// `--model`, whose `grip.replay` record names the model it ran).
+#[test]
+fn the_model_arte_ran_is_named() {
+    let (ok, out, err) = common::output(&["inspect".as_ref(), reference().as_os_str()]);
+    assert!(ok, "{out}{err}");
+    assert!(
+        out.contains(
+            "\n  model: models/default.model (sha256 4a6ce5407aaf, arte-svc.toml's model, attached to the log)\n"
+        ),
+        "{out}"
+    );
+    let j = json_of(&reference());
+    assert_eq!(j["model"], "models/default.model", "{j}");
+    assert_eq!(j["model_sha256"], j["run"]["model.models/default.model"]);
+
+    let d = tempfile::tempdir().unwrap();
+    let paper = common::config_dir().join("models/paper.model");
+    let (rep, _) = replayed(
+        d.path(),
+        "paper.mcap",
+        &["--model".as_ref(), paper.as_os_str()],
+    );
+    let sha = j["run"]["model.models/paper.model"].as_str().unwrap();
+    let r = json_of(&rep);
+    assert_eq!(r["model_sha256"].as_str(), Some(sha), "{r}");
+    let (ok, out, err) =
+        common::output(&["inspect".as_ref(), reference().as_os_str(), rep.as_os_str()]);
+    assert!(ok, "{out}{err}");
+    let row = out
+        .lines()
+        .find(|l| l.starts_with("model (sha256)"))
+        .unwrap_or_else(|| panic!("no model row in\n{out}"));
+    assert!(
+        row.contains("4a6ce5407aaf") && row.contains(&sha[..12]) && row.ends_with("DIFFER"),
+        "{row}"
+    );
+    assert!(out.contains("NOTE: A and B ran different models"), "{out}");
+    // the same model on both sides is not flagged
+    let (_, out, _) = common::output(&[
+        "inspect".as_ref(),
+        reference().as_os_str(),
+        reference().as_os_str(),
+    ]);
+    assert!(
+        !out.contains("DIFFER") && !out.contains("different models"),
+        "{out}"
+    );
+}
+
+/// `grip inspect DIR`'s printed table: numbers rounded, ARTE accuracy in
+/// %, the road changes missed beside the delay, and the deadline misses
+/// named so (no bare `misses` column to read as missed changes).
+#[test]
+fn the_directory_table_is_rounded_and_unambiguous() {
+    let d = tempfile::tempdir().unwrap();
+    std::os::unix::fs::symlink(reference(), d.path().join("ref.mcap")).unwrap();
+    let (ok, out, err) = common::output(&["inspect".as_ref(), d.path().as_os_str()]);
+    assert!(ok, "{out}{err}");
+    let mut lines = out.lines();
+    let head: Vec<&str> = lines.next().unwrap().split_whitespace().collect();
+    assert!(!head.contains(&"misses"), "{head:?}");
+    let row: Vec<&str> = lines.next().unwrap().split_whitespace().collect();
+    let col = |name: &str| {
+        let i = head
+            .iter()
+            .position(|c| *c == name)
+            .unwrap_or_else(|| panic!("no column {name} in {head:?}"));
+        row[i]
+    };
+    assert_eq!(col("slip_dev"), "0.0390", "{out}");
+    assert_eq!(col("effort"), "241.7", "{out}");
+    assert_eq!(col("dist_m"), "6.63", "{out}");
+    assert_eq!(col("arte_acc_%"), "100.0", "{out}");
+    assert_eq!(col("delay_s"), "0.081", "{out}");
+    assert_eq!(col("missed"), "0/2", "{out}");
+    assert_eq!(col("deadline_misses"), "0", "{out}");
+    // the delay column is followed by the missed changes
+    let delay = head.iter().position(|c| *c == "delay_s").unwrap();
+    assert_eq!(head[delay + 1], "missed", "{head:?}");
+}
+
+/// `grip replay`'s table: every row labelled with its window (the
+/// scenario's, as `grip inspect` gives it, or the whole log), and the
+/// blocks through arte counted as the blocks the "not classified" line
+/// counts.
+#[test]
+fn the_replay_table_says_each_rows_window() {
+    let (ok, out, err) = common::output(&["replay".as_ref(), reference().as_os_str()]);
+    assert!(ok, "{out}{err}");
+    let through: usize = out
+        .split(" audio blocks through ArteLoop::on_block")
+        .next()
+        .and_then(|s| s.rsplit(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{out}"));
+    assert!(
+        out.contains(&format!("arte's blocks not classified, of {through}: none")),
+        "{out}"
+    );
+    assert!(out.contains("(of the log's 85: "), "{out}");
+    let row = |name: &str| -> Vec<String> {
+        let l = out
+            .lines()
+            .find(|l| l.trim_start().starts_with(name))
+            .unwrap_or_else(|| panic!("no row {name:?} in\n{out}"));
+        l[l.find(name).unwrap() + name.len()..]
+            .split_whitespace()
+            .map(str::to_owned)
+            .collect()
+    };
+    // inspect: no cycle of the scenario in the safe state, 80 in the log
+    assert_eq!(
+        row("cycles in the safe state (scenario)"),
+        ["0.000", "0.000"]
+    );
+    assert_eq!(
+        row("cycles in the safe state (whole log)"),
+        ["80.000", "80.000"]
+    );
+    for r in [
+        "mean torque command, N m (active cycles, scenario)",
+        "max torque command, N m (scenario)",
+        "mean torque taken off the demand, N m (scenario)",
+        "cycles using ARTE, % (scenario)",
+        "ARTE accuracy vs ground truth, % (scenario)",
+        "ARTE accuracy vs ground truth, % (whole log)",
+    ] {
+        assert_eq!(row(r).len(), 2, "{r}: {out}");
+    }
+    let (ok, out, err) = common::output(&[
+        "replay".as_ref(),
+        "--json".as_ref(),
+        reference().as_os_str(),
+    ]);
+    assert!(ok, "{out}{err}");
+    let j: Value = serde_json::from_str(out.lines().next().unwrap()).unwrap();
+    assert_eq!(j["old"]["safe_cycles"], 80.0, "{j}");
+    assert_eq!(j["old"]["safe_cycles_in_scenario"], 0.0, "{j}");
+    assert_eq!(j["old"]["arte_accuracy_whole_log"], 1.0, "{j}");
+}

@@ -211,12 +211,12 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             for w in warnings {
                 eprintln!("{w}");
             }
-            let s = summary::summarize(&log, &vehicle, &from, Some(&roads));
-            println!("{}", s.render());
-            println!(
-                "loop wake-up latency histogram:\n{}",
-                summary::latency_histogram(&s.timing.wakeup_ns)
-            );
+            // what `grip inspect LOG` prints, by the same code: the log's
+            // own road catalogue (its warnings in the summary), the
+            // histogram and the road timeline
+            let log_roads = log.road_catalogue(&config_dir);
+            let s = summary::summarize_with_roads(&log, &vehicle, &from, &log_roads);
+            print!("{}", super::inspect::report(&log, &s));
         }
         Err(e) if outcome.failure.is_some() => eprintln!("drive: no readable log: {e:#}"),
         Err(e) => return Err(e.into()),

@@ -99,12 +99,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     let (log, r, s) = summary_of(ctx, &args.logs[0])?;
-    println!("{}", s.render());
-    println!(
-        "loop wake-up latency histogram:\n{}",
-        summary::latency_histogram(&s.timing.wakeup_ns)
-    );
-    println!("{}", road_timeline(&log));
+    print!("{}", report(&log, &s));
     if let Some(dir) = &args.csv {
         for p in export::write_csv(&log, dir)? {
             println!("wrote {}", p.display());
@@ -116,6 +111,18 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The report of one log, as `grip inspect LOG` prints it and `grip drive`
+/// after its drive (the same code): the summary, the wake-up latency
+/// histogram and the road timeline.
+pub fn report(log: &DriveLog, s: &summary::Summary) -> String {
+    format!(
+        "{}\nloop wake-up latency histogram:\n{}\n{}\n",
+        s.render(),
+        summary::latency_histogram(&s.timing.wakeup_ns),
+        road_timeline(log)
+    )
 }
 
 /// The road timeline: a header, then one line per 0.1 s (on the grid of

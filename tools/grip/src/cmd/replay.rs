@@ -267,6 +267,19 @@ fn json_num(x: f64) -> serde_json::Value {
     }
 }
 
+/// The cycles stamped in the scenario window `window` ([start, end) ns,
+/// the summary's), or every cycle without one.
+fn in_window(cycles: &[CycleRecord], window: Option<(u64, u64)>) -> Vec<CycleRecord> {
+    match window {
+        Some((a, b)) => cycles
+            .iter()
+            .filter(|c| (a..b).contains(&c.stamp_ns))
+            .copied()
+            .collect(),
+        None => cycles.to_vec(),
+    }
+}
+
 /// The controller's own figures of a set of cycles (open loop: the plant's
 /// metrics cannot change).
 fn command_figures(cycles: &[CycleRecord]) -> Vec<(&'static str, f64)> {
@@ -349,11 +362,21 @@ fn accuracy_row(
             format!("{:.1}", 100.0 * a.accuracy())
         }
     };
+    let whole = |a: &grip_drive::summary::ArteEval| {
+        if a.log_judged == 0 {
+            "-".to_owned()
+        } else {
+            format!("{:.1}", 100.0 * a.accuracy_whole_log())
+        }
+    };
     format!(
-        "  {:<44} {:>12} {:>12}",
-        "ARTE accuracy vs ground truth, %",
+        "  {:<52} {:>12} {:>12}\n  {:<52} {:>12} {:>12}",
+        "ARTE accuracy vs ground truth, % (scenario)",
         pct(old),
-        pct(new)
+        pct(new),
+        "ARTE accuracy vs ground truth, % (whole log)",
+        whole(old),
+        whole(new)
     )
 }
 
@@ -489,10 +512,11 @@ pub fn replay(
     let _ = writeln!(o, "  configuration: {}", cfg.source);
     let _ = writeln!(
         o,
-        "  tcs-loop: {} cycles through TcsLoop::cycle, controller {}, ARTE {}; arte: {} audio blocks through ArteLoop::on_block",
+        "  tcs-loop: {} cycles through TcsLoop::cycle, controller {}, ARTE {}; arte: {} audio blocks through ArteLoop::on_block (of the log's {}: the recorder starts before arte and stops after it, so the blocks before arte's first frame and after its last estimate are not replayed)",
         log.cycles.len(),
         cfg.controller,
         if cfg.arte { "on" } else { "off" },
+        last - first,
         log.audio_blocks.len()
     );
     if cfg.changes.is_empty() {
@@ -563,20 +587,64 @@ pub fn replay(
         summarize(&log, &vehicle, &from, None),
         summarize(&new_log, &vehicle, &from, None),
     );
-    let _ = writeln!(o, "\nold (logged) vs new (replayed):");
-    let _ = writeln!(o, "  {:<44} {:>12} {:>12}", "figure", "old", "new");
-    for ((name, a), (_, b)) in command_figures(&log.cycles)
+    // every row over the scenario window (the summary's, as `grip inspect`
+    // defines it), the whole log's labelled so
+    let window_words = match (s_old.window, s_new.window) {
+        (Some((a, b)), Some((c, d))) if closed => format!(
+            "scenario: the cycles stamped in the scenario window, old {a:.3}-{b:.3} s, new {c:.3}-{d:.3} s of the truth stream, as grip inspect gives it"
+        ),
+        (Some((a, b)), _) => format!(
+            "scenario: the cycles stamped in the scenario window, {a:.3}-{b:.3} s of the truth stream, as grip inspect gives it"
+        ),
+        _ => format!(
+            "whole log: this log has no scenario window ({})",
+            s_old
+                .window_status
+                .no_window_reason()
+                .unwrap_or("no scenario window")
+        ),
+    };
+    let scope = if s_old.window_ns.is_some() {
+        "scenario"
+    } else {
+        "whole log"
+    };
+    let _ = writeln!(
+        o,
+        "\nold (logged) vs new (replayed), each row labelled with its window ({window_words}; whole log: start-up before the scenario and the stop after it included):"
+    );
+    let _ = writeln!(o, "  {:<52} {:>12} {:>12}", "figure", "old", "new");
+    let (old_in, new_in) = (
+        in_window(&log.cycles, s_old.window_ns),
+        in_window(&outs.cycles, s_new.window_ns),
+    );
+    for ((name, a), (_, b)) in command_figures(&old_in)
         .into_iter()
-        .zip(command_figures(&outs.cycles))
+        .zip(command_figures(&new_in))
     {
-        let _ = writeln!(o, "  {name:<44} {a:>12.3} {b:>12.3}");
+        let name = match name.strip_suffix(')') {
+            Some(n) => format!("{n}, {scope})"),
+            None => format!("{name} ({scope})"),
+        };
+        let _ = writeln!(o, "  {name:<52} {a:>12.3} {b:>12.3}");
+    }
+    if s_old.window_ns.is_some() {
+        let (a, b) = (
+            command_figures(&log.cycles)[4].1,
+            command_figures(&outs.cycles)[4].1,
+        );
+        let _ = writeln!(
+            o,
+            "  {:<52} {a:>12.3} {b:>12.3}",
+            "cycles in the safe state (whole log)"
+        );
     }
     let _ = writeln!(o, "{}", accuracy_row(&s_old.arte, &s_new.arte));
     for (a, b) in s_old.arte.changes.iter().zip(&s_new.arte.changes) {
         let d = |x: Option<f64>| x.map_or("missed".to_owned(), |v| format!("{v:.3}"));
         let _ = writeln!(
             o,
-            "  {:<44} {:>12} {:>12}",
+            "  {:<52} {:>12} {:>12}",
             format!("detection delay {} -> {}, s", a.from, a.to),
             d(a.delay),
             d(b.delay)
@@ -601,7 +669,7 @@ pub fn replay(
                 } else {
                     0.0
                 };
-                let _ = writeln!(o, "  {name:<44} {x:>12.4} {y:>12.4}  ({rel:+.1} %)");
+                let _ = writeln!(o, "  {name:<52} {x:>12.4} {y:>12.4}  ({rel:+.1} %)");
             }
         }
         (Some(m), _) => {
@@ -624,10 +692,29 @@ pub fn replay(
 
     let figures = |cycles: &[CycleRecord], s: &grip_drive::Summary| {
         let mut m = serde_json::Map::new();
+        // without a suffix: the whole log (as `grip inspect --json`'s loop
+        // figures); `_in_scenario`: the scenario window (null without one)
         for ((_, v), key) in command_figures(cycles).into_iter().zip(FIGURE_KEYS) {
             m.insert(key.into(), json_num(v));
         }
+        for ((_, v), key) in command_figures(&in_window(cycles, s.window_ns))
+            .into_iter()
+            .zip(FIGURE_KEYS)
+        {
+            m.insert(
+                format!("{key}_in_scenario"),
+                if s.window_ns.is_some() {
+                    json_num(v)
+                } else {
+                    serde_json::Value::Null
+                },
+            );
+        }
         m.insert("arte_accuracy".into(), json_num(s.arte.accuracy()));
+        m.insert(
+            "arte_accuracy_whole_log".into(),
+            json_num(s.arte.accuracy_whole_log()),
+        );
         m.insert(
             "metrics".into(),
             s.metrics.as_ref().map_or(serde_json::Value::Null, |x| {
@@ -686,6 +773,25 @@ pub fn replay(
             "mode".into(),
             if closed { "closed loop" } else { "open loop" }.into(),
         );
+        // what the replay ran (`grip.run`, copied, is the source's), and
+        // whether the source was finished by its recorder
+        meta.insert("controller".into(), cfg.controller.clone());
+        meta.insert("arte".into(), if cfg.arte { "on" } else { "off" }.into());
+        meta.insert(
+            "source_recorder_finished".into(),
+            log.recorder.is_some().to_string(),
+        );
+        // the model arte ran in the replay (`grip inspect` names it)
+        if let Ok(m) = crate::drive::rates::arte_model(&cfg.dir, cfg.model.as_deref()) {
+            let name = match m.path.strip_prefix(&cfg.dir) {
+                Ok(rel) => rel.display().to_string(),
+                Err(_) => m.path.display().to_string(),
+            };
+            meta.insert("model".into(), name);
+            if let Ok(bytes) = std::fs::read(&m.path) {
+                meta.insert("model_sha256".into(), grip_digest::sha256_hex(&bytes));
+            }
+        }
         meta.insert(
             "arte_blocks_not_classified".into(),
             not_classified.clone().unwrap_or_else(|| "none".into()),

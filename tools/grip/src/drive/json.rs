@@ -95,6 +95,11 @@ pub fn log_json(path: &Path, config_dir: &Path) -> Value {
     summary_json(path, &log, &s, &warnings)
 }
 
+/// The summary's run entry `k` (`grip.run`'s, or a replay's own).
+fn run_value(s: &summary::Summary, k: &str) -> Option<String> {
+    s.run.iter().find(|(kk, _)| kk == k).map(|(_, v)| v.clone())
+}
+
 /// The JSON object of a loaded log and its summary.
 pub fn summary_json(
     path: &Path,
@@ -176,8 +181,9 @@ pub fn summary_json(
         "run": log.run,
         "simulated": get("source").as_deref() == Some("generated"),
         "scenario": get("scenario"),
-        "controller": get("controller"),
-        "arte": get("arte"),
+        // a replay's own (`grip.run` is its source's)
+        "controller": run_value(s, "controller"),
+        "arte": run_value(s, "arte"),
         "seed": get("seed"),
         "revision": get("git_revision"),
         "version": get("version"),
@@ -185,6 +191,15 @@ pub fn summary_json(
         "vehicle_sha256": s.vehicle_sha256,
         "scenario_sha256": s.scenario_sha256,
         "roads_from": s.roads_from,
+        "model": s.model.as_ref().map(|m| m.name.clone()),
+        "model_sha256": s.model.as_ref().and_then(|m| m.sha256.clone()),
+        "model_from": s.model.as_ref().map(|m| m.from.clone()),
+        "replay": s.replay.as_ref().map_or(Value::Null, |r| json!({
+            "source": r.source,
+            "mode": r.mode,
+            "configuration": r.configuration,
+            "changes": r.changes,
+        })),
         "cycles": s.timing.cycles,
         "scenario_window": s.window_status.as_str(),
         "scenario_duration_s": s.scenario_duration_s.map_or(Value::Null, num),

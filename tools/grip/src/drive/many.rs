@@ -114,10 +114,16 @@ pub fn row(path: &Path, config_dir: &Path) -> (Vec<String>, bool) {
     } else {
         r[1] = "ok".into();
     }
-    let get = |k: &str| log.run.get(k).cloned().unwrap_or_default();
-    r[3] = get("scenario");
-    r[4] = get("controller");
-    r[5] = get("arte");
+    r[3] = log.run.get("scenario").cloned().unwrap_or_default();
+    // a replay's own controller and ARTE switch (`grip.run` is its source's)
+    let run = |k: &str| {
+        s.run
+            .iter()
+            .find(|(kk, _)| kk == k)
+            .map_or_else(String::new, |(_, v)| v.clone())
+    };
+    r[4] = run("controller");
+    r[5] = run("arte");
     r[6] = s.timing.cycles.to_string();
     if let (Some(m), Some((a, b))) = (&s.metrics, s.window) {
         r[7] = num(b - a);
@@ -161,6 +167,71 @@ fn csv_field(s: &str) -> String {
     }
 }
 
+/// A CSV field as a number rounded to `decimals` for the text table (`-`
+/// when empty); `scale` first (100 for a share printed as %).
+fn rounded(field: &str, scale: f64, decimals: usize) -> String {
+    match field.parse::<f64>() {
+        Ok(x) if x.is_finite() => format!("{:.*}", decimals, x * scale),
+        _ if field.is_empty() => "-".to_owned(),
+        _ => field.to_owned(),
+    }
+}
+
+/// An empty count is `-` in the text table.
+fn count(field: &str) -> &str {
+    if field.is_empty() { "-" } else { field }
+}
+
+/// The printed table of `grip inspect DIR` (the CSV has every column at
+/// full precision): numbers rounded, ARTE accuracy in %, the road changes
+/// ARTE missed beside the mean detection delay, and the deadline misses
+/// named as such.
+pub fn table(rows: &[Vec<String>]) -> String {
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "{:<28} {:<11} {:>8} {:>9} {:>8} {:>8} {:>10} {:>8} {:>7} {:>15} {:>6}  window",
+        "file",
+        "status",
+        "cycles",
+        "slip_dev",
+        "effort",
+        "dist_m",
+        "arte_acc_%",
+        "delay_s",
+        "missed",
+        "deadline_misses",
+        "faults"
+    );
+    for r in rows {
+        let _ = writeln!(
+            text,
+            "{:<28} {:<11} {:>8} {:>9} {:>8} {:>8} {:>10} {:>8} {:>7} {:>15} {:>6}  {}",
+            r[0],
+            r[1],
+            count(&r[6]),
+            rounded(&r[8], 1.0, 4),
+            rounded(&r[10], 1.0, 1),
+            rounded(&r[11], 1.0, 2),
+            rounded(&r[14], 100.0, 1),
+            rounded(&r[17], 1.0, 3),
+            if r[15].is_empty() {
+                "-".to_owned()
+            } else {
+                format!("{}/{}", r[16], r[15])
+            },
+            count(&r[19]),
+            count(&r[21]),
+            r[22]
+        );
+    }
+    let _ = writeln!(
+        text,
+        "(during the scenario window: the metrics (slip_dev, effort N m, dist_m), arte_acc_% (ARTE accuracy, %), delay_s (mean detection delay of the road changes detected), missed (road changes at the microphone not detected, of all), deadline_misses (the control loop's missed deadlines) and faults (E2E faults); window: how much of the scenario the log covers; --csv FILE: every column at full precision)"
+    );
+    text
+}
+
 /// `grip inspect DIR [--csv FILE] [--strict]`.
 pub fn inspect_dir(ctx: &Ctx, dir: &Path, csv: Option<&Path>, strict: bool) -> anyhow::Result<()> {
     let logs = logs_in(dir)?;
@@ -177,32 +248,7 @@ pub fn inspect_dir(ctx: &Ctx, dir: &Path, csv: Option<&Path>, strict: bool) -> a
         pb.inc(1);
     }
     pb.finish_and_clear();
-    let mut text = String::new();
-    let _ = writeln!(
-        text,
-        "{:<28} {:<11} {:>8} {:>10} {:>9} {:>9} {:>8} {:>9} {:>7} {:>6}  window",
-        "file",
-        "status",
-        "cycles",
-        "slip_dev",
-        "effort",
-        "dist_m",
-        "arte_acc",
-        "delay_s",
-        "misses",
-        "faults"
-    );
-    for r in &rows {
-        let _ = writeln!(
-            text,
-            "{:<28} {:<11} {:>8} {:>10.10} {:>9.9} {:>9.9} {:>8.8} {:>9.9} {:>7} {:>6}  {}",
-            r[0], r[1], r[6], r[8], r[10], r[11], r[14], r[17], r[19], r[21], r[22]
-        );
-    }
-    let _ = writeln!(
-        text,
-        "(metrics, arte_acc, misses and faults: during the scenario window; window: how much of the scenario the log covers)"
-    );
+    let text = table(&rows);
     print!("{text}");
     println!(
         "{} logs, {} bad{}",

@@ -399,7 +399,15 @@ fn strips(area: &Area<'_>, s: &Series) -> Res {
 /// scenario, vehicle, seed), then whether it was recorded or generated,
 /// when, and the code's revision.
 pub fn title_of(log: &DriveLog) -> (String, String) {
-    let get = |k: &str| log.run.get(k).map(String::as_str);
+    // a replay's own controller and ARTE switch (`grip.run` is its source's)
+    let replay = log.metadata.get("grip.replay");
+    let get = |k: &str| {
+        replay
+            .filter(|_| k == "controller" || k == "arte")
+            .and_then(|m| m.get(k))
+            .or_else(|| log.run.get(k))
+            .map(String::as_str)
+    };
     let file = log.path.file_name().map_or_else(
         || log.path.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
@@ -424,6 +432,14 @@ pub fn title_of(log: &DriveLog) -> (String, String) {
     }
     if let Some(s) = get("seed") {
         run.push(format!("seed {s}"));
+    }
+    // the model arte ran (arte-svc.toml's `model`, or a replay's)
+    if let Some(m) = grip_drive::summary::model_of(log) {
+        let name = m.name.rsplit(['/', '\\']).next().unwrap_or(&m.name);
+        run.push(format!(
+            "model {name} ({})",
+            grip_drive::summary::short_sha(m.sha256.as_ref())
+        ));
     }
     let line1 = if run.is_empty() {
         format!("{file}: no run metadata (grip.run)")
@@ -749,6 +765,21 @@ mod tests {
                 .1
                 .starts_with("recorded 2026-12-05 00:33:52 UTC")
         );
+        // the model arte ran, from the attached arte-svc.toml
+        log.attachments.insert(
+            "arte-svc.toml".into(),
+            b"model = \"models/mine.model\"\n".to_vec(),
+        );
+        log.attachments
+            .insert("models/mine.model".into(), b"weights".to_vec());
+        let sha = grip_digest::sha256_hex(b"weights");
+        assert!(
+            title_of(&log)
+                .0
+                .ends_with(&format!(", seed 7, model mine.model ({})", &sha[..12])),
+            "{}",
+            title_of(&log).0
+        );
         log.run.insert("source".into(), "generated".into());
         log.run.insert("clock".into(), "scripted".into());
         let (_, b) = title_of(&log);
@@ -760,6 +791,7 @@ mod tests {
         );
         log.run.clear();
         log.metadata.clear();
+        log.attachments.clear();
         let (a, b) = title_of(&log);
         assert_eq!(a, "front-mic-drive.mcap: no run metadata (grip.run)");
         assert_eq!(b, "recording date not in the log");

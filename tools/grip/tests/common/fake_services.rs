@@ -85,3 +85,45 @@ impl Fakes {
         std::fs::read(self.spy.path().join(name).join(rel)).ok()
     }
 }
+
+/// A stand-in recorder that writes `log` (a copy) to its `--out` before it
+/// exits 3: the drive fails at it and prints the summary of that log.
+const RECORDER_COPYING: &str = r#"#!/bin/sh
+echo "recorder $*" >> "$GRIP_TEST_SPY/started"
+while [ $# -gt 0 ]; do
+    if [ "$1" = --out ]; then cp "$GRIP_TEST_LOG" "$2"; fi
+    shift
+done
+exit 3
+"#;
+
+impl Fakes {
+    /// `grip --config-dir CONFIG drive ARGS` whose stand-in recorder writes
+    /// a copy of `log` to its `--out`: success, stdout, stderr.
+    pub fn drive_recording(
+        &self,
+        config: &Path,
+        log: &Path,
+        args: &[&std::ffi::OsStr],
+    ) -> (bool, String, String) {
+        let p = self.bin.path().join("recorder");
+        std::fs::write(&p, RECORDER_COPYING).unwrap();
+        std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o755)).unwrap();
+        let o = Command::new(env!("CARGO_BIN_EXE_grip"))
+            .arg("--config-dir")
+            .arg(config)
+            .arg("drive")
+            .args(args)
+            .env("GRIP_BIN_DIR", self.bin.path())
+            .env("GRIP_TEST_SPY", self.spy.path())
+            .env("GRIP_TEST_LOG", log)
+            .env("RUST_LOG", "warn")
+            .output()
+            .unwrap();
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stdout).into_owned(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    }
+}
