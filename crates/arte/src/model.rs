@@ -255,6 +255,14 @@ pub struct TrainingMeta {
     pub notes: Vec<String>,
     /// Cross-validation result.
     pub cv: Option<EvalSummary>,
+    /// The training recordings by content: the first 16 hex digits
+    /// (64 bits) of each training file's SHA-256, sorted, without
+    /// repeats. `grip calibrate` refuses calibration recordings that are
+    /// among them, wherever they lie. Models written before this field
+    /// existed have it empty (and it is then not written, so their bytes
+    /// are unchanged).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub training_files: Vec<String>,
 }
 
 /// A trained road-type classifier, everything needed to go from a frame's

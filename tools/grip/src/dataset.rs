@@ -267,6 +267,8 @@ pub struct Entry {
     pub recording: usize,
     /// Vehicle speed (km/h) from the manifest's `speed_kmh` column, if given.
     pub speed_kmh: Option<f64>,
+    /// The manifest line that lists this file, if one does.
+    pub manifest_line: Option<usize>,
 }
 
 /// A scanned dataset (audio not loaded yet).
@@ -278,6 +280,9 @@ pub struct Dataset {
     pub classes: Vec<String>,
     /// Files, sorted by class then path.
     pub entries: Vec<Entry>,
+    /// The manifest read (`root/manifest.csv`), if there is one, and
+    /// whether it has a `speed_kmh` column.
+    pub manifest: Option<(PathBuf, bool)>,
 }
 
 fn is_wav(p: &Path) -> bool {
@@ -383,6 +388,7 @@ impl Dataset {
                     rel,
                     recording: 0,
                     speed_kmh: None,
+                    manifest_line: None,
                 });
             }
         }
@@ -404,6 +410,7 @@ impl Dataset {
             root: root.to_path_buf(),
             classes,
             entries,
+            manifest: None,
         };
         ds.assign_recordings()?;
         Ok(ds)
@@ -413,6 +420,7 @@ impl Dataset {
         let manifest = self.root.join("manifest.csv");
         let mut rec_of_file: BTreeMap<String, String> = BTreeMap::new();
         let mut speed_of_file: BTreeMap<String, f64> = BTreeMap::new();
+        let mut line_of_file: BTreeMap<String, usize> = BTreeMap::new();
         if manifest.is_file() {
             let mut rdr = csv::Reader::from_path(&manifest)
                 .with_context(|| format!("cannot read manifest {}", manifest.display()))?;
@@ -432,6 +440,7 @@ impl Dataset {
             };
             let (rcol, ccol) = (col("recording"), col("class").or_else(|| col("road")));
             let scol = col("speed_kmh");
+            self.manifest = Some((manifest.clone(), scol.is_some()));
             let by_rel: BTreeMap<&str, &Entry> =
                 self.entries.iter().map(|e| (e.rel.as_str(), e)).collect();
             let root_abs = std::fs::canonicalize(&self.root).ok();
@@ -456,12 +465,13 @@ impl Dataset {
                         continue; // a class left out by `scan_classes`
                     }
                     bail!(
-                        "manifest {} line {}: file `{file}` is not a .wav inside a class folder of {}",
+                        "manifest {} line {}, field `file`: `{file}` {}",
                         manifest.display(),
                         line,
-                        self.root.display()
+                        self.why_not_listed(&file)
                     );
                 };
+                line_of_file.insert(file.clone(), line);
                 if let Some(c) = ccol.and_then(|c| rec.get(c)).map(str::trim)
                     && !c.is_empty()
                     && c != self.classes[entry.class]
@@ -503,8 +513,63 @@ impl Dataset {
             let next = ids.len();
             e.recording = *ids.entry(key).or_insert(next);
             e.speed_kmh = speed_of_file.get(&e.rel).copied();
+            e.manifest_line = line_of_file.get(&e.rel).copied();
         }
         Ok(())
+    }
+
+    /// Why a manifest's `file` (relative to the root, `/`-separated, as
+    /// [`manifest_file`] gives it) names none of the dataset's recordings.
+    fn why_not_listed(&self, file: &str) -> String {
+        let root = self.root.display();
+        let p = Path::new(file);
+        let hidden_part = file
+            .split('/')
+            .any(|c| c.starts_with('.') && c != "." && c != "..");
+        if file.is_empty() {
+            "is empty; name the recording's WAV file (relative to the dataset folder)".to_owned()
+        } else if p.is_absolute() || file.split('/').any(|c| c == "..") {
+            format!("lies outside the dataset folder {root}")
+        } else if !self.root.join(p).exists() {
+            format!("does not exist (no such file in {root})")
+        } else if !is_wav(p) {
+            "is not a .wav file".to_owned()
+        } else if hidden_part {
+            "is hidden (a name starting with `.`, which the dataset leaves out)".to_owned()
+        } else if !file.contains('/') {
+            format!("lies in {root} itself, not inside a class folder")
+        } else {
+            format!("is not a .wav inside a class folder of {root}")
+        }
+    }
+
+    /// Why `e` has no `speed_kmh`, naming the manifest, its line and the
+    /// field (for the error of a speed-normalised model).
+    pub fn why_no_speed(&self, e: &Entry) -> String {
+        let field = "field `speed_kmh`";
+        match &self.manifest {
+            None => format!(
+                "{} has no manifest.csv, so no {field} (the vehicle speed) for `{}`",
+                self.root.display(),
+                e.rel
+            ),
+            Some((m, false)) => format!(
+                "manifest {} has no `speed_kmh` column (the vehicle speed of each recording)",
+                m.display()
+            ),
+            Some((m, true)) => match e.manifest_line {
+                Some(line) => format!(
+                    "manifest {} line {line}, {field}: blank for `{}`",
+                    m.display(),
+                    e.rel
+                ),
+                None => format!(
+                    "manifest {}: `{}` is not listed, so it has no {field}",
+                    m.display(),
+                    e.rel
+                ),
+            },
+        }
     }
 
     /// Number of recordings per class.
@@ -696,6 +761,78 @@ mod tests {
         .unwrap();
         let e = format!("{:#}", Dataset::scan(d.path()).unwrap_err());
         assert!(e.contains("/elsewhere/asphalt/a1.wav"), "{e}");
+    }
+
+    /// A manifest row's error names the manifest, the line, the field and
+    /// the real reason: a listed file that does not exist (it said "is not
+    /// a .wav inside a class folder"), one that is not a .wav, one outside
+    /// the class folders; a blank `speed_kmh` names its line, and a
+    /// manifest without the column says so (it said "no speed_kmh for this
+    /// recording").
+    #[test]
+    fn manifest_errors_name_line_field_and_reason() {
+        let d = tempfile::tempdir().unwrap();
+        for f in ["asphalt/a1.wav", "gravel/g1.wav"] {
+            write_wav(&d.path().join(f), 10);
+        }
+        std::fs::write(d.path().join("asphalt/notes.txt"), "x").unwrap();
+        write_wav(&d.path().join("top.wav"), 10);
+        let manifest = d.path().join("manifest.csv");
+        let m = manifest.display().to_string();
+        let scan_err = |rows: &str| {
+            std::fs::write(&manifest, rows).unwrap();
+            format!("{:#}", Dataset::scan(d.path()).unwrap_err())
+        };
+        for (row, reason) in [
+            ("asphalt/zzz.wav", "does not exist"),
+            ("asphalt/notes.txt", "is not a .wav file"),
+            ("top.wav", "not inside a class folder"),
+        ] {
+            let e = scan_err(&format!("file,speed_kmh\ngravel/g1.wav,10\n{row},12\n"));
+            assert!(
+                e.contains(&format!("manifest {m} line 3, field `file`: `{row}` "))
+                    && e.contains(reason),
+                "{row}: {e}"
+            );
+        }
+        // a blank speed: the line and the field, when the speed is needed
+        std::fs::write(
+            &manifest,
+            "file,speed_kmh\ngravel/g1.wav,10\nasphalt/a1.wav, \n",
+        )
+        .unwrap();
+        let ds = Dataset::scan(d.path()).unwrap();
+        let a1 = &ds.entries[0];
+        assert_eq!(
+            (a1.rel.as_str(), a1.manifest_line),
+            ("asphalt/a1.wav", Some(3))
+        );
+        let why = ds.why_no_speed(a1);
+        assert!(
+            why.contains(&format!("manifest {m} line 3, field `speed_kmh`: blank")),
+            "{why}"
+        );
+        // not listed in the manifest
+        std::fs::write(&manifest, "file,speed_kmh\ngravel/g1.wav,10\n").unwrap();
+        let ds = Dataset::scan(d.path()).unwrap();
+        let why = ds.why_no_speed(&ds.entries[0]);
+        assert!(
+            why.contains(&m) && why.contains("`asphalt/a1.wav` is not listed"),
+            "{why}"
+        );
+        // no speed_kmh column at all
+        std::fs::write(&manifest, "file,recording\ngravel/g1.wav,d1\n").unwrap();
+        let ds = Dataset::scan(d.path()).unwrap();
+        let why = ds.why_no_speed(&ds.entries[1]);
+        assert!(
+            why.contains(&format!("manifest {m} has no `speed_kmh` column")),
+            "{why}"
+        );
+        // no manifest
+        std::fs::remove_file(&manifest).unwrap();
+        let ds = Dataset::scan(d.path()).unwrap();
+        let why = ds.why_no_speed(&ds.entries[1]);
+        assert!(why.contains("has no manifest.csv"), "{why}");
     }
 
     #[test]

@@ -6,7 +6,10 @@
 //! recordings must be neither the training set nor the set the result is
 //! evaluated on (other seeds, other cars): a `--data` folder that is, holds
 //! or lies in the model's training data (its `--data`, from the command
-//! stored in the model) is refused ([`require_held_out`]). `grip train
+//! stored in the model) is refused ([`require_held_out`]), and so is one
+//! holding a training file by content (`meta.training_files`, written by
+//! `grip train` since 2026-12-05: the stored path is relative to where the
+//! model was trained; [`require_not_training_files`]). `grip train
 //! --calib-data DIR` runs the same step after training.
 //!
 //! Fitting data: the model, uncalibrated, runs through `StreamEstimator`
@@ -100,6 +103,15 @@ impl FitArgs {
             "--calib-method {} --calib-hop {} --calib-stay {} --calib-floor {}",
             self.calib_method, self.calib_hop, self.calib_stay, self.calib_floor
         )
+    }
+}
+
+/// The stream's smoothing as a user reads it: `smoothing: HMM, stay 0.9,
+/// floor 0.01` or `smoothing: none` (not Rust's `Hmm { stay: .. }`).
+pub fn smoothing_text(s: &Smoothing) -> String {
+    match s {
+        Smoothing::None => "smoothing: none".to_owned(),
+        Smoothing::Hmm { stay, floor } => format!("smoothing: HMM, stay {stay}, floor {floor}"),
     }
 }
 
@@ -235,6 +247,64 @@ pub fn require_held_out(flag: &str, calib: &[PathBuf], used: &[(&str, PathBuf)])
     Ok(())
 }
 
+/// The calibration folders `calib` (each with every `.wav` under it,
+/// hidden ones skipped) against the model's training files by content
+/// (`meta.training_files`, from `grip train`): a file among them is
+/// refused, naming it, wherever the folder lies (another working
+/// directory, a copy, a moved folder). A model without the field (written
+/// before it existed) passes; a folder that cannot be listed is left to
+/// the reader of the recordings.
+pub fn require_not_training_files(flag: &str, calib: &[PathBuf], model: &Model) -> Result<()> {
+    let known = &model.meta.training_files;
+    if known.is_empty() {
+        return Ok(());
+    }
+    for dir in calib {
+        let mut files = Vec::new();
+        if wavs_in(dir, &mut files).is_err() {
+            continue;
+        }
+        files.sort();
+        for f in files {
+            let Ok(bytes) = std::fs::read(&f) else {
+                continue;
+            };
+            let id = super::train::file_id(&sha256_hex(&bytes));
+            if known.binary_search(&id).is_ok() {
+                bail!(
+                    "{flag} {}: {} is one of the model's training recordings (same content; the model stores its training files' SHA-256); the calibration must be fitted on held-out road-change recordings (other seeds: `grip dataset synth --changes N --seed S`), or the confidence it gives is optimistic",
+                    dir.display(),
+                    f.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Every `.wav` under `p` (itself, when it is one), hidden entries skipped.
+fn wavs_in(p: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
+    if p.is_file() {
+        if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("wav")) {
+            out.push(p.to_path_buf());
+        }
+        return Ok(());
+    }
+    for e in std::fs::read_dir(p)? {
+        let e = e?.path();
+        if e.file_name()
+            .and_then(|n| n.to_str())
+            .is_some_and(|n| n.starts_with('.'))
+        {
+            continue;
+        }
+        if e.is_dir() || e.is_file() {
+            wavs_in(&e, out)?;
+        }
+    }
+    Ok(())
+}
+
 /// The training data folder of a model, from the command stored in it
 /// (`grip train --data DIR --classifier ...`); `None` when not recorded.
 pub fn training_data(model: &Model) -> Option<PathBuf> {
@@ -312,10 +382,10 @@ pub fn fit_calibration(
     let mut report = String::new();
     let _ = writeln!(
         report,
-        "\n**Confidence calibration** (stream hop {} s, {:?}), fitted on {} decisions of {} \
+        "\n**Confidence calibration** (stream hop {} s, {}), fitted on {} decisions of {} \
          (every decision against the true road at its time; in-sample figures, the held-out ones come from `grip dataset delay`):\n",
         scfg.hop_s,
-        scfg.smoothing,
+        smoothing_text(&scfg.smoothing),
         p.len(),
         names.join(", ")
     );
@@ -383,13 +453,21 @@ pub fn run(_ctx: &Ctx, a: Args) -> Result<()> {
         .with_context(|| format!("reading model file {}", a.model.display()))?;
     let model =
         Model::from_bytes(&bytes).with_context(|| format!("model file {}", a.model.display()))?;
+    let by_content = !model.meta.training_files.is_empty();
     if let Some(train) = training_data(&model) {
+        if !train.exists() && !by_content {
+            eprintln!(
+                "warning: the model's training data folder `{}` (as `grip train --data` was given, relative to where it was trained) does not exist from here, and the model predates the check by content: --data cannot be checked to be held out",
+                train.display()
+            );
+        }
         require_held_out(
             "--data",
             &a.data,
             &[("the model's training data (grip train --data)", train)],
         )?;
     }
+    require_not_training_files("--data", &a.data, &model)?;
     let data: Vec<String> = a
         .data
         .iter()
@@ -550,6 +628,46 @@ mod tests {
             e.contains(&silent.display().to_string()) && e.contains("every block"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn smoothing_reads_as_words() {
+        let hmm = Smoothing::Hmm {
+            stay: 0.9,
+            floor: 0.01,
+        };
+        assert_eq!(smoothing_text(&hmm), "smoothing: HMM, stay 0.9, floor 0.01");
+        assert_eq!(smoothing_text(&Smoothing::None), "smoothing: none");
+    }
+
+    /// The training files by content: a copy of one of them in the
+    /// calibration folder is refused wherever it lies (the stored training
+    /// path is relative to where the model was trained); a model without
+    /// the field (an old file) keeps the check by path alone.
+    #[test]
+    fn a_training_file_is_refused_by_content() {
+        let dir = tempfile::tempdir().unwrap();
+        let calib = dir.path().join("calib/sub");
+        std::fs::create_dir_all(&calib).unwrap();
+        wav::write_mono_i16(&calib.join("x.wav"), 16_000, &[0.1, -0.2, 0.3]).unwrap();
+        let model = dir.path().join("m.model");
+        model_trained_on(Path::new("somewhere/train"), &model);
+        let mut m = Model::from_bytes(&std::fs::read(&model).unwrap()).unwrap();
+        let data = vec![dir.path().join("calib")];
+        assert!(require_not_training_files("--data", &data, &m).is_ok());
+        let sha = sha256_hex(&std::fs::read(calib.join("x.wav")).unwrap());
+        m.meta.training_files = vec![super::super::train::file_id(&sha)];
+        let e = format!(
+            "{:#}",
+            require_not_training_files("--data", &data, &m).unwrap_err()
+        );
+        assert!(
+            e.contains("x.wav") && e.contains("training recordings") && e.contains("held-out"),
+            "{e}"
+        );
+        // stored and read back: the field survives the file
+        let back = Model::from_bytes(&m.to_bytes().unwrap()).unwrap();
+        assert_eq!(back.meta.training_files, m.meta.training_files);
     }
 
     #[test]

@@ -15,7 +15,9 @@
 //! ```
 //!
 //! The change recordings live in a folder of their own so that a class
-//! dataset holds nothing but class folders.
+//! dataset holds nothing but class folders. With `--recordings-per-class 0`
+//! OUT itself is not written (no empty class folders, no manifest without
+//! rows), and the summary names the folder the change recordings went to.
 
 use super::Ctx;
 use super::snr::{Snr, parse_snr};
@@ -228,8 +230,9 @@ pub fn read_changes(dir: &Path, classes: &[String], frame_s: f64) -> Result<Vec<
     }
     if !truth.is_file() {
         bail!(
-            "{} does not exist (expected a folder written by `grip dataset synth --changes N`, or a one-road dataset with a manifest.csv)",
-            truth.display()
+            "{} does not exist (expected a folder written by `grip dataset synth --changes N`, or a one-road dataset with a manifest.csv){}",
+            truth.display(),
+            changes_sibling_hint(dir)
         );
     }
     let text = std::fs::read(&truth).with_context(|| format!("opening {}", truth.display()))?;
@@ -397,7 +400,11 @@ fn read_one_road(
         });
     }
     if out.is_empty() {
-        bail!("{} lists no recordings", manifest.display());
+        bail!(
+            "{} lists no recordings{}",
+            manifest.display(),
+            changes_sibling_hint(dir)
+        );
     }
     Ok(out)
 }
@@ -618,7 +625,16 @@ fn synth(a: SynthArgs) -> Result<()> {
         noise,
     };
     base_cfg.validate().context("synth config")?;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    if a.recordings_per_class == 0 && a.changes == 0 {
+        bail!("nothing to write: --recordings-per-class 0 and no --changes");
+    }
+    // the class dataset (folders and manifest) only when it has recordings:
+    // empty class folders and a manifest without rows are no dataset
+    let classes = a.recordings_per_class > 0;
+    if classes {
+        std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    }
+    let cdir = a.changes_out.clone().unwrap_or_else(|| changes_dir(&a.out));
     let total = (roads.len() * a.recordings_per_class + a.changes) as u64;
     let pb = ProgressBar::new(total);
     pb.set_style(ProgressStyle::with_template(
@@ -630,7 +646,7 @@ fn synth(a: SynthArgs) -> Result<()> {
         i: 0,
     };
     let mut manifest = Vec::new();
-    for &r in &roads {
+    for &r in roads.iter().filter(|_| classes) {
         let name = ROADS[r];
         let sub = a.out.join(name);
         std::fs::create_dir_all(&sub).with_context(|| format!("creating {}", sub.display()))?;
@@ -668,19 +684,16 @@ fn synth(a: SynthArgs) -> Result<()> {
             pb.inc(1);
         }
     }
-    let mpath = a.out.join("manifest.csv");
-    let mut w =
-        csv::Writer::from_path(&mpath).with_context(|| format!("creating {}", mpath.display()))?;
-    for row in &manifest {
-        w.serialize(row)?;
+    if classes {
+        let mpath = a.out.join("manifest.csv");
+        let mut w = csv::Writer::from_path(&mpath)
+            .with_context(|| format!("creating {}", mpath.display()))?;
+        for row in &manifest {
+            w.serialize(row)?;
+        }
+        w.flush()?;
     }
-    w.flush()?;
     if a.changes > 0 {
-        let cdir = a.changes_out.clone().unwrap_or_else(|| {
-            let mut p = a.out.clone().into_os_string();
-            p.push("-changes");
-            PathBuf::from(p)
-        });
         std::fs::create_dir_all(&cdir).with_context(|| format!("creating {}", cdir.display()))?;
         let spath = cdir.join("segments.csv");
         let mut sw = csv::Writer::from_path(&spath)
@@ -743,15 +756,50 @@ fn synth(a: SynthArgs) -> Result<()> {
         sw.flush()?;
     }
     pb.finish_with_message("done");
-    eprintln!(
-        "wrote {} recordings ({} per class, {} roads) and {} change recordings to {}",
-        manifest.len(),
+    eprintln!("{}", synth_summary(&a, manifest.len(), roads.len(), &cdir));
+    Ok(())
+}
+
+/// Where the change recordings of `grip dataset synth --out OUT` go
+/// without `--changes-out`: `OUT-changes`, next to `OUT`.
+pub fn changes_dir(out: &Path) -> PathBuf {
+    let mut p = out.to_path_buf().into_os_string();
+    p.push("-changes");
+    PathBuf::from(p)
+}
+
+/// What `grip dataset synth` wrote, naming each folder it wrote to.
+fn synth_summary(a: &SynthArgs, n: usize, n_roads: usize, cdir: &Path) -> String {
+    let classes = format!(
+        "{n} recordings ({} per class, {n_roads} roads) to {}",
         a.recordings_per_class,
-        roads.len(),
-        a.changes,
         a.out.display()
     );
-    Ok(())
+    let changes = format!("{} change recordings to {}", a.changes, cdir.display());
+    match (a.recordings_per_class > 0, a.changes > 0) {
+        (true, true) => format!("wrote {classes} and {changes}"),
+        (true, false) => format!("wrote {classes}"),
+        _ => format!(
+            "wrote {changes} (no class recordings: --recordings-per-class 0, so nothing in {})",
+            a.out.display()
+        ),
+    }
+}
+
+/// A hint for a folder that holds no recordings when the change
+/// recordings of `grip dataset synth --out DIR --changes N` lie next to it
+/// in `DIR-changes`; empty otherwise.
+pub fn changes_sibling_hint(dir: &Path) -> String {
+    let sib = changes_dir(dir);
+    if sib.join("segments.csv").is_file() {
+        format!(
+            "; the change recordings of `grip dataset synth --out {} --changes N` are in {}: pass that folder",
+            dir.display(),
+            sib.display()
+        )
+    } else {
+        String::new()
+    }
 }
 
 fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
@@ -785,9 +833,10 @@ fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
             a.model.display()
         ),
         Some(c) if est.calibration_mismatch() => println!(
-            "confidence calibration: {c}, but fitted for other stream settings than hop {} s, {smoothing:?}: \
+            "confidence calibration: {c}, but fitted for other stream settings than hop {} s, {}: \
              the confidence is not calibrated for these",
-            a.hop
+            a.hop,
+            super::calibrate::smoothing_text(&smoothing)
         ),
         Some(c) => println!("confidence calibration: {c}"),
     }
@@ -861,8 +910,11 @@ fn print_delay_report(
     // Percentiles over all changes: a missed change counts as longer than any.
     let all = ev.all_delays();
     println!(
-        "{} recordings, {n_changes} road changes, hop {} s, smoothing {:?}, hold {} s",
-        n_recordings, a.hop, smoothing, a.hold
+        "{} recordings, {n_changes} road changes, hop {} s, {}, hold {} s",
+        n_recordings,
+        a.hop,
+        super::calibrate::smoothing_text(&smoothing),
+        a.hold
     );
     if ev.unjudged > 0 {
         println!(
@@ -1059,6 +1111,55 @@ mod tests {
             std::fs::read(out.join("snow/snow_0001.wav")).unwrap(),
             std::fs::read(out2.join("snow/snow_0001.wav")).unwrap()
         );
+    }
+
+    /// Change recordings alone (`--recordings-per-class 0`): the summary
+    /// names `OUT-changes`, where they are (it said OUT); OUT gets no empty
+    /// class folders and no empty manifest; reading OUT as change
+    /// recordings points at OUT-changes.
+    #[test]
+    fn changes_alone_leave_no_empty_dataset_and_name_their_folder() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("chcal");
+        let mut a = args(out.clone());
+        a.recordings_per_class = 0;
+        let cdir = super::changes_dir(&out);
+        let said = synth_summary(&a, 0, 6, &cdir);
+        assert!(
+            said.contains(&format!("2 change recordings to {}", cdir.display())),
+            "{said}"
+        );
+        synth(a).unwrap();
+        assert!(!out.exists(), "class folders or a manifest were written");
+        assert_eq!(
+            read_changes(&cdir, &ROADS.map(String::from), 0.1)
+                .unwrap()
+                .len(),
+            2
+        );
+        let classes: Vec<String> = ROADS.iter().map(|r| r.to_string()).collect();
+        let e = format!("{:#}", read_changes(&out, &classes, 0.1).unwrap_err());
+        assert!(e.contains(&cdir.display().to_string()), "{e}");
+        // leftovers of an older run: the empty manifest's error points there too
+        std::fs::create_dir_all(out.join("asphalt")).unwrap();
+        std::fs::write(out.join("manifest.csv"), b"").unwrap();
+        let e = format!("{:#}", read_changes(&out, &classes, 0.1).unwrap_err());
+        assert!(
+            e.contains("lists no recordings") && e.contains(&cdir.display().to_string()),
+            "{e}"
+        );
+        // both kinds: both folders named
+        let mut a = args(dir.path().join("ds"));
+        a.recordings_per_class = 1;
+        let said = synth_summary(&a, 6, 6, &super::changes_dir(&a.out));
+        assert!(
+            said.contains("to ") && said.contains("ds-changes") && said.contains("6 recordings"),
+            "{said}"
+        );
+        // nothing at all to write is refused
+        let mut a = args(dir.path().join("none"));
+        (a.recordings_per_class, a.changes) = (0, 0);
+        assert!(synth(a).is_err());
     }
 
     #[test]

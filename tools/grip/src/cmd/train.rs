@@ -5,8 +5,9 @@
 //! extract features, run stratified k-fold cross-validation split by
 //! recording (for `paper7`, the paper's pruning runs inside each fold), print
 //! the report and the confusion matrix (rows predicted, columns actual, as
-//! the paper's Tables II/III), fit on all data, write the model file, and
-//! with `--test DIR` score held-out recordings.
+//! the paper's Tables II/III), fit on all data, write the model file
+//! (`--out`, required; an existing file only with `--force`, refused before
+//! any work otherwise), and with `--test DIR` score held-out recordings.
 //!
 //! SVM: C and γ are chosen by grid search on the same CV folds (macro-F1;
 //! `--svm-c`, `--svm-gamma`, γ given as multiples of 1/dim since the
@@ -55,9 +56,14 @@ pub struct Args {
     /// Seed of initialisation, subsampling and fold assignment.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Output model file (default: `<config-dir>/models/trained.model`).
+    /// Output model file (required: a model is never written to a place
+    /// you did not name). An existing file is not overwritten unless
+    /// `--force` is given.
     #[arg(long)]
-    pub out: Option<PathBuf>,
+    pub out: PathBuf,
+    /// Overwrite an existing `--out` file.
+    #[arg(long)]
+    pub force: bool,
     /// Held-out dataset folder(s) to evaluate the final model on (repeatable).
     #[arg(long)]
     pub test: Vec<PathBuf>,
@@ -215,21 +221,22 @@ pub(crate) fn civil_date(secs: i64) -> String {
 /// class -> model class). Frames the arte service would refuse
 /// ([`FileJudge`]: silence, clipping) are left out, each file's named in a
 /// warning. Returns the samples, the dataset hash (over every file, left
-/// out or not) and what was left out; a dataset left with no frame is an
-/// error naming its folder.
+/// out or not) with every file's content hash, and what was left out; a
+/// dataset left with no frame is an error naming its folder.
 pub fn extract_dataset(
     ds: &Dataset,
     cfg: &FeatureConfig,
     hop_s: f64,
     class_map: &[usize],
     channel: grip_io::wav::Channel,
-) -> Result<(Samples, String, Excluded)> {
+) -> Result<(Samples, DatasetIdentity, Excluded)> {
     let mut ex = FeatureExtractor::new(cfg).context("feature config")?;
     let hop = ((hop_s * f64::from(cfg.sample_rate)).round() as usize).max(1);
     let frame_len = ex.frame_len();
     let mut s = Samples::new(ex.dim());
     let mut row = vec![0.0; ex.dim()];
     let mut hash_input = String::new();
+    let mut files = Vec::with_capacity(ds.entries.len());
     let pb = ProgressBar::new(ds.entries.len() as u64);
     pb.set_style(
         ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} files {msg}")
@@ -249,6 +256,7 @@ pub fn extract_dataset(
             );
         }
         let _ = writeln!(hash_input, "{}\0{}\0{}", ds.classes[e.class], e.rel, sha256);
+        files.push(file_id(&sha256));
         if audio.samples.len() < frame_len {
             bail!(
                 "{}: {} samples, shorter than one {:.3} s frame ({} samples)",
@@ -261,9 +269,9 @@ pub fn extract_dataset(
         if cfg.speed_norm.is_some() {
             let Some(kmh) = e.speed_kmh else {
                 bail!(
-                    "{}: no speed_kmh for this recording in {}; a speed-normalised model needs the vehicle speed of every recording (column speed_kmh of manifest.csv)",
+                    "{}: no vehicle speed: {}; a speed-normalised model needs the vehicle speed of every recording (column speed_kmh of manifest.csv)",
                     e.path.display(),
-                    ds.root.join("manifest.csv").display()
+                    ds.why_no_speed(e)
                 );
             };
             ex.set_speed(Some(kmh / 3.6));
@@ -286,7 +294,30 @@ pub fn extract_dataset(
             excluded.summary("frame").unwrap_or_default()
         );
     }
-    Ok((s, sha256_hex(hash_input.as_bytes()), excluded))
+    files.sort();
+    files.dedup();
+    let id = DatasetIdentity {
+        hash: sha256_hex(hash_input.as_bytes()),
+        files,
+    };
+    Ok((s, id, excluded))
+}
+
+/// What identifies a training set in the model: the dataset hash
+/// (`meta.dataset_hash`) and its files by content
+/// (`meta.training_files`, see [`file_id`]).
+#[derive(Clone, Debug)]
+pub struct DatasetIdentity {
+    /// SHA-256 over every file's class, path and SHA-256.
+    pub hash: String,
+    /// [`file_id`] of every file, sorted, without repeats.
+    pub files: Vec<String>,
+}
+
+/// How a model names a training file by content: the first 16 hex digits
+/// (64 bits) of its SHA-256 (`sha256`: the full hex digest).
+pub fn file_id(sha256: &str) -> String {
+    sha256.chars().take(16).collect()
 }
 
 /// The frames of `x` (`frame_len` samples every `hop`) that `judge`
@@ -517,10 +548,10 @@ fn check_held_out(
             }
             if speed_norm && e.speed_kmh.is_none() {
                 bail!(
-                    "--test {}: {}: no speed_kmh for this recording in {}; the model is speed-normalised (--speed-norm) and its evaluation needs the vehicle speed of every held-out recording (column speed_kmh of manifest.csv)",
+                    "--test {}: {}: no vehicle speed: {}; the model is speed-normalised (--speed-norm) and its evaluation needs the vehicle speed of every held-out recording (column speed_kmh of manifest.csv)",
                     dir.display(),
                     e.path.display(),
-                    ds.root.join("manifest.csv").display()
+                    ds.why_no_speed(e)
                 );
             }
         }
@@ -632,7 +663,7 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
         only,
     )?;
     let identity: Vec<usize> = (0..ds.classes.len()).collect();
-    let (data, dataset_hash, excluded) =
+    let (data, dataset_id, excluded) =
         extract_dataset(&ds, &extract_cfg, args.hop, &identity, args.channel.get())?;
     println!(
         "{} frames of {} features ({} at {} Hz, hop {} s)",
@@ -814,7 +845,8 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
         notes.join("; ")
     );
     model.meta.seed = args.seed;
-    model.meta.dataset_hash = dataset_hash;
+    model.meta.dataset_hash = dataset_id.hash;
+    model.meta.training_files = dataset_id.files;
     model.meta.date = args.date.clone().unwrap_or_else(today);
     model.meta.profile = args.profile.clone();
     model.meta.command = args.command_line();
@@ -855,22 +887,46 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     Ok((model, report))
 }
 
+/// An existing `--out` is refused without `--force` (said before the
+/// training, not after it).
+fn check_out(args: &Args) -> Result<()> {
+    if !args.force && std::fs::symlink_metadata(&args.out).is_ok() {
+        bail!(
+            "--out {}: the file already exists; pass --force to overwrite it, or name another file",
+            args.out.display()
+        );
+    }
+    Ok(())
+}
+
 pub fn run(ctx: &Ctx, args: Args) -> Result<()> {
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| ctx.config_dir.join("models").join("trained.model"));
+    check_out(&args)?;
+    let out = args.out.clone();
     let (model, report) = train(&ctx.config_dir, &args)?;
     let bytes = model.to_bytes()?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create folder {}", dir.display()))?;
     }
+    // the check again (the file may have appeared during the training)
+    let replaced = std::fs::symlink_metadata(&out).is_ok();
+    check_out(&args)?;
     std::fs::write(&out, &bytes)
         .with_context(|| format!("cannot write model {}", out.display()))?;
+    let full = std::fs::canonicalize(&out).unwrap_or_else(|_| out.clone());
     println!(
-        "\nwrote {} ({} bytes, file sha256 {}...)",
+        "\nwrote model {}{}{} ({} bytes, file sha256 {}...)",
         out.display(),
+        if full != out {
+            format!(" ({})", full.display())
+        } else {
+            String::new()
+        },
+        if replaced {
+            ", replacing the file there (--force)"
+        } else {
+            ""
+        },
         bytes.len(),
         &sha256_hex(&bytes)[..16]
     );
@@ -892,6 +948,23 @@ mod tests {
     struct Cli {
         #[command(flatten)]
         args: Args,
+    }
+
+    impl Cli {
+        /// The trainer's arguments from `argv`, with `--out` (required) set
+        /// to a file these tests never write (they call `train`, not `run`)
+        /// unless `argv` gives one.
+        fn parse_from<I, T>(argv: I) -> Self
+        where
+            I: IntoIterator<Item = T>,
+            T: Into<std::ffi::OsString>,
+        {
+            let mut v: Vec<std::ffi::OsString> = argv.into_iter().map(Into::into).collect();
+            if !v.iter().any(|a| a == "--out") {
+                v.extend(["--out".into(), "never-written.model".into()]);
+            }
+            <Self as Parser>::parse_from(v)
+        }
     }
 
     /// 3 roads × 5 recordings × 1 s at 16 kHz.
@@ -1035,6 +1108,20 @@ mod tests {
             cal.map
         );
         assert!(report.contains("ECE (10 equal-width bins)"), "{report}");
+        // the stream settings as a user reads them (not `Hmm { stay: .. }`)
+        assert!(
+            report.contains("smoothing: HMM, stay 0.9, floor 0.01") && !report.contains("Hmm {"),
+            "{report}"
+        );
+        // the training files by content, for `grip calibrate`'s check
+        assert_eq!(a.meta.training_files.len(), 15);
+        let r0 = std::fs::read(data.join("asphalt/r0.wav")).unwrap();
+        assert!(
+            a.meta
+                .training_files
+                .binary_search(&file_id(&sha256_hex(&r0)))
+                .is_ok()
+        );
         assert!(report.contains("| confidence | decisions |"), "{report}");
         assert!(
             a.meta.command.contains("--calib-data"),
@@ -1081,6 +1168,81 @@ mod tests {
         assert!(
             e.contains("class folder `asphalt` has 5 recording(s)") && e.contains("6 folds"),
             "{e}"
+        );
+    }
+
+    /// `--out` is required (it defaulted to `<config-dir>/models/trained.model`,
+    /// in the repository's config when run from its root); an existing file
+    /// is refused before any training unless `--force`, naming the file and
+    /// the option.
+    #[test]
+    fn an_existing_out_is_refused_without_force() {
+        let d = tempfile::tempdir().unwrap();
+        let e = Cli::try_parse_from(["t", "--data", "x"])
+            .map(|_| ())
+            .unwrap_err();
+        assert!(e.to_string().contains("--out"), "{e}");
+        let out = d.path().join("my.model");
+        std::fs::write(&out, b"mine").unwrap();
+        let ctx = Ctx {
+            config_dir: d.path().join("config"),
+            config_dir_given: false,
+        };
+        let no_data = d.path().join("no-data");
+        let argv = ["t", "--data", no_data.to_str().unwrap()];
+        let argv = [&argv[..], &["--out", out.to_str().unwrap()]].concat();
+        let e = format!("{:#}", run(&ctx, Cli::parse_from(&argv).args).unwrap_err());
+        assert!(
+            e.contains(&out.display().to_string())
+                && e.contains("already exists")
+                && e.contains("--force"),
+            "{e}"
+        );
+        assert_eq!(std::fs::read(&out).unwrap(), b"mine");
+        // with --force the file is no reason to stop (the data folder is)
+        let argv = [&argv[..], &["--force"]].concat();
+        let e = format!("{:#}", run(&ctx, Cli::parse_from(&argv).args).unwrap_err());
+        assert!(e.contains("no-data") && !e.contains("--force"), "{e}");
+        assert!(!ctx.config_dir.exists());
+    }
+
+    /// A speed-normalised model on recordings without speeds: the error
+    /// says why (no manifest, no column, a blank field on line N).
+    #[test]
+    fn a_missing_speed_names_the_manifest_line_and_field() {
+        let d = tempfile::tempdir().unwrap();
+        let data = d.path().join("data");
+        make_dataset(&data);
+        let mut argv = no_cv(&data);
+        argv.extend_from_slice(&["--features", "rich", "--speed-norm", "0.25"]);
+        argv.extend_from_slice(&["--classifier", "svm"]);
+        let e = |d: &Path| format!("{:#}", train(d, &Cli::parse_from(&argv).args).unwrap_err());
+        assert!(
+            e(d.path()).contains("has no manifest.csv"),
+            "{}",
+            e(d.path())
+        );
+        std::fs::write(
+            data.join("manifest.csv"),
+            "file,recording\nasphalt/r0.wav,1\n",
+        )
+        .unwrap();
+        let m = data.join("manifest.csv").display().to_string();
+        let got = e(d.path());
+        assert!(
+            got.contains(&format!("manifest {m} has no `speed_kmh` column")),
+            "{got}"
+        );
+        std::fs::write(
+            data.join("manifest.csv"),
+            "file,speed_kmh\nasphalt/r0.wav,\n",
+        )
+        .unwrap();
+        let got = e(d.path());
+        assert!(
+            got.contains("asphalt/r0.wav")
+                && got.contains(&format!("manifest {m} line 2, field `speed_kmh`: blank")),
+            "{got}"
         );
     }
 
