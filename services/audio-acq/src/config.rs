@@ -388,17 +388,20 @@ fifo_priority = 60
         assert_eq!(e.field, "alsa.buffer_frames");
     }
 
+    /// The good configuration with `extra` added to its `[alsa]` section.
+    fn with_alsa(extra: &str) -> Result<AcqConfig, ConfigError> {
+        AcqConfig::parse(
+            Path::new("a.toml"),
+            &GOOD.replace(
+                "buffer_frames = 4096",
+                &format!("buffer_frames = 4096\n{extra}"),
+            ),
+        )
+    }
+
     #[test]
     fn alsa_format_and_resample_parse() {
-        let with = |extra: &str| {
-            AcqConfig::parse(
-                Path::new("a.toml"),
-                &GOOD.replace(
-                    "buffer_frames = 4096",
-                    &format!("buffer_frames = 4096\n{extra}"),
-                ),
-            )
-        };
+        let with = with_alsa;
         for (text, want) in [
             ("auto", FormatSetting::Auto),
             ("S16_LE", FormatSetting::S16Le),
@@ -416,16 +419,7 @@ fifo_priority = 60
 
     #[test]
     fn alsa_format_and_resample_errors_name_the_field() {
-        let with = |extra: &str| {
-            AcqConfig::parse(
-                Path::new("a.toml"),
-                &GOOD.replace(
-                    "buffer_frames = 4096",
-                    &format!("buffer_frames = 4096\n{extra}"),
-                ),
-            )
-            .unwrap_err()
-        };
+        let with = |extra: &str| with_alsa(extra).unwrap_err();
         for bad in ["S24_BE", "s16_le", "S8", "float", ""] {
             let e = with(&format!("format = \"{bad}\""));
             assert_eq!(e.field, "alsa.format", "{bad}: {e}");
