@@ -29,6 +29,24 @@ fn grip_in(config: Option<&Path>, args: &[&std::ffi::OsStr]) -> (bool, String, S
     }
 }
 
+/// `grip train` of an RBF SVM on the Rich features of `data` into `model`,
+/// with `extra` arguments.
+fn train_svm(data: &Path, model: &Path, extra: &[&std::ffi::OsStr]) -> (bool, String, String) {
+    let mut args = vec![
+        os("train"),
+        os("--data"),
+        data.as_os_str(),
+        os("--classifier"),
+        os("svm"),
+        os("--features"),
+        os("rich"),
+        os("--out"),
+        model.as_os_str(),
+    ];
+    args.extend_from_slice(extra);
+    grip_in(None, &args)
+}
+
 /// A dataset of `classes` × 2 recordings × 0.5 s at `rate` Hz.
 fn dataset(dir: &Path, rate: u32, classes: &[&str]) {
     let cfg = SynthConfig {
@@ -95,24 +113,16 @@ fn replay_with_a_model_at_another_rate_is_refused_naming_both_rates() {
     let data = d.path().join("data16");
     dataset(&data, 16_000, &["asphalt", "gravel", "snow"]);
     let model = d.path().join("m16.model");
-    let (ok, out, err) = grip_in(
-        None,
+    let (ok, out, err) = train_svm(
+        &data,
+        &model,
         &[
-            os("train"),
-            os("--data"),
-            data.as_os_str(),
-            os("--classifier"),
-            os("svm"),
-            os("--features"),
-            os("rich"),
             os("--folds"),
             os("0"),
             os("--svm-c"),
             os("1"),
             os("--svm-gamma"),
             os("1"),
-            os("--out"),
-            model.as_os_str(),
         ],
     );
     assert!(ok, "train: {out}{err}");
@@ -197,23 +207,9 @@ fn train_refuses_a_held_out_folder_at_another_rate_before_training() {
     dataset(&test, 22_050, &["asphalt", "gravel", "snow"]);
     let model = d.path().join("x.model");
     let train = |test: &Path, extra: &[&str]| {
-        let mut args = vec![
-            os("train"),
-            os("--data"),
-            data.as_os_str(),
-            os("--classifier"),
-            os("svm"),
-            os("--features"),
-            os("rich"),
-            os("--folds"),
-            os("2"),
-            os("--test"),
-            test.as_os_str(),
-            os("--out"),
-            model.as_os_str(),
-        ];
+        let mut args = vec![os("--folds"), os("2"), os("--test"), test.as_os_str()];
         args.extend(extra.iter().map(|s| os(s)));
-        grip_in(None, &args)
+        train_svm(&data, &model, &args)
     };
     let (ok, out, err) = train(&test, &[]);
     assert!(!ok, "trained with a 22050 Hz --test:\n{out}");

@@ -49,16 +49,29 @@ impl Fakes {
     /// `grip --config-dir CONFIG drive ARGS` with these binaries: success,
     /// stdout, stderr.
     pub fn drive(&self, config: &Path, args: &[&std::ffi::OsStr]) -> (bool, String, String) {
-        let o = Command::new(env!("CARGO_BIN_EXE_grip"))
-            .arg("--config-dir")
+        self.run_drive(config, args, None)
+    }
+
+    /// `grip --config-dir CONFIG drive ARGS` with these binaries, and
+    /// `GRIP_TEST_LOG` set to `log` when given.
+    fn run_drive(
+        &self,
+        config: &Path,
+        args: &[&std::ffi::OsStr],
+        log: Option<&Path>,
+    ) -> (bool, String, String) {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_grip"));
+        c.arg("--config-dir")
             .arg(config)
             .arg("drive")
             .args(args)
             .env("GRIP_BIN_DIR", self.bin.path())
             .env("GRIP_TEST_SPY", self.spy.path())
-            .env("RUST_LOG", "warn")
-            .output()
-            .unwrap();
+            .env("RUST_LOG", "warn");
+        if let Some(log) = log {
+            c.env("GRIP_TEST_LOG", log);
+        }
+        let o = c.output().unwrap();
         (
             o.status.success(),
             String::from_utf8_lossy(&o.stdout).into_owned(),
@@ -109,21 +122,6 @@ impl Fakes {
         let p = self.bin.path().join("recorder");
         std::fs::write(&p, RECORDER_COPYING).unwrap();
         std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o755)).unwrap();
-        let o = Command::new(env!("CARGO_BIN_EXE_grip"))
-            .arg("--config-dir")
-            .arg(config)
-            .arg("drive")
-            .args(args)
-            .env("GRIP_BIN_DIR", self.bin.path())
-            .env("GRIP_TEST_SPY", self.spy.path())
-            .env("GRIP_TEST_LOG", log)
-            .env("RUST_LOG", "warn")
-            .output()
-            .unwrap();
-        (
-            o.status.success(),
-            String::from_utf8_lossy(&o.stdout).into_owned(),
-            String::from_utf8_lossy(&o.stderr).into_owned(),
-        )
+        self.run_drive(config, args, Some(log))
     }
 }
