@@ -157,6 +157,28 @@ impl DriveLog {
             .get(name)
             .and_then(|d| std::str::from_utf8(d).ok())
     }
+
+    /// The CAN protocol the drive's services spoke: the DBC its attached
+    /// `can.toml` names (`dbc`, attached beside it), read as they read it;
+    /// the built-in protocol when the log carries no `can.toml` or it names
+    /// no DBC (logs from before the services read the DBC). An attached
+    /// configuration that does not give a protocol is an error naming it.
+    pub fn protocol(&self) -> Result<grip_io::can::protocol::Protocol, String> {
+        use grip_io::can::protocol::Protocol;
+        let Some(text) = self.attachment_text("can.toml") else {
+            return Ok(Protocol::builtin().clone());
+        };
+        let can = grip_io::service::parse_can(Path::new("can.toml (attached)"), text)
+            .map_err(|e| e.to_string())?;
+        let Some(dbc) = &can.dbc else {
+            return Ok(Protocol::builtin().clone());
+        };
+        let text = self.attachment_text(dbc).ok_or_else(|| {
+            format!("can.toml (attached) names dbc = {dbc:?}, which the log does not carry")
+        })?;
+        Protocol::from_dbc(text, &format!("{dbc} (attached)"), &can.dbc_names)
+            .map_err(|e| e.to_string())
+    }
 }
 
 #[cfg(test)]

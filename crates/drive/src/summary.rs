@@ -26,7 +26,6 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
-use grip_io::can::protocol::spec_for_id;
 use grip_msgs::{CycleRecord, E2eFaults, GroundTruth, RoadEstimate, can_dir, can_flags, topics};
 use grip_physics::{RoadCatalogue, VehicleParams};
 use grip_tcs::{Metrics, MetricsAccumulator, Sample};
@@ -1102,9 +1101,16 @@ pub fn summarize(
     }
     s.arte = a;
 
-    // CAN
+    // CAN, named by the drive's own protocol
+    let protocol = log.protocol().unwrap_or_else(|e| {
+        s.warnings
+            .push(format!("CAN frames named by the built-in protocol: {e}"));
+        grip_io::can::protocol::Protocol::builtin().clone()
+    });
     for f in &log.can {
-        let name = spec_for_id(f.id).map_or_else(|| format!("0x{:X}", f.id), |m| m.name.to_owned());
+        let name = protocol
+            .spec_for_id(f.id)
+            .map_or_else(|| format!("0x{:X}", f.id), |m| m.name.to_owned());
         let dir = if f.direction == can_dir::TX {
             "tx"
         } else {

@@ -63,10 +63,10 @@ fn round_trip<M: ProtocolMessage + core::fmt::Debug>(
     counter: u8,
 ) -> Result<(), TestCaseError> {
     let f = encode(&m, counter, 7);
-    prop_assert_eq!(f.id, M::SPEC.id);
-    prop_assert_eq!(f.dlc, M::SPEC.dlc);
+    prop_assert_eq!(f.id, M::spec().id);
+    prop_assert_eq!(f.dlc, M::spec().dlc);
     prop_assert_eq!(counter_of(&f), counter & 0x0F);
-    let mut rx = E2eReceiver::new(M::SPEC);
+    let mut rx = E2eReceiver::new(M::spec());
     prop_assert!(rx.check(&f, 0).is_ok());
     let d = M::read_signals(&f.data);
     let mut orig = Vec::new();
@@ -76,7 +76,7 @@ fn round_trip<M: ProtocolMessage + core::fmt::Debug>(
     prop_assert_eq!(orig.len(), back.len());
     for ((n, a), (n2, b)) in orig.iter().zip(&back) {
         prop_assert_eq!(n, n2);
-        let s = M::SPEC.signals.iter().find(|s| s.name == *n).unwrap();
+        let s = M::spec().signals.iter().find(|s| s.name == *n).unwrap();
         prop_assert!(close(*a, *b, s.factor / 2.0 + 1e-9), "{n}: {a} -> {b}");
     }
     let again = encode(&d, counter, 7);

@@ -130,6 +130,7 @@ fn auto_transport_falls_back_to_sim_without_the_interface() {
         interface: "gripnonexist0".into(),
         sim_bus: Some(unique("auto")),
         bus_id: 3,
+        ..CanBusConfig::default()
     };
     let mut bus = open_bus_as(&cfg, &node, false, RxFilter::Role(Role::Tcs)).unwrap();
     assert_eq!(bus.kind(), BusKind::Sim);
@@ -162,6 +163,7 @@ fn auto_transport_does_not_fall_back_under_systemd() {
         interface: "gripnonexist1".into(),
         sim_bus: Some(unique("auto-unit")),
         bus_id: 0,
+        ..CanBusConfig::default()
     };
     let e = open_bus_as(&cfg, &node, true, RxFilter::All)
         .unwrap_err()
@@ -234,6 +236,7 @@ fn a_bus_opened_for_a_role_receives_only_that_roles_ids() {
             interface: "gripnonexist2".into(),
             sim_bus: Some(unique(&format!("filter-{}", role.node()))),
             bus_id: 0,
+            ..CanBusConfig::default()
         };
         let mut bus = open_bus_as(&cfg, &node, false, RxFilter::Role(role)).unwrap();
         let mut all = SimBus::open(&node, cfg.sim_bus_name(), 0).unwrap();

@@ -141,6 +141,7 @@ fn auto_transport_chooses_socketcan_when_available() {
         interface: iface(),
         sim_bus: None,
         bus_id: 0,
+        ..CanBusConfig::default()
     };
     assert_eq!(
         open_bus(&cfg, &node, RxFilter::Role(Role::Tcs))

@@ -48,8 +48,8 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 
 use grip_io::can::protocol::{
-    DRIVER_DEMAND, DriverDemand, E2eSender, InverterMsg, MotorStatus, ProtocolRx, Role,
-    TorqueCommand, VEHICLE_SPEED, VehicleSpeed, WheelSpeeds,
+    DriverDemand, E2eSender, InverterMsg, MotorStatus, ProtocolMessage, ProtocolRx, Role,
+    TorqueCommand, VehicleSpeed, WheelSpeeds,
 };
 use grip_io::can::{CanBus, CanFrame, drain};
 use grip_io::clock::Clock;
@@ -283,8 +283,8 @@ impl PlantSim {
             tx_ms: E2eSender::new(),
             tx_vs: E2eSender::new(),
             tx_dd: E2eSender::new(),
-            div_vs: divider(VEHICLE_SPEED.cycle_ms, cfg.rate_hz),
-            div_dd: divider(DRIVER_DEMAND.cycle_ms, cfg.rate_hz),
+            div_vs: divider(VehicleSpeed::spec().cycle_ms, cfg.rate_hz),
+            div_dd: divider(DriverDemand::spec().cycle_ms, cfg.rate_hz),
             k: 0,
             cmd: TorqueCommand::default(),
             cmd_ns: None,

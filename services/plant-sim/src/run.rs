@@ -116,6 +116,7 @@ pub fn load(opts: &Options) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), 
     let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
     let (vehicle, sensors) = grip_config::load_vehicle(&vehicle_path)?;
     let can = load_can(&dir)?;
+    grip_io::service::install_protocol(&dir, &can)?;
     check_bus(
         &can,
         cfg.allow_physical_bus,

@@ -14,6 +14,7 @@ fn copy_config() -> tempfile::TempDir {
     let t = grip_testkit::svc::copy_config(&[
         "vehicle.toml",
         "can.toml",
+        "inverter.dbc",
         "roads.toml",
         "roads",
         "scenarios/paper.toml",

@@ -54,8 +54,8 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use grip_io::can::protocol::{
-    DRIVER_DEMAND, DriverDemand, E2eSender, InverterMsg, MOTOR_STATUS, MotorStatus, ProtocolRx,
-    Role, TorqueCommand, VEHICLE_SPEED, VehicleSpeed, WHEEL_SPEEDS, WheelSpeeds,
+    DriverDemand, E2eSender, InverterMsg, MotorStatus, ProtocolMessage, ProtocolRx, Role,
+    TorqueCommand, VehicleSpeed, WheelSpeeds,
 };
 use grip_io::can::{CanBus, CanFrame, drain};
 use grip_io::clock::Clock;
@@ -213,9 +213,9 @@ impl TcsLoop {
             })?;
         let mut rx = ProtocolRx::for_role(ROLE);
         for (id, t) in [
-            (WHEEL_SPEEDS.id, safety.sensor_timeout_ns()),
-            (MOTOR_STATUS.id, safety.sensor_timeout_ns()),
-            (DRIVER_DEMAND.id, safety.demand_timeout_ns()),
+            (WheelSpeeds::spec().id, safety.sensor_timeout_ns()),
+            (MotorStatus::spec().id, safety.sensor_timeout_ns()),
+            (DriverDemand::spec().id, safety.demand_timeout_ns()),
         ] {
             if let Some(r) = rx.receiver_mut(id) {
                 *r = r.clone().with_timeout_ns(t);
@@ -232,7 +232,7 @@ impl TcsLoop {
             r: vehicle.r,
             sensor_timeout_ns: safety.sensor_timeout_ns(),
             demand_timeout_ns: safety.demand_timeout_ns(),
-            vspeed_timeout_ns: u64::from(VEHICLE_SPEED.timeout_ms) * 1_000_000,
+            vspeed_timeout_ns: u64::from(VehicleSpeed::spec().timeout_ms) * 1_000_000,
             recover_ns: safety.recover_ns(),
             rx,
             tx: E2eSender::new(),

@@ -121,6 +121,7 @@ pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
     let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
     let (vehicle, _) = grip_config::load_vehicle(&vehicle_path)?;
     let can = load_can(&dir)?;
+    grip_io::service::install_protocol(&dir, &can)?;
     let roads = dir.roads()?;
     let road_table = dir.road_table(&roads)?;
     Ok(LoadedConfig {

@@ -10,10 +10,11 @@ use grip_testkit::svc::{NotifySocket, Service, copy_config, strip_rt};
 const BIN: &str = env!("CARGO_BIN_EXE_tcs-loop");
 
 /// The shipped files tcs-loop reads.
-const CONFIG: [&str; 7] = [
+const CONFIG: [&str; 8] = [
     "controllers.toml",
     "vehicle.toml",
     "can.toml",
+    "inverter.dbc",
     "tcs-loop.toml",
     "roads.toml",
     "roads",

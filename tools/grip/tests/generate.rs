@@ -296,3 +296,102 @@ fn copy_dir(from: &Path, to: &Path) {
         }
     }
 }
+
+/// A configuration directory whose `can.toml` names `tests/data/own-bus.dbc`
+/// (other ids, names, byte order, units: a car's own bus), or, with
+/// `edit`, that DBC changed by it.
+fn own_bus_config(root: &Path, edit: impl Fn(String) -> String) -> std::path::PathBuf {
+    let cfg = root.join("config");
+    copy_dir(&common::config_dir(), &cfg);
+    let dbc =
+        std::fs::read_to_string(common::config_dir().join("../tests/data/own-bus.dbc")).unwrap();
+    std::fs::write(cfg.join("own-bus.dbc"), edit(dbc)).unwrap();
+    let can = std::fs::read_to_string(cfg.join("can.toml")).unwrap();
+    assert!(can.contains("dbc = \"inverter.dbc\""), "{can}");
+    let can = can.replace("dbc = \"inverter.dbc\"", "dbc = \"own-bus.dbc\"")
+        + "[dbc_names]\nTorqueCommand = \"MCU_TrqCmd\"\n\"TorqueCommand.TorqueRequest\" = \"TrqReq\"\n\
+           DriverDemand = \"VCU_Demand\"\n\"DriverDemand.TorqueDemand\" = \"TrqDmd\"\n";
+    std::fs::write(cfg.join("can.toml"), can).unwrap();
+    cfg
+}
+
+/// A drive on a bus whose DBC is not grip's: the services (here in
+/// `grip generate`, which runs their start-up and cycles) speak it, the log
+/// carries it, `grip inspect` names its frames and `grip replay` runs the
+/// drive again identically; a DBC lacking a message is refused naming it.
+#[test]
+fn a_drive_on_a_foreign_bus_speaks_its_dbc() {
+    use grip_io::can::protocol::{InverterMsg, MsgKind};
+    let d = tempfile::tempdir().unwrap();
+    let cfg = own_bus_config(d.path(), |t| t);
+    let out = d.path().join("logs");
+    let (ok, so, se) = common::output_in(
+        &cfg,
+        &[
+            os("generate"),
+            os("--count"),
+            os("1"),
+            os("--seed0"),
+            os("3"),
+            os("--scenario"),
+            os("paper"),
+            os("--out"),
+            out.as_os_str(),
+        ],
+    );
+    assert!(ok, "{so}{se}");
+    let f = out.join("gen-00000-s3.mcap");
+    let log = DriveLog::load(&f).unwrap();
+    assert!(log.attachments.contains_key("own-bus.dbc"));
+    let p = log.protocol().unwrap();
+    assert_eq!(p.spec(MsgKind::TorqueCommand).id, 0x191);
+    assert!(log.can.len() > 3 * log.cycles.len());
+    let (mut torque_max, mut omega_max) = (0.0f64, 0.0f64);
+    for c in &log.can {
+        assert!((0x191..=0x195).contains(&c.id), "frame 0x{:X}", c.id);
+        match InverterMsg::decode_in(&p, c).unwrap() {
+            InverterMsg::TorqueCommand(t) => torque_max = torque_max.max(t.torque_request),
+            InverterMsg::WheelSpeeds(w) => omega_max = omega_max.max(w.omega_driven),
+            _ => {}
+        }
+    }
+    // what the loop computed with is what the frames carried, in grip's units
+    let loop_omega = log.cycles.iter().map(|c| c.omega).fold(0.0f64, f64::max);
+    assert!(
+        (omega_max - loop_omega).abs() < 0.02,
+        "{omega_max} vs {loop_omega}"
+    );
+    assert!(torque_max > 100.0, "{torque_max}");
+    let j = json_of(&[os("inspect"), os("--json"), f.as_os_str()]);
+    assert_eq!(j["status"], "ok", "{j}");
+    assert_eq!(j["e2e_rejected_frames"], 0, "{j}");
+    let (_, text, _) = grip(&[os("inspect"), f.as_os_str()]);
+    assert!(
+        text.contains("TorqueCommand") && !text.contains("0x191"),
+        "{text}"
+    );
+    let r = json_of(&[os("replay"), os("--json"), f.as_os_str()]);
+    assert_eq!(r["identical"], true, "{r}");
+
+    let e = tempfile::tempdir().unwrap();
+    let cfg = own_bus_config(e.path(), |t| {
+        t.replace("BO_ 403 WheelSpeeds", "BO_ 403 WheelSpeed")
+    });
+    let (ok, _, err) = common::output_in(
+        &cfg,
+        &[
+            os("generate"),
+            os("--count"),
+            os("1"),
+            os("--out"),
+            out.as_os_str(),
+        ],
+    );
+    assert!(!ok, "not refused");
+    assert!(
+        err.contains("own-bus.dbc")
+            && err.contains("message WheelSpeeds")
+            && err.contains("not in the DBC"),
+        "{err}"
+    );
+}

@@ -7,6 +7,7 @@
 //! and logs which and why. Each bus delivers what its [`RxFilter`] lets
 //! through: a service's bus only the ids its [`Role`] receives.
 
+mod dbc;
 mod mem;
 pub mod protocol;
 mod sim;
@@ -14,6 +15,7 @@ mod socket;
 
 use core::time::Duration;
 
+pub use dbc::{DbcError, name_keys as dbc_name_keys};
 pub use grip_msgs::CanFrame;
 pub use mem::{FrameQueue, MEM_BUS_CAPACITY, MemBus, frame_queue};
 pub use sim::SimBus;
@@ -229,6 +231,17 @@ pub struct CanBusConfig {
     /// Bus number written into logged frames.
     #[serde(default)]
     pub bus_id: u8,
+    /// The bus's DBC (a path relative to the configuration directory):
+    /// grip's five messages with this bus's ids, layouts, scalings and
+    /// timing ([`protocol::Protocol::load_dbc`]). Absent: the built-in
+    /// protocol, the one the shipped `config/inverter.dbc` describes.
+    #[serde(default)]
+    pub dbc: Option<String>,
+    /// grip's message and signal names (`TorqueCommand`,
+    /// `TorqueCommand.TorqueRequest`) mapped to the DBC's own, where they
+    /// differ.
+    #[serde(default)]
+    pub dbc_names: std::collections::BTreeMap<String, String>,
 }
 
 impl Default for CanBusConfig {
@@ -238,6 +251,8 @@ impl Default for CanBusConfig {
             interface: "vcan0".into(),
             sim_bus: None,
             bus_id: 0,
+            dbc: None,
+            dbc_names: std::collections::BTreeMap::new(),
         }
     }
 }

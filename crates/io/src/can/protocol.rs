@@ -51,6 +51,10 @@ pub struct SignalSpec {
     pub max: f64,
     /// Unit string.
     pub unit: &'static str,
+    /// Motorola (big-endian, DBC `@0`) byte order; `start` is then the most
+    /// significant bit in the DBC's numbering (bit 7 of byte 0 is 7, bit 0
+    /// of byte 1 is 8). grip's own DBC is all Intel.
+    pub motorola: bool,
 }
 
 impl SignalSpec {
@@ -74,6 +78,7 @@ impl SignalSpec {
             min,
             max,
             unit,
+            motorola: false,
         }
     }
     const fn flag(name: &'static str, start: u8) -> Self {
@@ -108,28 +113,64 @@ impl SignalSpec {
     pub fn to_phys(&self, raw: i64) -> f64 {
         raw as f64 * self.factor + self.offset
     }
-    /// Writes a raw value into `data` (Intel bit numbering).
-    pub fn put_raw(&self, data: &mut [u8; 8], raw: i64) {
+    /// The field's shift and mask in a 64-bit word of the payload: for Intel
+    /// the word is `u64::from_le_bytes`, for Motorola `u64::from_be_bytes`
+    /// (in which a Motorola field is a contiguous run of bits).
+    fn shift_mask(&self) -> (u32, u64) {
         let mask = if self.len >= 64 {
             u64::MAX
         } else {
             (1u64 << self.len) - 1
         };
+        if self.motorola {
+            // the MSB's position counted from the first byte's top bit
+            let msb = u32::from(self.start / 8) * 8 + 7 - u32::from(self.start % 8);
+            (64 - (msb + u32::from(self.len)), mask)
+        } else {
+            (u32::from(self.start), mask)
+        }
+    }
+    fn word(&self, data: &[u8; 8]) -> u64 {
+        if self.motorola {
+            u64::from_be_bytes(*data)
+        } else {
+            u64::from_le_bytes(*data)
+        }
+    }
+    fn store(&self, data: &mut [u8; 8], word: u64) {
+        *data = if self.motorola {
+            word.to_be_bytes()
+        } else {
+            word.to_le_bytes()
+        };
+    }
+    /// Writes a raw value into `data` (the DBC's bit numbering and byte
+    /// order).
+    pub fn put_raw(&self, data: &mut [u8; 8], raw: i64) {
+        let (shift, mask) = self.shift_mask();
         let bits = (raw as u64) & mask;
-        let mut word = u64::from_le_bytes(*data);
-        word &= !(mask << self.start);
-        word |= bits << self.start;
-        *data = word.to_le_bytes();
+        let mut word = self.word(data);
+        word &= !(mask << shift);
+        word |= bits << shift;
+        self.store(data, word);
     }
     /// Reads the raw value (sign-extended if signed).
     pub fn get_raw(&self, data: &[u8; 8]) -> i64 {
-        let word = u64::from_le_bytes(*data);
-        let v = (word >> self.start) & ((1u64 << self.len) - 1);
-        if self.signed && (v >> (self.len - 1)) & 1 == 1 {
-            (v | !((1u64 << self.len) - 1)) as i64
+        let (shift, mask) = self.shift_mask();
+        let v = (self.word(data) >> shift) & mask;
+        if self.signed && self.len < 64 && (v >> (self.len - 1)) & 1 == 1 {
+            (v | !mask) as i64
         } else {
             v as i64
         }
+    }
+    /// The payload bits the field occupies, as a mask over
+    /// `u64::from_le_bytes` of the payload (bit `8 k + b` = bit `b` of byte
+    /// `k`), whatever the byte order: for overlap checks.
+    pub fn bits(&self) -> u64 {
+        let mut d = [0u8; 8];
+        self.put_raw(&mut d, -1);
+        u64::from_le_bytes(d)
     }
     /// Writes a physical value (see [`to_raw`](Self::to_raw)).
     pub fn put(&self, data: &mut [u8; 8], phys: f64) {
@@ -144,6 +185,8 @@ impl SignalSpec {
 /// One message of the protocol.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MessageSpec {
+    /// Which of grip's messages this is.
+    pub kind: MsgKind,
     /// Message name in the DBC.
     pub name: &'static str,
     /// 11-bit identifier.
@@ -166,11 +209,24 @@ pub struct MessageSpec {
     pub signals: &'static [SignalSpec],
 }
 
+impl MessageSpec {
+    /// The byte that carries the CRC (signal 0, a whole byte: the loader
+    /// checks it).
+    pub fn crc_byte(&self) -> usize {
+        usize::from(self.signals[0].start / 8)
+    }
+    /// The alive counter in a payload (signal 1).
+    pub fn counter(&self, data: &[u8; 8]) -> u8 {
+        (self.signals[1].get_raw(data) & 0x0F) as u8
+    }
+}
+
 const CRC_SIG: SignalSpec = SignalSpec::new("CRC", 0, 8, false, 1.0, 0.0, 255.0, "");
 const COUNTER_SIG: SignalSpec = SignalSpec::new("Counter", 8, 4, false, 1.0, 0.0, 15.0, "");
 
 /// `TorqueCommand` (TCS → INV).
 pub const TORQUE_COMMAND: MessageSpec = MessageSpec {
+    kind: MsgKind::TorqueCommand,
     name: "TorqueCommand",
     id: 0x100,
     dlc: 8,
@@ -189,6 +245,7 @@ pub const TORQUE_COMMAND: MessageSpec = MessageSpec {
 
 /// `MotorStatus` (INV → TCS).
 pub const MOTOR_STATUS: MessageSpec = MessageSpec {
+    kind: MsgKind::MotorStatus,
     name: "MotorStatus",
     id: 0x110,
     dlc: 8,
@@ -212,6 +269,7 @@ pub const MOTOR_STATUS: MessageSpec = MessageSpec {
 
 /// `WheelSpeeds` (ABS → TCS).
 pub const WHEEL_SPEEDS: MessageSpec = MessageSpec {
+    kind: MsgKind::WheelSpeeds,
     name: "WheelSpeeds",
     id: 0x120,
     dlc: 8,
@@ -232,6 +290,7 @@ pub const WHEEL_SPEEDS: MessageSpec = MessageSpec {
 
 /// `VehicleSpeed` (VCU → TCS).
 pub const VEHICLE_SPEED: MessageSpec = MessageSpec {
+    kind: MsgKind::VehicleSpeed,
     name: "VehicleSpeed",
     id: 0x130,
     dlc: 8,
@@ -251,6 +310,7 @@ pub const VEHICLE_SPEED: MessageSpec = MessageSpec {
 
 /// `DriverDemand` (VCU → TCS).
 pub const DRIVER_DEMAND: MessageSpec = MessageSpec {
+    kind: MsgKind::DriverDemand,
     name: "DriverDemand",
     id: 0x140,
     dlc: 8,
@@ -269,7 +329,8 @@ pub const DRIVER_DEMAND: MessageSpec = MessageSpec {
     ],
 };
 
-/// Every message of the protocol.
+/// Every message of the built-in protocol (the one `config/inverter.dbc`
+/// describes), in [`MsgKind`] order.
 pub const MESSAGES: [&MessageSpec; 5] = [
     &TORQUE_COMMAND,
     &MOTOR_STATUS,
@@ -278,9 +339,130 @@ pub const MESSAGES: [&MessageSpec; 5] = [
     &DRIVER_DEMAND,
 ];
 
-/// The message with this id, if any.
+/// Which of grip's five messages a [`MessageSpec`] is: what the code means
+/// by it, whatever id and layout a DBC gives it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum MsgKind {
+    /// [`TorqueCommand`].
+    TorqueCommand = 0,
+    /// [`MotorStatus`].
+    MotorStatus = 1,
+    /// [`WheelSpeeds`].
+    WheelSpeeds = 2,
+    /// [`VehicleSpeed`].
+    VehicleSpeed = 3,
+    /// [`DriverDemand`].
+    DriverDemand = 4,
+}
+
+impl MsgKind {
+    /// All five, in the protocol's order.
+    pub const ALL: [Self; 5] = [
+        Self::TorqueCommand,
+        Self::MotorStatus,
+        Self::WheelSpeeds,
+        Self::VehicleSpeed,
+        Self::DriverDemand,
+    ];
+    /// The built-in specification (grip's names, signal order and units).
+    pub fn builtin(self) -> &'static MessageSpec {
+        MESSAGES[self as usize]
+    }
+}
+
+/// A bus protocol: grip's five messages with the ids, layouts, scalings and
+/// timing of one DBC. [`Protocol::builtin`] is `config/inverter.dbc`'s;
+/// [`Protocol::from_dbc`](crate::can::protocol::Protocol::from_dbc) reads
+/// another (a car's own bus). Each message's signals are in the built-in
+/// order (CRC, Counter, then the payload), whatever the DBC's order, so
+/// the typed messages address them by position.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Protocol {
+    messages: [MessageSpec; 5],
+}
+
+static BUILTIN: Protocol = Protocol {
+    messages: [
+        TORQUE_COMMAND,
+        MOTOR_STATUS,
+        WHEEL_SPEEDS,
+        VEHICLE_SPEED,
+        DRIVER_DEMAND,
+    ],
+};
+
+static ACTIVE: std::sync::OnceLock<Protocol> = std::sync::OnceLock::new();
+
+/// The protocol this process speaks: the one [`install`]ed at start-up,
+/// else the built-in one. Allocation-free (one atomic load).
+pub fn active() -> &'static Protocol {
+    ACTIVE.get().unwrap_or(&BUILTIN)
+}
+
+/// Why [`install`] refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("a different CAN protocol is already installed in this process")]
+pub struct AlreadyInstalled;
+
+/// Makes `p` the process's protocol ([`active`]): a service calls it once at
+/// start-up, before it opens its bus or builds a receiver (what was built
+/// before keeps the protocol it was built with). Installing the same
+/// protocol again is a no-op; a different one is refused.
+pub fn install(p: Protocol) -> Result<&'static Protocol, AlreadyInstalled> {
+    let got = ACTIVE.get_or_init(|| p.clone());
+    if *got == p {
+        Ok(got)
+    } else {
+        Err(AlreadyInstalled)
+    }
+}
+
+impl Protocol {
+    /// The built-in protocol (`config/inverter.dbc`).
+    pub fn builtin() -> &'static Self {
+        &BUILTIN
+    }
+    /// Built from five specifications in [`MsgKind`] order (the DBC loader's
+    /// constructor; checked there).
+    pub(crate) fn from_specs(messages: [MessageSpec; 5]) -> Self {
+        Self { messages }
+    }
+    /// The specification of `kind`.
+    pub fn spec(&self, kind: MsgKind) -> &MessageSpec {
+        &self.messages[kind as usize]
+    }
+    /// All five, in [`MsgKind`] order.
+    pub fn messages(&self) -> &[MessageSpec; 5] {
+        &self.messages
+    }
+    /// The message with this id, if any. Allocation-free.
+    pub fn spec_for_id(&self, id: u32) -> Option<&MessageSpec> {
+        self.messages.iter().find(|m| m.id == id)
+    }
+    /// The messages `role` receives, in [`MsgKind`] order.
+    pub fn receives(&self, role: Role) -> impl Iterator<Item = &MessageSpec> + Clone {
+        self.messages.iter().filter(move |m| m.receiver == role)
+    }
+    /// True if `id` (11-bit) is a message `role` receives. Allocation-free.
+    pub fn receives_id(&self, role: Role, id: u32) -> bool {
+        self.spec_for_id(id).is_some_and(|m| m.receiver == role)
+    }
+    /// One line for a log: each message's name and id.
+    pub fn describe(&self) -> String {
+        let mut s = String::new();
+        for m in &self.messages {
+            if !s.is_empty() {
+                s.push_str(", ");
+            }
+            s.push_str(&format!("{} 0x{:03X}", m.name, m.id));
+        }
+        s
+    }
+}
+
+/// The message with this id in the [`active`] protocol, if any.
 pub fn spec_for_id(id: u32) -> Option<&'static MessageSpec> {
-    MESSAGES.iter().copied().find(|m| m.id == id)
+    active().spec_for_id(id)
 }
 
 /// The part a grip service plays on the bus: a DBC node that receives
@@ -304,14 +486,15 @@ impl Role {
             Self::Inverter => "INV",
         }
     }
-    /// The messages this role receives, in [`MESSAGES`] order.
+    /// The messages this role receives in the [`active`] protocol, in
+    /// [`MsgKind`] order.
     pub fn receives(self) -> impl Iterator<Item = &'static MessageSpec> + Clone {
-        MESSAGES.iter().copied().filter(move |m| m.receiver == self)
+        active().receives(self)
     }
-    /// True if `id` (11-bit) is a message this role receives.
-    /// Allocation-free.
+    /// True if `id` (11-bit) is a message this role receives in the
+    /// [`active`] protocol. Allocation-free.
     pub fn receives_id(self, id: u32) -> bool {
-        spec_for_id(id).is_some_and(|m| m.receiver == self)
+        active().receives_id(self, id)
     }
 }
 
@@ -353,28 +536,49 @@ pub fn crc8_j1850(bytes: &[u8]) -> u8 {
 
 /// The E2E CRC of a frame payload: over data id (lo, hi) and bytes 1..=7.
 pub fn e2e_crc(data_id: u16, data: &[u8; 8]) -> u8 {
+    e2e_crc_at(data_id, data, 0)
+}
+
+/// [`e2e_crc`] for a CRC in byte `crc_byte` (0..=7): over the data id,
+/// then every other byte in order. Byte 0 gives [`e2e_crc`].
+pub fn e2e_crc_at(data_id: u16, data: &[u8; 8], crc_byte: usize) -> u8 {
     let c = crc8_update(0xFF, &data_id.to_le_bytes());
-    crc8_update(c, &data[1..]) ^ 0xFF
+    let c = crc8_update(c, &data[..crc_byte]);
+    crc8_update(c, &data[crc_byte + 1..]) ^ 0xFF
 }
 
 // ------------------------------------------------------- typed messages ----
 
 /// A typed protocol message.
 pub trait ProtocolMessage: Sized + Copy {
-    /// The message's specification.
-    const SPEC: &'static MessageSpec;
-    /// Writes the payload signals (everything except CRC and counter).
-    fn write_signals(&self, data: &mut [u8; 8]);
-    /// Reads the payload signals.
-    fn read_signals(data: &[u8; 8]) -> Self;
+    /// Which message this is.
+    const KIND: MsgKind;
+    /// The message's specification in the [`active`] protocol.
+    fn spec() -> &'static MessageSpec {
+        active().spec(Self::KIND)
+    }
+    /// Writes the payload signals (everything except CRC and counter) as
+    /// `spec` (this message in some protocol) lays them out.
+    fn write_signals_in(&self, spec: &MessageSpec, data: &mut [u8; 8]);
+    /// Reads the payload signals as `spec` lays them out.
+    fn read_signals_in(spec: &MessageSpec, data: &[u8; 8]) -> Self;
+    /// Writes the payload signals in the [`active`] protocol's layout.
+    fn write_signals(&self, data: &mut [u8; 8]) {
+        self.write_signals_in(Self::spec(), data);
+    }
+    /// Reads the payload signals in the [`active`] protocol's layout.
+    fn read_signals(data: &[u8; 8]) -> Self {
+        Self::read_signals_in(Self::spec(), data)
+    }
     /// Calls `f(name, physical value)` for each payload signal, in DBC
     /// order (booleans as 0/1). Used by tests and by `grip inspect`.
     fn for_each_signal(&self, f: &mut dyn FnMut(&'static str, f64));
 }
 
-fn sig(spec: &'static MessageSpec, i: usize) -> &'static SignalSpec {
+fn sig(spec: &MessageSpec, i: usize) -> &SignalSpec {
     &spec.signals[i]
 }
+
 fn b(x: bool) -> f64 {
     if x { 1.0 } else { 0.0 }
 }
@@ -388,15 +592,15 @@ pub struct TorqueCommand {
     pub enable: bool,
 }
 impl ProtocolMessage for TorqueCommand {
-    const SPEC: &'static MessageSpec = &TORQUE_COMMAND;
-    fn write_signals(&self, d: &mut [u8; 8]) {
-        sig(Self::SPEC, 2).put_raw(d, i64::from(self.enable));
-        sig(Self::SPEC, 3).put(d, self.torque_request);
+    const KIND: MsgKind = MsgKind::TorqueCommand;
+    fn write_signals_in(&self, s: &MessageSpec, d: &mut [u8; 8]) {
+        sig(s, 2).put_raw(d, i64::from(self.enable));
+        sig(s, 3).put(d, self.torque_request);
     }
-    fn read_signals(d: &[u8; 8]) -> Self {
+    fn read_signals_in(s: &MessageSpec, d: &[u8; 8]) -> Self {
         Self {
-            enable: sig(Self::SPEC, 2).get_raw(d) != 0,
-            torque_request: sig(Self::SPEC, 3).get(d),
+            enable: sig(s, 2).get_raw(d) != 0,
+            torque_request: sig(s, 3).get(d),
         }
     }
     fn for_each_signal(&self, f: &mut dyn FnMut(&'static str, f64)) {
@@ -424,9 +628,8 @@ pub struct MotorStatus {
     pub fault_code: u8,
 }
 impl ProtocolMessage for MotorStatus {
-    const SPEC: &'static MessageSpec = &MOTOR_STATUS;
-    fn write_signals(&self, d: &mut [u8; 8]) {
-        let s = Self::SPEC;
+    const KIND: MsgKind = MsgKind::MotorStatus;
+    fn write_signals_in(&self, s: &MessageSpec, d: &mut [u8; 8]) {
         sig(s, 2).put_raw(d, i64::from(self.ready));
         sig(s, 3).put_raw(d, i64::from(self.fault));
         sig(s, 4).put_raw(d, i64::from(self.derating));
@@ -435,8 +638,7 @@ impl ProtocolMessage for MotorStatus {
         sig(s, 7).put(d, self.motor_speed);
         sig(s, 8).put_raw(d, i64::from(self.fault_code));
     }
-    fn read_signals(d: &[u8; 8]) -> Self {
-        let s = Self::SPEC;
+    fn read_signals_in(s: &MessageSpec, d: &[u8; 8]) -> Self {
         Self {
             ready: sig(s, 2).get_raw(d) != 0,
             fault: sig(s, 3).get_raw(d) != 0,
@@ -471,16 +673,14 @@ pub struct WheelSpeeds {
     pub omega_ref: f64,
 }
 impl ProtocolMessage for WheelSpeeds {
-    const SPEC: &'static MessageSpec = &WHEEL_SPEEDS;
-    fn write_signals(&self, d: &mut [u8; 8]) {
-        let s = Self::SPEC;
+    const KIND: MsgKind = MsgKind::WheelSpeeds;
+    fn write_signals_in(&self, s: &MessageSpec, d: &mut [u8; 8]) {
         sig(s, 2).put_raw(d, i64::from(self.driven_valid));
         sig(s, 3).put_raw(d, i64::from(self.ref_valid));
         sig(s, 4).put(d, self.omega_driven);
         sig(s, 5).put(d, self.omega_ref);
     }
-    fn read_signals(d: &[u8; 8]) -> Self {
-        let s = Self::SPEC;
+    fn read_signals_in(s: &MessageSpec, d: &[u8; 8]) -> Self {
         Self {
             driven_valid: sig(s, 2).get_raw(d) != 0,
             ref_valid: sig(s, 3).get_raw(d) != 0,
@@ -507,15 +707,13 @@ pub struct VehicleSpeed {
     pub long_accel: f64,
 }
 impl ProtocolMessage for VehicleSpeed {
-    const SPEC: &'static MessageSpec = &VEHICLE_SPEED;
-    fn write_signals(&self, d: &mut [u8; 8]) {
-        let s = Self::SPEC;
+    const KIND: MsgKind = MsgKind::VehicleSpeed;
+    fn write_signals_in(&self, s: &MessageSpec, d: &mut [u8; 8]) {
         sig(s, 2).put_raw(d, i64::from(self.valid));
         sig(s, 3).put(d, self.speed);
         sig(s, 4).put(d, self.long_accel);
     }
-    fn read_signals(d: &[u8; 8]) -> Self {
-        let s = Self::SPEC;
+    fn read_signals_in(s: &MessageSpec, d: &[u8; 8]) -> Self {
         Self {
             valid: sig(s, 2).get_raw(d) != 0,
             speed: sig(s, 3).get(d),
@@ -542,16 +740,14 @@ pub struct DriverDemand {
     pub pedal_position: f64,
 }
 impl ProtocolMessage for DriverDemand {
-    const SPEC: &'static MessageSpec = &DRIVER_DEMAND;
-    fn write_signals(&self, d: &mut [u8; 8]) {
-        let s = Self::SPEC;
+    const KIND: MsgKind = MsgKind::DriverDemand;
+    fn write_signals_in(&self, s: &MessageSpec, d: &mut [u8; 8]) {
         sig(s, 2).put_raw(d, i64::from(self.brake_pressed));
         sig(s, 3).put_raw(d, i64::from(self.tcs_enable));
         sig(s, 4).put(d, self.torque_demand);
         sig(s, 5).put(d, self.pedal_position);
     }
-    fn read_signals(d: &[u8; 8]) -> Self {
-        let s = Self::SPEC;
+    fn read_signals_in(s: &MessageSpec, d: &[u8; 8]) -> Self {
         Self {
             brake_pressed: sig(s, 2).get_raw(d) != 0,
             tcs_enable: sig(s, 3).get_raw(d) != 0,
@@ -583,29 +779,46 @@ pub enum InverterMsg {
 }
 
 impl InverterMsg {
-    /// Decodes the payload of a frame whose id is in the protocol, without
-    /// any E2E check. `None` for an unknown id.
+    /// Decodes the payload of a frame whose id is in the [`active`]
+    /// protocol, without any E2E check. `None` for an unknown id.
     pub fn decode_unchecked(frame: &CanFrame) -> Option<Self> {
-        let d = &frame.data;
-        Some(match frame.id {
-            0x100 => Self::TorqueCommand(TorqueCommand::read_signals(d)),
-            0x110 => Self::MotorStatus(MotorStatus::read_signals(d)),
-            0x120 => Self::WheelSpeeds(WheelSpeeds::read_signals(d)),
-            0x130 => Self::VehicleSpeed(VehicleSpeed::read_signals(d)),
-            0x140 => Self::DriverDemand(DriverDemand::read_signals(d)),
-            _ => return None,
-        })
+        Self::decode_in(active(), frame)
+    }
+    /// [`decode_unchecked`](Self::decode_unchecked) in protocol `p` (e.g. a
+    /// drive log's own DBC). Allocation-free.
+    pub fn decode_in(p: &Protocol, frame: &CanFrame) -> Option<Self> {
+        Some(Self::decode_as(p.spec_for_id(frame.id)?, &frame.data))
+    }
+    /// Decodes `d` as the message `spec` describes. Allocation-free.
+    pub fn decode_as(spec: &MessageSpec, d: &[u8; 8]) -> Self {
+        match spec.kind {
+            MsgKind::TorqueCommand => Self::TorqueCommand(TorqueCommand::read_signals_in(spec, d)),
+            MsgKind::MotorStatus => Self::MotorStatus(MotorStatus::read_signals_in(spec, d)),
+            MsgKind::WheelSpeeds => Self::WheelSpeeds(WheelSpeeds::read_signals_in(spec, d)),
+            MsgKind::VehicleSpeed => Self::VehicleSpeed(VehicleSpeed::read_signals_in(spec, d)),
+            MsgKind::DriverDemand => Self::DriverDemand(DriverDemand::read_signals_in(spec, d)),
+        }
     }
 }
 
 /// Encodes `msg` with the given alive counter (mod 16) into a frame with a
 /// valid CRC. `stamp_ns` is written into the frame.
 pub fn encode<M: ProtocolMessage>(msg: &M, counter: u8, stamp_ns: u64) -> CanFrame {
-    let spec = M::SPEC;
+    encode_in(M::spec(), msg, counter, stamp_ns)
+}
+
+/// [`encode`] as `spec` (this message in some protocol) lays it out.
+pub fn encode_in<M: ProtocolMessage>(
+    spec: &MessageSpec,
+    msg: &M,
+    counter: u8,
+    stamp_ns: u64,
+) -> CanFrame {
     let mut data = [0u8; 8];
-    msg.write_signals(&mut data);
+    msg.write_signals_in(spec, &mut data);
     spec.signals[1].put_raw(&mut data, i64::from(counter & 0x0F));
-    data[0] = e2e_crc(spec.data_id, &data);
+    let crc = spec.crc_byte();
+    data[crc] = e2e_crc_at(spec.data_id, &data, crc);
     CanFrame {
         stamp_ns,
         id: spec.id,
@@ -617,9 +830,13 @@ pub fn encode<M: ProtocolMessage>(msg: &M, counter: u8, stamp_ns: u64) -> CanFra
     }
 }
 
-/// The alive counter of a frame.
+/// The alive counter of a frame of the [`active`] protocol (bits 8..=11
+/// for an id it does not know).
 pub fn counter_of(frame: &CanFrame) -> u8 {
-    (frame.data[1]) & 0x0F
+    match spec_for_id(frame.id) {
+        Some(s) => s.counter(&frame.data),
+        None => frame.data[1] & 0x0F,
+    }
 }
 
 /// Sender side: keeps the alive counter of one message.
@@ -787,18 +1004,19 @@ impl E2eReceiver {
                 expected: spec.dlc,
             });
         }
-        let expected = e2e_crc(spec.data_id, &frame.data);
-        if frame.data[0] != expected {
+        let crc = spec.crc_byte();
+        let expected = e2e_crc_at(spec.data_id, &frame.data, crc);
+        if frame.data[crc] != expected {
             self.faults.crc = self.faults.crc.wrapping_add(1);
             return Err(E2eError::Crc {
                 id: frame.id,
-                got: frame.data[0],
+                got: frame.data[crc],
                 expected,
             });
         }
         // a timeout makes the next frame a resync
         self.poll(now_ns);
-        let c = counter_of(frame);
+        let c = spec.counter(&frame.data);
         if let (Some(last), false) = (self.last_counter, self.timed_out) {
             let delta = c.wrapping_sub(last) & 0x0F;
             if delta == 0 {
@@ -905,7 +1123,7 @@ impl ProtocolRx {
     ) -> Result<Option<InverterMsg>, E2eError> {
         if let Some(r) = self.rx.iter_mut().find(|r| r.spec.id == frame.id) {
             r.check(frame, now_ns)?;
-            Ok(InverterMsg::decode_unchecked(frame))
+            Ok(Some(InverterMsg::decode_as(r.spec, &frame.data)))
         } else if spec_for_id(frame.id).is_some() {
             Ok(None)
         } else {

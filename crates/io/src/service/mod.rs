@@ -196,11 +196,69 @@ pub fn load_can(dir: &ConfigDir) -> Result<CanBusConfig, ConfigError> {
     parse_can(&path, &read_file(&path)?)
 }
 
+/// Reads the bus protocol `can` names (`dbc`, relative to `dir`; absent:
+/// the built-in one) and makes it this process's
+/// ([`crate::can::protocol::install`]), so that every frame the service
+/// sends, receives, filters and logs is laid out as the bus's DBC says.
+/// Called by the services' `load` before anything is built from the
+/// protocol. Errors name the DBC file, the message or signal and the reason.
+pub fn install_protocol(
+    dir: &ConfigDir,
+    can: &crate::can::CanBusConfig,
+) -> Result<&'static crate::can::protocol::Protocol, ConfigError> {
+    use crate::can::protocol::{Protocol, install};
+    let can_toml = dir.file("can.toml");
+    let p = match &can.dbc {
+        None if !can.dbc_names.is_empty() => {
+            return Err(ConfigError::new(
+                &can_toml,
+                "dbc_names",
+                "names a DBC's messages but no dbc = \"FILE\" is set",
+            ));
+        }
+        None => Protocol::builtin().clone(),
+        Some(f) => {
+            let path = dir.file(f);
+            Protocol::load_dbc(&path, &can.dbc_names)
+                .map_err(|e| ConfigError::new(Path::new(&e.file), &e.what, &e.reason))?
+        }
+    };
+    install(p).map_err(|e| {
+        ConfigError::new(
+            &can_toml,
+            "dbc",
+            format!(
+                "{e} (one process speaks one bus; {} is not the one already in use)",
+                can.dbc.as_deref().unwrap_or("the built-in protocol")
+            ),
+        )
+    })
+}
+
 /// Parses `text`, the contents of `can.toml` at `file` (see [`load_can`]).
 pub fn parse_can(file: &Path, text: &str) -> Result<CanBusConfig, ConfigError> {
     let c: CanBusConfig = parse_toml(file, text)?;
     if c.interface.trim().is_empty() {
         return Err(ConfigError::new(file, "interface", "must not be empty"));
+    }
+    if let Some(d) = &c.dbc {
+        let plain = !d.contains('/') && !d.contains('\\') && d != ".dbc";
+        if !plain || !d.ends_with(".dbc") {
+            return Err(ConfigError::new(
+                file,
+                "dbc",
+                format!(
+                    "{d:?}: must be the name of a .dbc file in the configuration directory (the recorder attaches that directory's .dbc files to every drive log, so that `grip inspect` and `grip replay` read the frames as the services did)"
+                ),
+            ));
+        }
+    }
+    if let Some((k, _)) = c.dbc_names.iter().find(|(_, v)| v.trim().is_empty()) {
+        return Err(ConfigError::new(
+            file,
+            format!("dbc_names.{k}"),
+            "must name the DBC's message or signal (not empty)",
+        ));
     }
     Ok(c)
 }
@@ -299,6 +357,46 @@ mod tests {
         )
         .unwrap();
         assert_eq!(load_can(&d).unwrap_err().field, "interface");
+    }
+
+    /// `dbc` is a `.dbc` file in the configuration directory (so the
+    /// recorder attaches it); a missing file, or a name map without a DBC,
+    /// is refused naming the file and field; the shipped one installs the
+    /// built-in protocol.
+    #[test]
+    fn the_bus_dbc_is_a_file_of_the_configuration_directory() {
+        let f = Path::new("can.toml");
+        let base = "interface = \"vcan0\"\n";
+        for bad in [
+            "bus/car.dbc",
+            "/etc/car.dbc",
+            "car.txt",
+            ".dbc",
+            "..\\car.dbc",
+        ] {
+            let e = parse_can(f, &format!("{base}dbc = {bad:?}\n")).unwrap_err();
+            assert_eq!(e.field, "dbc", "{bad}: {e}");
+        }
+        assert!(parse_can(f, &format!("{base}dbc = \"car.dbc\"\n")).is_ok());
+        let e = parse_can(
+            f,
+            &format!("{base}dbc = \"car.dbc\"\n[dbc_names]\nTorqueCommand = \" \"\n"),
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "dbc_names.TorqueCommand", "{e}");
+
+        let dir = tempfile::tempdir().unwrap();
+        let d = ConfigDir::new(dir.path());
+        let names = parse_can(f, &format!("{base}[dbc_names]\nTorqueCommand = \"X\"\n")).unwrap();
+        assert_eq!(install_protocol(&d, &names).unwrap_err().field, "dbc_names");
+        let missing = parse_can(f, &format!("{base}dbc = \"car.dbc\"\n")).unwrap();
+        let e = install_protocol(&d, &missing).unwrap_err();
+        assert!(e.file.ends_with("car.dbc") && e.field == "file", "{e}");
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
+        let can = load_can(&ConfigDir::new(&shipped)).unwrap();
+        assert_eq!(can.dbc.as_deref(), Some("inverter.dbc"));
+        let p = install_protocol(&ConfigDir::new(&shipped), &can).unwrap();
+        assert_eq!(p, crate::can::protocol::Protocol::builtin());
     }
 
     #[test]

@@ -11,7 +11,6 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use grip_io::can::protocol::spec_for_id;
 use grip_msgs::{NO_CLASS, can_dir};
 
 use grip_drive::{DriveLog, summary};
@@ -288,6 +287,9 @@ pub fn write_csv(log: &DriveLog, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
 
     let (mut w, p) = open(dir, "can.csv")?;
     writeln!(w, "{CAN_HEADER}")?;
+    let protocol = log
+        .protocol()
+        .unwrap_or_else(|_| grip_io::can::protocol::Protocol::builtin().clone());
     for c in &log.can {
         let data: Vec<String> = c.payload().iter().map(|b| format!("{b:02X}")).collect();
         writeln!(
@@ -297,7 +299,7 @@ pub fn write_csv(log: &DriveLog, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
             ts(c.stamp_ns),
             c.stamp_ns,
             c.id,
-            spec_for_id(c.id).map_or("", |m| m.name),
+            protocol.spec_for_id(c.id).map_or("", |m| m.name),
             if c.direction == can_dir::TX {
                 "tx"
             } else {

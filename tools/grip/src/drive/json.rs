@@ -37,10 +37,13 @@ fn faults(f: &E2eFaults) -> Value {
 /// Command-timeout episodes of the inverter, as its `MotorStatus` frames on
 /// the loop's CAN log report them: `CmdTimeout` going from clear to set.
 pub fn command_timeouts(log: &DriveLog) -> u64 {
+    let protocol = log
+        .protocol()
+        .unwrap_or_else(|_| grip_io::can::protocol::Protocol::builtin().clone());
     let mut last: Option<bool> = None;
     let mut n = 0;
     for f in log.can.iter().filter(|f| f.direction != can_dir::TX) {
-        if let Some(InverterMsg::MotorStatus(m)) = InverterMsg::decode_unchecked(f) {
+        if let Some(InverterMsg::MotorStatus(m)) = InverterMsg::decode_in(&protocol, f) {
             if last == Some(false) && m.cmd_timeout {
                 n += 1;
             }

@@ -71,6 +71,47 @@ fn copy_dir(from: &Path, to: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The recorded frames are the drive's bus: whatever `--config-dir` says,
+/// its `can.toml` and the DBC that names the frames are the log's (a log
+/// from before the services read a DBC carries a `can.toml` without `dbc`:
+/// the built-in protocol). Said among the changes when they differ.
+fn keep_the_logs_bus(log: &DriveLog, dir: &Path, changes: &mut Vec<String>) -> anyhow::Result<()> {
+    let Some(can) = log.attachments.get("can.toml") else {
+        return Ok(());
+    };
+    let p = dir.join("can.toml");
+    let given = std::fs::read(&p).unwrap_or_default();
+    let mut files = vec![("can.toml".to_owned(), can)];
+    let parsed = grip_io::service::parse_can(
+        Path::new("can.toml (attached)"),
+        &String::from_utf8_lossy(can),
+    )
+    .with_context(|| format!("{}: the attached can.toml", log.path.display()))?;
+    if let Some(dbc) = &parsed.dbc {
+        let data = log.attachments.get(dbc).with_context(|| {
+            format!(
+                "{}: the attached can.toml names dbc = {dbc:?}, which the log does not carry",
+                log.path.display()
+            )
+        })?;
+        files.push((dbc.clone(), data));
+    }
+    let differs = given != **can
+        || files[1..]
+            .iter()
+            .any(|(n, d)| std::fs::read(dir.join(n)).ok().as_deref() != Some(&d[..]));
+    for (name, data) in files {
+        std::fs::write(dir.join(&name), data).with_context(|| format!("writing {name}"))?;
+    }
+    if differs {
+        changes.push(
+            "CAN bus: the log's can.toml and DBC, not --config-dir's (the recorded frames are read as they were sent)"
+                .into(),
+        );
+    }
+    Ok(())
+}
+
 /// Writes the log's configuration (or `--config-dir`'s) to a temporary
 /// directory, checks it against the hashes in `grip.run`, and applies the
 /// what-if options.
@@ -82,6 +123,7 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
         Some(d) => {
             copy_dir(d, &dir)?;
             changes.push(format!("configuration directory {}", d.display()));
+            keep_the_logs_bus(log, &dir, &mut changes)?;
             format!("{} (--config-dir)", d.display())
         }
         None => {
