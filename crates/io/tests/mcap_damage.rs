@@ -3,6 +3,11 @@
 //! and every intact chunk after it is read. The log here is laid out as the
 //! recorder writes a drive: a large attachment first (as the ARTE model
 //! is), run metadata, then messages over many small chunks.
+//!
+//! The logs are written with a fixed `grip.clock` stamp: with the real
+//! clock, the length of that record (the digits of the machine's uptime)
+//! would shift every byte after it, and with them the places a stride
+//! through the file hits.
 
 use std::ops::Range;
 use std::time::Duration;
@@ -13,6 +18,14 @@ use proptest::prelude::*;
 
 const MODEL: &str = "default.model";
 const CYCLES: u64 = 160;
+
+/// The `grip.clock` monotonic stamp of the logs here (13 digits: an uptime
+/// of about 3 h).
+const CLOCK_NS: u64 = 1_234_567_890_123;
+
+/// Stamps of other lengths (1, 12 and 20 digits: uptimes of nothing, 10 min
+/// and 585 years); each shifts the layout after the clock record.
+const OTHER_CLOCKS_NS: [u64; 3] = [7, 600_000_000_000, u64::MAX];
 
 /// A chunk of the written log, as the mcap crate's own summary reader
 /// finds it.
@@ -40,11 +53,11 @@ impl Log {
         self.chunks.iter().map(|c| c.messages).sum()
     }
 
-    /// Messages in the chunks that do not hold byte `pos`.
-    fn untouched(&self, pos: usize) -> usize {
+    /// Messages in the chunks that hold no byte of `hit`.
+    fn untouched(&self, hit: &Range<usize>) -> usize {
         self.chunks
             .iter()
-            .filter(|c| !c.record.contains(&pos))
+            .filter(|c| !overlap(&c.record, hit))
             .map(|c| c.messages)
             .sum()
     }
@@ -54,6 +67,10 @@ impl Log {
         b[pos] ^= mask;
         b
     }
+}
+
+fn overlap(a: &Range<usize>, b: &Range<usize>) -> bool {
+    a.start < b.end && b.start < a.end
 }
 
 /// Incompressible bytes (xorshift), the size of a small model.
@@ -69,18 +86,26 @@ fn model_bytes(n: usize) -> Vec<u8> {
         .collect()
 }
 
-/// Writes the log (lz4 chunks of 2 KiB: about 8 cycles and their ground
-/// truth each) and finds its chunks with the mcap crate's summary reader.
+/// Writes the log with clock stamp [`CLOCK_NS`].
 fn write_log() -> Log {
+    write_log_with_clock(CLOCK_NS)
+}
+
+/// Writes the log (lz4 chunks of 2 KiB: about 8 cycles and their ground
+/// truth each) with `monotonic_ns` in its `grip.clock` record and finds its
+/// chunks with the mcap crate's summary reader.
+fn write_log_with_clock(monotonic_ns: u64) -> Log {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("drive.mcap");
-    let mut w = McapWriter::create(
+    let mut w = McapWriter::create_with_clock(
         &path,
         McapWriterOptions {
             compression: Compression::Lz4,
             chunk_size: 2048,
             flush_interval: Duration::from_secs(3600),
         },
+        monotonic_ns,
+        1_780_000_000_000_000_000,
     )
     .unwrap();
     let model = model_bytes(128 * 1024);
@@ -152,6 +177,17 @@ fn write_log() -> Log {
     };
     assert_eq!(log.messages(), 2 * CYCLES as usize);
     log
+}
+
+/// Where the top-level records of `b` (an intact file) start.
+fn record_starts(b: &[u8]) -> Vec<usize> {
+    let mut starts = Vec::new();
+    let mut at = 8;
+    while at + 9 <= b.len() {
+        starts.push(at);
+        at += 9 + u64::from_le_bytes(b[at + 1..at + 9].try_into().unwrap()) as usize;
+    }
+    starts
 }
 
 fn read(bytes: Vec<u8>) -> (McapLog, Vec<LogEntry>, ReadReport) {
@@ -273,18 +309,24 @@ fn a_bad_chunk_is_skipped_and_the_rest_read() {
 /// the flip was in it, and a log that lost anything is reported.
 fn check_flip(log: &Log, pos: usize, mask: u8) {
     let what = format!("byte {pos} ^ {mask:#04x}");
-    let l = McapLog::from_bytes(log.flipped(pos, mask), "damaged.mcap");
+    check_damage(log, log.flipped(pos, mask), pos..pos + 1, &what);
+}
+
+/// [`check_flip`]'s checks, for `bytes`: the log with the bytes `hit`
+/// changed.
+fn check_damage(log: &Log, bytes: Vec<u8>, hit: Range<usize>, what: &str) {
+    let l = McapLog::from_bytes(bytes, "damaged.mcap");
     let (m, rep) = l.messages().unwrap_or_else(|e| panic!("{what}: {e}"));
-    assert_intact(log, &m, &what);
+    assert_intact(log, &m, what);
     assert!(
-        m.len() >= log.untouched(pos),
+        m.len() >= log.untouched(&hit),
         "{what}: {} messages read, {} in untouched chunks; {rep:?}",
         m.len(),
-        log.untouched(pos)
+        log.untouched(&hit)
     );
     let att = l.attachments().unwrap();
     let model_read = att.iter().any(|a| a.name == MODEL && a.data == log.model);
-    if !log.attachment.contains(&pos) {
+    if !overlap(&log.attachment, &hit) {
         assert!(model_read, "{what}: the model is lost; {rep:?}");
     }
     if m.len() < log.messages() || !model_read {
@@ -299,8 +341,10 @@ fn check_flip(log: &Log, pos: usize, mask: u8) {
 /// (c) Single-byte flips at many places: every byte of the file's head, of
 /// the attachment's head and tail, of the first chunk's head, of a middle
 /// chunk's head and of what lies between it and the next chunk's data
-/// (message indexes), of the footer; every 64th byte of the summary; and a
-/// stride through the rest.
+/// (message indexes), of the footer; the two low bytes of the length of
+/// every record up to the summary (a flip in a higher one makes a length
+/// past the end of the file, as in the heads above); every 64th byte of
+/// the summary; and a stride through the rest.
 #[test]
 fn single_byte_flips_lose_at_most_the_chunk_they_hit() {
     let log = write_log();
@@ -317,6 +361,12 @@ fn single_byte_flips_lose_at_most_the_chunk_they_hit() {
     positions.extend((summary..n).step_by(64));
     positions.extend(n - 48..n);
     positions.extend((0..n).step_by(n / 150));
+    positions.extend(
+        record_starts(&log.bytes)
+            .into_iter()
+            .filter(|r| *r < summary)
+            .flat_map(|r| r + 1..r + 3),
+    );
     positions.sort_unstable();
     positions.dedup();
     for pos in positions {
@@ -332,6 +382,84 @@ fn single_byte_flips_lose_at_most_the_chunk_they_hit() {
         check_flip(&log, mid.record.start, mask);
     }
     check_flip(&log, mid.record.end, 0x02);
+}
+
+/// (c)'s stride with the clock record of other lengths (a machine's uptime
+/// sets it), which shifts the file under the stride: the places it hits
+/// are others each time.
+#[test]
+fn single_byte_flips_whatever_the_clock_record_length() {
+    for clock in OTHER_CLOCKS_NS {
+        let log = write_log_with_clock(clock);
+        let n = log.bytes.len();
+        for pos in (0..n).step_by(n / 150) {
+            check_flip(&log, pos, 0x5A);
+        }
+    }
+}
+
+/// A flipped byte in a record's length that makes it end exactly where a
+/// later record starts (which reads, and so does the one after it: the
+/// length field cannot be told from the record's fields by what follows):
+/// the records in between are read all the same. Every record and every
+/// later record one flipped byte away, up to the summary. (What follows the clock record
+/// shifts as a whole with its length, so which flips these are does not
+/// depend on it.)
+#[test]
+fn a_length_flipped_onto_a_later_record_loses_nothing_between() {
+    let log = write_log();
+    let b = &log.bytes;
+    let starts = record_starts(b);
+    let mut tried = 0;
+    let summary = log.chunks.last().unwrap().record.end;
+    for (i, &r) in starts.iter().enumerate().filter(|(_, r)| **r < summary) {
+        let len = u64::from_le_bytes(b[r + 1..r + 9].try_into().unwrap());
+        // (starts[i + 1] is where the record ends)
+        for &q in starts.iter().skip(i + 2) {
+            let diff = (q - r - 9) as u64 ^ len;
+            let k = diff.trailing_zeros() / 8;
+            if diff >> (8 * k) <= 0xFF {
+                check_flip(&log, r + 1 + k as usize, (diff >> (8 * k)) as u8);
+                tried += 1;
+            }
+        }
+    }
+    assert!(tried > 100, "{tried} lengths redirected");
+}
+
+/// Several bytes overwritten over the head of a record (its length and the
+/// fields after it, so that neither tells where it ends): reading goes on
+/// at the next record that checks, and only what was hit is lost. Every
+/// record from the model's to the chunk after the middle one, 24 bytes from
+/// its length on: zeros, 0xFF, or each byte flipped.
+#[test]
+fn a_burst_over_a_record_head_loses_at_most_what_it_hit() {
+    /// Name, and what byte `i` of the burst makes of byte `x`.
+    type Burst = (&'static str, fn(usize, u8) -> u8);
+    const BURSTS: [Burst; 3] = [
+        ("zeros", |_, _| 0x00),
+        ("0xFF", |_, _| 0xFF),
+        ("every byte flipped", |i, x| x ^ (2 * i as u8 + 1)),
+    ];
+    let log = write_log();
+    let k = log.chunks.len() / 2;
+    let mut tried = 0;
+    for r in record_starts(&log.bytes) {
+        if r < log.attachment.start || r > log.chunks[k + 1].record.start {
+            continue;
+        }
+        for (name, burst) in BURSTS {
+            let hit = r + 1..r + 25;
+            let mut b = log.bytes.clone();
+            for (i, x) in b[hit.clone()].iter_mut().enumerate() {
+                *x = burst(i, *x);
+            }
+            let what = format!("bytes {}-{}: {name}", hit.start, hit.end - 1);
+            check_damage(&log, b, hit, &what);
+            tried += 1;
+        }
+    }
+    assert!(tried >= 3 * 40, "{tried} bursts");
 }
 
 /// A log cut off inside a chunk after a damaged chunk: the damaged one is
@@ -407,13 +535,7 @@ fn an_attachment_without_room_for_its_crc_is_skipped() {
 fn an_index_pointing_at_another_record_loses_nothing() {
     let log = write_log();
     let b = &log.bytes;
-    // the top-level record starts of the intact file
-    let mut starts = Vec::new();
-    let mut at = 8;
-    while at + 9 <= b.len() {
-        starts.push(at);
-        at += 9 + u64::from_le_bytes(b[at + 1..at + 9].try_into().unwrap()) as usize;
-    }
+    let starts = record_starts(b);
     let summary = mcap::Summary::read(b).unwrap().unwrap();
     let footer = mcap::read::footer(b).unwrap();
     let offsets: Vec<u64> = summary

@@ -47,6 +47,89 @@ fn protocol_hot_path_allocates_nothing() {
     assert!(rx_tcs.faults().crc > 0 && rx_tcs.faults().unknown_id > 0);
 }
 
+/// The same for a protocol read from a DBC (`tests/data/own-bus.dbc`:
+/// Motorola signals, a CRC in the last byte, rpm and km/h folded into the
+/// factors): encoding, the E2E check and decoding of each of the five
+/// messages allocate nothing; the DBC is read before counting (start-up).
+#[test]
+fn a_dbc_protocol_hot_path_allocates_nothing() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/own-bus.dbc");
+    let names = [
+        ("TorqueCommand", "MCU_TrqCmd"),
+        ("TorqueCommand.TorqueRequest", "TrqReq"),
+        ("DriverDemand", "VCU_Demand"),
+        ("DriverDemand.TorqueDemand", "TrqDmd"),
+    ]
+    .into_iter()
+    .map(|(a, b)| (a.to_owned(), b.to_owned()))
+    .collect();
+    let p: &'static Protocol = Box::leak(Box::new(Protocol::load_dbc(&path, &names).unwrap()));
+    let mut rx: Vec<E2eReceiver> = p.messages().iter().map(E2eReceiver::new).collect();
+    let mut decoded = 0u64;
+    let n = allocations(|| {
+        for i in 0..2_000u64 {
+            let c = (i & 15) as u8;
+            let x = i as f64 * 0.01;
+            let frames = [
+                encode_in(
+                    p.spec(MsgKind::TorqueCommand),
+                    &TorqueCommand {
+                        torque_request: x,
+                        enable: true,
+                    },
+                    c,
+                    i,
+                ),
+                encode_in(
+                    p.spec(MsgKind::MotorStatus),
+                    &MotorStatus {
+                        motor_speed: x,
+                        ..MotorStatus::default()
+                    },
+                    c,
+                    i,
+                ),
+                encode_in(
+                    p.spec(MsgKind::WheelSpeeds),
+                    &WheelSpeeds {
+                        omega_driven: x,
+                        ..WheelSpeeds::default()
+                    },
+                    c,
+                    i,
+                ),
+                encode_in(
+                    p.spec(MsgKind::VehicleSpeed),
+                    &VehicleSpeed {
+                        speed: x,
+                        ..VehicleSpeed::default()
+                    },
+                    c,
+                    i,
+                ),
+                encode_in(
+                    p.spec(MsgKind::DriverDemand),
+                    &DriverDemand {
+                        torque_demand: x,
+                        ..DriverDemand::default()
+                    },
+                    c,
+                    i,
+                ),
+            ];
+            for (f, r) in frames.iter().zip(rx.iter_mut()) {
+                assert!(r.check(f, i).is_ok());
+                if InverterMsg::decode_in(p, f).is_some() {
+                    decoded += 1;
+                }
+            }
+        }
+    });
+    assert_eq!(n, 0, "DBC protocol path allocated {n} times");
+    assert_eq!(decoded, 10_000);
+}
+
 /// Receiving (SimBus `try_recv`/`recv_timeout`, subscriber `recv`/`latest`/
 /// `drain`) allocates nothing. Sending allocates exactly one small block
 /// per message: iceoryx2 0.10's `Publisher::loan_uninit` creates an `Arc`

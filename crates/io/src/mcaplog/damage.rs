@@ -7,11 +7,16 @@
 //! without an error, on absurd ones, so no unchecked chunk reaches it), an
 //! attachment by its CRC, every other record by its fields, which must fill
 //! its length exactly. A damaged record whose end can still be found (from
-//! its length field, or, when that leads nowhere, from the lengths of its
-//! own fields) is left out ([`Skipped`]) and reading goes on with the next
-//! record; reading stops only where no next record can be found: a
-//! crash-truncated tail, or a length damaged beyond repair.
+//! its length field, or, when that leads nowhere or the record only checks
+//! with them, from the lengths of its own fields) is left out ([`Skipped`])
+//! and reading goes on with the next record. When neither says for sure
+//! where it ends and no record that checks follows where it seems to, the
+//! walk resynchronises: it reads on at the first record after it that
+//! checks ([`resync`]; a scan only after such damage, never on the way
+//! through an intact file). Reading stops only where no next record can be
+//! found: a crash-truncated tail, or a length damaged beyond repair.
 
+use std::cmp::Ordering;
 use std::collections::HashMap;
 use std::fmt;
 
@@ -244,6 +249,45 @@ fn plausibility(d: &[u8], mut at: usize) -> u8 {
     2
 }
 
+/// Whether the record `opcode` with body `body` checks ([`check`]), without
+/// spending `budget`.
+fn checks(opcode: u8, body: &[u8], budget: u64) -> bool {
+    let mut b = budget;
+    check(opcode, body, &mut b).is_ok()
+}
+
+/// Whether a record that checks starts at `at`, or the file, or its end
+/// magic, starts there.
+fn checks_at(d: &[u8], at: usize, budget: u64) -> bool {
+    if at == d.len() || (d.len() - at == MAGIC_LEN && near_magic(&d[at..])) {
+        return true;
+    }
+    next_record(d, at).is_some_and(|end| checks(d[at], &d[at + HEAD..end], budget))
+}
+
+/// The first place in `from..to` where a record starts that checks, whose
+/// fields fill its length, after which another record (or the file's end)
+/// follows, and of a type never found inside a chunk: not a schema, channel
+/// or message (an uncompressed chunk holds those as they are), nor a header.
+/// Where a damaged record's length cannot be trusted, reading resumes there.
+/// Few bytes get past the type and length tests, so a scan costs little
+/// more than reading the bytes once.
+fn resync(d: &[u8], from: usize, to: usize, budget: u64) -> Option<usize> {
+    (from..to.min(d.len())).find(|&p| {
+        let opcode = d[p];
+        if matches!(opcode, op::HEADER | op::SCHEMA | op::CHANNEL | op::MESSAGE) {
+            return false;
+        }
+        let Some(end) = next_record(d, p) else {
+            return false;
+        };
+        let body = &d[p + HEAD..end];
+        fields_len(opcode, body) == Some(body.len())
+            && plausibility(d, p) == 2
+            && checks(opcode, body, budget)
+    })
+}
+
 /// What a chunk's header says.
 struct ChunkHeader {
     start_ns: u64,
@@ -348,6 +392,11 @@ fn check(opcode: u8, body: &[u8], budget: &mut u64) -> Result<(), String> {
     };
     match opcode {
         op::CHUNK => {
+            // (the mcap reader reads a chunk that ends before its length
+            // says, taking what follows for the rest of it)
+            if fields_len(opcode, body) != Some(body.len()) {
+                return Err("its fields do not fill its length".into());
+            }
             // (a claim over MAX_CHUNK is refused before anything is reserved)
             let claim = chunk_header(body)
                 .map(|h| h.uncompressed)
@@ -384,7 +433,7 @@ fn string_at(b: &[u8], at: usize) -> Option<String> {
 /// The part of the file `start..end` (a record with opcode `opcode`, body
 /// from `body`), skipped for `reason`.
 fn skipped(d: &[u8], opcode: u8, start: usize, body: usize, end: usize, reason: String) -> Skipped {
-    let b = &d[body..end];
+    let b = &d[body.min(end)..end];
     let (kind, log_time_ns) = match opcode {
         op::CHUNK => (
             SkippedKind::Chunk,
@@ -419,10 +468,15 @@ fn skipped(d: &[u8], opcode: u8, start: usize, body: usize, end: usize, reason: 
 ///
 /// A record's end is where its length field says, unless nothing readable
 /// starts there while something does where the lengths of its own fields
-/// end (a damaged length field); a record that runs past the end of the
-/// file, both ways, stops the walk (a crash-truncated tail). A record that
-/// does not check ([`check`]) is skipped. Every step moves past at least
-/// one record head, so the walk ends.
+/// end, or as much starts at both and the record checks only with the
+/// latter, and a record that checks follows it (a damaged length field,
+/// e.g. one pointing at a later record). A record that does not check
+/// ([`check`]) is skipped; if the two ends differ (or there is only one)
+/// and no record that checks starts at the end taken, the skip ends at the
+/// first record before it that does ([`resync`]). A record that runs past
+/// the end of the file, both ways, ends at the first record after it that
+/// checks, or, with none, stops the walk (a crash-truncated tail). Every
+/// step moves on by at least one byte, so the walk ends.
 pub(super) fn scan(d: &[u8]) -> Option<Scan> {
     let mut s = Scan::default();
     if !d.starts_with(mcap::MAGIC) {
@@ -476,23 +530,37 @@ pub(super) fn scan(d: &[u8]) -> Option<Scan> {
             .filter(|e| *e <= d.len());
         let by_fields = fields_len(opcode, &d[body..]).map(|l| body + l);
         let end = match (by_length, by_fields) {
-            (Some(l), Some(f)) if l != f => {
-                if plausibility(d, f) > plausibility(d, l) {
+            (Some(l), Some(f)) if l != f => match plausibility(d, f).cmp(&plausibility(d, l)) {
+                Ordering::Greater => f,
+                Ordering::Less => l,
+                // e.g. a length damaged so that it points at a later record
+                Ordering::Equal
+                    if !checks(opcode, &d[body..l], budget)
+                        && checks(opcode, &d[body..f], budget)
+                        && checks_at(d, f, budget) =>
+                {
                     f
-                } else {
-                    l
                 }
-            }
+                Ordering::Equal => l,
+            },
             (Some(l), _) => l,
             (None, Some(f)) if plausibility(d, f) > 0 => f,
             (None, _) => {
-                s.stop = Some((
-                    at,
-                    format!(
-                        "record at byte {at} runs past the end of the file (cut off, or its length is damaged)"
-                    ),
-                ));
-                break;
+                let Some(next) = resync(d, at + 1, d.len(), budget) else {
+                    s.stop = Some((
+                        at,
+                        format!(
+                            "record at byte {at} runs past the end of the file (cut off, or its length is damaged)"
+                        ),
+                    ));
+                    break;
+                };
+                let why = format!(
+                    "its length runs past the end of the file; read on at byte {next}, the next record that checks"
+                );
+                s.skipped.push(skipped(d, opcode, at, body, next, why));
+                at = next;
+                continue;
             }
         };
         match check(opcode, &d[body..end], &mut budget) {
@@ -502,10 +570,30 @@ pub(super) fn scan(d: &[u8]) -> Option<Scan> {
                     body: (body, end),
                 });
                 s.finished |= opcode == op::FOOTER;
+                at = end;
             }
-            Err(why) => s.skipped.push(skipped(d, opcode, at, body, end, why)),
+            Err(mut why) => {
+                // the end is in doubt: the length and the fields disagree
+                // (or the fields give none), and nothing that checks
+                // starts there
+                let sure = by_length.is_some() && by_length == by_fields;
+                let next = if sure || checks_at(d, end, budget) {
+                    end
+                } else {
+                    match resync(d, at + 1, end, budget) {
+                        Some(next) => {
+                            why.push_str(&format!(
+                                "; its length is damaged too: read on at byte {next}, the next record that checks"
+                            ));
+                            next
+                        }
+                        None => end,
+                    }
+                };
+                s.skipped.push(skipped(d, opcode, at, body, next, why));
+                at = next;
+            }
         }
-        at = end;
     }
     apply_indexes(d, &mut s);
     Some(s)

@@ -177,6 +177,24 @@ impl McapWriter {
     /// Creates (truncates) `path` and writes the header and the `grip.clock`
     /// metadata record.
     pub fn create(path: impl AsRef<Path>, opts: McapWriterOptions) -> Result<Self, McapLogError> {
+        let monotonic_ns = crate::clock::monotonic_now_ns();
+        let realtime_ns = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos())
+            .unwrap_or(0);
+        Self::create_with_clock(path, opts, monotonic_ns, realtime_ns)
+    }
+
+    /// [`McapWriter::create`] with the `grip.clock` stamps given rather than
+    /// read from the clocks: a log whose bytes do not depend on when, or on
+    /// which machine, it was written (its layout shifts with the number of
+    /// digits of `monotonic_ns`, i.e. with the machine's uptime).
+    pub fn create_with_clock(
+        path: impl AsRef<Path>,
+        opts: McapWriterOptions,
+        monotonic_ns: u64,
+        realtime_ns: u128,
+    ) -> Result<Self, McapLogError> {
         let path = path.as_ref().to_path_buf();
         let io = |source| McapLogError::Io {
             path: path.clone(),
@@ -214,15 +232,8 @@ impl McapWriter {
             messages: 0,
         };
         let mut clock = BTreeMap::new();
-        clock.insert(
-            "monotonic_ns".into(),
-            crate::clock::monotonic_now_ns().to_string(),
-        );
-        let wall = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| d.as_nanos())
-            .unwrap_or(0);
-        clock.insert("realtime_ns".into(), wall.to_string());
+        clock.insert("monotonic_ns".into(), monotonic_ns.to_string());
+        clock.insert("realtime_ns".into(), realtime_ns.to_string());
         clock.insert(
             "note".into(),
             "log times are CLOCK_MONOTONIC ns; wall = log_time - monotonic_ns + realtime_ns".into(),
