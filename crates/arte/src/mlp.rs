@@ -497,6 +497,18 @@ pub enum StopReason {
     Validation,
 }
 
+impl core::fmt::Display for StopReason {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::Goal => "the training error reached its goal",
+            Self::Epochs => "the epoch limit",
+            Self::MinGradient => "a gradient below min_grad",
+            Self::MuMax => "damping above mu_max",
+            Self::Validation => "the validation error rose max_fail times in a row",
+        })
+    }
+}
+
 /// What happened during training.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LmReport {

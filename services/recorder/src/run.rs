@@ -250,6 +250,15 @@ pub fn new_file(dir: &Path, stem: &str) -> std::io::Result<PathBuf> {
 pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> {
     let own = opts.config.own_file::<RecorderConfig>();
     let cfg = RecorderConfig::load(&own)?;
+    // the bus's protocol, so that the CAN log's alive counters are read
+    // where its DBC puts them; a configuration that gives none leaves the
+    // built-in one (the services themselves refuse it, naming why)
+    let dir = grip_config::ConfigDir::new(&opts.config.config_dir);
+    if let Err(e) = grip_io::service::load_can(&dir)
+        .and_then(|can| grip_io::service::install_protocol(&dir, &can).map(|_| ()))
+    {
+        tracing::warn!(error = %e, "CAN alive counters read as the built-in protocol places them");
+    }
     let path = match &opts.out {
         Some(p) => p.clone(),
         None => std::fs::create_dir_all(&cfg.out_dir)

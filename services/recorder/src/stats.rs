@@ -62,12 +62,15 @@ pub struct CanCounterTracker {
 }
 
 impl CanCounterTracker {
-    /// Account for `f`. Frames shorter than 2 bytes carry no counter.
+    /// Account for `f`: its alive counter where the process's bus protocol
+    /// puts it (`grip_io::can::protocol::counter_of`; bits 8-11 for an id
+    /// the protocol does not know). Frames shorter than 2 bytes carry no
+    /// counter.
     pub fn push(&mut self, f: &CanFrame) {
         if f.dlc < 2 {
             return;
         }
-        let c = f.data[1] & 0x0F;
+        let c = grip_io::can::protocol::counter_of(f);
         let key = (f.id, f.direction);
         if self.last.len() >= MAX_CAN_KEYS && !self.last.contains_key(&key) {
             self.untracked += 1;

@@ -238,6 +238,13 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
         }
     ));
     tracing::info!("tcs-loop ready");
+    let stale = grip_io::can::discard_pending(&mut bus, 1 << 16);
+    if stale > 0 {
+        tracing::info!(
+            frames = stale,
+            "CAN frames queued during start-up dropped (stale)"
+        );
+    }
 
     let mut late_1ms = 0u64;
     while !stop.load(Ordering::Relaxed) {

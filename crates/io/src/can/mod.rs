@@ -95,6 +95,25 @@ pub struct Drained {
     pub error: bool,
 }
 
+/// Drops the frames waiting on `bus` (at most `max`), without blocking;
+/// how many. A real-time loop calls it once, right before its first cycle:
+/// what arrived while the service started (its ports, the real-time
+/// set-up: tens to hundreds of ms) is stale, and a backlog of that size
+/// overflows a SocketCAN receive queue (about 200-260 frames by default),
+/// whose lost frames the first cycles then counted as skipped alive
+/// counters (HIL, 2026-12-05). The receivers start from the first fresh
+/// frame (a resync, no fault).
+pub fn discard_pending<B: CanBus + ?Sized>(bus: &mut B, max: usize) -> usize {
+    let mut n = 0;
+    while n < max {
+        match bus.try_recv() {
+            Ok(Some(_)) => n += 1,
+            Ok(None) | Err(_) => break,
+        }
+    }
+    n
+}
+
 /// Takes the frames waiting on `bus` without blocking into `buf` (at most
 /// its length: the real-time loops pass their [`MAX_RX_PER_CYCLE`] array),
 /// stopping at the first empty read or error. The loops read their cycle's
@@ -362,5 +381,25 @@ pub fn open_bus_as(
             );
             Ok(b)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The start-up backlog is dropped, at most `max`, and counted; the
+    /// bus then delivers what comes next.
+    #[test]
+    fn discard_pending_drops_the_backlog_and_no_more() {
+        let mut bus = MemBus::new();
+        for k in 0..10u8 {
+            bus.inject(CanFrame::new(0x120, &[k; 8]));
+        }
+        assert_eq!(discard_pending(&mut bus, 4), 4);
+        assert_eq!(discard_pending(&mut bus, 100), 6);
+        assert_eq!(discard_pending(&mut bus, 100), 0);
+        bus.inject(CanFrame::new(0x120, &[42; 8]));
+        assert_eq!(bus.try_recv().unwrap().unwrap().data[0], 42);
     }
 }

@@ -223,6 +223,11 @@ pub fn install_protocol(
                 .map_err(|e| ConfigError::new(Path::new(&e.file), &e.what, &e.reason))?
         }
     };
+    tracing::info!(
+        dbc = can.dbc.as_deref().unwrap_or("(built in)"),
+        messages = %p.describe(),
+        "CAN protocol"
+    );
     install(p).map_err(|e| {
         ConfigError::new(
             &can_toml,

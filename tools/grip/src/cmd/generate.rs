@@ -916,5 +916,15 @@ mod tests {
                 "arte's blocks not classified, of 35: 1 silent, 3 clipped, 3 at or after a capture overrun, 4 stale (older than max_lag_s)"
             )
         );
+        // logs at two refused rates: the largest is named, in either order
+        let at = |rate| BlockCounts {
+            rate_mismatch: 2,
+            bad_rate: rate,
+            ..BlockCounts::default()
+        };
+        let a = not_classified(&[log(10, at(48_000)), log(10, at(22_050))]);
+        let b = not_classified(&[log(10, at(22_050)), log(10, at(48_000))]);
+        assert_eq!(a, b);
+        assert!(a.as_deref().unwrap_or("").contains("48000"), "{a:?}");
     }
 }

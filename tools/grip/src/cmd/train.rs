@@ -808,7 +808,7 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     match &fit_report {
         FitReport::Mlp(r) => {
             let n = format!(
-                "lm: {} epochs, stop {:?}, best epoch {}, train MSE {:.5}, rows {}",
+                "lm: {} epochs, stopped at {}, best epoch {}, train MSE {:.5}, rows {}",
                 r.epochs,
                 r.stop,
                 r.best_epoch,
@@ -830,8 +830,14 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     if model.feature_config().set == FeatureSet::Paper7 {
         let names = model.feature_config().names();
         let n = format!(
-            "paper7 selection: {:?} = {}",
-            model.feature_config().selection,
+            "paper7 selection: features {} = {}",
+            model
+                .feature_config()
+                .selection
+                .iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join(", "),
             names.join(", ")
         );
         println!("{n}");

@@ -132,7 +132,8 @@ impl BlockCounts {
     }
 
     /// Adds `other`'s counts (several logs' blocks as one: `grip generate`'s
-    /// total): every count summed, `bad_rate` the last one refused. Every
+    /// total): every count summed, `bad_rate` the largest rate refused
+    /// (it was the last log's, so the line changed with the logs' order). Every
     /// field is named here, so a count added to this type cannot be left out
     /// of a sum.
     pub fn add(&mut self, other: &Self) {
@@ -146,7 +147,7 @@ impl BlockCounts {
         } = *other;
         self.rate_mismatch += rate_mismatch;
         if rate_mismatch > 0 {
-            self.bad_rate = bad_rate;
+            self.bad_rate = self.bad_rate.max(bad_rate);
         }
         self.silent += silent;
         self.clipped += clipped;
