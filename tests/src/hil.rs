@@ -499,50 +499,108 @@ pub fn e2e_crc8(data_id: u16, bytes: &[u8]) -> u8 {
     crc ^ 0xFF
 }
 
-/// One signal of a DBC message (Intel byte order, as the grip DBC uses).
+/// The factor from a DBC signal's physical unit to SI (rpm to rad/s, km/h
+/// to m/s, g to m/s²); 1 for a unit that is SI already or unknown here.
+pub fn si_factor(unit: &str) -> f64 {
+    match unit.trim().to_ascii_lowercase().as_str() {
+        "rpm" | "1/min" => std::f64::consts::PI / 30.0,
+        "km/h" | "kph" => 1.0 / 3.6,
+        "g" => 9.806_65,
+        _ => 1.0,
+    }
+}
+
+/// One signal of a DBC message, Intel (little-endian) or Motorola
+/// (big-endian) byte order.
 #[derive(Debug, Clone)]
 pub struct DbcSignal {
-    /// Signal name.
+    /// Signal name (grip's, where [`Dbc::with_names`] mapped it).
     pub name: String,
-    start: u32,
+    /// The signal's name in the DBC file.
+    pub dbc_name: String,
+    /// The DBC's physical unit.
+    pub unit: String,
     len: u32,
     signed: bool,
     factor: f64,
     offset: f64,
+    /// The field's bit positions (bit `i` of byte `b` is `8 * b + i`), most
+    /// significant first.
+    bits: Vec<u32>,
+}
+
+/// The bit positions of a field of `len` bits at DBC start bit `start`,
+/// most significant first (bit `i` of byte `b` is `8 * b + i`), or `None`
+/// when it runs past byte 7. Intel: `start` is the least significant bit
+/// and the field counts upwards. Motorola: `start` is the most significant
+/// bit; the field runs down a byte to its bit 0 and goes on at bit 7 of the
+/// next byte (the DBC's "sawtooth" numbering), walked bit by bit.
+fn field_bits(start: u32, len: u32, motorola: bool) -> Option<Vec<u32>> {
+    if len == 0 || len > 64 || start > 63 {
+        return None;
+    }
+    let mut v = Vec::with_capacity(len as usize);
+    if motorola {
+        let mut p = start;
+        for k in 0..len {
+            if p > 63 {
+                return None;
+            }
+            v.push(p);
+            if k + 1 < len {
+                p = if p.is_multiple_of(8) { p + 15 } else { p - 1 };
+            }
+        }
+    } else {
+        if start + len > 64 {
+            return None;
+        }
+        v.extend((start..start + len).rev());
+    }
+    Some(v)
 }
 
 impl DbcSignal {
     /// Raw value in an 8-byte payload.
     pub fn raw(&self, data: &[u8; 8]) -> i64 {
-        let mask = if self.len >= 64 {
-            u64::MAX
-        } else {
-            (1u64 << self.len) - 1
-        };
-        let v = (u64::from_le_bytes(*data) >> self.start) & mask;
+        let v = self.bits.iter().fold(0u64, |v, &p| {
+            (v << 1) | u64::from((data[(p / 8) as usize] >> (p % 8)) & 1)
+        });
         if self.signed && self.len < 64 && (v >> (self.len - 1)) & 1 == 1 {
-            (v | !mask) as i64
+            (v | !((1u64 << self.len) - 1)) as i64
         } else {
             v as i64
         }
     }
 
-    /// Physical value in an 8-byte payload.
+    /// Physical value in an 8-byte payload, in the DBC's unit.
     pub fn phys(&self, data: &[u8; 8]) -> f64 {
         self.raw(data) as f64 * self.factor + self.offset
     }
 
-    /// Writes the raw value of `phys` (rounded, saturated to the field) into `data`.
+    /// Physical value in an 8-byte payload in SI units ([`si_factor`]).
+    pub fn si(&self, data: &[u8; 8]) -> f64 {
+        self.phys(data) * si_factor(&self.unit)
+    }
+
+    /// Writes the raw value of `phys` (in the DBC's unit; rounded,
+    /// saturated to the field) into `data`.
     pub fn put(&self, data: &mut [u8; 8], phys: f64) {
         let (lo, hi) = if self.signed {
             (-(1i64 << (self.len - 1)), (1i64 << (self.len - 1)) - 1)
         } else {
             (0, (1i64 << self.len) - 1)
         };
-        let raw = (((phys - self.offset) / self.factor).round() as i64).clamp(lo, hi);
-        let mask = ((1u64 << self.len) - 1) << self.start;
-        let word = (u64::from_le_bytes(*data) & !mask) | (((raw as u64) << self.start) & mask);
-        *data = word.to_le_bytes();
+        let raw = (((phys - self.offset) / self.factor).round() as i64).clamp(lo, hi) as u64;
+        for (k, &p) in self.bits.iter().enumerate() {
+            let bit = (raw >> (self.len as usize - 1 - k)) & 1;
+            let (b, m) = ((p / 8) as usize, 1u8 << (p % 8));
+            if bit == 1 {
+                data[b] |= m;
+            } else {
+                data[b] &= !m;
+            }
+        }
     }
 }
 
@@ -551,8 +609,12 @@ impl DbcSignal {
 pub struct DbcMessage {
     /// 11-bit identifier.
     pub id: u32,
-    /// Message name.
+    /// Message name (grip's, where [`Dbc::with_names`] mapped it).
     pub name: String,
+    /// The message's name in the DBC file.
+    pub dbc_name: String,
+    /// The byte the signal `CRC` fills.
+    pub crc_byte: usize,
     /// Data length code.
     pub dlc: u8,
     /// `GripE2eDataId`.
@@ -579,9 +641,32 @@ impl DbcMessage {
         self.sig(name).map_or(f64::NAN, |s| s.phys(data))
     }
 
-    /// The E2E CRC byte `data` should carry.
+    /// The E2E CRC `data` should carry in its CRC byte: over the data id
+    /// and the other seven bytes, in order.
     pub fn expected_crc(&self, data: &[u8; 8]) -> u8 {
-        e2e_crc8(self.data_id, &data[1..])
+        let rest: Vec<u8> = data
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| i != self.crc_byte)
+            .map(|(_, &b)| b)
+            .collect();
+        e2e_crc8(self.data_id, &rest)
+    }
+
+    /// The CRC `data` carries (its CRC byte).
+    pub fn crc(&self, data: &[u8; 8]) -> u8 {
+        data[self.crc_byte]
+    }
+
+    /// True when `data` carries the E2E CRC it should.
+    pub fn crc_ok(&self, data: &[u8; 8]) -> bool {
+        self.crc(data) == self.expected_crc(data)
+    }
+
+    /// Physical value of signal `name` in `data` in SI units (NaN when the
+    /// DBC lacks it).
+    pub fn si(&self, name: &str, data: &[u8; 8]) -> f64 {
+        self.sig(name).map_or(f64::NAN, |s| s.si(data))
     }
 
     /// The alive counter (signal `Counter`).
@@ -596,12 +681,12 @@ impl DbcMessage {
             self.sig(n)?.put(&mut d, *v);
         }
         self.sig("Counter")?.put(&mut d, f64::from(counter & 0x0F));
-        d[0] = self.expected_crc(&d);
+        d[self.crc_byte] = self.expected_crc(&d);
         Ok(d)
     }
 }
 
-/// `config/inverter.dbc` parsed with `can-dbc`.
+/// A DBC (`config/inverter.dbc`, or a car's own bus) parsed with `can-dbc`.
 #[derive(Debug, Clone)]
 pub struct Dbc {
     /// The messages.
@@ -637,26 +722,48 @@ impl Dbc {
             let id = u32::from(id);
             let mut signals = Vec::new();
             for s in &m.signals {
-                if s.byte_order != ByteOrder::LittleEndian {
-                    bail!(
-                        "{}: {}.{} is not Intel order",
+                let motorola = s.byte_order == ByteOrder::BigEndian;
+                let (start, len) = (u32::try_from(s.start_bit)?, u32::try_from(s.size)?);
+                let bits = field_bits(start, len, motorola).with_context(|| {
+                    format!(
+                        "{}: {}.{}: start bit {start}, {len} bits runs past the 8th byte",
                         path.display(),
                         m.name,
                         s.name
-                    );
-                }
+                    )
+                })?;
                 signals.push(DbcSignal {
                     name: s.name.clone(),
-                    start: u32::try_from(s.start_bit)?,
-                    len: u32::try_from(s.size)?,
+                    dbc_name: s.name.clone(),
+                    unit: s.unit.clone(),
+                    len,
                     signed: s.value_type == ValueType::Signed,
                     factor: s.factor,
                     offset: s.offset,
+                    bits,
                 });
+            }
+            // the CRC: one whole byte, wherever the DBC puts it
+            let crc = signals
+                .iter()
+                .find(|s| s.name == "CRC")
+                .with_context(|| format!("{}: {} has no CRC signal", path.display(), m.name))?;
+            let crc_byte = (crc.bits[0] / 8) as usize;
+            let mut crc_bits = crc.bits.clone();
+            crc_bits.sort_unstable();
+            let whole: Vec<u32> = (0..8).map(|i| crc_byte as u32 * 8 + i).collect();
+            if crc_bits != whole {
+                bail!(
+                    "{}: {}.CRC does not fill one whole byte",
+                    path.display(),
+                    m.name
+                );
             }
             messages.push(DbcMessage {
                 id,
                 name: m.name.clone(),
+                dbc_name: m.name.clone(),
+                crc_byte,
                 dlc: u8::try_from(m.size)?,
                 data_id: u16::try_from(attr("GripE2eDataId", id)?)?,
                 cycle_ms: u32::try_from(attr("GenMsgCycleTime", id)?)?,
@@ -670,6 +777,75 @@ impl Dbc {
     /// The workspace's `inverter.dbc` (from [`config_dir`]).
     pub fn inverter() -> anyhow::Result<Self> {
         Self::load(&config_dir().join("inverter.dbc"))
+    }
+
+    /// The DBC a configuration directory's `can.toml` names (`dbc`;
+    /// without it `inverter.dbc`, the built-in protocol's), with its
+    /// `[dbc_names]` applied ([`Self::with_names`]): the bus the services
+    /// started with `config` speak, read from the files' text.
+    pub fn for_config(config: &Path) -> anyhow::Result<Self> {
+        let path = config.join("can.toml");
+        let text =
+            fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+        let can: toml::Table = text
+            .parse()
+            .with_context(|| format!("parsing {}", path.display()))?;
+        let file = match can.get("dbc") {
+            None => "inverter.dbc",
+            Some(v) => v
+                .as_str()
+                .with_context(|| format!("{}: dbc is not a string", path.display()))?,
+        };
+        let mut names = std::collections::BTreeMap::new();
+        if let Some(t) = can.get("dbc_names") {
+            let t = t
+                .as_table()
+                .with_context(|| format!("{}: dbc_names is not a table", path.display()))?;
+            for (k, v) in t {
+                let v = v.as_str().with_context(|| {
+                    format!("{}: dbc_names.{k} is not a string", path.display())
+                })?;
+                names.insert(k.clone(), v.to_owned());
+            }
+        }
+        Self::load(&config.join(file))?.with_names(&names)
+    }
+
+    /// The DBC with grip's names for the DBC's own: `names` maps grip's
+    /// message names (`"TorqueCommand"`) and `"Message.Signal"` keys
+    /// (`"TorqueCommand.TorqueRequest"`) to the DBC's names, as `can.toml`'s
+    /// `[dbc_names]` does. The DBC's names stay in `dbc_name`.
+    pub fn with_names(
+        mut self,
+        names: &std::collections::BTreeMap<String, String>,
+    ) -> anyhow::Result<Self> {
+        for (grip, theirs) in names.iter().filter(|(k, _)| !k.contains('.')) {
+            let m = self
+                .messages
+                .iter_mut()
+                .find(|m| &m.dbc_name == theirs)
+                .with_context(|| format!("name map {grip} = {theirs:?}: no message {theirs}"))?;
+            m.name = grip.clone();
+        }
+        for (key, theirs) in names {
+            let Some((msg, sig)) = key.split_once('.') else {
+                continue;
+            };
+            let m = self
+                .messages
+                .iter_mut()
+                .find(|m| m.name == msg)
+                .with_context(|| format!("name map {key:?}: no message {msg}"))?;
+            let s = m
+                .signals
+                .iter_mut()
+                .find(|s| &s.dbc_name == theirs)
+                .with_context(|| {
+                    format!("name map {key:?} = {theirs:?}: {msg} has no signal {theirs}")
+                })?;
+            s.name = sig.to_owned();
+        }
+        Ok(self)
     }
 
     /// The message with identifier `id`.
@@ -741,13 +917,14 @@ impl StreamCheck {
                 c.note(format!("{} with DLC {}", m.name, f.frame.len));
                 continue;
             }
-            if d[0] != m.expected_crc(&d) {
+            if !m.crc_ok(&d) {
                 e[2] += 1;
                 c.note(format!(
-                    "{} at {} ns: CRC {:#04x}, expected {:#04x}",
+                    "{} at {} ns: CRC {:#04x} (byte {}), expected {:#04x}",
                     m.name,
                     f.t_ns,
-                    d[0],
+                    m.crc(&d),
+                    m.crc_byte,
                     m.expected_crc(&d)
                 ));
                 continue;
@@ -1185,6 +1362,57 @@ pub fn hil_config_dir(dir: &Path, cfg: &HilConfig) -> anyhow::Result<PathBuf> {
     Ok(dir.to_path_buf())
 }
 
+/// Makes the configuration folder `dir` (from [`hil_config_dir`]) speak a
+/// car's own bus: the DBC at `dbc` copied in (a file, not a link, so the
+/// recorder attaches it), `can.toml` set to `dbc = "<its file name>"` and
+/// `names_toml` (a `[dbc_names]` table, or `""`) appended. Returns the
+/// DBC's file name.
+pub fn set_bus_dbc(dir: &Path, dbc: &Path, names_toml: &str) -> anyhow::Result<String> {
+    let name = dbc
+        .file_name()
+        .and_then(|n| n.to_str())
+        .with_context(|| format!("{}: no file name", dbc.display()))?
+        .to_owned();
+    let target = dir.join(&name);
+    let _ = fs::remove_file(&target);
+    fs::copy(dbc, &target)
+        .with_context(|| format!("copying {} to {}", dbc.display(), target.display()))?;
+    let can_path = dir.join("can.toml");
+    let can =
+        fs::read_to_string(&can_path).with_context(|| format!("reading {}", can_path.display()))?;
+    // `dbc` first (the top level, before any table), the map last
+    let mut out = format!("dbc = {name:?}  # set by grip_tests::hil (own bus)\n");
+    let mut section = String::new();
+    for line in can.lines() {
+        let t = line.trim();
+        if t.starts_with('[') {
+            section = t.to_owned();
+        }
+        let is_dbc = t.split_once('=').is_some_and(|(k, _)| k.trim() == "dbc");
+        if section.is_empty() && is_dbc {
+            continue;
+        }
+        anyhow::ensure!(
+            names_toml.is_empty() || !t.starts_with("[dbc_names]"),
+            "{}: has a [dbc_names] table already",
+            can_path.display()
+        );
+        out.push_str(line);
+        out.push('\n');
+    }
+    out.push('\n');
+    out.push_str(names_toml);
+    let parsed: toml::Table = out
+        .parse()
+        .with_context(|| format!("the modified can.toml does not parse:\n{out}"))?;
+    anyhow::ensure!(
+        parsed.get("dbc").and_then(toml::Value::as_str) == Some(name.as_str()),
+        "the modified can.toml does not name {name}:\n{out}"
+    );
+    fs::write(&can_path, out)?;
+    Ok(name)
+}
+
 // --- the road-audio player --------------------------------------------------------
 
 /// What the [`RoadAudioPlayer`] did.
@@ -1232,7 +1460,8 @@ pub struct MicFault {
 
 /// Plays the scenario's synthetic tyre-road sound into an ALSA playback PCM
 /// (the loopback's `hw:Loopback,0,0`) in real time, following the drive
-/// from outside, off the bus: the road comes from the scenario's road
+/// from outside, off the bus (the frames decoded per the DBC `config`'s
+/// `can.toml` names, [`Dbc::for_config`]): the road comes from the scenario's road
 /// timeline, whose clock starts with the first `DriverDemand` carrying a
 /// demand (plant-sim sends 0 until its scenario runs); `VehicleSpeed`
 /// frames give the distance for distance-based timelines. Before the start
@@ -1302,7 +1531,7 @@ impl RoadAudioPlayer {
             .iter()
             .map(|s| (alias(&s.road_name), s.road_name.clone()))
             .collect();
-        let dbc = Dbc::inverter()?;
+        let dbc = Dbc::for_config(config)?;
         let vs = dbc.by_name("VehicleSpeed")?.clone();
         let dd = dbc.by_name("DriverDemand")?.clone();
         let sock = RawCanSocket::open(iface)?;
@@ -1373,11 +1602,11 @@ impl RoadAudioPlayer {
                 while !stop2.load(std::sync::atomic::Ordering::Relaxed) {
                     while let Some(f) = sock.recv_timeout(Duration::ZERO)? {
                         let id = f.can_id & CAN_SFF_MASK;
-                        if id == vs.id && f.len == vs.dlc && f.data[0] == vs.expected_crc(&f.data) {
-                            speed = vs.value("Speed", &f.data);
+                        if id == vs.id && f.len == vs.dlc && vs.crc_ok(&f.data) {
+                            speed = vs.si("Speed", &f.data);
                         } else if id == dd.id
                             && f.len == dd.dlc
-                            && f.data[0] == dd.expected_crc(&f.data)
+                            && dd.crc_ok(&f.data)
                             && rep.started_ns.is_none()
                             && dd.value("TorqueDemand", &f.data).abs() > 0.05
                         {
@@ -1646,7 +1875,152 @@ mod tests {
         assert_eq!(f.payload(), &[1, 2, 3]);
     }
 
+    fn own_bus() -> Dbc {
+        Dbc::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/own-bus.dbc")).unwrap()
+    }
+
+    #[test]
+    fn motorola_fields_are_walked_as_the_dbc_numbers_their_bits() {
+        let d = own_bus();
+        let m = d.by_name("MotorStatus").unwrap();
+        // CRC 7|8@0: byte 0; Counter 11|4@0: the low nibble of byte 1;
+        // CmdTimeout 15|1@0: bit 7 of byte 1; TorqueActual 23|16@0: bytes
+        // 2 (high) and 3 (low); MotorSpeed 39|16@0: bytes 4 and 5
+        assert_eq!(m.crc_byte, 0);
+        let data = [0xAB, 0x8A, 0xFF, 0x9C, 0x01, 0x2C, 0x00, 0x00];
+        assert_eq!(m.counter(&data), 0x0A);
+        assert_eq!(m.value("CmdTimeout", &data), 1.0);
+        assert_eq!(m.value("Ready", &data), 0.0);
+        assert_eq!(m.sig("TorqueActual").unwrap().raw(&data), -100);
+        assert!((m.value("TorqueActual", &data) + 10.0).abs() < 1e-9);
+        assert_eq!(m.value("MotorSpeed", &data), 300.0);
+        let si = m.si("MotorSpeed", &data);
+        assert!(
+            (si - 300.0 * std::f64::consts::PI / 30.0).abs() < 1e-9,
+            "{si}"
+        );
+        // and written back the same way
+        let mut w = [0u8; 8];
+        m.sig("MotorSpeed").unwrap().put(&mut w, -2.0);
+        assert_eq!(w, [0, 0, 0, 0, 0xFF, 0xFE, 0, 0]);
+        m.sig("Counter").unwrap().put(&mut w, 5.0);
+        assert_eq!(w[1], 0x05);
+        // a Motorola field that runs past byte 7 is refused
+        assert!(field_bits(63, 16, true).is_none());
+        assert!(field_bits(56, 9, false).is_none());
+        assert_eq!(
+            field_bits(7, 8, true).unwrap(),
+            (0..8).rev().collect::<Vec<_>>()
+        );
+        assert_eq!(
+            field_bits(3, 8, true).unwrap(),
+            vec![3, 2, 1, 0, 15, 14, 13, 12]
+        );
+    }
+
+    #[test]
+    fn the_crc_is_checked_in_whichever_byte_the_dbc_puts_it() {
+        let d = own_bus();
+        let ws = d.by_name("WheelSpeeds").unwrap();
+        assert_eq!(ws.crc_byte, 7);
+        let f = ws
+            .encode(&[("OmegaDriven", 12.34), ("DrivenValid", 1.0)], 9)
+            .unwrap();
+        assert_eq!(f[0] & 0x0F, 9, "Counter in bits 0-3");
+        assert_eq!(ws.counter(&f), 9);
+        assert_eq!(f[7], e2e_crc8(ws.data_id, &f[..7]));
+        assert!(ws.crc_ok(&f));
+        assert!((ws.value("OmegaDriven", &f) - 12.34).abs() < 1e-9);
+        for i in 0..8 {
+            let mut bad = f;
+            bad[i] ^= 0x10;
+            assert!(!ws.crc_ok(&bad), "byte {i} changed, CRC still good");
+        }
+        let inv = Dbc::inverter().unwrap();
+        assert!(inv.messages.iter().all(|m| m.crc_byte == 0));
+        let dd = inv.by_name("DriverDemand").unwrap();
+        let f = dd.encode(&[("TorqueDemand", 300.0)], 3).unwrap();
+        assert_eq!(f[0], e2e_crc8(dd.data_id, &f[1..]));
+    }
+
+    #[test]
+    fn a_name_map_gives_the_dbc_grips_names() {
+        let names: std::collections::BTreeMap<String, String> = [
+            ("TorqueCommand", "MCU_TrqCmd"),
+            ("TorqueCommand.TorqueRequest", "TrqReq"),
+            ("DriverDemand", "VCU_Demand"),
+            ("DriverDemand.TorqueDemand", "TrqDmd"),
+        ]
+        .into_iter()
+        .map(|(a, b)| (a.to_owned(), b.to_owned()))
+        .collect();
+        let d = own_bus().with_names(&names).unwrap();
+        let tc = d.by_name("TorqueCommand").unwrap();
+        assert_eq!((tc.id, tc.dbc_name.as_str()), (0x191, "MCU_TrqCmd"));
+        assert_eq!(tc.sig("TorqueRequest").unwrap().dbc_name, "TrqReq");
+        assert_eq!(d.by_name("DriverDemand").unwrap().id, 0x195);
+        assert!(d.by_name("MCU_TrqCmd").is_err());
+        let mut wrong = names.clone();
+        wrong.insert("MotorStatus".into(), "Nope".into());
+        let e = format!("{:#}", own_bus().with_names(&wrong).unwrap_err());
+        assert!(e.contains("Nope"), "{e}");
+        // the same from a configuration folder's can.toml
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("can.toml"), "interface = \"vcan0\"\n").unwrap();
+        let n = set_bus_dbc(
+            dir.path(),
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("data/own-bus.dbc"),
+            "[dbc_names]\nTorqueCommand = \"MCU_TrqCmd\"\n",
+        )
+        .unwrap();
+        assert_eq!(n, "own-bus.dbc");
+        let d = Dbc::for_config(dir.path()).unwrap();
+        assert_eq!(d.by_name("TorqueCommand").unwrap().id, 0x191);
+        assert_eq!(d.by_id(0x195).unwrap().name, "VCU_Demand");
+    }
+
     proptest! {
+        #[test]
+        fn intel_fields_decode_as_a_little_endian_shift(data in proptest::array::uniform8(any::<u8>())) {
+            // the bit walk gives what the shift it replaced gave, for every
+            // signal of the shipped (all Intel) DBC
+            let inv = Dbc::inverter().unwrap();
+            for m in &inv.messages {
+                for s in &m.signals {
+                    let start = s.bits[s.bits.len() - 1];
+                    let mask = if s.len >= 64 { u64::MAX } else { (1u64 << s.len) - 1 };
+                    let v = (u64::from_le_bytes(data) >> start) & mask;
+                    let want = if s.signed && s.len < 64 && (v >> (s.len - 1)) & 1 == 1 {
+                        (v | !mask) as i64
+                    } else {
+                        v as i64
+                    };
+                    prop_assert_eq!(s.raw(&data), want, "{}.{}", m.name, s.name);
+                }
+            }
+        }
+
+        #[test]
+        fn every_own_bus_field_reads_back_what_was_written(data in proptest::array::uniform8(any::<u8>()), x in 0.0f64..1.0) {
+            for m in &own_bus().messages {
+                for s in &m.signals {
+                    let mut d = data;
+                    let (lo, hi) = if s.signed {
+                        (-(1i64 << (s.len - 1)), (1i64 << (s.len - 1)) - 1)
+                    } else {
+                        (0, (1i64 << s.len) - 1)
+                    };
+                    let raw = lo + ((hi - lo) as f64 * x) as i64;
+                    s.put(&mut d, raw as f64 * s.factor + s.offset);
+                    prop_assert_eq!(s.raw(&d), raw, "{}.{}", m.name, s.name);
+                    // and no other signal of the message changed
+                    for o in m.signals.iter().filter(|o| o.name != s.name) {
+                        prop_assert_eq!(o.raw(&d), o.raw(&data), "{} changed {}", s.name, o.name);
+                    }
+                }
+            }
+        }
+
         #[test]
         fn zero_crossings_recover_any_audio_frequency(freq in 50.0f64..8000.0, amp in 0.05f64..1.0) {
             let x = sine_i16(freq, 48_000, amp, 24_000);

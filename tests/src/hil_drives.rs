@@ -183,11 +183,24 @@ pub fn with_attempts(
 pub fn with_attempts_in(
     name: &str,
     scenario_toml: &str,
+    drive: impl FnMut(&Setup) -> anyhow::Result<Attempt>,
+) -> anyhow::Result<()> {
+    with_attempts_prepared(name, scenario_toml, |_| Ok(()), drive)
+}
+
+/// [`with_attempts_in`], each attempt's [`Setup`] changed by `prepare`
+/// before the drive (e.g. its configuration, [`hil::set_bus_dbc`], and
+/// the decoder to match, [`Dbc::for_config`]).
+pub fn with_attempts_prepared(
+    name: &str,
+    scenario_toml: &str,
+    mut prepare: impl FnMut(&mut Setup) -> anyhow::Result<()>,
     mut drive: impl FnMut(&Setup) -> anyhow::Result<Attempt>,
 ) -> anyhow::Result<()> {
     let mut why = Vec::new();
     for k in 1..=ATTEMPTS {
-        let s = setup_with(&format!("{name}-{k}"), scenario_toml)?;
+        let mut s = setup_with(&format!("{name}-{k}"), scenario_toml)?;
+        prepare(&mut s)?;
         match drive(&s)? {
             Attempt::Done => {
                 println!("{name}: passed in attempt {k}");
@@ -303,7 +316,7 @@ pub fn wait_scenario_start(s: &Setup) -> anyhow::Result<Captured> {
     let dd = s.dbc.by_name("DriverDemand")?.clone();
     let sock = raw_socket(&s.iface, &[dd.id])?;
     hil::wait_for_frame(&sock, dd.id, Duration::from_secs(120), |d| {
-        d[0] == dd.expected_crc(d) && dd.value("TorqueDemand", d) > 0.05
+        dd.crc_ok(d) && dd.value("TorqueDemand", d) > 0.05
     })
     .context("the scenario did not start (no DriverDemand with a demand on the bus)")
 }
