@@ -113,7 +113,7 @@ fn messages_and_signals_agree_field_by_field() {
             "{}: signal count",
             spec.name
         );
-        for s in spec.signals {
+        for s in spec.signals.iter() {
             let d = m
                 .signals
                 .iter()
@@ -148,7 +148,7 @@ fn messages_and_signals_agree_field_by_field() {
         }
         // signals do not overlap and fit the DLC
         let mut used = 0u64;
-        for s in spec.signals {
+        for s in spec.signals.iter() {
             let mask = ((1u128 << s.len) - 1) as u64;
             assert!(u32::from(s.start) + u32::from(s.len) <= u32::from(spec.dlc) * 8);
             assert_eq!(
@@ -456,6 +456,20 @@ fn a_dbc_grip_cannot_speak_is_refused_naming_what_and_why() {
             "BO_ 256 MotorStatus",
             "message MotorStatus",
             "id 0x100 is also grip's TorqueCommand",
+        ),
+        // found by the fuzz target (2026-12-05): a 16-bit "standard" id, and
+        // a scaling whose values overflow to infinity
+        (
+            "BO_ 256 TorqueCommand",
+            "BO_ 2304 TorqueCommand",
+            "message TorqueCommand",
+            "id 0x900 is not an 11-bit id",
+        ),
+        (
+            "TorqueRequest : 16|16@1- (0.1,0)",
+            "TorqueRequest : 16|16@1- (1e305,0)",
+            "signal TorqueCommand.TorqueRequest",
+            "the field's values are not finite numbers",
         ),
     ];
     for (from, to, what, reason) in cases {

@@ -19,7 +19,7 @@ use std::path::Path;
 
 use can_dbc::{AttributeValue, ByteOrder, Dbc, MessageId, MultiplexIndicator, ValueType};
 
-use super::protocol::{MessageSpec, MsgKind, Protocol, SignalSpec};
+use super::protocol::{MessageSpec, MsgKind, Protocol, SignalList, SignalSpec};
 
 /// A DBC that grip cannot speak: the file, what in it, and why.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -196,7 +196,13 @@ impl Protocol {
                     )
                 })?;
             let id = match m.id {
-                MessageId::Standard(id) => u32::from(id),
+                MessageId::Standard(id) if id <= 0x7FF => u32::from(id),
+                MessageId::Standard(id) => {
+                    return Err(err(
+                        label,
+                        format!("id 0x{id:X} is not an 11-bit id (0x000-0x7FF)"),
+                    ));
+                }
                 MessageId::Extended(id) => {
                     return Err(err(
                         label,
@@ -265,10 +271,6 @@ impl Protocol {
                         ),
                     ));
                 }
-            };
-            let sender: &'static str = match &m.transmitter {
-                can_dbc::Transmitter::NodeName(n) => Box::leak(n.clone().into_boxed_str()),
-                can_dbc::Transmitter::VectorXXX => "Vector__XXX",
             };
 
             let mut signals = Vec::with_capacity(b.signals.len());
@@ -386,6 +388,21 @@ impl Protocol {
                     unit: bs.unit,
                     motorola,
                 };
+                let (lo_phys, hi_phys) =
+                    (spec.to_phys(spec.raw_min()), spec.to_phys(spec.raw_max()));
+                if !(spec.factor.is_finite()
+                    && spec.offset.is_finite()
+                    && lo_phys.is_finite()
+                    && hi_phys.is_finite())
+                {
+                    return Err(err(
+                        what,
+                        format!(
+                            "factor {} offset {} (in {}): the field's values are not finite numbers",
+                            spec.factor, spec.offset, bs.unit
+                        ),
+                    ));
+                }
                 let bits = spec.bits();
                 if used & bits != 0 {
                     let other = signals
@@ -411,9 +428,11 @@ impl Protocol {
                 data_id,
                 cycle_ms,
                 timeout_ms,
-                sender,
+                // grip's node names: who sends and receives each message
+                // is grip's, whatever the DBC calls its nodes
+                sender: b.sender,
                 receiver: b.receiver,
-                signals: Box::leak(signals.into_boxed_slice()),
+                signals: SignalList::new(&signals),
             });
         }
         let specs: [MessageSpec; 5] = specs

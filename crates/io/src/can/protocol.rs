@@ -205,8 +205,52 @@ pub struct MessageSpec {
     /// message. The one place that says which ids a grip service consumes
     /// ([`Role::receives`]: its [`ProtocolRx`] and its bus's receive filter).
     pub receiver: Role,
-    /// All signals, CRC and Counter first.
-    pub signals: &'static [SignalSpec],
+    /// All signals, CRC and Counter first (a slice through `Deref`).
+    pub signals: SignalList,
+}
+
+/// Most signals a message has (MotorStatus: CRC, Counter and seven).
+pub const MAX_SIGNALS: usize = 9;
+
+/// A message's signals, held inline (no allocation, nothing leaked when a
+/// protocol is read from a DBC); a `&[SignalSpec]` through `Deref`.
+#[derive(Clone, Copy, PartialEq)]
+pub struct SignalList {
+    buf: [SignalSpec; MAX_SIGNALS],
+    len: usize,
+}
+
+const UNUSED: SignalSpec = SignalSpec::flag("", 0);
+
+impl SignalList {
+    /// The list of `signals` (at most [`MAX_SIGNALS`]; a longer slice is a
+    /// programming error, caught at compile time for the built-in tables).
+    pub const fn new(signals: &[SignalSpec]) -> Self {
+        assert!(signals.len() <= MAX_SIGNALS, "too many signals");
+        let mut buf = [UNUSED; MAX_SIGNALS];
+        let mut i = 0;
+        while i < signals.len() {
+            buf[i] = signals[i];
+            i += 1;
+        }
+        Self {
+            buf,
+            len: signals.len(),
+        }
+    }
+}
+
+impl core::ops::Deref for SignalList {
+    type Target = [SignalSpec];
+    fn deref(&self) -> &[SignalSpec] {
+        &self.buf[..self.len]
+    }
+}
+
+impl core::fmt::Debug for SignalList {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_list().entries(self.iter()).finish()
+    }
 }
 
 impl MessageSpec {
@@ -235,12 +279,12 @@ pub const TORQUE_COMMAND: MessageSpec = MessageSpec {
     timeout_ms: 20,
     sender: "TCS",
     receiver: Role::Inverter,
-    signals: &[
+    signals: SignalList::new(&[
         CRC_SIG,
         COUNTER_SIG,
         SignalSpec::flag("Enable", 12),
         SignalSpec::new("TorqueRequest", 16, 16, true, 0.1, -3276.8, 3276.7, "Nm"),
-    ],
+    ]),
 };
 
 /// `MotorStatus` (INV → TCS).
@@ -254,7 +298,7 @@ pub const MOTOR_STATUS: MessageSpec = MessageSpec {
     timeout_ms: 10,
     sender: "INV",
     receiver: Role::Tcs,
-    signals: &[
+    signals: SignalList::new(&[
         CRC_SIG,
         COUNTER_SIG,
         SignalSpec::flag("Ready", 12),
@@ -264,7 +308,7 @@ pub const MOTOR_STATUS: MessageSpec = MessageSpec {
         SignalSpec::new("TorqueActual", 16, 16, true, 0.1, -3276.8, 3276.7, "Nm"),
         SignalSpec::new("MotorSpeed", 32, 16, true, 0.01, -327.68, 327.67, "rad/s"),
         SignalSpec::new("FaultCode", 48, 8, false, 1.0, 0.0, 255.0, ""),
-    ],
+    ]),
 };
 
 /// `WheelSpeeds` (ABS → TCS).
@@ -278,14 +322,14 @@ pub const WHEEL_SPEEDS: MessageSpec = MessageSpec {
     timeout_ms: 10,
     sender: "ABS",
     receiver: Role::Tcs,
-    signals: &[
+    signals: SignalList::new(&[
         CRC_SIG,
         COUNTER_SIG,
         SignalSpec::flag("DrivenValid", 12),
         SignalSpec::flag("RefValid", 13),
         SignalSpec::new("OmegaDriven", 16, 16, true, 0.01, -327.68, 327.67, "rad/s"),
         SignalSpec::new("OmegaRef", 32, 16, true, 0.01, -327.68, 327.67, "rad/s"),
-    ],
+    ]),
 };
 
 /// `VehicleSpeed` (VCU → TCS).
@@ -299,13 +343,13 @@ pub const VEHICLE_SPEED: MessageSpec = MessageSpec {
     timeout_ms: 50,
     sender: "VCU",
     receiver: Role::Tcs,
-    signals: &[
+    signals: SignalList::new(&[
         CRC_SIG,
         COUNTER_SIG,
         SignalSpec::flag("Valid", 12),
         SignalSpec::new("Speed", 16, 16, true, 0.01, -327.68, 327.67, "m/s"),
         SignalSpec::new("LongAccel", 32, 16, true, 0.001, -32.768, 32.767, "m/s2"),
-    ],
+    ]),
 };
 
 /// `DriverDemand` (VCU → TCS).
@@ -319,14 +363,14 @@ pub const DRIVER_DEMAND: MessageSpec = MessageSpec {
     timeout_ms: 50,
     sender: "VCU",
     receiver: Role::Tcs,
-    signals: &[
+    signals: SignalList::new(&[
         CRC_SIG,
         COUNTER_SIG,
         SignalSpec::flag("BrakePressed", 12),
         SignalSpec::flag("TcsEnable", 13),
         SignalSpec::new("TorqueDemand", 16, 16, true, 0.1, -3276.8, 3276.7, "Nm"),
         SignalSpec::new("PedalPosition", 32, 8, false, 0.5, 0.0, 127.5, "%"),
-    ],
+    ]),
 };
 
 /// Every message of the built-in protocol (the one `config/inverter.dbc`
