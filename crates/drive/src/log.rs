@@ -173,10 +173,11 @@ impl DriveLog {
         let Some(dbc) = &can.dbc else {
             return Ok(Protocol::builtin().clone());
         };
-        let text = self.attachment_text(dbc).ok_or_else(|| {
+        let bytes = self.attachments.get(dbc).ok_or_else(|| {
             format!("can.toml (attached) names dbc = {dbc:?}, which the log does not carry")
         })?;
-        Protocol::from_dbc(text, &format!("{dbc} (attached)"), &can.dbc_names)
+        // decoded as the services decode the file (UTF-8, else Latin-1)
+        Protocol::from_dbc_bytes(bytes, &format!("{dbc} (attached)"), &can.dbc_names)
             .map_err(|e| e.to_string())
     }
 }

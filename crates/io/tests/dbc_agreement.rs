@@ -471,6 +471,20 @@ fn a_dbc_grip_cannot_speak_is_refused_naming_what_and_why() {
             "signal TorqueCommand.TorqueRequest",
             "the field's values are not finite numbers",
         ),
+        // found in review (2026-12-05): a timeout under two periods, and a
+        // float signal written as an integer
+        (
+            "BA_ \"GripTimeoutMs\" BO_ 272 10;",
+            "BA_ \"GripTimeoutMs\" BO_ 272 1;",
+            "message MotorStatus, attribute GripTimeoutMs",
+            "1 ms is less than two periods (GenMsgCycleTime 1 ms)",
+        ),
+        (
+            "VAL_ 256 Enable",
+            "SIG_VALTYPE_ 256 TorqueRequest : 1;\nVAL_ 256 Enable",
+            "signal TorqueCommand.TorqueRequest",
+            "IEEEfloat32Bit (SIG_VALTYPE_): grip reads and writes integer raw values only",
+        ),
     ];
     for (from, to, what, reason) in cases {
         assert!(shipped.contains(from), "{from}");
@@ -489,6 +503,43 @@ fn a_dbc_grip_cannot_speak_is_refused_naming_what_and_why() {
         (e.what.as_str(), e.reason.starts_with("not a DBC")),
         ("file", true),
         "{e}"
+    );
+    // on one line, with the position (it was the parser's Debug dump)
+    assert!(
+        e.reason
+            .starts_with("not a DBC that can be parsed: line 1, column 1: ")
+            && !e.reason.contains('\n'),
+        "{e}"
+    );
+    // a byte-order mark and Windows-1252 bytes in a comment (as DBC
+    // editors write them) read as the same protocol
+    let mut bytes = b"\xEF\xBB\xBF".to_vec();
+    bytes.extend(
+        shipped
+            .replacen(
+                "CM_ \"grip inverter bus",
+                "CM_ \"grip inverter bus \u{00e9}",
+                1,
+            )
+            .bytes(),
+    );
+    assert_eq!(
+        &Protocol::from_dbc_bytes(&bytes, "bus.dbc", &none).unwrap(),
+        Protocol::builtin()
+    );
+    let latin1: Vec<u8> = shipped
+        .replacen(
+            "CM_ \"grip inverter bus",
+            "CM_ \"grip inverter bus \u{00e9}",
+            1,
+        )
+        .chars()
+        .map(|c| c as u32 as u8)
+        .collect();
+    assert!(std::str::from_utf8(&latin1).is_err());
+    assert_eq!(
+        &Protocol::from_dbc_bytes(&latin1, "bus.dbc", &none).unwrap(),
+        Protocol::builtin()
     );
     // a name map entry that is not one of grip's names: a typo, not ignored
     let names = [("TorqueCommand.Torque".to_owned(), "TrqReq".to_owned())].into();

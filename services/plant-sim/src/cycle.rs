@@ -34,8 +34,9 @@
 //!    plant coasts on the last road; with `exit_at_end` the cycle returns
 //!    [`Outcome::Finished`] once `end_hold_ms` have passed.
 //! 5. **Sensors** (`grip_physics::Sensors`, seeded) sample the plant; the
-//!    frames go out: `WheelSpeeds` and `MotorStatus` every cycle (1 ms),
-//!    `VehicleSpeed` and `DriverDemand` every 10 ms (the DBC's cycle times),
+//!    frames go out at the bus DBC's periods (`GenMsgCycleTime`, in whole
+//!    cycles): in grip's own DBC `WheelSpeeds` and `MotorStatus` every
+//!    cycle (1 ms), `VehicleSpeed` and `DriverDemand` every 10 ms,
 //!    each with its E2E counter and CRC. `DriverDemand` carries the scenario's
 //!    demand at t while `Running`, 0 otherwise.
 //! 6. **GroundTruth** is published every cycle (1 kHz): the true road
@@ -190,6 +191,8 @@ pub struct PlantSim {
     tx_ms: E2eSender<MotorStatus>,
     tx_vs: E2eSender<VehicleSpeed>,
     tx_dd: E2eSender<DriverDemand>,
+    div_ws: u64,
+    div_ms: u64,
     div_vs: u64,
     div_dd: u64,
     k: u64,
@@ -283,6 +286,8 @@ impl PlantSim {
             tx_ms: E2eSender::new(),
             tx_vs: E2eSender::new(),
             tx_dd: E2eSender::new(),
+            div_ws: divider(WheelSpeeds::spec().cycle_ms, cfg.rate_hz),
+            div_ms: divider(MotorStatus::spec().cycle_ms, cfg.rate_hz),
             div_vs: divider(VehicleSpeed::spec().cycle_ms, cfg.rate_hz),
             div_dd: divider(DriverDemand::spec().cycle_ms, cfg.rate_hz),
             k: 0,
@@ -503,8 +508,10 @@ impl PlantSim {
             omega_driven: reading.omega,
             omega_ref: reading.v.map_or(0.0, |v| v / self.r),
         };
-        let f = self.tx_ws.encode(&ws, now);
-        self.send(bus, &f);
+        if self.k.is_multiple_of(self.div_ws) {
+            let f = self.tx_ws.encode(&ws, now);
+            self.send(bus, &f);
+        }
         let timed_out = !valid;
         let ms = MotorStatus {
             ready: true,
@@ -515,8 +522,10 @@ impl PlantSim {
             motor_speed: reading.omega,
             fault_code: if timed_out { FAULT_CMD_TIMEOUT } else { 0 },
         };
-        let f = self.tx_ms.encode(&ms, now);
-        self.send(bus, &f);
+        if self.k.is_multiple_of(self.div_ms) {
+            let f = self.tx_ms.encode(&ms, now);
+            self.send(bus, &f);
+        }
         if self.k.is_multiple_of(self.div_vs) {
             let dt_vs = self.dt * self.div_vs as f64;
             let vs = VehicleSpeed {

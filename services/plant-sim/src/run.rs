@@ -116,7 +116,22 @@ pub fn load(opts: &Options) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), 
     let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
     let (vehicle, sensors) = grip_config::load_vehicle(&vehicle_path)?;
     let can = load_can(&dir)?;
-    grip_io::service::install_protocol(&dir, &can)?;
+    let protocol = grip_io::service::install_protocol(&dir, &can)?;
+    // the inverter's command timeout must span two of the command's periods
+    let tc = protocol.spec(grip_io::can::protocol::MsgKind::TorqueCommand);
+    if cfg.cmd_timeout_ms < 2.0 * f64::from(tc.cycle_ms) {
+        return Err(ConfigError::new(
+            &own_path,
+            "cmd_timeout_ms",
+            format!(
+                "{} ms is less than two periods of TorqueCommand ({} ms in {}): the inverter would time out between punctual commands",
+                cfg.cmd_timeout_ms,
+                tc.cycle_ms,
+                can.dbc.as_deref().unwrap_or("the built-in protocol")
+            ),
+        )
+        .into());
+    }
     check_bus(
         &can,
         cfg.allow_physical_bus,

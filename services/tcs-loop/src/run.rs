@@ -137,10 +137,65 @@ pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
     })
 }
 
+/// The bus's timing against tcs-loop's own: it sends `TorqueCommand` every
+/// cycle, so the DBC's period for it must be the loop's; its input
+/// timeouts (`[safety]`) must span at least two periods of the message they
+/// watch (a timeout shorter than that fires between two punctual frames,
+/// and the loop would never leave its safe state: found in review with a
+/// DBC's DriverDemand at 100 ms against the 50 ms demand timeout).
+pub fn check_bus_timing(cfg: &LoadedConfig) -> Result<(), ConfigError> {
+    use grip_io::can::protocol::{MsgKind, active};
+    let p = active();
+    let dbc = cfg.can.dbc.as_deref().unwrap_or("the built-in protocol");
+    let loop_ms = 1e3 / cfg.controllers.loop_.rate_hz;
+    let tc = p.spec(MsgKind::TorqueCommand).cycle_ms;
+    if (f64::from(tc) - loop_ms).abs() > 1e-9 {
+        return Err(ConfigError::new(
+            &cfg.controllers_path,
+            "loop.rate_hz",
+            format!(
+                "tcs-loop sends TorqueCommand every cycle ({loop_ms} ms), but {dbc} gives it a period of {tc} ms (GenMsgCycleTime)"
+            ),
+        ));
+    }
+    let safety = &cfg.own.safety;
+    for (kind, field, timeout_ms) in [
+        (
+            MsgKind::WheelSpeeds,
+            "safety.sensor_timeout_ms",
+            safety.sensor_timeout_ms,
+        ),
+        (
+            MsgKind::MotorStatus,
+            "safety.sensor_timeout_ms",
+            safety.sensor_timeout_ms,
+        ),
+        (
+            MsgKind::DriverDemand,
+            "safety.demand_timeout_ms",
+            safety.demand_timeout_ms,
+        ),
+    ] {
+        let m = p.spec(kind);
+        if timeout_ms < 2.0 * f64::from(m.cycle_ms) {
+            return Err(ConfigError::new(
+                &cfg.own_path,
+                field,
+                format!(
+                    "{timeout_ms} ms is less than two periods of {} ({} ms in {dbc}): the loop would time out between punctual frames",
+                    m.name, m.cycle_ms
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The loop the service runs for `cfg`: its controller, ARTE switch,
 /// safety timeouts and (ARTE on) road knowledge. `run` and `grip replay`
 /// build it here, so a replay runs the very loop the service ran.
 pub fn build(cfg: &LoadedConfig) -> Result<TcsLoop, RunError> {
+    check_bus_timing(cfg)?;
     let kind = cfg
         .own
         .controller_kind()

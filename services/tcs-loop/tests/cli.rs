@@ -56,6 +56,46 @@ fn bad_own_config_names_file_field_reason() {
     assert!(err.contains("line "), "{err}");
 }
 
+/// The bus DBC's timing against tcs-loop's: a DriverDemand every 100 ms
+/// (timeout 300 ms) against the 50 ms demand timeout, and a TorqueCommand
+/// period other than the loop's, are refused at start naming the field and
+/// the DBC (the first ran the loop in its safe state for the whole drive).
+#[test]
+fn a_bus_whose_timing_the_loop_cannot_keep_is_refused() {
+    let t = copy_config(&CONFIG);
+    let dbc = t.path().join("inverter.dbc");
+    let text = std::fs::read_to_string(&dbc).unwrap();
+    for (from, to, want) in [
+        (
+            "BA_ \"GenMsgCycleTime\" BO_ 320 10;\n",
+            "BA_ \"GenMsgCycleTime\" BO_ 320 100;\n",
+            "field `safety.demand_timeout_ms`: 50 ms is less than two periods of DriverDemand (100 ms in inverter.dbc)",
+        ),
+        (
+            "BA_ \"GenMsgCycleTime\" BO_ 256 1;\n",
+            "BA_ \"GenMsgCycleTime\" BO_ 256 5;\n",
+            "field `loop.rate_hz`: tcs-loop sends TorqueCommand every cycle (1 ms), but inverter.dbc gives it a period of 5 ms",
+        ),
+    ] {
+        assert!(text.contains(from), "{from}");
+        let edited = text
+            .replace(from, to)
+            .replace(
+                "BA_ \"GripTimeoutMs\" BO_ 320 50;",
+                "BA_ \"GripTimeoutMs\" BO_ 320 300;",
+            )
+            .replace(
+                "BA_ \"GripTimeoutMs\" BO_ 256 20;",
+                "BA_ \"GripTimeoutMs\" BO_ 256 30;",
+            );
+        std::fs::write(&dbc, edited).unwrap();
+        let (code, err) = run(&["--config-dir", t.path().to_str().unwrap()]);
+        assert_eq!(code, 1, "{err}");
+        assert!(err.contains(want), "{err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}
+
 #[test]
 fn bad_shared_config_names_file_field_reason() {
     let t = copy_config(&CONFIG);

@@ -394,4 +394,14 @@ fn a_drive_on_a_foreign_bus_speaks_its_dbc() {
             && err.contains("not in the DBC"),
         "{err}"
     );
+    // grip drive refuses it before starting any service (it started the
+    // recorder, left an empty log and reported an empty drive)
+    let log = e.path().join("drive.mcap");
+    let (ok, so, err) = common::output_in(&cfg, &[os("drive"), os("--out"), log.as_os_str()]);
+    assert!(!ok, "not refused: {so}");
+    assert!(
+        err.contains("the CAN bus (can.toml's dbc)") && err.contains("message WheelSpeeds"),
+        "{err}"
+    );
+    assert!(!log.exists() && !err.contains("recorder"), "{err}");
 }

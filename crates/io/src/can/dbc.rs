@@ -53,6 +53,7 @@ const UNITS: &[(&str, &[(&str, f64)])] = &[
             ("rpm", core::f64::consts::PI / 30.0),
             ("1/min", core::f64::consts::PI / 30.0),
             ("min-1", core::f64::consts::PI / 30.0),
+            ("u/min", core::f64::consts::PI / 30.0),
         ],
     ),
     (
@@ -114,6 +115,24 @@ fn attr_num(v: &AttributeValue) -> Option<f64> {
     }
 }
 
+/// A parse error on one line: the parser's position and what it expected
+/// (its message spans several lines, with the source line and a caret).
+fn parse_error(e: &can_dbc::DbcError) -> String {
+    let text = e.to_string();
+    let at = text
+        .lines()
+        .find_map(|l| l.trim_start().strip_prefix("--> "))
+        .and_then(|p| p.split_once(':'));
+    let what = text
+        .lines()
+        .find_map(|l| l.trim_start().strip_prefix("= "))
+        .unwrap_or(text.as_str());
+    match at {
+        Some((line, col)) => format!("line {line}, column {}: {what}", col.trim()),
+        None => what.to_owned(),
+    }
+}
+
 /// Every key `[dbc_names]` may have: grip's message names and
 /// `Message.Signal` for each signal.
 pub fn name_keys() -> impl Iterator<Item = String> {
@@ -133,15 +152,29 @@ impl Protocol {
     /// where they differ.
     pub fn load_dbc(path: &Path, names: &BTreeMap<String, String>) -> Result<Self, DbcError> {
         let file = path.display().to_string();
-        let text = std::fs::read(path).map_err(|e| DbcError {
+        let bytes = std::fs::read(path).map_err(|e| DbcError {
             file: file.clone(),
             what: "file".into(),
-            reason: e.to_string(),
+            reason: format!("cannot be read (can.toml's dbc names it): {e}"),
         })?;
-        // DBC files are often Windows-1252; the parser wants text
-        let text = String::from_utf8(text)
-            .unwrap_or_else(|e| e.into_bytes().iter().map(|&b| char::from(b)).collect());
-        Self::from_dbc(&text, &file, names)
+        Self::from_dbc_bytes(&bytes, &file, names)
+    }
+
+    /// [`load_dbc`](Self::load_dbc) from the file's bytes (a drive log's
+    /// attachment): UTF-8, else Latin-1 (DBC editors often write
+    /// Windows-1252; only comments and names use non-ASCII bytes, and every
+    /// byte is a character in Latin-1); a byte-order mark is skipped.
+    pub fn from_dbc_bytes(
+        bytes: &[u8],
+        file: &str,
+        names: &BTreeMap<String, String>,
+    ) -> Result<Self, DbcError> {
+        let text = match std::str::from_utf8(bytes) {
+            Ok(t) => std::borrow::Cow::Borrowed(t),
+            Err(_) => std::borrow::Cow::Owned(bytes.iter().map(|&b| char::from(b)).collect()),
+        };
+        let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+        Self::from_dbc(text, file, names)
     }
 
     /// [`load_dbc`](Self::load_dbc) from the file's text; `file` names it in
@@ -169,7 +202,7 @@ impl Protocol {
         let dbc = Dbc::try_from(text).map_err(|e| {
             err(
                 "file".into(),
-                format!("not a DBC that can be parsed: {e:?}"),
+                format!("not a DBC that can be parsed: {}", parse_error(&e)),
             )
         })?;
         let mut specs: Vec<MessageSpec> = Vec::with_capacity(5);
@@ -227,7 +260,10 @@ impl Protocol {
                 match v {
                     None => Ok(None),
                     Some(v) => attr_num(v).map(Some).ok_or_else(|| {
-                        err(format!("{label}, attribute {name}"), "not a number".into())
+                        err(
+                            format!("{label}, attribute {name}"),
+                            format!("{v:?} is not a number"),
+                        )
                     }),
                 }
             };
@@ -255,6 +291,14 @@ impl Protocol {
                 attr("GenMsgCycleTime")?.or_else(|| default("GenMsgCycleTime")),
             )?;
             let timeout_ms = positive_ms("GripTimeoutMs", attr("GripTimeoutMs")?)?;
+            if timeout_ms < 2 * cycle_ms {
+                return Err(err(
+                    format!("{label}, attribute GripTimeoutMs"),
+                    format!(
+                        "{timeout_ms} ms is less than two periods (GenMsgCycleTime {cycle_ms} ms): one late frame would be a timeout"
+                    ),
+                ));
+            }
             let data_id = match attr("GripE2eDataId")? {
                 Some(v) if (0.0..=65535.0).contains(&v) && v.fract() == 0.0 => v as u16,
                 Some(v) => {
@@ -293,6 +337,16 @@ impl Protocol {
                         ),
                     )
                 })?;
+                if let Some(t) = dbc.extended_value_type_for_signal(m.id, &d.name)
+                    && !matches!(t, can_dbc::SignalExtendedValueType::SignedOrUnsignedInteger)
+                {
+                    return Err(err(
+                        what,
+                        format!(
+                            "{t:?} (SIG_VALTYPE_): grip reads and writes integer raw values only"
+                        ),
+                    ));
+                }
                 if !matches!(d.multiplexer_indicator, MultiplexIndicator::Plain) {
                     return Err(err(
                         what,

@@ -101,8 +101,10 @@ impl SignalSpec {
         }
     }
     /// Physical value → raw, rounded to nearest and saturated to the bit
-    /// field; non-finite input gives raw 0 (for a torque: no torque).
+    /// field; non-finite input gives the raw value of 0 (for a torque: no
+    /// torque; raw 0 where the offset is 0, as in grip's own DBC).
     pub fn to_raw(&self, phys: f64) -> i64 {
+        let phys = if phys.is_finite() { phys } else { 0.0 };
         let r = ((phys - self.offset) / self.factor).round();
         if !r.is_finite() {
             return 0;
@@ -1228,6 +1230,21 @@ mod tests {
         // neighbours untouched
         assert_eq!(d[0], 0);
         assert_eq!(d[4..], [0, 0, 0, 0]);
+    }
+
+    /// A non-finite value is sent as the raw value of 0 (no torque) also
+    /// where a DBC gives the signal an offset (raw 0 was -3000 N m there).
+    #[test]
+    fn non_finite_is_zero_also_with_an_offset() {
+        let s = SignalSpec {
+            offset: -3000.0,
+            ..TORQUE_COMMAND.signals[3]
+        };
+        let mut d = [0u8; 8];
+        for x in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            s.put(&mut d, x);
+            assert_eq!(s.get(&d), 0.0, "{x}");
+        }
     }
 
     #[test]

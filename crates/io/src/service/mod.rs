@@ -219,8 +219,15 @@ pub fn install_protocol(
         None => Protocol::builtin().clone(),
         Some(f) => {
             let path = dir.file(f);
-            Protocol::load_dbc(&path, &can.dbc_names)
-                .map_err(|e| ConfigError::new(Path::new(&e.file), &e.what, &e.reason))?
+            Protocol::load_dbc(&path, &can.dbc_names).map_err(|e| {
+                // a [dbc_names] key is can.toml's: named by its path
+                let file = if e.file == "can.toml" {
+                    can_toml.clone()
+                } else {
+                    std::path::PathBuf::from(&e.file)
+                };
+                ConfigError::new(file, &e.what, &e.reason)
+            })?
         }
     };
     tracing::info!(
@@ -253,7 +260,7 @@ pub fn parse_can(file: &Path, text: &str) -> Result<CanBusConfig, ConfigError> {
                 file,
                 "dbc",
                 format!(
-                    "{d:?}: must be the name of a .dbc file in the configuration directory (the recorder attaches that directory's .dbc files to every drive log, so that `grip inspect` and `grip replay` read the frames as the services did)"
+                    "{d:?}: must be a file name ending in \".dbc\" (lower case), without a directory: a file in the configuration directory (the recorder attaches that directory's *.dbc files to every drive log, so that `grip inspect` and `grip replay` read the frames as the services did)"
                 ),
             ));
         }

@@ -118,6 +118,17 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             "drive with a model trained at {audio_hz} Hz: `grip drive --model FILE` (`grip train --data DIR` on recordings at {audio_hz} Hz)"
         ),
     )?;
+    // the bus's DBC, before any service starts: tcs-loop and plant-sim
+    // refuse one they cannot speak, and the drive would have started the
+    // recorder for nothing and reported an empty drive
+    {
+        let dir = grip_config::ConfigDir::new(&config_dir);
+        let can = grip_io::service::load_can(&dir)?;
+        if let Some(f) = &can.dbc {
+            grip_io::can::protocol::Protocol::load_dbc(&dir.file(f), &can.dbc_names)
+                .map_err(|e| anyhow::anyhow!("the CAN bus (can.toml's dbc): {e}"))?;
+        }
+    }
     // `--model`: the services get a view of the configuration whose
     // arte-svc.toml names the model (the log then carries it)
     let view = match &model {
