@@ -63,6 +63,11 @@ fn main() -> std::process::ExitCode {
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
         )
         .with_writer(std::io::stderr)
+        // no colour codes in a file or a pipe (or with NO_COLOR set)
+        .with_ansi(
+            std::io::IsTerminal::is_terminal(&std::io::stderr())
+                && std::env::var_os("NO_COLOR").is_none(),
+        )
         .init();
     let matches = Cli::command().get_matches();
     let given = matches.value_source("config_dir") == Some(clap::parser::ValueSource::CommandLine);

@@ -445,6 +445,11 @@ pub fn active() -> &'static Protocol {
     ACTIVE.get().unwrap_or(&BUILTIN)
 }
 
+/// The protocol [`install`]ed in this process, if any.
+pub fn installed() -> Option<&'static Protocol> {
+    ACTIVE.get()
+}
+
 /// Why [`install`] refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("a different CAN protocol is already installed in this process")]

@@ -230,11 +230,13 @@ pub fn install_protocol(
             })?
         }
     };
-    tracing::info!(
-        dbc = can.dbc.as_deref().unwrap_or("(built in)"),
-        messages = %p.describe(),
-        "CAN protocol"
-    );
+    if crate::can::protocol::installed().is_none() {
+        tracing::info!(
+            dbc = can.dbc.as_deref().unwrap_or("(built in)"),
+            messages = %p.describe(),
+            "CAN protocol"
+        );
+    }
     install(p).map_err(|e| {
         ConfigError::new(
             &can_toml,
