@@ -549,6 +549,18 @@ fn a_dbc_grip_cannot_speak_is_refused_naming_what_and_why() {
         ("can.toml", "[dbc_names] TorqueCommand.Torque"),
         "{e}"
     );
+    // a key in the wrong case: the right one suggested
+    let names = [(
+        "TorqueCommand.Torquerequest".to_owned(),
+        "TrqReq".to_owned(),
+    )]
+    .into();
+    let e = Protocol::from_dbc(&shipped, "bus.dbc", &names).unwrap_err();
+    assert!(
+        e.reason
+            .contains("did you mean \"TorqueCommand.TorqueRequest\"?"),
+        "{e}"
+    );
     // a mapped name is named both ways
     let names = [("TorqueCommand".to_owned(), "MCU_TrqCmd".to_owned())].into();
     let e = Protocol::from_dbc(&shipped, "bus.dbc", &names).unwrap_err();

@@ -192,10 +192,16 @@ impl Protocol {
         let keys: Vec<String> = name_keys().collect();
         for k in names.keys() {
             if !keys.contains(k) {
+                let hint = keys.iter().find(|g| g.eq_ignore_ascii_case(k)).map_or_else(
+                    || {
+                        "a message, e.g. \"TorqueCommand\", or \"Message.Signal\", e.g. \"TorqueCommand.TorqueRequest\"".to_owned()
+                    },
+                    |g| format!("did you mean \"{g}\"?"),
+                );
                 return Err(DbcError {
                     file: "can.toml".into(),
                     what: format!("[dbc_names] {k}"),
-                    reason: "not one of grip's messages or signals (a message, e.g. \"TorqueCommand\", or \"Message.Signal\", e.g. \"TorqueCommand.TorqueRequest\")".into(),
+                    reason: format!("not one of grip's messages or signals ({hint})"),
                 });
             }
         }
