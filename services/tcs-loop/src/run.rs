@@ -137,7 +137,8 @@ pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
     })
 }
 
-/// The bus's timing against tcs-loop's own: it sends `TorqueCommand` every
+/// The bus against tcs-loop's settings: `TorqueRequest` must carry the
+/// vehicle's `torque_max`; it sends `TorqueCommand` every
 /// cycle, so the DBC's period for it must be the loop's; its input
 /// timeouts (`[safety]`) must span at least two periods of the message they
 /// watch (a timeout shorter than that fires between two punctual frames,
@@ -155,6 +156,21 @@ pub fn check_bus_timing(cfg: &LoadedConfig) -> Result<(), ConfigError> {
             "loop.rate_hz",
             format!(
                 "tcs-loop sends TorqueCommand every cycle ({loop_ms} ms), but {dbc} gives it a period of {tc} ms (GenMsgCycleTime)"
+            ),
+        ));
+    }
+    // the command must reach the motor's limit on the wire: a narrower
+    // field saturates it silently (an 8-bit TorqueRequest capped a drive
+    // at 127 N m, found in review)
+    let req = &p.spec(MsgKind::TorqueCommand).signals[3];
+    let t_max = cfg.vehicle.torque_max;
+    let (lo, hi) = (req.to_phys(req.raw_min()), req.to_phys(req.raw_max()));
+    if hi < t_max || lo > 0.0 {
+        return Err(ConfigError::new(
+            &cfg.vehicle_path,
+            "vehicle.torque_max",
+            format!(
+                "{t_max} N m is beyond what TorqueCommand's TorqueRequest carries in {dbc} ({lo} to {hi} N m): commands above would be cut on the wire; set torque_max to what the inverter takes"
             ),
         ));
     }

@@ -56,10 +56,12 @@ fn bad_own_config_names_file_field_reason() {
     assert!(err.contains("line "), "{err}");
 }
 
-/// The bus DBC's timing against tcs-loop's: a DriverDemand every 100 ms
-/// (timeout 300 ms) against the 50 ms demand timeout, and a TorqueCommand
-/// period other than the loop's, are refused at start naming the field and
-/// the DBC (the first ran the loop in its safe state for the whole drive).
+/// The bus DBC against tcs-loop's settings: a DriverDemand every 100 ms
+/// (timeout 300 ms) against the 50 ms demand timeout, a TorqueCommand
+/// period other than the loop's, and a TorqueRequest too narrow for the
+/// vehicle's torque_max, are refused at start naming the field and the DBC
+/// (the first ran the loop in its safe state for a whole drive, the last
+/// capped it at 127 N m).
 #[test]
 fn a_bus_whose_timing_the_loop_cannot_keep_is_refused() {
     let t = copy_config(&CONFIG);
@@ -75,6 +77,11 @@ fn a_bus_whose_timing_the_loop_cannot_keep_is_refused() {
             "BA_ \"GenMsgCycleTime\" BO_ 256 1;\n",
             "BA_ \"GenMsgCycleTime\" BO_ 256 5;\n",
             "field `loop.rate_hz`: tcs-loop sends TorqueCommand every cycle (1 ms), but inverter.dbc gives it a period of 5 ms",
+        ),
+        (
+            "TorqueRequest : 16|16@1- (0.1,0) [-3276.8|3276.7]",
+            "TorqueRequest : 16|8@1- (1,0) [-128|127]",
+            "field `vehicle.torque_max`: 1000 N m is beyond what TorqueCommand's TorqueRequest carries in inverter.dbc (-128 to 127 N m)",
         ),
     ] {
         assert!(text.contains(from), "{from}");
