@@ -179,8 +179,8 @@ impl ArteEval {
 /// CAN accounting.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct CanSummary {
-    /// (message name or id, direction) → frames.
-    pub frames: BTreeMap<(String, &'static str), u64>,
+    /// (message name or id, CAN id, direction) → frames.
+    pub frames: BTreeMap<(String, u32, &'static str), u64>,
     /// Frames flagged `E2E_REJECTED` by the receiver.
     pub rejected: u64,
     /// The loop's E2E fault counters at its last record (whole log).
@@ -1116,7 +1116,7 @@ pub fn summarize(
         } else {
             "rx"
         };
-        *s.can.frames.entry((name, dir)).or_default() += 1;
+        *s.can.frames.entry((name, f.id, dir)).or_default() += 1;
         if f.flags & can_flags::E2E_REJECTED != 0 {
             s.can.rejected += 1;
         }
@@ -1513,8 +1513,8 @@ impl Summary {
         }
 
         let _ = writeln!(o, "\nCAN frames (logged by tcs-loop)");
-        for ((name, dir), n) in &self.can.frames {
-            let _ = writeln!(o, "  {name:<14} {dir}  {n:>8}");
+        for ((name, id, dir), n) in &self.can.frames {
+            let _ = writeln!(o, "  {name:<14} 0x{id:03X} {dir}  {n:>8}");
         }
         let fmt_f = |f: &E2eFaults| {
             format!(

@@ -366,8 +366,9 @@ fn a_drive_on_a_foreign_bus_speaks_its_dbc() {
     assert_eq!(j["status"], "ok", "{j}");
     assert_eq!(j["e2e_rejected_frames"], 0, "{j}");
     let (_, text, _) = grip(&[os("inspect"), f.as_os_str()]);
+    // named by the log's DBC, with the bus's id beside the name
     assert!(
-        text.contains("TorqueCommand") && !text.contains("0x191"),
+        text.contains("TorqueCommand  0x191 tx") && text.contains("WheelSpeeds    0x193 rx"),
         "{text}"
     );
     let r = json_of(&[os("replay"), os("--json"), f.as_os_str()]);
