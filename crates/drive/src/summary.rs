@@ -181,6 +181,9 @@ impl ArteEval {
 pub struct CanSummary {
     /// (message name or id, CAN id, direction) → frames.
     pub frames: BTreeMap<(String, u32, &'static str), u64>,
+    /// The protocol the frames are named by: the log's DBC, or the
+    /// built-in one.
+    pub bus: String,
     /// Frames flagged `E2E_REJECTED` by the receiver.
     pub rejected: u64,
     /// The loop's E2E fault counters at its last record (whole log).
@@ -1102,6 +1105,14 @@ pub fn summarize(
     s.arte = a;
 
     // CAN, named by the drive's own protocol
+    s.can.bus = log
+        .attachment_text("can.toml")
+        .and_then(|t| grip_io::service::parse_can(std::path::Path::new("can.toml"), t).ok())
+        .and_then(|c| c.dbc)
+        .map_or_else(
+            || "the built-in protocol".to_owned(),
+            |d| format!("{d}, attached"),
+        );
     let protocol = log.protocol().unwrap_or_else(|e| {
         s.warnings
             .push(format!("CAN frames named by the built-in protocol: {e}"));
@@ -1512,7 +1523,11 @@ impl Summary {
             );
         }
 
-        let _ = writeln!(o, "\nCAN frames (logged by tcs-loop)");
+        let _ = writeln!(
+            o,
+            "\nCAN frames (logged by tcs-loop; bus: {})",
+            self.can.bus
+        );
         for ((name, id, dir), n) in &self.can.frames {
             let _ = writeln!(o, "  {name:<14} 0x{id:03X} {dir}  {n:>8}");
         }

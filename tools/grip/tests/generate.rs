@@ -368,7 +368,9 @@ fn a_drive_on_a_foreign_bus_speaks_its_dbc() {
     let (_, text, _) = grip(&[os("inspect"), f.as_os_str()]);
     // named by the log's DBC, with the bus's id beside the name
     assert!(
-        text.contains("TorqueCommand  0x191 tx") && text.contains("WheelSpeeds    0x193 rx"),
+        text.contains("bus: own-bus.dbc, attached")
+            && text.contains("TorqueCommand  0x191 tx")
+            && text.contains("WheelSpeeds    0x193 rx"),
         "{text}"
     );
     let r = json_of(&[os("replay"), os("--json"), f.as_os_str()]);
