@@ -10,6 +10,9 @@
 //!    reaches it), then with WheelSpeeds' id and a bad CRC (counted).
 //! 2. `bus_down_and_up_gives_safe_state_and_recovery`: `vcan0` set down for
 //!    300 ms and up again.
+//!    `bus_deleted_and_recreated_recovers`: `vcan0` deleted for 300 ms
+//!    and re-created (an adapter unplugged and plugged back): the
+//!    services' sockets reopen on the new interface.
 //! 3. `killed_recorder_loses_at_most_a_second`: `kill -9` of the recorder,
 //!    then a new recorder writing a new file.
 //! 4. `full_disk_stops_the_recorder_not_the_loop`: the recorder's file on a
@@ -518,6 +521,126 @@ fn bus_down(s: &Setup) -> anyhow::Result<Attempt> {
         }
         bail!("recovery {rec_ms:.1} ms after the frames came back, bound {rbound} ms");
     }
+    Ok(Attempt::Done)
+}
+
+// --- 2b. bus deleted and re-created -----------------------------------------------------
+
+/// How long `vcan0` stays deleted.
+const GONE_MS: u64 = 300;
+/// After the interface is back: the services' reopen check (every 100 ms)
+/// plus `recover_ms`, with the suite's margins, must fit in well under this.
+const BACK_WITHIN_MS: f64 = 1000.0;
+
+/// `vcan0` deleted (`ip link del`, as unplugging a USB-CAN adapter) and
+/// re-created under the same name mid-drive: tcs-loop's and plant-sim's
+/// sockets, bound to the old interface, are unbound by the kernel; both
+/// must reopen theirs on the new one and the loop must control again.
+#[test]
+fn bus_deleted_and_recreated_recovers() -> anyhow::Result<()> {
+    let _g = serial();
+    with_attempts_in("bus-recreated", &asphalt_scenario(5), bus_recreated)
+}
+
+fn bus_recreated(s: &Setup) -> anyhow::Result<Attempt> {
+    let fig = Figures::of(s)?;
+    let mcap = s.out.join("drive.mcap");
+    // the capture's socket dies with the interface: a second one records
+    // the re-created vcan0
+    let ((t_del, t_back, after), _cap_before, drive) = drive_with(
+        s,
+        &mcap,
+        |drive| -> anyhow::Result<(u64, u64, CaptureLog)> {
+            wait_scenario_start(s)?;
+            std::thread::sleep(Duration::from_millis(1000));
+            let t_del = hil::mono_ns();
+            hil::delete_vcan(&s.iface)?;
+            std::thread::sleep(Duration::from_millis(GONE_MS));
+            hil::create_vcan(&s.iface)?;
+            let t_back = hil::mono_ns();
+            let cap = hil::CanCapture::start(&s.iface)?;
+            wait_success(drive, "grip drive", Duration::from_secs(180))?;
+            Ok((t_del, t_back, cap.finish()?))
+        },
+    )?;
+    let text = drive.log_text();
+    println!("grip drive output:\n{text}");
+    hil::require_can_iface(&s.iface)?;
+    for l in text
+        .lines()
+        .filter(|l| l.contains("stopped") || l.contains("reopen") || l.contains("vanished"))
+    {
+        println!("> {l}");
+    }
+    let tc_id = s.dbc.by_name("TorqueCommand")?.id;
+    let ws_id = s.dbc.by_name("WheelSpeeds")?.id;
+    let first = |id: u32| after.with_id(id).map(|f| f.t_ns).min();
+    let (tc_back, ws_back) = (first(tc_id), first(ws_id));
+    println!(
+        "vcan0 deleted for {:.0} ms; on the re-created vcan0: {} TorqueCommands (first {:?} ms after it was back), {} WheelSpeeds (first {:?} ms)",
+        ms(t_back as i128 - t_del as i128),
+        after.with_id(tc_id).count(),
+        tc_back.map(|t| ms(t as i128 - t_back as i128)),
+        after.with_id(ws_id).count(),
+        ws_back.map(|t| ms(t as i128 - t_back as i128)),
+    );
+    let l = read_complete_allowing_xruns(&mcap)?;
+    let before = cycles_in(&l.cycles, t_del - 30_000_000, t_del);
+    if before.is_empty() || before.iter().any(|c| c.safe_state == 1) {
+        return Ok(Attempt::Disturbed(format!(
+            "tcs-loop was not controlling in the 30 ms before vcan0 was deleted ({} cycles)",
+            before.len()
+        )));
+    }
+    let gone = cycles_in(&l.cycles, t_del, t_back);
+    let last = l.cycles.last().map_or(0, |c| c.stamp_ns);
+    let rec = l
+        .cycles
+        .iter()
+        .find(|c| c.stamp_ns > t_back && c.safe_state == 0);
+    println!(
+        "cycle records: {} while deleted (safe from {:?} ms after the delete), {} after it was back, the last {:.0} ms after; control again {:?} ms after it was back (recover_ms {})",
+        gone.len(),
+        gone.iter()
+            .find(|c| c.safe_state == 1)
+            .map(|c| ms(c.stamp_ns as i128 - t_del as i128)),
+        cycles_in(&l.cycles, t_back, u64::MAX).len(),
+        ms(last as i128 - t_back as i128),
+        rec.map(|c| ms(c.stamp_ns as i128 - t_back as i128)),
+        fig.recover_ms
+    );
+    // fail-safe while gone: safe state, 0 N m
+    ensure!(
+        gone.iter().any(|c| c.safe_state == 1),
+        "tcs-loop never entered its safe state while vcan0 was deleted"
+    );
+    let tc_back = tc_back.context("no TorqueCommand from tcs-loop on the re-created vcan0")?;
+    let ws_back = ws_back.context("no WheelSpeeds from plant-sim on the re-created vcan0")?;
+    let rec = rec.context("tcs-loop never left its safe state after vcan0 was re-created")?;
+    let (tc_ms, ws_ms) = (
+        ms(tc_back as i128 - t_back as i128),
+        ms(ws_back as i128 - t_back as i128),
+    );
+    ensure!(
+        tc_ms <= BACK_WITHIN_MS && ws_ms <= BACK_WITHIN_MS,
+        "frames back on the re-created vcan0 only {tc_ms:.0} ms (TorqueCommand) / {ws_ms:.0} ms (WheelSpeeds) after it, bound {BACK_WITHIN_MS} ms"
+    );
+    let rec_ms = ms(rec.stamp_ns as i128 - t_back as i128);
+    ensure!(
+        rec_ms <= BACK_WITHIN_MS + fig.recover_ms,
+        "control again only {rec_ms:.0} ms after vcan0 was back"
+    );
+    // the frames on the new bus are valid, the commands enabled again
+    let c = StreamCheck::run(&s.dbc, &after.frames);
+    println!("frames on the re-created bus: {:?}", c.per_message);
+    ensure!(c.unknown == 0, "unknown ids on the wire: {}", c.unknown);
+    for (m, v) in &c.per_message {
+        ensure!(v[1] == 0 && v[2] == 0 && v[3] <= 1, "{m}: {v:?}");
+    }
+    ensure!(
+        !enabled_commands(&after, &s.dbc)?.is_empty(),
+        "no enabled TorqueCommand on the re-created vcan0"
+    );
     Ok(Attempt::Done)
 }
 

@@ -305,9 +305,10 @@ impl RawCanSocket {
         };
         if n != mem::size_of::<RawFrame>() as isize {
             let e = io::Error::last_os_error();
-            if e.raw_os_error() == Some(libc::ENETDOWN) {
-                // the interface went down: the kernel reports it once
-                // (a test may set the bus down on purpose); no frame
+            if matches!(e.raw_os_error(), Some(libc::ENETDOWN | libc::ENODEV)) {
+                // the interface went down (ENETDOWN) or was deleted (ENODEV:
+                // the socket is unbound from then on): the kernel reports
+                // it once (a test may do either on purpose); no frame
                 return Ok(None);
             }
             return Err(e).with_context(|| format!("read(can_frame) returned {n}"));
@@ -1050,8 +1051,9 @@ impl RawCanSocket {
         let n = unsafe { libc::recvmsg(self.fd.as_raw_fd(), &raw mut msg, 0) };
         if n != mem::size_of::<RawFrame>() as isize {
             let e = io::Error::last_os_error();
-            if e.raw_os_error() == Some(libc::ENETDOWN) {
-                // the interface went down (reported once): no frame
+            if matches!(e.raw_os_error(), Some(libc::ENETDOWN | libc::ENODEV)) {
+                // the interface went down or was deleted (reported once):
+                // no frame
                 return Ok(None);
             }
             return Err(e).with_context(|| format!("recvmsg(can_frame) returned {n}"));
@@ -1762,6 +1764,40 @@ pub fn kill_pid(pid: u32, sig: libc::c_int) -> anyhow::Result<()> {
 /// `CAN_INV_FILTER`: set on a filter's id, the filter passes the frames
 /// that do *not* match (linux/can.h).
 pub const CAN_INV_FILTER: u32 = 0x2000_0000;
+
+/// Deletes the vcan interface `iface` (`ip link del`, as unplugging a
+/// USB-CAN adapter does to its interface); with `busybox ip` where there is
+/// no `ip` (the HIL VM). Needs root.
+pub fn delete_vcan(iface: &str) -> anyhow::Result<()> {
+    ip(&["link", "del", "dev", iface])
+}
+
+/// Creates the vcan interface `iface` and sets it up (`ip link add dev
+/// IFACE type vcan; ip link set up IFACE`). Needs root.
+pub fn create_vcan(iface: &str) -> anyhow::Result<()> {
+    ip(&["link", "add", "dev", iface, "type", "vcan"])?;
+    set_link_up(iface, true)
+}
+
+/// Runs `ip ARGS` (or `busybox ip ARGS`), failing with its output.
+fn ip(args: &[&str]) -> anyhow::Result<()> {
+    let out = match Command::new("ip").args(args).output() {
+        Err(e) if e.kind() == io::ErrorKind::NotFound => Command::new("busybox")
+            .arg("ip")
+            .args(args)
+            .output()
+            .context("neither ip nor busybox found")?,
+        r => r.context("running ip")?,
+    };
+    anyhow::ensure!(
+        out.status.success(),
+        "ip {}: {} {}",
+        args.join(" "),
+        out.status,
+        String::from_utf8_lossy(&out.stderr).trim()
+    );
+    Ok(())
+}
 
 /// Sets network interface `iface` up or down (`SIOCSIFFLAGS`, as `ip link
 /// set IFACE up|down`; needs root, which the HIL VM has).

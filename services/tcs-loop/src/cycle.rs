@@ -131,6 +131,11 @@ pub struct SharedStatus {
     /// The controller passed the driver's demand through in the last
     /// cycle for want of a measurement (SRC without a vehicle speed).
     pub passthrough: AtomicBool,
+    /// The SocketCAN interface is gone (deleted, unplugged): its socket
+    /// unbound, waiting for it to be back (set by `run` after each cycle).
+    pub bus_gone: AtomicBool,
+    /// Times the SocketCAN socket was reopened on a re-created interface.
+    pub bus_reopens: AtomicU64,
 }
 
 /// Errors building the loop.

@@ -31,6 +31,7 @@ pub fn spawn_helper(
     let m = TcsMonitor {
         safe: Changed::new(status.safe_state.load(Ordering::Relaxed)),
         passthrough: Changed::new(false),
+        bus_gone: Changed::new(false),
         road: arte.then(|| Flow::new(0, Instant::now(), Duration::from_secs(1))),
         faults: Count::default(),
         bus_errors: Count::default(),
@@ -45,6 +46,8 @@ struct TcsMonitor {
     safe: Changed<bool>,
     /// The controller passing the demand through for want of a speed.
     passthrough: Changed<bool>,
+    /// The CAN interface deleted (its socket unbound) and not yet back.
+    bus_gone: Changed<bool>,
     /// ARTE's estimates (only while ARTE is on).
     road: Option<Flow>,
     faults: Count,
@@ -82,6 +85,16 @@ impl Monitor for TcsMonitor {
                 "TRACTION CONTROL INACTIVE: no vehicle speed (OmegaRef invalid and no fresh VehicleSpeed frame); the driver's demand is passed through"
             ),
             Some(false) => tracing::info!("vehicle speed back: traction control active again"),
+            None => {}
+        }
+        match self.bus_gone.update(s.bus_gone.load(Ordering::Relaxed)) {
+            Some(true) => tracing::error!(
+                "CAN INTERFACE GONE (deleted or unplugged: ENODEV/ENXIO): no frame in or out; the socket is reopened when an interface of its name is back (checked every 100 ms)"
+            ),
+            Some(false) => tracing::warn!(
+                reopens = s.bus_reopens.load(Ordering::Relaxed),
+                "CAN interface back: socket reopened on it (same name and receive filters)"
+            ),
             None => {}
         }
         if let Some(road) = &mut self.road {

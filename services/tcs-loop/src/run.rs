@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use grip_config::{ConfigDir, ConfigError, load_controllers};
-use grip_io::can::{CanBus, CanBusConfig, CanError, RxFilter, open_bus};
+use grip_io::can::{AnyBus, CanBus, CanBusConfig, CanError, RxFilter, open_bus};
 use grip_io::clock::{Clock, MonotonicClock};
 use grip_io::ipc::{IpcError, IpcNode};
 use grip_io::rt::{self, LatencyHistogram, PeriodicTimer};
@@ -318,11 +318,20 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
     }
 
     let mut late_1ms = 0u64;
+    let status = lp.status();
     while !stop.load(Ordering::Relaxed) {
         let t = timer.wait_next();
         late_1ms += u64::from(t.latency_ns > 1_000_000);
         let tick = CycleTick::from_timing(&t, timer.deadline_misses());
         lp.cycle(&tick, &clock, &mut bus, &mut road, &mut sink);
+        // a deleted interface (adapter unplugged): the bus reopens its
+        // socket when it is back; the helper logs both
+        if let AnyBus::SocketCan(b) = &bus {
+            status
+                .bus_gone
+                .store(b.gone_since().is_some(), Ordering::Relaxed);
+            status.bus_reopens.store(b.reopens(), Ordering::Relaxed);
+        }
         if end_ns.is_some_and(|e| t.woke_ns >= e) {
             break;
         }
@@ -355,6 +364,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
         can_tx = lp.can_tx(),
         can_rx = lp.can_rx(),
         bus_errors = lp.bus_errors(),
+        bus_reopens = status.bus_reopens.load(Ordering::Relaxed),
         cycle_published = sink.cycle_published,
         can_log_published = sink.can_published,
         publish_errors = sink.errors,

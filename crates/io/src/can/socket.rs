@@ -52,12 +52,42 @@ pub fn physical_interface_in(
 }
 
 /// A raw CAN socket on one interface, non-blocking; receive waits use poll(2).
+///
+/// When the interface is deleted (a USB-CAN adapter unplugged, `ip link
+/// del`), the kernel unbinds the socket for good: one receive reports
+/// `ENODEV`, every send `ENXIO`, and nothing arrives again, even once an
+/// interface of that name is back (a new one, with a new index). The bus
+/// notes either error, then, at most every [`REOPEN_CHECK_NS`], on a send
+/// or receive, looks the name up and, when it exists again, opens a new
+/// socket on it with the same receive filters ([`Self::reopens`] counts
+/// it). Until then sends and receives fail as before (the owner's input
+/// timeouts put it in its safe state). The check and the reopen are a
+/// few bounded, non-blocking system calls, without allocation.
 #[derive(Debug)]
 pub struct SocketCanBus {
     sock: CanSocket,
     iface: String,
+    /// `iface` for if_nametoindex(3) (made once, at open).
+    iface_c: std::ffi::CString,
     bus_id: u8,
     rx: RxFilter,
+    /// The kernel filters of `rx` (made once, at open; reused to reopen).
+    filters: Option<Vec<CanFilter>>,
+    /// CLOCK_MONOTONIC when the interface was found gone, while it is.
+    gone_since: Option<u64>,
+    /// Next time (ns) to look whether it is back.
+    next_check_ns: u64,
+    /// Sockets reopened on a re-created interface.
+    reopens: u64,
+}
+
+/// How often a bus whose interface vanished looks whether it is back.
+pub const REOPEN_CHECK_NS: u64 = 100_000_000;
+
+/// True for the errors of a socket whose interface was deleted: `ENODEV`
+/// (receive, once) and `ENXIO` (send: the socket is no longer bound).
+fn interface_gone(e: &std::io::Error) -> bool {
+    matches!(e.raw_os_error(), Some(libc::ENODEV | libc::ENXIO))
 }
 
 /// The kernel receive filters (`CAN_RAW_FILTER`) of `rx`, `None` for
@@ -103,22 +133,71 @@ impl SocketCanBus {
             iface: iface.into(),
             source: e,
         };
+        let iface_c = std::ffi::CString::new(iface).map_err(|_| CanError::NoInterface {
+            iface: iface.into(),
+        })?;
+        let filters = kernel_filters(rx);
         let sock = CanSocket::open(iface).map_err(io)?;
-        sock.set_nonblocking(true).map_err(io)?;
-        if let Some(filters) = kernel_filters(rx) {
-            sock.set_filters(&filters).map_err(io)?;
-            for _ in 0..FLUSH_MAX {
-                if sock.read_frame().is_err() {
-                    break;
-                }
-            }
-        }
+        configure(&sock, filters.as_deref()).map_err(io)?;
         Ok(Self {
             sock,
             iface: iface.into(),
+            iface_c,
             bus_id,
             rx,
+            filters,
+            gone_since: None,
+            next_check_ns: 0,
+            reopens: 0,
         })
+    }
+
+    /// Times the socket was reopened on a re-created interface.
+    pub fn reopens(&self) -> u64 {
+        self.reopens
+    }
+
+    /// Since when (CLOCK_MONOTONIC, ns) the interface has been gone (its
+    /// socket unbound by the kernel), if it is now.
+    pub fn gone_since(&self) -> Option<u64> {
+        self.gone_since
+    }
+
+    /// Notes an error of the socket: one of an unbound socket marks the
+    /// interface gone.
+    fn note(&mut self, e: &std::io::Error) {
+        if self.gone_since.is_none() && interface_gone(e) {
+            let now = monotonic_now_ns();
+            self.gone_since = Some(now);
+            self.next_check_ns = now;
+        }
+    }
+
+    /// While the interface is gone, at most every [`REOPEN_CHECK_NS`]:
+    /// if an interface of its name exists, a new socket on it replaces
+    /// the dead one. Bounded and non-blocking; allocation-free.
+    fn reopen_if_back(&mut self) {
+        if self.gone_since.is_none() {
+            return;
+        }
+        let now = monotonic_now_ns();
+        if now < self.next_check_ns {
+            return;
+        }
+        self.next_check_ns = now.saturating_add(REOPEN_CHECK_NS);
+        // SAFETY: valid NUL-terminated string.
+        let index = unsafe { libc::if_nametoindex(self.iface_c.as_ptr()) };
+        if index == 0 {
+            return;
+        }
+        let Ok(sock) = CanSocket::open_iface(index) else {
+            return;
+        };
+        if configure(&sock, self.filters.as_deref()).is_ok() {
+            self.sock = sock;
+            self.gone_since = None;
+            self.reopens += 1;
+        }
     }
 
     /// What this socket receives.
@@ -152,8 +231,24 @@ impl SocketCanBus {
     }
 }
 
+/// Makes a new socket non-blocking and sets its kernel filters, dropping
+/// what arrived before they were set.
+fn configure(sock: &CanSocket, filters: Option<&[CanFilter]>) -> std::io::Result<()> {
+    sock.set_nonblocking(true)?;
+    if let Some(filters) = filters {
+        sock.set_filters(filters)?;
+        for _ in 0..FLUSH_MAX {
+            if sock.read_frame().is_err() {
+                break;
+            }
+        }
+    }
+    Ok(())
+}
+
 impl CanBus for SocketCanBus {
     fn send(&mut self, frame: &CanFrame) -> Result<(), CanError> {
+        self.reopen_if_back();
         let bad = CanError::InvalidFrame {
             id: frame.id,
             dlc: frame.dlc,
@@ -175,13 +270,17 @@ impl CanBus for SocketCanBus {
         let Some(f) = CanDataFrame::new(id, frame.payload()) else {
             return Err(bad);
         };
-        self.sock.write_frame(&f).map_err(|e| CanError::Transfer {
-            op: "send",
-            kind: e.kind(),
+        self.sock.write_frame(&f).map_err(|e| {
+            self.note(&e);
+            CanError::Transfer {
+                op: "send",
+                kind: e.kind(),
+            }
         })
     }
 
     fn try_recv(&mut self) -> Result<Option<CanFrame>, CanError> {
+        self.reopen_if_back();
         loop {
             match self.sock.read_frame() {
                 Ok(f) => {
@@ -191,6 +290,7 @@ impl CanBus for SocketCanBus {
                 }
                 Err(e) if e.kind() == ErrorKind::WouldBlock => return Ok(None),
                 Err(e) => {
+                    self.note(&e);
                     return Err(CanError::Transfer {
                         op: "receive",
                         kind: e.kind(),
@@ -221,6 +321,7 @@ impl CanBus for SocketCanBus {
                 }
                 Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
                 Err(e) => {
+                    self.note(&e);
                     return Err(CanError::Transfer {
                         op: "receive",
                         kind: e.kind(),
