@@ -20,7 +20,8 @@ pub use grip_msgs::CanFrame;
 pub use mem::{FrameQueue, MEM_BUS_CAPACITY, MemBus, frame_queue};
 pub use sim::SimBus;
 pub use socket::{
-    SocketCanBus, af_can_available, interface_exists, physical_interface, physical_interface_in,
+    REOPEN_CHECK_NS, SocketCanBus, af_can_available, interface_exists, physical_interface,
+    physical_interface_in,
 };
 
 use crate::ipc::{IpcError, IpcNode};
