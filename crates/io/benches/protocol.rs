@@ -23,17 +23,10 @@ fn bench(c: &mut Criterion) {
     // the same message of a protocol read from a DBC (tests/data/own-bus.dbc:
     // MotorStatus there is Motorola, MotorSpeed in rpm), not installed: the
     // spec is passed, so the two rows compare layouts, not the lookup
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/own-bus.dbc");
-    let names = [
-        ("TorqueCommand", "MCU_TrqCmd"),
-        ("TorqueCommand.TorqueRequest", "TrqReq"),
-        ("DriverDemand", "VCU_Demand"),
-        ("DriverDemand.TorqueDemand", "TrqDmd"),
-    ]
-    .into_iter()
-    .map(|(a, b)| (a.to_owned(), b.to_owned()))
-    .collect();
+    let (path, names) = (
+        grip_testkit::own_bus::dbc_path(),
+        grip_testkit::own_bus::names(),
+    );
     let own: &'static Protocol = Box::leak(Box::new(Protocol::load_dbc(&path, &names).unwrap()));
     for (label, p) in [
         ("built-in (Intel)", Protocol::builtin()),

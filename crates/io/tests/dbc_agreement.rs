@@ -227,20 +227,12 @@ fn shipped_path() -> std::path::PathBuf {
 }
 
 fn own_path() -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/own-bus.dbc")
+    grip_testkit::own_bus::dbc_path()
 }
 
 /// The names `tests/data/own-bus.dbc` gives grip's messages and signals.
 fn own_names() -> std::collections::BTreeMap<String, String> {
-    [
-        ("TorqueCommand", "MCU_TrqCmd"),
-        ("TorqueCommand.TorqueRequest", "TrqReq"),
-        ("DriverDemand", "VCU_Demand"),
-        ("DriverDemand.TorqueDemand", "TrqDmd"),
-    ]
-    .into_iter()
-    .map(|(a, b)| (a.to_owned(), b.to_owned()))
-    .collect()
+    grip_testkit::own_bus::names()
 }
 
 fn own_protocol() -> &'static Protocol {

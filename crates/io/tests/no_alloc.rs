@@ -53,17 +53,10 @@ fn protocol_hot_path_allocates_nothing() {
 /// messages allocate nothing; the DBC is read before counting (start-up).
 #[test]
 fn a_dbc_protocol_hot_path_allocates_nothing() {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/own-bus.dbc");
-    let names = [
-        ("TorqueCommand", "MCU_TrqCmd"),
-        ("TorqueCommand.TorqueRequest", "TrqReq"),
-        ("DriverDemand", "VCU_Demand"),
-        ("DriverDemand.TorqueDemand", "TrqDmd"),
-    ]
-    .into_iter()
-    .map(|(a, b)| (a.to_owned(), b.to_owned()))
-    .collect();
+    let (path, names) = (
+        grip_testkit::own_bus::dbc_path(),
+        grip_testkit::own_bus::names(),
+    );
     let p: &'static Protocol = Box::leak(Box::new(Protocol::load_dbc(&path, &names).unwrap()));
     let mut rx: Vec<E2eReceiver> = p.messages().iter().map(E2eReceiver::new).collect();
     let mut decoded = 0u64;

@@ -10,17 +10,10 @@ use grip_recorder::CanCounterTracker;
 
 #[test]
 fn counters_follow_the_installed_dbc() {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/own-bus.dbc");
-    let names = [
-        ("TorqueCommand", "MCU_TrqCmd"),
-        ("TorqueCommand.TorqueRequest", "TrqReq"),
-        ("DriverDemand", "VCU_Demand"),
-        ("DriverDemand.TorqueDemand", "TrqDmd"),
-    ]
-    .into_iter()
-    .map(|(a, b)| (a.to_owned(), b.to_owned()))
-    .collect();
+    let (path, names) = (
+        grip_testkit::own_bus::dbc_path(),
+        grip_testkit::own_bus::names(),
+    );
     let p = install(Protocol::load_dbc(&path, &names).unwrap()).unwrap();
     let spec = p.spec(MsgKind::WheelSpeeds);
     let mut t = CanCounterTracker::default();
