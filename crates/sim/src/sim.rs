@@ -224,7 +224,12 @@ impl<'a> Sim<'a> {
             demand,
         };
         // The loop's own odometer, from what it measures.
-        let v_odo = grip_tcs::odometer_speed(reading.v, reading.omega, setup.vehicle().r);
+        let v_odo = grip_tcs::odometer_speed(
+            reading.v,
+            reading.omega,
+            setup.vehicle().r,
+            setup.controllers().preview.standstill_mps,
+        );
         let (guidance, out) = match self.aware.as_mut() {
             Some(a) => {
                 let (g, out) = a.control(&mut self.controller, &m, self.x_odo);

@@ -155,6 +155,19 @@ pub struct PreviewParams {
     /// sensor's noise (σ 0.02 m/s at 1 kHz: about 0.005 m).
     #[serde(default = "default_reverse_m")]
     pub reverse_m: f64,
+    /// Standstill, m/s: a measured speed (V, else r·ω) of smaller magnitude
+    /// than this is no travel, neither for the odometer
+    /// ([`odometer_speed`]) nor for the reverse detection (`reverse_m`).
+    /// Without it a standing car's speed noise moves the odometer: it
+    /// integrates the noise's positive half (σ/√(2π) on average, 8 mm/s
+    /// with the shipped σ of 0.02 m/s, about 29 m an hour), so after about
+    /// six minutes at a standstill the front-mic car's 2.77 m of heard road
+    /// ahead were all "passed", and the signed distance wanders (a 0.1 m
+    /// drawdown, a false reverse, after about 7 h). [0, 1]. Absent from a
+    /// file: 0 (the rule before this field existed, so that older drive logs
+    /// still replay); shipped 0.1 (5 σ of the shipped V noise, 0.36 km/h).
+    #[serde(default)]
+    pub standstill_mps: f64,
     /// After the last cycle that detected reverse travel (`reverse_m`), the
     /// acoustic decisions available (their stamp) within this time are
     /// dropped, s, [0, 10]: their frames may have been heard while the car
@@ -237,6 +250,7 @@ impl Default for PreviewParams {
             recover_landing: 0.5,
             spin_dv_min: 0.15,
             reverse_m: default_reverse_m(),
+            standstill_mps: 0.1,
             reverse_hold_s: default_reverse_hold_s(),
             mfc: PreviewTrade::default(),
             src: PreviewTrade {
@@ -270,6 +284,7 @@ impl PreviewParams {
         // travel (and clear the queue every cycle); NaN would never detect.
         in_range("reverse_m", self.reverse_m, 1e-3, 10.0)?;
         in_range("reverse_hold_s", self.reverse_hold_s, 0.0, 10.0)?;
+        in_range("standstill_mps", self.standstill_mps, 0.0, 1.0)?;
         if self.min_hits == 0 {
             return Err(InvalidField::new("min_hits", "must be >= 1 (got 0)"));
         }
@@ -668,7 +683,7 @@ impl RoadAware {
     /// of its end.
     fn reversing(&mut self, m: &Measurement) -> bool {
         let v = m.v.unwrap_or(self.r * m.omega);
-        if v.is_finite() {
+        if v.is_finite() && v.abs() >= self.p.standstill_mps {
             self.travel += v * self.dt;
         }
         self.travel_peak = self.travel_peak.max(self.travel);
@@ -823,12 +838,18 @@ impl RoadAware {
 
 /// The speed the loop's odometer integrates (the place [`RoadAware`] works
 /// in), m/s: the measured vehicle speed `v`, else the wheel's `r · omega`;
-/// never negative, 0 when not finite. `grip sim` and tcs-loop alike. (In
-/// reverse the odometer stands; [`RoadAware`] detects the reverse itself,
-/// `[preview] reverse_m`, and clears what it had placed on it.)
-pub fn odometer_speed(v: Option<f64>, omega: f64, r: f64) -> f64 {
+/// never negative, 0 when not finite or below `standstill` (`[preview]
+/// standstill_mps`: a standing car's speed noise is no travel). `grip sim`
+/// and tcs-loop alike. (In reverse the odometer stands; [`RoadAware`]
+/// detects the reverse itself, `[preview] reverse_m`, and clears what it
+/// had placed on it.)
+pub fn odometer_speed(v: Option<f64>, omega: f64, r: f64, standstill: f64) -> f64 {
     let s = v.unwrap_or(r * omega);
-    if s.is_finite() { s.max(0.0) } else { 0.0 }
+    if s.is_finite() && s >= standstill {
+        s.max(0.0)
+    } else {
+        0.0
+    }
 }
 
 /// The slip in (0, λ_opt] where `mu` reaches `share · mu_peak` (bisection;
@@ -1504,6 +1525,87 @@ mod tests {
         );
     }
 
+    /// One hour standing with the shipped V sensor's noise (σ 0.02 m/s,
+    /// Gaussian, 1 kHz): with the shipped `standstill_mps` the odometer
+    /// stays within a centimetre; without it (0, the rule before) it
+    /// integrates the noise's positive half, ~29 m. Moving speeds pass
+    /// unchanged; reverse, NaN and infinity add nothing.
+    #[test]
+    fn a_standing_cars_speed_noise_does_not_move_the_odometer() {
+        let shipped = PreviewParams::default().standstill_mps;
+        assert_eq!(shipped, 0.1);
+        let mut seed: u64 = 77;
+        let mut uniform = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        let (mut with, mut without) = (0.0, 0.0);
+        for _ in 0..3_600_000u32 {
+            let (u1, u2) = (uniform(), uniform());
+            let v = 0.02 * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+            with += odometer_speed(Some(v), 0.0, 0.28, shipped) * 1e-3;
+            without += odometer_speed(Some(v), 0.0, 0.28, 0.0) * 1e-3;
+        }
+        assert!(with < 0.01, "with the standstill: {with} m in an hour");
+        assert!(
+            (25.0..33.0).contains(&without),
+            "without it: {without} m in an hour (σ/√(2π) · 3600 s = 28.7 m)"
+        );
+        for v in [0.1, 0.5, 2.78, 30.0] {
+            assert_eq!(odometer_speed(Some(v), 0.0, 0.28, shipped), v);
+        }
+        // no V: the wheel's r·ω, under the same rule
+        assert!((odometer_speed(None, 10.0, 0.28, shipped) - 2.8).abs() < 1e-12);
+        assert_eq!(odometer_speed(None, 0.3, 0.28, shipped), 0.0);
+        for v in [-0.05, -3.0, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            assert_eq!(odometer_speed(Some(v), 0.0, 0.28, shipped), 0.0, "{v}");
+        }
+    }
+
+    /// A speed sensor that reads -0.05 m/s at rest (an offset, not noise):
+    /// the signed distance would fall 0.1 m in 2 s and clear the queue as
+    /// a reverse; under `standstill_mps` it is no travel. A real reverse
+    /// (0.5 m/s) is still detected.
+    #[test]
+    fn a_standstill_offset_is_no_reverse_but_a_reverse_is() {
+        let standing = |standstill_mps: f64| {
+            let mut a = aware_with(
+                2.77,
+                PreviewParams {
+                    standstill_mps,
+                    ..PreviewParams::default()
+                },
+            );
+            a.decision(0, 0.95, 0.0, 0.0, 0.0);
+            a.decision(0, 0.95, 0.0, 0.0, 0.0);
+            for k in 1..=5000u32 {
+                a.step(&moving(f64::from(k) * 1e-3, -0.05, 0.0, 0.0), 0.0);
+            }
+            a
+        };
+        let a = standing(0.0);
+        assert!(
+            a.reversed_at > 0.0,
+            "without the standstill: a false reverse"
+        );
+        assert!(a.queue.is_empty());
+        let a = standing(0.1);
+        assert_eq!(a.reversed_at, f64::NEG_INFINITY, "no reverse at rest");
+        assert_eq!(a.queue.entries().len(), 1);
+        let mut a = standing(0.1);
+        for k in 5001..=5400u32 {
+            a.step(&moving(f64::from(k) * 1e-3, -0.5, 0.0, 0.0), 0.0);
+        }
+        assert!(
+            a.reversed_at > 5.0,
+            "a 0.2 m reverse at 0.5 m/s: {}",
+            a.reversed_at
+        );
+        assert!(a.queue.is_empty());
+    }
+
     /// Cycles of a creeping pull-away on snow (heard so under the wheel,
     /// the motor at snow's cap) in which the spin cut acts: the car from
     /// 0.2 to 1.0 m/s, the wheel 3 % faster, both speeds with the shipped
@@ -1648,6 +1750,17 @@ mod tests {
                 ..PreviewParams::default()
             };
             assert_eq!(p.validate().unwrap_err().field, "spin_dv_min", "{v}");
+        }
+        // The standstill: absent, none (older logs replay as recorded).
+        assert_eq!(p.standstill_mps, 0.0);
+        let p: PreviewParams = toml::from_str(&format!("{text}standstill_mps = 0.1\n")).unwrap();
+        assert_eq!(p.standstill_mps, 0.1);
+        for v in [-0.01, 1.5, f64::NAN] {
+            let p = PreviewParams {
+                standstill_mps: v,
+                ..PreviewParams::default()
+            };
+            assert_eq!(p.validate().unwrap_err().field, "standstill_mps", "{v}");
         }
     }
 

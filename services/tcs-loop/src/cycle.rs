@@ -173,6 +173,8 @@ pub struct TcsLoop {
     last_deadline_ns: Option<u64>,
     dt: f64,
     r: f64,
+    /// `[preview] standstill_mps`: below it the odometer stands.
+    standstill_mps: f64,
     sensor_timeout_ns: u64,
     demand_timeout_ns: u64,
     vspeed_timeout_ns: u64,
@@ -234,6 +236,7 @@ impl TcsLoop {
             odometer: 0.0,
             last_deadline_ns: None,
             dt: controllers.loop_.dt(),
+            standstill_mps: controllers.preview.standstill_mps,
             r: vehicle.r,
             sensor_timeout_ns: safety.sensor_timeout_ns(),
             demand_timeout_ns: safety.demand_timeout_ns(),
@@ -454,7 +457,7 @@ impl TcsLoop {
                 .map(|s| s.speed),
         };
         // the odometer's speed: V, else the wheel's r·ω (as grip sim)
-        let v_odo = grip_tcs::odometer_speed(v, omega, self.r);
+        let v_odo = grip_tcs::odometer_speed(v, omega, self.r, self.standstill_mps);
         // periods the timer skipped since the last cycle (a stall): the car
         // moved on meanwhile, at about this speed
         if let Some(prev) = self.last_deadline_ns {
