@@ -566,10 +566,12 @@ fn bus_recreated(s: &Setup) -> anyhow::Result<Attempt> {
     let text = drive.log_text();
     println!("grip drive output:\n{text}");
     hil::require_can_iface(&s.iface)?;
-    for l in text
-        .lines()
-        .filter(|l| l.contains("stopped") || l.contains("reopen") || l.contains("vanished"))
-    {
+    for l in text.lines().filter(|l| {
+        l.contains("stopped")
+            || l.contains("reopen")
+            || l.contains("vanished")
+            || l.contains("INTERFACE GONE")
+    }) {
         println!("> {l}");
     }
     let tc_id = s.dbc.by_name("TorqueCommand")?.id;
@@ -630,6 +632,19 @@ fn bus_recreated(s: &Setup) -> anyhow::Result<Attempt> {
         rec_ms <= BACK_WITHIN_MS + fig.recover_ms,
         "control again only {rec_ms:.0} ms after vcan0 was back"
     );
+    // both services said their bus went and came back, in the same words
+    // (their helpers' `grip_io::log_bus_presence!`; forwarded by `grip
+    // drive` as `[NAME] ... ERROR/WARN ...`)
+    for svc in ["tcs-loop", "plant-sim"] {
+        let said = |what: &str| {
+            text.lines()
+                .any(|l| l.contains(&format!("[{svc}]")) && l.contains(what))
+        };
+        ensure!(
+            said("CAN INTERFACE GONE") && said("CAN interface back: socket reopened"),
+            "{svc} did not log its CAN interface gone and back"
+        );
+    }
     // the frames on the new bus are valid, the commands enabled again
     let c = StreamCheck::run(&s.dbc, &after.frames);
     println!("frames on the re-created bus: {:?}", c.per_message);

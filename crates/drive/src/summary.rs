@@ -10,6 +10,12 @@
 //! - loop timing from the `CycleRecord`s: wake-up latency and compute time
 //!   (p50/p99/max), deadline misses, safe-state cycles and entries, during
 //!   the scenario and over the whole log (start-up and stop included);
+//! - the control loop's health over the scenario window ([`ControlHealth`]):
+//!   in control at its end, or control lost and not regained (in the safe
+//!   state, or without a cycle in control, for the last
+//!   [`CONTROL_LOST_MIN_S`] or more of the window, or for all of it), with
+//!   when, for how long and what the log says of why; `grip drive` fails
+//!   such a drive;
 //! - the scenario window (from the plant's start for the scenario's
 //!   duration) and how much of it the log covers ([`WindowStatus`]);
 //! - the metrics (`grip_tcs::metrics`) via `grip_tcs::MetricsAccumulator` (the
@@ -48,6 +54,117 @@ const GAP_S: f64 = 0.005;
 /// Gaps in the ground truth of a complete log up to this much in all are
 /// plant-sim's skipped periods (scheduling pauses), not lost data, s.
 const SMALL_GAPS_S: f64 = 0.05;
+
+/// A drive whose scenario window ends with this long or longer without a
+/// cycle of the control loop in control (in its safe state, or no cycle
+/// record), s, lost control and did not regain it ([`ControlHealth`]).
+/// Brief safe-state entries that recover (a loaded machine's stalls: 10-15
+/// of a few ms in a drive; a bus outage the fault matrix injects) are far
+/// shorter; 1 s is also longer than tcs-loop's recovery (`recover_ms`) after
+/// any input timeout, so an entry just before the scenario's end cannot
+/// reach it.
+pub const CONTROL_LOST_MIN_S: f64 = 1.0;
+
+/// The control loop (tcs-loop's cycle records) over the scenario window:
+/// whether it was in control at the window's end. A cycle is in control
+/// when it is not in the safe state; time after the last cycle in control
+/// counts as out of control whether the records show the safe state or
+/// stop.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ControlHealth {
+    /// Cycle records in the window.
+    pub cycles: u64,
+    /// The window's length, s.
+    pub window_s: f64,
+    /// Entries into the safe state (active → safe) in the window.
+    pub entries: u64,
+    /// Safe-state runs in the window that ended in control again.
+    pub recovered: u64,
+    /// The longest of those: (length s, start s from the scenario start).
+    pub longest_recovered: Option<(f64, f64)>,
+    /// No cycle of the window in control (or no cycle record in it).
+    pub never_in_control: bool,
+    /// Out of control at the window's end: from `since_s` (s from the
+    /// scenario start: the first cycle after the last one in control, or
+    /// the window's start) to the window's end, `for_s` s. None: the last
+    /// cycle of the window was in control.
+    pub end_out: Option<(f64, f64)>,
+    /// Cycle records after the last one in control (all in the safe
+    /// state), and whether the records reach the window's end (within
+    /// [`CONTROL_LOST_MIN_S`]) or stop before.
+    pub end_records: (u64, bool),
+    /// What the log says of why, when out of control at the end (the
+    /// loop's fault counters over that time, the CAN frames tcs-loop
+    /// received in it); empty when it says nothing.
+    pub reason: String,
+}
+
+impl ControlHealth {
+    /// Control lost and not regained: out of control for the last
+    /// [`CONTROL_LOST_MIN_S`] or more of the window, or never in control
+    /// in it.
+    pub fn lost(&self) -> bool {
+        self.never_in_control
+            || self
+                .end_out
+                .is_some_and(|(_, d)| d >= CONTROL_LOST_MIN_S - 1e-9)
+    }
+
+    /// The statement the summary prints (one line, no indent).
+    pub fn line(&self) -> String {
+        let why = if self.reason.is_empty() {
+            String::new()
+        } else {
+            format!("; the log says: {}", self.reason)
+        };
+        if self.cycles == 0 {
+            return format!(
+                "CONTROL NOT SHOWN: no cycle record of the loop in the scenario window (0.000-{:.3} s): no command was logged during the scenario{why}",
+                self.window_s
+            );
+        }
+        if self.never_in_control {
+            return format!(
+                "CONTROL NEVER HELD: the loop was in its safe state for the whole scenario window (0.000-{:.3} s, {} cycles){why}",
+                self.window_s, self.cycles
+            );
+        }
+        let recovered = match (self.entries, self.longest_recovered) {
+            (0, _) => "no safe-state entry during it".to_owned(),
+            (n, Some((d, at))) => format!(
+                "{n} safe-state {} during it, {} recovered (longest {d:.3} s, from {at:.3} s)",
+                if n == 1 { "entry" } else { "entries" },
+                if self.recovered >= n {
+                    "all".to_owned()
+                } else {
+                    self.recovered.to_string()
+                }
+            ),
+            (n, None) => format!(
+                "{n} safe-state {} during it",
+                if n == 1 { "entry" } else { "entries" }
+            ),
+        };
+        let state = if self.end_records.1 {
+            "in the safe state".to_owned()
+        } else {
+            format!(
+                "without a cycle in control ({} safe-state cycle records, then none)",
+                self.end_records.0
+            )
+        };
+        match self.end_out {
+            Some((since, d)) if self.lost() => format!(
+                "CONTROL LOST AND NOT REGAINED: {state} from {since:.3} s to the scenario's end at {:.3} s ({d:.3} s; {CONTROL_LOST_MIN_S} s or more at the end fails a drive); {recovered}{why}",
+                self.window_s
+            ),
+            Some((since, d)) => format!(
+                "{state} for the last {d:.3} s of the scenario (from {since:.3} s; under the {CONTROL_LOST_MIN_S} s that fails a drive); {recovered}{why}"
+            ),
+            None => format!("in control at the end of the scenario; {recovered}"),
+        }
+    }
+}
 
 /// p50 / p99 / max of a set of values (ns), and the count.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -349,6 +466,9 @@ pub struct Summary {
     pub replay: Option<ReplayInfo>,
     /// The scenario window in log time, ns: [start, end) (None: no window).
     pub window_ns: Option<(u64, u64)>,
+    /// The control loop's health over the scenario window (None: no
+    /// window).
+    pub control: Option<ControlHealth>,
 }
 
 /// The model arte ran, as the log says it ([`model_of`]).
@@ -1135,7 +1255,172 @@ pub fn summarize(
     if let Some(c) = log.cycles.last() {
         s.can.faults = c.faults;
     }
+    if let Some((ws, we)) = s.window_ns {
+        let period = u64::try_from(s.timing.period_ns)
+            .ok()
+            .filter(|&p| p > 0)
+            .unwrap_or(1_000_000);
+        let h = control_health(log, ws, we, period, &protocol);
+        if h.lost() {
+            s.warnings.push(h.line());
+        }
+        s.control = Some(h);
+    }
     s
+}
+
+/// The fault kinds that grew from `a` to `b`, named, with by how much.
+fn faults_grown(a: &E2eFaults, b: &E2eFaults) -> Vec<String> {
+    let d = fault_delta(a, b);
+    [
+        ("input timeouts", d.timeout),
+        ("CRC errors", d.crc),
+        ("alive counter repeated", d.counter_repeated),
+        ("alive counter skipped", d.counter_skipped),
+        ("wrong lengths", d.length),
+        ("unknown ids", d.unknown_id),
+    ]
+    .into_iter()
+    .filter(|(_, n)| *n > 0)
+    .map(|(k, n)| format!("{k} +{n}"))
+    .collect()
+}
+
+/// [`ControlHealth`] of the cycles stamped in `[ws, we)`; `period` (ns)
+/// is what one cycle stands for after the last one.
+fn control_health(
+    log: &DriveLog,
+    ws: u64,
+    we: u64,
+    period: u64,
+    protocol: &grip_io::can::protocol::Protocol,
+) -> ControlHealth {
+    use grip_io::can::protocol::MsgKind;
+    let inw: Vec<&CycleRecord> = log
+        .cycles
+        .iter()
+        .filter(|c| (ws..we).contains(&c.stamp_ns))
+        .collect();
+    let rel = |ns: u64| secs_between(ws, ns);
+    let mut h = ControlHealth {
+        cycles: inw.len() as u64,
+        window_s: rel(we),
+        ..ControlHealth::default()
+    };
+    // safe-state runs: entered in the window (or safe at its start), and
+    // whether each ended in control again
+    let mut run_start: Option<(u64, bool)> = None;
+    for (i, c) in inw.iter().enumerate() {
+        if c.safe_state != 0 {
+            if run_start.is_none() {
+                // at the first record: safe since the window's start
+                run_start = Some(if i == 0 {
+                    (ws, false)
+                } else {
+                    (c.stamp_ns, true)
+                });
+                h.entries += u64::from(i > 0);
+            }
+        } else if let Some((s0, entered)) = run_start.take() {
+            h.recovered += u64::from(entered);
+            let d = secs_between(s0, c.stamp_ns);
+            if h.longest_recovered.is_none_or(|(l, _)| d > l) {
+                h.longest_recovered = Some((d, rel(s0)));
+            }
+        }
+    }
+    let last_active = inw.iter().rposition(|c| c.safe_state == 0);
+    h.never_in_control = last_active.is_none();
+    let (since, before) = match last_active {
+        None => (ws, None),
+        Some(i) => (
+            inw.get(i + 1)
+                .map_or(inw[i].stamp_ns.saturating_add(period), |c| c.stamp_ns),
+            Some(inw[i]),
+        ),
+    };
+    let after = &inw[last_active.map_or(0, |i| i + 1)..];
+    // the last cycle in control, a few periods before the end without a
+    // record after it (a stall at the end): in control at the end
+    let out_at_end = !after.is_empty() || secs_between(since, we) >= CONTROL_LOST_MIN_S;
+    if since < we && (h.never_in_control || out_at_end) {
+        let reaches = after.last().is_some_and(|c| {
+            secs_between(c.stamp_ns, we) < CONTROL_LOST_MIN_S
+                && c.stamp_ns.saturating_add(period.saturating_mul(5)) >= we
+        });
+        h.end_out = Some((rel(since), secs_between(since, we)));
+        h.end_records = (after.len() as u64, reaches);
+        // what the log says of why
+        let mut why = Vec::new();
+        let from = before.or_else(|| {
+            log.cycles
+                .iter()
+                .rev()
+                .find(|c| c.stamp_ns < ws)
+                .or(inw.first().copied())
+        });
+        if let (Some(a), Some(b)) = (from, inw.last()) {
+            let grown = faults_grown(&a.faults, &b.faults);
+            if !grown.is_empty() {
+                why.push(format!(
+                    "the loop's fault counters over that time: {}",
+                    grown.join(", ")
+                ));
+            }
+        }
+        if !log.can.is_empty() {
+            let rx: Vec<&grip_msgs::CanFrame> = log
+                .can
+                .iter()
+                .filter(|f| f.direction != can_dir::TX && (since..we).contains(&f.stamp_ns))
+                .collect();
+            if rx.is_empty() {
+                let last_rx = log
+                    .can
+                    .iter()
+                    .filter(|f| f.direction != can_dir::TX && f.stamp_ns < since)
+                    .map(|f| f.stamp_ns)
+                    .max();
+                why.push(match last_rx {
+                    Some(t) => format!(
+                        "tcs-loop received no CAN frame from then to the scenario's end (its last one at {:.3} s: the bus silent, down or gone)",
+                        secs_between(ws, t)
+                    ),
+                    None => "tcs-loop received no CAN frame in it (the bus silent, down or gone)"
+                        .to_owned(),
+                });
+            } else {
+                let rejected = rx
+                    .iter()
+                    .filter(|f| f.flags & can_flags::E2E_REJECTED != 0)
+                    .count();
+                let missing: Vec<&str> = [
+                    MsgKind::WheelSpeeds,
+                    MsgKind::MotorStatus,
+                    MsgKind::DriverDemand,
+                ]
+                .into_iter()
+                .map(|k| protocol.spec(k))
+                .filter(|m| {
+                    !rx.iter()
+                        .any(|f| f.id == m.id && f.flags & can_flags::E2E_REJECTED == 0)
+                })
+                .map(|m| m.name)
+                .collect();
+                why.push(format!(
+                    "tcs-loop received {} CAN frames in it ({rejected} rejected by the E2E check){}",
+                    rx.len(),
+                    if missing.is_empty() {
+                        String::new()
+                    } else {
+                        format!(", no valid {}", missing.join(", "))
+                    }
+                ));
+            }
+        }
+        h.reason = why.join("; ");
+    }
+    h
 }
 
 /// Finds the scenario window of `log`, sets the summary's window, its
@@ -1421,6 +1706,9 @@ impl Summary {
                     self.safe_cycles_in_window.unwrap_or(0),
                     w.safe_entries
                 );
+                if let Some(c) = &self.control {
+                    let _ = writeln!(o, "    control: {}", c.line());
+                }
             }
             _ => {
                 let _ = writeln!(
@@ -1674,6 +1962,12 @@ pub fn comparability(a: &Summary, b: &Summary) -> Vec<String> {
     for (tag, s) in [("A", a), ("B", b)] {
         for r in &s.incomplete {
             w.push(format!("{tag} is not a complete drive: {r}"));
+        }
+        if let Some(c) = s.control.as_ref().filter(|c| c.lost()) {
+            w.push(format!(
+                "{tag}'s control loop lost control and did not regain it: {}",
+                c.line()
+            ));
         }
     }
     w

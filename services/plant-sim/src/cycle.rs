@@ -161,6 +161,11 @@ pub struct PlantStatus {
     pub io_errors: AtomicU64,
     /// Ground-truth samples the truth sink failed to publish so far.
     pub truth_errors: AtomicU64,
+    /// The SocketCAN interface is gone (deleted, unplugged): its socket
+    /// unbound, waiting for it to be back (set by `run` after each cycle).
+    pub bus_gone: AtomicBool,
+    /// Times the SocketCAN socket was reopened on a re-created interface.
+    pub bus_reopens: AtomicU64,
 }
 
 /// Errors building the simulator.

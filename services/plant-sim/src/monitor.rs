@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
-use grip_io::service::monitor::{self, Changed, Count, HelperError, Monitor};
+use grip_io::service::monitor::{self, BusPresence, Changed, Count, HelperError, Monitor};
 use grip_io::systemd::notify_status;
 use grip_io::warn_if_grew;
 
@@ -17,30 +17,39 @@ use crate::cycle::PlantStatus;
 /// Spawns the helper thread (before the caller goes SCHED_FIFO). Every
 /// 50 ms (or half the watchdog period if shorter) it pings the watchdog if
 /// the heartbeat advanced and logs transitions: scenario started/ended,
-/// command timeout entered (with the episode count)/left, new E2E faults,
-/// CAN errors and failed ground-truth publishes (at most once per second).
+/// command timeout entered (with the episode count)/left, the CAN
+/// interface gone/back (deleted and re-created: the same lines as
+/// tcs-loop's), new E2E faults, CAN errors and failed ground-truth publishes (at most once per second).
 pub fn spawn_helper(
     status: Arc<PlantStatus>,
     done: Arc<AtomicBool>,
 ) -> Result<JoinHandle<()>, HelperError> {
-    let m = PlantMonitor {
-        phase: Changed::new(status.phase.load(Ordering::Relaxed)),
-        timed_out: Changed::new(status.cmd_timed_out.load(Ordering::Relaxed)),
-        faults: Count::default(),
-        io_errors: Count::default(),
-        truth_errors: Count::default(),
-        s: status,
-    };
-    monitor::spawn("plant-helper", m, done)
+    monitor::spawn("plant-helper", PlantMonitor::new(status), done)
 }
 
 struct PlantMonitor {
     s: Arc<PlantStatus>,
     phase: Changed<u8>,
     timed_out: Changed<bool>,
+    /// The CAN interface deleted (its socket unbound) and not yet back.
+    bus: BusPresence,
     faults: Count,
     io_errors: Count,
     truth_errors: Count,
+}
+
+impl PlantMonitor {
+    fn new(status: Arc<PlantStatus>) -> Self {
+        Self {
+            phase: Changed::new(status.phase.load(Ordering::Relaxed)),
+            timed_out: Changed::new(status.cmd_timed_out.load(Ordering::Relaxed)),
+            bus: BusPresence::new(),
+            faults: Count::default(),
+            io_errors: Count::default(),
+            truth_errors: Count::default(),
+            s: status,
+        }
+    }
 }
 
 impl Monitor for PlantMonitor {
@@ -91,6 +100,11 @@ impl Monitor for PlantMonitor {
             }
             None => {}
         }
+        grip_io::log_bus_presence!(
+            self.bus,
+            s.bus_gone.load(Ordering::Relaxed),
+            s.bus_reopens.load(Ordering::Relaxed)
+        );
     }
 
     fn report(&mut self, _now: Instant) {
@@ -110,5 +124,77 @@ impl Monitor for PlantMonitor {
             s.truth_errors.load(Ordering::Relaxed),
             "publishing the ground truth failed (audio-acq's synthesiser and the recorder miss those samples)"
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::io::Write;
+    use std::sync::Mutex;
+
+    use grip_io::service::monitor::Monitor as _;
+
+    use super::*;
+
+    /// The lines a subscriber writes, kept for the test.
+    #[derive(Clone, Default)]
+    struct Lines(Arc<Mutex<Vec<u8>>>);
+
+    impl Write for Lines {
+        fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+            self.0.lock().unwrap().extend_from_slice(b);
+            Ok(b.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    impl Lines {
+        fn take(&self) -> String {
+            String::from_utf8(std::mem::take(&mut *self.0.lock().unwrap())).unwrap()
+        }
+    }
+
+    /// The CAN interface deleted and re-created (what `run` stores from
+    /// `AnyBus::presence` after each cycle): the helper says it is gone,
+    /// once, and back with the reopen count, in tcs-loop's words
+    /// (`grip_io::log_bus_presence!`); nothing while nothing changes.
+    #[test]
+    fn the_bus_going_and_coming_back_is_logged_as_tcs_loop_logs_it() {
+        let lines = Lines::default();
+        let w = lines.clone();
+        let sub = tracing_subscriber::fmt()
+            .with_writer(move || w.clone())
+            .with_ansi(false)
+            .finish();
+        tracing::subscriber::with_default(sub, || {
+            let status = Arc::new(PlantStatus::default());
+            let mut m = PlantMonitor::new(Arc::clone(&status));
+            let now = Instant::now();
+            m.tick(now);
+            let quiet = lines.take();
+            assert!(!quiet.contains("CAN"), "{quiet}");
+            status.bus_gone.store(true, Ordering::Relaxed);
+            m.tick(now);
+            let gone = lines.take();
+            assert!(
+                gone.contains("ERROR")
+                    && gone.contains("CAN INTERFACE GONE (deleted or unplugged: ENODEV/ENXIO)"),
+                "{gone}"
+            );
+            m.tick(now);
+            assert_eq!(lines.take(), "", "said once");
+            status.bus_reopens.store(1, Ordering::Relaxed);
+            status.bus_gone.store(false, Ordering::Relaxed);
+            m.tick(now);
+            let back = lines.take();
+            assert!(
+                back.contains("WARN")
+                    && back.contains("CAN interface back: socket reopened on it")
+                    && back.contains("reopens=1"),
+                "{back}"
+            );
+        });
     }
 }

@@ -218,13 +218,19 @@ pub fn run(
     tracing::info!("plant-sim ready: vehicle held at its initial state, sensor frames flowing");
 
     let mut finished = false;
+    let status = sim.status();
     while !stop.load(Ordering::Relaxed) {
         if start.load(Ordering::Relaxed) {
             sim.request_start();
         }
         let t = timer.wait_next();
-        if sim.cycle(&PlantTick::from_timing(&t), &clock, &mut bus, &mut truth) == Outcome::Finished
-        {
+        let outcome = sim.cycle(&PlantTick::from_timing(&t), &clock, &mut bus, &mut truth);
+        // a deleted interface (adapter unplugged): the bus reopens its
+        // socket when it is back; the helper logs both, as tcs-loop's does
+        let (gone, reopens) = bus.presence();
+        status.bus_gone.store(gone, Ordering::Relaxed);
+        status.bus_reopens.store(reopens, Ordering::Relaxed);
+        if outcome == Outcome::Finished {
             finished = true;
             break;
         }
@@ -246,6 +252,7 @@ pub fn run(
         can_tx = sim.can_tx(),
         can_rx = sim.can_rx(),
         can_errors = sim.io_errors(),
+        bus_reopens = status.bus_reopens.load(Ordering::Relaxed),
         truth_published = truth.published,
         publish_errors = truth.errors,
         x_m = sim.plant().state().x,

@@ -8,7 +8,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use grip_io::service::monitor::{self, Changed, Count, Flow, FlowEvent, HelperError, Monitor};
+use grip_io::service::monitor::{
+    self, BusPresence, Changed, Count, Flow, FlowEvent, HelperError, Monitor,
+};
 use grip_io::warn_if_grew;
 
 use crate::cycle::SharedStatus;
@@ -31,7 +33,7 @@ pub fn spawn_helper(
     let m = TcsMonitor {
         safe: Changed::new(status.safe_state.load(Ordering::Relaxed)),
         passthrough: Changed::new(false),
-        bus_gone: Changed::new(false),
+        bus: BusPresence::new(),
         road: arte.then(|| Flow::new(0, Instant::now(), Duration::from_secs(1))),
         faults: Count::default(),
         bus_errors: Count::default(),
@@ -47,7 +49,7 @@ struct TcsMonitor {
     /// The controller passing the demand through for want of a speed.
     passthrough: Changed<bool>,
     /// The CAN interface deleted (its socket unbound) and not yet back.
-    bus_gone: Changed<bool>,
+    bus: BusPresence,
     /// ARTE's estimates (only while ARTE is on).
     road: Option<Flow>,
     faults: Count,
@@ -87,16 +89,11 @@ impl Monitor for TcsMonitor {
             Some(false) => tracing::info!("vehicle speed back: traction control active again"),
             None => {}
         }
-        match self.bus_gone.update(s.bus_gone.load(Ordering::Relaxed)) {
-            Some(true) => tracing::error!(
-                "CAN INTERFACE GONE (deleted or unplugged: ENODEV/ENXIO): no frame in or out; the socket is reopened when an interface of its name is back (checked every 100 ms)"
-            ),
-            Some(false) => tracing::warn!(
-                reopens = s.bus_reopens.load(Ordering::Relaxed),
-                "CAN interface back: socket reopened on it (same name and receive filters)"
-            ),
-            None => {}
-        }
+        grip_io::log_bus_presence!(
+            self.bus,
+            s.bus_gone.load(Ordering::Relaxed),
+            s.bus_reopens.load(Ordering::Relaxed)
+        );
         if let Some(road) = &mut self.road {
             match road.update(s.road_estimates.load(Ordering::Relaxed), now) {
                 Some(FlowEvent::Moving {

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use grip_config::{ConfigDir, ConfigError, load_controllers};
-use grip_io::can::{AnyBus, CanBus, CanBusConfig, CanError, RxFilter, open_bus};
+use grip_io::can::{CanBus, CanBusConfig, CanError, RxFilter, open_bus};
 use grip_io::clock::{Clock, MonotonicClock};
 use grip_io::ipc::{IpcError, IpcNode};
 use grip_io::rt::{self, LatencyHistogram, PeriodicTimer};
@@ -326,12 +326,9 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
         lp.cycle(&tick, &clock, &mut bus, &mut road, &mut sink);
         // a deleted interface (adapter unplugged): the bus reopens its
         // socket when it is back; the helper logs both
-        if let AnyBus::SocketCan(b) = &bus {
-            status
-                .bus_gone
-                .store(b.gone_since().is_some(), Ordering::Relaxed);
-            status.bus_reopens.store(b.reopens(), Ordering::Relaxed);
-        }
+        let (gone, reopens) = bus.presence();
+        status.bus_gone.store(gone, Ordering::Relaxed);
+        status.bus_reopens.store(reopens, Ordering::Relaxed);
         if end_ns.is_some_and(|e| t.woke_ns >= e) {
             break;
         }

@@ -295,6 +295,21 @@ pub enum AnyBus {
     Sim(SimBus),
 }
 
+impl AnyBus {
+    /// Whether a SocketCAN bus's interface is gone now (deleted or
+    /// unplugged, its socket unbound) and how often its socket was reopened
+    /// on a re-created interface ([`SocketCanBus::gone_since`],
+    /// [`SocketCanBus::reopens`]); `(false, 0)` for the simulated bus. What
+    /// a loop stores for its helper thread after each cycle
+    /// ([`crate::service::monitor::BusPresence`]); allocation-free.
+    pub fn presence(&self) -> (bool, u64) {
+        match self {
+            Self::SocketCan(b) => (b.gone_since().is_some(), b.reopens()),
+            Self::Sim(_) => (false, 0),
+        }
+    }
+}
+
 impl CanBus for AnyBus {
     fn send(&mut self, f: &CanFrame) -> Result<(), CanError> {
         match self {

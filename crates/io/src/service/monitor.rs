@@ -209,6 +209,78 @@ impl<T: PartialEq + Copy> Changed<T> {
     }
 }
 
+/// A SocketCAN interface's presence as a service's loop shares it (gone
+/// now, sockets reopened so far: [`crate::can::AnyBus::presence`]), followed
+/// by its helper thread, which logs each change with
+/// [`log_bus_presence!`](crate::log_bus_presence): tcs-loop and plant-sim
+/// say it in the same words.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BusPresence {
+    gone: Changed<bool>,
+}
+
+/// What [`BusPresence::update`] saw.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BusEvent {
+    /// The interface is gone (deleted or unplugged: its socket unbound).
+    Gone,
+    /// It is back: the socket was reopened on it.
+    Back {
+        /// Sockets reopened so far.
+        reopens: u64,
+    },
+}
+
+impl Default for BusPresence {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl BusPresence {
+    /// The interface present (as at start-up).
+    pub fn new() -> Self {
+        Self {
+            gone: Changed::new(false),
+        }
+    }
+
+    /// The loop's `gone` flag and reopen count now: the change, if any.
+    pub fn update(&mut self, gone: bool, reopens: u64) -> Option<BusEvent> {
+        self.gone.update(gone).map(|g| {
+            if g {
+                BusEvent::Gone
+            } else {
+                BusEvent::Back { reopens }
+            }
+        })
+    }
+}
+
+/// `log_bus_presence!(presence, gone, reopens)`: [`BusPresence::update`],
+/// and a line for a change: an error when the interface is gone, a warning
+/// (`reopens = N`) when it is back. A macro so that the line's target is
+/// the calling service's module, as [`warn_if_grew!`](crate::warn_if_grew).
+#[macro_export]
+macro_rules! log_bus_presence {
+    ($presence:expr, $gone:expr, $reopens:expr $(,)?) => {{
+        match $presence.update($gone, $reopens) {
+            Some($crate::service::monitor::BusEvent::Gone) => {
+                $crate::service::monitor::tracing::error!(
+                    "CAN INTERFACE GONE (deleted or unplugged: ENODEV/ENXIO): no frame in or out; the socket is reopened when an interface of its name is back (checked every 100 ms)"
+                )
+            }
+            Some($crate::service::monitor::BusEvent::Back { reopens }) => {
+                $crate::service::monitor::tracing::warn!(
+                    reopens,
+                    "CAN interface back: socket reopened on it (same name and receive filters)"
+                )
+            }
+            None => {}
+        }
+    }};
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -287,6 +359,20 @@ mod tests {
         assert_eq!(c.update(true), Some(true));
         assert_eq!(c.update(true), None);
         assert_eq!(c.update(false), Some(false));
+    }
+
+    #[test]
+    fn bus_presence_reports_gone_and_back_once_each() {
+        let mut p = BusPresence::new();
+        assert_eq!(p.update(false, 0), None);
+        assert_eq!(p.update(true, 0), Some(BusEvent::Gone));
+        assert_eq!(p.update(true, 0), None, "reported once");
+        assert_eq!(p.update(false, 1), Some(BusEvent::Back { reopens: 1 }));
+        assert_eq!(p.update(false, 1), None);
+        // the macro: the same transitions, logged
+        let mut q = BusPresence::new();
+        crate::log_bus_presence!(q, true, 0);
+        assert_eq!(q.update(true, 0), None);
     }
 
     struct Probe {

@@ -216,6 +216,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         );
     }
     // the summary, from the log (also after a failure: what was recorded)
+    let mut control_lost = None;
     match DriveLog::load(&out) {
         Ok(log) => {
             let (vehicle, from, warnings) = drive::vehicle_for(&log, &config_dir);
@@ -228,12 +229,23 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             let log_roads = log.road_catalogue(&config_dir);
             let s = summary::summarize_with_roads(&log, &vehicle, &from, &log_roads);
             print!("{}", super::inspect::report(&log, &s));
+            control_lost = s.control.filter(summary::ControlHealth::lost);
         }
         Err(e) if outcome.failure.is_some() => eprintln!("drive: no readable log: {e:#}"),
         Err(e) => return Err(e.into()),
     }
     if let Some(f) = outcome.failure {
         bail!("drive failed: {f}");
+    }
+    // every service ran to the end, but the loop lost control and never
+    // regained it (e.g. its bus gone for good): not a successful drive
+    // (tools/grip/README.md, "When a drive fails")
+    if let Some(c) = control_lost {
+        bail!(
+            "drive failed: tcs-loop's control during the scenario: {} (log kept: {})",
+            c.line(),
+            out.display()
+        );
     }
     Ok(())
 }

@@ -3,7 +3,10 @@
 //! has two times: `t_s`, seconds since the first message of the log, and
 //! `t_scenario_s`, seconds since the scenario start as the summary finds it
 //! (empty when the log does not show it: no ground truth, or the scenario
-//! never started); plus the raw ns stamp.
+//! never started); plus the raw ns stamp. An index with nothing behind it
+//! (`NO_CLASS`, u32::MAX in the message: no road, no class, no believed
+//! road) is an empty field, as is a value that is not finite (NaN: no cap,
+//! no belief); `road_taken` counts 0 for none.
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -153,11 +156,13 @@ pub fn class_names(log: &DriveLog) -> BTreeMap<u32, String> {
         .collect()
 }
 
-/// The header of `cycles.csv`.
+/// The header of `cycles.csv` (`road_class`, `belief_road`: empty for
+/// none).
 pub const CYCLES_HEADER: &str = "t_s,t_scenario_s,stamp_ns,seq,wakeup_latency_ns,compute_ns,deadline_misses,omega,v,v_valid,torque,demand,torque_cmd,internal,mu_hat,road_class,road_class_name,used_arte,road_taken,safe_state,faults_crc,faults_counter_repeated,faults_counter_skipped,faults_length,faults_unknown_id,faults_timeout,odometer,torque_cap,belief_road,belief_road_name,belief_prob";
-/// The header of `estimates.csv`.
+/// The header of `estimates.csv` (`class_index`: empty for no class).
 pub const ESTIMATES_HEADER: &str = "t_s,t_scenario_s,stamp_ns,seq,frame_t0_s,frame_t1_s,frame_t0_scenario_s,frame_t1_scenario_s,frame_t0_ns,frame_t1_ns,class_index,class_name,confidence,lambda_opt,mu_peak,alpha,n_classes,probabilities,x_from,x_to";
-/// The header of `truth.csv`.
+/// The header of `truth.csv` (`road_index`, `mic_road_index`: indices
+/// into the road catalogue; empty for no road).
 pub const TRUTH_HEADER: &str = "t_s,t_scenario_s,stamp_ns,seq,road_index,road_name,v,omega,lambda,torque,x,mic_road_index,mic_road_name";
 /// The header of `can.csv`.
 pub const CAN_HEADER: &str = "t_s,t_scenario_s,stamp_ns,id,name,direction,bus,dlc,flags,data";
@@ -271,14 +276,14 @@ pub fn write_csv(log: &DriveLog, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
             ts(g.stamp_ns),
             g.stamp_ns,
             g.seq,
-            g.road_index,
+            idx(g.road_index),
             q(g.road_name().unwrap_or("")),
             f(g.v),
             f(g.omega),
             f(g.lambda),
             f(g.torque),
             f(g.x),
-            g.mic_road_index,
+            idx(g.mic_road_index),
             q(g.mic_road_name().unwrap_or(""))
         )?;
     }
@@ -643,6 +648,51 @@ mod tests {
             ("2", "")
         );
         assert_eq!(r["road_class_name"], "snow");
+    }
+
+    /// A "no road" (`NO_CLASS`, u32::MAX) is an empty field in every CSV,
+    /// never `4294967295`: the ground truth's road and microphone road (a
+    /// plant with no road under the wheel, e.g. before a scenario's first
+    /// segment), a cycle's class and believed road, an estimate's class.
+    #[test]
+    fn no_road_is_an_empty_field_not_u32_max() {
+        let mut log = test_log::drive();
+        log.truth[0].road_index = grip_msgs::NO_CLASS;
+        log.truth[0].road_name = [0; grip_msgs::NAME_LEN];
+        log.truth[0].mic_road_index = grip_msgs::NO_CLASS;
+        log.truth[0].mic_road_name = [0; grip_msgs::NAME_LEN];
+        log.roads[0].class_index = grip_msgs::NO_CLASS;
+        let dir = tempfile::tempdir().unwrap();
+        super::write_csv(&log, dir.path()).unwrap();
+        for file in ["cycles.csv", "estimates.csv", "truth.csv", "can.csv"] {
+            let text = std::fs::read_to_string(dir.path().join(file)).unwrap();
+            assert!(!text.contains("4294967295"), "{file}:\n{text}");
+        }
+        let (_, truth) = read(dir.path(), "truth.csv");
+        let r = &truth[0];
+        assert_eq!(
+            (
+                r["road_index"].as_str(),
+                r["road_name"].as_str(),
+                r["mic_road_index"].as_str(),
+                r["mic_road_name"].as_str()
+            ),
+            ("", "", "", "")
+        );
+        // a road is its catalogue index
+        assert_eq!(truth[1]["road_index"], "0");
+        assert_eq!(truth[1]["road_name"], "asphalt");
+        let (_, est) = read(dir.path(), "estimates.csv");
+        assert_eq!(est[0]["class_index"], "");
+        // the first cycles come before any estimate: no class, no belief
+        let (_, cycles) = read(dir.path(), "cycles.csv");
+        assert_eq!(
+            (
+                cycles[0]["road_class"].as_str(),
+                cycles[0]["belief_road"].as_str()
+            ),
+            ("", "")
+        );
     }
 
     /// Every CSV has `t_s` (from the first message) and `t_scenario_s` (from
