@@ -85,12 +85,76 @@ fn run(mut m: impl Monitor, done: &AtomicBool) {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Count {
     last: u64,
+    /// [`Self::grew_spaced`]: the value at the last call, the reports
+    /// waited since the last line, the reports to wait before the next
+    /// (0 until the first line: 1), and the reports in a row without
+    /// growth.
+    seen: u64,
+    since: u32,
+    wait: u32,
+    quiet: u32,
+    /// Reports the last line covered.
+    over: u32,
 }
+
+/// The longest wait between two lines of a counter that keeps growing, in
+/// the helper's reports (one per [`REPORT_INTERVAL`], 1 s): 64 s.
+pub const MAX_REPORT_SPACING: u32 = 64;
 
 impl Count {
     /// Last seen at `v`.
     pub fn new(v: u64) -> Self {
-        Self { last: v }
+        Self {
+            last: v,
+            seen: v,
+            ..Self::default()
+        }
+    }
+
+    /// [`Self::grew`] for a line at most every so many reports, spaced out
+    /// while the counter keeps growing: called once per report, it returns
+    /// the growth since the last line (`None` if none, or not yet time)
+    /// after 1 report, then 2, 4, ... up to [`MAX_REPORT_SPACING`] while
+    /// the counter grows in every window, and again after 1 once it has
+    /// stood still for a whole window. A persistent fault (a muted
+    /// microphone, deadline misses on a loaded ECU) then writes 7 lines in
+    /// its first two minutes and one a minute after, not one a second
+    /// (86 400 lines a day per counter, under journald's rate limit, so
+    /// nothing thinned them); nothing is lost: each line's `new` is all the
+    /// growth since the previous line. A counter that goes down (a
+    /// restarted peer) is followed, not reported, and starts over.
+    pub fn grew_spaced(&mut self, now: u64) -> Option<u64> {
+        if now < self.seen {
+            *self = Self::new(now);
+            return None;
+        }
+        self.wait = self.wait.max(1);
+        self.since = self.since.saturating_add(1);
+        self.quiet = if now > self.seen {
+            0
+        } else {
+            self.quiet.saturating_add(1)
+        };
+        self.seen = now;
+        if now > self.last && self.since >= self.wait {
+            let new = now - self.last;
+            self.last = now;
+            self.over = self.since;
+            self.since = 0;
+            self.wait = (self.wait * 2).min(MAX_REPORT_SPACING);
+            return Some(new);
+        }
+        if now == self.last && self.quiet >= self.wait {
+            self.wait = 1;
+        }
+        None
+    }
+
+    /// The reports the last line of [`Self::grew_spaced`] covers (since
+    /// the line before it, or since the start): its `over_s` with one
+    /// report a second.
+    pub fn spacing(&self) -> u32 {
+        self.over
     }
 
     /// The value at the last [`Self::grew`].
@@ -107,18 +171,21 @@ impl Count {
     }
 }
 
-/// `warn_if_grew!(count, now, "what")`: [`Count::grew`], and if it did, a
-/// `tracing` warning `what` with `total = now` and `new` (since the last
-/// line); `warn_if_grew!(count, now, "what", key = value, ...)` adds
-/// fields, evaluated only when the line is written. A macro so that the
-/// line's target is the calling service's module (log filters such as
-/// `RUST_LOG=grip_tcs_loop=warn` keep working).
+/// `warn_if_grew!(count, now, "what")`: [`Count::grew_spaced`], and if it
+/// is time for a line, a `tracing` warning `what` with `total = now`, `new`
+/// (since the last line) and `over_s` (the seconds that line covers: 1,
+/// then 2, 4, ... 64 while the counter keeps growing); `warn_if_grew!(count,
+/// now, "what", key = value, ...)` adds fields, evaluated only when the
+/// line is written. Called once per report ([`REPORT_INTERVAL`]). A macro
+/// so that the line's target is the calling service's module (log filters
+/// such as `RUST_LOG=grip_tcs_loop=warn` keep working).
 #[macro_export]
 macro_rules! warn_if_grew {
     ($count:expr, $now:expr, $what:literal $(, $key:ident = $value:expr)* $(,)?) => {{
         let now: u64 = $now;
-        if let Some(new) = $count.grew(now) {
-            $crate::service::monitor::tracing::warn!(total = now, new, $($key = $value,)* $what);
+        if let Some(new) = $count.grew_spaced(now) {
+            let over_s = $count.spacing();
+            $crate::service::monitor::tracing::warn!(total = now, new, over_s, $($key = $value,)* $what);
         }
     }};
 }
@@ -373,6 +440,57 @@ mod tests {
         let mut q = BusPresence::new();
         crate::log_bus_presence!(q, true, 0);
         assert_eq!(q.update(true, 0), None);
+    }
+
+    /// A counter that grows every second is written at 1, 3, 7, 15, 31,
+    /// 63, 127 s, then every 64 s, each line with all the growth since the
+    /// last; once it stands still for a whole window, the next growth is
+    /// written at once again; a counter that goes down starts over.
+    #[test]
+    fn a_persistent_growth_is_written_ever_more_seldom_and_nothing_is_lost() {
+        let mut c = Count::new(0);
+        let mut lines = Vec::new();
+        let mut written = 0;
+        for t in 1..=86_400u64 {
+            if let Some(new) = c.grew_spaced(t * 3) {
+                lines.push((t, new, c.spacing()));
+                written += new;
+            }
+        }
+        let at: Vec<u64> = lines.iter().take(9).map(|l| l.0).collect();
+        assert_eq!(at, [1, 3, 7, 15, 31, 63, 127, 191, 255]);
+        assert_eq!(lines[0].1, 3);
+        assert_eq!((lines[1].1, lines[1].2), (6, 2));
+        assert_eq!((lines[8].1, lines[8].2), (192, 64));
+        // a day: 7 lines in the first two minutes, then one each 64 s
+        assert_eq!(lines.len(), 7 + (86_400 - 127) / 64);
+        assert!(lines.len() < 1400, "{}", lines.len());
+        let last = lines.last().unwrap().0;
+        assert_eq!(written, last * 3, "every line's new adds up to the total");
+        // the counter stands for a whole window (64 reports), then grows
+        // once: written at once, as a first growth
+        let total = 86_400 * 3;
+        let mut pending = None;
+        for _ in 0..130 {
+            if let Some(new) = c.grew_spaced(total) {
+                pending = Some(new);
+            }
+        }
+        assert_eq!(pending, Some(total - last * 3), "the rest, within a window");
+        assert_eq!(c.grew_spaced(total + 1), Some(1));
+        assert_eq!(c.grew_spaced(total + 2), None, "then 2 reports");
+        assert_eq!(c.grew_spaced(total + 3), Some(2));
+        // isolated events far apart: each written at once
+        let mut d = Count::new(10);
+        for k in 0..5u64 {
+            assert_eq!(d.grew_spaced(11 + k), Some(1), "event {k}");
+            for _ in 0..9 {
+                assert_eq!(d.grew_spaced(11 + k), None);
+            }
+        }
+        // a restarted peer's counter goes down: followed, not written
+        assert_eq!(d.grew_spaced(2), None);
+        assert_eq!(d.grew_spaced(3), Some(1));
     }
 
     struct Probe {
