@@ -48,6 +48,35 @@ pub struct RecorderConfig {
     /// Absent: [`DEFAULT_MIN_FREE_MIB`].
     #[serde(default = "default_min_free_mib")]
     pub min_free_mib: u64,
+    /// Rotation (without `--out`): a new part once the one being written
+    /// holds this many MiB on disk ([`crate::parts`]). 0 = no size limit
+    /// (only with `max_total_mib = 0`); otherwise 1 ..= 16777216, and at
+    /// most half of `max_total_mib` when that budget is on. Absent:
+    /// [`DEFAULT_MAX_FILE_MIB`], or half the budget when that is smaller
+    /// (an older file with a small budget keeps working):
+    /// [`RecorderConfig::max_file_mib`].
+    #[serde(default)]
+    pub max_file_mib: Option<u64>,
+    /// Rotation (without `--out`): a new part once the one being written
+    /// has recorded this many seconds, 1 ..= 86400. Absent:
+    /// [`DEFAULT_MAX_FILE_S`].
+    #[serde(default = "default_max_file_s")]
+    pub max_file_s: u64,
+}
+
+/// `max_file_mib` when the file does not set it: 1 GiB, about 40 minutes
+/// at the ~1.6 GB an hour a drive writes; an eighth of the default budget,
+/// so that retention frees it in steps of an eighth and keeps at least
+/// 7 GiB of history.
+pub const DEFAULT_MAX_FILE_MIB: u64 = 1024;
+/// `max_file_s` when the file does not set it: an hour.
+pub const DEFAULT_MAX_FILE_S: u64 = 3600;
+/// Largest `max_file_s`: a day (a channel's u32 sequence numbers then
+/// never wrap within a part: 86400 s at the CAN log's ~3.2 kHz is 2.8e8).
+pub const MAX_FILE_S: u64 = 86_400;
+
+fn default_max_file_s() -> u64 {
+    DEFAULT_MAX_FILE_S
 }
 
 /// `max_total_mib` when the file does not set it: 8 GiB, about five hours
@@ -114,6 +143,29 @@ impl ServiceConfig for RecorderConfig {
                 ),
             ));
         }
+        let max_file_mib = self.max_file_mib();
+        if max_file_mib > MAX_RETENTION_MIB {
+            return Err(ConfigError::new(
+                path,
+                "max_file_mib",
+                format!(
+                    "must be 0 (no size limit) or in 1 ..= {MAX_RETENTION_MIB} (got {max_file_mib})"
+                ),
+            ));
+        }
+        if self.max_total_mib != 0 && (max_file_mib == 0 || max_file_mib > self.max_total_mib / 2) {
+            return Err(ConfigError::new(
+                path,
+                "max_file_mib",
+                format!(
+                    "must be in 1 ..= {} (half of max_total_mib = {}) while the budget is on, so that retention can delete finished parts and keep the budget (got {})",
+                    self.max_total_mib / 2,
+                    self.max_total_mib,
+                    max_file_mib
+                ),
+            ));
+        }
+        range("max_file_s", self.max_file_s, 1, MAX_FILE_S)?;
         if self.out_dir.as_os_str().is_empty() {
             return Err(ConfigError::new(path, "out_dir", "must not be empty"));
         }
@@ -134,6 +186,24 @@ impl RecorderConfig {
     /// The receive thread's idle sleep.
     pub fn poll_interval(&self) -> Duration {
         Duration::from_millis(self.poll_interval_ms)
+    }
+
+    /// `max_file_mib` as set, else [`DEFAULT_MAX_FILE_MIB`] or half of
+    /// the budget `max_total_mib` when that is smaller.
+    pub fn max_file_mib(&self) -> u64 {
+        self.max_file_mib.unwrap_or(match self.max_total_mib {
+            0 => DEFAULT_MAX_FILE_MIB,
+            b => DEFAULT_MAX_FILE_MIB.min(b / 2),
+        })
+    }
+
+    /// When the recorder starts a new part (without `--out`).
+    pub fn rotation(&self) -> crate::parts::Rotation {
+        let mib = self.max_file_mib();
+        crate::parts::Rotation {
+            max_bytes: (mib != 0).then_some(mib << 20),
+            max_age: Duration::from_secs(self.max_file_s),
+        }
     }
 
     /// The retention limits in bytes (`None`: retention off, both keys 0).
@@ -170,6 +240,10 @@ attach_max_bytes = 16777216
         assert_eq!(
             (c.max_total_mib, c.min_free_mib),
             (DEFAULT_MAX_TOTAL_MIB, DEFAULT_MIN_FREE_MIB)
+        );
+        assert_eq!(
+            (c.max_file_mib, c.max_file_s),
+            (Some(DEFAULT_MAX_FILE_MIB), DEFAULT_MAX_FILE_S)
         );
     }
 
@@ -246,6 +320,68 @@ attach_max_bytes = 16777216
         for extra in ["min_free_mib = -1\n", "max_total_mib = 1.5\n"] {
             let e = with(extra).unwrap_err();
             assert!(e.to_string().contains("_mib"), "{extra}: {e}");
+        }
+    }
+
+    /// The rotation keys: defaults when absent, ranges, and a part size
+    /// that leaves retention room in its budget.
+    #[test]
+    fn rotation_keys_default_and_are_checked_against_the_budget() {
+        let p = Path::new("recorder.toml");
+        let c: RecorderConfig = parse_toml(p, GOOD).unwrap();
+        c.validate(p).unwrap();
+        assert_eq!(
+            (c.max_file_mib(), c.max_file_s),
+            (DEFAULT_MAX_FILE_MIB, DEFAULT_MAX_FILE_S)
+        );
+        let r = c.rotation();
+        assert_eq!(r.max_bytes, Some(1024 << 20));
+        assert_eq!(r.max_age, Duration::from_secs(3600));
+        let with = |extra: &str| -> Result<RecorderConfig, ConfigError> {
+            let c: RecorderConfig = parse_toml(p, &format!("{GOOD}{extra}"))?;
+            c.validate(p)?;
+            Ok(c)
+        };
+        with("max_total_mib = 16\nmax_file_mib = 8\nmax_file_s = 1\n").unwrap();
+        // absent: the default, or half a smaller budget (an older file
+        // with a small budget keeps working)
+        let c = with("max_total_mib = 16\n").unwrap();
+        assert_eq!(c.rotation().max_bytes, Some(8 << 20));
+        let c = with("max_total_mib = 0\n").unwrap();
+        assert_eq!(c.rotation().max_bytes, Some(1024 << 20));
+        let c = with("max_total_mib = 0\nmin_free_mib = 0\nmax_file_mib = 0\n").unwrap();
+        assert_eq!(
+            c.rotation().max_bytes,
+            None,
+            "no budget: no size limit allowed"
+        );
+        for (extra, field, why) in [
+            (
+                "max_total_mib = 16\nmax_file_mib = 9\n",
+                "max_file_mib",
+                "half of max_total_mib",
+            ),
+            (
+                "max_file_mib = 0\n",
+                "max_file_mib",
+                "half of max_total_mib",
+            ),
+            ("max_file_mib = 4097\n", "max_file_mib", "1 ..= 4096"),
+            (
+                "max_total_mib = 0\nmax_file_mib = 16777217\n",
+                "max_file_mib",
+                "no size limit",
+            ),
+            ("max_file_s = 0\n", "max_file_s", "1 ..= 86400"),
+            ("max_file_s = 86401\n", "max_file_s", "1 ..= 86400"),
+        ] {
+            let e = with(extra).unwrap_err();
+            assert_eq!(e.field, field, "{extra}");
+            let s = e.to_string();
+            assert!(
+                s.contains("recorder.toml") && s.contains(why),
+                "{extra}: {s}"
+            );
         }
     }
 

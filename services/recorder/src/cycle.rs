@@ -17,8 +17,9 @@ use grip_io::systemd::{Watchdog, WatchdogPoll};
 use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
 
 use crate::monitor::{self, RxProbe, RxStep};
+use crate::parts::Parts;
 use crate::retention::Retention;
-use crate::stats::{RecvStats, TopicStats};
+use crate::stats::{RecvStats, StatsTap, TopicStats};
 
 /// One message on its way to the file.
 #[derive(Debug, Clone)]
@@ -240,7 +241,11 @@ pub struct Summary {
     pub written: BTreeMap<&'static str, u64>,
     /// Largest queue depth seen.
     pub queue_high_water: usize,
-    /// Write errors (the first one ends writing).
+    /// Messages taken from the queue but not written (after a write error,
+    /// until a new part opens), per topic.
+    pub not_written: BTreeMap<&'static str, u64>,
+    /// Write errors: each stops writing (until a new part opens, without
+    /// `--out`).
     pub write_errors: u64,
 }
 
@@ -253,6 +258,9 @@ impl Summary {
             let w = self.written.get(t).copied().unwrap_or(0);
             m.insert(format!("{t}.received"), s.received.to_string());
             m.insert(format!("{t}.written"), w.to_string());
+            if let Some(n) = self.not_written.get(t) {
+                m.insert(format!("{t}.not_written"), n.to_string());
+            }
             m.insert(format!("{t}.queue_dropped"), s.queue_dropped.to_string());
             m.insert(format!("{t}.receive_errors"), s.receive_errors.to_string());
             if t != topics::CAN_LOG {
@@ -285,6 +293,7 @@ pub fn spawn_receiver(
     poll: Duration,
     heartbeat: Arc<AtomicU64>,
     probe: Arc<RxProbe>,
+    tap: Arc<StatsTap>,
     ready: SyncSender<Result<(), IpcError>>,
 ) -> std::io::Result<JoinHandle<RecvStats>> {
     std::thread::Builder::new()
@@ -313,6 +322,10 @@ pub fn spawn_receiver(
             while !stop.load(Ordering::Relaxed) {
                 let n = receive_pass(&subs, &q, &mut stats, &mut errors, 4096, &probe, &heartbeat);
                 heartbeat.fetch_add(1, Ordering::Relaxed);
+                // a part ends: the writer asks for the counters so far
+                if tap.wanted() {
+                    tap.give(&stats);
+                }
                 if n == 0 {
                     probe.enter(RxStep::Sleep, 0);
                     std::thread::sleep(poll);
@@ -417,19 +430,21 @@ impl Backlog {
     }
 }
 
-/// The writing thread's loop: takes the queue into `w` until the receive
-/// thread is gone (after `stop`: it is told to stop, `STOPPING=1` is sent,
-/// what is queued is written). Polls the watchdog at least every 50 ms (half
-/// its period if shorter), fed only while both the receive thread
-/// (`rx_beat`) and this loop advance. Counts into `summary`; returns whether
-/// a write failed (the first failure ends writing, later messages are
-/// discarded and counted). With `retention`, sweeps the log directory
-/// between messages when its period has passed (here, never on the
-/// receive thread: a sweep delays only the writer, the queue takes up the
-/// messages meanwhile).
+/// The writing thread's loop: takes the queue into `parts` until the
+/// receive thread is gone (after `stop`: it is told to stop, `STOPPING=1`
+/// is sent, what is queued is written). Polls the watchdog at least every
+/// 50 ms (half its period if shorter), fed only while both the receive
+/// thread (`rx_beat`) and this loop advance (also while not writing after
+/// a write error: the loop still drains the queue and tries to resume).
+/// Counts into `summary`; returns whether a write failed. Between
+/// messages, `parts` starts a new part when rotation says so, or after a
+/// write error tries to resume ([`Parts::tick`]), and with `retention` the
+/// log directory is swept when its period has passed (here, never on the
+/// receive thread: a sweep or a switch delays only the writer, the queue
+/// takes up the messages meanwhile).
 pub fn write_loop(
     rx: &Receiver<Msg>,
-    w: &mut McapWriter,
+    parts: &mut Parts,
     depth: &AtomicUsize,
     stop: &AtomicBool,
     rx_stop: &AtomicBool,
@@ -442,7 +457,6 @@ pub fn write_loop(
     // the longest wait for a message: the watchdog is polled at least this
     // often (half its period, at most 50 ms), so a short WatchdogSec works
     let wait = wd.tick();
-    let mut failed = false;
     let mut stopping = false;
     let mut backlog = Backlog::default();
     loop {
@@ -461,30 +475,13 @@ pub fn write_loop(
                     tracing::warn!(
                         waiting = peak,
                         topic = m.topic(),
-                        last_flush_ms = w.last_flush_took().as_secs_f64() * 1e3,
+                        last_flush_ms = parts.last_flush_took().as_secs_f64() * 1e3,
                         "the writer is behind: messages wait in the queue (a crash now loses them too)"
                     );
                 }
-                if !failed {
-                    match m.write_to(w) {
-                        Ok(()) => *summary.written.entry(m.topic()).or_default() += 1,
-                        Err(e) => {
-                            summary.write_errors += 1;
-                            failed = true;
-                            tracing::error!(error = %error_chain(&e), "MCAP write failed: recording stopped (messages are now discarded)");
-                        }
-                    }
-                } else {
-                    summary.write_errors += 1;
-                }
+                parts.write(&m, summary);
             }
-            Err(RecvTimeoutError::Timeout) => {
-                if !failed && let Err(e) = w.maybe_flush() {
-                    summary.write_errors += 1;
-                    failed = true;
-                    tracing::error!(error = %error_chain(&e), "MCAP flush failed: recording stopped");
-                }
-            }
+            Err(RecvTimeoutError::Timeout) => parts.idle(summary),
             Err(RecvTimeoutError::Disconnected) => break,
         }
         // fed only while both the receive thread and this loop advance
@@ -493,11 +490,14 @@ pub fn write_loop(
         if wd.poll(beat, now) == WatchdogPoll::Stalled {
             monitor::receive_stalled(beat, probe);
         }
-        if !stopping && let Some(r) = retention.as_deref_mut() {
-            r.maybe_sweep(now);
+        if !stopping {
+            parts.tick(now, summary, retention.as_deref_mut());
+            if let Some(r) = retention.as_deref_mut() {
+                r.maybe_sweep(now);
+            }
         }
     }
-    failed
+    summary.write_errors > 0
 }
 
 #[cfg(test)]

@@ -6,6 +6,8 @@
 //! - [`cycle`]: the receive thread, the bounded queue and the writing loop.
 //! - [`run()`]: the service: config, the log file and its run metadata,
 //!   `READY=1`, the loop until stopped, the summary.
+//! - [`parts`]: the run's log files: rotation (`max_file_mib`,
+//!   `max_file_s`), and a new file after a write error (a full disk).
 //! - [`retention`]: which old logs of `out_dir` to delete (the budget
 //!   `max_total_mib`, the free-space floor `min_free_mib`), and deleting them.
 //! - [`monitor`]: publishers per topic and the watchdog's stall line (the
@@ -17,6 +19,7 @@
 pub mod config;
 pub mod cycle;
 pub mod monitor;
+pub mod parts;
 pub mod retention;
 pub mod run;
 pub mod stats;

@@ -10,7 +10,9 @@
 //! - `--out FILE` (default: a new `<out_dir>/grip-<unix s>-<boot id>-<pid>.mcap`,
 //!   never overwriting a log, the oldest finished logs of `out_dir` deleted
 //!   to keep `max_total_mib` and `min_free_mib`: `grip_recorder::retention`;
-//!   with `--out` nothing is deleted).
+//!   a new part of the run, named the same way, every `max_file_mib` or
+//!   `max_file_s`, and after a write error once space is free again:
+//!   `grip_recorder::parts`; with `--out` one file, nothing deleted).
 //! - `--meta KEY=VALUE`: extra `grip.run` metadata (`grip drive` passes the
 //!   scenario, controller, ARTE switch and seed).
 //! - `--attach NAME=FILE`: one more file to hash and attach under NAME

@@ -326,6 +326,15 @@ impl Retention {
         }
     }
 
+    /// The log being written is now `current` (a new part of the run:
+    /// [`crate::parts`]); the one before is a finished log like any other.
+    pub fn set_current(&mut self, current: &Path) {
+        self.current = current
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+    }
+
     /// Totals so far.
     pub fn stats(&self) -> RetentionStats {
         self.stats

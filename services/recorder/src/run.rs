@@ -10,16 +10,18 @@ use std::sync::mpsc::sync_channel;
 
 use grip_config::ConfigError;
 use grip_io::ipc::IpcError;
-use grip_io::mcaplog::{McapLogError, McapWriter, RunInfo, sha256_hex};
+use grip_io::mcaplog::{McapLogError, McapWriter};
 use grip_io::service::{ConfigArgs, ServiceConfig};
 use grip_io::systemd;
-use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
+#[cfg(test)]
+use grip_msgs::topics;
 
 use crate::config::RecorderConfig;
 use crate::cycle::{Summary, queue, spawn_receiver, write_loop};
 use crate::monitor::RxProbe;
+use crate::parts::{NextPath, Parts, Rotation, RunHead};
 use crate::retention::Retention;
-use crate::stats::RecvStats;
+use crate::stats::{RecvStats, StatsTap};
 
 /// The grip revision this binary was built from (build.rs).
 pub const GIT_REV: &str = env!("GRIP_GIT_REV");
@@ -140,7 +142,8 @@ pub fn config_files(dir: &Path) -> Vec<ConfigFile> {
 }
 
 /// Writes `grip.run` (version, git revision, hashes, extras) and attaches
-/// the configuration files and the `extra` files (name in the log, path).
+/// the configuration files and the `extra` files (name in the log, path):
+/// the head of a run's first part ([`RunHead`]).
 pub fn write_run_info(
     w: &mut McapWriter,
     config_dir: &Path,
@@ -148,57 +151,7 @@ pub fn write_run_info(
     meta: &[(String, String)],
     extra: &[(String, PathBuf)],
 ) -> Result<(), McapLogError> {
-    let mut info = RunInfo {
-        version: env!("CARGO_PKG_VERSION").into(),
-        git_revision: GIT_REV.into(),
-        ..RunInfo::default()
-    };
-    info.extra
-        .insert("config_dir".into(), config_dir.display().to_string());
-    for (k, v) in meta {
-        info.extra.insert(k.clone(), v.clone());
-    }
-    let mut attach = Vec::new();
-    let extra = extra.iter().map(|(name, path)| ConfigFile {
-        name: name.clone(),
-        path: path.clone(),
-        model: false,
-    });
-    for f in config_files(config_dir).into_iter().chain(extra) {
-        let data = match std::fs::read(&f.path) {
-            Ok(d) => d,
-            Err(e) => {
-                tracing::warn!(file = %f.path.display(), error = %e, "cannot read config file; not attached");
-                continue;
-            }
-        };
-        let h = sha256_hex(&data);
-        if f.model {
-            info.model_hashes.insert(f.name.clone(), h);
-        } else {
-            info.config_hashes.insert(f.name.clone(), h);
-        }
-        if data.len() as u64 <= attach_max {
-            attach.push((f, data));
-        } else {
-            info.extra.insert(
-                format!("not_attached.{}", f.name),
-                format!("{} bytes > attach_max_bytes", data.len()),
-            );
-        }
-    }
-    w.write_run_info(&info)?;
-    for (f, data) in attach {
-        let media = match f.path.extension().and_then(|e| e.to_str()) {
-            Some("toml") => "application/toml",
-            Some("json") => "application/json",
-            Some("csv") => "text/csv",
-            Some("dbc") => "text/plain",
-            _ => "application/octet-stream",
-        };
-        w.attach_bytes(&f.name, media, &data)?;
-    }
-    Ok(())
+    RunHead::gather(config_dir, attach_max, meta, extra).write(w, &Default::default())
 }
 
 /// A new log file in `dir`, created empty (so that no other recorder can
@@ -293,27 +246,47 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
             None
         }
     };
-    let mut w = McapWriter::create(&path, cfg.writer_options())?;
-    for t in grip_msgs::topics::ALL {
-        match t.0 {
-            x if x == topics::AUDIO => w.add_topic::<AudioBlock>(x)?,
-            x if x == topics::ROAD => w.add_topic::<RoadEstimate>(x)?,
-            x if x == topics::CYCLE => w.add_topic::<CycleRecord>(x)?,
-            x if x == topics::CAN_LOG => w.add_topic::<CanFrame>(x)?,
-            x if x == topics::TRUTH => w.add_topic::<GroundTruth>(x)?,
-            other => tracing::warn!(topic = other, "topic not known to the recorder"),
-        }
-    }
-    write_run_info(
-        &mut w,
+    let head = RunHead::gather(
         &opts.config.config_dir,
         cfg.attach_max_bytes,
         &opts.meta,
         &opts.attach,
-    )?;
-    w.flush()?;
-
+    );
+    // rotation and resuming after a write error only where the recorder
+    // names its files itself (out_dir); --out is one file
+    let (rotation, next_path): (Option<Rotation>, NextPath) = match &opts.out {
+        Some(_) => (
+            None,
+            Box::new(|| Err(std::io::Error::other("--out: one file"))),
+        ),
+        None => {
+            let dir = cfg.out_dir.clone();
+            (
+                Some(cfg.rotation()),
+                Box::new(move || std::fs::create_dir_all(&dir).and_then(|()| default_out(&dir))),
+            )
+        }
+    };
+    if let Some(r) = rotation {
+        tracing::info!(
+            max_file_mib = cfg.max_file_mib(),
+            max_file_s = r.max_age.as_secs(),
+            "rotation: a new log file once the one being written holds max_file_mib (0: no size limit) or has recorded max_file_s"
+        );
+    }
     let (q, rx, depth, high) = queue(cfg.queue_capacity);
+    let tap = Arc::new(StatsTap::default());
+    let mut parts = Parts::open(&path, head, cfg.writer_options(), rotation, next_path)
+        .inspect_err(|_| {
+            // an empty file of ours, not a log
+            if opts.out.is_none() {
+                let _ = std::fs::remove_file(&path);
+            }
+        })?
+        .with_floor(&cfg.out_dir, cfg.min_free_mib << 20)
+        .with_tap(Arc::clone(&tap))
+        .with_high_water(Arc::clone(&high));
+
     let rx_stop = Arc::new(AtomicBool::new(false));
     let rx_beat = Arc::new(AtomicU64::new(0));
     let probe = Arc::new(RxProbe::default());
@@ -324,6 +297,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         cfg.poll_interval(),
         Arc::clone(&rx_beat),
         Arc::clone(&probe),
+        tap,
         ready_tx,
     )
     .map_err(RunError::Thread)?;
@@ -354,7 +328,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
     };
     let failed = write_loop(
         &rx,
-        &mut w,
+        &mut parts,
         &depth,
         stop,
         &rx_stop,
@@ -379,17 +353,12 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
     summary.queue_high_water = high.load(Ordering::Relaxed);
     // the file's end: a failure here (a disk that filled up at the stop)
     // is returned after the stop line, so the counters are still logged
-    let end = if failed {
-        Ok(())
-    } else {
-        // without the receive thread's counters the summary would claim
-        // nothing was received: none is written
-        let meta = match rx_failed {
-            None => w.write_metadata("grip.recorder", &summary.metadata()),
-            Some(_) => Ok(()),
-        };
-        meta.and_then(|()| w.finish())
-    };
+    // (without the receive thread's counters the record would claim
+    // nothing was received: none is written)
+    let n_parts = parts.count();
+    let last_file = parts.current().map(Path::to_path_buf);
+    let end = parts.finish(rx_failed.is_none().then_some(&summary.recv), &summary);
+    let not_written: u64 = summary.not_written.values().sum();
     let total_rx: u64 = summary.recv.topics.values().map(|s| s.received).sum();
     let total_w: u64 = summary.written.values().sum();
     let gaps: u64 = summary.recv.topics.values().map(|s| s.seq.gaps).sum();
@@ -406,6 +375,9 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         receive_errors,
         queue_high_water = summary.queue_high_water,
         write_errors = summary.write_errors,
+        not_written,
+        parts = n_parts,
+        last_file = %last_file.as_deref().unwrap_or(Path::new("-")).display(),
         retention_deleted = ret.deleted,
         retention_deleted_mib = ret.deleted_bytes >> 20,
         retention_failed = ret.failed,

@@ -115,6 +115,83 @@ impl RecvStats {
     pub fn topic(&mut self, topic: &'static str) -> &mut TopicStats {
         self.topics.entry(topic).or_default()
     }
+
+    /// What was counted after `earlier` (an earlier snapshot of the same
+    /// counters): the counters of one part of a run. The CAN alive-counter
+    /// table is not copied (only its counts).
+    pub fn since(&self, earlier: &RecvStats) -> RecvStats {
+        let mut out = RecvStats::default();
+        for (t, s) in &self.topics {
+            let e = earlier.topics.get(t).copied().unwrap_or_default();
+            let mut seq = SeqTracker {
+                gaps: s.seq.gaps.saturating_sub(e.seq.gaps),
+                gap_events: s.seq.gap_events.saturating_sub(e.seq.gap_events),
+                resets: s.seq.resets.saturating_sub(e.seq.resets),
+                ..SeqTracker::default()
+            };
+            seq.last = s.seq.last;
+            out.topics.insert(
+                t,
+                TopicStats {
+                    received: s.received.saturating_sub(e.received),
+                    queue_dropped: s.queue_dropped.saturating_sub(e.queue_dropped),
+                    seq,
+                    receive_errors: s.receive_errors.saturating_sub(e.receive_errors),
+                },
+            );
+        }
+        out.can.gaps = self.can.gaps.saturating_sub(earlier.can.gaps);
+        out.can.repeats = self.can.repeats.saturating_sub(earlier.can.repeats);
+        out.can.untracked = self.can.untracked.saturating_sub(earlier.can.untracked);
+        out
+    }
+}
+
+/// The receive thread's counters, handed to the writing thread on request
+/// (when a part ends: [`crate::parts`]). The receive thread checks
+/// [`StatsTap::wanted`] once a pass (one atomic load) and copies its
+/// counters only when asked, a few times an hour.
+#[derive(Debug, Default)]
+pub struct StatsTap {
+    want: std::sync::atomic::AtomicBool,
+    slot: std::sync::Mutex<Option<RecvStats>>,
+}
+
+impl StatsTap {
+    /// Whether the writing thread waits for a copy (receive thread).
+    pub fn wanted(&self) -> bool {
+        self.want.load(std::sync::atomic::Ordering::Acquire)
+    }
+
+    /// Hands over a copy of `stats` (receive thread).
+    pub fn give(&self, stats: &RecvStats) {
+        if let Ok(mut s) = self.slot.lock() {
+            *s = Some(stats.clone());
+        }
+        self.want.store(false, std::sync::atomic::Ordering::Release);
+    }
+
+    /// Asks the receive thread for its counters and waits for them at most
+    /// `within` (writing thread); `None` when it did not answer in time.
+    pub fn take(&self, within: std::time::Duration) -> Option<RecvStats> {
+        if let Ok(mut s) = self.slot.lock() {
+            *s = None;
+        }
+        self.want.store(true, std::sync::atomic::Ordering::Release);
+        let t0 = std::time::Instant::now();
+        loop {
+            if let Ok(mut s) = self.slot.lock()
+                && let Some(x) = s.take()
+            {
+                return Some(x);
+            }
+            if t0.elapsed() >= within {
+                self.want.store(false, std::sync::atomic::Ordering::Release);
+                return None;
+            }
+            std::thread::sleep(std::time::Duration::from_micros(500));
+        }
+    }
 }
 
 #[cfg(test)]

@@ -205,6 +205,9 @@ fn the_recorder_keeps_its_out_dir_within_the_budget() {
                 "max_total_mib = 16".to_owned()
             } else if l.starts_with("min_free_mib") {
                 "min_free_mib = 0".to_owned()
+            } else if l.starts_with("max_file_mib") {
+                // at most half the budget
+                "max_file_mib = 8".to_owned()
             } else {
                 l.to_owned()
             }
@@ -259,4 +262,44 @@ fn the_recorder_keeps_its_out_dir_within_the_budget() {
         );
     }
     assert!(err.contains("retention_deleted=2"), "{err}");
+}
+
+/// Rotation: when a new part starts ([`Retention::set_current`]) the part
+/// before is a finished log like any other, deleted oldest first for the
+/// budget; the part being written never is, even when it alone is over
+/// the budget.
+#[test]
+fn finished_parts_are_deleted_never_the_part_being_written() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path();
+    let this = boot_token();
+    let pid = std::process::id();
+    let part = |secs: u64| format!("grip-{secs}-{this}-{pid}.mcap");
+    file(dir, &part(100), 4, 1000);
+    let mut r = Retention::new(
+        dir,
+        &dir.join(part(100)),
+        Limits {
+            max_total: 10 * MIB,
+            min_free: 0,
+        },
+    );
+    r.sweep();
+    assert_eq!(names(dir), vec![part(100)], "the part being written");
+    // rotated twice: parts 1 and 2 finished, part 3 written
+    file(dir, &part(200), 4, 2000);
+    file(dir, &part(300), 4, 3000);
+    r.set_current(&dir.join(part(300)));
+    r.sweep();
+    assert_eq!(
+        names(dir),
+        vec![part(200), part(300)],
+        "the oldest part first"
+    );
+    // the part being written alone over the budget: the finished ones go,
+    // it stays
+    file(dir, &part(300), 12, 3000);
+    r.sweep();
+    assert_eq!(names(dir), vec![part(300)]);
+    assert_eq!(r.stats().deleted, 2);
 }

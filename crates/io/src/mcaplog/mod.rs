@@ -434,6 +434,24 @@ impl McapWriter {
         }
     }
 
+    /// Bytes of the file on disk now (`fstat`): what the last flushes
+    /// wrote, not the open chunk nor the write buffer (the recorder's
+    /// `max_file_mib` is checked against this).
+    pub fn file_len(&self) -> Result<u64, McapLogError> {
+        self.sync
+            .metadata()
+            .map(|m| m.len())
+            .map_err(|source| McapLogError::Io {
+                path: self.path.clone(),
+                source,
+            })
+    }
+
+    /// The file written.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
     /// Messages written.
     pub fn messages(&self) -> u64 {
         self.messages

@@ -860,6 +860,7 @@ pub fn generate(config: &Path, s: &LogSpec) -> anyhow::Result<Generated> {
         path: s.file.clone(),
         recv: rec.recv,
         written: rec.written,
+        not_written: Default::default(),
         queue_high_water: 0,
         write_errors: 0,
     };
