@@ -9,7 +9,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use grip_io::service::monitor::{
-    self, BusPresence, Changed, Count, Flow, FlowEvent, HelperError, Monitor,
+    self, BusPresence, Count, Flow, FlowEvent, HelperError, Monitor, Toggle, ToggleEvent,
 };
 use grip_io::warn_if_grew;
 
@@ -31,8 +31,8 @@ pub fn spawn_helper(
     done: Arc<AtomicBool>,
 ) -> Result<JoinHandle<()>, HelperError> {
     let m = TcsMonitor {
-        safe: Changed::new(status.safe_state.load(Ordering::Relaxed)),
-        passthrough: Changed::new(false),
+        safe: Toggle::new(status.safe_state.load(Ordering::Relaxed)),
+        passthrough: Toggle::new(false),
         bus: BusPresence::new(),
         road: arte.then(|| Flow::new(0, Instant::now(), Duration::from_secs(1))),
         faults: Count::default(),
@@ -45,9 +45,9 @@ pub fn spawn_helper(
 
 struct TcsMonitor {
     s: Arc<SharedStatus>,
-    safe: Changed<bool>,
+    safe: Toggle,
     /// The controller passing the demand through for want of a speed.
-    passthrough: Changed<bool>,
+    passthrough: Toggle,
     /// The CAN interface deleted (its socket unbound) and not yet back.
     bus: BusPresence,
     /// ARTE's estimates (only while ARTE is on).
@@ -71,22 +71,50 @@ impl Monitor for TcsMonitor {
 
     fn tick(&mut self, now: Instant) {
         let s = &self.s;
-        match self.safe.update(s.safe_state.load(Ordering::Relaxed)) {
-            Some(true) => tracing::warn!(
+        match self.safe.update(s.safe_state.load(Ordering::Relaxed), now) {
+            Some(ToggleEvent::Changed(true)) => tracing::warn!(
                 entries = s.safe_entries.load(Ordering::Relaxed),
                 "SAFE STATE entered: sensor or driver-demand frames missing; commanding 0 N m, enable cleared"
             ),
-            Some(false) => tracing::info!("safe state left: inputs valid again; controller reset"),
+            Some(ToggleEvent::Changed(false)) => {
+                tracing::info!("safe state left: inputs valid again; controller reset")
+            }
+            Some(ToggleEvent::Flapping { changes, over, now }) => tracing::warn!(
+                changes,
+                over_s = over.as_secs_f64(),
+                safe = now,
+                entries = s.safe_entries.load(Ordering::Relaxed),
+                "SAFE STATE FLAPPING: entered and left again and again (inputs come and go); changes summed up here once a minute until steady"
+            ),
+            Some(ToggleEvent::Steady { changes, now }) => tracing::warn!(
+                changes,
+                safe = now,
+                entries = s.safe_entries.load(Ordering::Relaxed),
+                "safe state steady again for 10 s"
+            ),
             None => {}
         }
         match self
             .passthrough
-            .update(s.passthrough.load(Ordering::Relaxed))
+            .update(s.passthrough.load(Ordering::Relaxed), now)
         {
-            Some(true) => tracing::warn!(
+            Some(ToggleEvent::Changed(true)) => tracing::warn!(
                 "TRACTION CONTROL INACTIVE: no vehicle speed (OmegaRef invalid and no fresh VehicleSpeed frame); the driver's demand is passed through"
             ),
-            Some(false) => tracing::info!("vehicle speed back: traction control active again"),
+            Some(ToggleEvent::Changed(false)) => {
+                tracing::info!("vehicle speed back: traction control active again")
+            }
+            Some(ToggleEvent::Flapping { changes, over, now }) => tracing::warn!(
+                changes,
+                over_s = over.as_secs_f64(),
+                inactive = now,
+                "TRACTION CONTROL FLAPPING: the vehicle speed comes and goes, the demand passed through meanwhile; changes summed up here once a minute until steady"
+            ),
+            Some(ToggleEvent::Steady { changes, now }) => tracing::warn!(
+                changes,
+                inactive = now,
+                "traction control steady again for 10 s"
+            ),
             None => {}
         }
         grip_io::log_bus_presence!(

@@ -255,6 +255,119 @@ impl Flow {
     }
 }
 
+/// Changes of a [`Toggle`] within [`FLAP_WINDOW`] that make it flapping.
+pub const FLAP_CHANGES: usize = 10;
+/// The window of [`FLAP_CHANGES`], and the quiet time after which a
+/// flapping [`Toggle`] is steady again.
+pub const FLAP_WINDOW: Duration = Duration::from_secs(10);
+/// The longest time between two lines of a flapping [`Toggle`].
+pub const FLAP_SUMMARY: Duration = Duration::from_secs(60);
+
+/// A two-valued state the helper logs at each change (as [`Changed`]),
+/// unless it flaps: from the [`FLAP_CHANGES`]th change within
+/// [`FLAP_WINDOW`] on, changes are counted and summed up in one line a
+/// minute ([`FLAP_SUMMARY`]), until the state has stood still for a whole
+/// window. An input that comes and goes (a marginal bus: the loop's safe
+/// state entered and left at every helper tick) otherwise writes up to 40
+/// lines a second, millions a day, and the journal rotates away what came
+/// before it. Allocation-free.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Toggle {
+    state: Changed<bool>,
+    /// The last changes' times (a ring of [`FLAP_CHANGES`]).
+    recent: [Option<Instant>; FLAP_CHANGES],
+    next: usize,
+    /// Flapping: (since the last line, changes since it, the last change).
+    flapping: Option<(Instant, u64, Instant)>,
+}
+
+/// What [`Toggle::update`] saw.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ToggleEvent {
+    /// A change, to this value.
+    Changed(bool),
+    /// Flapping: `changes` changes over the last `over` (the first such
+    /// event: the [`FLAP_CHANGES`] within [`FLAP_WINDOW`] that started
+    /// it), the state now `now`.
+    Flapping {
+        /// Changes over `over`.
+        changes: u64,
+        /// The time they span.
+        over: Duration,
+        /// The state now.
+        now: bool,
+    },
+    /// Steady again, at `now`, after `changes` changes since the last line.
+    Steady {
+        /// Changes since the last line.
+        changes: u64,
+        /// The state now.
+        now: bool,
+    },
+}
+
+impl Toggle {
+    /// Currently `v`.
+    pub fn new(v: bool) -> Self {
+        Self {
+            state: Changed::new(v),
+            recent: [None; FLAP_CHANGES],
+            next: 0,
+            flapping: None,
+        }
+    }
+
+    /// Takes the state `v` at `now`.
+    pub fn update(&mut self, v: bool, now: Instant) -> Option<ToggleEvent> {
+        let changed = self.state.update(v).is_some();
+        if changed {
+            self.recent[self.next] = Some(now);
+            self.next = (self.next + 1) % FLAP_CHANGES;
+        }
+        match &mut self.flapping {
+            None if changed => {
+                // the oldest of the last FLAP_CHANGES changes, within the window
+                let oldest = self.recent[self.next];
+                match oldest.filter(|t| now.saturating_duration_since(*t) < FLAP_WINDOW) {
+                    Some(t0) => {
+                        self.flapping = Some((now, 0, now));
+                        Some(ToggleEvent::Flapping {
+                            changes: FLAP_CHANGES as u64,
+                            over: now.saturating_duration_since(t0),
+                            now: v,
+                        })
+                    }
+                    None => Some(ToggleEvent::Changed(v)),
+                }
+            }
+            None => None,
+            Some((line, changes, last)) => {
+                if changed {
+                    *changes += 1;
+                    *last = now;
+                }
+                if now.saturating_duration_since(*last) >= FLAP_WINDOW {
+                    let changes = *changes;
+                    self.flapping = None;
+                    self.recent = [None; FLAP_CHANGES];
+                    Some(ToggleEvent::Steady { changes, now: v })
+                } else if now.saturating_duration_since(*line) >= FLAP_SUMMARY {
+                    let ev = ToggleEvent::Flapping {
+                        changes: *changes,
+                        over: now.saturating_duration_since(*line),
+                        now: v,
+                    };
+                    *line = now;
+                    *changes = 0;
+                    Some(ev)
+                } else {
+                    None
+                }
+            }
+        }
+    }
+}
+
 /// A state the helper logs when it changes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Changed<T> {
@@ -491,6 +604,75 @@ mod tests {
         // a restarted peer's counter goes down: followed, not written
         assert_eq!(d.grew_spaced(2), None);
         assert_eq!(d.grew_spaced(3), Some(1));
+    }
+
+    /// Changes far apart: each one; ten within 10 s: one line that says
+    /// so, then one a minute with the changes since, and once the state
+    /// stands still for 10 s a last line, after which a change is logged
+    /// again at once.
+    #[test]
+    fn a_flapping_state_is_summed_up_not_logged_at_every_change() {
+        let t0 = Instant::now();
+        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        let mut s = Toggle::new(false);
+        assert_eq!(s.update(false, at(0)), None);
+        assert_eq!(s.update(true, at(1000)), Some(ToggleEvent::Changed(true)));
+        assert_eq!(s.update(false, at(3000)), Some(ToggleEvent::Changed(false)));
+        // every 50 ms tick a change: 7 more are logged, the 10th change
+        // within 10 s (the first at 1 s) starts the summary
+        let mut v = false;
+        let mut lines = Vec::new();
+        let mut ms = 3000;
+        for _ in 0..4000 {
+            ms += 50;
+            v = !v;
+            if let Some(e) = s.update(v, at(ms)) {
+                lines.push((ms, e));
+            }
+        }
+        assert_eq!(lines.len(), 7 + 1 + 3, "{lines:?}");
+        assert!(matches!(lines[6].1, ToggleEvent::Changed(_)));
+        assert_eq!(
+            lines[7],
+            (
+                3400,
+                ToggleEvent::Flapping {
+                    changes: 10,
+                    over: Duration::from_millis(2400),
+                    now: false
+                }
+            )
+        );
+        // then a line a minute, each with the 1200 changes of that minute
+        for (k, (t, e)) in lines[8..].iter().enumerate() {
+            assert_eq!(*t, 3400 + 60_000 * (k as u64 + 1));
+            assert!(
+                matches!(e, ToggleEvent::Flapping { changes: 1200, .. }),
+                "{e:?}"
+            );
+        }
+        // it stops: 10 s later, steady, with the changes since the last line
+        let end = ms;
+        let mut steady = None;
+        for k in 1..=250 {
+            if let Some(e) = s.update(v, at(end + 50 * k)) {
+                steady = Some((50 * k, e));
+            }
+        }
+        let (after, e) = steady.expect("steady again");
+        assert_eq!(after, 10_000);
+        let since_last = (end - lines.last().unwrap().0) / 50;
+        assert_eq!(
+            e,
+            ToggleEvent::Steady {
+                changes: since_last,
+                now: v
+            }
+        );
+        assert_eq!(
+            s.update(!v, at(end + 20_000)),
+            Some(ToggleEvent::Changed(!v))
+        );
     }
 
     struct Probe {
