@@ -27,7 +27,11 @@
 //!   the whole log, labelled so), per-road recall, detection delay at each
 //!   change of the road at the microphone (from the first truth sample, so
 //!   a front-mic car's pre-roll counts), how often the controller used the
-//!   estimate.
+//!   estimate;
+//! - what the loop itself measured ([`measured()`], for every log, with
+//!   ground truth or without): slip from the measured ω and V, spin
+//!   events, acceleration from V, command against demand, per believed
+//!   road; never ground truth, and labelled so.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -38,6 +42,9 @@ use grip_tcs::{Metrics, MetricsAccumulator, Sample};
 
 use crate::log::DriveLog;
 use crate::roads::LogRoads;
+
+pub mod measured;
+pub use measured::{Measured, measured};
 
 /// The plant's period, ns: a truth sample stands for this long (the last
 /// one of the stream too).
@@ -469,6 +476,11 @@ pub struct Summary {
     /// The control loop's health over the scenario window (None: no
     /// window).
     pub control: Option<ControlHealth>,
+    /// What the loop measured (its cycle records: slip, spin events,
+    /// traction, torque, per believed road) over the scenario window, or
+    /// without one the time the driver demanded torque; not ground truth
+    /// ([`measured()`]).
+    pub measured: Measured,
 }
 
 /// The model arte ran, as the log says it ([`model_of`]).
@@ -1266,6 +1278,7 @@ pub fn summarize(
         }
         s.control = Some(h);
     }
+    s.measured = measured(log, vehicle, s.window_ns, roads);
     s
 }
 
@@ -1804,12 +1817,13 @@ impl Summary {
         } else {
             let _ = writeln!(
                 o,
-                "\nmetrics: none ({})",
+                "\nmetrics: none ({}; the loop's own measurements follow)",
                 self.window_status
                     .no_window_reason()
                     .unwrap_or("no scenario window")
             );
         }
+        o.push_str(&self.measured.render());
 
         let _ = writeln!(
             o,
@@ -2157,6 +2171,7 @@ B: {}",
             missing.join(" and ")
         );
     }
+    o.push_str(&measured::compare_rows(&a.measured, &b.measured));
     let safe = |s: &Summary| {
         s.safe_cycles_in_window
             .map_or("-".to_owned(), |n| n.to_string())

@@ -106,7 +106,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         }
     }
     if let Some(dir) = &args.plot {
-        for p in plot::write_plots(&log, dir, r)? {
+        for p in plot::write_plots(&log, dir, r, s.vehicle_params.v_eps)? {
             println!("wrote {}", p.display());
         }
     }

@@ -1,7 +1,8 @@
 //! `grip inspect --json`: one JSON object per drive log, everything a fleet
 //! table needs, computed by the same summary `grip inspect` prints
 //! ([`grip_drive::summary::summarize`]): run metadata, the scenario window
-//! and how much of the scenario it covers, metrics, ARTE accuracy (per
+//! and how much of the scenario it covers, metrics, what the loop measured
+//! (`measured`: from the cycle records, for every log), ARTE accuracy (per
 //! road, per speed band, the confusion counts; during the scenario, and
 //! over the whole log as `_whole_log`), road-change detection delays,
 //! deadline misses, wake-up latency and safe-state entries (over the whole
@@ -96,6 +97,67 @@ pub fn log_json(path: &Path, config_dir: &Path) -> Value {
     let roads = log.road_catalogue(config_dir);
     let s = summary::summarize_with_roads(&log, &vehicle, &from, &roads);
     summary_json(path, &log, &s, &warnings)
+}
+
+/// `measured`: what the loop measured (its cycle records; not ground
+/// truth), [`summary::measured()`].
+fn measured_json(m: &summary::Measured) -> Value {
+    use summary::measured as ms;
+    let spins: Vec<Value> = m
+        .spins
+        .iter()
+        .map(|e| {
+            json!({"start_s": num(e.start_s), "length_s": num(e.length_s),
+                   "peak": num(e.peak), "peak_s": num(e.peak_s)})
+        })
+        .collect();
+    let per_belief: Vec<Value> = m
+        .per_belief
+        .iter()
+        .map(|b| {
+            json!({"road": b.road, "index": b.index, "time_s": num(b.time_s),
+                   "slip_s": num(b.slip_s), "mean_abs_slip": num(b.mean_abs_slip),
+                   "max_slip": num(b.max_slip), "mean_cmd_nm": num(b.mean_cmd)})
+        })
+        .collect();
+    json!({
+        "window": m.window.as_str(),
+        "origin": if m.window == ms::MeasuredWindow::Scenario { "scenario_start" } else { "first_message" },
+        "span_s": m.span_s.map(|(a, b)| [num(a), num(b)]),
+        "stretches": m.stretches,
+        "demand_min_nm": ms::DEMAND_MIN_NM,
+        "cycles": m.cycles,
+        "time_s": num(m.time_s),
+        "no_valid_v_cycles": m.no_valid_v,
+        "below_min_speed_cycles": m.slow,
+        "min_speed_mps": ms::MIN_SPEED_MPS,
+        "slip_cycles": m.slip_cycles,
+        "slip_s": num(m.slip_s),
+        "r_m": num(m.r),
+        "v_eps_mps": num(m.v_eps),
+        "mean_abs_slip": num(m.mean_abs_slip),
+        "p95_abs_slip": num(m.p95_abs_slip),
+        "max_abs_slip": num(m.max_abs_slip),
+        "share_above_0_1": num(m.share_above[0]),
+        "share_above_0_2": num(m.share_above[1]),
+        "spin_lambda": ms::SPIN_LAMBDA,
+        "spin_min_s": ms::SPIN_MIN_S,
+        "spin_bridge_s": ms::SPIN_BRIDGE_S,
+        "spin_events": m.spins.len(),
+        "spins": spins,
+        "mean_accel_ms2": num(m.mean_accel),
+        "dv_mps": num(m.dv),
+        "accel_s": num(m.accel_s),
+        "mean_cmd_nm": num(m.mean_cmd),
+        "mean_demand_nm": num(m.mean_demand),
+        "cmd_over_demand": num(m.delivered),
+        "withheld_nms": num(m.withheld_nms),
+        "mean_torque_nm": num(m.mean_torque),
+        "cmd_tv_per_s": num(m.cmd_tv_per_s),
+        "cmd_hf_rms_nm": num(m.cmd_hf_rms),
+        "cmd_hf_share": num(m.cmd_hf_share),
+        "per_belief": per_belief,
+    })
 }
 
 /// The summary's run entry `k` (`grip.run`'s, or a replay's own).
@@ -210,6 +272,7 @@ pub fn summary_json(
         "speed_kmh_start": s.speed_kmh.map_or(Value::Null, |v| num(v.0)),
         "speed_kmh_end": s.speed_kmh.map_or(Value::Null, |v| num(v.1)),
         "metrics": metrics,
+        "measured": measured_json(&s.measured),
         "arte_estimates": a.estimates,
         "arte_judged": a.judged,
         "arte_correct": a.correct,

@@ -6,7 +6,8 @@
 //! Time runs from the scenario start (marked) when the log shows it, else
 //! from the first message; the x range is that of the data the log holds
 //! (ground truth and cycle records), so a log without ground truth (from
-//! the car) still shows the command. The title names the log, its run and
+//! the car) still shows the command, and its slip panel the slip the loop
+//! measured (`grip_drive::summary::measured::slip`) instead of the truth's. The title names the log, its run and
 //! when it was recorded (or generated).
 
 use std::path::{Path, PathBuf};
@@ -54,6 +55,10 @@ struct Series {
     /// Cycles with a valid measured vehicle speed, and that speed.
     cvt: Vec<f64>,
     meas_v: Vec<f64>,
+    /// Cycles with a measured slip λ_m (`grip_drive::summary::measured`:
+    /// valid V, max(r ω, V) at least its floor), and that slip.
+    clt: Vec<f64>,
+    meas_lambda: Vec<f64>,
     /// ARTE: (frame start, publication, class name or "").
     est: Vec<(f64, f64, String)>,
     /// Every road name in the figure, sorted (the colour palette's order).
@@ -87,11 +92,17 @@ fn x_span(log: &DriveLog, tb: &TimeBase) -> (f64, f64) {
     (lo, hi.max(lo + 1e-3))
 }
 
-fn series(log: &DriveLog, r: f64) -> Series {
+fn series(log: &DriveLog, r: f64, v_eps: f64) -> Series {
     let tb = TimeBase::of(log);
     let x = |ns: u64| tb.axis(ns);
     let name = |n: Option<&str>| n.unwrap_or("?").to_owned();
     let valid_v: Vec<_> = log.cycles.iter().filter(|c| c.v_valid != 0).collect();
+    let slips: Vec<(f64, f64)> = valid_v
+        .iter()
+        .filter_map(|c| {
+            grip_drive::summary::measured::slip(r, v_eps, c.omega, c.v).map(|l| (x(c.stamp_ns), l))
+        })
+        .collect();
     let est: Vec<(f64, f64, String)> = log
         .roads
         .iter()
@@ -135,6 +146,8 @@ fn series(log: &DriveLog, r: f64) -> Series {
         meas_r_omega: log.cycles.iter().map(|c| r * c.omega).collect(),
         cvt: valid_v.iter().map(|c| x(c.stamp_ns)).collect(),
         meas_v: valid_v.iter().map(|c| c.v).collect(),
+        clt: slips.iter().map(|p| p.0).collect(),
+        meas_lambda: slips.iter().map(|p| p.1).collect(),
         est,
         names,
     }
@@ -489,8 +502,8 @@ pub fn title_of(log: &DriveLog) -> (String, String) {
 }
 
 /// Draws drive.png's figure onto `root` (W × [`drive_height`]).
-fn draw_drive(root: &Area<'_>, log: &DriveLog, r: f64) -> Res {
-    let s = series(log, r);
+fn draw_drive(root: &Area<'_>, log: &DriveLog, r: f64, v_eps: f64) -> Res {
+    let s = series(log, r, v_eps);
     root.fill(&WHITE)?;
     let (top, rest) = root.split_vertically(TITLE_H);
     let (line1, line2) = title_of(log);
@@ -508,7 +521,6 @@ fn draw_drive(root: &Area<'_>, log: &DriveLog, r: f64) -> Res {
     let (p2, r2) = r1.split_vertically(PANEL_H);
     let (p3, p4) = r2.split_vertically(PANEL_H);
     let truth = s.has_truth();
-    let no_truth = (!truth).then_some("no ground truth in this log");
     if truth {
         panel(
             &p1,
@@ -536,19 +548,42 @@ fn draw_drive(root: &Area<'_>, log: &DriveLog, r: f64) -> Res {
             None,
         )?;
     }
-    panel(
-        &p2,
-        &s,
-        "slip λ (ground truth)",
-        if truth {
-            range(s.lambda.iter().copied().chain([0.0]))
-        } else {
-            (0.0, 0.1)
-        },
-        false,
-        &[("λ", &s.t, &s.lambda, RGBColor(200, 0, 0))],
-        no_truth,
-    )?;
+    if truth {
+        panel(
+            &p2,
+            &s,
+            "slip λ (ground truth)",
+            range(s.lambda.iter().copied().chain([0.0])),
+            false,
+            &[("λ", &s.t, &s.lambda, RGBColor(200, 0, 0))],
+            None,
+        )?;
+    } else {
+        // the loop's own measurement (no ground truth in the log), with
+        // the spin events' threshold
+        let lvl = grip_drive::summary::measured::SPIN_LAMBDA;
+        let (lo, hi) = range(s.meas_lambda.iter().copied().chain([0.0, lvl]));
+        let level = [s.span.0, s.span.1];
+        panel(
+            &p2,
+            &s,
+            "slip λ_m measured by tcs-loop ((r ω − V) / max(r ω, V, v_eps), V valid, max(r ω, V) ≥ 1 m/s; the log has no ground truth)",
+            (lo, hi),
+            false,
+            &[
+                ("λ_m measured", &s.clt, &s.meas_lambda, RGBColor(200, 0, 0)),
+                (
+                    "spin level 0.2",
+                    &level,
+                    &[lvl, lvl],
+                    RGBColor(120, 120, 120),
+                ),
+            ],
+            s.meas_lambda
+                .is_empty()
+                .then_some("no measured slip: no valid V at or above 1 m/s"),
+        )?;
+    }
     let (t_label, t_times, t_values) = if truth {
         ("T (plant)", &s.t, &s.torque)
     } else {
@@ -583,9 +618,9 @@ const fn drive_height() -> u32 {
     TITLE_H + 3 * PANEL_H + STRIPS_H
 }
 
-fn drive_png(path: &Path, log: &DriveLog, r: f64) -> Res {
+fn drive_png(path: &Path, log: &DriveLog, r: f64, v_eps: f64) -> Res {
     let root = BitMapBackend::new(path, (W, drive_height())).into_drawing_area();
-    draw_drive(&root, log, r)?;
+    draw_drive(&root, log, r, v_eps)?;
     root.present()?;
     Ok(())
 }
@@ -656,12 +691,14 @@ fn timing_png(path: &Path, log: &DriveLog) -> Res {
     Ok(())
 }
 
-/// Writes `drive.png` and `timing.png` into `dir` (created).
-pub fn write_plots(log: &DriveLog, dir: &Path, r: f64) -> anyhow::Result<Vec<PathBuf>> {
+/// Writes `drive.png` and `timing.png` into `dir` (created); `r` and
+/// `v_eps` of the drive's vehicle (r ω, and the measured slip of a log
+/// without ground truth).
+pub fn write_plots(log: &DriveLog, dir: &Path, r: f64, v_eps: f64) -> anyhow::Result<Vec<PathBuf>> {
     init_fonts();
     std::fs::create_dir_all(dir).map_err(|e| anyhow!("creating {}: {e}", dir.display()))?;
     let a = dir.join("drive.png");
-    drive_png(&a, log, r).map_err(|e| anyhow!("drawing {}: {e}", a.display()))?;
+    drive_png(&a, log, r, v_eps).map_err(|e| anyhow!("drawing {}: {e}", a.display()))?;
     let b = dir.join("timing.png");
     timing_png(&b, log).map_err(|e| anyhow!("drawing {}: {e}", b.display()))?;
     Ok(vec![a, b])
@@ -679,7 +716,7 @@ mod tests {
         {
             let root =
                 BitMapBackend::with_buffer(&mut buf, (W, drive_height())).into_drawing_area();
-            draw_drive(&root, log, test_log::R).unwrap();
+            draw_drive(&root, log, test_log::R, 0.1).unwrap();
             root.present().unwrap();
         }
         buf
@@ -713,6 +750,16 @@ mod tests {
         for (x0, x1) in [(LABEL_W + 20, W / 3), (W / 3, 2 * W / 3)] {
             let n = count(&buf, orange, top..top + PANEL_H, x0..x1);
             assert!(n > 100, "columns {x0}..{x1}: {n} pixels of the command");
+        }
+        // the slip panel: the measured slip λ_m (red), not an empty panel
+        let top = TITLE_H + PANEL_H;
+        let red = RGBColor(200, 0, 0);
+        for (x0, x1) in [(LABEL_W + 20, W / 3), (W / 3, 2 * W / 3)] {
+            let n = count(&buf, red, top..top + PANEL_H, x0..x1);
+            assert!(
+                n > 100,
+                "columns {x0}..{x1}: {n} pixels of the measured slip"
+            );
         }
     }
 
