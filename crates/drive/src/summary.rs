@@ -907,7 +907,9 @@ fn timing(cycles: &[CycleRecord]) -> Timing {
     let mut comp: Vec<i64> = cycles.iter().map(|c| c.compute_ns as i64).collect();
     let mut periods: Vec<i64> = cycles
         .windows(2)
-        .map(|w| w[1].stamp_ns as i64 - w[0].stamp_ns as i64)
+        // the signed difference, without overflow on absurd stamps (a
+        // damaged log: 0 next to 2^63)
+        .map(|w| w[1].stamp_ns.wrapping_sub(w[0].stamp_ns) as i64)
         .collect();
     Timing {
         cycles: cycles.len() as u64,

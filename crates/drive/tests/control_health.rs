@@ -246,3 +246,27 @@ fn compare_warns_about_a_side_that_lost_control() {
     let c = grip_drive::summary::compare(&held, &held);
     assert!(!c.contains("lost control"), "{c}");
 }
+
+/// A damaged log's absurd stamps (0 next to 2^63 and u64::MAX) give a
+/// summary, not an overflow panic in the loop timing's periods.
+#[test]
+fn absurd_cycle_stamps_do_not_panic_the_summary() {
+    let cycles = [0, 1u64 << 63, 1, u64::MAX, 7]
+        .into_iter()
+        .enumerate()
+        .map(|(k, t)| {
+            let mut c = CycleRecord::zeroed();
+            c.seq = k as u64;
+            c.stamp_ns = t;
+            c
+        })
+        .collect();
+    let log = DriveLog {
+        path: "absurd.mcap".into(),
+        cycles,
+        ..DriveLog::default()
+    };
+    let s = summarize(&log, &VehicleParams::default(), "test", None);
+    assert_eq!(s.timing.cycles, 5);
+    assert!(!s.render().is_empty());
+}
