@@ -16,7 +16,7 @@ from typing import Any
 import pandas as pd
 import pytest
 
-from grip_fleet import cli
+from grip_fleet import cli, tables
 from grip_fleet.grip import expand_logs, repo_root
 
 from .conftest import GOOD
@@ -39,14 +39,22 @@ def inspect_direct(grip_bin: str, path: Path) -> dict[str, Any]:
 
 
 @pytest.fixture(scope="module")
-def summary(logs: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[dict[str, Any], Path]:
-    """One ``fleet summarize DIR --out T.parquet --json`` for the tests below."""
+def summarized(logs: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[dict[str, Any], Path, str]:
+    """One ``fleet summarize DIR --out T.parquet --json`` for the tests
+    below: its JSON summary, the table and what it printed."""
     out = tmp_path_factory.mktemp("summary") / "table.parquet"
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
         assert cli.main(["summarize", str(logs), "--out", str(out), "--json"]) == 0
     line = [ln for ln in buf.getvalue().splitlines() if ln.startswith("{")][-1]
-    return json.loads(line), out
+    return json.loads(line), out, buf.getvalue()
+
+
+@pytest.fixture(scope="module")
+def summary(summarized: tuple[dict[str, Any], Path, str]) -> tuple[dict[str, Any], Path]:
+    """The JSON summary and the table of ``summarized``."""
+    s, out, _ = summarized
+    return s, out
 
 
 @pytest.fixture(scope="module")
@@ -107,6 +115,98 @@ def test_confusion_and_speed_bands_add_up_to_the_judged_estimates(
     assert bands["judged"].sum() == judged
     for _, share in conf.groupby("truth")["share_of_truth"]:
         assert math.isclose(share.sum(), 1.0)
+
+
+MEASURED_COLUMNS = {
+    "measured_mean_abs_slip": "mean_abs_slip",
+    "measured_p95_abs_slip": "p95_abs_slip",
+    "measured_max_abs_slip": "max_abs_slip",
+    "measured_share_above_0_1": "share_above_0_1",
+    "measured_share_above_0_2": "share_above_0_2",
+    "measured_mean_accel_ms2": "mean_accel_ms2",
+    "measured_mean_cmd_nm": "mean_cmd_nm",
+    "measured_mean_demand_nm": "mean_demand_nm",
+    "measured_cmd_over_demand": "cmd_over_demand",
+    "measured_withheld_nms": "withheld_nms",
+    "measured_cmd_tv_per_s": "cmd_tv_per_s",
+    "measured_time_s": "time_s",
+}
+
+
+def test_the_table_has_what_the_loop_measured_and_control_lost_as_grip_gives_them(
+    summarized: tuple[dict[str, Any], Path, str], direct: list[dict[str, Any]]
+) -> None:
+    s, out, text = summarized
+    df = pd.read_parquet(out)
+    assert str(df["spin_events"].dtype) == "Int64"
+    assert str(df["control_lost"].dtype) == "boolean"
+    for c in [*MEASURED_COLUMNS, "control_out_at_end_s"]:
+        assert df[c].dtype == "float64", c
+    by = df.set_index("file")
+    for o in direct:
+        row = by.loc[o["file"]]
+        m = o["measured"]
+        for col, key in MEASURED_COLUMNS.items():
+            assert m[key] is not None, key
+            assert row[col] == m[key], (o["file"], col)  # copied, not recomputed
+        assert row["measured_window"] == m["window"] == "scenario"
+        assert row["spin_events"] == m["spin_events"]
+        assert row["control_lost"] == o["control_lost"]
+        assert o["control_lost"] is False  # generated drives stay in control
+        assert math.isnan(row["control_out_at_end_s"])
+    # a log grip could not read: every one of them missing
+    g = by.loc["garbage.mcap"]
+    assert pd.isna(g["control_lost"]) and pd.isna(g["spin_events"]) and pd.isna(g["measured_window"])
+    assert all(math.isnan(g[c]) for c in MEASURED_COLUMNS)
+    # the summary lines add up grip's per-log figures
+    spins = {o["file"]: o["measured"]["spin_events"] for o in direct}
+    with_spins = sorted((f for f, n in spins.items() if n > 0), key=lambda f: (-spins[f], f))
+    assert s["loop"]["control_lost"] == []
+    assert s["loop"]["logs_with_spin_events"] == len(with_spins)
+    assert s["loop"]["spin_events"] == sum(spins.values())
+    assert "good logs with control lost and not regained: 0\n" in text
+    if with_spins:
+        most = with_spins[0]
+        assert s["loop"]["most_spin_events"] == {"file": most, "spin_events": spins[most]}
+        n, k = sum(spins.values()), spins[most]
+        assert (
+            f"good logs with spin events (measured by the loop): {len(with_spins)}, "
+            f"{n} event{'' if n == 1 else 's'}; most: {most} ({k} event{'' if k == 1 else 's'})"
+        ) in text
+
+
+def test_control_lost_and_spin_events_are_counted_over_the_good_logs_from_grips_objects() -> None:
+    """The fleet's lines on grip-shaped objects (the fields of ``grip
+    inspect --json``): a lost drive, one in control, one without a scenario
+    window, and a truncated log that lost control (not counted: only good
+    logs count)."""
+    objs: list[dict[str, Any]] = [
+        {"file": "a.mcap", "status": "ok", "control_lost": True, "control_out_at_end_s": 1.48,
+         "measured": {"window": "scenario", "spin_events": 2, "mean_abs_slip": 0.05}},
+        {"file": "b.mcap", "status": "ok", "control_lost": False, "control_out_at_end_s": None,
+         "measured": {"window": "scenario", "spin_events": 5, "mean_abs_slip": 0.07}},
+        {"file": "car.mcap", "status": "ok", "control_lost": None, "control_out_at_end_s": None,
+         "measured": {"window": "demand", "spin_events": 0, "mean_abs_slip": None}},
+        {"file": "cut.mcap", "status": "incomplete", "reason": "cut", "control_lost": True,
+         "measured": {"window": "scenario", "spin_events": 9}},
+        {"file": "text.mcap", "status": "unreadable", "reason": "not MCAP"},
+    ]
+    loop = tables.loop_summary(objs)
+    assert loop == {
+        "control_lost": ["a.mcap"],
+        "logs_with_spin_events": 2,
+        "spin_events": 7,
+        "most_spin_events": {"file": "b.mcap", "spin_events": 5},
+    }
+    df = tables.drive_rows(objs).set_index("file")
+    assert df["control_lost"].tolist()[:2] == [True, False]
+    assert pd.isna(df.loc["car.mcap", "control_lost"]) and pd.isna(df.loc["text.mcap", "control_lost"])
+    assert df.loc["a.mcap", "control_out_at_end_s"] == 1.48
+    assert df["spin_events"].tolist()[:4] == [2, 5, 0, 9]
+    assert pd.isna(df.loc["text.mcap", "spin_events"])
+    assert df.loc["b.mcap", "measured_mean_abs_slip"] == 0.07
+    assert math.isnan(df.loc["car.mcap", "measured_mean_abs_slip"])
+    assert df.loc["car.mcap", "measured_window"] == "demand"
 
 
 def test_replay_with_unchanged_settings_has_no_divergent_drive(

@@ -38,6 +38,10 @@ def _bad_lines(objs: list[dict[str, Any]], ok: str) -> list[str]:
     return [f"  {o.get('file')}: {o.get('status')}: {o.get('reason')}" for o in objs if o.get("status") != ok]
 
 
+def _events(n: int) -> str:
+    return f"{n} event" + ("" if n == 1 else "s")
+
+
 def summarize(a: argparse.Namespace) -> int:
     paths = expand_logs(a.logs)
     call = GripCall(find_grip(a.grip), a.config_dir, a.timeout_s)
@@ -47,6 +51,7 @@ def summarize(a: argparse.Namespace) -> int:
     conf = tables.confusion(objs)
     bands = tables.speed_bands(objs)
     acc = tables.accuracy_summary(objs)
+    loop = tables.loop_summary(objs)
     bad = _bad_lines(objs, "ok")
     pd.set_option("display.width", 200)
     print(f"fleet summarize: {len(df)} rows from {len(paths)} logs ({how}), {wall:.1f} s, {len(paths) / wall:.2f} logs/s")
@@ -54,6 +59,14 @@ def summarize(a: argparse.Namespace) -> int:
     print(
         f"ARTE accuracy over {int(acc['logs'])} good logs: mean of the per-log figures {acc['mean_of_logs']:.4f}, "
         f"pooled {acc['pooled']:.4f} ({int(acc['judged'])} judged estimates)"
+    )
+    lost = loop["control_lost"]
+    named = ", ".join(lost[:10]) + (f" and {len(lost) - 10} more" if len(lost) > 10 else "")
+    print(f"good logs with control lost and not regained: {len(lost)}" + (f": {named}" if lost else ""))
+    most = loop["most_spin_events"]
+    print(
+        f"good logs with spin events (measured by the loop): {loop['logs_with_spin_events']}"
+        + (f", {_events(loop['spin_events'])}; most: {most['file']} ({_events(most['spin_events'])})" if most else "")
     )
     if not conf.empty:
         print("\nper-road confusion (rows: true road at the microphone; share of that road's judged estimates):")
@@ -67,7 +80,7 @@ def summarize(a: argparse.Namespace) -> int:
         _write(bands, _sibling(a.out, "speed_bands"))
     if a.json:
         print(json.dumps({"rows": len(df), "bad": [o.get("file") for o in objs if o.get("status") != "ok"],
-                          "accuracy": acc, "wall_s": wall, "logs_per_s": len(paths) / wall}))
+                          "accuracy": acc, "loop": loop, "wall_s": wall, "logs_per_s": len(paths) / wall}))
     return 0
 
 

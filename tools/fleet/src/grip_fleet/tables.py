@@ -20,6 +20,24 @@ METRICS = [
 ]
 
 
+#: What the loop measured (``grip inspect --json``'s ``measured``: from the
+#: cycle records, never ground truth; the only slip and traction figures a
+#: log from the car has), as ``measured_<key>`` columns.
+MEASURED = [
+    "mean_abs_slip",
+    "p95_abs_slip",
+    "max_abs_slip",
+    "share_above_0_1",
+    "share_above_0_2",
+    "mean_accel_ms2",
+    "mean_cmd_nm",
+    "mean_demand_nm",
+    "cmd_over_demand",
+    "withheld_nms",
+    "cmd_tv_per_s",
+]
+
+
 def _f(x: Any) -> float:
     return float("nan") if x is None else float(x)
 
@@ -31,11 +49,15 @@ def drive_rows(objs: list[dict[str, Any]]) -> pd.DataFrame:
     over the whole log (``_whole_log``: start-up and the stop included; a
     ``grip drive`` log's stop enters the safe state once, when plant-sim has
     ended). ARTE's are the scenario's, its whole-log accuracy labelled
-    ``_whole_log``."""
+    ``_whole_log``. ``measured_*`` and ``spin_events`` are what the loop
+    measured (over ``measured_window``: the scenario window, else the time
+    the driver demanded torque); ``control_lost`` is grip's control
+    statement (``None`` without a scenario window)."""
     roads = sorted({r for o in objs for r in (o.get("arte_per_road") or {})})
     rows = []
     for o in objs:
         m = o.get("metrics") or {}
+        meas = o.get("measured") or {}
         e2e = o.get("e2e_faults") or {}
         e2e_in = o.get("e2e_faults_in_scenario") or {}
         row: dict[str, Any] = {
@@ -59,6 +81,13 @@ def drive_rows(objs: list[dict[str, Any]]) -> pd.DataFrame:
         }
         for k in METRICS:
             row[k] = _f(m.get(k))
+        row["measured_window"] = meas.get("window")
+        row["measured_time_s"] = _f(meas.get("time_s"))
+        for k in MEASURED:
+            row[f"measured_{k}"] = _f(meas.get(k))
+        row["spin_events"] = meas.get("spin_events")
+        row["control_lost"] = o.get("control_lost")
+        row["control_out_at_end_s"] = _f(o.get("control_out_at_end_s"))
         row.update(
             {
                 "arte_estimates": o.get("arte_estimates"),
@@ -94,8 +123,10 @@ def drive_rows(objs: list[dict[str, Any]]) -> pd.DataFrame:
         rows.append(row)
     df = pd.DataFrame(rows)
     for c in df.columns:
-        if c.startswith(("arte_judged", "arte_correct", "cycles", "deadline", "wakeup_", "safe_", "e2e", "command_", "changes_", "arte_estimates")):
+        if c.startswith(("arte_judged", "arte_correct", "cycles", "deadline", "wakeup_", "safe_", "e2e", "command_", "changes_", "arte_estimates", "spin_events")):
             df[c] = df[c].astype("Int64")
+    if "control_lost" in df:
+        df["control_lost"] = df["control_lost"].astype("boolean")
     return df
 
 
@@ -152,6 +183,26 @@ def accuracy_summary(objs: list[dict[str, Any]]) -> dict[str, float]:
         "logs": float(len(per_log)),
         "pooled": correct / judged if judged else math.nan,
         "judged": float(judged),
+    }
+
+
+def loop_summary(objs: list[dict[str, Any]]) -> dict[str, Any]:
+    """Over the good logs, from grip's per-log figures: the logs whose
+    control was lost and not regained (``control_lost``), and the logs with
+    spin events (the loop's ``measured.spin_events``), the one with the
+    most first."""
+    ok = good(objs)
+    lost = sorted(str(o.get("file")) for o in ok if o.get("control_lost") is True)
+    spins = sorted(
+        ((str(o.get("file")), int((o.get("measured") or {}).get("spin_events") or 0)) for o in ok),
+        key=lambda fs: (-fs[1], fs[0]),
+    )
+    with_spins = [(f, n) for f, n in spins if n > 0]
+    return {
+        "control_lost": lost,
+        "logs_with_spin_events": len(with_spins),
+        "spin_events": sum(n for _, n in with_spins),
+        "most_spin_events": {"file": with_spins[0][0], "spin_events": with_spins[0][1]} if with_spins else None,
     }
 
 

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use grip_drive::DriveLog;
+use grip_drive::summary::measured::MeasuredWindow;
 use grip_drive::summary::summarize_with_roads;
 
 use crate::cmd::Ctx;
@@ -40,8 +41,11 @@ pub fn bar(n: usize, what: &str) -> indicatif::ProgressBar {
 }
 
 /// The table's columns (the loop's, the E2E and the ARTE figures are those
-/// of the scenario window; `_whole_log` ones cover the whole log).
-pub const COLUMNS: [&str; 27] = [
+/// of the scenario window; `_whole_log` ones cover the whole log; the
+/// `measured_` ones and `spin_events` are what the loop measured, over
+/// `measured_window`, [`grip_drive::summary::Measured`]; `control_lost` is
+/// [`grip_drive::summary::ControlHealth::lost`], empty without a window).
+pub const COLUMNS: [&str; 37] = [
     "file",
     "status",
     "reason",
@@ -69,6 +73,16 @@ pub const COLUMNS: [&str; 27] = [
     "wakeup_max_ns_in_scenario",
     "deadline_misses_whole_log",
     "arte_accuracy_whole_log",
+    "measured_window",
+    "measured_mean_abs_slip",
+    "measured_p95_abs_slip",
+    "measured_max_abs_slip",
+    "measured_share_above_0_2",
+    "spin_events",
+    "measured_mean_accel_ms2",
+    "measured_cmd_over_demand",
+    "measured_withheld_nms",
+    "control_lost",
 ];
 
 fn num(x: f64) -> String {
@@ -156,6 +170,22 @@ pub fn row(path: &Path, config_dir: &Path) -> (Vec<String>, bool) {
     r[24] = in_scn.map_or(String::new(), |w| w.wakeup.max.to_string());
     r[25] = s.timing.deadline_misses.to_string();
     r[26] = num(s.arte.accuracy_whole_log());
+    let m = &s.measured;
+    r[27] = m.window.as_str().to_owned();
+    if m.window != MeasuredWindow::NoCycles {
+        r[28] = num(m.mean_abs_slip);
+        r[29] = num(m.p95_abs_slip);
+        r[30] = num(m.max_abs_slip);
+        r[31] = num(m.share_above[1]);
+        r[32] = m.spins.len().to_string();
+        r[33] = num(m.mean_accel);
+        r[34] = num(m.delivered);
+        r[35] = num(m.withheld_nms);
+    }
+    r[36] = s
+        .control
+        .as_ref()
+        .map_or(String::new(), |c| c.lost().to_string());
     (r, good)
 }
 
@@ -177,6 +207,16 @@ fn rounded(field: &str, scale: f64, decimals: usize) -> String {
     }
 }
 
+/// `control_lost` in the text table: `LOST` (control lost and not
+/// regained), `ok`, or `-` (no scenario window).
+fn control(field: &str) -> &str {
+    match field {
+        "true" => "LOST",
+        "false" => "ok",
+        _ => "-",
+    }
+}
+
 /// An empty count is `-` in the text table.
 fn count(field: &str) -> &str {
     if field.is_empty() { "-" } else { field }
@@ -184,13 +224,14 @@ fn count(field: &str) -> &str {
 
 /// The printed table of `grip inspect DIR` (the CSV has every column at
 /// full precision): numbers rounded, ARTE accuracy in %, the road changes
-/// ARTE missed beside the mean detection delay, and the deadline misses
-/// named as such.
+/// ARTE missed beside the mean detection delay, the deadline misses
+/// named as such, the key figures the loop measured and whether control
+/// was lost.
 pub fn table(rows: &[Vec<String>]) -> String {
     let mut text = String::new();
     let _ = writeln!(
         text,
-        "{:<28} {:<11} {:>8} {:>9} {:>8} {:>8} {:>10} {:>8} {:>7} {:>15} {:>6}  window",
+        "{:<28} {:<11} {:>8} {:>9} {:>8} {:>8} {:>10} {:>8} {:>7} {:>15} {:>6} {:>6} {:>6} {:>5} {:>7} {:>7}  window",
         "file",
         "status",
         "cycles",
@@ -201,12 +242,17 @@ pub fn table(rows: &[Vec<String>]) -> String {
         "delay_s",
         "missed",
         "deadline_misses",
-        "faults"
+        "faults",
+        "m_slip",
+        "m_max",
+        "spins",
+        "m_accel",
+        "control"
     );
     for r in rows {
         let _ = writeln!(
             text,
-            "{:<28} {:<11} {:>8} {:>9} {:>8} {:>8} {:>10} {:>8} {:>7} {:>15} {:>6}  {}",
+            "{:<28} {:<11} {:>8} {:>9} {:>8} {:>8} {:>10} {:>8} {:>7} {:>15} {:>6} {:>6} {:>6} {:>5} {:>7} {:>7}  {}",
             r[0],
             r[1],
             count(&r[6]),
@@ -222,12 +268,17 @@ pub fn table(rows: &[Vec<String>]) -> String {
             },
             count(&r[19]),
             count(&r[21]),
+            rounded(&r[28], 1.0, 3),
+            rounded(&r[30], 1.0, 3),
+            count(&r[32]),
+            rounded(&r[33], 1.0, 2),
+            control(&r[36]),
             r[22]
         );
     }
     let _ = writeln!(
         text,
-        "(during the scenario window: the metrics (slip_dev, effort N m, dist_m), arte_acc_% (ARTE accuracy, %), delay_s (mean detection delay of the road changes detected), missed (road changes at the microphone not detected, of all), deadline_misses (the control loop's missed deadlines) and faults (E2E faults); window: how much of the scenario the log covers; --csv FILE: every column at full precision)"
+        "(during the scenario window: the metrics (slip_dev, effort N m, dist_m), arte_acc_% (ARTE accuracy, %), delay_s (mean detection delay of the road changes detected), missed (road changes at the microphone not detected, of all), deadline_misses (the control loop's missed deadlines) and faults (E2E faults); measured by the loop, NOT ground truth (over the scenario window, else the time the driver demanded torque): m_slip (mean |slip|), m_max (max |slip|), spins (spin events), m_accel (mean acceleration from V, m/s^2); control: LOST when control was lost and not regained in the scenario window; window: how much of the scenario the log covers; --csv FILE: every column at full precision)"
     );
     text
 }
