@@ -13,7 +13,7 @@ use grip_config::ConfigDir;
 
 use super::Ctx;
 use crate::drive::{own_model, rates};
-use grip_drive::{self as drive, DriveLog, DrivePlan, summary};
+use grip_drive::{self as drive, DrivePlan, summary};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum OnOff {
@@ -217,7 +217,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     }
     // the summary, from the log (also after a failure: what was recorded)
     let mut control_lost = None;
-    match DriveLog::load(&out) {
+    match crate::drive::load_log(&out, Default::default()) {
         Ok(log) => {
             let (vehicle, from, warnings) = drive::vehicle_for(&log, &config_dir);
             for w in warnings {

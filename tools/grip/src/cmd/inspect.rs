@@ -48,7 +48,7 @@ fn summary_of(
     ctx: &Ctx,
     path: &std::path::Path,
 ) -> anyhow::Result<(DriveLog, f64, summary::Summary)> {
-    let log = DriveLog::load(path)?;
+    let log = crate::drive::load_log(path, Default::default())?;
     let (vehicle, from, warnings) = drive::vehicle_for(&log, &ctx.config_dir);
     for w in warnings {
         eprintln!("{w}");

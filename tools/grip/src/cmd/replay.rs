@@ -400,7 +400,7 @@ pub fn replay(
         );
     }
     let t0 = Instant::now();
-    let log = DriveLog::load_with(path, LoadOptions { audio: true })?;
+    let log = crate::drive::load_log(path, LoadOptions { audio: true })?;
     if let Some(t) = &log.report.truncated {
         bail!(
             "{}: the log is incomplete ({t}); a replay needs every cycle",
