@@ -14,8 +14,9 @@ use std::time::{Duration, Instant};
 use grip_io::ipc::{IpcError, IpcNode, Subscriber, SubscriberMode};
 use grip_io::mcaplog::{McapLogError, McapWriter};
 use grip_io::systemd::{Watchdog, WatchdogPoll};
-use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
+use grip_msgs::{AudioBlock, BusFrame, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
 
+use crate::bus::{BusSetup, BusTap};
 use crate::monitor::{self, RxProbe, RxStep};
 use crate::retention::Retention;
 use crate::stats::{RecvStats, TopicStats};
@@ -33,6 +34,8 @@ pub enum Msg {
     Can(CanFrame),
     /// Ground truth.
     Truth(GroundTruth),
+    /// A frame read off the vehicle bus ([`crate::bus`]).
+    Bus(BusFrame),
 }
 
 impl Msg {
@@ -44,6 +47,7 @@ impl Msg {
             Msg::Cycle(_) => topics::CYCLE,
             Msg::Can(_) => topics::CAN_LOG,
             Msg::Truth(_) => topics::TRUTH,
+            Msg::Bus(_) => topics::BUS,
         }
     }
 
@@ -55,6 +59,7 @@ impl Msg {
             Msg::Cycle(m) => w.write(topics::CYCLE, m),
             Msg::Can(m) => w.write(topics::CAN_LOG, m),
             Msg::Truth(m) => w.write(topics::TRUTH, m),
+            Msg::Bus(m) => w.write(topics::BUS, m),
         }
     }
 }
@@ -269,6 +274,40 @@ impl Summary {
             format!("{}.counter_repeats", topics::CAN_LOG),
             self.recv.can.repeats.to_string(),
         );
+        if let Some(b) = &self.recv.bus {
+            let t = topics::BUS;
+            let w = self.written.get(t).copied().unwrap_or(0);
+            let transport = match b.stats.transport {
+                Some(grip_io::can::BusKind::SocketCan) => "socketcan",
+                Some(grip_io::can::BusKind::Sim) => "sim",
+                None => "none (never opened)",
+            };
+            let stamps = match b.stats.transport {
+                Some(grip_io::can::BusKind::SocketCan) => {
+                    "kernel receive time (SO_TIMESTAMPNS) on CLOCK_MONOTONIC".to_owned()
+                }
+                _ => format!(
+                    "recorder's CLOCK_MONOTONIC at read (polls every {} ms)",
+                    b.poll_ms
+                ),
+            };
+            for (k, v) in [
+                ("mode", b.mode.to_owned()),
+                ("transport", transport.to_owned()),
+                ("stamps", stamps),
+                ("received", b.stats.received.to_string()),
+                ("skipped_own", b.stats.skipped_own.to_string()),
+                ("written", w.to_string()),
+                ("queue_dropped", b.stats.queue_dropped.to_string()),
+                ("receive_errors", b.stats.receive_errors.to_string()),
+                ("kernel_dropped", b.stats.kernel_dropped.to_string()),
+                ("kernel_stamped", b.stats.kernel_stamped.to_string()),
+                ("reopens", b.stats.reopens.to_string()),
+                ("open_failures", b.stats.open_failures.to_string()),
+            ] {
+                m.insert(format!("{t}.{k}"), v);
+            }
+        }
         m.insert("queue_high_water".into(), self.queue_high_water.to_string());
         m.insert("write_errors".into(), self.write_errors.to_string());
         m
@@ -286,6 +325,7 @@ pub fn spawn_receiver(
     heartbeat: Arc<AtomicU64>,
     probe: Arc<RxProbe>,
     ready: SyncSender<Result<(), IpcError>>,
+    bus: Option<BusSetup>,
 ) -> std::io::Result<JoinHandle<RecvStats>> {
     std::thread::Builder::new()
         .name("recorder-rx".into())
@@ -297,8 +337,15 @@ pub fn spawn_receiver(
             }
             let opened = IpcNode::create(topics::node::RECORDER)
                 .and_then(|node| Subscribers::open(&node).map(|s| (node, s)));
-            let (_node, subs) = match opened {
+            let poll_ms = poll.as_millis() as u64;
+            let mut bus = bus.map(BusTap::new);
+            let (node, subs) = match opened {
                 Ok(x) => {
+                    // the bus before READY=1 (a failure is a warning,
+                    // retried: crate::bus)
+                    if let Some(b) = bus.as_mut() {
+                        b.poll_open(&x.0, Instant::now());
+                    }
                     let _ = ready.send(Ok(()));
                     x
                 }
@@ -310,8 +357,22 @@ pub fn spawn_receiver(
             let mut errors = ErrorReport::default();
             // only receiving and sleeping here: the topics' peers are
             // watched by a thread of their own (monitor::spawn_peer_watch)
+            let mut next_open = Instant::now() + crate::bus::RETRY;
             while !stop.load(Ordering::Relaxed) {
-                let n = receive_pass(&subs, &q, &mut stats, &mut errors, 4096, &probe, &heartbeat);
+                let mut n =
+                    receive_pass(&subs, &q, &mut stats, &mut errors, 4096, &probe, &heartbeat);
+                if let Some(b) = bus.as_mut() {
+                    probe.enter(RxStep::Receive, RECORDED.len());
+                    n += b.pass(&q, 4096, &heartbeat);
+                    // the clock only while a try is pending: once a second
+                    if n == 0 {
+                        let now = Instant::now();
+                        if now >= next_open {
+                            next_open = now + crate::bus::RETRY;
+                            b.poll_open(&node, now);
+                        }
+                    }
+                }
                 heartbeat.fetch_add(1, Ordering::Relaxed);
                 if n == 0 {
                     probe.enter(RxStep::Sleep, 0);
@@ -319,7 +380,21 @@ pub fn spawn_receiver(
                 }
             }
             // drain what is still waiting in the subscribers
-            while receive_pass(&subs, &q, &mut stats, &mut errors, 4096, &probe, &heartbeat) > 0 {}
+            loop {
+                let mut n =
+                    receive_pass(&subs, &q, &mut stats, &mut errors, 4096, &probe, &heartbeat);
+                if let Some(b) = bus.as_mut() {
+                    n += b.pass(&q, 4096, &heartbeat);
+                }
+                if n == 0 {
+                    break;
+                }
+            }
+            stats.bus = bus.map(|b| crate::stats::BusSummary {
+                mode: b.mode().as_str(),
+                poll_ms,
+                stats: b.stats(),
+            });
             stats
         })
 }

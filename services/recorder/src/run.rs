@@ -15,7 +15,8 @@ use grip_io::service::{ConfigArgs, ServiceConfig};
 use grip_io::systemd;
 use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
 
-use crate::config::RecorderConfig;
+use crate::bus::BusSetup;
+use crate::config::{BusRecord, RecorderConfig};
 use crate::cycle::{Summary, queue, spawn_receiver, write_loop};
 use crate::monitor::RxProbe;
 use crate::retention::Retention;
@@ -254,11 +255,32 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
     // where its DBC puts them; a configuration that gives none leaves the
     // built-in one (the services themselves refuse it, naming why)
     let dir = grip_config::ConfigDir::new(&opts.config.config_dir);
-    if let Err(e) = grip_io::service::load_can(&dir)
-        .and_then(|can| grip_io::service::install_protocol(&dir, &can).map(|_| ()))
+    let can = grip_io::service::load_can(&dir);
+    if let Err(e) = can
+        .as_ref()
+        .map_err(Clone::clone)
+        .and_then(|can| grip_io::service::install_protocol(&dir, can).map(|_| ()))
     {
-        tracing::warn!(error = %e, "CAN alive counters read as the built-in protocol places them");
+        tracing::warn!(error = %e, "CAN alive counters read as the built-in protocol places them (and, with bus = \"foreign\", grip's ids on the bus are the built-in ones)");
     }
+    // the vehicle bus, read-only (crate::bus): a bus that cannot be
+    // configured is a warning, the rest is recorded
+    let bus = match (cfg.bus, can) {
+        (BusRecord::Off, _) => {
+            tracing::info!("bus log off (recorder.toml: bus = \"off\")");
+            None
+        }
+        (mode, Ok(can)) => Some(BusSetup {
+            can,
+            mode,
+            under_systemd: std::env::var_os("INVOCATION_ID").is_some(),
+        }),
+        (mode, Err(e)) => {
+            tracing::warn!(error = %e, record = mode.as_str(), "bus log: no bus configuration; the vehicle bus is not recorded");
+            None
+        }
+    };
+    let bus_mode = cfg.bus;
     let path = match &opts.out {
         Some(p) => p.clone(),
         None => std::fs::create_dir_all(&cfg.out_dir)
@@ -304,6 +326,9 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
             other => tracing::warn!(topic = other, "topic not known to the recorder"),
         }
     }
+    if bus_mode != BusRecord::Off {
+        w.add_topic::<grip_msgs::BusFrame>(topics::BUS)?;
+    }
     write_run_info(
         &mut w,
         &opts.config.config_dir,
@@ -325,6 +350,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         Arc::clone(&rx_beat),
         Arc::clone(&probe),
         ready_tx,
+        bus,
     )
     .map_err(RunError::Thread)?;
     match ready_rx.recv() {

@@ -108,6 +108,20 @@ pub struct RecvStats {
     pub topics: BTreeMap<&'static str, TopicStats>,
     /// CAN alive-counter tracking.
     pub can: CanCounterTracker,
+    /// The bus log's counters (`None`: `bus = "off"`).
+    pub bus: Option<BusSummary>,
+}
+
+/// The bus log of a recording: its mode and counters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BusSummary {
+    /// `recorder.toml`'s `bus`.
+    pub mode: &'static str,
+    /// The receive thread's idle sleep, ms (the resolution of stamps taken
+    /// at read).
+    pub poll_ms: u64,
+    /// The counters.
+    pub stats: crate::bus::BusStats,
 }
 
 impl RecvStats {
