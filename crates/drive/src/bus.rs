@@ -309,6 +309,104 @@ mod tests {
         assert!(candump_line(&frame(1, 0, &[], 0), -5, "can0").starts_with("(0000000000.000000)"));
     }
 
+    /// A drive log carrying a car's full DBC (named by its attached
+    /// `can.toml`), grip's messages and the car's own.
+    fn car_log(frames: Vec<BusFrame>, clock: bool) -> DriveLog {
+        let mut log = DriveLog::default();
+        log.attachments.insert(
+            "can.toml".into(),
+            b"transport = \"socketcan\"\ninterface = \"can1\"\ndbc = \"car.dbc\"\n".to_vec(),
+        );
+        log.attachments.insert(
+            "car.dbc".into(),
+            b"VERSION \"\"\n\nNS_ :\n\nBS_:\n\nBU_: ABS GW\n\n\
+BO_ 1001 BrakeStatus: 8 ABS\n SG_ Pressure : 0|16@1+ (0.1,0) [0|6553.5] \"bar\" GW\n\n\
+BO_ 2564485392 DiagRequest: 8 GW\n SG_ B0 : 0|8@1+ (1,0) [0|255] \"\" ABS\n\n"
+                .to_vec(),
+        );
+        let mut rec = grip_io::mcaplog::MetadataMap::new();
+        rec.insert(format!("{}.mode", topics::BUS), "foreign".into());
+        log.recorder = Some(rec);
+        if clock {
+            let mut c = grip_io::mcaplog::MetadataMap::new();
+            c.insert("monotonic_ns".into(), "1000000000".into());
+            c.insert("realtime_ns".into(), "1764950400000000000".into());
+            log.metadata.insert("grip.clock".into(), c);
+        }
+        log.bus = frames;
+        log
+    }
+
+    /// The bus section names foreign ids, 11- and 29-bit, from the car's
+    /// DBC the log carries; an id it does not define stays unnamed.
+    #[test]
+    fn the_bus_section_names_the_cars_own_messages_from_the_logs_dbc() {
+        let log = car_log(
+            vec![
+                frame(0x3E9, 0, &[1, 2], 1_000_000_000),
+                frame(0x18DA_F110, can_flags::EXTENDED, &[3], 1_001_000_000),
+                frame(0x3E9, 0, &[1, 3], 1_011_000_000),
+                frame(0x555, 0, &[], 1_012_000_000),
+            ],
+            true,
+        );
+        let names = dbc_names(&log).unwrap();
+        assert_eq!(
+            names.get(&(0x3E9, false)).map(String::as_str),
+            Some("BrakeStatus")
+        );
+        assert_eq!(
+            names.get(&(0x18DA_F110, true)).map(String::as_str),
+            Some("DiagRequest")
+        );
+        let text = render(&log).unwrap();
+        let line = |id: &str| {
+            text.lines()
+                .find(|l| l.trim_start().starts_with(id))
+                .unwrap_or_else(|| panic!("no {id} line in\n{text}"))
+                .to_owned()
+        };
+        assert!(line("0x3E9").ends_with("BrakeStatus"), "{text}");
+        assert!(
+            line("0x3E9").contains(" 11 ") && line("0x3E9").contains("11.000"),
+            "{text}"
+        );
+        assert!(line("0x18DAF110").ends_with("DiagRequest"), "{text}");
+        assert!(line("0x18DAF110").contains(" 29 "), "{text}");
+        assert!(line("0x555").trim_end().ends_with('-'), "unnamed: {text}");
+        assert!(text.contains("4 frames"), "{text}");
+        // no bus log: no section
+        let mut none = car_log(Vec::new(), true);
+        none.recorder = None;
+        assert_eq!(render(&none), None);
+    }
+
+    /// The candump export: the interface of the attached can.toml, wall
+    /// time by the log's grip.clock; without it the monotonic seconds, and
+    /// the caller is told.
+    #[test]
+    fn candump_export_places_stamps_by_the_logs_clock() {
+        let f = vec![
+            frame(0x3E9, 0, &[0xAB], 1_000_000_000),
+            frame(0x18DA_F110, can_flags::EXTENDED, &[1, 2], 3_500_250_000),
+        ];
+        let mut out = Vec::new();
+        let clock = write_candump(&car_log(f.clone(), true), &mut out).unwrap();
+        assert_eq!(clock, WallClock::FromLog);
+        assert_eq!(
+            String::from_utf8(out).unwrap(),
+            "(1764950400.000000) can1 3E9#AB\n(1764950402.500250) can1 18DAF110#0102\n"
+        );
+        let mut out = Vec::new();
+        let clock = write_candump(&car_log(f, false), &mut out).unwrap();
+        assert_eq!(clock, WallClock::Monotonic);
+        assert!(
+            String::from_utf8(out)
+                .unwrap()
+                .starts_with("(0000000001.000000) can1 3E9#AB\n"),
+        );
+    }
+
     /// Per id: frames, mean period and largest gap from the stamps, names
     /// for 11- and 29-bit ids kept apart (the same number, two messages).
     #[test]

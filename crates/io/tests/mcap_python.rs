@@ -77,6 +77,8 @@ with open(sys.argv[1], "rb") as f:
         if schema.name == "grip::AudioBlock::v1":
             last_audio = d["samples"][-1]
         if schema.name == "grip::BusFrame::v1":
+            import jsonschema
+            jsonschema.validate(d, json.loads(schema.data))
             bus_ids.add((d["id"], d["flags"]))
             bus_bytes += sum(d["data"][:d["dlc"]])
     md = {m.name: m.metadata for m in r.iter_metadata()}
