@@ -157,6 +157,8 @@ impl BusTap {
                 if !self.warned {
                     self.warned = true;
                     tracing::warn!(
+                        interface = %self.cfg.interface,
+                        transport = ?self.cfg.transport,
                         error = %e,
                         retry_s = RETRY.as_secs(),
                         "bus log: cannot open the vehicle bus (can.toml); recording everything else, and trying again every second"
@@ -198,6 +200,11 @@ impl BusTap {
         self.stats.reopens = bus.reopens();
         self.stats.kernel_stamped = bus.kernel_stamped();
         n
+    }
+
+    /// Whether the bus is open.
+    pub fn is_open(&self) -> bool {
+        self.bus.is_some()
     }
 
     /// The mode it records in.

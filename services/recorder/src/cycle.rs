@@ -357,20 +357,16 @@ pub fn spawn_receiver(
             let mut errors = ErrorReport::default();
             // only receiving and sleeping here: the topics' peers are
             // watched by a thread of their own (monitor::spawn_peer_watch)
-            let mut next_open = Instant::now() + crate::bus::RETRY;
             while !stop.load(Ordering::Relaxed) {
                 let mut n =
                     receive_pass(&subs, &q, &mut stats, &mut errors, 4096, &probe, &heartbeat);
                 if let Some(b) = bus.as_mut() {
                     probe.enter(RxStep::Receive, RECORDED.len());
-                    n += b.pass(&q, 4096, &heartbeat);
-                    // the clock only while a try is pending: once a second
-                    if n == 0 {
-                        let now = Instant::now();
-                        if now >= next_open {
-                            next_open = now + crate::bus::RETRY;
-                            b.poll_open(&node, now);
-                        }
+                    if b.is_open() {
+                        n += b.pass(&q, 4096, &heartbeat);
+                    } else {
+                        // a bus not opened yet: tried again once a second
+                        b.poll_open(&node, Instant::now());
                     }
                 }
                 heartbeat.fetch_add(1, Ordering::Relaxed);

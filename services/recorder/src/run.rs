@@ -422,6 +422,8 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
     let dropped: u64 = summary.recv.topics.values().map(|s| s.queue_dropped).sum();
     let receive_errors: u64 = summary.recv.topics.values().map(|s| s.receive_errors).sum();
     let ret = retention.as_ref().map(Retention::stats).unwrap_or_default();
+    let bus = summary.recv.bus.map(|b| b.stats).unwrap_or_default();
+    let bus_written = summary.written.get(topics::BUS).copied().unwrap_or(0);
     tracing::info!(
         file = %path.display(),
         received = total_rx,
@@ -436,6 +438,13 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         retention_deleted_mib = ret.deleted_bytes >> 20,
         retention_failed = ret.failed,
         retention_longest_sweep_ms = ret.longest.as_secs_f64() * 1e3,
+        bus_log = bus_mode.as_str(),
+        bus_received = bus.received,
+        bus_written,
+        bus_kernel_dropped = bus.kernel_dropped,
+        bus_queue_dropped = bus.queue_dropped,
+        bus_receive_errors = bus.receive_errors,
+        bus_reopens = bus.reopens,
         "recorder stopped"
     );
     end?;

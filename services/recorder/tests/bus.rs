@@ -251,6 +251,10 @@ fn the_bus_log_holds_foreign_frames_byte_for_byte_and_obeys_its_mode() {
                 assert_eq!(key("skipped_own"), Some(n_grip.to_string()));
                 assert_eq!(key("written"), Some(want.len().to_string()));
                 assert_eq!(key("queue_dropped").as_deref(), Some("0"));
+                assert!(
+                    err.contains("bus_received=1200") && err.contains("bus_written=800"),
+                    "the stop line lacks the bus counters: {err}"
+                );
             }
             Some("all") => {
                 let want: Vec<&CanFrame> = frames.iter().collect();
@@ -270,4 +274,45 @@ fn the_bus_log_holds_foreign_frames_byte_for_byte_and_obeys_its_mode() {
             }
         }
     }
+
+    // a bus that cannot be opened (an interface no machine has, transport
+    // socketcan): a warning, and everything else is recorded
+    let dir = tempfile::tempdir().unwrap();
+    config_dir(dir.path(), None);
+    let can = std::fs::read_to_string(dir.path().join("can.toml")).unwrap();
+    assert!(can.contains("interface = \"vcan0\""));
+    let can = can
+        .replace("transport = \"sim\"", "transport = \"socketcan\"")
+        .replace("interface = \"vcan0\"", "interface = \"gripnone9\"");
+    std::fs::write(dir.path().join("can.toml"), can).unwrap();
+    let out = dir.path().join("rec.mcap");
+    let mut child = start(dir.path(), &out, &instance);
+    wait(&mut child, "recorder subscribed", || {
+        cyc.peers().subscribers > 0
+    });
+    for s in 0..100u64 {
+        let mut c = CycleRecord::zeroed();
+        c.seq = s;
+        c.stamp_ns = 1_000_000_000 + s * 1_000_000;
+        cyc.publish(&c).unwrap();
+    }
+    // more than two retry periods
+    std::thread::sleep(Duration::from_millis(2500));
+    let err = stop(child);
+    let (logged, rec) = bus_log(&out);
+    assert!(logged.is_empty());
+    assert!(
+        err.contains("bus log: cannot open the vehicle bus") && err.contains("gripnone9"),
+        "{err}"
+    );
+    assert_eq!(
+        err.matches("cannot open the vehicle bus").count(),
+        1,
+        "warned once: {err}"
+    );
+    let key = |k: &str| rec.get(&format!("{}.{k}", topics::BUS)).cloned();
+    assert_eq!(key("transport").as_deref(), Some("none (never opened)"));
+    let tries: u64 = key("open_failures").unwrap().parse().unwrap();
+    assert!(tries >= 3, "tried {tries} times in 2.5 s");
+    assert_eq!(rec[&format!("{}.written", topics::CYCLE)], "100", "{err}");
 }
