@@ -275,4 +275,40 @@ fn a_bus_log_in_the_drive_is_ignored_by_replay_and_summary() {
         bus_text.contains("bus (the vehicle bus") && bus_text.contains("3000 frames"),
         "{bus_text}"
     );
+    // --candump: every bus frame in candump's format, wall time from the
+    // log's clock record; a log without a bus log is an error
+    let dump = dir.path().join("bus.log");
+    let dump_s = dump.to_str().unwrap();
+    let (ok, text) = run(&out, &["inspect", "--candump", dump_s]);
+    assert!(
+        ok && text.contains(
+            "3000 frames, candump log format; wall time from the log's grip.clock record"
+        ),
+        "{text}"
+    );
+    let lines: Vec<String> = std::fs::read_to_string(&dump)
+        .unwrap()
+        .lines()
+        .map(str::to_owned)
+        .collect();
+    assert_eq!(lines.len(), 3000);
+    let iface = " vcan0 ";
+    assert!(
+        lines[0].starts_with('(') && lines[0].contains(&format!("){iface}3E9#0001020304050607")),
+        "{}",
+        lines[0]
+    );
+    assert!(
+        lines[2].ends_with(&format!("{}18DAF110#0201020304050607", iface.trim_start())),
+        "{}",
+        lines[2]
+    );
+    let secs: f64 = lines[0][1..lines[0].find(')').unwrap()].parse().unwrap();
+    assert!(secs > 1.6e9, "not a wall time: {secs}");
+    std::fs::remove_file(&dump).unwrap();
+    let (ok, text) = run(&src, &["inspect", "--candump", dump_s]);
+    assert!(
+        !ok && text.contains("no bus log") && !dump.exists(),
+        "{text}"
+    );
 }
