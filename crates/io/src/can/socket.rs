@@ -626,6 +626,61 @@ mod tests {
         }
     }
 
+    /// A raw kernel frame as the monitor hands it out: 11- and 29-bit ids,
+    /// remote frames without payload, error frames with their class as the
+    /// id, a corrupt DLC clamped, bytes beyond the DLC zeroed.
+    #[test]
+    fn raw_frames_become_grip_frames_with_their_kind() {
+        // SAFETY: can_frame is plain data; all-zero is a valid frame.
+        let mut raw: libc::can_frame = unsafe { core::mem::zeroed() };
+        raw.data = [1, 2, 3, 4, 5, 6, 7, 8];
+        let conv = |raw: &libc::can_frame| frame_from_raw(raw, 42, 7);
+        raw.can_id = 0x3E9;
+        raw.can_dlc = 3;
+        let f = conv(&raw);
+        assert_eq!(
+            (f.id, f.flags, f.dlc, f.stamp_ns, f.bus),
+            (0x3E9, 0, 3, 42, 7)
+        );
+        assert_eq!(f.data, [1, 2, 3, 0, 0, 0, 0, 0]);
+        raw.can_id = 0x18DA_F110 | libc::CAN_EFF_FLAG;
+        raw.can_dlc = 12;
+        let f = conv(&raw);
+        assert_eq!(
+            (f.id, f.flags, f.dlc),
+            (0x18DA_F110, can_flags::EXTENDED, 8)
+        );
+        raw.can_id = 0x7AB | libc::CAN_RTR_FLAG;
+        raw.can_dlc = 4;
+        let f = conv(&raw);
+        assert_eq!(
+            (f.id, f.flags, f.dlc, f.data),
+            (0x7AB, can_flags::RTR, 4, [0; 8])
+        );
+        raw.can_id = libc::CAN_ERR_FLAG | 0x04;
+        raw.can_dlc = 8;
+        let f = conv(&raw);
+        assert_eq!((f.id, f.flags), (0x04, can_flags::ERROR));
+    }
+
+    /// The kernel's CLOCK_REALTIME stamp onto CLOCK_MONOTONIC: shifted by
+    /// the clocks' difference, never later than the read.
+    #[test]
+    fn realtime_stamps_move_onto_the_monotonic_clock() {
+        // received 1.5 ms before the read
+        assert_eq!(
+            real_to_monotonic(1_000_000_000, 1_001_500_000, 7_000_000),
+            5_500_000
+        );
+        // a wall clock stepped back since: clamped to the read
+        assert_eq!(
+            real_to_monotonic(2_000_000_000, 1_000_000_000, 7_000_000),
+            7_000_000
+        );
+        // earlier than boot: 0, never a wrap
+        assert_eq!(real_to_monotonic(0, 1_000_000_000, 5), 0);
+    }
+
     /// A fake `/sys/class/net`: `can0` with a `device` link (a controller on
     /// a bus), `vcan0` without (virtual).
     #[test]
