@@ -102,6 +102,7 @@ pub struct Queue {
     tx: SyncSender<Msg>,
     depth: Arc<AtomicUsize>,
     high_water: Arc<AtomicUsize>,
+    capacity: usize,
 }
 
 /// Creates the queue (capacity in messages).
@@ -114,6 +115,7 @@ pub fn queue(capacity: usize) -> (Queue, Receiver<Msg>, Arc<AtomicUsize>, Arc<At
             tx,
             depth: Arc::clone(&depth),
             high_water: Arc::clone(&high),
+            capacity,
         },
         rx,
         depth,
@@ -122,6 +124,14 @@ pub fn queue(capacity: usize) -> (Queue, Receiver<Msg>, Arc<AtomicUsize>, Arc<At
 }
 
 impl Queue {
+    /// True while the queue is at least half full: the vehicle bus's frames
+    /// are then dropped (and counted) rather than queued, so that a bus
+    /// flood can never fill the queue the loops' topics need
+    /// ([`crate::bus`]).
+    pub fn half_full(&self) -> bool {
+        self.depth.load(Ordering::Relaxed) >= self.capacity / 2
+    }
+
     /// Enqueues without blocking; false if full (or the writer is gone).
     pub fn offer(&self, m: Msg) -> bool {
         // count first: the writer may take the message (and decrement)
@@ -358,33 +368,34 @@ pub fn spawn_receiver(
             // only receiving and sleeping here: the topics' peers are
             // watched by a thread of their own (monitor::spawn_peer_watch)
             while !stop.load(Ordering::Relaxed) {
-                let mut n =
-                    receive_pass(&subs, &q, &mut stats, &mut errors, 4096, &probe, &heartbeat);
+                let n = receive_pass(&subs, &q, &mut stats, &mut errors, 4096, &probe, &heartbeat);
+                let mut n_bus = 0;
                 if let Some(b) = bus.as_mut() {
                     probe.enter(RxStep::Receive, RECORDED.len());
                     if b.is_open() {
-                        n += b.pass(&q, 4096, &heartbeat);
+                        n_bus = b.pass(&q, crate::bus::MAX_PER_PASS, &heartbeat);
                     } else {
                         // a bus not opened yet: tried again once a second
                         b.poll_open(&node, Instant::now());
                     }
                 }
                 heartbeat.fetch_add(1, Ordering::Relaxed);
-                if n == 0 {
+                // the loops' topics first: a pass that read the bus is
+                // followed by the sleep, so that a flooded bus (at most
+                // MAX_PER_PASS a pass) cannot keep this thread from its
+                // subscribers or from yielding the CPU; what the bus sends
+                // beyond that overflows the socket (counted)
+                if n == 0 || n_bus > 0 {
                     probe.enter(RxStep::Sleep, 0);
                     std::thread::sleep(poll);
                 }
             }
-            // drain what is still waiting in the subscribers
-            loop {
-                let mut n =
-                    receive_pass(&subs, &q, &mut stats, &mut errors, 4096, &probe, &heartbeat);
-                if let Some(b) = bus.as_mut() {
-                    n += b.pass(&q, 4096, &heartbeat);
-                }
-                if n == 0 {
-                    break;
-                }
+            // drain what is still waiting in the subscribers; the bus once
+            // (a car's other ECUs never stop sending: draining it until
+            // empty could last for ever)
+            while receive_pass(&subs, &q, &mut stats, &mut errors, 4096, &probe, &heartbeat) > 0 {}
+            if let Some(b) = bus.as_mut() {
+                b.pass(&q, 4096, &heartbeat);
             }
             stats.bus = bus.map(|b| crate::stats::BusSummary {
                 mode: b.mode().as_str(),

@@ -95,4 +95,26 @@ fn the_bus_path_of_the_receive_thread_allocates_nothing() {
     assert!(
         matches!(queued[1], Msg::Bus(b) if b.id == 0x18DA_F110 && b.flags == can_flags::EXTENDED)
     );
+
+    // a queue half full (a writer far behind): the bus's frames are
+    // dropped and counted, the other half stays the loops'
+    let (q2, rx2, _, _) = queue(1024);
+    for _ in 0..512 {
+        assert!(q2.offer(Msg::Cycle(grip_msgs::CycleRecord::zeroed())));
+    }
+    let before = tap.stats().queue_dropped;
+    for f in &frames {
+        ecu.send(f).unwrap();
+    }
+    while tap.pass(&q2, 4096, &beat) == 0 {}
+    assert_eq!(
+        tap.stats().queue_dropped - before,
+        2,
+        "foreign frames dropped"
+    );
+    assert_eq!(
+        rx2.try_iter().count(),
+        512,
+        "only the loops' messages queued"
+    );
 }
