@@ -26,7 +26,8 @@
 //!    missing from its first to its last (against the capture), over the
 //!    whole scenario, each stamped with the kernel's receive time (the
 //!    capture's own kernel stamp of the same frame, within 0.25 ms); the
-//!    own bus's ids are skipped (grip's by the *active* DBC), and `grip
+//!    own bus's ids are left out (grip's by the *active* DBC; by the
+//!    monitor's kernel filter, so they are not even read), and `grip
 //!    inspect --candump` writes them in candump's format.
 //! 2. `a_dbc_without_a_message_stops_the_drive_before_its_scenario`: a
 //!    `can.toml` naming a DBC without MotorStatus makes `grip drive` fail,
@@ -621,9 +622,11 @@ fn check_bus_log(
         own.len(),
         own.first()
     );
+    // grip's frames never reach the monitor on SocketCAN: its kernel filter
+    // drops them (only those queued in the instant before the filter was set)
     ensure!(
-        skipped > 1000,
-        "only {skipped} of grip's frames skipped in a drive"
+        skipped < 100,
+        "{skipped} of grip's frames reached the recorder's monitor through its kernel filter"
     );
     let logged: Vec<&grip_msgs::BusFrame> = l
         .bus

@@ -295,7 +295,7 @@ fn a_monitor_reads_every_frame_kind_with_kernel_stamps_counts_drops_and_allocate
         CanFrame as SockFrame, CanSocket, EmbeddedFrame, ExtendedId, Socket, StandardId,
     };
     let writer = CanSocket::open(&iface()).expect("second raw socket");
-    let mut mon = SocketCanBus::open_monitor(&iface(), 3).expect("monitor");
+    let mut mon = SocketCanBus::open_monitor(&iface(), 3, &[]).expect("monitor");
     let mark = 0xC7;
     let frames = [
         SockFrame::new(StandardId::new(0x3E9).unwrap(), &[1, 2, 3, mark]).unwrap(),
@@ -359,6 +359,25 @@ fn a_monitor_reads_every_frame_kind_with_kernel_stamps_counts_drops_and_allocate
     });
     assert_eq!(n, 0, "allocations in the monitor's read");
     assert!(n_read >= 300, "{n_read} of 300 read");
+
+    // a monitor excluding 0x555 (as the recorder excludes grip's ids): the
+    // kernel drops that 11-bit data frame, not the 29-bit one of that number
+    let mut ex = SocketCanBus::open_monitor(&iface(), 0, &[0x555]).expect("monitor");
+    writer.write_frame(&f).unwrap();
+    let ext = SockFrame::new(ExtendedId::new(0x555).unwrap(), &[0xE5]).unwrap();
+    writer.write_frame(&ext).unwrap();
+    std::thread::sleep(Duration::from_millis(20));
+    let mut seen = Vec::new();
+    while let Some(r) = ex.try_recv_monitor().unwrap() {
+        if r.id == 0x555 {
+            seen.push(r.flags);
+        }
+    }
+    assert_eq!(
+        seen,
+        vec![can_flags::EXTENDED],
+        "the excluded id reached the monitor"
+    );
 
     // a queue that overflows: frames written without reading beyond its
     // size are counted as the kernel's drops once a frame behind them is read

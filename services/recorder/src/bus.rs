@@ -6,7 +6,10 @@
 //! [`topics::BUS`] as [`BusFrame`]s: with `bus = "foreign"` (the default)
 //! only the frames that are not grip's protocol messages (those are in
 //! tcs-loop's CAN log, `grip/can/log`, with the loop's own stamps), with
-//! `"all"` every frame, with `"off"` nothing (the bus is not opened).
+//! `"all"` every frame, with `"off"` nothing (the bus is not opened). On
+//! SocketCAN the kernel drops grip's frames before the recorder reads them
+//! (`"foreign"`: inverted, joined `CAN_RAW_FILTER`s), so they cost it
+//! nothing; on the simulated bus they are read and skipped (`skipped_own`).
 //!
 //! - **Stamps**: on SocketCAN the kernel's receive time (`SO_TIMESTAMPNS`,
 //!   moved onto CLOCK_MONOTONIC, the log's time base); on the simulated
@@ -150,7 +153,19 @@ impl BusTap {
             return;
         }
         self.next_try = Some(now + RETRY);
-        match open_monitor(&self.cfg, node, self.under_systemd) {
+        // "foreign": grip's ids dropped in the kernel already (SocketCAN;
+        // the simulated bus delivers them and `keeps` skips them)
+        let mut exclude = [0u32; 5];
+        let exclude: &[u32] = match self.mode {
+            BusRecord::Foreign => {
+                for (e, m) in exclude.iter_mut().zip(protocol::active().messages()) {
+                    *e = m.id;
+                }
+                &exclude
+            }
+            BusRecord::All | BusRecord::Off => &[],
+        };
+        match open_monitor(&self.cfg, node, self.under_systemd, exclude) {
             Ok(b) => {
                 self.stats.transport = Some(grip_io::can::CanBus::kind(&b));
                 tracing::info!(

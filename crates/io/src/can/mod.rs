@@ -20,8 +20,8 @@ pub use grip_msgs::CanFrame;
 pub use mem::{FrameQueue, MEM_BUS_CAPACITY, MemBus, frame_queue};
 pub use sim::SimBus;
 pub use socket::{
-    MONITOR_RCVBUF, REOPEN_CHECK_NS, SocketCanBus, af_can_available, frame_from_raw,
-    interface_exists, physical_interface, physical_interface_in, real_to_monotonic,
+    MONITOR_MAX_EXCLUDED, MONITOR_RCVBUF, REOPEN_CHECK_NS, SocketCanBus, af_can_available,
+    frame_from_raw, interface_exists, physical_interface, physical_interface_in, real_to_monotonic,
 };
 
 use crate::ipc::{IpcError, IpcNode};
@@ -365,7 +365,8 @@ impl AnyBus {
 /// Opens the bus `cfg` asks for read-only, as a bus monitor (the
 /// recorder's bus log): every frame ([`RxFilter::All`]); on SocketCAN with
 /// kernel receive stamps, drop counts and error frames
-/// ([`SocketCanBus::open_monitor`]). The transport is chosen as
+/// ([`SocketCanBus::open_monitor`], which drops the 11-bit data frames of
+/// `exclude` in the kernel). The transport is chosen as
 /// [`open_bus_as`] chooses it. Nothing is ever sent on it by its owner
 /// (read it with [`AnyBus::try_recv_monitor`]); on the simulated bus it
 /// still takes a publisher port (unused), as every participant does.
@@ -373,8 +374,9 @@ pub fn open_monitor(
     cfg: &CanBusConfig,
     node: &IpcNode,
     under_systemd: bool,
+    exclude: &[u32],
 ) -> Result<AnyBus, CanError> {
-    open_as(cfg, node, under_systemd, RxFilter::All, true)
+    open_as(cfg, node, under_systemd, RxFilter::All, Some(exclude))
 }
 
 /// Opens the bus `cfg` asks for, delivering only what `rx` lets through
@@ -395,7 +397,7 @@ pub fn open_bus_as(
     under_systemd: bool,
     rx: RxFilter,
 ) -> Result<AnyBus, CanError> {
-    open_as(cfg, node, under_systemd, rx, false)
+    open_as(cfg, node, under_systemd, rx, None)
 }
 
 fn open_as(
@@ -403,14 +405,11 @@ fn open_as(
     node: &IpcNode,
     under_systemd: bool,
     rx: RxFilter,
-    monitor: bool,
+    monitor: Option<&[u32]>,
 ) -> Result<AnyBus, CanError> {
-    let socket = |iface: &str| {
-        if monitor {
-            SocketCanBus::open_monitor(iface, cfg.bus_id)
-        } else {
-            SocketCanBus::open(iface, cfg.bus_id, rx)
-        }
+    let socket = |iface: &str| match monitor {
+        Some(exclude) => SocketCanBus::open_monitor(iface, cfg.bus_id, exclude),
+        None => SocketCanBus::open(iface, cfg.bus_id, rx),
     };
     let sim = || -> Result<AnyBus, CanError> {
         Ok(AnyBus::Sim(

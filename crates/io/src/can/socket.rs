@@ -89,6 +89,8 @@ pub struct SocketCanBus {
     dropped_now: u32,
     /// Frames a monitor read stamped with the kernel's receive time.
     kernel_stamped: u64,
+    /// 11-bit ids a monitor's kernel filter drops ([`Self::open_monitor`]).
+    exclude: heapless::Vec<u32, MONITOR_MAX_EXCLUDED>,
 }
 
 /// How often a bus whose interface vanished looks whether it is back.
@@ -163,6 +165,7 @@ impl SocketCanBus {
             dropped_before: 0,
             dropped_now: 0,
             kernel_stamped: 0,
+            exclude: heapless::Vec::new(),
         })
     }
 
@@ -173,12 +176,27 @@ impl SocketCanBus {
     /// dropped on a full receive queue counted (`SO_RXQ_OVFL`). Read it
     /// with [`Self::try_recv_monitor`]; the receive buffer is asked for
     /// [`MONITOR_RCVBUF`] bytes (the kernel caps it at `net.core.rmem_max`).
-    pub fn open_monitor(iface: &str, bus_id: u8) -> Result<Self, CanError> {
-        let mut b = Self::open(iface, bus_id, RxFilter::All)?;
-        monitor_options(&b.sock).map_err(|e| CanError::Io {
+    ///
+    /// `exclude`: 11-bit data-frame ids the kernel drops before the
+    /// monitor sees them (inverted `CAN_RAW_FILTER`s joined with
+    /// `CAN_RAW_JOIN_FILTERS`: a frame passes only if it is none of them;
+    /// an extended or remote frame with the same number passes), so that
+    /// traffic the owner does not log costs it nothing, not even a read
+    /// (the recorder's `bus = "foreign"`: grip's own ids). At most
+    /// [`MONITOR_MAX_EXCLUDED`].
+    pub fn open_monitor(iface: &str, bus_id: u8, exclude: &[u32]) -> Result<Self, CanError> {
+        let io = |e| CanError::Io {
             iface: iface.into(),
             source: e,
+        };
+        let mut b = Self::open(iface, bus_id, RxFilter::All)?;
+        b.exclude = heapless::Vec::from_slice(exclude).map_err(|_| {
+            io(std::io::Error::other(format!(
+                "{} ids to exclude, at most {MONITOR_MAX_EXCLUDED}",
+                exclude.len()
+            )))
         })?;
+        monitor_options(&b.sock, &b.exclude).map_err(io)?;
         b.monitor = true;
         Ok(b)
     }
@@ -320,7 +338,7 @@ impl SocketCanBus {
             return;
         };
         if configure(&sock, self.filters.as_deref()).is_ok()
-            && (!self.monitor || monitor_options(&sock).is_ok())
+            && (!self.monitor || monitor_options(&sock, &self.exclude).is_ok())
         {
             self.sock = sock;
             self.gone_since = None;
@@ -395,7 +413,33 @@ fn setsockopt_int(
 
 /// A monitor socket's options: kernel receive stamps, drop counts, every
 /// error class, a larger receive buffer (best effort).
-fn monitor_options(sock: &CanSocket) -> std::io::Result<()> {
+fn monitor_options(sock: &CanSocket, exclude: &[u32]) -> std::io::Result<()> {
+    use std::os::fd::AsRawFd as _;
+    if !exclude.is_empty() {
+        let mut filters = [libc::can_filter {
+            can_id: 0,
+            can_mask: 0,
+        }; MONITOR_MAX_EXCLUDED];
+        for (f, &id) in filters.iter_mut().zip(exclude) {
+            f.can_id = (id & libc::CAN_SFF_MASK) | libc::CAN_INV_FILTER;
+            f.can_mask = libc::CAN_SFF_MASK | libc::CAN_EFF_FLAG | libc::CAN_RTR_FLAG;
+        }
+        let n = exclude.len().min(MONITOR_MAX_EXCLUDED);
+        // SAFETY: an array of n can_filter and its byte length.
+        let r = unsafe {
+            libc::setsockopt(
+                sock.as_raw_fd(),
+                libc::SOL_CAN_RAW,
+                libc::CAN_RAW_FILTER,
+                filters.as_ptr().cast(),
+                (n * core::mem::size_of::<libc::can_filter>()) as libc::socklen_t,
+            )
+        };
+        if r < 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        setsockopt_int(sock, libc::SOL_CAN_RAW, libc::CAN_RAW_JOIN_FILTERS, 1)?;
+    }
     setsockopt_int(sock, libc::SOL_SOCKET, libc::SO_TIMESTAMPNS, 1)?;
     setsockopt_int(sock, libc::SOL_SOCKET, libc::SO_RXQ_OVFL, 1)?;
     setsockopt_int(
@@ -408,6 +452,9 @@ fn monitor_options(sock: &CanSocket) -> std::io::Result<()> {
     let _ = setsockopt_int(sock, libc::SOL_SOCKET, libc::SO_RCVBUF, MONITOR_RCVBUF);
     Ok(())
 }
+
+/// Most ids a monitor's kernel filter excludes ([`SocketCanBus::open_monitor`]).
+pub const MONITOR_MAX_EXCLUDED: usize = 16;
 
 /// `SO_MEMINFO` (asm-generic's value: x86-64, AArch64, ARM, RISC-V).
 const SO_MEMINFO: libc::c_int = 55;
