@@ -535,7 +535,9 @@ const BACK_WITHIN_MS: f64 = 1000.0;
 /// `vcan0` deleted (`ip link del`, as unplugging a USB-CAN adapter) and
 /// re-created under the same name mid-drive: tcs-loop's and plant-sim's
 /// sockets, bound to the old interface, are unbound by the kernel; both
-/// must reopen theirs on the new one and the loop must control again.
+/// must reopen theirs on the new one and the loop must control again. The
+/// recorder's bus monitor (`recorder.toml` `bus`) must survive it and
+/// reopen too.
 #[test]
 fn bus_deleted_and_recreated_recovers() -> anyhow::Result<()> {
     let _g = serial();
@@ -587,6 +589,27 @@ fn bus_recreated(s: &Setup) -> anyhow::Result<Attempt> {
         ws_back.map(|t| ms(t as i128 - t_back as i128)),
     );
     let l = read_complete_allowing_xruns(&mcap)?;
+    // the recorder's read-only bus monitor (its bus log) lost its socket
+    // too: it went on recording (the log is complete) and reopened on the
+    // new interface
+    let bus_meta = |k: &str| -> anyhow::Result<u64> {
+        let key = format!("{}.{k}", grip_msgs::topics::BUS);
+        l.recorder
+            .get(&key)
+            .with_context(|| format!("recorder summary lacks {key}"))?
+            .parse()
+            .with_context(|| key.clone())
+    };
+    println!(
+        "the recorder's bus monitor: {} reopens, {} read errors, {} frames read",
+        bus_meta("reopens")?,
+        bus_meta("receive_errors")?,
+        bus_meta("received")?
+    );
+    ensure!(
+        bus_meta("reopens")? >= 1,
+        "the recorder's bus monitor did not reopen on the re-created vcan0"
+    );
     let before = cycles_in(&l.cycles, t_del - 30_000_000, t_del);
     if before.is_empty() || before.iter().any(|c| c.safe_state == 1) {
         return Ok(Attempt::Disturbed(format!(

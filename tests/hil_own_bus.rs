@@ -18,7 +18,17 @@
 //!    (km/h). tcs-loop counted no E2E fault during the scenario and never
 //!    entered its safe state; the MCAP reads back complete, its CAN log
 //!    holds the DBC's ids only, and `grip inspect` names the frames by
-//!    grip's names (TorqueCommand, not 0x191).
+//!    grip's names (TorqueCommand, not 0x191). The car's own traffic:
+//!    foreign frames another process ([`Injector`]) puts on `vcan0` during
+//!    the drive (11-bit 0x3E9, 29-bit 0x18DAF110, and 0x100, the built-in
+//!    TorqueCommand's id, foreign on this bus) are in the recorder's bus log
+//!    (`grip/can/bus`, `bus = "foreign"`) byte for byte, in order, none
+//!    missing from its first to its last (against the capture), over the
+//!    whole scenario, each stamped with the kernel's receive time (the
+//!    capture's own kernel stamp of the same frame, within 0.25 ms); the
+//!    own bus's ids are left out (grip's by the *active* DBC; by the
+//!    monitor's kernel filter, so they are not even read), and `grip
+//!    inspect --candump` writes them in candump's format.
 //! 2. `a_dbc_without_a_message_stops_the_drive_before_its_scenario`: a
 //!    `can.toml` naming a DBC without MotorStatus makes `grip drive` fail,
 //!    naming the file and the message, with no frame on the bus.
@@ -32,7 +42,9 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, ensure};
-use grip_tests::hil::{self, CanCapture, Captured, Dbc, RoadAudioPlayer};
+use grip_tests::hil::{
+    self, CAN_EFF_FLAG, CanCapture, Captured, Dbc, RawCanSocket, RawFrame, RoadAudioPlayer,
+};
 use grip_tests::hil_drives::{
     Attempt, PLAYBACK, SCENARIO_TOML, SENSOR_TIMEOUT_MS, Setup, check_all_frames_valid, grip_drive,
     ms, read_complete, serial, setup, sig, wait_success, with_attempts_prepared,
@@ -65,6 +77,58 @@ fn on_own_bus(s: &mut Setup) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// What [`Injector`] puts on the bus, as identifier words: a foreign
+/// 11-bit id, a 29-bit one (J1939/UDS-like), and 0x100, which is grip's
+/// TorqueCommand in the built-in protocol but foreign on the own bus.
+const INJECTED: [u32; 3] = [0x3E9, CAN_EFF_FLAG | 0x18DA_F110, 0x100];
+
+/// Another ECU on the bus: a thread sending [`INJECTED`] in turn, one
+/// frame every 2 ms, each with its number in the first two bytes.
+struct Injector {
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    handle: std::thread::JoinHandle<anyhow::Result<u64>>,
+}
+
+impl Injector {
+    fn start(iface: &str) -> anyhow::Result<Self> {
+        let sock = RawCanSocket::open(iface)?;
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let stop2 = std::sync::Arc::clone(&stop);
+        let handle = std::thread::Builder::new()
+            .name("foreign-ecu".into())
+            .spawn(move || {
+                let mut k = 0u64;
+                while !stop2.load(std::sync::atomic::Ordering::Relaxed) {
+                    let word = INJECTED[(k % 3) as usize];
+                    let n = (k as u16).to_le_bytes();
+                    let len = 2 + (k % 7) as usize;
+                    let payload = [n[0], n[1], 0xA5, 0x5A, 0xFF, 0x00, 0x77, 0x11];
+                    sock.send(&RawFrame::new(word, &payload[..len])?)?;
+                    k += 1;
+                    std::thread::sleep(Duration::from_millis(2));
+                }
+                Ok(k)
+            })?;
+        Ok(Self { stop, handle })
+    }
+
+    fn finish(self) -> anyhow::Result<u64> {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        self.handle
+            .join()
+            .map_err(|_| anyhow::anyhow!("the injector thread panicked"))?
+    }
+}
+
+/// The identifier word of a logged bus frame (as the kernel's can_id).
+fn word(b: &grip_msgs::BusFrame) -> u32 {
+    if b.is_extended() {
+        b.id | CAN_EFF_FLAG
+    } else {
+        b.id
+    }
+}
+
 fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len().max(1) as f64
 }
@@ -81,11 +145,26 @@ fn own_bus_drive(s: &Setup) -> anyhow::Result<Attempt> {
     let started = Instant::now();
     let mcap = s.out.join("drive.mcap");
     let cap = CanCapture::start(&s.iface)?;
+    let injector = Injector::start(&s.iface)?;
     let player = RoadAudioPlayer::start(PLAYBACK, &s.iface, &s.config, &s.scenario)?;
     let mut drive = grip_drive(s, &mcap)?;
     let res = wait_success(&mut drive, "grip drive", Duration::from_secs(180));
     let drive_s = started.elapsed().as_secs_f64();
-    let cap = cap.finish()?;
+    let injected_n = injector.finish()?;
+    let mut cap = cap.finish()?;
+    // the foreign ECU's frames apart: the checks of grip's traffic below
+    // see only grip's
+    let injected: Vec<Captured> = cap
+        .frames
+        .iter()
+        .filter(|f| INJECTED.contains(&f.frame.can_id))
+        .copied()
+        .collect();
+    cap.frames.retain(|f| !INJECTED.contains(&f.frame.can_id));
+    println!(
+        "foreign ECU: {injected_n} frames sent, {} captured",
+        injected.len()
+    );
     let played = player.finish()?;
     res?;
     println!("grip drive output:\n{}", drive.log_text());
@@ -388,9 +467,13 @@ fn own_bus_drive(s: &Setup) -> anyhow::Result<Attempt> {
         (recorder_gaps == 0) == (breaks == 0) && recorder_gaps <= 15 * breaks,
         "the recorder counted {recorder_gaps} CAN frames missing by alive counter; the log's frames break {breaks} times"
     );
+    check_bus_log(&l, &injected, (t0, t1))?;
+    let candump = s.out.join("bus.log");
     let o = Command::new(hil::service_bin("grip")?)
         .arg("inspect")
         .arg(&mcap)
+        .arg("--candump")
+        .arg(&candump)
         .env("NO_COLOR", "1")
         .output()?;
     let text = String::from_utf8_lossy(&o.stdout);
@@ -430,11 +513,177 @@ fn own_bus_drive(s: &Setup) -> anyhow::Result<Attempt> {
         !text.contains("named by the built-in protocol"),
         "grip inspect fell back to the built-in protocol:\n{text}"
     );
+    // its bus section lists the foreign ids; the candump file has every
+    // frame of the bus log, the 29-bit one in 8 digits
+    let bus_lines: Vec<&str> = text
+        .lines()
+        .skip_while(|l| !l.starts_with("bus ("))
+        .take_while(|l| !l.trim().is_empty())
+        .collect();
+    println!("grip inspect, bus section:\n{}", bus_lines.join("\n"));
+    for want in ["0x3E9", "0x18DAF110", "0x100"] {
+        ensure!(
+            bus_lines.iter().any(|l| l.trim_start().starts_with(want)),
+            "grip inspect's bus section does not list {want}:\n{text}"
+        );
+    }
+    let dump = std::fs::read_to_string(&candump)
+        .with_context(|| format!("grip inspect --candump wrote no {}", candump.display()))?;
+    let lines: Vec<&str> = dump.lines().collect();
+    ensure!(
+        lines.len() == l.bus.len(),
+        "{} candump lines for {} frames of the bus log",
+        lines.len(),
+        l.bus.len()
+    );
+    ensure!(
+        lines
+            .iter()
+            .any(|x| x.contains(&format!(" {} 18DAF110#", s.iface)))
+            && lines
+                .iter()
+                .any(|x| x.contains(&format!(" {} 3E9#", s.iface))),
+        "candump lines lack the foreign frames: {:?}",
+        &lines[..lines.len().min(5)]
+    );
+    println!(
+        "candump export: {} lines, e.g. {:?}",
+        lines.len(),
+        &lines[..lines.len().min(3)]
+    );
     println!(
         "own-bus drive checked in {:.1} s (guest clock)",
         started.elapsed().as_secs_f64()
     );
     Ok(Attempt::Done)
+}
+
+/// The recorder's bus log against the foreign frames the capture saw: the
+/// logged ones are a run of the captured ones without a hole, byte for
+/// byte and in order, covering the scenario (`window`), each stamped with
+/// the kernel's time of the same frame; none of the own bus's ids is in it
+/// (`bus = "foreign"` by the active DBC), and the recorder counted them as
+/// skipped, lost none and stamped every frame with the kernel's time.
+fn check_bus_log(
+    l: &grip_tests::hil_drives::Log,
+    injected: &[Captured],
+    window: (u64, u64),
+) -> anyhow::Result<()> {
+    let meta = |k: &str| -> anyhow::Result<u64> {
+        let key = format!("{}.{k}", grip_msgs::topics::BUS);
+        l.recorder
+            .get(&key)
+            .with_context(|| format!("recorder summary lacks {key}"))?
+            .parse()
+            .with_context(|| key.clone())
+    };
+    let mode = l
+        .recorder
+        .get(&format!("{}.mode", grip_msgs::topics::BUS))
+        .cloned()
+        .unwrap_or_default();
+    let transport = l
+        .recorder
+        .get(&format!("{}.transport", grip_msgs::topics::BUS))
+        .cloned()
+        .unwrap_or_default();
+    let (received, skipped, written) = (meta("received")?, meta("skipped_own")?, meta("written")?);
+    let (kstamped, kdropped, qdropped, errors) = (
+        meta("kernel_stamped")?,
+        meta("kernel_dropped")?,
+        meta("queue_dropped")?,
+        meta("receive_errors")?,
+    );
+    println!(
+        "bus log: mode {mode}, transport {transport}: {received} frames read, {skipped} of grip's skipped, {written} written ({} in the log), {kstamped} kernel-stamped, {kdropped} dropped by the kernel, {qdropped} by the queue, {errors} read errors",
+        l.bus.len()
+    );
+    ensure!(
+        mode == "foreign" && transport == "socketcan",
+        "bus log mode {mode:?} on {transport:?}"
+    );
+    ensure!(
+        kdropped == 0 && qdropped == 0 && errors == 0,
+        "the bus log lost frames or failed reads"
+    );
+    ensure!(
+        kstamped == received,
+        "{kstamped} of {received} frames kernel-stamped"
+    );
+    ensure!(written == l.bus.len() as u64 && received == written + skipped);
+    let own: Vec<&grip_msgs::BusFrame> = l
+        .bus
+        .iter()
+        .filter(|b| !b.is_extended() && OWN_IDS.contains(&b.id))
+        .collect();
+    ensure!(
+        own.is_empty(),
+        "{} frames of the own bus's (grip's) ids in the foreign bus log, first {:x?}",
+        own.len(),
+        own.first()
+    );
+    // grip's frames never reach the monitor on SocketCAN: its kernel filter
+    // drops them (only those queued in the instant before the filter was set)
+    ensure!(
+        skipped < 100,
+        "{skipped} of grip's frames reached the recorder's monitor through its kernel filter"
+    );
+    let logged: Vec<&grip_msgs::BusFrame> = l
+        .bus
+        .iter()
+        .filter(|b| INJECTED.contains(&word(b)))
+        .collect();
+    ensure!(
+        logged.len() == l.bus.len(),
+        "the bus log holds frames nobody sent: {:x?}",
+        l.bus.iter().find(|b| !INJECTED.contains(&word(b)))
+    );
+    let first = logged.first().context("no foreign frame in the bus log")?;
+    let start = injected
+        .iter()
+        .position(|c| c.frame.can_id == word(first) && c.frame.payload() == first.payload())
+        .context("the bus log's first foreign frame was never on the bus")?;
+    ensure!(
+        injected.len() >= start + logged.len(),
+        "the bus log has {} foreign frames, the bus had {} from its first on",
+        logged.len(),
+        injected.len() - start
+    );
+    let mut worst_ns = 0i128;
+    for (k, (b, c)) in logged.iter().zip(&injected[start..]).enumerate() {
+        ensure!(
+            word(b) == c.frame.can_id && b.payload() == c.frame.payload() && b.flags & 0b110 == 0,
+            "foreign frame {k} of the bus log {b:x?} is not the bus's {:x?}",
+            c.frame
+        );
+        let d = i128::from(b.stamp_ns) - i128::from(c.t_ns);
+        worst_ns = worst_ns.max(d.abs());
+    }
+    let last = logged[logged.len() - 1];
+    ensure!(
+        first.stamp_ns <= window.0 && last.stamp_ns >= window.1,
+        "the bus log ({}..{} ns) does not cover the scenario ({}..{} ns)",
+        first.stamp_ns,
+        last.stamp_ns,
+        window.0,
+        window.1
+    );
+    ensure!(
+        logged.windows(2).all(|w| w[0].stamp_ns <= w[1].stamp_ns),
+        "bus log stamps go backwards"
+    );
+    println!(
+        "bus log: {} foreign frames, a run of the {} the capture saw (from #{start}), byte for byte; stamps within {:.3} ms of the capture's kernel stamps",
+        logged.len(),
+        injected.len(),
+        worst_ns as f64 / 1e6
+    );
+    ensure!(
+        worst_ns <= 250_000,
+        "a bus-log stamp is {:.3} ms off the kernel's receive time of its frame",
+        worst_ns as f64 / 1e6
+    );
+    Ok(())
 }
 
 // --- 2. a DBC that lacks one of grip's messages ---------------------------------------

@@ -331,6 +331,8 @@ pub struct Log {
     pub recorder: MetadataMap,
     /// The CAN log (`grip/can/log`) in log order.
     pub can: Vec<grip_msgs::CanFrame>,
+    /// The recorder's bus log (`grip/can/bus`) in log order.
+    pub bus: Vec<grip_msgs::BusFrame>,
 }
 
 /// Reads a drive's MCAP and checks it is complete: not truncated, no bad
@@ -390,6 +392,7 @@ fn read_checked(path: &Path, audio_gaps: AudioGaps) -> anyhow::Result<Log> {
             .context("no grip.recorder summary: the recorder did not finish the log")?,
         cycles: log.cycles,
         can: log.can,
+        bus: log.bus,
         truth: log.truth,
         roads: log.roads,
     };

@@ -1,5 +1,7 @@
 //! grip's drive library: everything about a drive that is not a service.
 //!
+//! - [`bus`]: the vehicle bus of a log (`grip/can/bus`): per-id statistics
+//!   and the candump export (`grip inspect`).
 //! - [`log`]: a drive's MCAP log read back, typed ([`DriveLog`]): topics,
 //!   metadata, attachments, the reader's report (truncation, bad messages).
 //! - [`roads`]: the road catalogue a drive ran with
@@ -18,6 +20,7 @@
 //! (`tests/e2e_drive.rs`) and the HIL tests (`tests/src/hil.rs`).
 #![warn(missing_docs)]
 
+pub mod bus;
 pub mod log;
 pub mod plan;
 pub mod roads;

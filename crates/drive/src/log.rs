@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use grip_io::mcaplog::{LogMessage, McapLog, McapLogError, MetadataMap, ReadReport};
-use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
+use grip_msgs::{AudioBlock, BusFrame, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
 
 /// A log that cannot be read at all (missing, unreadable, not MCAP); the
 /// reason is its [`source`](std::error::Error::source) (`{:#}` of an
@@ -64,8 +64,13 @@ pub struct DriveLog {
     pub truth: Vec<GroundTruth>,
     /// `RoadEstimate`s in log order.
     pub roads: Vec<RoadEstimate>,
-    /// `CanFrame`s in log order.
+    /// `CanFrame`s in log order (tcs-loop's CAN log, `grip/can/log`).
     pub can: Vec<CanFrame>,
+    /// The vehicle bus as the recorder read it (`grip/can/bus`, absent
+    /// before the recorder logged it or with `bus = "off"`), in log order.
+    /// Nothing of a drive's summary or replay reads it (`grip inspect`'s
+    /// bus section and `--candump` do).
+    pub bus: Vec<BusFrame>,
     /// Audio blocks.
     pub audio: AudioInfo,
     /// Messages per topic (every topic, also unknown ones).
@@ -120,6 +125,7 @@ impl DriveLog {
                     LogMessage::Truth(t) => me.truth.push(t),
                     LogMessage::Road(r) => me.roads.push(r),
                     LogMessage::Can(f) => me.can.push(f),
+                    LogMessage::Bus(f) => me.bus.push(f),
                     LogMessage::Audio(a) => {
                         me.audio.blocks += 1;
                         me.audio.samples += u64::from(a.n_samples);

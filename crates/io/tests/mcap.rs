@@ -183,6 +183,7 @@ fn all_types_round_trip_exactly_with_metadata_and_attachments() {
                     assert!(g.lambda.is_sign_negative());
                     it += 1;
                 }
+                LogMessage::Bus(b) => panic!("no bus frame was written: {b:?}"),
             }
         }
         assert_eq!((ia, ir, ic, ik, it), (300, 300, 300, 300, 300));
@@ -199,6 +200,53 @@ fn all_types_round_trip_exactly_with_metadata_and_attachments() {
         assert_eq!(att[0].data, std::fs::read(dbc).unwrap());
         assert_eq!(att[1].data, vec![0, 1, 2, 255]);
     }
+}
+
+/// The bus log's frames (`grip/can/bus`) read back exactly, as their own
+/// type: never as `CanFrame`s of the CAN log, whose readers would mix them in.
+#[test]
+fn bus_frames_round_trip_on_their_own_channel_and_type() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bus.mcap");
+    let mut w = McapWriter::create(&path, McapWriterOptions::default()).unwrap();
+    let frames: Vec<BusFrame> = (0..50u32)
+        .map(|i| BusFrame {
+            stamp_ns: 5_000_000_000 + u64::from(i) * 500_000,
+            id: if i % 2 == 0 { 0x3E9 } else { 0x18DA_F110 },
+            dlc: (i % 9) as u8,
+            bus: 2,
+            flags: if i % 2 == 0 { 0 } else { can_flags::EXTENDED }
+                | if i % 7 == 0 { can_flags::RTR } else { 0 },
+            _reserved: 0,
+            data: [i as u8, 0xFF, 1, 2, 3, 4, 5, 255],
+        })
+        .collect();
+    for f in &frames {
+        w.write(topics::BUS, f).unwrap();
+    }
+    let mut c = CanFrame::new(0x100, &[1, 2]);
+    c.stamp_ns = 5_000_000_001;
+    w.write(topics::CAN_LOG, &c).unwrap();
+    w.finish().unwrap();
+    let (msgs, rep) = McapLog::open(&path).unwrap().messages().unwrap();
+    assert_eq!((rep.messages, rep.bad, rep.foreign), (51, 0, 0), "{rep:?}");
+    let bus: Vec<BusFrame> = msgs
+        .iter()
+        .filter_map(|e| match &e.msg {
+            LogMessage::Bus(b) => {
+                assert_eq!(e.topic, topics::BUS);
+                assert_eq!(e.log_time_ns, b.stamp_ns);
+                Some(*b)
+            }
+            _ => None,
+        })
+        .collect();
+    assert_eq!(bus, frames);
+    let cans = msgs
+        .iter()
+        .filter(|e| matches!(e.msg, LogMessage::Can(_)))
+        .count();
+    assert_eq!(cans, 1, "bus frames read as CAN-log frames");
 }
 
 #[test]

@@ -29,6 +29,19 @@ fn official_python_reader_reads_grip_logs() {
     a.samples[4095] = -32768;
     a.stamp_ns = 5;
     w.write(topics::AUDIO, &a).unwrap();
+    // the recorder's bus log: its own schema on grip/can/bus
+    for i in 0..10u32 {
+        let b = BusFrame {
+            stamp_ns: 2_000_000 + u64::from(i),
+            id: 0x18DA_F110,
+            dlc: 3,
+            bus: 0,
+            flags: can_flags::EXTENDED,
+            _reserved: 0,
+            data: [i as u8, 0xAB, 0xCD, 0, 0, 0, 0, 0],
+        };
+        w.write(topics::BUS, &b).unwrap();
+    }
     w.write_run_info(&RunInfo {
         version: "0.1.0".into(),
         git_revision: "deadbeef".into(),
@@ -51,6 +64,8 @@ with open(sys.argv[1], "rb") as f:
     counts = {}
     torque_sum = 0.0
     last_audio = None
+    bus_ids = set()
+    bus_bytes = 0
     for schema, channel, message in r.iter_messages():
         assert channel.message_encoding == "json"
         assert schema.encoding == "jsonschema"
@@ -61,9 +76,15 @@ with open(sys.argv[1], "rb") as f:
             torque_sum += d["torque_cmd"]
         if schema.name == "grip::AudioBlock::v1":
             last_audio = d["samples"][-1]
+        if schema.name == "grip::BusFrame::v1":
+            import jsonschema
+            jsonschema.validate(d, json.loads(schema.data))
+            bus_ids.add((d["id"], d["flags"]))
+            bus_bytes += sum(d["data"][:d["dlc"]])
     md = {m.name: m.metadata for m in r.iter_metadata()}
     print(json.dumps({"messages": st.message_count, "channels": st.channel_count,
                       "counts": counts, "torque_sum": torque_sum, "last_audio": last_audio,
+                      "bus_ids": sorted(bus_ids), "bus_bytes": bus_bytes,
                       "git": md["grip.run"]["git_revision"]}))
 "#;
     let out = Command::new("python3")
@@ -80,8 +101,11 @@ with open(sys.argv[1], "rb") as f:
         String::from_utf8_lossy(&out.stderr)
     );
     let v: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap();
-    assert_eq!(v["messages"], 2001);
-    assert_eq!(v["channels"], 3);
+    assert_eq!(v["messages"], 2011);
+    assert_eq!(v["channels"], 4);
+    assert_eq!(v["counts"][topics::BUS], 10);
+    assert_eq!(v["bus_ids"], serde_json::json!([[0x18DA_F110u32, 1]]));
+    assert_eq!(v["bus_bytes"], 45 + 10 * (0xAB + 0xCD));
     assert_eq!(v["counts"][topics::CYCLE], 1000);
     assert_eq!(v["counts"][topics::CAN_LOG], 1000);
     assert_eq!(

@@ -394,6 +394,67 @@ impl CanFrame {
     }
 }
 
+/// One frame of the vehicle's CAN bus as the recorder reads it off the bus
+/// (MCAP channel [`topics::BUS`]), every participant's traffic, grip's
+/// own and the car's: a CAN logger's record. Not an iceoryx2 payload (the
+/// recorder reads the bus itself); its own schema, so that a reader of the
+/// CAN log ([`CanFrame`], tcs-loop's copies) never mixes the two.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[repr(C)]
+pub struct BusFrame {
+    /// Receive time, CLOCK_MONOTONIC ns: the kernel's on SocketCAN
+    /// (`SO_TIMESTAMPNS`, moved onto CLOCK_MONOTONIC), else the
+    /// recorder's at read (the simulated bus).
+    pub stamp_ns: u64,
+    /// Identifier (11 bit, or 29 bit with `can_flags::EXTENDED`; for an
+    /// error frame the error class bits, `can_flags::ERROR`).
+    pub id: u32,
+    /// Data length code 0..=8.
+    pub dlc: u8,
+    /// Bus number (`can.toml`'s `bus_id`).
+    pub bus: u8,
+    /// [`can_flags`] bits: `EXTENDED`, `RTR`, `ERROR`.
+    pub flags: u8,
+    /// Explicit padding, zero.
+    pub _reserved: u8,
+    /// Payload; bytes at and beyond `dlc` are zero.
+    pub data: [u8; 8],
+}
+
+impl BusFrame {
+    /// Versioned type name (the MCAP schema name).
+    pub const TYPE_NAME: &'static str = "grip::BusFrame::v1";
+
+    /// The bus record of a frame a transport received (its stamp, id,
+    /// flags, DLC and payload; the direction is dropped: the recorder
+    /// never sends).
+    pub fn from_can(f: &CanFrame) -> Self {
+        Self {
+            stamp_ns: f.stamp_ns,
+            id: f.id,
+            dlc: f.dlc.min(8),
+            bus: f.bus,
+            flags: f.flags & (can_flags::EXTENDED | can_flags::RTR | can_flags::ERROR),
+            _reserved: 0,
+            data: f.data,
+        }
+    }
+
+    /// The valid payload bytes (clamped if `dlc` is corrupt; none for a
+    /// remote frame, whose DLC is the length it asks for).
+    pub fn payload(&self) -> &[u8] {
+        if self.flags & can_flags::RTR != 0 {
+            return &[];
+        }
+        &self.data[..usize::from(self.dlc).min(8)]
+    }
+
+    /// True for a 29-bit identifier.
+    pub fn is_extended(&self) -> bool {
+        self.flags & can_flags::EXTENDED != 0
+    }
+}
+
 /// What the plant simulator knows to be true (never seen by the controller).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[type_name("grip::GroundTruth::v2")]

@@ -31,6 +31,12 @@ pub const CAN_LOG: &str = "grip/can/log";
 /// `GroundTruth` from plant-sim; read by audio synthesis and recorder.
 pub const TRUTH: &str = "grip/plant/truth";
 
+/// MCAP channel (not an iceoryx2 topic: the recorder reads the bus itself,
+/// `recorder.toml`'s `bus`) of [`crate::BusFrame`]s: the vehicle bus as a
+/// CAN logger records it. Not in [`ALL`]; `grip replay` and the drive
+/// summary ignore it.
+pub const BUS: &str = "grip/can/bus";
+
 /// Prefix of the simulated CAN bus services: bus `vcan0` is the
 /// publish-subscribe service `grip/canbus/vcan0` carrying `CanFrame`s, plus an
 /// event service of the same name with suffix [`SIM_BUS_EVENT_SUFFIX`].

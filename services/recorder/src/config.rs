@@ -62,6 +62,10 @@ pub struct RecorderConfig {
     /// [`DEFAULT_MAX_FILE_S`].
     #[serde(default = "default_max_file_s")]
     pub max_file_s: u64,
+    /// What of the vehicle bus (`can.toml`) to log on the MCAP channel
+    /// `grip/can/bus` ([`crate::bus`]). Absent: [`BusRecord::Foreign`].
+    #[serde(default)]
+    pub bus: BusRecord,
 }
 
 /// `max_file_mib` when the file does not set it: 1 GiB, about 40 minutes
@@ -77,6 +81,35 @@ pub const MAX_FILE_S: u64 = 86_400;
 
 fn default_max_file_s() -> u64 {
     DEFAULT_MAX_FILE_S
+}
+
+/// `bus` in `recorder.toml`: which frames of the vehicle bus the recorder
+/// reads off the bus itself (read-only, every sender) and logs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BusRecord {
+    /// Every frame that is not one of grip's protocol messages (11-bit
+    /// data frames with an id of the *active* protocol: `can.toml`'s
+    /// `dbc`, else the built-in one): those are in tcs-loop's CAN log
+    /// already, stamped by the loop. Extended, remote and error frames
+    /// are always foreign.
+    #[default]
+    Foreign,
+    /// Every frame, grip's own too (a second, independent copy of them).
+    All,
+    /// No bus log: the bus is not opened.
+    Off,
+}
+
+impl BusRecord {
+    /// The value as `recorder.toml` spells it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Foreign => "foreign",
+            Self::All => "all",
+            Self::Off => "off",
+        }
+    }
 }
 
 /// `max_total_mib` when the file does not set it: 8 GiB, about five hours
@@ -245,6 +278,11 @@ attach_max_bytes = 16777216
             (c.max_file_mib, c.max_file_s),
             (Some(DEFAULT_MAX_FILE_MIB), DEFAULT_MAX_FILE_S)
         );
+        assert_eq!(
+            c.bus,
+            BusRecord::Foreign,
+            "the shipped file states the default"
+        );
     }
 
     #[test]
@@ -383,6 +421,43 @@ attach_max_bytes = 16777216
                 "{extra}: {s}"
             );
         }
+    }
+
+    /// `bus`: "foreign" when absent, the three values parse, anything else
+    /// is refused naming the file, the key and the values it takes.
+    #[test]
+    fn bus_key_defaults_to_foreign_and_names_bad_values() {
+        let p = Path::new("recorder.toml");
+        let c: RecorderConfig = parse_toml(p, GOOD).unwrap();
+        assert_eq!(c.bus, BusRecord::Foreign);
+        for (v, want) in [
+            ("foreign", BusRecord::Foreign),
+            ("all", BusRecord::All),
+            ("off", BusRecord::Off),
+        ] {
+            let c: RecorderConfig = parse_toml(p, &format!("{GOOD}bus = \"{v}\"\n")).unwrap();
+            c.validate(p).unwrap();
+            assert_eq!(c.bus, want);
+            assert_eq!(want.as_str(), v);
+        }
+        for bad in [
+            "bus = \"everything\"\n",
+            "bus = true\n",
+            "bus = \"Foreign\"\n",
+        ] {
+            let e = parse_toml::<RecorderConfig>(p, &format!("{GOOD}{bad}")).unwrap_err();
+            let s = e.to_string();
+            assert_eq!(e.field, "bus", "{bad}: {s}");
+            assert!(s.contains("recorder.toml"), "{s}");
+            assert!(s.contains("line 9"), "{s}");
+        }
+        let e = parse_toml::<RecorderConfig>(p, &format!("{GOOD}bus = \"everything\"\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("everything") && e.contains("foreign") && e.contains("off"),
+            "{e}"
+        );
     }
 
     #[test]

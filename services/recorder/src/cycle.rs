@@ -14,8 +14,9 @@ use std::time::{Duration, Instant};
 use grip_io::ipc::{IpcError, IpcNode, Subscriber, SubscriberMode};
 use grip_io::mcaplog::{McapLogError, McapWriter};
 use grip_io::systemd::{Watchdog, WatchdogPoll};
-use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
+use grip_msgs::{AudioBlock, BusFrame, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
 
+use crate::bus::{BusSetup, BusTap};
 use crate::monitor::{self, RxProbe, RxStep};
 use crate::parts::Parts;
 use crate::retention::Retention;
@@ -34,6 +35,8 @@ pub enum Msg {
     Can(CanFrame),
     /// Ground truth.
     Truth(GroundTruth),
+    /// A frame read off the vehicle bus ([`crate::bus`]).
+    Bus(BusFrame),
 }
 
 impl Msg {
@@ -45,6 +48,7 @@ impl Msg {
             Msg::Cycle(_) => topics::CYCLE,
             Msg::Can(_) => topics::CAN_LOG,
             Msg::Truth(_) => topics::TRUTH,
+            Msg::Bus(_) => topics::BUS,
         }
     }
 
@@ -56,6 +60,7 @@ impl Msg {
             Msg::Cycle(m) => w.write(topics::CYCLE, m),
             Msg::Can(m) => w.write(topics::CAN_LOG, m),
             Msg::Truth(m) => w.write(topics::TRUTH, m),
+            Msg::Bus(m) => w.write(topics::BUS, m),
         }
     }
 }
@@ -98,6 +103,7 @@ pub struct Queue {
     tx: SyncSender<Msg>,
     depth: Arc<AtomicUsize>,
     high_water: Arc<AtomicUsize>,
+    capacity: usize,
 }
 
 /// Creates the queue (capacity in messages).
@@ -110,6 +116,7 @@ pub fn queue(capacity: usize) -> (Queue, Receiver<Msg>, Arc<AtomicUsize>, Arc<At
             tx,
             depth: Arc::clone(&depth),
             high_water: Arc::clone(&high),
+            capacity,
         },
         rx,
         depth,
@@ -118,6 +125,14 @@ pub fn queue(capacity: usize) -> (Queue, Receiver<Msg>, Arc<AtomicUsize>, Arc<At
 }
 
 impl Queue {
+    /// True while the queue is at least half full: the vehicle bus's frames
+    /// are then dropped (and counted) rather than queued, so that a bus
+    /// flood can never fill the queue the loops' topics need
+    /// ([`crate::bus`]).
+    pub fn half_full(&self) -> bool {
+        self.depth.load(Ordering::Relaxed) >= self.capacity / 2
+    }
+
     /// Enqueues without blocking; false if full (or the writer is gone).
     pub fn offer(&self, m: Msg) -> bool {
         // count first: the writer may take the message (and decrement)
@@ -277,6 +292,40 @@ impl Summary {
             format!("{}.counter_repeats", topics::CAN_LOG),
             self.recv.can.repeats.to_string(),
         );
+        if let Some(b) = &self.recv.bus {
+            let t = topics::BUS;
+            let w = self.written.get(t).copied().unwrap_or(0);
+            let transport = match b.stats.transport {
+                Some(grip_io::can::BusKind::SocketCan) => "socketcan",
+                Some(grip_io::can::BusKind::Sim) => "sim",
+                None => "none (never opened)",
+            };
+            let stamps = match b.stats.transport {
+                Some(grip_io::can::BusKind::SocketCan) => {
+                    "kernel receive time (SO_TIMESTAMPNS) on CLOCK_MONOTONIC".to_owned()
+                }
+                _ => format!(
+                    "recorder's CLOCK_MONOTONIC at read (polls every {} ms)",
+                    b.poll_ms
+                ),
+            };
+            for (k, v) in [
+                ("mode", b.mode.to_owned()),
+                ("transport", transport.to_owned()),
+                ("stamps", stamps),
+                ("received", b.stats.received.to_string()),
+                ("skipped_own", b.stats.skipped_own.to_string()),
+                ("written", w.to_string()),
+                ("queue_dropped", b.stats.queue_dropped.to_string()),
+                ("receive_errors", b.stats.receive_errors.to_string()),
+                ("kernel_dropped", b.stats.kernel_dropped.to_string()),
+                ("kernel_stamped", b.stats.kernel_stamped.to_string()),
+                ("reopens", b.stats.reopens.to_string()),
+                ("open_failures", b.stats.open_failures.to_string()),
+            ] {
+                m.insert(format!("{t}.{k}"), v);
+            }
+        }
         m.insert("queue_high_water".into(), self.queue_high_water.to_string());
         m.insert("write_errors".into(), self.write_errors.to_string());
         m
@@ -295,6 +344,7 @@ pub fn spawn_receiver(
     probe: Arc<RxProbe>,
     tap: Arc<StatsTap>,
     ready: SyncSender<Result<(), IpcError>>,
+    bus: Option<BusSetup>,
 ) -> std::io::Result<JoinHandle<RecvStats>> {
     std::thread::Builder::new()
         .name("recorder-rx".into())
@@ -306,8 +356,15 @@ pub fn spawn_receiver(
             }
             let opened = IpcNode::create(topics::node::RECORDER)
                 .and_then(|node| Subscribers::open(&node).map(|s| (node, s)));
-            let (_node, subs) = match opened {
+            let poll_ms = poll.as_millis() as u64;
+            let mut bus = bus.map(BusTap::new);
+            let (node, subs) = match opened {
                 Ok(x) => {
+                    // the bus before READY=1 (a failure is a warning,
+                    // retried: crate::bus)
+                    if let Some(b) = bus.as_mut() {
+                        b.poll_open(&x.0, Instant::now());
+                    }
                     let _ = ready.send(Ok(()));
                     x
                 }
@@ -321,18 +378,48 @@ pub fn spawn_receiver(
             // watched by a thread of their own (monitor::spawn_peer_watch)
             while !stop.load(Ordering::Relaxed) {
                 let n = receive_pass(&subs, &q, &mut stats, &mut errors, 4096, &probe, &heartbeat);
+                let mut n_bus = 0;
+                if let Some(b) = bus.as_mut() {
+                    probe.enter(RxStep::Receive, RECORDED.len());
+                    if b.is_open() {
+                        n_bus = b.pass(&q, crate::bus::MAX_PER_PASS, &heartbeat);
+                    } else {
+                        // a bus not opened yet: tried again once a second
+                        b.poll_open(&node, Instant::now());
+                    }
+                }
                 heartbeat.fetch_add(1, Ordering::Relaxed);
                 // a part ends: the writer asks for the counters so far
                 if tap.wanted() {
+                    stats.bus = bus.as_ref().map(|b| crate::stats::BusSummary {
+                        mode: b.mode().as_str(),
+                        poll_ms,
+                        stats: b.stats(),
+                    });
                     tap.give(&stats);
                 }
-                if n == 0 {
+                // the loops' topics first: a pass that read the bus is
+                // followed by the sleep, so that a flooded bus (at most
+                // MAX_PER_PASS a pass) cannot keep this thread from its
+                // subscribers or from yielding the CPU; what the bus sends
+                // beyond that overflows the socket (counted)
+                if n == 0 || n_bus > 0 {
                     probe.enter(RxStep::Sleep, 0);
                     std::thread::sleep(poll);
                 }
             }
-            // drain what is still waiting in the subscribers
+            // drain what is still waiting in the subscribers; the bus once
+            // (a car's other ECUs never stop sending: draining it until
+            // empty could last for ever)
             while receive_pass(&subs, &q, &mut stats, &mut errors, 4096, &probe, &heartbeat) > 0 {}
+            if let Some(b) = bus.as_mut() {
+                b.pass(&q, 4096, &heartbeat);
+            }
+            stats.bus = bus.map(|b| crate::stats::BusSummary {
+                mode: b.mode().as_str(),
+                poll_ms,
+                stats: b.stats(),
+            });
             stats
         })
 }

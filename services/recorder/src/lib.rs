@@ -3,6 +3,8 @@
 //! - [`config`]: `config/recorder.toml` ([`RecorderConfig`]).
 //! - [`stats`]: per-topic counters, gaps by sequence number (CAN: by alive
 //!   counter).
+//! - [`bus`]: the vehicle bus read off the bus itself (`recorder.toml`'s
+//!   `bus`) onto the MCAP channel `grip/can/bus`.
 //! - [`cycle`]: the receive thread, the bounded queue and the writing loop.
 //! - [`run()`]: the service: config, the log file and its run metadata,
 //!   `READY=1`, the loop until stopped, the summary.
@@ -16,6 +18,7 @@
 //! See `services/README.md` ("recorder / drive / inspect / systemd").
 #![warn(missing_docs)]
 
+pub mod bus;
 pub mod config;
 pub mod cycle;
 pub mod monitor;

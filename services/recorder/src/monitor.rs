@@ -38,7 +38,8 @@ pub struct RxProbe {
 pub enum RxStep {
     /// Not started yet.
     Starting = 0,
-    /// Taking samples of one topic (index into [`crate::RECORDED`]) + 1.
+    /// Taking samples of one topic (index into [`crate::RECORDED`]; its
+    /// length: the vehicle bus) + 1.
     Receive = 1,
     /// Sleeping for the poll interval.
     Sleep = 10,
@@ -71,7 +72,14 @@ impl RxProbe {
             0 => "starting".into(),
             v @ 1..=9 => {
                 let i = usize::from(v - 1);
-                let t = crate::cycle::RECORDED.get(i).copied().unwrap_or("?");
+                // one past the topics: the vehicle bus (crate::bus)
+                let t = crate::cycle::RECORDED.get(i).copied().unwrap_or(
+                    if i == crate::cycle::RECORDED.len() {
+                        grip_msgs::topics::BUS
+                    } else {
+                        "?"
+                    },
+                );
                 format!("receiving {t}")
             }
             10 => "sleeping for the poll interval".into(),

@@ -53,6 +53,9 @@ pub struct RunHead {
     /// Files to attach (each checked against its hash of the run's start
     /// when a part is opened).
     pub files: Vec<ConfigFile>,
+    /// Whether every part has the bus log's channel (`grip/can/bus`: the
+    /// recorder's `bus` is not "off").
+    pub bus_log: bool,
 }
 
 impl RunHead {
@@ -103,7 +106,11 @@ impl RunHead {
                 );
             }
         }
-        Self { info, files }
+        Self {
+            info,
+            files,
+            bus_log: false,
+        }
     }
 
     /// Writes `grip.run` (with `part` keys added) and the attachments. A
@@ -175,6 +182,9 @@ fn open_writer(
             x if x == topics::TRUTH => w.add_topic::<GroundTruth>(x)?,
             other => tracing::warn!(topic = other, "topic not known to the recorder"),
         }
+    }
+    if head.bus_log {
+        w.add_topic::<grip_msgs::BusFrame>(topics::BUS)?;
     }
     head.write(&mut w, part)?;
     w.flush()?;

@@ -16,7 +16,8 @@ use grip_io::systemd;
 #[cfg(test)]
 use grip_msgs::topics;
 
-use crate::config::RecorderConfig;
+use crate::bus::BusSetup;
+use crate::config::{BusRecord, RecorderConfig};
 use crate::cycle::{Summary, queue, spawn_receiver, write_loop};
 use crate::monitor::RxProbe;
 use crate::parts::{NextPath, Parts, Rotation, RunHead};
@@ -207,11 +208,32 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
     // where its DBC puts them; a configuration that gives none leaves the
     // built-in one (the services themselves refuse it, naming why)
     let dir = grip_config::ConfigDir::new(&opts.config.config_dir);
-    if let Err(e) = grip_io::service::load_can(&dir)
-        .and_then(|can| grip_io::service::install_protocol(&dir, &can).map(|_| ()))
+    let can = grip_io::service::load_can(&dir);
+    if let Err(e) = can
+        .as_ref()
+        .map_err(Clone::clone)
+        .and_then(|can| grip_io::service::install_protocol(&dir, can).map(|_| ()))
     {
-        tracing::warn!(error = %e, "CAN alive counters read as the built-in protocol places them");
+        tracing::warn!(error = %e, "CAN alive counters read as the built-in protocol places them (and, with bus = \"foreign\", grip's ids on the bus are the built-in ones)");
     }
+    // the vehicle bus, read-only (crate::bus): a bus that cannot be
+    // configured is a warning, the rest is recorded
+    let bus = match (cfg.bus, can) {
+        (BusRecord::Off, _) => {
+            tracing::info!("bus log off (recorder.toml: bus = \"off\")");
+            None
+        }
+        (mode, Ok(can)) => Some(BusSetup {
+            can,
+            mode,
+            under_systemd: std::env::var_os("INVOCATION_ID").is_some(),
+        }),
+        (mode, Err(e)) => {
+            tracing::warn!(error = %e, record = mode.as_str(), "bus log: no bus configuration; the vehicle bus is not recorded");
+            None
+        }
+    };
+    let bus_mode = cfg.bus;
     let path = match &opts.out {
         Some(p) => p.clone(),
         None => std::fs::create_dir_all(&cfg.out_dir)
@@ -246,12 +268,13 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
             None
         }
     };
-    let head = RunHead::gather(
+    let mut head = RunHead::gather(
         &opts.config.config_dir,
         cfg.attach_max_bytes,
         &opts.meta,
         &opts.attach,
     );
+    head.bus_log = bus_mode != BusRecord::Off;
     // rotation and resuming after a write error only where the recorder
     // names its files itself (out_dir); --out is one file
     let (rotation, next_path): (Option<Rotation>, NextPath) = match &opts.out {
@@ -299,6 +322,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         Arc::clone(&probe),
         tap,
         ready_tx,
+        bus,
     )
     .map_err(RunError::Thread)?;
     match ready_rx.recv() {
@@ -365,6 +389,12 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
     let dropped: u64 = summary.recv.topics.values().map(|s| s.queue_dropped).sum();
     let receive_errors: u64 = summary.recv.topics.values().map(|s| s.receive_errors).sum();
     let ret = retention.as_ref().map(Retention::stats).unwrap_or_default();
+    let bus = summary.recv.bus.map(|b| b.stats).unwrap_or_default();
+    let bus_written = summary
+        .written
+        .get(grip_msgs::topics::BUS)
+        .copied()
+        .unwrap_or(0);
     tracing::info!(
         file = %path.display(),
         received = total_rx,
@@ -382,6 +412,13 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         retention_deleted_mib = ret.deleted_bytes >> 20,
         retention_failed = ret.failed,
         retention_longest_sweep_ms = ret.longest.as_secs_f64() * 1e3,
+        bus_log = bus_mode.as_str(),
+        bus_received = bus.received,
+        bus_written,
+        bus_kernel_dropped = bus.kernel_dropped,
+        bus_queue_dropped = bus.queue_dropped,
+        bus_receive_errors = bus.receive_errors,
+        bus_reopens = bus.reopens,
         "recorder stopped"
     );
     end?;

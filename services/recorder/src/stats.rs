@@ -108,6 +108,20 @@ pub struct RecvStats {
     pub topics: BTreeMap<&'static str, TopicStats>,
     /// CAN alive-counter tracking.
     pub can: CanCounterTracker,
+    /// The bus log's counters (`None`: `bus = "off"`).
+    pub bus: Option<BusSummary>,
+}
+
+/// The bus log of a recording: its mode and counters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BusSummary {
+    /// `recorder.toml`'s `bus`.
+    pub mode: &'static str,
+    /// The receive thread's idle sleep, ms (the resolution of stamps taken
+    /// at read).
+    pub poll_ms: u64,
+    /// The counters.
+    pub stats: crate::bus::BusStats,
 }
 
 impl RecvStats {
@@ -143,6 +157,23 @@ impl RecvStats {
         out.can.gaps = self.can.gaps.saturating_sub(earlier.can.gaps);
         out.can.repeats = self.can.repeats.saturating_sub(earlier.can.repeats);
         out.can.untracked = self.can.untracked.saturating_sub(earlier.can.untracked);
+        out.bus = self.bus.map(|b| {
+            let (s, e) = (b.stats, earlier.bus.map(|e| e.stats).unwrap_or_default());
+            BusSummary {
+                stats: crate::bus::BusStats {
+                    received: s.received.saturating_sub(e.received),
+                    skipped_own: s.skipped_own.saturating_sub(e.skipped_own),
+                    queue_dropped: s.queue_dropped.saturating_sub(e.queue_dropped),
+                    receive_errors: s.receive_errors.saturating_sub(e.receive_errors),
+                    kernel_dropped: s.kernel_dropped.saturating_sub(e.kernel_dropped),
+                    kernel_stamped: s.kernel_stamped.saturating_sub(e.kernel_stamped),
+                    reopens: s.reopens.saturating_sub(e.reopens),
+                    open_failures: s.open_failures.saturating_sub(e.open_failures),
+                    transport: s.transport,
+                },
+                ..b
+            }
+        });
         out
     }
 }

@@ -178,3 +178,137 @@ fn closed_loop_reproduces_the_logged_metrics() {
         assert!(rel.abs() <= 2.0, "{metric}: {rel} % off the log: {line}");
     }
 }
+
+/// A log with the recorder's bus log (`grip/can/bus`): the reference drive
+/// rewritten with every message, metadata record and attachment, plus
+/// 3000 bus frames (foreign ids, and copies of grip's own ids, which a
+/// replay must not take for CAN-log frames), replays identically, and its
+/// summary's topic table is the same as the reference's.
+#[test]
+fn a_bus_log_in_the_drive_is_ignored_by_replay_and_summary() {
+    use grip_io::mcaplog::{LogMessage, McapLog, McapWriter, McapWriterOptions};
+    use grip_msgs::{BusFrame, can_flags, topics};
+    let src = root().join("tests/data/reference-drive.mcap");
+    let log = McapLog::open(&src).unwrap();
+    let (msgs, rep) = log.messages().unwrap();
+    assert!(rep.truncated.is_none() && rep.bad == 0, "{rep:?}");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("with-bus.mcap");
+    let mut w = McapWriter::create(&out, McapWriterOptions::default()).unwrap();
+    let (first, last) = (msgs[0].log_time_ns, msgs[msgs.len() - 1].log_time_ns);
+    let mut bus = (0..3000u64).map(|k| BusFrame {
+        stamp_ns: first + (last - first) * k / 3000,
+        // 0x120 is grip's WheelSpeeds: a copy of it on the bus log
+        id: [0x3E9, 0x120, 0x18DA_F110][(k % 3) as usize],
+        dlc: 8,
+        bus: 0,
+        flags: if k % 3 == 2 { can_flags::EXTENDED } else { 0 },
+        _reserved: 0,
+        data: [k as u8, 1, 2, 3, 4, 5, 6, 7],
+    });
+    let mut next = bus.next();
+    for m in &msgs {
+        while let Some(b) = next.filter(|b| b.stamp_ns <= m.log_time_ns) {
+            w.write(topics::BUS, &b).unwrap();
+            next = bus.next();
+        }
+        let t = m.log_time_ns;
+        match &m.msg {
+            LogMessage::Audio(a) => w.write_at(&m.topic, t, a.as_ref()),
+            LogMessage::Road(r) => w.write_at(&m.topic, t, r),
+            LogMessage::Cycle(c) => w.write_at(&m.topic, t, c),
+            LogMessage::Can(f) => w.write_at(&m.topic, t, f),
+            LogMessage::Truth(g) => w.write_at(&m.topic, t, g),
+            LogMessage::Bus(b) => w.write_at(&m.topic, t, b),
+        }
+        .unwrap();
+    }
+    for (name, map) in log.metadata().unwrap() {
+        w.write_metadata(&name, &map).unwrap();
+    }
+    for a in log.attachments().unwrap() {
+        w.attach_bytes(&a.name, &a.media_type, &a.data).unwrap();
+    }
+    w.finish().unwrap();
+    let (_, rep) = McapLog::open(&out).unwrap().messages().unwrap();
+    assert_eq!(rep.messages, msgs.len() as u64 + 3000, "{rep:?}");
+
+    let run = |log: &Path, args: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_grip"))
+            .arg("--config-dir")
+            .arg(root().join("config"))
+            .args(args)
+            .arg(log)
+            .output()
+            .unwrap();
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr),
+        )
+    };
+    let (ok, text) = run(&out, &["replay", "--check"]);
+    assert!(
+        ok,
+        "a log with a bus log does not replay identically:\n{text}"
+    );
+    assert!(
+        text.contains("first divergence: none; every replayed topic is identical"),
+        "{text}"
+    );
+    assert!(
+        !text.contains(topics::BUS),
+        "replay mentions the bus log:\n{text}"
+    );
+    // grip inspect: the same topic table as the reference's, and a bus section
+    let topic_lines = |t: &str| -> Vec<String> {
+        t.lines()
+            .filter(|l| l.trim_start().starts_with("grip/"))
+            .map(str::to_owned)
+            .collect()
+    };
+    let (ok_a, ref_text) = run(&src, &["inspect"]);
+    let (ok_b, bus_text) = run(&out, &["inspect"]);
+    assert!(ok_a && ok_b, "{ref_text}\n{bus_text}");
+    assert_eq!(topic_lines(&ref_text), topic_lines(&bus_text));
+    assert!(!ref_text.contains("bus (the vehicle bus"), "{ref_text}");
+    assert!(
+        bus_text.contains("bus (the vehicle bus") && bus_text.contains("3000 frames"),
+        "{bus_text}"
+    );
+    // --candump: every bus frame in candump's format, wall time from the
+    // log's clock record; a log without a bus log is an error
+    let dump = dir.path().join("bus.log");
+    let dump_s = dump.to_str().unwrap();
+    let (ok, text) = run(&out, &["inspect", "--candump", dump_s]);
+    assert!(
+        ok && text.contains(
+            "3000 frames, candump log format; wall time from the log's grip.clock record"
+        ),
+        "{text}"
+    );
+    let lines: Vec<String> = std::fs::read_to_string(&dump)
+        .unwrap()
+        .lines()
+        .map(str::to_owned)
+        .collect();
+    assert_eq!(lines.len(), 3000);
+    let iface = " vcan0 ";
+    assert!(
+        lines[0].starts_with('(') && lines[0].contains(&format!("){iface}3E9#0001020304050607")),
+        "{}",
+        lines[0]
+    );
+    assert!(
+        lines[2].ends_with(&format!("{}18DAF110#0201020304050607", iface.trim_start())),
+        "{}",
+        lines[2]
+    );
+    let secs: f64 = lines[0][1..lines[0].find(')').unwrap()].parse().unwrap();
+    assert!(secs > 1.6e9, "not a wall time: {secs}");
+    std::fs::remove_file(&dump).unwrap();
+    let (ok, text) = run(&src, &["inspect", "--candump", dump_s]);
+    assert!(
+        !ok && text.contains("no bus log") && !dump.exists(),
+        "{text}"
+    );
+}

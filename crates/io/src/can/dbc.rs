@@ -146,6 +146,36 @@ pub fn name_keys() -> impl Iterator<Item = String> {
     })
 }
 
+/// Every message a DBC defines, by identifier: `(id, extended)` → name,
+/// grip's five and all the others (a car's full DBC names its brake,
+/// steering and wheel-speed frames too). For naming the frames of a bus
+/// log (`grip inspect`), not for speaking them: no signal is read. The
+/// text as [`Protocol::from_dbc_bytes`] decodes it (UTF-8, else Latin-1).
+/// A DBC that does not parse is an error naming the file and the line.
+pub fn message_names(bytes: &[u8], file: &str) -> Result<BTreeMap<(u32, bool), String>, DbcError> {
+    let text = match std::str::from_utf8(bytes) {
+        Ok(t) => std::borrow::Cow::Borrowed(t),
+        Err(_) => std::borrow::Cow::Owned(bytes.iter().map(|&b| char::from(b)).collect()),
+    };
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    let dbc = Dbc::try_from(text).map_err(|e| DbcError {
+        file: file.to_owned(),
+        what: "file".into(),
+        reason: format!("not a DBC: {}", parse_error(&e)),
+    })?;
+    Ok(dbc
+        .messages
+        .iter()
+        .map(|m| {
+            let key = match m.id {
+                MessageId::Standard(id) => (u32::from(id), false),
+                MessageId::Extended(id) => (id, true),
+            };
+            (key, m.name.clone())
+        })
+        .collect())
+}
+
 impl Protocol {
     /// Reads grip's protocol from the DBC at `path`. `names` maps grip's
     /// names (`TorqueCommand`, `TorqueCommand.TorqueRequest`) to the DBC's

@@ -15,13 +15,13 @@ mod socket;
 
 use core::time::Duration;
 
-pub use dbc::{DbcError, name_keys as dbc_name_keys};
+pub use dbc::{DbcError, message_names as dbc_message_names, name_keys as dbc_name_keys};
 pub use grip_msgs::CanFrame;
 pub use mem::{FrameQueue, MEM_BUS_CAPACITY, MemBus, frame_queue};
 pub use sim::SimBus;
 pub use socket::{
-    REOPEN_CHECK_NS, SocketCanBus, af_can_available, interface_exists, physical_interface,
-    physical_interface_in,
+    MONITOR_MAX_EXCLUDED, MONITOR_RCVBUF, REOPEN_CHECK_NS, SocketCanBus, af_can_available,
+    frame_from_raw, interface_exists, physical_interface, physical_interface_in, real_to_monotonic,
 };
 
 use crate::ipc::{IpcError, IpcNode};
@@ -337,6 +337,63 @@ impl CanBus for AnyBus {
     }
 }
 
+impl AnyBus {
+    /// A bus monitor's read ([`open_monitor`]): on SocketCAN
+    /// [`SocketCanBus::try_recv_monitor`] (every frame kind, the kernel's
+    /// receive time), on the simulated bus [`CanBus::try_recv`] (every
+    /// frame another participant sent, stamped at read). Allocation-free.
+    pub fn try_recv_monitor(&mut self) -> Result<Option<CanFrame>, CanError> {
+        match self {
+            Self::SocketCan(b) => b.try_recv_monitor(),
+            Self::Sim(b) => b.try_recv(),
+        }
+    }
+
+    /// Frames the kernel dropped on a full receive queue
+    /// ([`SocketCanBus::rx_overflows`]); 0 on the simulated bus, which
+    /// cannot tell (a reader that falls 1024 frames behind loses the
+    /// oldest unseen).
+    pub fn rx_overflows(&self) -> u64 {
+        match self {
+            Self::SocketCan(b) => b.rx_overflows(),
+            Self::Sim(_) => 0,
+        }
+    }
+
+    /// Sockets reopened on a re-created interface (SocketCAN; 0 simulated).
+    pub fn reopens(&self) -> u64 {
+        match self {
+            Self::SocketCan(b) => b.reopens(),
+            Self::Sim(_) => 0,
+        }
+    }
+
+    /// Frames a monitor read stamped with the kernel's receive time.
+    pub fn kernel_stamped(&self) -> u64 {
+        match self {
+            Self::SocketCan(b) => b.kernel_stamped(),
+            Self::Sim(_) => 0,
+        }
+    }
+}
+
+/// Opens the bus `cfg` asks for read-only, as a bus monitor (the
+/// recorder's bus log): every frame ([`RxFilter::All`]); on SocketCAN with
+/// kernel receive stamps, drop counts and error frames
+/// ([`SocketCanBus::open_monitor`], which drops the 11-bit data frames of
+/// `exclude` in the kernel). The transport is chosen as
+/// [`open_bus_as`] chooses it. Nothing is ever sent on it by its owner
+/// (read it with [`AnyBus::try_recv_monitor`]); on the simulated bus it
+/// still takes a publisher port (unused), as every participant does.
+pub fn open_monitor(
+    cfg: &CanBusConfig,
+    node: &IpcNode,
+    under_systemd: bool,
+    exclude: &[u32],
+) -> Result<AnyBus, CanError> {
+    open_as(cfg, node, under_systemd, RxFilter::All, Some(exclude))
+}
+
 /// Opens the bus `cfg` asks for, delivering only what `rx` lets through
 /// (a service passes its [`RxFilter::Role`]). `auto`: SocketCAN when AF_CAN works and
 /// the interface exists, else the simulated bus, with a loud warning saying
@@ -355,6 +412,20 @@ pub fn open_bus_as(
     under_systemd: bool,
     rx: RxFilter,
 ) -> Result<AnyBus, CanError> {
+    open_as(cfg, node, under_systemd, rx, None)
+}
+
+fn open_as(
+    cfg: &CanBusConfig,
+    node: &IpcNode,
+    under_systemd: bool,
+    rx: RxFilter,
+    monitor: Option<&[u32]>,
+) -> Result<AnyBus, CanError> {
+    let socket = |iface: &str| match monitor {
+        Some(exclude) => SocketCanBus::open_monitor(iface, cfg.bus_id, exclude),
+        None => SocketCanBus::open(iface, cfg.bus_id, rx),
+    };
     let sim = || -> Result<AnyBus, CanError> {
         Ok(AnyBus::Sim(
             SimBus::open(node, cfg.sim_bus_name(), cfg.bus_id)?.with_rx_filter(rx),
@@ -362,7 +433,7 @@ pub fn open_bus_as(
     };
     match cfg.transport {
         Transport::Socketcan => {
-            let b = SocketCanBus::open(&cfg.interface, cfg.bus_id, rx)?;
+            let b = socket(&cfg.interface)?;
             tracing::info!(iface = %cfg.interface, receives = %rx, "CAN transport: SocketCAN");
             Ok(AnyBus::SocketCan(b))
         }
@@ -377,7 +448,7 @@ pub fn open_bus_as(
                 Ok(()) if !interface_exists(&cfg.interface) => {
                     format!("interface {:?} does not exist", cfg.interface)
                 }
-                Ok(()) => match SocketCanBus::open(&cfg.interface, cfg.bus_id, rx) {
+                Ok(()) => match socket(&cfg.interface) {
                     Ok(b) => {
                         tracing::info!(iface = %cfg.interface, receives = %rx, "CAN transport: SocketCAN (auto)");
                         return Ok(AnyBus::SocketCan(b));

@@ -79,6 +79,18 @@ pub struct SocketCanBus {
     next_check_ns: u64,
     /// Sockets reopened on a re-created interface.
     reopens: u64,
+    /// Opened as a bus monitor ([`Self::open_monitor`]): kernel receive
+    /// stamps, receive-queue overflow counts, error frames (re-applied on
+    /// a reopen).
+    monitor: bool,
+    /// Frames the kernel dropped on earlier sockets (before a reopen).
+    dropped_before: u64,
+    /// The current socket's drop counter (`SO_RXQ_OVFL`), as last seen.
+    dropped_now: u32,
+    /// Frames a monitor read stamped with the kernel's receive time.
+    kernel_stamped: u64,
+    /// 11-bit ids a monitor's kernel filter drops ([`Self::open_monitor`]).
+    exclude: heapless::Vec<u32, MONITOR_MAX_EXCLUDED>,
 }
 
 /// How often a bus whose interface vanished looks whether it is back.
@@ -149,7 +161,139 @@ impl SocketCanBus {
             gone_since: None,
             next_check_ns: 0,
             reopens: 0,
+            monitor: false,
+            dropped_before: 0,
+            dropped_now: 0,
+            kernel_stamped: 0,
+            exclude: heapless::Vec::new(),
         })
+    }
+
+    /// Opens `iface` read-only as a bus monitor (a CAN logger): every
+    /// frame, data, remote and error frames alike ([`RxFilter::All`] and
+    /// `CAN_RAW_ERR_FILTER` = every error class), each stamped with the
+    /// kernel's receive time (`SO_TIMESTAMPNS`) and the frames the kernel
+    /// dropped on a full receive queue counted (`SO_RXQ_OVFL`). Read it
+    /// with [`Self::try_recv_monitor`]; the receive buffer is asked for
+    /// [`MONITOR_RCVBUF`] bytes (the kernel caps it at `net.core.rmem_max`).
+    ///
+    /// `exclude`: 11-bit data-frame ids the kernel drops before the
+    /// monitor sees them (inverted `CAN_RAW_FILTER`s joined with
+    /// `CAN_RAW_JOIN_FILTERS`: a frame passes only if it is none of them;
+    /// an extended or remote frame with the same number passes), so that
+    /// traffic the owner does not log costs it nothing, not even a read
+    /// (the recorder's `bus = "foreign"`: grip's own ids). At most
+    /// [`MONITOR_MAX_EXCLUDED`].
+    pub fn open_monitor(iface: &str, bus_id: u8, exclude: &[u32]) -> Result<Self, CanError> {
+        let io = |e| CanError::Io {
+            iface: iface.into(),
+            source: e,
+        };
+        let mut b = Self::open(iface, bus_id, RxFilter::All)?;
+        b.exclude = heapless::Vec::from_slice(exclude).map_err(|_| {
+            io(std::io::Error::other(format!(
+                "{} ids to exclude, at most {MONITOR_MAX_EXCLUDED}",
+                exclude.len()
+            )))
+        })?;
+        monitor_options(&b.sock, &b.exclude).map_err(io)?;
+        b.monitor = true;
+        Ok(b)
+    }
+
+    /// Frames the kernel dropped because this socket's receive queue was
+    /// full, summed over every socket it reopened: the socket's drop
+    /// counter (`SO_MEMINFO`, one `getsockopt(2)`; also what the
+    /// `SO_RXQ_OVFL` control messages of a monitor's reads said, which
+    /// come only with a frame queued after a drop, so that drops at the
+    /// end of a burst would go unseen by them alone).
+    pub fn rx_overflows(&self) -> u64 {
+        let now = socket_drops(&self.sock).unwrap_or(0).max(self.dropped_now);
+        self.dropped_before + u64::from(now)
+    }
+
+    /// Frames [`Self::try_recv_monitor`] stamped with the kernel's receive
+    /// time (the others with CLOCK_MONOTONIC at read).
+    pub fn kernel_stamped(&self) -> u64 {
+        self.kernel_stamped
+    }
+
+    /// A monitor's read: the next frame waiting, any kind (data, remote:
+    /// `can_flags::RTR`, error: `can_flags::ERROR` with the error class
+    /// bits as its id), without blocking, stamped with the kernel's receive
+    /// time moved onto CLOCK_MONOTONIC (`SO_TIMESTAMPNS` gives
+    /// CLOCK_REALTIME: the difference of the two clocks read right after
+    /// the read is subtracted, so a wall-clock step between the frame's
+    /// arrival and its read shifts that frame by the step), or with
+    /// CLOCK_MONOTONIC at read where the kernel gave none. `recvmsg(2)`
+    /// into buffers on the stack: allocation-free. The interface's loss
+    /// and return are handled as in [`CanBus::try_recv`].
+    pub fn try_recv_monitor(&mut self) -> Result<Option<CanFrame>, CanError> {
+        use std::os::fd::AsRawFd as _;
+        self.reopen_if_back();
+        // SAFETY: can_frame is plain data; all-zero is a valid frame.
+        let mut raw: libc::can_frame = unsafe { core::mem::zeroed() };
+        // 8-byte aligned room for a timespec and a u32 control message
+        let mut control = [0u64; 16];
+        let mut iov = libc::iovec {
+            iov_base: (&raw mut raw).cast(),
+            iov_len: core::mem::size_of::<libc::can_frame>(),
+        };
+        // SAFETY: msghdr is plain data; all-zero is a valid empty header.
+        let mut msg: libc::msghdr = unsafe { core::mem::zeroed() };
+        msg.msg_iov = &raw mut iov;
+        msg.msg_iovlen = 1;
+        msg.msg_control = control.as_mut_ptr().cast();
+        msg.msg_controllen = core::mem::size_of_val(&control) as _;
+        // SAFETY: the header points at live buffers of the sizes given.
+        let n = unsafe { libc::recvmsg(self.sock.as_raw_fd(), &mut msg, libc::MSG_DONTWAIT) };
+        if n < 0 {
+            let e = std::io::Error::last_os_error();
+            if e.kind() == ErrorKind::WouldBlock {
+                return Ok(None);
+            }
+            self.note(&e);
+            return Err(CanError::Transfer {
+                op: "receive",
+                kind: e.kind(),
+            });
+        }
+        let read_mono = monotonic_now_ns();
+        let mut kernel_real: Option<u64> = None;
+        // SAFETY: msg was filled by recvmsg; the CMSG_* walk stays within
+        // msg_controllen, and the data are read unaligned.
+        unsafe {
+            let mut c = libc::CMSG_FIRSTHDR(&msg);
+            while !c.is_null() {
+                let h = &*c;
+                if h.cmsg_level == libc::SOL_SOCKET {
+                    if h.cmsg_type == libc::SCM_TIMESTAMPNS {
+                        let ts: libc::timespec =
+                            core::ptr::read_unaligned(libc::CMSG_DATA(c).cast());
+                        kernel_real = u64::try_from(ts.tv_sec)
+                            .ok()
+                            .zip(u64::try_from(ts.tv_nsec).ok())
+                            .map(|(s, ns)| s.saturating_mul(1_000_000_000).saturating_add(ns));
+                    } else if h.cmsg_type == libc::SO_RXQ_OVFL {
+                        let d: u32 = core::ptr::read_unaligned(libc::CMSG_DATA(c).cast());
+                        self.dropped_now = self.dropped_now.max(d);
+                    }
+                }
+                c = libc::CMSG_NXTHDR(&msg, c);
+            }
+        }
+        if (n as usize) < core::mem::size_of::<libc::can_frame>() {
+            // not a classic frame (never, without CAN_RAW_FD_FRAMES)
+            return Ok(None);
+        }
+        let stamp = match kernel_real {
+            Some(k) => {
+                self.kernel_stamped += 1;
+                real_to_monotonic(k, realtime_now_ns(), monotonic_now_ns())
+            }
+            None => read_mono,
+        };
+        Ok(Some(frame_from_raw(&raw, stamp, self.bus_id)))
     }
 
     /// Times the socket was reopened on a re-created interface.
@@ -193,10 +337,15 @@ impl SocketCanBus {
         let Ok(sock) = CanSocket::open_iface(index) else {
             return;
         };
-        if configure(&sock, self.filters.as_deref()).is_ok() {
+        if configure(&sock, self.filters.as_deref()).is_ok()
+            && (!self.monitor || monitor_options(&sock, &self.exclude).is_ok())
+        {
             self.sock = sock;
             self.gone_since = None;
             self.reopens += 1;
+            let old = socket_drops(&self.sock).unwrap_or(0).max(self.dropped_now);
+            self.dropped_before += u64::from(old);
+            self.dropped_now = 0;
         }
     }
 
@@ -229,6 +378,157 @@ impl SocketCanBus {
             _ => None,
         }
     }
+}
+
+/// Receive buffer a monitor asks for (`SO_RCVBUF`), bytes: the kernel
+/// caps it at `net.core.rmem_max` (and doubles it for its bookkeeping):
+/// on a default kernel (rmem_max 212992) that doubles the queue a bus
+/// monitor has, to 555 classic frames (HIL VM, 2026-12-05), 0.28 s of a
+/// busy bus at 2000 frames/s.
+pub const MONITOR_RCVBUF: libc::c_int = 4 << 20;
+
+fn setsockopt_int(
+    sock: &CanSocket,
+    level: libc::c_int,
+    name: libc::c_int,
+    v: libc::c_int,
+) -> std::io::Result<()> {
+    use std::os::fd::AsRawFd as _;
+    // SAFETY: a c_int option value of its size.
+    let r = unsafe {
+        libc::setsockopt(
+            sock.as_raw_fd(),
+            level,
+            name,
+            (&raw const v).cast(),
+            core::mem::size_of::<libc::c_int>() as libc::socklen_t,
+        )
+    };
+    if r < 0 {
+        Err(std::io::Error::last_os_error())
+    } else {
+        Ok(())
+    }
+}
+
+/// A monitor socket's options: kernel receive stamps, drop counts, every
+/// error class, a larger receive buffer (best effort).
+fn monitor_options(sock: &CanSocket, exclude: &[u32]) -> std::io::Result<()> {
+    use std::os::fd::AsRawFd as _;
+    if !exclude.is_empty() {
+        let mut filters = [libc::can_filter {
+            can_id: 0,
+            can_mask: 0,
+        }; MONITOR_MAX_EXCLUDED];
+        for (f, &id) in filters.iter_mut().zip(exclude) {
+            f.can_id = (id & libc::CAN_SFF_MASK) | libc::CAN_INV_FILTER;
+            f.can_mask = libc::CAN_SFF_MASK | libc::CAN_EFF_FLAG | libc::CAN_RTR_FLAG;
+        }
+        let n = exclude.len().min(MONITOR_MAX_EXCLUDED);
+        // SAFETY: an array of n can_filter and its byte length.
+        let r = unsafe {
+            libc::setsockopt(
+                sock.as_raw_fd(),
+                libc::SOL_CAN_RAW,
+                libc::CAN_RAW_FILTER,
+                filters.as_ptr().cast(),
+                (n * core::mem::size_of::<libc::can_filter>()) as libc::socklen_t,
+            )
+        };
+        if r < 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        setsockopt_int(sock, libc::SOL_CAN_RAW, libc::CAN_RAW_JOIN_FILTERS, 1)?;
+    }
+    setsockopt_int(sock, libc::SOL_SOCKET, libc::SO_TIMESTAMPNS, 1)?;
+    setsockopt_int(sock, libc::SOL_SOCKET, libc::SO_RXQ_OVFL, 1)?;
+    setsockopt_int(
+        sock,
+        libc::SOL_CAN_RAW,
+        libc::CAN_RAW_ERR_FILTER,
+        libc::CAN_ERR_MASK as libc::c_int,
+    )?;
+    // capped by rmem_max; a smaller buffer still works
+    let _ = setsockopt_int(sock, libc::SOL_SOCKET, libc::SO_RCVBUF, MONITOR_RCVBUF);
+    Ok(())
+}
+
+/// Most ids a monitor's kernel filter excludes ([`SocketCanBus::open_monitor`]).
+pub const MONITOR_MAX_EXCLUDED: usize = 16;
+
+/// `SO_MEMINFO` (asm-generic's value: x86-64, AArch64, ARM, RISC-V).
+const SO_MEMINFO: libc::c_int = 55;
+
+/// The socket's count of frames dropped on a full receive queue
+/// (`sk_drops`, by `SO_MEMINFO`); `None` if the kernel does not say.
+fn socket_drops(sock: &CanSocket) -> Option<u32> {
+    use std::os::fd::AsRawFd as _;
+    let mut mem = [0u32; 9];
+    let mut len = core::mem::size_of_val(&mem) as libc::socklen_t;
+    // SAFETY: a buffer of `len` bytes and its length.
+    let r = unsafe {
+        libc::getsockopt(
+            sock.as_raw_fd(),
+            libc::SOL_SOCKET,
+            SO_MEMINFO,
+            mem.as_mut_ptr().cast(),
+            &mut len,
+        )
+    };
+    let drops = libc::SK_MEMINFO_DROPS as usize;
+    (r == 0 && len as usize >= (drops + 1) * 4).then_some(mem[drops])
+}
+
+/// CLOCK_REALTIME now, ns.
+fn realtime_now_ns() -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: valid out-pointer.
+    unsafe { libc::clock_gettime(libc::CLOCK_REALTIME, &mut ts) };
+    (ts.tv_sec as u64)
+        .saturating_mul(1_000_000_000)
+        .saturating_add(ts.tv_nsec as u64)
+}
+
+/// A CLOCK_REALTIME stamp `real` moved onto CLOCK_MONOTONIC, with both
+/// clocks read (`real_now`, `mono_now`) after it: `mono_now - (real_now -
+/// real)`; never later than `mono_now` (a stamp "from the future" after a
+/// wall-clock step back is clamped to the read).
+pub fn real_to_monotonic(real: u64, real_now: u64, mono_now: u64) -> u64 {
+    mono_now.saturating_sub(real_now.saturating_sub(real))
+}
+
+/// A grip frame of a raw SocketCAN frame: 11- or 29-bit id and the
+/// extended, remote and error flags; payload bytes beyond the DLC zeroed.
+pub fn frame_from_raw(raw: &libc::can_frame, stamp_ns: u64, bus_id: u8) -> CanFrame {
+    let id = raw.can_id;
+    let mut flags = 0;
+    let ident = if id & libc::CAN_ERR_FLAG != 0 {
+        flags |= can_flags::ERROR;
+        id & libc::CAN_ERR_MASK
+    } else if id & libc::CAN_EFF_FLAG != 0 {
+        flags |= can_flags::EXTENDED;
+        id & libc::CAN_EFF_MASK
+    } else {
+        id & libc::CAN_SFF_MASK
+    };
+    if id & libc::CAN_RTR_FLAG != 0 {
+        flags |= can_flags::RTR;
+    }
+    let dlc = raw.can_dlc.min(8);
+    let mut out = CanFrame::new(ident, &[]);
+    out.dlc = dlc;
+    if flags & can_flags::RTR == 0 {
+        let n = usize::from(dlc);
+        out.data[..n].copy_from_slice(&raw.data[..n]);
+    }
+    out.flags = flags;
+    out.stamp_ns = stamp_ns;
+    out.direction = can_dir::RX;
+    out.bus = bus_id;
+    out
 }
 
 /// Makes a new socket non-blocking and sets its kernel filters, dropping
@@ -371,6 +671,61 @@ mod tests {
                 assert!(!passes(&fs, foreign), "{role:?} {foreign:#x}");
             }
         }
+    }
+
+    /// A raw kernel frame as the monitor hands it out: 11- and 29-bit ids,
+    /// remote frames without payload, error frames with their class as the
+    /// id, a corrupt DLC clamped, bytes beyond the DLC zeroed.
+    #[test]
+    fn raw_frames_become_grip_frames_with_their_kind() {
+        // SAFETY: can_frame is plain data; all-zero is a valid frame.
+        let mut raw: libc::can_frame = unsafe { core::mem::zeroed() };
+        raw.data = [1, 2, 3, 4, 5, 6, 7, 8];
+        let conv = |raw: &libc::can_frame| frame_from_raw(raw, 42, 7);
+        raw.can_id = 0x3E9;
+        raw.can_dlc = 3;
+        let f = conv(&raw);
+        assert_eq!(
+            (f.id, f.flags, f.dlc, f.stamp_ns, f.bus),
+            (0x3E9, 0, 3, 42, 7)
+        );
+        assert_eq!(f.data, [1, 2, 3, 0, 0, 0, 0, 0]);
+        raw.can_id = 0x18DA_F110 | libc::CAN_EFF_FLAG;
+        raw.can_dlc = 12;
+        let f = conv(&raw);
+        assert_eq!(
+            (f.id, f.flags, f.dlc),
+            (0x18DA_F110, can_flags::EXTENDED, 8)
+        );
+        raw.can_id = 0x7AB | libc::CAN_RTR_FLAG;
+        raw.can_dlc = 4;
+        let f = conv(&raw);
+        assert_eq!(
+            (f.id, f.flags, f.dlc, f.data),
+            (0x7AB, can_flags::RTR, 4, [0; 8])
+        );
+        raw.can_id = libc::CAN_ERR_FLAG | 0x04;
+        raw.can_dlc = 8;
+        let f = conv(&raw);
+        assert_eq!((f.id, f.flags), (0x04, can_flags::ERROR));
+    }
+
+    /// The kernel's CLOCK_REALTIME stamp onto CLOCK_MONOTONIC: shifted by
+    /// the clocks' difference, never later than the read.
+    #[test]
+    fn realtime_stamps_move_onto_the_monotonic_clock() {
+        // received 1.5 ms before the read
+        assert_eq!(
+            real_to_monotonic(1_000_000_000, 1_001_500_000, 7_000_000),
+            5_500_000
+        );
+        // a wall clock stepped back since: clamped to the read
+        assert_eq!(
+            real_to_monotonic(2_000_000_000, 1_000_000_000, 7_000_000),
+            7_000_000
+        );
+        // earlier than boot: 0, never a wrap
+        assert_eq!(real_to_monotonic(0, 1_000_000_000, 5), 0);
     }
 
     /// A fake `/sys/class/net`: `can0` with a `device` link (a controller on

@@ -12,8 +12,8 @@
 use std::io::Write;
 
 use grip_msgs::{
-    AUDIO_MAX_SAMPLES, AudioBlock, CanFrame, CycleRecord, E2eFaults, GroundTruth, MAX_ROAD_CLASSES,
-    NAME_LEN, RoadEstimate, name_from_bytes, name_to_bytes,
+    AUDIO_MAX_SAMPLES, AudioBlock, BusFrame, CanFrame, CycleRecord, E2eFaults, GroundTruth,
+    MAX_ROAD_CLASSES, NAME_LEN, RoadEstimate, name_from_bytes, name_to_bytes,
 };
 use serde_json::{Value, json};
 
@@ -572,6 +572,65 @@ impl McapRecord for CanFrame {
             direction: r.uint("direction")?,
             bus: r.uint("bus")?,
             flags: r.uint("flags")?,
+            data,
+        })
+    }
+    fn stamp_ns(&self) -> u64 {
+        self.stamp_ns
+    }
+}
+
+impl McapRecord for BusFrame {
+    const SCHEMA_NAME: &'static str = BusFrame::TYPE_NAME;
+    fn json_schema() -> Value {
+        schema(
+            Self::SCHEMA_NAME,
+            "A frame of the vehicle bus as the recorder read it (any sender)",
+            &[
+                (
+                    "stamp_ns",
+                    t_int("receive time, CLOCK_MONOTONIC ns (kernel's on SocketCAN)"),
+                ),
+                ("id", t_int("identifier (error class for an error frame)")),
+                ("dlc", t_int("data length code")),
+                ("bus", t_int("bus number")),
+                ("flags", t_int("1 extended, 2 RTR, 4 error")),
+                ("data", t_arr("integer", 8, "8 data bytes")),
+            ],
+        )
+    }
+    fn write_json(&self, out: &mut Vec<u8>) {
+        let mut o = Obj::new(out);
+        o.u("stamp_ns", self.stamp_ns)
+            .u("id", self.id.into())
+            .u("dlc", self.dlc.into())
+            .u("bus", self.bus.into())
+            .u("flags", self.flags.into())
+            .arr("data", &self.data, |b, x| {
+                let _ = write!(b, "{x}");
+            });
+        o.end();
+    }
+    fn from_json(v: &Value) -> Result<Self, JsonError> {
+        let r = root(v, Self::SCHEMA_NAME)?;
+        let d = r.array("data", 8)?;
+        if d.len() != 8 {
+            return Err(r.err("data", "must have 8 bytes"));
+        }
+        let mut data = [0u8; 8];
+        for (o, x) in data.iter_mut().zip(d) {
+            *o = x
+                .as_u64()
+                .and_then(|x| u8::try_from(x).ok())
+                .ok_or_else(|| r.err("data", "byte out of range"))?;
+        }
+        Ok(BusFrame {
+            stamp_ns: r.u64("stamp_ns")?,
+            id: r.uint("id")?,
+            dlc: r.uint("dlc")?,
+            bus: r.uint("bus")?,
+            flags: r.uint("flags")?,
+            _reserved: 0,
             data,
         })
     }

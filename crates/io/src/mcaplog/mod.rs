@@ -32,7 +32,7 @@ use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use grip_msgs::{AudioBlock, CanFrame, CycleRecord, GroundTruth, RoadEstimate};
+use grip_msgs::{AudioBlock, BusFrame, CanFrame, CycleRecord, GroundTruth, RoadEstimate};
 pub use json::{JsonError, McapRecord};
 use mcap::records::{MessageHeader, Record, op};
 
@@ -489,6 +489,8 @@ pub enum LogMessage {
     Can(CanFrame),
     /// Ground truth.
     Truth(GroundTruth),
+    /// A frame of the vehicle bus (channel `grip/can/bus`).
+    Bus(BusFrame),
 }
 
 /// One message of a log.
@@ -684,6 +686,7 @@ fn decode(schema: &str, data: &[u8]) -> Result<Option<LogMessage>, String> {
         GroundTruth::TYPE_NAME => {
             LogMessage::Truth(GroundTruth::from_json(&v).map_err(|e| e.to_string())?)
         }
+        BusFrame::TYPE_NAME => LogMessage::Bus(BusFrame::from_json(&v).map_err(|e| e.to_string())?),
         _ => return Ok(None),
     };
     Ok(Some(m))

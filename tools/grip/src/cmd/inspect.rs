@@ -39,6 +39,13 @@ pub struct Args {
     /// why (exit status 0 unless --strict).
     #[arg(long, conflicts_with_all = ["csv", "plot"])]
     json: bool,
+    /// One log: write its vehicle-bus log (channel `grip/can/bus`) to this
+    /// file in candump's log format, `(epoch.micros) IFACE ID#DATA`, which
+    /// can-utils' `canplayer`, python-can and SavvyCAN read. The times are
+    /// wall time from the log's `grip.clock` record (else seconds since
+    /// boot, and the command says so).
+    #[arg(long, conflicts_with = "json")]
+    candump: Option<PathBuf>,
 }
 
 /// The summary of the log at `path`, with the vehicle the drive ran with
@@ -86,9 +93,9 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         return crate::drive::many::inspect_dir(ctx, dir, args.csv.as_deref(), args.strict);
     }
     if let [a, b] = args.logs.as_slice() {
-        if args.csv.is_some() || args.plot.is_some() {
+        if args.csv.is_some() || args.plot.is_some() || args.candump.is_some() {
             anyhow::bail!(
-                "--csv and --plot take one log (got two: {} and {})",
+                "--csv, --plot and --candump take one log (got two: {} and {})",
                 a.display(),
                 b.display()
             );
@@ -100,6 +107,12 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     }
     let (log, r, s) = summary_of(ctx, &args.logs[0])?;
     print!("{}", report(&log, &s));
+    if let Some(b) = drive::bus::render(&log) {
+        print!("{b}");
+    }
+    if let Some(file) = &args.candump {
+        write_candump(&log, file)?;
+    }
     if let Some(dir) = &args.csv {
         for p in export::write_csv(&log, dir)? {
             println!("wrote {}", p.display());
@@ -110,6 +123,38 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             println!("wrote {}", p.display());
         }
     }
+    Ok(())
+}
+
+/// `--candump FILE`: the bus log in candump's log format; says how many
+/// frames and how their times were placed. A log without a bus log is an
+/// error (an empty file would look like a silent bus).
+fn write_candump(log: &DriveLog, file: &std::path::Path) -> anyhow::Result<()> {
+    use anyhow::Context as _;
+    if !drive::bus::has_bus(log) {
+        anyhow::bail!(
+            "{}: no bus log in this drive (channel {} absent: a recorder before the bus log, or bus = \"off\"); {} not written",
+            log.path.display(),
+            grip_msgs::topics::BUS,
+            file.display()
+        );
+    }
+    let f = std::fs::File::create(file).with_context(|| format!("creating {}", file.display()))?;
+    let mut w = std::io::BufWriter::new(f);
+    let clock = drive::bus::write_candump(log, &mut w)
+        .and_then(|c| std::io::Write::flush(&mut w).map(|()| c))
+        .with_context(|| format!("writing {}", file.display()))?;
+    let how = match clock {
+        drive::bus::WallClock::FromLog => "wall time from the log's grip.clock record",
+        drive::bus::WallClock::Monotonic => {
+            "the log has no grip.clock record: times are seconds since boot (CLOCK_MONOTONIC), not dates"
+        }
+    };
+    println!(
+        "wrote {} ({} frames, candump log format; {how})",
+        file.display(),
+        log.bus.len()
+    );
     Ok(())
 }
 
