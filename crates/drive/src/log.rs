@@ -90,6 +90,22 @@ pub struct DriveLog {
 }
 
 impl DriveLog {
+    /// The first stamp of the log's cycle records, ground truth, estimates
+    /// and CAN frames, ns (0 for none): the time origin of `grip inspect`'s
+    /// CSVs and of the measured section's demand window.
+    pub fn first_stamp_ns(&self) -> u64 {
+        [
+            self.cycles.first().map(|c| c.stamp_ns),
+            self.truth.first().map(|c| c.stamp_ns),
+            self.roads.first().map(|c| c.stamp_ns),
+            self.can.first().map(|c| c.stamp_ns),
+        ]
+        .into_iter()
+        .flatten()
+        .min()
+        .unwrap_or(0)
+    }
+
     /// Reads `path`. A file that is not MCAP, or unreadable, is an error; a
     /// damaged one reads all it can (see `report.truncated`).
     pub fn load(path: &Path) -> Result<Self, LogError> {

@@ -251,21 +251,6 @@ impl Acc {
     }
 }
 
-/// The first stamp of the log (cycle records, ground truth, estimates, CAN
-/// frames).
-fn first_message_ns(log: &DriveLog) -> u64 {
-    [
-        log.cycles.first().map(|c| c.stamp_ns),
-        log.truth.first().map(|c| c.stamp_ns),
-        log.roads.first().map(|c| c.stamp_ns),
-        log.can.first().map(|c| c.stamp_ns),
-    ]
-    .into_iter()
-    .flatten()
-    .min()
-    .unwrap_or(0)
-}
-
 /// The measured figures of `log` (see the module). `window_ns` is the
 /// summary's scenario window (None: use the driver's demand); `vehicle`
 /// gives r and v_eps; `roads` names the believed roads.
@@ -326,7 +311,7 @@ pub fn measured(
         }
         None => {
             m.window = MeasuredWindow::Demand;
-            m.origin_ns = first_message_ns(log);
+            m.origin_ns = log.first_stamp_ns();
             Box::new(|c: &CycleRecord| c.demand.is_finite() && c.demand > DEMAND_MIN_NM)
         }
     };

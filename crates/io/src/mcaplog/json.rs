@@ -170,6 +170,22 @@ impl<'a> Rd<'a> {
         }
         Ok(name_to_bytes(s))
     }
+    /// The 8 data bytes of a CAN frame's `data` (`CanFrame`, `BusFrame`).
+    fn data8(&self) -> Result<[u8; 8], JsonError> {
+        let d = self.array("data", 8)?;
+        if d.len() != 8 {
+            return Err(self.err("data", "must have 8 bytes"));
+        }
+        let mut data = [0u8; 8];
+        for (o, x) in data.iter_mut().zip(d) {
+            *o = x
+                .as_u64()
+                .and_then(|x| u8::try_from(x).ok())
+                .ok_or_else(|| self.err("data", "byte out of range"))?;
+        }
+        Ok(data)
+    }
+
     fn array(&self, k: &'static str, max: usize) -> Result<&'a Vec<Value>, JsonError> {
         let a = self
             .get(k)?
@@ -554,17 +570,7 @@ impl McapRecord for CanFrame {
     }
     fn from_json(v: &Value) -> Result<Self, JsonError> {
         let r = root(v, Self::SCHEMA_NAME)?;
-        let d = r.array("data", 8)?;
-        if d.len() != 8 {
-            return Err(r.err("data", "must have 8 bytes"));
-        }
-        let mut data = [0u8; 8];
-        for (o, x) in data.iter_mut().zip(d) {
-            *o = x
-                .as_u64()
-                .and_then(|x| u8::try_from(x).ok())
-                .ok_or_else(|| r.err("data", "byte out of range"))?;
-        }
+        let data = r.data8()?;
         Ok(CanFrame {
             stamp_ns: r.u64("stamp_ns")?,
             id: r.uint("id")?,
@@ -613,17 +619,7 @@ impl McapRecord for BusFrame {
     }
     fn from_json(v: &Value) -> Result<Self, JsonError> {
         let r = root(v, Self::SCHEMA_NAME)?;
-        let d = r.array("data", 8)?;
-        if d.len() != 8 {
-            return Err(r.err("data", "must have 8 bytes"));
-        }
-        let mut data = [0u8; 8];
-        for (o, x) in data.iter_mut().zip(d) {
-            *o = x
-                .as_u64()
-                .and_then(|x| u8::try_from(x).ok())
-                .ok_or_else(|| r.err("data", "byte out of range"))?;
-        }
+        let data = r.data8()?;
         Ok(BusFrame {
             stamp_ns: r.u64("stamp_ns")?,
             id: r.uint("id")?,

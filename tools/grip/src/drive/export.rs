@@ -50,25 +50,11 @@ fn open(dir: &Path, name: &str) -> anyhow::Result<(BufWriter<File>, PathBuf)> {
     Ok((BufWriter::new(w), p))
 }
 
-/// First stamp in the log (the time origin of the CSVs' `t_s`).
-pub fn t0_ns(log: &DriveLog) -> u64 {
-    [
-        log.cycles.first().map(|c| c.stamp_ns),
-        log.truth.first().map(|c| c.stamp_ns),
-        log.roads.first().map(|c| c.stamp_ns),
-        log.can.first().map(|c| c.stamp_ns),
-    ]
-    .into_iter()
-    .flatten()
-    .min()
-    .unwrap_or(0)
-}
-
 /// The two time origins of `grip inspect`'s outputs (CSV, road timeline,
 /// plots).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TimeBase {
-    /// The first message of the log ([`t0_ns`]): `t_s` = 0.
+    /// The first message of the log ([`DriveLog::first_stamp_ns`]): `t_s` = 0.
     pub first_ns: u64,
     /// The scenario start, the origin of the summary's times (a road change
     /// "at 0.428 s"): the ground-truth sample [`summary::scenario_start`]
@@ -84,7 +70,7 @@ impl TimeBase {
     /// The time origins of `log`.
     pub fn of(log: &DriveLog) -> Self {
         Self {
-            first_ns: t0_ns(log),
+            first_ns: log.first_stamp_ns(),
             scenario_ns: summary::scenario_start(&log.truth)
                 .and_then(|i| log.truth.get(i))
                 .map(|g| g.stamp_ns),

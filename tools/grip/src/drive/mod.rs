@@ -22,8 +22,9 @@ use std::time::Duration;
 use grip_drive::{DriveLog, LoadOptions, LogError};
 
 /// Logs at least this large get a spinner while they are read, bytes.
-/// Reading takes about 16 s for a 20-minute drive's 495 MB log in a
-/// release build (2-core AMD EPYC VM, 2026-12-05; about 0.9 GB resident):
+/// Reading took about 16 s for a 20-minute drive's 495 MB log in a
+/// release build (2-core AMD EPYC VM, 2026-12-05, before the bus log;
+/// about 0.9 GB resident):
 /// a recorder part of `max_file_mib` 1024 takes about half a minute.
 pub const SPINNER_FROM_BYTES: u64 = 64 << 20;
 

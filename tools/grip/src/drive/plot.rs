@@ -472,7 +472,7 @@ pub fn title_of(log: &DriveLog) -> (String, String) {
     // the moment its file was created is wall time
     let wall_ns = match (num("realtime_ns"), num("monotonic_ns")) {
         (Some(real), _) if generated => Some(real),
-        (Some(real), Some(mono)) => Some(i128::from(super::export::t0_ns(log)) - mono + real),
+        (Some(real), Some(mono)) => Some(i128::from(log.first_stamp_ns()) - mono + real),
         _ => None,
     };
     let when = wall_ns.map(|ns| {
