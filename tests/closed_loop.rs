@@ -31,7 +31,7 @@ impl TruthSink for Truths {
 /// A perfect road estimator: the true road, confidence 1, stamped now.
 struct Perfect(Option<RoadEstimate>);
 impl RoadSource for Perfect {
-    fn poll_latest(&mut self) -> Option<RoadEstimate> {
+    fn poll_next(&mut self) -> Option<RoadEstimate> {
         self.0.take()
     }
 }
@@ -334,7 +334,7 @@ struct HeardAhead {
 }
 
 impl RoadSource for HeardAhead {
-    fn poll_latest(&mut self) -> Option<RoadEstimate> {
+    fn poll_next(&mut self) -> Option<RoadEstimate> {
         self.next.take()
     }
 }

@@ -348,7 +348,8 @@ impl IpcNode {
 
     /// A subscriber of `T` on `topic`. [`SubscriberMode::Latest`] keeps only
     /// the newest sample (control inputs); [`SubscriberMode::Deep`] keeps
-    /// the topic's full buffer and asks for its history (the recorder).
+    /// the topic's full buffer and asks for its history (the recorder);
+    /// [`SubscriberMode::Buffered`] keeps the number of samples it names.
     pub fn subscriber<T: ZeroCopySend + Debug + Copy + 'static>(
         &self,
         topic: &str,
@@ -360,6 +361,7 @@ impl IpcNode {
         let builder = match mode {
             SubscriberMode::Latest => builder.buffer_size(qos::LATEST_BUFFER),
             SubscriberMode::Deep => builder.buffer_size(q.max_buffer),
+            SubscriberMode::Buffered(n) => builder.buffer_size(n.clamp(1, q.max_buffer)),
         };
         let port = builder.create().map_err(|e| IpcError::Port {
             kind: "subscriber",
@@ -424,6 +426,11 @@ pub enum SubscriberMode {
     Latest,
     /// The topic's full buffer (`qos::for_topic(..).max_buffer`).
     Deep,
+    /// A buffer of this many samples (at most the topic's `max_buffer`),
+    /// read oldest first: a stream in which every sample counts (the road
+    /// estimates the loop queues by place). When it is full the oldest
+    /// unread sample is overwritten (safe overflow).
+    Buffered(usize),
 }
 
 fn peers<T: ZeroCopySend + Debug + Copy + 'static>(s: &PubSubFactory<Svc, T, ()>) -> PeerReport {

@@ -379,7 +379,7 @@ proptest! {
     fn arbitrary_cycle_records_round_trip(
         vals in proptest::array::uniform7(proptest::num::f64::NORMAL | proptest::num::f64::SUBNORMAL | proptest::num::f64::ZERO),
         ints in proptest::array::uniform4(any::<u64>()),
-        lat in any::<i64>(), f in any::<[u32; 6]>(), b in any::<[u8; 3]>(), rc in any::<u32>(),
+        lat in any::<i64>(), f in any::<[u32; 6]>(), b in any::<[u8; 4]>(), rc in any::<u32>(),
     ) {
         let c = CycleRecord {
             seq: ints[0], stamp_ns: ints[1], wakeup_latency_ns: lat, compute_ns: ints[2],
@@ -387,7 +387,7 @@ proptest! {
             torque_cmd: vals[4], internal: vals[5], mu_hat: vals[6],
             odometer: vals[0] * 0.5, torque_cap: vals[1] * 0.25, belief_prob: vals[2] * 0.125,
             road_class: rc, belief_road: rc ^ 1,
-            used_arte: b[0], safe_state: b[1], v_valid: b[2], _reserved: 0,
+            used_arte: b[0], safe_state: b[1], v_valid: b[2], roads_taken: b[3],
             faults: E2eFaults { crc: f[0], counter_repeated: f[1], counter_skipped: f[2],
                 length: f[3], unknown_id: f[4], timeout: f[5] },
             road_taken: rc.rotate_left(3),

@@ -267,14 +267,19 @@ pub struct CycleRecord {
     pub safe_state: u8,
     /// 1 if `v` holds a valid measurement.
     pub v_valid: u8,
-    /// Explicit padding, zero.
-    pub _reserved: u8,
+    /// How many road estimates this cycle took from `grip/arte/road`, the
+    /// newest of them named by `road_taken` (every estimate is taken, in
+    /// order: a burst after arte caught up is queued whole). 0 with a
+    /// non-zero `road_taken`: a log from before this count (the byte was
+    /// padding), whose loop took the newest estimate only.
+    pub roads_taken: u8,
     /// CAN receive faults counted since start (all messages summed).
     pub faults: E2eFaults,
-    /// The road estimate this cycle took from `grip/arte/road` (latest
-    /// value wins): 1 + the low 32 bits of its `seq`; 0 if it took none.
-    /// What a replay needs to hand the loop the same estimate in the same
-    /// cycle (the estimate's own stamp cannot tell: it races the poll).
+    /// The newest road estimate this cycle took from `grip/arte/road`
+    /// (the one it holds): 1 + the low 32 bits of its `seq`; 0 if it took
+    /// none. With `roads_taken`, what a replay needs to hand the loop the
+    /// same estimates in the same cycle (an estimate's own stamp cannot
+    /// tell: it races the poll).
     pub road_taken: u32,
 }
 
@@ -305,7 +310,7 @@ impl CycleRecord {
             used_arte: 0,
             safe_state: 0,
             v_valid: 0,
-            _reserved: 0,
+            roads_taken: 0,
             faults: E2eFaults {
                 crc: 0,
                 counter_repeated: 0,

@@ -21,7 +21,7 @@ pub mod node {
 
 /// `AudioBlock` from audio-acq; read by arte (latest blocks, in order) and recorder.
 pub const AUDIO: &str = "grip/audio/block";
-/// `RoadEstimate` from arte; read by tcs-loop (latest value wins) and recorder.
+/// `RoadEstimate` from arte; read by tcs-loop (every one, in order) and recorder.
 pub const ROAD: &str = "grip/arte/road";
 /// `CycleRecord` from tcs-loop, one per control cycle; read by recorder.
 pub const CYCLE: &str = "grip/tcs/cycle";

@@ -11,8 +11,13 @@
 //!    faults counted) and is held for `CAN_LOG` (direction RX,
 //!    flag `E2E_REJECTED` when rejected; logged in step 5). Accepted frames
 //!    update the latest `WheelSpeeds`, `MotorStatus`, `VehicleSpeed`, `DriverDemand`.
-//! 2. **Road**: the newest `RoadEstimate` (latest value wins) replaces the
-//!    held one; its age is `now − stamp_ns` (both CLOCK_MONOTONIC).
+//! 2. **Road**: every `RoadEstimate` that arrived since the last cycle, in
+//!    order (at most [`MAX_ROADS_PER_CYCLE`]; more wait for the next cycle):
+//!    each is queued by the places it was heard at (step 4), and the newest
+//!    replaces the held one; its age is `now − stamp_ns` (both
+//!    CLOCK_MONOTONIC). Until 2026-12-05 the newest alone was taken, and
+//!    the estimates of a burst (arte catching up after a stall) were lost
+//!    to the queue: their stretches of road kept the road heard before.
 //! 3. **Safe state**: inputs are valid when a `WheelSpeeds` frame with
 //!    `DrivenValid` and a `MotorStatus` frame were accepted within
 //!    `sensor_timeout_ms` and a `DriverDemand` frame within
@@ -44,8 +49,9 @@
 //!    `subscriber_churn` bench), and that must not delay the command.
 //! 6. **Publish** the `CycleRecord` (with the odometer, integral of the
 //!    measured speed V, else r·ω; the cap and the believed road with ARTE;
-//!    `road_taken`, which estimate step 2 took, so that `grip replay` can
-//!    hand the loop the same estimate in the same cycle).
+//!    `road_taken` and `roads_taken`, the newest estimate step 2 took and
+//!    how many, so that `grip replay` can hand the loop the same estimates
+//!    in the same cycle).
 //!
 //! Nothing here allocates, blocks or logs; transitions are reported through
 //! [`SharedStatus`] atomics that a non-real-time thread reads and logs.
@@ -77,6 +83,12 @@ pub const ROLE: Role = Role::Tcs;
 /// Most frames drained from the bus in one cycle (grip-io's, shared with
 /// plant-sim: why 256 is written there).
 pub use grip_io::can::MAX_RX_PER_CYCLE;
+
+/// Most road estimates taken in one cycle (more wait for the next): 32,
+/// more than a burst arte publishes after catching up on its default
+/// `max_lag_s` of audio (20), and a bound on the cycle's work (one queue
+/// push each, about 0.1 µs).
+pub const MAX_ROADS_PER_CYCLE: usize = 32;
 
 /// When a cycle runs: its deadline and actual wake-up.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -469,10 +481,14 @@ impl TcsLoop {
         }
         self.last_deadline_ns = Some(tick.deadline_ns);
 
-        // 2. road estimate (latest value wins)
+        // 2. road estimates: every one that arrived, in order (each says
+        // what lies on its own stretch of the path); the newest is held
         let mut road_taken = 0;
-        if let Some(e) = road.poll_latest() {
+        let mut roads_taken = 0u8;
+        while usize::from(roads_taken) < MAX_ROADS_PER_CYCLE {
+            let Some(e) = road.poll_next() else { break };
             road_taken = (e.seq as u32).wrapping_add(1);
+            roads_taken += 1;
             self.road = Some(e);
             self.status.road_estimates.fetch_add(1, Ordering::Relaxed);
             if e.class_index != NO_CLASS {
@@ -598,6 +614,7 @@ impl TcsLoop {
         rec.faults = self.rx.faults();
         rec.odometer = self.odometer;
         rec.road_taken = road_taken;
+        rec.roads_taken = roads_taken;
         sink.cycle(&rec);
         self.odometer += v_odo * self.dt;
         self.record = rec;

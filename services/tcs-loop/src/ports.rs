@@ -5,11 +5,20 @@
 use grip_io::ipc::{Publisher, Subscriber};
 use grip_msgs::{CanFrame, CycleRecord, RoadEstimate};
 
-/// The `ROAD` topic, latest value wins.
+/// The `ROAD` topic: a stream in which every estimate counts (each says
+/// what lies on its own stretch of the path).
 pub trait RoadSource {
-    /// The newest estimate that arrived since the last call, if any.
-    fn poll_latest(&mut self) -> Option<RoadEstimate>;
+    /// The oldest estimate not taken yet, if any (the loop takes them in
+    /// order until none is left, at most `MAX_ROADS_PER_CYCLE` a cycle).
+    fn poll_next(&mut self) -> Option<RoadEstimate>;
 }
+
+/// The loop's buffer on `grip/arte/road`: 64 estimates, 1.6 s of arte's
+/// stream at its 40 a second. What arte publishes at once after catching
+/// up on its audio is at most its `max_lag_s` (0.5 s by default, 20
+/// estimates); when the loop does not read for longer than the buffer
+/// holds, the oldest are overwritten.
+pub const ROAD_BUFFER: usize = 64;
 
 /// Where the loop's per-cycle outputs go (the recorder's topics).
 pub trait RecordSink {
@@ -24,7 +33,7 @@ pub trait RecordSink {
 pub struct NoRoad;
 
 impl RoadSource for NoRoad {
-    fn poll_latest(&mut self) -> Option<RoadEstimate> {
+    fn poll_next(&mut self) -> Option<RoadEstimate> {
         None
     }
 }
@@ -43,15 +52,15 @@ impl RecordSink for NullSink {
 /// is never anything new.
 #[derive(Debug)]
 pub struct IpcRoad {
-    /// Subscriber in latest-value mode, if the topic opened.
+    /// Subscriber with a buffer of [`ROAD_BUFFER`], if the topic opened.
     pub sub: Option<Subscriber<RoadEstimate>>,
     /// Receive errors so far.
     pub errors: u64,
 }
 
 impl RoadSource for IpcRoad {
-    fn poll_latest(&mut self) -> Option<RoadEstimate> {
-        match self.sub.as_ref()?.latest() {
+    fn poll_next(&mut self) -> Option<RoadEstimate> {
+        match self.sub.as_ref()?.recv() {
             Ok(v) => v,
             Err(_) => {
                 self.errors += 1;
@@ -140,7 +149,7 @@ pub fn open_ports(node: &grip_io::ipc::IpcNode, cycle: &str, can_log: &str, road
         .map_err(|e| keep(can_log, e))
         .ok();
     let road_sub = node
-        .subscriber::<RoadEstimate>(road, grip_io::ipc::SubscriberMode::Latest)
+        .subscriber::<RoadEstimate>(road, grip_io::ipc::SubscriberMode::Buffered(ROAD_BUFFER))
         .map_err(|e| keep(road, e))
         .ok();
     Ports {

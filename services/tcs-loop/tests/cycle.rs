@@ -499,6 +499,7 @@ fn road_estimate_is_used_while_fresh_then_falls_back_by_age() {
     r.run_ok(100);
     let mut road = SetRoad {
         next: Some(estimate(r.now() - 20 * MS, 0.9)),
+        ..SetRoad::default()
     };
     // [arte] max_age_s = 0.3: the estimate stamped 20 ms ago is usable for
     // 280 more ms; no new estimate comes (arte died)
@@ -690,6 +691,133 @@ fn snow_heard_ahead_caps_the_torque_before_the_wheel_gets_there() {
     }
 }
 
+/// A snow patch heard while arte was behind (a 0.4 s stall: its estimates
+/// go out at once when it catches up) is still queued: the loop takes every
+/// estimate of the burst, in order, so the torque is at snow's limit before
+/// the wheel reaches the patch, and the record says how many it took. The
+/// same burst cut to its newest estimate (what the loop took before
+/// 2026-12-05) leaves the patch as the asphalt heard before it: no cap.
+#[test]
+fn a_burst_of_estimates_is_queued_whole() {
+    let dir = grip_config::ConfigDir::new(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config"),
+    );
+    let roads = dir.roads().unwrap();
+    let table = dir.road_table(&roads).unwrap();
+    let controllers = grip_config::load_controllers(dir.file("controllers.toml")).unwrap();
+    let (vehicle, _) = grip_config::load_vehicle(dir.file("vehicles/front-mic.toml")).unwrap();
+    let snow = roads.index_of("snow").unwrap();
+    let limit = table.info(snow).mu_peak * vehicle.normal_force() * vehicle.r;
+    let frame_ns = 100 * MS;
+
+    // (the most torque commanded in the last 20 ms before the patch, the
+    // cycle that took the burst's record)
+    let drive = |kind: ControllerKind, newest_only: bool| -> (f64, CycleRecord) {
+        let lp = TcsLoop::new(kind, true, &controllers, &vehicle, &SafetyConfig::default())
+            .unwrap()
+            .with_road_aware(&roads, table.clone(), &controllers, &vehicle)
+            .unwrap();
+        let mut r = Rig::new(kind, true);
+        r.lp = lp;
+        r.feed.torque = 250.0;
+        r.feed.demand = 300.0;
+        // (stamp, odometer) of every cycle: where each frame was heard
+        let mut odo: Vec<(u64, f64)> = Vec::new();
+        let at = |odo: &[(u64, f64)], t: u64| {
+            odo.iter()
+                .rev()
+                .find(|(s, _)| *s <= t)
+                .map_or(0.0, |&(_, x)| x)
+        };
+        let mut held = Vec::new();
+        let mut seq = 0;
+        let mut patch = (f64::INFINITY, f64::INFINITY);
+        let mut burst_rec = None;
+        let mut near_max: f64 = 0.0;
+        let mut near = 0;
+        for k in 0..4_000u64 {
+            let now = r.now();
+            let mut road = SetRoad::default();
+            // a frame ends every 100 ms: snow for the two ending at 1.1 and
+            // 1.2 s, asphalt otherwise
+            if k % 100 == 0 && k >= 100 {
+                seq += 1;
+                let name = if k == 1_100 || k == 1_200 {
+                    "snow"
+                } else {
+                    "asphalt"
+                };
+                let (x_from, x_to) = (at(&odo, now - frame_ns), at(&odo, now));
+                if name == "snow" {
+                    patch.0 = patch.0.min(x_from + vehicle.mic_lead_m);
+                    patch.1 = x_to + vehicle.mic_lead_m;
+                }
+                held.push(RoadEstimate {
+                    seq,
+                    stamp_ns: now,
+                    frame_t0_ns: now - frame_ns,
+                    frame_t1_ns: now,
+                    class_index: 0,
+                    n_classes: 4,
+                    class_name: grip_msgs::name_to_bytes(name),
+                    confidence: 0.95,
+                    x_from,
+                    x_to,
+                    ..RoadEstimate::zeroed()
+                });
+                // arte stalled from 1.0 s to 1.4 s: what it heard meanwhile
+                // goes out at 1.4 s, stamped then
+                if !(1_000..1_400).contains(&k) {
+                    for mut e in held.drain(..) {
+                        e.stamp_ns = now;
+                        road.burst.push_back(e);
+                    }
+                    if newest_only {
+                        let last = road.burst.pop_back();
+                        road.burst.clear();
+                        road.burst.extend(last);
+                    }
+                }
+            }
+            r.feed(true, true, true);
+            let (rec, cmd) = r.cycle_with(&mut road);
+            odo.push((now, rec.odometer));
+            if k == 1_400 {
+                burst_rec = Some(rec);
+            }
+            let to_go = patch.0 - rec.odometer;
+            if k > 1_400 && to_go <= 0.0 {
+                break;
+            }
+            if k > 1_400 && to_go <= 0.02 * 2.77 {
+                near_max = near_max.max(cmd.torque_request);
+                near += 1;
+            }
+        }
+        assert!(near >= 10, "{kind}: {near} cycles checked before the patch");
+        assert!(patch.1 > patch.0, "{kind}: a patch was heard");
+        (near_max, burst_rec.unwrap())
+    };
+    for kind in ControllerKind::ALL {
+        let (near_max, rec) = drive(kind, false);
+        assert_eq!(
+            rec.roads_taken, 5,
+            "{kind}: the burst of 1.0-1.4 s taken whole"
+        );
+        assert_eq!(rec.road_taken, 15, "{kind}: its newest, seq 14, named");
+        assert!(
+            near_max <= limit + 1e-9,
+            "{kind}: {near_max} N m commanded just before the snow (limit {limit})"
+        );
+        let (lost, rec) = drive(kind, true);
+        assert_eq!(rec.roads_taken, 1);
+        assert!(
+            lost > limit + 20.0,
+            "{kind}: with the newest estimate only, the patch was not known ({lost} N m)"
+        );
+    }
+}
+
 /// A stall (the timer skipped periods, it never bursts) still counts on
 /// the odometer: the car moved on meanwhile. A wheel-speed frame older than
 /// the sensor timeout is no speed: the record says V unknown and the
@@ -776,6 +904,7 @@ fn a_future_stamp_or_a_nan_confidence_does_not_keep_knowledge_alive() {
                 x_to: x,
                 ..RoadEstimate::zeroed()
             }),
+            ..SetRoad::default()
         };
         let mut used = 0;
         for _ in 0..1_000 {

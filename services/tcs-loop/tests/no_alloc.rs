@@ -47,6 +47,8 @@ struct Rig {
     dd: E2eSender<DriverDemand>,
     k: u64,
     caps: u64,
+    /// The most road estimates a cycle took.
+    most_taken: u8,
 }
 
 impl Rig {
@@ -106,7 +108,7 @@ impl Rig {
             } else {
                 (x - 0.3, x)
             };
-            self.road.next = Some(RoadEstimate {
+            let e = RoadEstimate {
                 stamp_ns: now,
                 frame_t0_ns: now.saturating_sub(100 * MS),
                 frame_t1_ns: now,
@@ -119,7 +121,19 @@ impl Rig {
                 mu_peak: 1.17,
                 alpha: 0.83,
                 ..RoadEstimate::zeroed()
-            });
+            };
+            self.road.next = Some(e);
+            if k.is_multiple_of(500) {
+                // a burst (arte caught up): four more frames, heard before
+                for i in 1..=4 {
+                    let back = 0.1 * f64::from(i);
+                    self.road.burst.push_back(RoadEstimate {
+                        x_from: e.x_from - back,
+                        x_to: e.x_to - back,
+                        ..e
+                    });
+                }
+            }
         }
         self.lp.cycle(
             &CycleTick::at(now),
@@ -132,6 +146,7 @@ impl Rig {
         if self.lp.last_record().torque_cap.is_finite() {
             self.caps += 1;
         }
+        self.most_taken = self.most_taken.max(self.lp.last_record().roads_taken);
         self.clock.advance_ns(MS);
         self.k += 1;
     }
@@ -169,13 +184,17 @@ fn cycle_allocates_nothing_after_warm_up() {
             clock: ManualClock::new(1_000 * MS),
             bus: MemBus::new(),
             sink: LastSink::default(),
-            road: SetRoad::default(),
+            road: SetRoad {
+                burst: std::collections::VecDeque::with_capacity(8),
+                ..SetRoad::default()
+            },
             lp,
             ws: E2eSender::new(),
             ms: E2eSender::new(),
             dd: E2eSender::new(),
             k: 0,
             caps: 0,
+            most_taken: 0,
         };
         for _ in 0..1_000 {
             r.step();
@@ -194,6 +213,7 @@ fn cycle_allocates_nothing_after_warm_up() {
         let f = r.lp.last_record().faults;
         assert!(f.crc >= 20 && f.unknown_id >= 20, "{kind}: {f:?}");
         assert!(r.sink.records >= 21_000);
+        assert_eq!(r.most_taken, 5, "{kind}: bursts of five estimates taken");
         assert!(r.lp.odometer() > 40.0, "{kind}: the odometer runs");
         if aware {
             let rec = r.lp.last_record();

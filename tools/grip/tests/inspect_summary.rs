@@ -60,7 +60,7 @@ fn inspect_uses_the_logs_own_road_catalogue() {
         "{out}{err}"
     );
     assert!(
-        out.contains("asphalt -> snow at 0.500 s (x 1.67 m), limit 182.7 N m"),
+        out.contains("asphalt -> snow at 0.500 s (x 1.66 m), limit 182.7 N m"),
         "{out}"
     );
     assert!(!err.contains("no preview report"), "{err}");
@@ -90,16 +90,16 @@ fn inspect_json_separates_the_scenario_from_the_whole_log() {
     assert_eq!(j["scenario_duration_s"], 1.5);
     assert_eq!(j["safe_state_entries"], 1, "the stop's");
     assert_eq!(j["safe_state_entries_in_scenario"], 0);
-    // the reference drive of 2026-12-05 (regenerated for the spin cut's
-    // landing): no deadline missed during its scenario (the one before
-    // had 12, all from its host's scheduling)
+    // the reference drive of 2026-12-05 (regenerated for the loop's
+    // roads_taken): no deadline missed during its scenario (an earlier
+    // one had 12, all from its host's scheduling)
     assert_eq!(j["deadline_misses_in_scenario"], 0);
     assert_eq!(
         (j["arte_judged"].as_u64(), j["arte_correct"].as_u64()),
         (Some(60), Some(60))
     );
     assert_eq!(
-        j["arte_judged_whole_log"], 69,
+        j["arte_judged_whole_log"], 71,
         "none after the ground truth ends"
     );
     let sha = j["scenario_sha256"].as_str().unwrap();
@@ -316,11 +316,11 @@ fn the_directory_table_is_rounded_and_unambiguous() {
             .unwrap_or_else(|| panic!("no column {name} in {head:?}"));
         row[i]
     };
-    assert_eq!(col("slip_dev"), "0.0390", "{out}");
-    assert_eq!(col("effort"), "241.7", "{out}");
-    assert_eq!(col("dist_m"), "6.63", "{out}");
+    assert_eq!(col("slip_dev"), "0.0381", "{out}");
+    assert_eq!(col("effort"), "240.3", "{out}");
+    assert_eq!(col("dist_m"), "6.60", "{out}");
     assert_eq!(col("arte_acc_%"), "100.0", "{out}");
-    assert_eq!(col("delay_s"), "0.081", "{out}");
+    assert_eq!(col("delay_s"), "0.083", "{out}");
     assert_eq!(col("missed"), "0/2", "{out}");
     assert_eq!(col("deadline_misses"), "0", "{out}");
     // the delay column is followed by the missed changes
@@ -357,14 +357,14 @@ fn the_replay_table_says_each_rows_window() {
             .map(str::to_owned)
             .collect()
     };
-    // inspect: no cycle of the scenario in the safe state, 80 in the log
+    // inspect: no cycle of the scenario in the safe state, 107 in the log
     assert_eq!(
         row("cycles in the safe state (scenario)"),
         ["0.000", "0.000"]
     );
     assert_eq!(
         row("cycles in the safe state (whole log)"),
-        ["80.000", "80.000"]
+        ["107.000", "107.000"]
     );
     for r in [
         "mean torque command, N m (active cycles, scenario)",
@@ -383,7 +383,7 @@ fn the_replay_table_says_each_rows_window() {
     ]);
     assert!(ok, "{out}{err}");
     let j: Value = serde_json::from_str(out.lines().next().unwrap()).unwrap();
-    assert_eq!(j["old"]["safe_cycles"], 80.0, "{j}");
+    assert_eq!(j["old"]["safe_cycles"], 107.0, "{j}");
     assert_eq!(j["old"]["safe_cycles_in_scenario"], 0.0, "{j}");
     assert_eq!(j["old"]["arte_accuracy_whole_log"], 1.0, "{j}");
 }

@@ -165,7 +165,16 @@ fn closed_loop_reproduces_the_logged_metrics() {
         text.contains("closed loop: plant-sim's loop re-simulates"),
         "{text}"
     );
-    for metric in ["slip deviation", "torque effort", "distance, m", "energy"] {
+    // bounds: slip deviation, the most sensitive to timing, 4 % (four
+    // drives of the same seed on one machine, 2026-12-05: 0.0380-0.0390 live,
+    // 2.6 % apart, and their closed-loop replays 2.0 % below to 2.6 % above
+    // them); the others 2 %
+    for (metric, bound) in [
+        ("slip deviation", 4.0),
+        ("torque effort", 2.0),
+        ("distance, m", 2.0),
+        ("energy", 2.0),
+    ] {
         let line = text
             .lines()
             .find(|l| l.trim_start().starts_with(metric))
@@ -175,7 +184,7 @@ fn closed_loop_reproduces_the_logged_metrics() {
             .next()
             .and_then(|x| x.trim_end_matches(" %)").trim().parse().ok())
             .unwrap_or_else(|| panic!("{line}"));
-        assert!(rel.abs() <= 2.0, "{metric}: {rel} % off the log: {line}");
+        assert!(rel.abs() <= bound, "{metric}: {rel} % off the log: {line}");
     }
 }
 
@@ -184,17 +193,95 @@ fn closed_loop_reproduces_the_logged_metrics() {
 /// 3000 bus frames (foreign ids, and copies of grip's own ids, which a
 /// replay must not take for CAN-log frames), replays identically, and its
 /// summary's topic table is the same as the reference's.
-#[test]
-fn a_bus_log_in_the_drive_is_ignored_by_replay_and_summary() {
+/// Writes the reference drive to `out` message by message, each cycle
+/// record through `edit`, with `bus` merged in by stamp, and the metadata
+/// keys `keep` keeps; returns how many messages the reference holds.
+fn rewrite_reference(
+    out: &Path,
+    bus: &mut dyn Iterator<Item = grip_msgs::BusFrame>,
+    edit: impl Fn(&mut grip_msgs::CycleRecord),
+    keep: impl Fn(&str) -> bool,
+) -> u64 {
     use grip_io::mcaplog::{LogMessage, McapLog, McapWriter, McapWriterOptions};
-    use grip_msgs::{BusFrame, can_flags, topics};
-    let src = root().join("tests/data/reference-drive.mcap");
-    let log = McapLog::open(&src).unwrap();
+    use grip_msgs::topics;
+    let log = McapLog::open(root().join("tests/data/reference-drive.mcap")).unwrap();
     let (msgs, rep) = log.messages().unwrap();
     assert!(rep.truncated.is_none() && rep.bad == 0, "{rep:?}");
+    let mut w = McapWriter::create(out, McapWriterOptions::default()).unwrap();
+    let mut next = bus.next();
+    for m in &msgs {
+        while let Some(b) = next.filter(|b| b.stamp_ns <= m.log_time_ns) {
+            w.write(topics::BUS, &b).unwrap();
+            next = bus.next();
+        }
+        let t = m.log_time_ns;
+        match &m.msg {
+            LogMessage::Audio(a) => w.write_at(&m.topic, t, a.as_ref()),
+            LogMessage::Road(r) => w.write_at(&m.topic, t, r),
+            LogMessage::Cycle(c) => {
+                let mut c = *c;
+                edit(&mut c);
+                w.write_at(&m.topic, t, &c)
+            }
+            LogMessage::Can(f) => w.write_at(&m.topic, t, f),
+            LogMessage::Truth(g) => w.write_at(&m.topic, t, g),
+            LogMessage::Bus(b) => w.write_at(&m.topic, t, b),
+        }
+        .unwrap();
+    }
+    for (name, mut map) in log.metadata().unwrap() {
+        map.retain(|k, _| keep(k));
+        w.write_metadata(&name, &map).unwrap();
+    }
+    for a in log.attachments().unwrap() {
+        w.attach_bytes(&a.name, &a.media_type, &a.data).unwrap();
+    }
+    w.finish().unwrap();
+    msgs.len() as u64
+}
+
+/// A log from before `CycleRecord::roads_taken` (the byte was padding,
+/// 0; its loop took the newest estimate alone): each cycle is handed the
+/// estimate it names, and the count is not compared.
+#[test]
+fn a_log_from_before_roads_taken_replays_identically() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("older.mcap");
+    rewrite_reference(
+        &out,
+        &mut std::iter::empty(),
+        |c| c.roads_taken = 0,
+        |_| true,
+    );
+    let o = Command::new(env!("CARGO_BIN_EXE_grip"))
+        .arg("--config-dir")
+        .arg(root().join("config"))
+        .arg("replay")
+        .arg(&out)
+        .arg("--check")
+        .output()
+        .unwrap();
+    let text =
+        String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{text}");
+    assert!(
+        text.contains("first divergence: none; every replayed topic is identical"),
+        "{text}"
+    );
+    assert!(
+        text.contains(", 0 inferred from stamps, 0 not found"),
+        "{text}"
+    );
+}
+
+#[test]
+fn a_bus_log_in_the_drive_is_ignored_by_replay_and_summary() {
+    use grip_io::mcaplog::McapLog;
+    use grip_msgs::{BusFrame, can_flags, topics};
+    let src = root().join("tests/data/reference-drive.mcap");
+    let (msgs, _) = McapLog::open(&src).unwrap().messages().unwrap();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("with-bus.mcap");
-    let mut w = McapWriter::create(&out, McapWriterOptions::default()).unwrap();
     let (first, last) = (msgs[0].log_time_ns, msgs[msgs.len() - 1].log_time_ns);
     let mut bus = (0..3000u64).map(|k| BusFrame {
         stamp_ns: first + (last - first) * k / 3000,
@@ -206,32 +293,9 @@ fn a_bus_log_in_the_drive_is_ignored_by_replay_and_summary() {
         _reserved: 0,
         data: [k as u8, 1, 2, 3, 4, 5, 6, 7],
     });
-    let mut next = bus.next();
-    for m in &msgs {
-        while let Some(b) = next.filter(|b| b.stamp_ns <= m.log_time_ns) {
-            w.write(topics::BUS, &b).unwrap();
-            next = bus.next();
-        }
-        let t = m.log_time_ns;
-        match &m.msg {
-            LogMessage::Audio(a) => w.write_at(&m.topic, t, a.as_ref()),
-            LogMessage::Road(r) => w.write_at(&m.topic, t, r),
-            LogMessage::Cycle(c) => w.write_at(&m.topic, t, c),
-            LogMessage::Can(f) => w.write_at(&m.topic, t, f),
-            LogMessage::Truth(g) => w.write_at(&m.topic, t, g),
-            LogMessage::Bus(b) => w.write_at(&m.topic, t, b),
-        }
-        .unwrap();
-    }
-    for (name, map) in log.metadata().unwrap() {
-        w.write_metadata(&name, &map).unwrap();
-    }
-    for a in log.attachments().unwrap() {
-        w.attach_bytes(&a.name, &a.media_type, &a.data).unwrap();
-    }
-    w.finish().unwrap();
+    let n = rewrite_reference(&out, &mut bus, |_| {}, |_| true);
     let (_, rep) = McapLog::open(&out).unwrap().messages().unwrap();
-    assert_eq!(rep.messages, msgs.len() as u64 + 3000, "{rep:?}");
+    assert_eq!(rep.messages, n + 3000, "{rep:?}");
 
     let run = |log: &Path, args: &[&str]| {
         let o = Command::new(env!("CARGO_BIN_EXE_grip"))
@@ -270,7 +334,13 @@ fn a_bus_log_in_the_drive_is_ignored_by_replay_and_summary() {
     let (ok_b, bus_text) = run(&out, &["inspect"]);
     assert!(ok_a && ok_b, "{ref_text}\n{bus_text}");
     assert_eq!(topic_lines(&ref_text), topic_lines(&bus_text));
-    assert!(!ref_text.contains("bus (the vehicle bus"), "{ref_text}");
+    // the reference's recorder logged the simulated bus in "foreign" mode:
+    // every frame was grip's, none written
+    assert!(
+        !ref_text.contains("bus (the vehicle bus")
+            || ref_text.contains(" 0 frames (kernel_dropped"),
+        "{ref_text}"
+    );
     assert!(
         bus_text.contains("bus (the vehicle bus") && bus_text.contains("3000 frames"),
         "{bus_text}"
@@ -306,7 +376,22 @@ fn a_bus_log_in_the_drive_is_ignored_by_replay_and_summary() {
     let secs: f64 = lines[0][1..lines[0].find(')').unwrap()].parse().unwrap();
     assert!(secs > 1.6e9, "not a wall time: {secs}");
     std::fs::remove_file(&dump).unwrap();
+    // the reference's recorder wrote no bus frame: a candump file of none
     let (ok, text) = run(&src, &["inspect", "--candump", dump_s]);
+    assert!(
+        ok && text.contains("(0 frames, candump log format"),
+        "{text}"
+    );
+    std::fs::remove_file(&dump).unwrap();
+    // a log from a recorder before the bus log: no channel, no bus counters
+    let plain = dir.path().join("no-bus.mcap");
+    rewrite_reference(
+        &plain,
+        &mut std::iter::empty(),
+        |_| {},
+        |k| !k.starts_with(topics::BUS),
+    );
+    let (ok, text) = run(&plain, &["inspect", "--candump", dump_s]);
     assert!(
         !ok && text.contains("no bus log") && !dump.exists(),
         "{text}"

@@ -469,8 +469,12 @@ impl McapRecord for CycleRecord {
                 (
                     "road_taken",
                     t_int(
-                        "1 + low 32 bits of the seq of the road estimate taken this cycle, 0 = none",
+                        "1 + low 32 bits of the seq of the newest road estimate taken this cycle, 0 = none",
                     ),
+                ),
+                (
+                    "roads_taken",
+                    t_int("road estimates taken this cycle (absent in older logs)"),
                 ),
             ],
         )
@@ -498,7 +502,8 @@ impl McapRecord for CycleRecord {
             .u("safe_state", self.safe_state.into())
             .u("v_valid", self.v_valid.into())
             .obj("faults", |o| write_faults(o, &self.faults))
-            .u("road_taken", self.road_taken.into());
+            .u("road_taken", self.road_taken.into())
+            .u("roads_taken", self.roads_taken.into());
         o.end();
     }
     fn from_json(v: &Value) -> Result<Self, JsonError> {
@@ -524,7 +529,11 @@ impl McapRecord for CycleRecord {
             used_arte: r.uint("used_arte")?,
             safe_state: r.uint("safe_state")?,
             v_valid: r.uint("v_valid")?,
-            _reserved: 0,
+            // absent in logs written before it existed: 0 (see the field)
+            roads_taken: match r.v.get("roads_taken") {
+                None => 0,
+                Some(_) => r.uint("roads_taken")?,
+            },
             faults: read_faults(&r.sub("faults")?)?,
             // absent in logs written before it existed: 0 (none known)
             road_taken: match r.v.get("road_taken") {

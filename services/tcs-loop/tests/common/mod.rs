@@ -34,14 +34,17 @@ impl RecordSink for LastSink {
     }
 }
 
-/// A road source the test sets.
+/// A road source the test sets: `next`, then `burst` in order (what
+/// arrived since the last cycle). Pushing within `burst`'s capacity does
+/// not allocate.
 #[derive(Default)]
 pub struct SetRoad {
     pub next: Option<RoadEstimate>,
+    pub burst: std::collections::VecDeque<RoadEstimate>,
 }
 
 impl RoadSource for SetRoad {
-    fn poll_latest(&mut self) -> Option<RoadEstimate> {
-        self.next.take()
+    fn poll_next(&mut self) -> Option<RoadEstimate> {
+        self.next.take().or_else(|| self.burst.pop_front())
     }
 }

@@ -598,7 +598,7 @@ impl RecordSink for Records {
 struct Road(Option<RoadEstimate>);
 
 impl RoadSource for Road {
-    fn poll_latest(&mut self) -> Option<RoadEstimate> {
+    fn poll_next(&mut self) -> Option<RoadEstimate> {
         self.0.take()
     }
 }

@@ -107,9 +107,6 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     }
     let (log, r, s) = summary_of(ctx, &args.logs[0])?;
     print!("{}", report(&log, &s));
-    if let Some(b) = drive::bus::render(&log) {
-        print!("{b}");
-    }
     if let Some(file) = &args.candump {
         write_candump(&log, file)?;
     }
@@ -160,13 +157,15 @@ fn write_candump(log: &DriveLog, file: &std::path::Path) -> anyhow::Result<()> {
 
 /// The report of one log, as `grip inspect LOG` prints it and `grip drive`
 /// after its drive (the same code): the summary, the wake-up latency
-/// histogram and the road timeline.
+/// histogram, the road timeline and the vehicle bus section (when the log
+/// has a bus log).
 pub fn report(log: &DriveLog, s: &summary::Summary) -> String {
     format!(
-        "{}\nloop wake-up latency histogram:\n{}\n{}\n",
+        "{}\nloop wake-up latency histogram:\n{}\n{}\n{}",
         s.render(),
         summary::latency_histogram(&s.timing.wakeup_ns),
-        road_timeline(log)
+        road_timeline(log),
+        drive::bus::render(log).unwrap_or_default()
     )
 }
 

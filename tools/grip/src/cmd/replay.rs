@@ -474,10 +474,7 @@ pub fn replay(
         .context("plant-sim's start-up on the replay configuration")?;
         let period_ns = (1e9 / loaded.controllers.loop_.rate_hz).round() as u64;
         let cl = crate::replay::closed_loop(&mut lp, &mut plant, &log, &roads, period_ns);
-        roadm.recorded = crate::replay::taken_per_cycle(&log)
-            .iter()
-            .filter(|t| t.is_some())
-            .count() as u64;
+        roadm = crate::replay::taken_per_cycle(&log).matched;
         (cl.outs, cl.truth)
     } else {
         (
@@ -488,9 +485,12 @@ pub fn replay(
     let t_tcs = t2.elapsed().as_secs_f64();
 
     // compare
-    // a log from before CycleRecord.road_taken carries 0 there
+    // a log from before CycleRecord.road_taken carries 0 there, one from
+    // before roads_taken 0 in that
     let ignore: &[&str] = if roadm.inferred > 0 {
-        &["road_taken"]
+        &["road_taken", "roads_taken"]
+    } else if crate::replay::Taken::predates_count(&log) {
+        &["roads_taken"]
     } else {
         &[]
     };
@@ -533,7 +533,7 @@ pub fn replay(
     );
     let _ = writeln!(
         o,
-        "  tcs-loop's road input per cycle: {} as recorded (road_taken), {} inferred from stamps, {} not found",
+        "  tcs-loop's road input: {} estimates as the cycles recorded taking them (road_taken, roads_taken), {} inferred from stamps, {} not found",
         roadm.recorded, roadm.inferred, roadm.missing
     );
     let _ = writeln!(

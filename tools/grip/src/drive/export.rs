@@ -144,7 +144,7 @@ pub fn class_names(log: &DriveLog) -> BTreeMap<u32, String> {
 
 /// The header of `cycles.csv` (`road_class`, `belief_road`: empty for
 /// none).
-pub const CYCLES_HEADER: &str = "t_s,t_scenario_s,stamp_ns,seq,wakeup_latency_ns,compute_ns,deadline_misses,omega,v,v_valid,torque,demand,torque_cmd,internal,mu_hat,road_class,road_class_name,used_arte,road_taken,safe_state,faults_crc,faults_counter_repeated,faults_counter_skipped,faults_length,faults_unknown_id,faults_timeout,odometer,torque_cap,belief_road,belief_road_name,belief_prob";
+pub const CYCLES_HEADER: &str = "t_s,t_scenario_s,stamp_ns,seq,wakeup_latency_ns,compute_ns,deadline_misses,omega,v,v_valid,torque,demand,torque_cmd,internal,mu_hat,road_class,road_class_name,used_arte,road_taken,roads_taken,safe_state,faults_crc,faults_counter_repeated,faults_counter_skipped,faults_length,faults_unknown_id,faults_timeout,odometer,torque_cap,belief_road,belief_road_name,belief_prob";
 /// The header of `estimates.csv` (`class_index`: empty for no class).
 pub const ESTIMATES_HEADER: &str = "t_s,t_scenario_s,stamp_ns,seq,frame_t0_s,frame_t1_s,frame_t0_scenario_s,frame_t1_scenario_s,frame_t0_ns,frame_t1_ns,class_index,class_name,confidence,lambda_opt,mu_peak,alpha,n_classes,probabilities,x_from,x_to";
 /// The header of `truth.csv` (`road_index`, `mic_road_index`: indices
@@ -179,7 +179,7 @@ pub fn write_csv(log: &DriveLog, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     for c in &log.cycles {
         writeln!(
             w,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             t(c.stamp_ns),
             ts(c.stamp_ns),
             c.stamp_ns,
@@ -199,6 +199,7 @@ pub fn write_csv(log: &DriveLog, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
             class_name(c.road_class),
             c.used_arte,
             c.road_taken,
+            c.roads_taken,
             c.safe_state,
             c.faults.crc,
             c.faults.counter_repeated,
@@ -439,6 +440,7 @@ pub(crate) mod test_log {
                         .map_or(NO_CLASS, |e| catalogue_index(e.class_name().unwrap())),
                     belief_prob: 0.9,
                     road_taken: taken.map_or(0, |j| 1 + j as u32),
+                    roads_taken: u8::from(taken.is_some()),
                     ..CycleRecord::zeroed()
                 }
             })

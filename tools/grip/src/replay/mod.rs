@@ -358,13 +358,26 @@ pub fn replay_arte<C: grip_arte::stream::Classify>(
     out.0
 }
 
-/// Feeds the loop the estimate a cycle took.
+/// Feeds the loop the estimates a cycle took, in the order taken.
 #[derive(Debug, Default)]
-struct Road(Option<RoadEstimate>);
+struct Road(std::collections::VecDeque<RoadEstimate>);
+
+impl Road {
+    /// The estimates `taken` names (indices into `roads`), in order.
+    fn of(taken: &[usize], roads: &[RoadEstimate]) -> Self {
+        Self(
+            taken
+                .iter()
+                .filter_map(|&i| roads.get(i))
+                .copied()
+                .collect(),
+        )
+    }
+}
 
 impl RoadSource for Road {
-    fn poll_latest(&mut self) -> Option<RoadEstimate> {
-        self.0.take()
+    fn poll_next(&mut self) -> Option<RoadEstimate> {
+        self.0.pop_front()
     }
 }
 
@@ -389,12 +402,13 @@ impl RecordSink for Outputs {
 /// How the cycles' road estimates were found.
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
 pub struct RoadMatch {
-    /// Cycles whose `road_taken` named an estimate of the log.
+    /// Estimates that a cycle's `road_taken` and `roads_taken` named and
+    /// the log holds.
     pub recorded: u64,
     /// Cycles of a log without `road_taken` given the newest estimate
     /// stamped since the previous cycle (the live poll raced the stamp).
     pub inferred: u64,
-    /// `road_taken` named no estimate of the log.
+    /// Estimates a cycle named that the log does not hold.
     pub missing: u64,
 }
 
@@ -455,10 +469,8 @@ pub fn replay_tcs(
         cycles: Vec::with_capacity(log.cycles.len()),
         can: Vec::with_capacity(log.can.len()),
     };
-    let recorded = log.cycles.iter().any(|c| c.road_taken != 0);
-    let by_seq = RoadsBySeq::new(&log.roads);
-    let mut next_road = 0usize; // inference: first estimate not yet past
-    let mut prev_now = 0u64;
+    let taken = taken_per_cycle(log);
+    *matched = taken.matched;
     for (k, c) in log.cycles.iter().enumerate() {
         let now = can.tx[k].stamp_ns;
         let woke = c.stamp_ns.wrapping_add_signed(c.wakeup_latency_ns);
@@ -470,33 +482,7 @@ pub fn replay_tcs(
             f.flags &= !can_flags::E2E_REJECTED;
             bus.inject(f);
         }
-        let mut road = Road::default();
-        if recorded {
-            if c.road_taken != 0 {
-                // the estimate of that seq stamped nearest this cycle (seq
-                // numbers restart with arte)
-                let best = by_seq.nearest(&log.roads, c.road_taken - 1, now);
-                match best.and_then(|i| roads.get(i)) {
-                    Some(e) => {
-                        matched.recorded += 1;
-                        road.0 = Some(*e);
-                    }
-                    None => matched.missing += 1,
-                }
-            }
-        } else {
-            let mut newest = None;
-            while next_road < log.roads.len() && log.roads[next_road].stamp_ns <= now {
-                if log.roads[next_road].stamp_ns > prev_now || k == 0 {
-                    newest = Some(next_road);
-                }
-                next_road += 1;
-            }
-            if let Some(i) = newest.and_then(|i| roads.get(i)) {
-                matched.inferred += 1;
-                road.0 = Some(*i);
-            }
-        }
+        let mut road = Road::of(taken.of(k), roads);
         let tick = CycleTick {
             deadline_ns: c.stamp_ns,
             woke_ns: woke,
@@ -504,7 +490,6 @@ pub fn replay_tcs(
         };
         lp.cycle(&tick, &&clock, &mut bus, &mut road, &mut out);
         bus.clear_sent();
-        prev_now = now;
     }
     for f in &can.tail_tx {
         lp.shutdown(f.stamp_ns, &mut bus, &mut out);
@@ -571,14 +556,7 @@ pub fn closed_loop(
         if o == grip_plant_sim::Outcome::Finished {
             break;
         }
-        let mut road = Road(
-            taken
-                .get(k)
-                .copied()
-                .flatten()
-                .and_then(|i| roads.get(i))
-                .copied(),
-        );
+        let mut road = Road::of(taken.of(k), roads);
         lp.cycle(
             &CycleTick::at(now),
             &clock,
@@ -594,10 +572,43 @@ pub fn closed_loop(
     }
 }
 
-/// For each logged cycle, the index into `log.roads` of the estimate it
-/// took (`road_taken`; in an older log the newest estimate stamped since the
-/// previous cycle).
-pub fn taken_per_cycle(log: &DriveLog) -> Vec<Option<usize>> {
+/// The estimates each logged cycle took: indices into `log.roads`, in the
+/// order taken.
+#[derive(Debug, Default, Clone)]
+pub struct Taken {
+    /// Every cycle's indices, one after another.
+    flat: Vec<usize>,
+    /// Where each cycle's indices end in `flat`.
+    ends: Vec<usize>,
+    /// How they were found.
+    pub matched: RoadMatch,
+}
+
+impl Taken {
+    /// The estimates cycle `k` took (none past the last cycle).
+    pub fn of(&self, k: usize) -> &[usize] {
+        let Some(&end) = self.ends.get(k) else {
+            return &[];
+        };
+        let start = if k == 0 { 0 } else { self.ends[k - 1] };
+        &self.flat[start..end]
+    }
+
+    /// Whether the log predates `CycleRecord::roads_taken`: a cycle took an
+    /// estimate but none says how many (that loop took the newest only).
+    pub fn predates_count(log: &DriveLog) -> bool {
+        log.cycles.iter().any(|c| c.road_taken != 0)
+            && log.cycles.iter().all(|c| c.roads_taken == 0)
+    }
+}
+
+/// For each logged cycle, the estimates it took: `roads_taken` of them
+/// ending at the one `road_taken` names (its sequence number and those
+/// before it, each the one of its number stamped nearest the cycle; in a
+/// log from before `roads_taken` the named one alone); in a log from
+/// before `road_taken` the newest estimate stamped since the previous
+/// cycle.
+pub fn taken_per_cycle(log: &DriveLog) -> Taken {
     let recorded = log.cycles.iter().any(|c| c.road_taken != 0);
     let split = split_can(log).ok();
     let now_of = |k: usize| {
@@ -607,24 +618,40 @@ pub fn taken_per_cycle(log: &DriveLog) -> Vec<Option<usize>> {
             .map_or(log.cycles[k].stamp_ns, |f| f.stamp_ns)
     };
     let by_seq = RoadsBySeq::new(&log.roads);
-    let mut out = Vec::with_capacity(log.cycles.len());
+    let mut out = Taken {
+        flat: Vec::with_capacity(log.roads.len()),
+        ends: Vec::with_capacity(log.cycles.len()),
+        matched: RoadMatch::default(),
+    };
     let mut next = 0usize;
     for (k, c) in log.cycles.iter().enumerate() {
         let now = now_of(k);
         if recorded {
-            out.push(
-                (c.road_taken != 0)
-                    .then(|| by_seq.nearest(&log.roads, c.road_taken - 1, now))
-                    .flatten(),
-            );
+            if c.road_taken != 0 {
+                let newest = c.road_taken - 1;
+                let n = u32::from(c.roads_taken.max(1));
+                for back in (0..n).rev() {
+                    match by_seq.nearest(&log.roads, newest.wrapping_sub(back), now) {
+                        Some(i) => {
+                            out.flat.push(i);
+                            out.matched.recorded += 1;
+                        }
+                        None => out.matched.missing += 1,
+                    }
+                }
+            }
         } else {
             let mut newest = None;
             while next < log.roads.len() && log.roads[next].stamp_ns <= now {
                 newest = Some(next);
                 next += 1;
             }
-            out.push(newest);
+            if let Some(i) = newest {
+                out.flat.push(i);
+                out.matched.inferred += 1;
+            }
         }
+        out.ends.push(out.flat.len());
     }
     out
 }
@@ -786,5 +813,72 @@ mod tests {
             sum.line(100, None).unwrap(),
             "arte's blocks not classified, of 100: 2 refused for their sample rate (e.g. 48000 Hz), 1 silent, 4 clipped, 4 at or after a capture overrun, 5 stale (older than max_lag_s)"
         );
+    }
+
+    /// A cycle that took a burst names its newest estimate and how many:
+    /// the replay hands it all of them, in order, each the one of its
+    /// number stamped nearest the cycle (numbers restart with arte); a log
+    /// from before the count hands the named one alone; an estimate the
+    /// log lacks is counted missing.
+    #[test]
+    fn a_cycle_that_took_a_burst_is_handed_the_whole_burst() {
+        let est = |seq: u64, stamp_ms: u64| RoadEstimate {
+            seq,
+            stamp_ns: stamp_ms * 1_000_000,
+            ..RoadEstimate::zeroed()
+        };
+        let cyc = |stamp_ms: u64, taken: Option<u64>, n: u8| CycleRecord {
+            stamp_ns: stamp_ms * 1_000_000,
+            road_taken: taken.map_or(0, |s| s as u32 + 1),
+            roads_taken: n,
+            ..CycleRecord::zeroed()
+        };
+        let mut log = DriveLog {
+            // seq 1..=6 in a first arte run, then 1..=3 after a restart
+            roads: vec![
+                est(1, 10),
+                est(2, 20),
+                est(3, 400),
+                est(4, 400),
+                est(5, 400),
+                est(6, 400),
+                est(1, 2_000),
+                est(2, 2_000),
+                est(3, 2_000),
+            ],
+            cycles: vec![
+                cyc(10, Some(1), 1),
+                cyc(20, Some(2), 1),
+                cyc(30, None, 0),
+                cyc(400, Some(6), 4),
+                cyc(2_000, Some(3), 3),
+                cyc(2_001, Some(9), 2),
+            ],
+            ..DriveLog::default()
+        };
+        let t = taken_per_cycle(&log);
+        let got: Vec<&[usize]> = (0..7).map(|k| t.of(k)).collect();
+        assert_eq!(
+            got,
+            [&[0][..], &[1], &[], &[2, 3, 4, 5], &[6, 7, 8], &[], &[]]
+        );
+        // seq 9 and 8 are not in the log
+        assert_eq!(
+            t.matched,
+            RoadMatch {
+                recorded: 9,
+                inferred: 0,
+                missing: 2
+            }
+        );
+        assert!(!Taken::predates_count(&log));
+        // the same log from before roads_taken: the named estimate alone
+        for c in &mut log.cycles {
+            c.roads_taken = 0;
+        }
+        let t = taken_per_cycle(&log);
+        assert_eq!(t.of(3), &[5]);
+        assert_eq!(t.of(4), &[8]);
+        assert!(Taken::predates_count(&log));
     }
 }
