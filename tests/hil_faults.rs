@@ -13,6 +13,10 @@
 //!    `bus_deleted_and_recreated_recovers`: `vcan0` deleted for 300 ms
 //!    and re-created (an adapter unplugged and plugged back): the
 //!    services' sockets reopen on the new interface.
+//!    `bus_deleted_for_good_fails_the_drive`: `vcan0` deleted and not
+//!    re-created until `grip drive` has ended: the loop in its safe state
+//!    to the end, and `grip drive` exits non-zero for the lost control
+//!    (`grip inspect` prints the same statement and exits 0).
 //! 3. `killed_recorder_loses_at_most_a_second`: `kill -9` of the recorder,
 //!    then a new recorder writing a new file.
 //! 4. `full_disk_stops_the_recorder_not_the_loop`: the recorder's file on a
@@ -27,10 +31,11 @@
 //! lists them ("Fault matrix").
 
 use std::path::Path;
-use std::process::ExitStatus;
+use std::process::{Command, ExitStatus};
 use std::time::Duration;
 
 use anyhow::{Context, bail, ensure};
+use grip_drive::summary::CONTROL_LOST_MIN_S;
 use grip_drive::{DriveLog, LoadOptions, Supervisor};
 use grip_msgs::{CycleRecord, NO_CLASS, can_dir};
 use grip_tests::hil::{
@@ -40,8 +45,8 @@ use grip_tests::hil::{
 use grip_tests::hil_drives::{
     Attempt, PLAYBACK, SENSOR_TIMEOUT_MS, Setup, VM_MARGIN_MS, asphalt_scenario, config_number,
     drive_with, grip_drive, instance, ms, ns, read_complete_allowing_audio_gaps,
-    read_complete_allowing_xruns, serial, unit_setting_ms, wait_scenario_start, wait_success,
-    with_attempts_in,
+    read_complete_allowing_xruns, serial, unit_setting_ms, wait_exit, wait_scenario_start,
+    wait_success, with_attempts_in,
 };
 use grip_tests::wire_check::{
     LoopLog, enabled_commands, input_gaps, loop_unaffected, sensor_gap_ms,
@@ -678,6 +683,226 @@ fn bus_recreated(s: &Setup) -> anyhow::Result<Attempt> {
     ensure!(
         !enabled_commands(&after, &s.dbc)?.is_empty(),
         "no enabled TorqueCommand on the re-created vcan0"
+    );
+    Ok(Attempt::Done)
+}
+
+// --- 2c. bus deleted for good -------------------------------------------------------------
+
+/// When `vcan0` is deleted, after the scenario start.
+const GONE_AFTER_MS: u64 = 1000;
+
+/// The scenario's length, s: the delete 1 s into it, then twice the
+/// time out of control that fails a drive ([`CONTROL_LOST_MIN_S`]), and
+/// 1 s for a stall of the emulated machine before the delete.
+fn gone_for_good_scenario_s() -> u32 {
+    (GONE_AFTER_MS as f64 / 1e3 + 2.0 * CONTROL_LOST_MIN_S).ceil() as u32 + 1
+}
+
+/// The summary's statement of a lost control with the safe state to the
+/// end (`grip_drive::summary::ControlHealth::line`), up to its figures.
+const LOST_IN_SAFE_STATE: &str = "CONTROL LOST AND NOT REGAINED: in the safe state from ";
+
+/// The statements after `control: ` in a summary's text (one per summary).
+fn control_lines(text: &str) -> Vec<&str> {
+    text.lines()
+        .filter_map(|l| l.trim_start().strip_prefix("control: "))
+        .collect()
+}
+
+/// `vcan0` deleted mid-drive (an adapter unplugged) and not re-created
+/// until `grip drive` has ended: tcs-loop sits in its safe state for the
+/// rest of the scenario, and plant-sim, whose bus is gone too, runs the
+/// scenario to its end on its own clock. The drive ends, every service
+/// stops cleanly, and `grip drive` fails it after the summary, because
+/// the loop lost control and did not regain it; `grip inspect` of the log
+/// prints the same statement and exits 0. `vcan0` is re-created afterwards
+/// whatever happens ([`hil::RestoreVcan`]).
+#[test]
+fn bus_deleted_for_good_fails_the_drive() -> anyhow::Result<()> {
+    let _g = serial();
+    with_attempts_in(
+        "bus-gone",
+        &asphalt_scenario(gone_for_good_scenario_s()),
+        bus_gone_for_good,
+    )
+}
+
+fn bus_gone_for_good(s: &Setup) -> anyhow::Result<Attempt> {
+    let mcap = s.out.join("drive.mcap");
+    // before the delete: dropped on any return or panic, it re-creates vcan0
+    let vcan = hil::RestoreVcan::new(&s.iface);
+    let ((t_del, t_gone, status, t_exit), _cap, drive) = drive_with(
+        s,
+        &mcap,
+        |drive| -> anyhow::Result<(u64, u64, ExitStatus, u64)> {
+            wait_scenario_start(s)?;
+            std::thread::sleep(Duration::from_millis(GONE_AFTER_MS));
+            let t_del = hil::mono_ns();
+            hil::delete_vcan(&s.iface)?;
+            let t_gone = hil::mono_ns();
+            // vcan0 stays deleted until grip drive has ended
+            let st = wait_exit(drive, "grip drive", Duration::from_secs(180))?;
+            Ok((t_del, t_gone, st, hil::mono_ns()))
+        },
+    )?;
+    vcan.restore()?;
+    let text = drive.log_text();
+    println!("grip drive output:\n{text}");
+    for l in text.lines().filter(|l| {
+        l.contains("stopped")
+            || l.contains("reopen")
+            || l.contains("INTERFACE GONE")
+            || l.contains("drive failed")
+    }) {
+        println!("> {l}");
+    }
+    let l = read_complete_allowing_xruns(&mcap)?;
+    // precondition: the loop was controlling just before
+    let before = cycles_in(&l.cycles, t_del - 30_000_000, t_del);
+    if before.is_empty() || before.iter().any(|c| c.safe_state == 1) {
+        return Ok(Attempt::Disturbed(format!(
+            "tcs-loop was not controlling in the 30 ms before vcan0 was deleted ({} cycles)",
+            before.len()
+        )));
+    }
+    // the statement grip drive and grip inspect print, from the log by
+    // their code
+    let log = DriveLog::load_with(&mcap, LoadOptions::default())?;
+    let (vehicle, from, _) = grip_drive::vehicle_for(&log, &s.config);
+    let sum = grip_drive::summarize(&log, &vehicle, &from, None);
+    let (ws, we) = sum.window_ns.context("the log has no scenario window")?;
+    let health = sum
+        .control
+        .context("the summary has no control statement")?;
+    let rel = |t: u64| ms(t as i128 - ws as i128) / 1e3;
+    println!(
+        "scenario window {:.3} s; vcan0 deleted at {:.3} s (`ip link del` took {:.1} ms), {:.3} s before the scenario's end; grip drive exited ({status}) {:.3} s after the delete, {:.3} s after the scenario's end",
+        rel(we),
+        rel(t_del),
+        ms(t_gone as i128 - t_del as i128),
+        ms(we as i128 - t_gone as i128) / 1e3,
+        ms(t_exit as i128 - t_del as i128) / 1e3,
+        ms(t_exit as i128 - we as i128) / 1e3,
+    );
+    // precondition: the delete early enough that the rule applies (a stall
+    // before it could leave the loop less than the bound out of control)
+    let left_ms = ms(we as i128 - t_gone as i128);
+    if left_ms < 1e3 * CONTROL_LOST_MIN_S + SENSOR_TIMEOUT_MS + VM_MARGIN_MS {
+        return Ok(Attempt::Disturbed(format!(
+            "vcan0 was deleted only {left_ms:.0} ms before the scenario's end"
+        )));
+    }
+
+    // 1. grip drive fails the drive, for the lost control: its control
+    // error comes after a service failure's, so every service ran to the
+    // end and stopped cleanly (plant-sim finished the scenario without
+    // its bus)
+    ensure!(
+        !status.success(),
+        "grip drive exited 0 although tcs-loop lost control and did not regain it"
+    );
+    ensure!(
+        text.contains(&format!(
+            "drive failed: tcs-loop's control during the scenario: {LOST_IN_SAFE_STATE}"
+        )),
+        "grip drive failed ({status}), but not for the lost control"
+    );
+    // 2. its summary's control line names the lost control, and why
+    let drive_lines = control_lines(&text);
+    println!("grip drive's summary: control: {drive_lines:?}");
+    ensure!(
+        drive_lines == [health.line().as_str()],
+        "grip drive's control line(s) {drive_lines:?}, the log's statement {:?}",
+        health.line()
+    );
+    ensure!(
+        health.lost() && !health.never_in_control && health.end_records.1,
+        "not control lost in the safe state to the end: {health:?}"
+    );
+    for want in [
+        LOST_IN_SAFE_STATE,
+        "input timeouts +",
+        "tcs-loop received no CAN frame from then to the scenario's end",
+    ] {
+        ensure!(
+            drive_lines[0].contains(want),
+            "{want:?} not in grip drive's control line {:?}",
+            drive_lines[0]
+        );
+    }
+    // 3. the log: complete (above), the safe state from within the sensor
+    // timeout of the delete to the log's end, 0 N m throughout
+    let first_safe = l
+        .cycles
+        .iter()
+        .find(|c| c.stamp_ns > t_del && c.safe_state == 1)
+        .context("tcs-loop never entered its safe state after vcan0 was deleted")?;
+    // after `ip link del` returned the interface was gone for sure
+    let safe_ms = ms(first_safe.stamp_ns as i128 - t_gone as i128);
+    let bound = SENSOR_TIMEOUT_MS + VM_MARGIN_MS;
+    let tail = cycles_in(&l.cycles, first_safe.stamp_ns, u64::MAX);
+    let last = tail.last().map_or(0, |c| c.stamp_ns);
+    let since = health.end_out.map_or(f64::NAN, |e| e.0);
+    println!(
+        "safe state at {:.3} s, {:.1} ms after `ip link del` began, {safe_ms:.1} ms after it returned (bound {bound} ms); the statement: from {since:.3} s; {} cycle records from then, the last {:.3} s after the scenario's end, all safe: {}, 0 N m: {}",
+        rel(first_safe.stamp_ns),
+        ms(first_safe.stamp_ns as i128 - t_del as i128),
+        tail.len(),
+        ms(last as i128 - we as i128) / 1e3,
+        tail.iter().all(|c| c.safe_state == 1),
+        tail.iter().all(|c| c.torque_cmd == 0.0),
+    );
+    ensure!(
+        safe_ms <= bound,
+        "safe state {safe_ms:.1} ms after the delete, bound {bound} ms"
+    );
+    ensure!(
+        (since - rel(first_safe.stamp_ns)).abs() < 1e-6,
+        "the statement's loss of control at {since:.3} s is not the safe state the delete caused ({:.3} s)",
+        rel(first_safe.stamp_ns)
+    );
+    ensure!(
+        tail.iter()
+            .all(|c| c.safe_state == 1 && c.torque_cmd == 0.0),
+        "a cycle left the safe state or commanded torque after vcan0 was deleted"
+    );
+    ensure!(
+        last >= we,
+        "tcs-loop's cycle records end {:.3} s before the scenario's end",
+        ms(we as i128 - last as i128) / 1e3
+    );
+    // both services said their bus went, and neither that it came back
+    for svc in ["tcs-loop", "plant-sim"] {
+        let said = |what: &str| {
+            text.lines()
+                .any(|l| l.contains(&format!("[{svc}]")) && l.contains(what))
+        };
+        ensure!(
+            said("CAN INTERFACE GONE") && !said("CAN interface back"),
+            "{svc} did not log its CAN interface gone (and not back)"
+        );
+    }
+    // 4. grip inspect of the log: the same statement, exit 0
+    let o = Command::new(hil::service_bin("grip")?)
+        .arg("--config-dir")
+        .arg(&s.config)
+        .arg("inspect")
+        .arg(&mcap)
+        .env("NO_COLOR", "1")
+        .output()?;
+    let out = String::from_utf8_lossy(&o.stdout);
+    ensure!(
+        o.status.success(),
+        "grip inspect exited with {}: {}",
+        o.status,
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let inspect_lines = control_lines(&out);
+    println!("grip inspect ({}): control: {inspect_lines:?}", o.status);
+    ensure!(
+        inspect_lines == drive_lines,
+        "grip inspect's control line(s) {inspect_lines:?}, grip drive's {drive_lines:?}"
     );
     Ok(Attempt::Done)
 }

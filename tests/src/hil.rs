@@ -1779,6 +1779,40 @@ pub fn create_vcan(iface: &str) -> anyhow::Result<()> {
     set_link_up(iface, true)
 }
 
+/// Puts a vcan interface back: [`RestoreVcan::restore`] re-creates it
+/// (and sets it up) if it is missing, and dropping the guard does the same,
+/// so a test that deletes `vcan0` leaves it for the tests after it in the
+/// same VM whatever happens (an error, a panic).
+#[derive(Debug)]
+pub struct RestoreVcan {
+    iface: String,
+}
+
+impl RestoreVcan {
+    /// A guard for `iface` (take it before deleting the interface).
+    pub fn new(iface: &str) -> Self {
+        Self {
+            iface: iface.to_owned(),
+        }
+    }
+
+    /// Re-creates the interface if it is missing, and checks that it is up.
+    pub fn restore(&self) -> anyhow::Result<()> {
+        if !Path::new("/sys/class/net").join(&self.iface).exists() {
+            create_vcan(&self.iface)?;
+        }
+        require_can_iface(&self.iface)
+    }
+}
+
+impl Drop for RestoreVcan {
+    fn drop(&mut self) {
+        if let Err(e) = self.restore() {
+            eprintln!("could not re-create {}: {e:#}", self.iface);
+        }
+    }
+}
+
 /// Runs `ip ARGS` (or `busybox ip ARGS`), failing with its output.
 fn ip(args: &[&str]) -> anyhow::Result<()> {
     let out = match Command::new("ip").args(args).output() {

@@ -7,7 +7,7 @@
 #![allow(missing_docs)]
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, ExitStatus};
 use std::sync::{Mutex, MutexGuard};
 use std::time::Duration;
 
@@ -295,12 +295,21 @@ pub fn grip_drive(s: &Setup, mcap: &Path) -> anyhow::Result<Proc> {
     )
 }
 
-pub fn wait_success(p: &mut Proc, what: &str, limit: Duration) -> anyhow::Result<()> {
+/// Waits up to `limit` for `p` to exit and gives its exit status, whatever
+/// it is (for a drive that must fail); not exiting in time is an error
+/// with its output.
+pub fn wait_exit(p: &mut Proc, what: &str, limit: Duration) -> anyhow::Result<ExitStatus> {
     match p.wait_timeout(limit)? {
-        Some(st) if st.success() => Ok(()),
-        Some(st) => bail!("{what} failed ({st}):\n{}", p.log_text()),
+        Some(st) => Ok(st),
         None => bail!("{what} did not finish within {limit:?}:\n{}", p.log_text()),
     }
+}
+
+/// [`wait_exit`], and the exit status must be success.
+pub fn wait_success(p: &mut Proc, what: &str, limit: Duration) -> anyhow::Result<()> {
+    let st = wait_exit(p, what, limit)?;
+    ensure!(st.success(), "{what} failed ({st}):\n{}", p.log_text());
+    Ok(())
 }
 
 /// A raw socket that sees only `ids` (standard frames).
