@@ -25,7 +25,9 @@
 //! 6. `systemctl stop grip-rig.target grip.target` exits 0; the last
 //!    `TorqueCommand` on the wire is 0 N m, disabled; the recorder's last
 //!    log is complete (not truncated, its summary written) and `grip
-//!    inspect` reads it.
+//!    inspect` reads it; its bus log holds the frames another ECU put on
+//!    the bus before the stop (the recorder's CAN socket under its unit's
+//!    sandbox).
 //!
 //!    6b. With arte's start hung (a drop-in `ExecStartPre=/bin/sleep`),
 //!    tcs-loop's commands are enabled while arte is still activating.
@@ -54,6 +56,10 @@ const AFTER: [(&str, &str); 5] = [
     ("recorder", "tcs-loop"),
     ("plant-sim", "tcs-loop"),
 ];
+/// Another ECU's frames put on the bus in step 5's end: an id the
+/// built-in protocol does not have.
+const FOREIGN_ID: u32 = 0x3E9;
+const FOREIGN_FRAMES: u8 = 20;
 const PLAYBACK: &str = "hw:Loopback,0,0";
 const CAPTURE: &str = "hw:Loopback,1,0";
 const ETC: &str = "/etc/grip";
@@ -653,6 +659,14 @@ fn grip_package_under_systemd() -> anyhow::Result<()> {
         rig.wait_control(&format!("{s}'s restart after kill -9"))?;
     }
     println!("kill -9 of each service: restarted, control back");
+    // another ECU's frames on the bus: the recorder, under its unit's
+    // sandbox, reads the vehicle bus (recorder.toml `bus = "foreign"`) and
+    // logs them (until 2026-12-05 the unit's PrivateNetwork= and
+    // RestrictAddressFamilies=AF_UNIX refused its CAN socket: no bus log)
+    for i in 0..FOREIGN_FRAMES {
+        grip_tests::hil_drives::cansend(&iface, FOREIGN_ID, &[i, 0xB5, 0, 0, 0, 0, 0, 0])?;
+        std::thread::sleep(Duration::from_millis(10));
+    }
     std::thread::sleep(Duration::from_secs(2));
 
     // --- 6. stop ---------------------------------------------------------------------
@@ -734,6 +748,23 @@ fn grip_package_under_systemd() -> anyhow::Result<()> {
         "grip inspect: exit 0\n{}",
         inspect.lines().take(25).collect::<Vec<_>>().join("\n")
     );
+    // the bus log: the foreign frames, by their id
+    let bus = inspect
+        .split("bus (the vehicle bus")
+        .nth(1)
+        .with_context(|| format!("no bus section in grip inspect:\n{inspect}"))?;
+    let frames: u64 = bus
+        .lines()
+        .nth(1)
+        .and_then(|l| l.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .with_context(|| format!("no frame count in the bus section:\n{bus}"))?;
+    ensure!(
+        frames >= u64::from(FOREIGN_FRAMES) && bus.contains(&format!("0x{FOREIGN_ID:03X}")),
+        "the recorder's bus log lacks the {FOREIGN_FRAMES} foreign frames (id 0x{FOREIGN_ID:03X}):\nbus{bus}\n{}",
+        report(&unit("recorder"))
+    );
+    println!("the recorder's bus log under its unit: {frames} frames, 0x{FOREIGN_ID:03X} among them");
 
     // --- 6b. a start of arte that hangs does not hold traction control ------------
     // (a microphone whose open blocks, a model on a stalled file system):
