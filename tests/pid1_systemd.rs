@@ -764,7 +764,9 @@ fn grip_package_under_systemd() -> anyhow::Result<()> {
         "the recorder's bus log lacks the {FOREIGN_FRAMES} foreign frames (id 0x{FOREIGN_ID:03X}):\nbus{bus}\n{}",
         report(&unit("recorder"))
     );
-    println!("the recorder's bus log under its unit: {frames} frames, 0x{FOREIGN_ID:03X} among them");
+    println!(
+        "the recorder's bus log under its unit: {frames} frames, 0x{FOREIGN_ID:03X} among them"
+    );
 
     // --- 6b. a start of arte that hangs does not hold traction control ------------
     // (a microphone whose open blocks, a model on a stalled file system):
