@@ -6,7 +6,9 @@
 //! (arte-svc.toml's or `--model`'s; refused before any service starts: the
 //! drive ran, exited 0 and recorded no estimate), and `grip train --test`
 //! with a held-out folder at another rate than the training set (refused
-//! before any training, no model written).
+//! before any training, no model written); and a model class that is no
+//! road of the catalogue (arte's other start-up refusal), by `grip train`
+//! and `grip drive --model`.
 
 mod common;
 #[path = "common/fake_services.rs"]
@@ -328,4 +330,82 @@ fn drive_with_audio_at_another_rate_than_the_model_is_refused_before_any_service
         &[os("--model"), m16.as_os_str(), os("--out"), out.as_os_str()],
     );
     assert_eq!(f.started().len(), 1, "{so}{err}");
+}
+
+/// A class arte would refuse is refused up front too (found in review:
+/// `grip train` wrote such models, and `grip drive --model` found out only
+/// after starting the services, naming their temporary copy): `grip train`
+/// with a class folder that is not a road of the catalogue refuses before
+/// any feature is extracted, naming the folder, the catalogue and the way
+/// out; `grip drive --model` of a model with such a class (trained on a
+/// configuration whose catalogue has that road) refuses before any service
+/// starts, naming the user's file and the class.
+#[test]
+fn a_class_that_is_no_road_of_the_catalogue_is_refused_up_front() {
+    let d = tempfile::tempdir().unwrap();
+    let data = d.path().join("data");
+    dataset(&data, 44_100, &["asphalt", "snow"]);
+    // "cobble": recordings of stone in a folder of that name
+    std::fs::rename(data.join("snow"), data.join("cobble")).unwrap();
+    let model = d.path().join("cobble.model");
+    let (ok, so, err) = train_svm(&data, &model, &[]);
+    assert!(!ok, "{so}{err}");
+    for want in [
+        "class `cobble` is not a road in the catalogue",
+        "roads.toml",
+        "arte would refuse this model",
+        "--classes",
+    ] {
+        assert!(err.contains(want), "{want}:\n{err}");
+    }
+    assert!(!so.contains("cross-validation"), "features were extracted:\n{so}");
+    assert!(!model.exists());
+
+    // a configuration whose catalogue has a road `cobble`: the model trains
+    let cfg = d.path().join("config");
+    copy_dir(&common::config_dir(), &cfg);
+    let roads = cfg.join("roads.toml");
+    let mut text = std::fs::read_to_string(&roads).unwrap();
+    text.push_str(
+        "\n[[road]]\nname = \"cobble\"\nmodel = \"burckhardt\"\nc1 = 1.37\nc2 = 6.46\nc3 = 0.67\n",
+    );
+    std::fs::write(&roads, text).unwrap();
+    let (ok, so, err) = grip_in(
+        Some(&cfg),
+        &[
+            os("train"),
+            os("--data"),
+            data.as_os_str(),
+            os("--classifier"),
+            os("svm"),
+            os("--features"),
+            os("rich"),
+            os("--folds"),
+            os("2"),
+            os("--out"),
+            model.as_os_str(),
+        ],
+    );
+    assert!(ok, "{so}{err}");
+    assert!(model.exists());
+    // ... and a drive on the repository's configuration refuses it
+    let out = d.path().join("drive.mcap");
+    let f = fake_services::Fakes::new();
+    let (ok, so, err) = f.drive(
+        &common::config_dir(),
+        &[os("--model"), model.as_os_str(), os("--out"), out.as_os_str()],
+    );
+    assert!(!ok, "{so}{err}");
+    assert!(
+        err.contains(&format!("--model {}", model.display()))
+            && err.contains("class `cobble` is not a road in the catalogue")
+            && err.contains("arte would refuse it at start-up"),
+        "{err}"
+    );
+    assert!(
+        f.started().is_empty(),
+        "services started: {:?}",
+        f.started()
+    );
+    assert!(!out.exists());
 }

@@ -587,14 +587,43 @@ fn check_held_out(
     Ok(())
 }
 
+/// Refuses, before any feature is extracted, a class set that arte would
+/// refuse at start-up (`grip_arte_svc::road_table`, the code arte runs):
+/// more classes than a road estimate carries, or a class that is not a road
+/// of the configuration's catalogue (the estimate carries the road's μ-λ
+/// curve). Without a readable catalogue the classes are not checked (a
+/// warning says so).
+fn arte_would_take(config_dir: &Path, out: &Path, ds: &Dataset) -> Result<()> {
+    let cfg = grip_config::ConfigDir::new(config_dir);
+    let table = cfg
+        .roads()
+        .and_then(|roads| Ok((cfg.road_table(&roads)?, roads)));
+    let (rule, roads) = match table {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!(
+                "warning: the classes are not checked against a road catalogue ({e}); arte refuses a model with a class that is not a road of its roads.toml"
+            );
+            return Ok(());
+        }
+    };
+    grip_arte_svc::road_table(&ds.classes, &roads, &rule, out, &cfg.roads_path()).map_err(|e| {
+        anyhow::anyhow!(
+            "{e}: arte would refuse this model (the class folders of {}); add the road to roads.toml first, or choose the classes with --classes",
+            ds.root.display()
+        )
+    })?;
+    Ok(())
+}
+
 pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
-    let _ = ctx_config;
     if !(args.hop > 0.0 && args.hop <= 10.0) {
         bail!("--hop: {} s is outside (0, 10]", args.hop);
     }
     held_out_calibration(args)?;
     let only = (!args.classes.is_empty()).then_some(args.classes.as_slice());
     let ds = Dataset::scan_classes(&args.data, only)?;
+    arte_would_take(ctx_config, &args.out, &ds)?;
     for e in &ds.entries {
         args.channel.check(&e.path).context("--channel")?;
     }

@@ -47,6 +47,21 @@ pub fn arte_model(dir: &Path, model: Option<&Path>) -> anyhow::Result<ModelRate>
     })
 }
 
+/// arte's start-up check of a model's classes, made before any service
+/// starts: every class a road of `dir`'s catalogue (`roads.toml`, whose
+/// μ-λ curve the estimate carries) and at most as many as a road estimate
+/// carries (`grip_arte_svc::road_table`, the code arte runs). The error
+/// names `model` as the user gave it, not the copy the services get.
+pub fn check_model_classes(dir: &Path, model: &Path) -> anyhow::Result<()> {
+    let m = grip_arte_svc::load_model(model).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let cfg = grip_config::ConfigDir::new(dir);
+    let roads = cfg.roads().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let rule = cfg.road_table(&roads).map_err(|e| anyhow::anyhow!("{e}"))?;
+    grip_arte_svc::road_table(m.classes(), &roads, &rule, model, &cfg.roads_path())
+        .map_err(|e| anyhow::anyhow!("{e}; arte would refuse it at start-up"))?;
+    Ok(())
+}
+
 /// The rate audio-acq publishes with the configuration directory `dir`
 /// (its `[audio] sample_rate`, read by audio-acq's own start-up code), and
 /// the file it comes from.
