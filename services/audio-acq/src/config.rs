@@ -115,6 +115,12 @@ pub struct WavSection {
     /// Start again at the end (`false`: publish the file once, then exit 0).
     #[serde(default = "yes")]
     pub looped: bool,
+    /// The file's channel to publish (0-based), as the live ALSA source
+    /// publishes its `[alsa] channel`; absent: the average of all channels
+    /// (a mono file's only one). A channel the file does not have is an
+    /// error naming the file at start-up.
+    #[serde(default)]
+    pub channel: Option<u16>,
 }
 
 fn yes() -> bool {

@@ -71,6 +71,7 @@ pub fn effective_config(opts: &Options) -> Result<(PathBuf, AcqConfig), AcqError
                 cfg.wav = Some(WavSection {
                     path: p.clone(),
                     looped: true,
+                    channel: None,
                 })
             }
         }
@@ -138,12 +139,14 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, AcqError
                 AcqError::Config(grip_config::ConfigError::new(&file, "wav", "missing"))
             })?;
             let path = resolve(&opts.config.config_dir, &w.path);
-            let audio = read_mono_i16(&path, rate)?;
+            let audio = read_mono_i16(&path, rate, w.channel)?;
             let what = format!(
-                "WAV {} ({} Hz, {} ch, {:.1} s, {})",
+                "WAV {} ({} Hz, {} ch{}, {:.1} s, {})",
                 path.display(),
                 audio.file_rate,
                 audio.file_channels,
+                w.channel
+                    .map_or_else(|| ", averaged".to_owned(), |c| format!(", channel {c}")),
                 audio.samples.len() as f64 / f64::from(rate),
                 if w.looped { "looped" } else { "once" }
             );

@@ -12,12 +12,13 @@ use grip_io::wav::{Audio, WavErrorKind};
 use crate::AcqError;
 use crate::source::{Pacer, Read, Source, SourceStats, f32_to_i16};
 
-/// Reads `path` as mono S16 at `rate` Hz: [`grip_io::wav::read_mono_at`]
-/// (mixdown by averaging, resampled if the file has another rate), then
-/// [`f32_to_i16`]. A file without samples is an error (there is nothing to
-/// play).
-pub fn read_mono_i16(path: &Path, rate: u32) -> Result<Audio<i16>, WavError> {
-    let audio = grip_io::wav::read_mono_at(path, rate)?;
+/// Reads `path` as mono S16 at `rate` Hz: [`grip_io::wav::read_channel_at`]
+/// (channel `channel`, or the average of all channels for `None`;
+/// resampled if the file has another rate), then [`f32_to_i16`]. A file
+/// without samples is an error (there is nothing to play).
+pub fn read_mono_i16(path: &Path, rate: u32, channel: Option<u16>) -> Result<Audio<i16>, WavError> {
+    let channel = channel.map_or(grip_io::wav::Channel::Average, grip_io::wav::Channel::One);
+    let audio = grip_io::wav::read_channel_at(path, rate, channel)?;
     if audio.samples.is_empty() {
         return Err(WavErrorKind::NoSamples.at(path));
     }

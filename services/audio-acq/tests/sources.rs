@@ -54,7 +54,7 @@ fn a_16_bit_file_s_samples_arrive_unchanged_full_scale_included() {
     let values = [32767i16, -32768, 32766, -32767, 1, -1, 0, 12345, -23456];
     let frames: Vec<Vec<i16>> = values.iter().map(|&v| vec![v]).collect();
     write_wav(&p, 44_100, 1, &frames);
-    let audio = read_mono_i16(&p, 44_100).unwrap();
+    let audio = read_mono_i16(&p, 44_100, None).unwrap();
     assert_eq!(audio.samples, values);
 }
 
@@ -65,7 +65,7 @@ fn wav_once_is_paced_stamped_and_ends_with_a_partial_block() {
     let n = 5000;
     let frames: Vec<Vec<i16>> = (0..n).map(|i| vec![i as i16]).collect();
     write_wav(&p, 44_100, 1, &frames);
-    let audio = read_mono_i16(&p, 44_100).unwrap();
+    let audio = read_mono_i16(&p, 44_100, None).unwrap();
     assert_eq!(audio.samples.len(), n);
     assert_eq!(audio.samples[4999], 4999);
     let clock = ManualClock::new(1_000_000_000);
@@ -107,7 +107,7 @@ fn wav_looped_wraps_and_stereo_48k_is_mixed_and_resampled() {
         })
         .collect();
     write_wav(&p, 48_000, 2, &frames);
-    let a = read_mono_i16(&p, 44_100).unwrap();
+    let a = read_mono_i16(&p, 44_100, None).unwrap();
     assert_eq!((a.file_rate, a.file_channels), (48_000, 2));
     assert_eq!(a.samples.len(), 44_100);
     // frequency by zero crossings in the middle: 1 kHz at 44.1 kHz
@@ -117,6 +117,24 @@ fn wav_looped_wraps_and_stereo_48k_is_mixed_and_resampled() {
     assert!((f - 1000.0).abs() < 5.0, "{f} Hz");
     let mean: f64 = mid.iter().map(|&s| f64::from(s)).sum::<f64>() / mid.len() as f64;
     assert!(mean.abs() < 50.0, "DC {mean}");
+    // `[wav] channel`: one channel, as the ALSA source publishes its
+    // `[alsa] channel`: the right one keeps its -1000 offset; a channel the
+    // file lacks is an error naming the file
+    let right = read_mono_i16(&p, 44_100, Some(1)).unwrap();
+    let mean_r: f64 = right.samples[10_000..30_000]
+        .iter()
+        .map(|&s| f64::from(s))
+        .sum::<f64>()
+        / 20_000.0;
+    assert!(
+        (mean_r + 1000.0).abs() < 50.0,
+        "right channel's DC {mean_r}"
+    );
+    let e = read_mono_i16(&p, 44_100, Some(2)).unwrap_err().to_string();
+    assert!(
+        e.contains(&p.display().to_string()) && e.contains('2'),
+        "{e}"
+    );
     // looped: 100 blocks of 1024 from a 44100-sample file continue seamlessly
     let src = WavSource::new(
         a.samples.clone(),
@@ -141,14 +159,14 @@ fn wav_looped_wraps_and_stereo_48k_is_mixed_and_resampled() {
 fn wav_errors_name_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("missing.wav");
-    let e = read_mono_i16(&p, 44_100).unwrap_err().to_string();
+    let e = read_mono_i16(&p, 44_100, None).unwrap_err().to_string();
     assert!(
         e.contains("missing.wav") && e.contains("cannot open"),
         "{e}"
     );
     let p = dir.path().join("text.wav");
     std::fs::write(&p, b"RIFF not really").unwrap();
-    let e = read_mono_i16(&p, 44_100).unwrap_err().to_string();
+    let e = read_mono_i16(&p, 44_100, None).unwrap_err().to_string();
     assert!(e.contains("text.wav") && e.contains("WAV"), "{e}");
 }
 
