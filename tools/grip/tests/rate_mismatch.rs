@@ -358,7 +358,10 @@ fn a_class_that_is_no_road_of_the_catalogue_is_refused_up_front() {
     ] {
         assert!(err.contains(want), "{want}:\n{err}");
     }
-    assert!(!so.contains("cross-validation"), "features were extracted:\n{so}");
+    assert!(
+        !so.contains("cross-validation"),
+        "features were extracted:\n{so}"
+    );
     assert!(!model.exists());
 
     // a configuration whose catalogue has a road `cobble`: the model trains
@@ -393,7 +396,12 @@ fn a_class_that_is_no_road_of_the_catalogue_is_refused_up_front() {
     let f = fake_services::Fakes::new();
     let (ok, so, err) = f.drive(
         &common::config_dir(),
-        &[os("--model"), model.as_os_str(), os("--out"), out.as_os_str()],
+        &[
+            os("--model"),
+            model.as_os_str(),
+            os("--out"),
+            out.as_os_str(),
+        ],
     );
     assert!(!ok, "{so}{err}");
     assert!(

@@ -121,7 +121,8 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     // the model's classes against the road catalogue, as arte's start-up
     // checks them (a model arte refuses would fail the drive after the
     // services started, naming the services' temporary copy)
-    rates::check_model_classes(&config_dir, &arte_model.path).with_context(|| model_named.clone())?;
+    rates::check_model_classes(&config_dir, &arte_model.path)
+        .with_context(|| model_named.clone())?;
     // the bus's DBC, before any service starts: tcs-loop and plant-sim
     // refuse one they cannot speak, and the drive would have started the
     // recorder for nothing and reported an empty drive
