@@ -20,7 +20,8 @@
 //!   with `encode_in`, decode back (`read_signals_in`, `decode_as`): flags
 //!   exactly, the fault code as its bit field holds it, a value in the
 //!   signal's range to within half its resolution (plus rounding), one
-//!   beyond the range to the nearer end, a non-finite one to raw 0; the
+//!   beyond the range to the nearer end, a non-finite one as the physical
+//!   value 0 (saturated at the range like any other); the
 //!   frame's counter and CRC byte are the ones the spec says, and an
 //!   `E2eReceiver` for the spec accepts the frames in counter order and
 //!   rejects a frame with one bit flipped or its counter repeated.
@@ -107,7 +108,8 @@ fn fnv1a(data: &[u8]) -> u64 {
     })
 }
 
-/// The physical ends of a scalar signal's bit field: (lower, upper).
+/// The physical ends of what a scalar signal sends (its DBC range where
+/// it gives one, within its bit field): (lower, upper).
 fn range(s: &SignalSpec) -> (f64, f64) {
     let a = s.to_phys(s.raw_min());
     let b = s.to_phys(s.raw_max());
@@ -144,12 +146,13 @@ fn value(s: &SignalSpec, rng: &mut Rng) -> f64 {
 }
 
 /// `got` is what `sent` becomes in `s`: within half a step in range, the
-/// nearer end beyond it, raw 0 if not finite.
+/// nearer end beyond it, the physical value 0 (saturated) if not finite.
 fn check_value(m: &MessageSpec, s: &SignalSpec, sent: f64, got: f64) {
     assert!(got.is_finite(), "{}.{}: decoded {got}", m.name, s.name);
     let (lo, hi) = range(s);
     let want = if !sent.is_finite() {
-        s.to_phys(0)
+        // sent as the physical value 0 (no torque), saturated as any value
+        0.0f64.clamp(lo, hi)
     } else if sent > hi {
         hi
     } else if sent < lo {

@@ -138,15 +138,23 @@ pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
 }
 
 /// The bus against tcs-loop's settings: `TorqueRequest` must carry the
-/// vehicle's `torque_max`; it sends `TorqueCommand` every
+/// vehicle's `torque_max` (within its bit field and its DBC range) and zero
+/// torque; it sends `TorqueCommand` every
 /// cycle, so the DBC's period for it must be the loop's; its input
 /// timeouts (`[safety]`) must span at least two periods of the message they
 /// watch (a timeout shorter than that fires between two punctual frames,
 /// and the loop would never leave its safe state: found in review with a
 /// DBC's DriverDemand at 100 ms against the 50 ms demand timeout).
 pub fn check_bus_timing(cfg: &LoadedConfig) -> Result<(), ConfigError> {
-    use grip_io::can::protocol::{MsgKind, active};
-    let p = active();
+    check_bus_timing_in(cfg, grip_io::can::protocol::active())
+}
+
+/// [`check_bus_timing`] against the protocol `p`.
+pub fn check_bus_timing_in(
+    cfg: &LoadedConfig,
+    p: &grip_io::can::protocol::Protocol,
+) -> Result<(), ConfigError> {
+    use grip_io::can::protocol::MsgKind;
     let dbc = cfg.can.dbc.as_deref().unwrap_or("the built-in protocol");
     let loop_ms = 1e3 / cfg.controllers.loop_.rate_hz;
     let tc = p.spec(MsgKind::TorqueCommand).cycle_ms;
@@ -160,17 +168,50 @@ pub fn check_bus_timing(cfg: &LoadedConfig) -> Result<(), ConfigError> {
         ));
     }
     // the command must reach the motor's limit on the wire: a narrower
-    // field saturates it silently (an 8-bit TorqueRequest capped a drive
-    // at 127 N m, found in review)
+    // field, or a narrower DBC range, saturates it silently (an 8-bit
+    // TorqueRequest capped a drive at 127 N m; a [-250|250] range let
+    // torque_max 1000 through: both found in review). Zero torque, the
+    // safe state's command, must be sendable. A negative command is only
+    // ever the driver's own negative demand passed through: its limit is
+    // the range's minimum, not checked here.
     let req = &p.spec(MsgKind::TorqueCommand).signals[3];
     let t_max = cfg.vehicle.torque_max;
-    let (lo, hi) = (req.to_phys(req.raw_min()), req.to_phys(req.raw_max()));
-    if hi < t_max || lo > 0.0 {
+    let (lo, hi) = req.phys_limits();
+    let half_step = 0.5 * req.factor.abs() * (1.0 + 1e-9);
+    if t_max > hi + half_step || lo > 0.0 || hi < 0.0 {
+        let names = |grip: &str| cfg.can.dbc_names.get(grip).cloned();
+        let in_dbc = match (names("TorqueCommand"), names("TorqueCommand.TorqueRequest")) {
+            (None, None) => String::new(),
+            (m, s) => format!(
+                " ({}.{} in the DBC)",
+                m.as_deref().unwrap_or("TorqueCommand"),
+                s.as_deref().unwrap_or("TorqueRequest")
+            ),
+        };
+        let range = if req.has_range() {
+            format!("its DBC range [{}|{}] N m", req.min, req.max)
+        } else {
+            "no DBC range ([0|0])".to_owned()
+        };
+        let (f_lo, f_hi) = (
+            req.to_phys(req.field_raw_min()),
+            req.to_phys(req.field_raw_max()),
+        );
+        let detail = format!("{range}, a {}-bit field of {f_lo} to {f_hi} N m", req.len);
+        if lo > 0.0 || hi < 0.0 {
+            return Err(ConfigError::new(
+                dbc,
+                "signal TorqueCommand.TorqueRequest",
+                format!(
+                    "carries {lo} to {hi} N m{in_dbc}; {detail}: zero torque, the safe state's command, cannot be sent; its range must include 0"
+                ),
+            ));
+        }
         return Err(ConfigError::new(
             &cfg.vehicle_path,
             "vehicle.torque_max",
             format!(
-                "{t_max} N m is beyond what TorqueCommand's TorqueRequest carries in {dbc} ({lo} to {hi} N m): commands above would be cut on the wire; set torque_max to what the inverter takes"
+                "{t_max} N m is beyond what TorqueCommand's TorqueRequest carries in {dbc} ({lo} to {hi} N m){in_dbc}; {detail}: commands above {hi} N m would be cut to it on the wire; set torque_max to at most {hi}, or widen the range in {dbc} if the inverter takes more"
             ),
         ));
     }
@@ -260,6 +301,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
         sensor_timeout_ms = cfg.own.safety.sensor_timeout_ms,
         demand_timeout_ms = cfg.own.safety.demand_timeout_ms,
         recover_ms = cfg.own.safety.recover_ms,
+        can_bus = %grip_io::can::protocol::active().describe_bus(),
         "tcs-loop starting"
     );
 
@@ -370,4 +412,112 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
     );
     drop(report);
     Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use grip_io::can::protocol::Protocol;
+
+    fn shipped() -> LoadedConfig {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
+        load(&Options {
+            config: ConfigArgs::in_dir(dir),
+            ..Options::default()
+        })
+        .unwrap()
+    }
+
+    fn dbc_text() -> String {
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/inverter.dbc");
+        std::fs::read_to_string(p).unwrap()
+    }
+
+    /// The shipped DBC with TorqueCommand.TorqueRequest declared as `sg`.
+    fn with_request(sg: &str) -> Protocol {
+        let from = "TorqueRequest : 16|16@1- (0.1,0) [-3276.8|3276.7] \"Nm\"";
+        let text = dbc_text();
+        assert!(text.contains(from));
+        Protocol::from_dbc(
+            &text.replacen(from, &format!("TorqueRequest : {sg} \"Nm\""), 1),
+            "inverter.dbc",
+            &Default::default(),
+        )
+        .unwrap()
+    }
+
+    /// The review's repro (2026-12-05): a TorqueRequest of 16 bits at 0.5
+    /// N m (a field to ±16384 N m) whose DBC range is [-250|250] took
+    /// `torque_max = 1000` (only the bit field was checked); it is refused
+    /// naming the vehicle file's field, the DBC, the signal and the range.
+    /// Up to the range's end (and half a step beyond: the same raw value)
+    /// it passes.
+    #[test]
+    fn a_torque_max_beyond_the_dbc_range_is_refused() {
+        let mut cfg = shipped();
+        cfg.vehicle.torque_max = 1000.0; // the shipped car's
+        let p = with_request("23|16@0- (0.5,0) [-250|250]");
+        let e = check_bus_timing_in(&cfg, &p).unwrap_err();
+        assert_eq!(e.field, "vehicle.torque_max", "{e}");
+        assert_eq!(e.file, cfg.vehicle_path, "{e}");
+        for want in [
+            "1000 N m is beyond what TorqueCommand's TorqueRequest carries in inverter.dbc (-250 to 250 N m)",
+            "its DBC range [-250|250] N m, a 16-bit field of -16384 to 16383.5 N m",
+            "set torque_max to at most 250",
+        ] {
+            assert!(e.reason.contains(want), "{e}\nwanted: {want}");
+        }
+        cfg.vehicle.torque_max = 250.0;
+        check_bus_timing_in(&cfg, &p).unwrap();
+        cfg.vehicle.torque_max = 250.2;
+        check_bus_timing_in(&cfg, &p).unwrap();
+        cfg.vehicle.torque_max = 250.3;
+        assert!(check_bus_timing_in(&cfg, &p).is_err());
+        // the built-in protocol carries the shipped car's 1000 N m
+        cfg.vehicle.torque_max = 1000.0;
+        check_bus_timing_in(&cfg, Protocol::builtin()).unwrap();
+        // and [0|0], no range: the bit field alone
+        check_bus_timing_in(&cfg, &with_request("16|16@1- (0.1,0) [0|0]")).unwrap();
+    }
+
+    /// A range that leaves zero torque out is refused: the safe state's
+    /// command (and a non-finite one's substitute) would be its nearer end.
+    #[test]
+    fn a_torque_request_range_without_zero_is_refused() {
+        let mut cfg = shipped();
+        cfg.vehicle.torque_max = 1000.0;
+        let e = check_bus_timing_in(&cfg, &with_request("16|16@1- (0.1,0) [10|2000]")).unwrap_err();
+        assert_eq!(e.field, "signal TorqueCommand.TorqueRequest", "{e}");
+        assert!(
+            e.reason.contains("carries 10 to 2000 N m")
+                && e.reason
+                    .contains("zero torque, the safe state's command, cannot be sent"),
+            "{e}"
+        );
+    }
+
+    /// Where `[dbc_names]` maps grip's names, the refusal also gives the
+    /// DBC's.
+    #[test]
+    fn the_refusal_names_the_dbcs_own_message_and_signal() {
+        let mut cfg = shipped();
+        cfg.vehicle.torque_max = 1000.0;
+        cfg.can.dbc = Some("own-bus.dbc".into());
+        cfg.can.dbc_names = grip_testkit::own_bus::names();
+        let text = std::fs::read_to_string(grip_testkit::own_bus::dbc_path())
+            .unwrap()
+            .replacen(
+                "TrqReq : 16|16@1- (0.1,0) [-3276.8|3276.7]",
+                "TrqReq : 16|16@1- (0.1,0) [-400|400]",
+                1,
+            );
+        let p = Protocol::from_dbc(&text, "own-bus.dbc", &cfg.can.dbc_names).unwrap();
+        let e = check_bus_timing_in(&cfg, &p).unwrap_err();
+        assert!(
+            e.reason.contains(
+                "carries in own-bus.dbc (-400 to 400 N m) (MCU_TrqCmd.TrqReq in the DBC); its DBC range [-400|400] N m"
+            ),
+            "{e}"
+        );
+    }
 }

@@ -4,12 +4,15 @@
 //! What the DBC decides: each message's id, the position, length, byte
 //! order (Intel or Motorola), sign, factor and offset of every signal grip
 //! uses, the E2E data id (`GripE2eDataId`), the transmission period
-//! (`GenMsgCycleTime`) and the receive timeout (`GripTimeoutMs`). What it
+//! (`GenMsgCycleTime`), the receive timeout (`GripTimeoutMs`), each scaled
+//! signal's range (grip saturates what it sends there) and the bus's bit
+//! rate (`Baudrate`, for the bus load: at most [`MAX_BUS_LOAD`]). What it
 //! cannot change: which five messages there are and what each signal means
 //! (grip's names, looked up in the DBC, or mapped to the DBC's own names by
 //! `[dbc_names]` in `can.toml`), the physical units the code computes in
 //! (a DBC unit grip knows is converted: rpm to rad/s, km/h to m/s, g to
-//! m/s²), 8-byte standard (11-bit) frames, and the E2E scheme (CRC-8 SAE
+//! m/s²), 8-byte classic CAN frames with 11-bit ids (a message whose
+//! `VFrameFormat` is CAN FD or extended is refused), and the E2E scheme (CRC-8 SAE
 //! J1850 over the data id and the other seven bytes, in a whole byte; a
 //! 4-bit alive counter). Every refusal names the file, the message or
 //! signal, and the reason.
@@ -17,9 +20,15 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use can_dbc::{AttributeValue, ByteOrder, Dbc, MessageId, MultiplexIndicator, ValueType};
+use can_dbc::{
+    AttributeDefinition, AttributeValue, AttributeValueType, ByteOrder, Dbc, MessageId,
+    MultiplexIndicator, ValueType,
+};
 
-use super::protocol::{MessageSpec, MsgKind, Protocol, SignalList, SignalSpec};
+use super::protocol::{
+    BusTiming, DEFAULT_BITRATE, MAX_BUS_LOAD, MessageSpec, MsgKind, Protocol, SignalList,
+    SignalSpec, classic_frame_bits_worst,
+};
 
 /// A DBC that grip cannot speak: the file, what in it, and why.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -133,6 +142,154 @@ fn parse_error(e: &can_dbc::DbcError) -> String {
     }
 }
 
+/// A DBC's network attribute (`BA_ "Name" value;`), else its
+/// `BA_DEF_DEF_` default: the value and which of the two it is.
+fn network_attr<'a>(dbc: &'a Dbc, name: &str) -> Option<(&'a AttributeValue, &'static str)> {
+    dbc.attribute_values_database
+        .iter()
+        .find(|a| a.name.eq_ignore_ascii_case(name))
+        .map(|a| (&a.value, "BA_"))
+        .or_else(|| {
+            dbc.attribute_defaults
+                .iter()
+                .find(|a| a.name.eq_ignore_ascii_case(name))
+                .map(|a| (&a.value, "BA_DEF_DEF_ default"))
+        })
+}
+
+/// The bus the DBC declares: `Baudrate` (bit/s; absent: 1 Mbit/s, grip's
+/// bus) and `BusType` (`"CAN"` or `"CAN FD"`; absent: CAN).
+fn bus_timing(dbc: &Dbc, err: &dyn Fn(String, String) -> DbcError) -> Result<BusTiming, DbcError> {
+    let mut bus = BusTiming::ASSUMED;
+    if let Some((v, from)) = network_attr(dbc, "Baudrate") {
+        let what = || format!("attribute Baudrate ({from})");
+        match attr_num(v) {
+            // a template's default of 0 says "not set"
+            Some(b) if b == 0.0 && from != "BA_" => {}
+            Some(b) if (10_000.0..=1_000_000.0).contains(&b) && b.fract() == 0.0 => {
+                bus.bitrate = b as u32;
+                bus.bitrate_declared = true;
+            }
+            Some(b) if b > 1_000_000.0 => {
+                return Err(err(
+                    what(),
+                    format!(
+                        "{b} bit/s: classic CAN runs at 1 Mbit/s at most; grip sends classic frames (a CAN FD data rate is not the bus's nominal rate)"
+                    ),
+                ));
+            }
+            Some(b) => {
+                return Err(err(
+                    what(),
+                    format!(
+                        "{b}: must be a whole number of bit/s in 10000..=1000000 (500 kbit/s is 500000)"
+                    ),
+                ));
+            }
+            None => return Err(err(what(), format!("{v:?} is not a number"))),
+        }
+    }
+    if let Some((v, from)) = network_attr(dbc, "BusType") {
+        let AttributeValue::String(t) = v else {
+            return Err(err(
+                format!("attribute BusType ({from})"),
+                format!("{v:?} is not a string"),
+            ));
+        };
+        let norm: String = t
+            .chars()
+            .filter(|c| c.is_ascii_alphanumeric())
+            .collect::<String>()
+            .to_ascii_uppercase();
+        match norm.as_str() {
+            "" | "CAN" => {}
+            "CANFD" => bus.can_fd_bus = true,
+            _ => {
+                return Err(err(
+                    format!("attribute BusType ({from})"),
+                    format!("\"{t}\": grip speaks CAN (BusType \"CAN\" or \"CAN FD\")"),
+                ));
+            }
+        }
+    }
+    Ok(bus)
+}
+
+/// Vector's `VFrameFormat` values (CANdb++): 0 StandardCAN, 1 ExtendedCAN,
+/// 14 StandardCAN_FD, 15 ExtendedCAN_FD; the ones between are reserved
+/// (3 is J1939PG in J1939 databases).
+fn vector_frame_format(n: u64) -> &'static str {
+    match n {
+        0 => "StandardCAN",
+        1 => "ExtendedCAN",
+        3 => "J1939PG",
+        14 => "StandardCAN_FD",
+        15 => "ExtendedCAN_FD",
+        _ => "reserved",
+    }
+}
+
+/// A message's `VFrameFormat` (its `BA_`, else the `BA_DEF_DEF_` default):
+/// `Ok` for a classic standard frame or none given; otherwise why grip
+/// cannot send or receive it. A number is looked up in the DBC's own
+/// `ENUM` definition of the attribute, else in Vector's convention.
+fn check_frame_format(dbc: &Dbc, id: MessageId) -> Result<(), String> {
+    let v = dbc
+        .attribute_values_message
+        .iter()
+        .find(|a| a.name == "VFrameFormat" && a.message_id == id)
+        .map(|a| &a.value)
+        .or_else(|| {
+            dbc.attribute_defaults
+                .iter()
+                .find(|a| a.name == "VFrameFormat")
+                .map(|a| &a.value)
+        });
+    let Some(v) = v else { return Ok(()) };
+    let list = dbc.attribute_definitions.iter().find_map(|d| match d {
+        AttributeDefinition::Message(n, AttributeValueType::Enum(l)) if n == "VFrameFormat" => {
+            Some(l)
+        }
+        _ => None,
+    });
+    let (name, shown) = match v {
+        AttributeValue::String(s) => (s.clone(), format!("\"{s}\"")),
+        v => {
+            let n = attr_num(v).unwrap_or(-1.0);
+            if !(n >= 0.0 && n.fract() == 0.0) {
+                return Err(format!("VFrameFormat {n}: not a frame format"));
+            }
+            let n = n as u64;
+            let name = list
+                .and_then(|l| l.get(usize::try_from(n).ok()?))
+                .cloned()
+                .unwrap_or_else(|| vector_frame_format(n).to_owned());
+            (name.clone(), format!("{n} ({name})"))
+        }
+    };
+    let norm: String = name
+        .chars()
+        .filter(|c| c.is_ascii_alphanumeric())
+        .collect::<String>()
+        .to_ascii_lowercase();
+    if norm == "standardcan" {
+        return Ok(());
+    }
+    Err(if norm.contains("fd") {
+        format!(
+            "VFrameFormat {shown}: a CAN FD frame; grip sends and receives classic CAN frames only (8 data bytes, one bit rate): declare the message StandardCAN (0) if the bus carries it as a classic frame, or put a gateway in between"
+        )
+    } else if norm.starts_with("extended") {
+        format!(
+            "VFrameFormat {shown}: a 29-bit frame; grip's messages are classic frames with 11-bit ids (StandardCAN, 0)"
+        )
+    } else {
+        format!(
+            "VFrameFormat {shown}: not a classic CAN frame with an 11-bit id (StandardCAN, 0), the only frame grip sends and receives"
+        )
+    })
+}
+
 /// Every key `[dbc_names]` may have: grip's message names and
 /// `Message.Signal` for each signal.
 pub fn name_keys() -> impl Iterator<Item = String> {
@@ -241,6 +398,7 @@ impl Protocol {
                 format!("not a DBC that can be parsed: {}", parse_error(&e)),
             )
         })?;
+        let bus = bus_timing(&dbc, &err)?;
         let mut specs: Vec<MessageSpec> = Vec::with_capacity(5);
         for kind in MsgKind::ALL {
             let b = kind.builtin();
@@ -281,6 +439,8 @@ impl Protocol {
                     ));
                 }
             };
+            check_frame_format(&dbc, m.id)
+                .map_err(|reason| err(format!("{label}, attribute VFrameFormat"), reason))?;
             if m.size != 8 {
                 return Err(err(
                     label,
@@ -478,8 +638,12 @@ impl Protocol {
                     unit: bs.unit,
                     motorola,
                 };
-                let (lo_phys, hi_phys) =
-                    (spec.to_phys(spec.raw_min()), spec.to_phys(spec.raw_max()));
+                // every raw value the field holds must decode to a number,
+                // also beyond the range (what is received is decoded as it is)
+                let (lo_phys, hi_phys) = (
+                    spec.to_phys(spec.field_raw_min()),
+                    spec.to_phys(spec.field_raw_max()),
+                );
                 if !(spec.factor.is_finite()
                     && spec.offset.is_finite()
                     && lo_phys.is_finite()
@@ -492,6 +656,9 @@ impl Protocol {
                             spec.factor, spec.offset, bs.unit
                         ),
                     ));
+                }
+                if !raw_only {
+                    check_range(&spec, d).map_err(|reason| err(what.clone(), reason))?;
                 }
                 let bits = spec.bits();
                 if used & bits != 0 {
@@ -528,6 +695,63 @@ impl Protocol {
         let specs: [MessageSpec; 5] = specs
             .try_into()
             .unwrap_or_else(|_| unreachable!("five kinds, five specs"));
-        Ok(Self::from_specs(specs))
+        let p = Self::from_specs(specs, bus);
+        let load = p.bus_load();
+        if load > MAX_BUS_LOAD {
+            let periods: Vec<String> = p
+                .messages()
+                .iter()
+                .map(|m| format!("{} every {} ms", m.name, m.cycle_ms))
+                .collect();
+            let (what, rate) = if bus.bitrate_declared {
+                (
+                    "attribute Baudrate".to_owned(),
+                    format!("the DBC's {} kbit/s", f64::from(bus.bitrate) / 1e3),
+                )
+            } else {
+                (
+                    "bus load".to_owned(),
+                    format!(
+                        "{} kbit/s (no Baudrate in the DBC: grip's bus assumed)",
+                        f64::from(DEFAULT_BITRATE) / 1e3
+                    ),
+                )
+            };
+            return Err(err(
+                what,
+                format!(
+                    "grip's five messages would take {:.1} % of {rate} at worst ({} bits per 8-byte frame with worst-case bit stuffing; {}); grip allows at most {:.0} %: run the bus at 1 Mbit/s or give the messages longer periods (GenMsgCycleTime)",
+                    100.0 * load,
+                    classic_frame_bits_worst(8, false),
+                    periods.join(", "),
+                    100.0 * MAX_BUS_LOAD
+                ),
+            ));
+        }
+        Ok(p)
+    }
+}
+
+/// A scaled signal's range `[min|max]` (grip's units in `spec`, the DBC's
+/// as written in `d`): finite, min not above max, and, unless `[0|0]` (no
+/// range), at least two of the bit field's values inside it.
+fn check_range(spec: &SignalSpec, d: &can_dbc::Signal) -> Result<(), String> {
+    let shown = format!("range [{}|{}] \"{}\"", num(&d.min), num(&d.max), d.unit);
+    if !(spec.min.is_finite() && spec.max.is_finite()) {
+        return Err(format!("{shown}: not finite numbers"));
+    }
+    if !spec.has_range() {
+        return Ok(());
+    }
+    if spec.min > spec.max {
+        return Err(format!("{shown}: its minimum is above its maximum"));
+    }
+    let (f_lo, f_hi) = (spec.field_raw_min(), spec.field_raw_max());
+    match spec.range_raw() {
+        Some((lo, hi)) if lo.max(f_lo) < hi.min(f_hi) => Ok(()),
+        _ => Err(format!(
+            "{shown}: fewer than two of the values the {}-bit field holds (raw {f_lo}..={f_hi}, factor {}, offset {}) lie in it",
+            spec.len, d.factor, d.offset
+        )),
     }
 }

@@ -45,9 +45,11 @@ pub struct SignalSpec {
     pub factor: f64,
     /// See `factor`.
     pub offset: f64,
-    /// Physical minimum as written in the DBC.
+    /// Physical minimum as written in the DBC (`[0|0]`: no range given).
+    /// grip sends nothing below it ([`to_raw`](Self::to_raw)); a received
+    /// value below it is decoded as the frame carries it.
     pub min: f64,
-    /// Physical maximum as written in the DBC.
+    /// Physical maximum as written in the DBC (see `min`).
     pub max: f64,
     /// Unit string.
     pub unit: &'static str,
@@ -84,8 +86,14 @@ impl SignalSpec {
     const fn flag(name: &'static str, start: u8) -> Self {
         Self::new(name, start, 1, false, 1.0, 0.0, 1.0, "")
     }
+    /// True when the DBC gives the signal a range `[min|max]`. By DBC
+    /// convention `[0|0]` means "no range given": then the bit field alone
+    /// limits the signal.
+    pub fn has_range(&self) -> bool {
+        !(self.min == 0.0 && self.max == 0.0)
+    }
     /// Smallest raw value the bit field holds.
-    pub fn raw_min(&self) -> i64 {
+    pub fn field_raw_min(&self) -> i64 {
         if self.signed {
             -(1i64 << (self.len - 1))
         } else {
@@ -93,23 +101,77 @@ impl SignalSpec {
         }
     }
     /// Largest raw value the bit field holds.
-    pub fn raw_max(&self) -> i64 {
+    pub fn field_raw_max(&self) -> i64 {
         if self.signed {
             (1i64 << (self.len - 1)) - 1
         } else {
             (1i64 << self.len) - 1
         }
     }
-    /// Physical value → raw, rounded to nearest and saturated to the bit
-    /// field; non-finite input gives the raw value of 0 (for a torque: no
-    /// torque; raw 0 where the offset is 0, as in grip's own DBC).
+    /// The raw values inside the DBC's range `[min|max]`, if it gives one:
+    /// the first and last whole raw value whose physical value lies in it
+    /// (an end that is a whole raw value up to floating-point rounding
+    /// counts as one). `None` without a range or for one that is not two
+    /// finite numbers.
+    pub fn range_raw(&self) -> Option<(i64, i64)> {
+        if !(self.has_range() && self.min.is_finite() && self.max.is_finite()) {
+            return None;
+        }
+        let a = (self.min - self.offset) / self.factor;
+        let b = (self.max - self.offset) / self.factor;
+        if !(a.is_finite() && b.is_finite()) {
+            return None;
+        }
+        let (lo, hi) = (a.min(b), a.max(b));
+        let snap = |x: f64, inward: fn(f64) -> f64| {
+            let r = x.round();
+            if (x - r).abs() <= 1e-9 * x.abs().max(1.0) {
+                r as i64
+            } else {
+                inward(x) as i64
+            }
+        };
+        Some((snap(lo, f64::ceil), snap(hi, f64::floor)))
+    }
+    /// Smallest raw value grip sends: the bit field's, raised to the DBC's
+    /// range where it gives one (the field alone where the range and the
+    /// field do not overlap, which the DBC loader refuses).
+    pub fn raw_min(&self) -> i64 {
+        self.raw_limits().0
+    }
+    /// Largest raw value grip sends: the bit field's, lowered to the DBC's
+    /// range where it gives one (see [`raw_min`](Self::raw_min)).
+    pub fn raw_max(&self) -> i64 {
+        self.raw_limits().1
+    }
+    fn raw_limits(&self) -> (i64, i64) {
+        let (f_lo, f_hi) = (self.field_raw_min(), self.field_raw_max());
+        match self.range_raw() {
+            Some((lo, hi)) if lo.max(f_lo) <= hi.min(f_hi) => (lo.max(f_lo), hi.min(f_hi)),
+            _ => (f_lo, f_hi),
+        }
+    }
+    /// The physical values grip sends, lowest first: [`raw_min`](Self::raw_min)
+    /// and [`raw_max`](Self::raw_max) scaled (swapped for a negative factor).
+    pub fn phys_limits(&self) -> (f64, f64) {
+        let (a, b) = (self.to_phys(self.raw_min()), self.to_phys(self.raw_max()));
+        (a.min(b), a.max(b))
+    }
+    /// Physical value → raw, rounded to nearest and saturated at the DBC's
+    /// range (when it gives one, [`has_range`](Self::has_range)) and at the
+    /// bit field: between [`raw_min`](Self::raw_min) and
+    /// [`raw_max`](Self::raw_max). A non-finite input is sent as the
+    /// physical value 0 (for a torque: no torque), i.e. the raw value of 0
+    /// N m (`-offset / factor`, rounded), saturated like any other value.
     pub fn to_raw(&self, phys: f64) -> i64 {
         let phys = if phys.is_finite() { phys } else { 0.0 };
         let r = ((phys - self.offset) / self.factor).round();
-        if !r.is_finite() {
-            return 0;
+        let (lo, hi) = self.raw_limits();
+        if r.is_nan() {
+            return 0i64.clamp(lo, hi);
         }
-        (r as i64).clamp(self.raw_min(), self.raw_max())
+        // `as` saturates at i64's ends; the clamp then at the signal's
+        (r as i64).clamp(lo, hi)
     }
     /// Raw → physical.
     pub fn to_phys(&self, raw: i64) -> f64 {
@@ -425,6 +487,7 @@ impl MsgKind {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Protocol {
     messages: [MessageSpec; 5],
+    bus: BusTiming,
 }
 
 static BUILTIN: Protocol = Protocol {
@@ -435,7 +498,56 @@ static BUILTIN: Protocol = Protocol {
         VEHICLE_SPEED,
         DRIVER_DEMAND,
     ],
+    bus: BusTiming::ASSUMED,
 };
+
+/// The bus a protocol runs on, as its DBC declares it: the bit rate
+/// (`BA_ "Baudrate"`) and whether it is a CAN FD bus (`BA_ "BusType" "CAN
+/// FD"`; grip's messages are classic frames on it, at the nominal rate).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BusTiming {
+    /// Bit rate, bit/s (the nominal, arbitration rate on a CAN FD bus).
+    pub bitrate: u32,
+    /// True when the DBC gives the bit rate (`Baudrate`, or its
+    /// `BA_DEF_DEF_` default); false: [`DEFAULT_BITRATE`] assumed.
+    pub bitrate_declared: bool,
+    /// The DBC's `BusType` is `"CAN FD"`.
+    pub can_fd_bus: bool,
+}
+
+/// The bit rate assumed when a DBC gives none: grip's bus, 1 Mbit/s.
+pub const DEFAULT_BITRATE: u32 = 1_000_000;
+
+/// The largest share of the bus grip's five messages may take, worst case
+/// ([`Protocol::bus_load`]); a DBC whose periods and bit rate give more is
+/// refused. The rest is the car's other traffic's and the error recovery's
+/// (an error frame and the retransmission of a whole frame); a classic CAN
+/// bus loaded beyond about half is where lower-priority messages' worst-case
+/// delays grow quickly (`crates/io/README.md`, "Bus load").
+pub const MAX_BUS_LOAD: f64 = 0.5;
+
+impl BusTiming {
+    /// No bit rate in the DBC: [`DEFAULT_BITRATE`], classic CAN.
+    pub const ASSUMED: Self = Self {
+        bitrate: DEFAULT_BITRATE,
+        bitrate_declared: false,
+        can_fd_bus: false,
+    };
+}
+
+/// Bits on the wire of one classic CAN data frame of `dlc` data bytes, at
+/// worst: every bit from the start of frame to the end of the CRC stuffed
+/// as often as it can be (one stuff bit per four after the first), plus
+/// CRC delimiter, ACK, end of frame and the 3-bit interframe space (Davis,
+/// Burns, Bril and Lukkien, "Controller Area Network (CAN) schedulability
+/// analysis: refuted, revisited and revised", Real-Time Systems 35(3),
+/// 2007, eq. 1). An 8-byte frame with an 11-bit id: 135 bits; with a
+/// 29-bit id: 160.
+pub const fn classic_frame_bits_worst(dlc: u8, extended: bool) -> u32 {
+    let g = if extended { 54 } else { 34 };
+    let n = 8 * (if dlc > 8 { 8 } else { dlc as u32 });
+    g + n + 13 + (g + n - 1) / 4
+}
 
 static ACTIVE: std::sync::OnceLock<Protocol> = std::sync::OnceLock::new();
 
@@ -475,8 +587,48 @@ impl Protocol {
     }
     /// Built from five specifications in [`MsgKind`] order (the DBC loader's
     /// constructor; checked there).
-    pub(crate) fn from_specs(messages: [MessageSpec; 5]) -> Self {
-        Self { messages }
+    pub(crate) fn from_specs(messages: [MessageSpec; 5], bus: BusTiming) -> Self {
+        Self { messages, bus }
+    }
+    /// The bus as the DBC declares it (the built-in protocol's: 1 Mbit/s,
+    /// classic CAN).
+    pub fn bus(&self) -> &BusTiming {
+        &self.bus
+    }
+    /// The share of the bus's bit rate grip's five messages take at their
+    /// periods (`GenMsgCycleTime`), each frame at its worst-case length
+    /// ([`classic_frame_bits_worst`]): 0.432 for the built-in protocol at 1
+    /// Mbit/s (three 8-byte frames every 1 ms, two every 10 ms).
+    pub fn bus_load(&self) -> f64 {
+        let bits_per_s: f64 = self
+            .messages
+            .iter()
+            .map(|m| {
+                f64::from(classic_frame_bits_worst(m.dlc, false)) * 1e3 / f64::from(m.cycle_ms)
+            })
+            .sum();
+        bits_per_s / f64::from(self.bus.bitrate)
+    }
+    /// One line for a log: the bit rate, where it comes from, and grip's
+    /// worst-case share of it, e.g. `1000 kbit/s (assumed: no Baudrate in
+    /// the DBC), grip's messages 43.2 % of it at worst`.
+    pub fn describe_bus(&self) -> String {
+        format!(
+            "{} kbit/s ({}){}, grip's messages {:.1} % of it at worst (limit {:.0} %)",
+            f64::from(self.bus.bitrate) / 1e3,
+            if self.bus.bitrate_declared {
+                "the DBC's Baudrate"
+            } else {
+                "assumed: no Baudrate in the DBC"
+            },
+            if self.bus.can_fd_bus {
+                ", a CAN FD bus carrying grip's messages as classic frames"
+            } else {
+                ""
+            },
+            100.0 * self.bus_load(),
+            100.0 * MAX_BUS_LOAD
+        )
     }
     /// The specification of `kind`.
     pub fn spec(&self, kind: MsgKind) -> &MessageSpec {
@@ -1237,8 +1389,8 @@ mod tests {
         assert_eq!(d[4..], [0, 0, 0, 0]);
     }
 
-    /// A non-finite value is sent as the raw value of 0 (no torque) also
-    /// where a DBC gives the signal an offset (raw 0 was -3000 N m there).
+    /// A non-finite value is sent as the physical value 0 (no torque) also
+    /// where a DBC gives the signal an offset (raw 0 is -3000 N m there).
     #[test]
     fn non_finite_is_zero_also_with_an_offset() {
         let s = SignalSpec {
@@ -1250,6 +1402,130 @@ mod tests {
             s.put(&mut d, x);
             assert_eq!(s.get(&d), 0.0, "{x}");
         }
+    }
+
+    /// The review's repro (2026-12-05): `TrqReq : 23|16@0- (0.5,0)
+    /// [-250|250] "Nm"`. 300 N m went out as raw 600 (the bit field's
+    /// limit only); it is sent as 250 N m, the range's end, and so is
+    /// -300 N m as -250.
+    #[test]
+    fn a_dbc_range_saturates_what_is_sent() {
+        let s = SignalSpec {
+            start: 23,
+            factor: 0.5,
+            min: -250.0,
+            max: 250.0,
+            motorola: true,
+            ..TORQUE_COMMAND.signals[3]
+        };
+        assert!(s.has_range());
+        assert_eq!((s.field_raw_min(), s.field_raw_max()), (-32768, 32767));
+        assert_eq!((s.raw_min(), s.raw_max()), (-500, 500));
+        assert_eq!(s.phys_limits(), (-250.0, 250.0));
+        let mut d = [0u8; 8];
+        for (sent, raw) in [
+            (300.0, 500),
+            (250.0, 500),
+            (1e300, 500),
+            (-300.0, -500),
+            (-1e300, -500),
+            (100.2, 200),
+        ] {
+            s.put(&mut d, sent);
+            assert_eq!(s.get_raw(&d), raw, "{sent}");
+        }
+        // a received value beyond the range is decoded as the frame
+        // carries it (not clamped, not refused)
+        s.put_raw(&mut d, 600);
+        assert_eq!(s.get(&d), 300.0);
+    }
+
+    /// `[0|0]` is a DBC's "no range": the bit field alone limits.
+    #[test]
+    fn a_range_of_zero_to_zero_is_none() {
+        let s = SignalSpec {
+            min: 0.0,
+            max: 0.0,
+            ..TORQUE_COMMAND.signals[3]
+        };
+        assert!(!s.has_range());
+        assert_eq!(s.range_raw(), None);
+        assert_eq!(s.to_raw(1e9), 32767);
+        assert_eq!(s.to_raw(-1e9), -32768);
+        assert_eq!(s.to_raw(12.34), 123);
+    }
+
+    /// An end that is not a whole step: the last step inside the range is
+    /// sent, never one beyond it; with a negative factor the ends swap.
+    #[test]
+    fn a_range_end_between_steps_is_not_overshot() {
+        let s = SignalSpec {
+            factor: 0.3,
+            min: -100.0,
+            max: 250.0,
+            ..TORQUE_COMMAND.signals[3]
+        };
+        assert_eq!((s.raw_min(), s.raw_max()), (-333, 833));
+        assert!(s.to_phys(s.to_raw(1e4)) <= 250.0);
+        assert!(s.to_phys(s.to_raw(-1e4)) >= -100.0);
+        let n = SignalSpec {
+            factor: -0.5,
+            min: -10.0,
+            max: 20.0,
+            ..TORQUE_COMMAND.signals[3]
+        };
+        assert_eq!((n.raw_min(), n.raw_max()), (-40, 20));
+        assert_eq!(n.phys_limits(), (-10.0, 20.0));
+        assert_eq!(n.to_phys(n.to_raw(1e4)), 20.0);
+        assert_eq!(n.to_phys(n.to_raw(-1e4)), -10.0);
+    }
+
+    /// A non-finite value is the physical value 0, saturated like any other:
+    /// at the range's nearer end where the range leaves 0 out.
+    #[test]
+    fn non_finite_is_physical_zero_within_the_range() {
+        let s = SignalSpec {
+            min: 10.0,
+            max: 100.0,
+            ..TORQUE_COMMAND.signals[3]
+        };
+        assert_eq!(s.to_phys(s.to_raw(f64::NAN)), 10.0);
+        let s = SignalSpec {
+            offset: -3000.0,
+            min: -3000.0,
+            max: 3000.0,
+            ..TORQUE_COMMAND.signals[3]
+        };
+        assert_eq!(s.to_raw(f64::NAN), 30000);
+        assert_eq!(s.to_phys(s.to_raw(f64::INFINITY)), 0.0);
+    }
+
+    /// The built-in protocol's ranges are its bit fields' (what it sent
+    /// before ranges were applied, it sends now) and its bus load is
+    /// 43.2 % of 1 Mbit/s.
+    #[test]
+    fn the_built_in_protocol_is_unchanged_by_ranges_and_loads_the_bus_43_percent() {
+        for m in MESSAGES {
+            for s in m.signals.iter().skip(2) {
+                assert!(s.has_range(), "{}.{}", m.name, s.name);
+                assert_eq!(
+                    (s.raw_min(), s.raw_max()),
+                    (s.field_raw_min(), s.field_raw_max()),
+                    "{}.{}",
+                    m.name,
+                    s.name
+                );
+            }
+        }
+        assert_eq!(classic_frame_bits_worst(8, false), 135);
+        assert_eq!(classic_frame_bits_worst(8, true), 160);
+        assert_eq!(classic_frame_bits_worst(0, false), 55);
+        let p = Protocol::builtin();
+        assert_eq!(*p.bus(), BusTiming::ASSUMED);
+        // 3 × 135 bits every 1 ms + 2 × 135 every 10 ms
+        assert!((p.bus_load() - 0.432).abs() < 1e-12, "{}", p.bus_load());
+        assert!(p.bus_load() <= MAX_BUS_LOAD);
+        assert!(p.describe_bus().contains("43.2 %"), "{}", p.describe_bus());
     }
 
     #[test]
