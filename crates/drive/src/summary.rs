@@ -54,9 +54,14 @@ const TRUTH_PERIOD_NS: u64 = 1_000_000;
 /// plant's stamps jitter by a fraction of a period), s.
 const COVER_TOL_S: f64 = 0.005;
 
+/// A truth sample holds for at most this many plant periods: a longer
+/// hole in the stream is time the metrics do not cover (the measured
+/// section's rule for cycle records, `measured::MAX_DT_PERIODS`).
+const TRUTH_MAX_HOLD_PERIODS: u64 = 5;
+
 /// Consecutive truth samples further apart than this leave a gap in the
-/// ground truth, s (five plant periods).
-const GAP_S: f64 = 0.005;
+/// ground truth, s (five plant periods: the longest hold).
+const GAP_S: f64 = TRUTH_MAX_HOLD_PERIODS as f64 * TRUTH_PERIOD_NS as f64 * 1e-9;
 
 /// Gaps in the ground truth of a complete log up to this much in all are
 /// plant-sim's skipped periods (scheduling pauses), not lost data, s.
@@ -273,10 +278,17 @@ pub struct ArteEval {
     /// to the scenario window's end (before the start: the pre-roll of a
     /// microphone ahead of the wheel).
     pub changes: Vec<RoadChange>,
-    /// Cycles (scenario window, out of safe state) the controller used the estimate.
+    /// Cycles (scenario window, out of safe state) the controller used the
+    /// estimate; without a scenario window, those of the measured
+    /// section's window (the time the driver demanded torque,
+    /// `used_in_demand_window`).
     pub used_cycles: u64,
-    /// Cycles in the scenario window out of safe state.
+    /// Cycles in the scenario window out of safe state (without one: in
+    /// the driver-demand window).
     pub active_cycles: u64,
+    /// `used_cycles` and `active_cycles` count the driver-demand window of
+    /// [`Measured`] (the log has no scenario window: a car's log).
+    pub used_in_demand_window: bool,
 }
 
 impl ArteEval {
@@ -427,8 +439,18 @@ pub struct Summary {
     /// Loop timing.
     pub timing: Timing,
     /// The `grip_tcs::metrics` metrics over the scenario window (None: no
-    /// scenario window, see `window_status`).
+    /// scenario window, see `window_status`). A truth sample holds until
+    /// the next one, at most five plant periods: the metrics cover the
+    /// window less the rest of each longer hole (`duration`, and the
+    /// `covered_s` of a partial window). The command's figures start at
+    /// the first cycle in the window with the driver's demand
+    /// (`cmd_from_s`).
     pub metrics: Option<Metrics>,
+    /// Where the command's figures of `metrics` start, s from the scenario
+    /// start: the first cycle record in the window whose demand is above
+    /// [`measured::DEMAND_MIN_NM`] (None: no such cycle, no command
+    /// figures).
+    pub cmd_from_s: Option<f64>,
     /// Scenario window, s from the first truth: (start, end).
     pub window: Option<(f64, f64)>,
     /// How much of the scenario the window covers.
@@ -1281,6 +1303,13 @@ pub fn summarize(
         s.control = Some(h);
     }
     s.measured = measured(log, vehicle, s.window_ns, roads);
+    if window.is_none() && s.measured.window == measured::MeasuredWindow::Demand {
+        // no scenario window (a car's log): how often the controller used
+        // the estimate over the measured section's window, labelled so
+        s.arte.used_cycles = s.measured.used_arte_cycles;
+        s.arte.active_cycles = s.measured.active_cycles;
+        s.arte.used_in_demand_window = true;
+    }
     s
 }
 
@@ -1476,10 +1505,18 @@ fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> 
         .map_or(u64::MAX, |d| start_ns.saturating_add((d * 1e9) as u64));
     let mut acc = MetricsAccumulator::new(vehicle);
     let mut last_in = i0;
-    // The command in force at each truth sample: the latest cycle
-    // record stamped at or before it (NaN before the first).
+    // The command in force at each truth sample: the latest cycle record
+    // stamped at or before it, from the first cycle in the window at which
+    // the loop had the driver's demand (above `DEMAND_MIN_NM`) on; NaN
+    // before (the command's figures skip those samples). The demand reaches
+    // the loop a few ms after the plant starts, and the cycles before carry
+    // the pre-start command (0): counting them would add the pedal's step
+    // to the command's variation, which `grip sim` (whose controller has
+    // the demand from its first cycle) does not see.
     let mut next_cycle = 0usize;
     let mut cmd = f64::NAN;
+    let mut cmd_from: Option<u64> = None;
+    let max_hold = TRUTH_PERIOD_NS * TRUTH_MAX_HOLD_PERIODS;
     for k in i0..log.truth.len() {
         let g = &log.truth[k];
         if g.stamp_ns >= end_ns {
@@ -1488,13 +1525,27 @@ fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> 
         while let Some(c) = log.cycles.get(next_cycle)
             && c.stamp_ns <= g.stamp_ns
         {
-            cmd = c.torque_cmd;
+            if cmd_from.is_none()
+                && c.stamp_ns >= start_ns
+                && c.demand.is_finite()
+                && c.demand > measured::DEMAND_MIN_NM
+            {
+                cmd_from = Some(c.stamp_ns);
+            }
+            if cmd_from.is_some() {
+                cmd = c.torque_cmd;
+            }
             next_cycle += 1;
         }
+        // a sample holds until the next one, at most `max_hold` (a longer
+        // hole in the stream is time the metrics do not cover), and not
+        // past the scenario's end
         let next = log
             .truth
             .get(k + 1)
-            .map_or(g.stamp_ns.saturating_add(TRUTH_PERIOD_NS), |n| n.stamp_ns);
+            .map_or(g.stamp_ns.saturating_add(TRUTH_PERIOD_NS), |n| {
+                n.stamp_ns.min(g.stamp_ns.saturating_add(max_hold))
+            });
         let next = next.min(end_ns);
         acc.push(&Sample {
             dt: next.saturating_sub(g.stamp_ns) as f64 * 1e-9,
@@ -1507,6 +1558,7 @@ fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> 
         last_in = k;
     }
     s.metrics = Some(acc.finish());
+    s.cmd_from_s = cmd_from.map(|t| secs_between(start_ns, t));
     let last_ns = log.truth[last_in].stamp_ns;
     let w_end = end_ns.min(last_ns.saturating_add(TRUTH_PERIOD_NS));
     s.window = Some((rel(start_ns), rel(w_end)));
@@ -1514,13 +1566,14 @@ fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> 
     s.speed_kmh = Some((log.truth[i0].v * 3.6, log.truth[last_in].v * 3.6));
     let span_s = secs_between(start_ns, w_end);
     // holes in the ground truth inside the window (a damaged part of the
-    // file skipped, samples lost): each beyond one plant period is time
-    // the metrics do not see
+    // file skipped, samples lost): a sample holds for at most `GAP_S`
+    // (five plant periods, the rule of the measured section), so each
+    // hole's time beyond that is time the metrics do not see
     let (mut gaps_s, mut longest) = (0.0, (0.0, 0.0));
     for p in log.truth[i0..=last_in].windows(2) {
         let dt = secs_between(p[0].stamp_ns, p[1].stamp_ns);
         if dt > GAP_S {
-            gaps_s += dt - TRUTH_PERIOD_NS as f64 * 1e-9;
+            gaps_s += dt - GAP_S;
             if dt > longest.0 {
                 longest = (dt, secs_between(start_ns, p[0].stamp_ns));
             }
@@ -1770,35 +1823,50 @@ impl Summary {
                 }
                 _ => {}
             }
+            let n = |x: f64, p: usize| {
+                if x.is_finite() {
+                    format!("{x:.p$}")
+                } else {
+                    "none".to_owned()
+                }
+            };
             let _ = writeln!(
                 o,
-                "  slip deviation (1/T)∫|λ|dt      {:.4}",
-                m.slip_deviation
+                "  slip deviation (1/T)∫|λ|dt      {}",
+                n(m.slip_deviation, 4)
             );
             let _ = writeln!(
                 o,
-                "  max torque                      {:.2} N m",
-                m.max_torque
+                "  max torque                      {} N m",
+                n(m.max_torque, 2)
             );
             let _ = writeln!(
                 o,
-                "  torque effort (normalised area) {:.2} N m",
-                m.torque_effort
+                "  torque effort (normalised area) {} N m",
+                n(m.torque_effort, 2)
             );
             let _ = writeln!(
                 o,
-                "  mean acceleration               {:.3} m/s²",
-                m.mean_accel
+                "  mean acceleration               {} m/s²",
+                n(m.mean_accel, 3)
             );
             let _ = writeln!(
                 o,
-                "  command total variation Σ|ΔT*|/T {:.0} N m/s",
-                m.cmd_tv_per_s
+                "  command total variation Σ|ΔT*|/T {} N m/s",
+                n(m.cmd_tv_per_s, 0)
             );
             let _ = writeln!(
                 o,
-                "  command above 20 Hz (RMS, share) {:.2} N m, {:.3} of its variance",
-                m.cmd_hf_rms, m.cmd_hf_share
+                "  command above 20 Hz (RMS, share) {} N m, {} of its variance",
+                n(m.cmd_hf_rms, 2),
+                n(m.cmd_hf_share, 3)
+            );
+            let _ = writeln!(
+                o,
+                "  (the command's figures from {}: the first cycle in the window with the driver's demand above {} N m)",
+                self.cmd_from_s
+                    .map_or("- (no such cycle)".to_owned(), |t| format!("{t:.3} s")),
+                measured::DEMAND_MIN_NM
             );
             let _ = writeln!(o, "  distance                        {:.2} m", m.distance);
             let _ = writeln!(o, "  energy ∫Tω dt                   {:.1} J", m.energy);
@@ -1905,8 +1973,16 @@ impl Summary {
         if a.active_cycles > 0 {
             let _ = writeln!(
                 o,
-                "  controller used the estimate in {:.1} % of the active scenario cycles ({}/{})",
+                "  controller used the estimate in {:.1} % of the active {} ({}/{})",
                 100.0 * a.used_cycles as f64 / a.active_cycles as f64,
+                if a.used_in_demand_window {
+                    format!(
+                        "cycles of the time the driver demanded more than {} N m (no scenario window; the measured section's window)",
+                        measured::DEMAND_MIN_NM
+                    )
+                } else {
+                    "scenario cycles".to_owned()
+                },
                 a.used_cycles,
                 a.active_cycles
             );
@@ -2153,6 +2229,7 @@ B: {}",
         ];
         for (name, x, y, fmt) in rows {
             let f = |v: f64| match fmt {
+                _ if !v.is_finite() => "-".to_owned(),
                 "{:.4}" => format!("{v:.4}"),
                 "{:.3}" => format!("{v:.3}"),
                 "{:.2}" => format!("{v:.2}"),
@@ -2503,8 +2580,9 @@ mod tests {
         assert!((d - 0.050).abs() < 1e-6, "{d}");
         let m = s.metrics.unwrap();
         assert_eq!(m.samples, 201, "window starts at the last held sample");
-        // no cycle records: no command figures
-        assert_eq!(m.cmd_tv_per_s, 0.0);
+        // no cycle records: no command figures (none, not 0)
+        assert!(m.cmd_tv_per_s.is_nan());
+        assert_eq!(s.cmd_from_s, None);
     }
 
     #[test]
@@ -2522,6 +2600,7 @@ mod tests {
                 c.seq = i;
                 c.stamp_ns = 2 * i * 1_000_000;
                 c.torque_cmd = if (2 * i / 10) % 2 == 0 { 100.0 } else { 0.0 };
+                c.demand = 300.0;
                 c
             })
             .collect();
@@ -2533,13 +2612,17 @@ mod tests {
         let s = summarize(&log, &VehicleParams::default(), "defaults", None);
         let m = s.metrics.unwrap();
         // window: truth samples 9..=209, 201 samples of 1 ms; the command
-        // changes at 10, 20, ..., 200 ms: 20 edges of 100 N m over 0.201 s.
+        // figures start at the window's first cycle with the demand (10
+        // ms), so over 0.200 s; the command changes at 20, ..., 200 ms: 19
+        // edges of 100 N m (the one at 10 ms is their start).
         assert_eq!(m.samples, 201);
+        assert!((m.cmd_duration - 0.200).abs() < 1e-9, "{}", m.cmd_duration);
         assert!(
-            (m.cmd_tv_per_s - 2000.0 / 0.201).abs() < 1e-6,
+            (m.cmd_tv_per_s - 1900.0 / 0.200).abs() < 1e-6,
             "{}",
             m.cmd_tv_per_s
         );
+        assert!((s.cmd_from_s.unwrap() - 0.001).abs() < 1e-9);
         assert!(s.render().contains("command total variation"));
     }
 }

@@ -197,15 +197,22 @@ fn c_a_truncated_log_says_how_much_of_the_scenario_it_covers() {
     assert!(r.contains("metrics: none"), "{r}");
 
     // a hole in the ground truth (a damaged part skipped): 50 ms of the
-    // scenario missing, said so
+    // scenario missing, said so; the sample before it holds for 5 ms (five
+    // plant periods, at most), so the metrics cover 0.154 s, and their
+    // duration says the same
     let mut holed = full.clone();
     holed
         .truth
         .retain(|g| !(150_000_000..200_000_000).contains(&g.stamp_ns));
     holed.report.truncated = Some("1 damaged part skipped (1 chunk)".into());
-    let r = summary_of(&holed).render();
+    let s = summary_of(&holed);
+    let r = s.render();
     assert!(
-        r.contains("WARNING: metrics cover 0.150 of 0.200 s of the scenario: the ground truth has gaps of 0.050 s"),
+        r.contains("WARNING: metrics cover 0.154 of 0.200 s of the scenario: the ground truth has gaps of 0.046 s"),
+        "{r}"
+    );
+    assert!(
+        (s.metrics.as_ref().unwrap().duration - 0.154).abs() < 1e-9,
         "{r}"
     );
     // a complete live drive whose plant skipped 10 ms (a scheduling pause:
@@ -222,7 +229,7 @@ fn c_a_truncated_log_says_how_much_of_the_scenario_it_covers() {
         .retain(|g| !(120_000_000..180_000_000).contains(&g.stamp_ns));
     let r = summary_of(&long).render();
     assert!(
-        r.contains("WARNING: metrics cover 0.140 of 0.200 s of the scenario"),
+        r.contains("WARNING: metrics cover 0.144 of 0.200 s of the scenario"),
         "{r}"
     );
 

@@ -12,7 +12,7 @@
 //! | `slip_deviation` | (1/T_run) Σ \|λ\| dt — the paper's "time-averaged slip ratio deviation" |
 //! | `max_torque` | max \|T\| |
 //! | `torque_effort` | (1/T_run) Σ \|T\| dt — the paper's "normalised area of the torque-time graph" (N m) |
-//! | `mean_accel` | (V_last − V_first) / (T_run − dt_last): speed gained between the first and the last sample over the time between them |
+//! | `mean_accel` | (V_last − V_first) / (t_last − t_first): speed gained between the first and the last sample over the time between their starts (the `dt` of rejected samples between them included; NaN with fewer than two samples) |
 //! | `distance` | Σ V dt |
 //! | `energy` | Σ T ω dt (J; motor output energy at the driven wheel, negative while regenerating) |
 //! | `kinetic_energy_gain` | ½ (M/n)(V_last² − V_first²) + ½ J_w (ω_last² − ω_first²) (J; one wheel's share, like `energy`) |
@@ -24,11 +24,20 @@
 //! `T*` is the torque *command* (`Sample::torque_cmd`, what the controller
 //! sends the inverter), T_cmd the summed `dt` of the samples that carry a
 //! finite command (a sample without one, NaN, leaves the command's figures
-//! alone and is not rejected). The high-pass is designed for each sample's
-//! `dt` (bilinear transform, cut-off pre-warped), starts at rest on the
-//! first command (a constant command gives exactly 0), and needs about
-//! 50 ms to forget a step; a constant command has no variance and a share
-//! of 0.
+//! alone and is not rejected). The high-pass is designed once, for the
+//! stream's nominal period: the first command's `dt` (bilinear transform,
+//! cut-off pre-warped). A later `dt` within [`CMD_REDESIGN_TOL`] (10 %) of
+//! it, a cycle's timing jitter, uses the same filter; a `dt` further off, a
+//! real change of rate, re-designs it for that `dt` with the filter put at
+//! rest on that sample's command. The filter starts at rest on the first
+//! command, so a constant command gives exactly 0 however its `dt`
+//! jitters, and needs about 50 ms to forget a step; a constant command has
+//! no variance and a share of 0.
+//!
+//! Nothing to compute from gives NaN (none), not 0: a run without an
+//! accepted sample has NaN means, maximum and command figures; fewer than
+//! two samples (no time between the first and the last) a NaN `mean_accel`;
+//! no finite command NaN command figures.
 //!
 //! `T` is the torque actually acting on the wheel (the plant's motor torque
 //! after its lag, or the inverter's reported torque live), not the command.
@@ -69,7 +78,7 @@ pub struct Metrics {
     pub max_torque: f64,
     /// (1/T_run) ∫ |T| dt, N m (the paper's "normalised area").
     pub torque_effort: f64,
-    /// Mean acceleration, m/s².
+    /// Mean acceleration, m/s² (NaN with fewer than two samples).
     pub mean_accel: f64,
     /// Distance travelled, m.
     pub distance: f64,
@@ -79,12 +88,17 @@ pub struct Metrics {
     pub kinetic_energy_gain: f64,
     /// T_run, s.
     pub duration: f64,
-    /// Total variation of the command per second, Σ |ΔT*| / T_cmd, N m/s.
+    /// Total variation of the command per second, Σ |ΔT*| / T_cmd, N m/s
+    /// (this and the other two command figures NaN without a finite
+    /// command).
     pub cmd_tv_per_s: f64,
     /// RMS of the command above 20 Hz (4th-order Butterworth high-pass), N m.
     pub cmd_hf_rms: f64,
     /// Share of the command's mean-free power above 20 Hz, [0, 1].
     pub cmd_hf_share: f64,
+    /// T_cmd: the time of the samples with a finite command, s (what the
+    /// command's figures are per).
+    pub cmd_duration: f64,
     /// Number of samples accumulated.
     pub samples: u64,
     /// Number of samples ignored (non-finite values or dt <= 0).
@@ -104,6 +118,11 @@ pub struct MetricsAccumulator {
     energy: f64,
     first: Option<Sample>,
     last: Sample,
+    /// Σ dt of every sample with a valid dt from the first accepted one on
+    /// (rejected ones included: they are time that passed).
+    elapsed: f64,
+    /// `elapsed` at the start of the last accepted sample.
+    last_at: f64,
     samples: u64,
     rejected: u64,
     cmd: CommandStats,
@@ -111,6 +130,11 @@ pub struct MetricsAccumulator {
 
 /// Cut-off of the command's high-frequency figures, Hz.
 pub const CMD_HF_CUTOFF_HZ: f64 = 20.0;
+
+/// The command's high-pass is re-designed only when a sample's `dt` is more
+/// than this fraction off the period it was designed for (a change of the
+/// stream's rate, not a cycle's timing jitter).
+pub const CMD_REDESIGN_TOL: f64 = 0.1;
 
 /// One biquad section, transposed direct form II.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -170,8 +194,16 @@ impl CommandStats {
         if !x.is_finite() {
             return;
         }
-        if dt != self.design_dt {
-            // Coefficients for this cycle's length; the state carries over.
+        // The filter is designed once, for the stream's nominal period (the
+        // first command's dt); a drive log's cycles jitter by tens of µs
+        // around it, and re-designing for each cycle's dt with the state
+        // carried over would inject spurious high-frequency power (a
+        // constant command would not give 0). Only a real change of rate,
+        // a dt more than [`CMD_REDESIGN_TOL`] off the design's, re-designs it,
+        // with the state put at rest on the current command.
+        let redesign =
+            self.prev.is_none() || (dt - self.design_dt).abs() > CMD_REDESIGN_TOL * self.design_dt;
+        if redesign {
             self.design(dt);
         }
         let y = match self.prev {
@@ -182,8 +214,14 @@ impl CommandStats {
             }
             Some(p) => {
                 self.tv += (x - p).abs();
-                let y = self.hp[0].step(x);
-                self.hp[1].step(y)
+                if redesign {
+                    self.hp[0].rest_on(x);
+                    self.hp[1].rest_on(0.0);
+                    0.0
+                } else {
+                    let y = self.hp[0].step(x);
+                    self.hp[1].step(y)
+                }
             }
         };
         self.prev = Some(x);
@@ -195,10 +233,10 @@ impl CommandStats {
         self.m2 += dt * d * (x - self.mean);
     }
 
-    /// (TV per second, HF RMS, HF share); zeros without a command.
+    /// (TV per second, HF RMS, HF share); NaN without a command.
     fn finish(&self) -> (f64, f64, f64) {
         if self.duration <= 0.0 {
-            return (0.0, 0.0, 0.0);
+            return (f64::NAN, f64::NAN, f64::NAN);
         }
         let t = self.duration;
         let hf_ms = self.int_hf2 / t;
@@ -227,6 +265,8 @@ impl MetricsAccumulator {
             energy: 0.0,
             first: None,
             last: Sample::default(),
+            elapsed: 0.0,
+            last_at: 0.0,
             samples: 0,
             rejected: 0,
             cmd: CommandStats::default(),
@@ -243,12 +283,21 @@ impl MetricsAccumulator {
             && s.v.is_finite();
         if !ok {
             self.rejected += 1;
+            // a rejected sample's time still passes between the first and
+            // the last sample (the acceleration's time base)
+            if self.first.is_some() && s.dt.is_finite() && s.dt > 0.0 {
+                self.elapsed += s.dt;
+            }
             return;
         }
         if self.first.is_none() {
             self.first = Some(*s);
         }
         self.last = *s;
+        self.elapsed += s.dt;
+        // `elapsed − dt`, not the sum before this sample: with no rejected
+        // sample it is bit for bit `T_run − dt_last`
+        self.last_at = self.elapsed - s.dt;
         self.samples += 1;
         self.duration += s.dt;
         self.int_abs_lambda += s.lambda.abs() * s.dt;
@@ -260,21 +309,33 @@ impl MetricsAccumulator {
     }
 
     /// The metrics so far (the accumulator can keep going afterwards).
-    /// An empty run gives all zeros.
+    /// An empty run gives NaN for every mean, ratio and the acceleration
+    /// (none: nothing to compute them from) and zeros for the sums and
+    /// counts; see [`Metrics`] for the other NaNs.
     pub fn finish(&self) -> Metrics {
         let Some(first) = self.first else {
+            let nan = f64::NAN;
             return Metrics {
+                slip_deviation: nan,
+                max_torque: nan,
+                torque_effort: nan,
+                mean_accel: nan,
+                cmd_tv_per_s: nan,
+                cmd_hf_rms: nan,
+                cmd_hf_share: nan,
                 rejected: self.rejected,
                 ..Metrics::default()
             };
         };
         let t = self.duration;
-        let span = t - self.last.dt;
+        // from the first sample's start to the last's, rejected samples'
+        // time included
+        let span = self.last_at;
         let last = self.last;
         let mean_accel = if span > 0.0 {
             (last.v - first.v) / span
         } else {
-            0.0
+            f64::NAN
         };
         let (cmd_tv_per_s, cmd_hf_rms, cmd_hf_share) = self.cmd.finish();
         let kinetic_energy_gain = 0.5 * self.mass_share * (last.v * last.v - first.v * first.v)
@@ -291,6 +352,7 @@ impl MetricsAccumulator {
             cmd_tv_per_s,
             cmd_hf_rms,
             cmd_hf_share,
+            cmd_duration: self.cmd.duration,
             samples: self.samples,
             rejected: self.rejected,
         }
@@ -386,7 +448,23 @@ mod tests {
     fn empty_and_bad_samples() {
         let v = VehicleParams::default();
         let mut acc = MetricsAccumulator::new(&v);
-        assert_eq!(acc.finish(), Metrics::default());
+        let e = acc.finish();
+        // nothing to compute from: none (NaN), not 0
+        assert!(
+            [
+                e.slip_deviation,
+                e.max_torque,
+                e.torque_effort,
+                e.mean_accel,
+                e.cmd_tv_per_s,
+                e.cmd_hf_rms,
+                e.cmd_hf_share
+            ]
+            .iter()
+            .all(|x| x.is_nan()),
+            "{e:?}"
+        );
+        assert_eq!((e.duration, e.distance, e.samples), (0.0, 0.0, 0));
         acc.push(&Sample {
             dt: 0.0,
             ..Sample::default()
@@ -410,7 +488,109 @@ mod tests {
         let m = acc.finish();
         assert!(close(m.slip_deviation, 0.2));
         // One sample: no span for an acceleration.
-        assert_eq!(m.mean_accel, 0.0);
+        assert!(m.mean_accel.is_nan());
+    }
+
+    #[test]
+    fn rejected_samples_mid_run_keep_the_acceleration_time_base() {
+        // 1 m/s² at 1 kHz for 1 s; every 10th sample carries a NaN slip
+        // (rejected). V goes from 0 to 0.999 m/s over 0.999 s whatever is
+        // rejected between.
+        let v = VehicleParams::default();
+        let mut acc = MetricsAccumulator::new(&v);
+        for k in 0..1000 {
+            acc.push(&Sample {
+                dt: 1e-3,
+                lambda: if k % 10 == 5 { f64::NAN } else { 0.0 },
+                torque: 10.0,
+                omega: 1.0,
+                v: k as f64 * 1e-3,
+                torque_cmd: 0.0,
+            });
+        }
+        let m = acc.finish();
+        assert_eq!(m.rejected, 100);
+        assert!((m.mean_accel - 1.0).abs() < 1e-9, "{}", m.mean_accel);
+        // a rejected sample after the last accepted one is not in the span
+        acc.push(&Sample {
+            dt: 1e-3,
+            lambda: f64::NAN,
+            ..Sample::default()
+        });
+        assert!((acc.finish().mean_accel - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_constant_command_with_jittered_dt_has_no_high_frequency() {
+        // 300 N m for 2 s at a nominal 1 kHz, each cycle's dt off by up to
+        // ±20 µs (a drive log's stamps): exactly 0, as for a fixed step.
+        let v = VehicleParams::default();
+        let mut acc = MetricsAccumulator::new(&v);
+        let mut seed = 12345u64;
+        for _ in 0..2000 {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let u = (seed >> 11) as f64 / (1u64 << 53) as f64;
+            acc.push(&Sample {
+                dt: 1e-3 + (u - 0.5) * 40e-6,
+                torque: 300.0,
+                omega: 10.0,
+                v: 2.8,
+                torque_cmd: 300.0,
+                ..Sample::default()
+            });
+        }
+        let m = acc.finish();
+        assert_eq!(
+            (m.cmd_tv_per_s, m.cmd_hf_rms, m.cmd_hf_share),
+            (0.0, 0.0, 0.0)
+        );
+        // a jittered 50 Hz sine stays what it is at a fixed step
+        let sine = |k: usize| 200.0 + 10.0 * (2.0 * std::f64::consts::PI * 0.05 * k as f64).sin();
+        let fixed = command_run(1e-3, 2000, sine);
+        let mut acc = MetricsAccumulator::new(&v);
+        for k in 0..2000 {
+            let j = if k % 2 == 0 { 15e-6 } else { -15e-6 };
+            acc.push(&Sample {
+                dt: 1e-3 + j,
+                torque: 100.0,
+                omega: 10.0,
+                v: 2.8,
+                torque_cmd: sine(k),
+                ..Sample::default()
+            });
+        }
+        let m = acc.finish();
+        assert!(
+            (m.cmd_hf_rms - fixed.cmd_hf_rms).abs() < 0.01 * fixed.cmd_hf_rms,
+            "{} {}",
+            m.cmd_hf_rms,
+            fixed.cmd_hf_rms
+        );
+    }
+
+    #[test]
+    fn a_real_change_of_rate_redesigns_the_filter_at_rest() {
+        // 1 kHz, then 500 Hz: a constant command still gives 0, and a
+        // 5 Hz sine stays under the 20 Hz cut-off after the change.
+        let v = VehicleParams::default();
+        let mut acc = MetricsAccumulator::new(&v);
+        let mut t = 0.0;
+        for k in 0..3000 {
+            let dt = if k < 1000 { 1e-3 } else { 2e-3 };
+            acc.push(&Sample {
+                dt,
+                torque: 100.0,
+                omega: 10.0,
+                v: 2.8,
+                torque_cmd: 100.0 + 50.0 * (2.0 * std::f64::consts::PI * 5.0 * t).sin(),
+                ..Sample::default()
+            });
+            t += dt;
+        }
+        let m = acc.finish();
+        assert!(m.cmd_hf_share < 0.01, "{}", m.cmd_hf_share);
     }
 
     fn command_run(dt: f64, n: usize, cmd: impl Fn(usize) -> f64) -> Metrics {
@@ -484,6 +664,9 @@ mod tests {
             (m.cmd_tv_per_s, m.cmd_hf_rms, m.cmd_hf_share),
             (0.0, 0.0, 0.0)
         );
+        // no finite command at all: none
+        let m = command_run(1e-3, 100, |_| f64::NAN);
+        assert!(m.cmd_tv_per_s.is_nan() && m.cmd_hf_rms.is_nan() && m.cmd_hf_share.is_nan());
         // Samples without a command are skipped by the command's figures
         // only: the rest of the metrics take them.
         let m = command_run(1e-3, 1000, |k| if k % 2 == 0 { 100.0 } else { f64::NAN });

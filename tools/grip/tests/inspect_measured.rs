@@ -108,11 +108,13 @@ fn a_log_without_ground_truth_shows_what_the_loop_measured() {
         "{out}"
     );
     assert!(
-        out.contains("spin events (λ_m above 0.2 for 20 ms or more; dips under 5 ms bridged): 1\n"),
+        out.contains(
+            "spin events (|λ_m| above 0.2 for 20 ms or more; dips under 5 ms bridged): 1\n"
+        ),
         "{out}"
     );
     assert!(
-        out.contains("    at 1.200 s for 0.080 s, peak λ_m 0.300 at 1.2"),
+        out.contains("    at 1.200 s for 0.080 s, peak |λ_m| 0.300 at 1.2"),
         "{out}"
     );
     assert!(

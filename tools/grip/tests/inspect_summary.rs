@@ -367,10 +367,10 @@ fn the_replay_table_says_each_rows_window() {
         ["107.000", "107.000"]
     );
     for r in [
-        "mean torque command, N m (active cycles, scenario)",
-        "max torque command, N m (scenario)",
-        "mean torque taken off the demand, N m (scenario)",
-        "cycles using ARTE, % (scenario)",
+        "mean torque command, N m (time-weighted, scenario)",
+        "max torque command, N m (active cycles, scenario)",
+        "mean torque taken off the demand, N m (time-weighted, scenario)",
+        "cycles using ARTE, % (active cycles, scenario)",
         "ARTE accuracy vs ground truth, % (scenario)",
         "ARTE accuracy vs ground truth, % (whole log)",
     ] {
@@ -386,4 +386,21 @@ fn the_replay_table_says_each_rows_window() {
     assert_eq!(j["old"]["safe_cycles"], 107.0, "{j}");
     assert_eq!(j["old"]["safe_cycles_in_scenario"], 0.0, "{j}");
     assert_eq!(j["old"]["arte_accuracy_whole_log"], 1.0, "{j}");
+    // one computation: replay's mean torque command and the torque taken
+    // off the demand in the scenario are inspect's measured figures (until
+    // 2026-12-05 replay's unweighted mean over the active cycles differed)
+    let m = &json_of(&reference())["measured"];
+    let (cmd, withheld, time) = (
+        m["mean_cmd_nm"].as_f64().unwrap(),
+        m["withheld_nms"].as_f64().unwrap(),
+        m["time_s"].as_f64().unwrap(),
+    );
+    let got = j["old"]["mean_torque_cmd_nm_in_scenario"].as_f64().unwrap();
+    assert!((got - cmd).abs() < 1e-9, "replay {got}, inspect {cmd}");
+    let cut = j["old"]["mean_torque_cut_nm_in_scenario"].as_f64().unwrap();
+    assert!(
+        (cut - withheld / time).abs() < 1e-9,
+        "replay {cut}, inspect {}",
+        withheld / time
+    );
 }

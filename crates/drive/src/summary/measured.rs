@@ -18,17 +18,32 @@
 //!   of the vehicle the summary uses) on the window's cycles with a valid,
 //!   finite V and a finite ω whose max(|r ω|, |V|) is at least
 //!   [`MIN_SPEED_MPS`]; the others are counted and left out.
-//! - **Spin events**: λ_m above [`SPIN_LAMBDA`] for [`SPIN_MIN_S`] or
-//!   longer (dips shorter than [`SPIN_BRIDGE_S`] bridged).
-//! - **Traction**: the mean acceleration (V_last − V_first) / (t_last −
-//!   t_first) over the valid-V cycles of each stretch, summed over the
-//!   stretches; the command against the demand; the torque withheld
-//!   ∫ (T_d − T*) dt; the motor's reported torque.
+//! - **Spin events**: |λ_m| above [`SPIN_LAMBDA`] for [`SPIN_MIN_S`] or
+//!   longer (dips shorter than [`SPIN_BRIDGE_S`] bridged): a wheel spinning
+//!   in reverse counts as one spinning forward.
+//! - **Traction**: the mean acceleration from V: per stretch, V at its
+//!   last valid sample less V at its first, over the time between them,
+//!   each end's V a least-squares line's value there through the valid
+//!   samples of the [`ACCEL_END_S`] at that end (at most half the
+//!   stretch); ΔV and Δt summed over the stretches. The line keeps the
+//!   sensor's noise on one sample (σ 0.02 m/s) from setting the figure
+//!   (σ_V √(4/n) at each end, 0.28 σ_V at 50 samples) and leaves the time
+//!   base the ground truth's `mean_accel`'s. Also the
+//!   command against the demand; the torque withheld ∫ (T_d − T*) dt and
+//!   its time-weighted mean (what `grip replay` reports); the motor's
+//!   reported torque; how often the controller used the estimate (cycles
+//!   out of the safe state).
 //! - **The command's smoothness**: `grip_tcs::MetricsAccumulator`'s
 //!   `cmd_tv_per_s`, `cmd_hf_rms`, `cmd_hf_share` on the cycles' commands
-//!   (one accumulator per stretch, combined by time).
+//!   from the first cycle of each stretch with the driver's demand above
+//!   [`DEMAND_MIN_NM`] (in a scenario window the demand reaches the loop a
+//!   few ms after the plant starts, and the cycles before carry the
+//!   pre-start command, 0: the pedal's step would count, which `grip sim`
+//!   does not see), one accumulator per stretch, combined by the time each
+//!   one's command figures cover.
 //! - **Per believed road**: the loop's road belief (`belief_road`, a
-//!   catalogue index, named by the log's road catalogue).
+//!   catalogue index, named by the log's road catalogue); its largest
+//!   |λ_m|.
 //!
 //! Every cycle stands for the time to the next cycle record, at most five
 //! loop periods (a longer hole in the records is no time the loop
@@ -86,6 +101,10 @@ pub const SLIP_LEVELS: [f64; 2] = [0.1, 0.2];
 /// A cycle stands for at most this many loop periods.
 const MAX_DT_PERIODS: u64 = 5;
 
+/// The mean acceleration from V takes the mean of V over this much at each
+/// end of a stretch, s (50 cycles at 1 kHz).
+pub const ACCEL_END_S: f64 = 0.050;
+
 /// Which cycles the measured figures cover.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub enum MeasuredWindow {
@@ -116,7 +135,7 @@ pub struct SpinEvent {
     pub start_s: f64,
     /// From its first cycle to the end of its last, s.
     pub length_s: f64,
-    /// The largest λ_m in it.
+    /// The largest |λ_m| in it.
     pub peak: f64,
     /// When that was, s from [`Measured::origin_ns`].
     pub peak_s: f64,
@@ -137,7 +156,7 @@ pub struct BeliefLine {
     pub slip_s: f64,
     /// Time-weighted mean |λ_m| (NaN: no measured slip).
     pub mean_abs_slip: f64,
-    /// Largest λ_m (NaN: no measured slip).
+    /// Largest |λ_m| (NaN: no measured slip).
     pub max_slip: f64,
     /// Time-weighted mean torque command, N m (NaN: none finite).
     pub mean_cmd: f64,
@@ -186,12 +205,14 @@ pub struct Measured {
     pub share_above: [f64; 2],
     /// Every spin event, in time order.
     pub spins: Vec<SpinEvent>,
-    /// Mean acceleration from V, m/s² (Σ ΔV / Σ time over each stretch's
-    /// valid-V span).
+    /// Mean acceleration from V, m/s² (Σ ΔV / Σ Δt over the stretches: per
+    /// stretch V at its last valid sample less V at its first, each from a
+    /// least-squares line through the valid V of the [`ACCEL_END_S`] at
+    /// that end, over the time between the two samples).
     pub mean_accel: f64,
     /// Σ ΔV, m/s.
     pub dv: f64,
-    /// Σ time between each stretch's first and last valid V, s.
+    /// Σ Δt between each stretch's first and last valid V, s.
     pub accel_s: f64,
     /// Time-weighted mean torque command, N m.
     pub mean_cmd: f64,
@@ -201,6 +222,18 @@ pub struct Measured {
     pub delivered: f64,
     /// ∫ (demand − command) dt, N m s.
     pub withheld_nms: f64,
+    /// Time-weighted mean of (demand − command) over the cycles with both,
+    /// N m (the torque taken off the demand, negative where the command
+    /// exceeded it; NaN: none).
+    pub mean_withheld: f64,
+    /// Cycles of the window out of the safe state.
+    pub active_cycles: u64,
+    /// Of those, cycles in which the controller used ARTE's estimate.
+    pub used_arte_cycles: u64,
+    /// Where the command's smoothness figures start, s from `origin_ns`:
+    /// the window's first cycle with the driver's demand above
+    /// [`DEMAND_MIN_NM`] (None: none).
+    pub cmd_from_s: Option<f64>,
     /// Time-weighted mean of the motor's reported torque, N m.
     pub mean_torque: f64,
     /// The command's total variation per second, N m/s.
@@ -277,6 +310,12 @@ pub fn measured(
         m.delivered,
         m.mean_torque,
     ) = (nan, nan, nan, nan, nan, nan, nan, nan);
+    (
+        m.mean_withheld,
+        m.cmd_tv_per_s,
+        m.cmd_hf_rms,
+        m.cmd_hf_share,
+    ) = (nan, nan, nan, nan);
     m.share_above = [nan, nan];
     if cycles.is_empty() {
         return m;
@@ -342,14 +381,13 @@ pub fn measured(
     let mut abs_all: Vec<f64> = Vec::new();
     let mut above = [0.0f64; 2];
     let (mut cmd, mut demand, mut torque) = (Acc::default(), Acc::default(), Acc::default());
+    let mut cut = Acc::default();
     let mut withheld = 0.0;
     let (mut tv, mut hf2, mut hf_share_w, mut cmd_t) = (0.0, 0.0, 0.0, 0.0);
     // per belief: (time, slip time, Σ|λ|dt, max λ, command acc)
     let mut beliefs: std::collections::BTreeMap<u32, (f64, f64, f64, f64, Acc)> =
         std::collections::BTreeMap::new();
     for &(a, b) in &stretches {
-        let mut first_v: Option<(u64, f64)> = None;
-        let mut last_v: Option<(u64, f64)> = None;
         let mut acc = MetricsAccumulator::new(vehicle);
         // the spin event being followed: (start ns, end ns, peak, peak ns)
         let mut spin: Option<(u64, u64, f64, u64)> = None;
@@ -366,6 +404,10 @@ pub fn measured(
                 }
             }
         };
+        // the command's smoothness from the first cycle with the driver's
+        // demand on (the cycles before carry the pre-start command)
+        let mut had_demand = false;
+        let mut vs: Vec<(u64, f64)> = Vec::new();
         for (i, c) in cycles.iter().enumerate().take(b).skip(a) {
             let dtn = dt_ns(i);
             let dt = dtn as f64 * 1e-9;
@@ -376,6 +418,15 @@ pub fn measured(
             torque.add(c.torque, dt);
             if c.demand.is_finite() && c.torque_cmd.is_finite() {
                 withheld += (c.demand - c.torque_cmd) * dt;
+                cut.add(c.demand - c.torque_cmd, dt);
+            }
+            if c.safe_state == 0 {
+                m.active_cycles += 1;
+                m.used_arte_cycles += u64::from(c.used_arte != 0);
+            }
+            had_demand |= c.demand.is_finite() && c.demand > DEMAND_MIN_NM;
+            if had_demand && m.cmd_from_s.is_none() {
+                m.cmd_from_s = Some(rel(c.stamp_ns));
             }
             acc.push(&Sample {
                 dt,
@@ -383,7 +434,7 @@ pub fn measured(
                 torque: 0.0,
                 omega: 0.0,
                 v: 0.0,
-                torque_cmd: c.torque_cmd,
+                torque_cmd: if had_demand { c.torque_cmd } else { f64::NAN },
             });
             let belief =
                 beliefs
@@ -396,8 +447,7 @@ pub fn measured(
                 m.no_valid_v += 1;
                 continue;
             };
-            first_v.get_or_insert((c.stamp_ns, v));
-            last_v = Some((c.stamp_ns, v));
+            vs.push((c.stamp_ns, v));
             let Some(l) = slip(r, v_eps, c.omega, v) else {
                 m.slow += 1;
                 continue;
@@ -414,26 +464,28 @@ pub fn measured(
             belief.1 += dt;
             belief.2 += l.abs() * dt;
             belief.3 = if belief.3.is_nan() {
-                l
+                l.abs()
             } else {
-                belief.3.max(l)
+                belief.3.max(l.abs())
             };
-            // spin events: cycles above the threshold, dips shorter than
-            // the bridge joined
-            if l > SPIN_LAMBDA {
+            // spin events: cycles with |λ_m| above the threshold (a wheel
+            // spinning forward or in reverse), dips shorter than the
+            // bridge joined
+            let la = l.abs();
+            if la > SPIN_LAMBDA {
                 let end = c.stamp_ns + dtn;
                 match &mut spin {
                     Some((_, s1, peak, at))
                         if secs_between(*s1, c.stamp_ns) < SPIN_BRIDGE_S - 1e-12 =>
                     {
                         *s1 = end;
-                        if l > *peak {
-                            (*peak, *at) = (l, c.stamp_ns);
+                        if la > *peak {
+                            (*peak, *at) = (la, c.stamp_ns);
                         }
                     }
                     _ => {
                         close(&mut spin, &mut m.spins);
-                        spin = Some((c.stamp_ns, end, l, c.stamp_ns));
+                        spin = Some((c.stamp_ns, end, la, c.stamp_ns));
                     }
                 }
             } else if spin
@@ -444,18 +496,16 @@ pub fn measured(
             }
         }
         close(&mut spin, &mut m.spins);
-        if let (Some((t0, v0)), Some((t1, v1))) = (first_v, last_v)
-            && t1 > t0
-        {
-            m.dv += v1 - v0;
-            m.accel_s += secs_between(t0, t1);
+        if let Some((dv, ds)) = end_means_dv(&vs) {
+            m.dv += dv;
+            m.accel_s += ds;
         }
         let f = acc.finish();
-        if f.duration > 0.0 {
-            tv += f.cmd_tv_per_s * f.duration;
-            hf2 += f.cmd_hf_rms * f.cmd_hf_rms * f.duration;
-            hf_share_w += f.cmd_hf_share * f.duration;
-            cmd_t += f.duration;
+        if f.cmd_duration > 0.0 && f.cmd_tv_per_s.is_finite() {
+            tv += f.cmd_tv_per_s * f.cmd_duration;
+            hf2 += f.cmd_hf_rms * f.cmd_hf_rms * f.cmd_duration;
+            hf_share_w += f.cmd_hf_share * f.cmd_duration;
+            cmd_t += f.cmd_duration;
         }
     }
     m.spins.sort_by(|x, y| x.start_s.total_cmp(&y.start_s));
@@ -477,6 +527,7 @@ pub fn measured(
     m.mean_demand = demand.mean();
     m.mean_torque = torque.mean();
     m.withheld_nms = withheld;
+    m.mean_withheld = cut.mean();
     if m.mean_demand.is_finite() && m.mean_demand > 0.0 {
         m.delivered = m.mean_cmd / m.mean_demand;
     }
@@ -509,6 +560,46 @@ pub fn measured(
     m
 }
 
+/// (ΔV, Δt) of one stretch's valid V samples `vs` (stamp ns, V, in time
+/// order): V at the stretch's first and last valid sample, each estimated
+/// by a least-squares line through the samples of the [`ACCEL_END_S`] at
+/// that end (at most half the stretch), over the time between those two
+/// samples. The sensor's noise on a single end sample then does not set
+/// the acceleration (at n samples the line's end value has σ_V √(4/n):
+/// 0.28 σ_V at 50), the time base stays the ground truth's `mean_accel`'s
+/// (first to last sample), and a V linear over the ends gives its slope
+/// exactly. None with fewer than two samples or no time between the ends.
+fn end_means_dv(vs: &[(u64, f64)]) -> Option<(f64, f64)> {
+    let (&(t0, _), &(t1, _)) = (vs.first()?, vs.last()?);
+    if t1 <= t0 {
+        return None;
+    }
+    let w = ((ACCEL_END_S * 1e9) as u64).min((t1 - t0) / 2);
+    // the line's value at `at` through the samples of `it`
+    let end_value = |at: u64, it: &mut dyn Iterator<Item = &(u64, f64)>| {
+        let (mut n, mut st, mut sv, mut stt, mut stv) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for &(t, v) in it {
+            let x = secs_between(at, t);
+            n += 1.0;
+            st += x;
+            sv += v;
+            stt += x * x;
+            stv += x * v;
+        }
+        let (mt, mv) = (st / n, sv / n);
+        let var = stt / n - mt * mt;
+        if var > 1e-18 {
+            let slope = (stv / n - mt * mv) / var;
+            mv - slope * mt
+        } else {
+            mv
+        }
+    };
+    let va = end_value(t0, &mut vs.iter().take_while(|(t, _)| *t <= t0 + w));
+    let vb = end_value(t1, &mut vs.iter().rev().take_while(|(t, _)| *t >= t1 - w));
+    Some((vb - va, secs_between(t0, t1)))
+}
+
 /// `{:.prec$}` of a finite number, else `-`.
 fn f(x: f64, prec: usize) -> String {
     if x.is_finite() {
@@ -522,7 +613,7 @@ impl SpinEvent {
     /// One line of the report.
     pub fn line(&self) -> String {
         format!(
-            "at {:.3} s for {:.3} s, peak λ_m {:.3} at {:.3} s",
+            "at {:.3} s for {:.3} s, peak |λ_m| {:.3} at {:.3} s",
             self.start_s, self.length_s, self.peak, self.peak_s
         )
     }
@@ -585,7 +676,7 @@ impl Measured {
         }
         let _ = writeln!(
             o,
-            "  spin events (λ_m above {SPIN_LAMBDA} for {:.0} ms or more; dips under {:.0} ms bridged): {}",
+            "  spin events (|λ_m| above {SPIN_LAMBDA} for {:.0} ms or more; dips under {:.0} ms bridged): {}",
             SPIN_MIN_S * 1e3,
             SPIN_BRIDGE_S * 1e3,
             self.spins.len()
@@ -604,10 +695,11 @@ impl Measured {
         }
         let _ = writeln!(
             o,
-            "  mean acceleration from V        {} m/s² (ΔV {} m/s over {:.3} s of valid V)",
+            "  mean acceleration from V        {} m/s² (ΔV {} m/s over {:.3} s of valid V; V at each end from a line through its first or last {:.0} ms)",
             f(self.mean_accel, 3),
             f(self.dv, 3),
-            self.accel_s
+            self.accel_s,
+            ACCEL_END_S * 1e3
         );
         let _ = writeln!(
             o,
@@ -624,10 +716,12 @@ impl Measured {
         );
         let _ = writeln!(
             o,
-            "  command total variation Σ|ΔT*|/T {} N m/s; above 20 Hz (RMS, share) {} N m, {} of its variance",
+            "  command total variation Σ|ΔT*|/T {} N m/s; above 20 Hz (RMS, share) {} N m, {} of its variance (from {}: the first cycle with the driver's demand above {DEMAND_MIN_NM} N m)",
             f(self.cmd_tv_per_s, 0),
             f(self.cmd_hf_rms, 2),
-            f(self.cmd_hf_share, 3)
+            f(self.cmd_hf_share, 3),
+            self.cmd_from_s
+                .map_or("- (no such cycle)".to_owned(), |t| format!("{t:.3} s"))
         );
         if !self.per_belief.is_empty() {
             let _ = writeln!(
@@ -637,7 +731,7 @@ impl Measured {
             let _ = writeln!(
                 o,
                 "    {:<14} {:>9} {:>11} {:>8} {:>19}",
-                "road", "time (s)", "mean |λ_m|", "max λ_m", "mean command (N m)"
+                "road", "time (s)", "mean |λ_m|", "max |λ_m|", "mean command (N m)"
             );
             for b in &self.per_belief {
                 let _ = writeln!(
@@ -793,7 +887,7 @@ mod tests {
         assert!((m.withheld_nms - 50.0).abs() < 1e-9);
         assert!(
             m.render()
-                .contains("spin events (λ_m above 0.2 for 20 ms or more")
+                .contains("spin events (|λ_m| above 0.2 for 20 ms or more")
         );
         // 15 ms above: no event
         let short = log(300, |k, c| {

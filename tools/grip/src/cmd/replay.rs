@@ -11,9 +11,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, bail};
+use grip_drive::summary::Measured;
 use grip_drive::{DriveLog, LoadOptions, summarize};
 use grip_io::service::ConfigArgs;
 use grip_msgs::{CanFrame, CycleRecord, can_dir, topics};
+use grip_physics::VehicleParams;
 
 use super::Ctx;
 use super::drive::{Controller, OnOff};
@@ -280,24 +282,45 @@ fn in_window(cycles: &[CycleRecord], window: Option<(u64, u64)>) -> Vec<CycleRec
     }
 }
 
+/// The summary's measured figures ([`grip_drive::summary::measured()`], what
+/// `grip inspect` prints) of `cycles`, all of them counted (the caller
+/// picks the window's).
+fn measured_of(cycles: &[CycleRecord], vehicle: &VehicleParams) -> Measured {
+    let log = DriveLog {
+        cycles: cycles.to_vec(),
+        ..DriveLog::default()
+    };
+    grip_drive::summary::measured(&log, vehicle, Some((0, u64::MAX)), None)
+}
+
 /// The controller's own figures of a set of cycles (open loop: the plant's
-/// metrics cannot change).
-fn command_figures(cycles: &[CycleRecord]) -> Vec<(&'static str, f64)> {
-    let active: Vec<&CycleRecord> = cycles.iter().filter(|c| c.safe_state == 0).collect();
-    let n = active.len().max(1) as f64;
-    let mean = active.iter().map(|c| c.torque_cmd).sum::<f64>() / n;
-    let max = active.iter().map(|c| c.torque_cmd).fold(0.0f64, f64::max);
-    let cut = active
+/// metrics cannot change). The mean command and the torque taken off the
+/// demand are the summary's ([`Measured`]: time-weighted over the cycles,
+/// each standing for the time to the next record, at most five periods,
+/// the safe state's included; the cut is the mean of demand − command,
+/// negative where the command exceeded the demand), so `grip replay` and
+/// `grip inspect` give the same figure for the same log; `m` must be the
+/// measured figures of `cycles`. NaN (none) where there is nothing to
+/// compute from.
+fn command_figures(cycles: &[CycleRecord], m: &Measured) -> Vec<(&'static str, f64)> {
+    let max = cycles
         .iter()
-        .map(|c| (c.demand - c.torque_cmd).max(0.0))
-        .sum::<f64>()
-        / n;
-    let used = active.iter().filter(|c| c.used_arte != 0).count() as f64 / n;
+        .filter(|c| c.safe_state == 0)
+        .map(|c| c.torque_cmd)
+        .fold(f64::NAN, f64::max);
+    let used = if m.active_cycles > 0 {
+        m.used_arte_cycles as f64 / m.active_cycles as f64
+    } else {
+        f64::NAN
+    };
     vec![
-        ("mean torque command, N m (active cycles)", mean),
-        ("max torque command, N m", max),
-        ("mean torque taken off the demand, N m", cut),
-        ("cycles using ARTE, %", 100.0 * used),
+        ("mean torque command, N m (time-weighted)", m.mean_cmd),
+        ("max torque command, N m (active cycles)", max),
+        (
+            "mean torque taken off the demand, N m (time-weighted)",
+            m.mean_withheld,
+        ),
+        ("cycles using ARTE, % (active cycles)", 100.0 * used),
         (
             "cycles in the safe state",
             cycles.iter().filter(|c| c.safe_state != 0).count() as f64,
@@ -614,25 +637,36 @@ pub fn replay(
         "\nold (logged) vs new (replayed), each row labelled with its window ({window_words}; whole log: start-up before the scenario and the stop after it included):"
     );
     let _ = writeln!(o, "  {:<52} {:>12} {:>12}", "figure", "old", "new");
-    let (old_in, new_in) = (
-        in_window(&log.cycles, s_old.window_ns),
-        in_window(&outs.cycles, s_new.window_ns),
-    );
-    for ((name, a), (_, b)) in command_figures(&old_in)
+    // the scenario's figures are the summary's measured ones (its window);
+    // without a scenario window, those of every cycle
+    let figures_in = |cycles: &[CycleRecord], s: &grip_drive::Summary| {
+        let inw = in_window(cycles, s.window_ns);
+        if s.window_ns.is_some() {
+            command_figures(&inw, &s.measured)
+        } else {
+            command_figures(&inw, &measured_of(&inw, &vehicle))
+        }
+    };
+    let num = |x: f64| {
+        if x.is_finite() {
+            format!("{x:.3}")
+        } else {
+            "-".to_owned()
+        }
+    };
+    for ((name, a), (_, b)) in figures_in(&log.cycles, &s_old)
         .into_iter()
-        .zip(command_figures(&new_in))
+        .zip(figures_in(&outs.cycles, &s_new))
     {
         let name = match name.strip_suffix(')') {
             Some(n) => format!("{n}, {scope})"),
             None => format!("{name} ({scope})"),
         };
-        let _ = writeln!(o, "  {name:<52} {a:>12.3} {b:>12.3}");
+        let _ = writeln!(o, "  {name:<52} {:>12} {:>12}", num(a), num(b));
     }
     if s_old.window_ns.is_some() {
-        let (a, b) = (
-            command_figures(&log.cycles)[4].1,
-            command_figures(&outs.cycles)[4].1,
-        );
+        let safe = |cycles: &[CycleRecord]| cycles.iter().filter(|c| c.safe_state != 0).count();
+        let (a, b) = (safe(&log.cycles) as f64, safe(&outs.cycles) as f64);
         let _ = writeln!(
             o,
             "  {:<52} {a:>12.3} {b:>12.3}",
@@ -694,13 +728,13 @@ pub fn replay(
         let mut m = serde_json::Map::new();
         // without a suffix: the whole log (as `grip inspect --json`'s loop
         // figures); `_in_scenario`: the scenario window (null without one)
-        for ((_, v), key) in command_figures(cycles).into_iter().zip(FIGURE_KEYS) {
-            m.insert(key.into(), json_num(v));
-        }
-        for ((_, v), key) in command_figures(&in_window(cycles, s.window_ns))
+        for ((_, v), key) in command_figures(cycles, &measured_of(cycles, &vehicle))
             .into_iter()
             .zip(FIGURE_KEYS)
         {
+            m.insert(key.into(), json_num(v));
+        }
+        for ((_, v), key) in figures_in(cycles, s).into_iter().zip(FIGURE_KEYS) {
             m.insert(
                 format!("{key}_in_scenario"),
                 if s.window_ns.is_some() {

@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use grip_arte::model::Model;
-use grip_arte::stream::{Smoothing, percentile};
+use grip_arte::stream::Smoothing;
 use grip_config::{ConfigDir, ConfigError, parse_toml, read_file};
 use grip_sim::random::describe_segments;
 use grip_sim::report::{self, format_paper_comparison, format_relative, format_table, summarize};
@@ -1085,10 +1085,32 @@ struct Pooled {
     correct: u64,
     single_road: u64,
     single_road_correct: u64,
-    first: Vec<f64>,
-    stable: Vec<f64>,
+    /// Delays, s (None: missed).
+    first: Vec<Option<f64>>,
+    stable: Vec<Option<f64>>,
     changes: usize,
     missed: usize,
+}
+
+/// The nearest-rank `q`-th percentile (0 < q <= 100) of the delays `v`
+/// over all changes, a missed one (None) ranking above every delay, as
+/// `grip dataset delay` counts it and as the drive summary takes its
+/// percentiles: the value of rank ⌈q n / 100⌉ (no interpolation). None:
+/// no change; Some(None): the percentile falls on a missed change.
+fn delay_percentile(v: &[Option<f64>], q: f64) -> Option<Option<f64>> {
+    if v.is_empty() {
+        return None;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(|a, b| match (a, b) {
+        (Some(x), Some(y)) => x.total_cmp(y),
+        (Some(_), None) => std::cmp::Ordering::Less,
+        (None, Some(_)) => std::cmp::Ordering::Greater,
+        (None, None) => std::cmp::Ordering::Equal,
+    });
+    let n = s.len();
+    let k = ((q / 100.0 * n as f64).ceil() as usize).clamp(1, n);
+    Some(s[k - 1])
 }
 
 impl Pooled {
@@ -1099,8 +1121,8 @@ impl Pooled {
         self.single_road += s.single_road;
         self.single_road_correct += s.single_road_correct;
         self.changes += s.stable_delays.len();
-        self.first.extend(s.first_delays.iter().flatten());
-        self.stable.extend(s.stable_delays.iter().flatten());
+        self.first.extend(s.first_delays.iter().copied());
+        self.stable.extend(s.stable_delays.iter().copied());
         self.missed += s.stable_delays.iter().filter(|d| d.is_none()).count();
     }
 
@@ -1112,8 +1134,10 @@ impl Pooled {
                 format!("{:.1} %", 100.0 * a as f64 / b as f64)
             }
         };
-        let p = |v: &[f64], q: f64| {
-            percentile(v, q).map_or_else(|| "-".to_owned(), |x| format!("{x:.3}"))
+        let p = |v: &[Option<f64>], q: f64| match delay_percentile(v, q) {
+            None => "-".to_owned(),
+            Some(None) => "missed".to_owned(),
+            Some(Some(x)) => format!("{x:.3}"),
         };
         format!(
             "{label:<10} {:>5} {:>10} {:>9} {:>11} {:>10} {:>7} {:>7} {:>8} {:>8} {:>6}\n",
@@ -1152,7 +1176,9 @@ fn format_inloop(
          accuracy = decisions equal to the true road of the cycle they arrived in; single-road = the same over\n\
          decisions whose analysis frame lay on one road; delays (s) from a true road change (not the start) to the\n\
          first decision of the new road, \"stable\" = that decision held for {HOLD_S} s; missed = no stable detection\n\
-         before the next change or the end. The controller gets a decision one cycle after it completes.\n\n\
+         before the next change or the end. p50/p95 are nearest-rank over all changes, a missed one ranking above\n\
+         every delay (\"missed\": the percentile falls on a missed change; \"1st\" counts a change without a first\n\
+         decision as missed). The controller gets a decision one cycle after it completes.\n\n\
          {:<10} {:>5} {:>10} {:>9} {:>11} {:>10} {:>7} {:>7} {:>8} {:>8} {:>6}\n",
         "variant",
         "runs",
@@ -1405,4 +1431,26 @@ fn write_outputs(
         .map_err(|e| anyhow::anyhow!("drawing {}: {e}", p.display()))?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod delay_percentile_tests {
+    use super::delay_percentile;
+
+    /// 80 changes, 8 missed (the reviewer's MFC-ARTE count): a miss ranks
+    /// above every delay, so the p95 (rank 76) falls on a miss, not on the
+    /// 95th percentile of the 72 detected ones; the p50 is rank 40.
+    #[test]
+    fn a_missed_change_ranks_above_every_delay() {
+        let mut v: Vec<Option<f64>> = (1..=72).map(|k| Some(k as f64 * 0.005)).collect();
+        v.extend([None; 8]);
+        assert_eq!(delay_percentile(&v, 95.0), Some(None));
+        assert_eq!(delay_percentile(&v, 50.0), Some(Some(40.0 * 0.005)));
+        // nearest rank, no interpolation: rank ⌈0.95 · 20⌉ = 19
+        let w: Vec<Option<f64>> = (1..=20).map(|k| Some(k as f64)).collect();
+        assert_eq!(delay_percentile(&w, 95.0), Some(Some(19.0)));
+        assert_eq!(delay_percentile(&w, 50.0), Some(Some(10.0)));
+        assert_eq!(delay_percentile(&[], 50.0), None);
+        assert_eq!(delay_percentile(&[None], 50.0), Some(None));
+    }
 }
