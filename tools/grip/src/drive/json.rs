@@ -156,6 +156,10 @@ fn measured_json(m: &summary::Measured) -> Value {
         "cmd_tv_per_s": num(m.cmd_tv_per_s),
         "cmd_hf_rms_nm": num(m.cmd_hf_rms),
         "cmd_hf_share": num(m.cmd_hf_share),
+        // where the command figures start (the first cycle with the
+        // driver's demand), s on the window's origin
+        "cmd_from_s": m.cmd_from_s.map(num),
+        "mean_withheld_nm": num(m.mean_withheld),
         "per_belief": per_belief,
     })
 }
@@ -235,6 +239,9 @@ pub fn summary_json(
             "cmd_tv_per_s": num(m.cmd_tv_per_s),
         })
     });
+    // where the ground-truth block's command figures start, s from the
+    // scenario start
+    let cmd_from_s = s.cmd_from_s.map(num);
     let mut warnings: Vec<String> = vehicle_warnings.to_vec();
     warnings.extend(s.warnings.iter().cloned());
     let in_scn = s.timing.in_scenario.as_ref();
@@ -272,6 +279,7 @@ pub fn summary_json(
         "speed_kmh_start": s.speed_kmh.map_or(Value::Null, |v| num(v.0)),
         "speed_kmh_end": s.speed_kmh.map_or(Value::Null, |v| num(v.1)),
         "metrics": metrics,
+        "cmd_from_s": cmd_from_s,
         "measured": measured_json(&s.measured),
         "arte_estimates": a.estimates,
         "arte_judged": a.judged,
@@ -282,6 +290,9 @@ pub fn summary_json(
         "arte_accuracy_whole_log": num(a.accuracy_whole_log()),
         "arte_used_cycles": a.used_cycles,
         "arte_active_cycles": a.active_cycles,
+        // the window of those two: the scenario's, else (a log without
+        // ground truth) the measured section's demand window
+        "arte_used_window": if a.used_in_demand_window { "demand" } else { "scenario" },
         "arte_per_road": per_road,
         "confusion": confusion,
         "speed_band_kmh": summary::SPEED_BAND_KMH,
