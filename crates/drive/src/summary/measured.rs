@@ -187,6 +187,12 @@ pub struct Measured {
     /// Cycles with a valid V but max(|r ω|, |V|) under [`MIN_SPEED_MPS`]:
     /// no slip.
     pub slow: u64,
+    /// Cycles with a valid V in the loop's safe state: no slip. The loop
+    /// is there when its inputs are not valid, and its record's ω is then
+    /// 0 for a wheel speed it no longer has (a wheel-speed timeout read as
+    /// a locked wheel, slip −1, found in the HIL's bus-deleted drive,
+    /// 2026-12-05); its speed V still counts for the acceleration.
+    pub safe: u64,
     /// Cycles with a measured slip, and their time, s.
     pub slip_cycles: u64,
     /// Their time, s.
@@ -448,6 +454,10 @@ pub fn measured(
                 continue;
             };
             vs.push((c.stamp_ns, v));
+            if c.safe_state != 0 {
+                m.safe += 1;
+                continue;
+            }
             let Some(l) = slip(r, v_eps, c.omega, v) else {
                 m.slow += 1;
                 continue;
@@ -658,8 +668,8 @@ impl Measured {
         }
         let _ = writeln!(
             o,
-            "  slip λ_m = (r ω − V) / max(r ω, V, v_eps), r {:.3} m, v_eps {:.2} m/s: {} cycles ({:.3} s) with a valid V and max(r ω, V) at or above {MIN_SPEED_MPS} m/s; left out: {} without a valid V, {} below {MIN_SPEED_MPS} m/s",
-            self.r, self.v_eps, self.slip_cycles, self.slip_s, self.no_valid_v, self.slow
+            "  slip λ_m = (r ω − V) / max(r ω, V, v_eps), r {:.3} m, v_eps {:.2} m/s: {} cycles ({:.3} s) with a valid V and max(r ω, V) at or above {MIN_SPEED_MPS} m/s, the loop out of its safe state; left out: {} without a valid V, {} below {MIN_SPEED_MPS} m/s, {} in the safe state (its ω then not a measurement)",
+            self.r, self.v_eps, self.slip_cycles, self.slip_s, self.no_valid_v, self.slow, self.safe
         );
         if self.slip_cycles > 0 {
             let _ = writeln!(
@@ -935,6 +945,27 @@ mod tests {
             "{r}"
         );
         assert!(r.contains("1 stretch, 0.800 s in all"), "{r}");
+    }
+
+    /// A wheel-speed timeout: the loop enters its safe state and records
+    /// ω = 0 for the wheel speed it no longer has, while V (VehicleSpeed)
+    /// is still valid. That is no locked wheel: the safe state's cycles
+    /// are left out of the slip (they read slip −1 before, a 39-cycle
+    /// "spin" in the HIL's bus-deleted drive), their V still counts.
+    #[test]
+    fn the_safe_states_stale_wheel_speed_is_no_locked_wheel() {
+        let l = log(1000, |k, c| {
+            if k >= 600 {
+                c.safe_state = 1;
+                c.omega = 0.0;
+            }
+        });
+        let m = measured(&l, &VehicleParams::default(), None, None);
+        assert_eq!((m.safe, m.slip_cycles), (400, 600));
+        assert!(m.max_abs_slip < 0.1, "{}", m.max_abs_slip);
+        assert!(m.spins.is_empty(), "{:?}", m.spins);
+        let r = m.render();
+        assert!(r.contains("400 in the safe state"), "{r}");
     }
 
     #[test]

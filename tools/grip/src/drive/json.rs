@@ -130,6 +130,7 @@ fn measured_json(m: &summary::Measured) -> Value {
         "time_s": num(m.time_s),
         "no_valid_v_cycles": m.no_valid_v,
         "below_min_speed_cycles": m.slow,
+        "safe_state_cycles": m.safe,
         "min_speed_mps": ms::MIN_SPEED_MPS,
         "slip_cycles": m.slip_cycles,
         "slip_s": num(m.slip_s),
