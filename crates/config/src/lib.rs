@@ -2,7 +2,8 @@
 //! validation and one clear error per problem ([`ConfigError`]: file, field,
 //! reason).
 //!
-//! - [`load_vehicle`]: `config/vehicle.toml` -> ([`VehicleParams`], [`SensorParams`])
+//! - [`load_vehicle`]: `config/vehicle.toml` -> ([`VehicleParams`], [`SensorParams`]);
+//!   [`parse_vehicle_file`] also names the `[vehicle]` fields left to their defaults
 //! - [`load_roads`]: `config/roads.toml` (+ CSV tables relative to it) -> [`RoadCatalogue`]
 //! - [`load_scenario`]: `config/scenarios/<name>.toml` -> [`Scenario`]
 //! - [`ConfigDir`]: finds the standard files under one directory.
@@ -28,4 +29,4 @@ pub use error::{ConfigError, line_of, parse_toml, read_file};
 pub use knowledge::{load_knowledge, load_road_table, parse_knowledge};
 pub use roads::{load_roads, parse_roads};
 pub use scenario::{load_scenario, parse_scenario};
-pub use vehicle::{load_vehicle, parse_vehicle};
+pub use vehicle::{VehicleLoad, load_vehicle, parse_vehicle, parse_vehicle_file};

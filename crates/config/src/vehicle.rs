@@ -1,6 +1,17 @@
 //! `config/vehicle.toml`: `[vehicle]` ([`VehicleParams`]) and `[sensors]`
 //! ([`SensorParams`]). A missing field takes the documented default, an
-//! unknown field is an error, every value is range-checked.
+//! unknown field is an error, every value is range-checked (plausible for a
+//! real road vehicle: [`VehicleParams::validate`]).
+//!
+//! A `[vehicle]` that leaves fields out gets the paper's quarter car for
+//! them (n_driven = 4, driven_load_share = 1, torque_max = 1000 N m, ...):
+//! right for the paper's set-up, silently wrong for someone else's car.
+//! Loading stays lenient (old logs carry partial files, and the defaults
+//! are documented), but [`load_vehicle`] warns on stderr naming every field
+//! that was defaulted and its value, so `grip sim`, `grip drive` and the
+//! services (tcs-loop, plant-sim) that load the file show it;
+//! [`parse_vehicle_file`] gives the list to callers that print their own
+//! warnings. `r_ref` is not among them: left out, it is `r`.
 
 use std::path::Path;
 
@@ -17,11 +28,54 @@ struct VehicleFile {
     sensors: SensorParams,
 }
 
-/// Parse and validate vehicle + sensor parameters from `text` (the contents of `file`).
-pub fn parse_vehicle(
-    file: &Path,
-    text: &str,
-) -> Result<(VehicleParams, SensorParams), ConfigError> {
+/// A vehicle file as loaded: its parameters and which `[vehicle]` fields
+/// it left to their defaults.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VehicleLoad {
+    /// `[vehicle]`.
+    pub vehicle: VehicleParams,
+    /// `[sensors]` (the simulated vehicle's sensor model: plant-sim and
+    /// `grip sim`; tcs-loop does not use it).
+    pub sensors: SensorParams,
+    /// The `[vehicle]` fields the file does not set, with the default each
+    /// took ([`VehicleParams::defaultable_fields`] order).
+    pub defaulted: Vec<(&'static str, f64)>,
+}
+
+impl VehicleLoad {
+    /// The warning for `file` when fields were defaulted, None otherwise:
+    /// `warning: FILE: [vehicle] does not set n_driven, torque_max: they
+    /// take the paper's quarter-car defaults (n_driven = 4, torque_max =
+    /// 1000); ...`.
+    pub fn defaults_warning(&self, file: &Path) -> Option<String> {
+        if self.defaulted.is_empty() {
+            return None;
+        }
+        let names: Vec<&str> = self.defaulted.iter().map(|(n, _)| *n).collect();
+        let values: Vec<String> = self
+            .defaulted
+            .iter()
+            .map(|(n, v)| format!("{n} = {v}"))
+            .collect();
+        Some(format!(
+            "warning: {}: [vehicle] does not set {}: {} the paper's quarter-car default{} ({}), which may not be your car's; set {} in the file (crates/physics/README.md, \"The vehicle file\")",
+            file.display(),
+            names.join(", "),
+            if names.len() == 1 {
+                "it takes"
+            } else {
+                "they take"
+            },
+            if names.len() == 1 { "" } else { "s" },
+            values.join(", "),
+            if names.len() == 1 { "it" } else { "each" },
+        ))
+    }
+}
+
+/// Parse and validate `text` (the contents of `file`), naming the
+/// `[vehicle]` fields it left to their defaults. Prints nothing.
+pub fn parse_vehicle_file(file: &Path, text: &str) -> Result<VehicleLoad, ConfigError> {
     let f: VehicleFile = parse_toml(file, text)?;
     f.vehicle
         .validate()
@@ -29,13 +83,44 @@ pub fn parse_vehicle(
     f.sensors
         .validate()
         .map_err(|e| ConfigError::invalid(file, "sensors", e))?;
-    Ok((f.vehicle, f.sensors))
+    // the text parsed as a VehicleFile above, so it is a table, and
+    // `vehicle`, when there, a table
+    let table: toml::Table = parse_toml(file, text)?;
+    let set = table.get("vehicle").and_then(toml::Value::as_table);
+    let defaulted = f
+        .vehicle
+        .defaultable_fields()
+        .into_iter()
+        .filter(|(name, _)| !set.is_some_and(|t| t.contains_key(*name)))
+        .collect();
+    Ok(VehicleLoad {
+        vehicle: f.vehicle,
+        sensors: f.sensors,
+        defaulted,
+    })
 }
 
-/// Load `config/vehicle.toml` (or any file of that shape).
+/// Parse and validate vehicle + sensor parameters from `text` (the contents
+/// of `file`). Silent about defaulted fields: [`parse_vehicle_file`] names
+/// them.
+pub fn parse_vehicle(
+    file: &Path,
+    text: &str,
+) -> Result<(VehicleParams, SensorParams), ConfigError> {
+    let l = parse_vehicle_file(file, text)?;
+    Ok((l.vehicle, l.sensors))
+}
+
+/// Load `config/vehicle.toml` (or any file of that shape); when the file
+/// leaves `[vehicle]` fields to their defaults, says so on stderr
+/// ([`VehicleLoad::defaults_warning`]).
 pub fn load_vehicle(path: impl AsRef<Path>) -> Result<(VehicleParams, SensorParams), ConfigError> {
     let path = path.as_ref();
-    parse_vehicle(path, &read_file(path)?)
+    let l = parse_vehicle_file(path, &read_file(path)?)?;
+    if let Some(w) = l.defaults_warning(path) {
+        eprintln!("{w}");
+    }
+    Ok((l.vehicle, l.sensors))
 }
 
 #[cfg(test)]
@@ -77,10 +162,100 @@ mod tests {
     #[test]
     fn negative_mass() {
         let e = parse("[vehicle]\nmass = -5.0\n").unwrap_err();
-        assert_eq!(
-            e.to_string(),
-            "config/vehicle.toml: field `vehicle.mass`: must be > 0 (got -5)"
+        assert!(
+            e.to_string().starts_with(
+                "config/vehicle.toml: field `vehicle.mass`: -5 kg is outside [20, 300000] kg"
+            ),
+            "{e}"
         );
+    }
+
+    /// The review's `r = 334.0` (millimetres typed as metres) was accepted
+    /// and the drive "worked" with a snow limit of 287 983 N m; the error
+    /// names the file, the field, the value, the range and the unit.
+    #[test]
+    fn a_radius_in_millimetres_is_refused_naming_file_field_range_and_unit() {
+        let e = parse_vehicle(Path::new("my-car.toml"), "[vehicle]\nr = 334.0\n").unwrap_err();
+        let s = e.to_string();
+        for says in [
+            "my-car.toml: field `vehicle.r`: ",
+            "334 m is outside [0.1, 1] m",
+            "334 mm is 0.334 m",
+        ] {
+            assert!(s.contains(says), "{says}: {s}");
+        }
+        for (field, text) in [
+            ("vehicle.tau_m", "tau_m = 50"),
+            ("vehicle.j_w", "j_w = 600"),
+            ("vehicle.v_eps", "v_eps = 100"),
+            ("vehicle.c_rr", "c_rr = 0.9"),
+            ("vehicle.n_driven", "n_driven = 2.5"),
+            ("vehicle.r_ref", "r_ref = 291.2"),
+        ] {
+            let e = parse(&format!("[vehicle]\n{text}\n")).unwrap_err();
+            assert_eq!(e.field, field, "{e}");
+        }
+    }
+
+    #[test]
+    fn r_ref_is_optional_and_r_when_left_out() {
+        let (v, _) = parse("[vehicle]\nr = 0.3\n").unwrap();
+        assert_eq!(v.r_ref, None);
+        assert_eq!(v.ref_radius(), 0.3);
+        let (v, _) = parse("[vehicle]\nr = 0.3\nr_ref = 0.288\n").unwrap();
+        assert_eq!(v.r_ref, Some(0.288));
+        assert_eq!(v.ref_radius(), 0.288);
+        assert_eq!(v.r, 0.3);
+    }
+
+    /// The shipped files set every field: no warning. A partial file (an
+    /// old log's attachment, a user's first try) loads, with the defaulted
+    /// fields named with their values.
+    #[test]
+    fn defaulted_fields_are_named() {
+        let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
+        for f in [
+            "vehicle.toml",
+            "vehicles/front-mic.toml",
+            "vehicles/rear-mic.toml",
+        ] {
+            let p = config.join(f);
+            let l = parse_vehicle_file(&p, &std::fs::read_to_string(&p).unwrap()).unwrap();
+            assert_eq!(l.defaulted, vec![], "{f}");
+            assert_eq!(l.defaults_warning(&p), None, "{f}");
+        }
+        let file = Path::new("my-car.toml");
+        let text = "[vehicle]\nmass = 1800.0\nj_w = 0.9\nr = 0.33\nm_wheel = 20.0\ntau_m = 0.02\nc_rr = 0.01\nrho = 1.2\nc_d_a = 0.6\nv_eps = 0.1\n";
+        let l = parse_vehicle_file(file, text).unwrap();
+        assert_eq!(
+            l.defaulted,
+            vec![
+                ("n_driven", 4.0),
+                ("torque_max", 1000.0),
+                ("driven_load_share", 1.0),
+                ("mic_lead_m", 0.0)
+            ]
+        );
+        assert_eq!(
+            l.defaults_warning(file).unwrap(),
+            "warning: my-car.toml: [vehicle] does not set n_driven, torque_max, driven_load_share, mic_lead_m: they take the paper's quarter-car defaults (n_driven = 4, torque_max = 1000, driven_load_share = 1, mic_lead_m = 0), which may not be your car's; set each in the file (crates/physics/README.md, \"The vehicle file\")"
+        );
+        // one field: singular
+        let all_but_one = "[vehicle]\nmass = 1400.0\nn_driven = 4.0\nj_w = 0.6\nr = 0.28\nm_wheel = 10.0\ntau_m = 0.05\nc_rr = 0.015\nrho = 1.2\nc_d_a = 0.7\nv_eps = 0.1\ndriven_load_share = 1.0\nmic_lead_m = 0.0\n";
+        let w = parse_vehicle_file(file, all_but_one)
+            .unwrap()
+            .defaults_warning(file)
+            .unwrap();
+        assert!(
+            w.contains("does not set torque_max: it takes the paper's quarter-car default (torque_max = 1000)"),
+            "{w}"
+        );
+        // an old log's attachment (crates/drive, `vehicle_for`) still loads
+        let (v, _) =
+            parse_vehicle(Path::new("vehicle.toml (attached)"), "[vehicle]\nr = 0.3\n").unwrap();
+        assert_eq!(v.r, 0.3);
+        // no [vehicle] at all: every field named
+        assert_eq!(parse_vehicle_file(file, "").unwrap().defaulted.len(), 13);
     }
 
     #[test]

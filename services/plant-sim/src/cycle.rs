@@ -189,7 +189,9 @@ pub struct PlantSim {
     pre_roll_k: u64,
     plant: Plant,
     sensors: Sensors,
-    r: f64,
+    /// The non-driven reference wheel's rolling radius (`r_ref`, else the
+    /// driven tyre's `r`): OmegaRef = V / r_ref.
+    r_ref: f64,
     dt: f64,
     rx: ProtocolRx,
     tx_ws: E2eSender<WheelSpeeds>,
@@ -284,7 +286,7 @@ impl PlantSim {
             names,
             plant,
             sensors,
-            r: vehicle.r,
+            r_ref: vehicle.ref_radius(),
             dt,
             rx: ProtocolRx::for_role(ROLE),
             tx_ws: E2eSender::new(),
@@ -511,7 +513,7 @@ impl PlantSim {
             driven_valid: true,
             ref_valid: reading.v.is_some(),
             omega_driven: reading.omega,
-            omega_ref: reading.v.map_or(0.0, |v| v / self.r),
+            omega_ref: reading.v.map_or(0.0, |v| v / self.r_ref),
         };
         if self.k.is_multiple_of(self.div_ws) {
             let f = self.tx_ws.encode(&ws, now);

@@ -27,8 +27,9 @@
 //!    resets the controller (its integrators are stale).
 //! 4. **Control**: in the safe state the command is 0 N m with `Enable`
 //!    cleared and the controller is not stepped. Otherwise the controller
-//!    steps on the [`Measurement`] (ω = OmegaDriven; V = r·OmegaRef when
-//!    `RefValid`, else `VehicleSpeed` when valid and fresh, else none;
+//!    steps on the [`Measurement`] (ω = OmegaDriven; V = r_ref·OmegaRef
+//!    when `RefValid`, r_ref the reference wheel's radius, else
+//!    `VehicleSpeed` when valid and fresh, else none;
 //!    T = TorqueActual; T_d = TorqueDemand, 0 while `BrakePressed`) and the
 //!    road knowledge (ARTE on and an estimate held; the controller's own
 //!    fallback rule `[arte]` of controllers.toml decides whether it is used).
@@ -185,6 +186,9 @@ pub struct TcsLoop {
     last_deadline_ns: Option<u64>,
     dt: f64,
     r: f64,
+    /// The non-driven reference wheel's rolling radius (`r_ref`, else `r`):
+    /// V = r_ref · OmegaRef.
+    r_ref: f64,
     /// `[preview] standstill_mps`: below it the odometer stands.
     standstill_mps: f64,
     sensor_timeout_ns: u64,
@@ -250,6 +254,7 @@ impl TcsLoop {
             dt: controllers.loop_.dt(),
             standstill_mps: controllers.preview.standstill_mps,
             r: vehicle.r,
+            r_ref: vehicle.ref_radius(),
             sensor_timeout_ns: safety.sensor_timeout_ns(),
             demand_timeout_ns: safety.demand_timeout_ns(),
             vspeed_timeout_ns: u64::from(VehicleSpeed::spec().timeout_ms) * 1_000_000,
@@ -455,7 +460,8 @@ impl TcsLoop {
         // counts timeout episodes into the E2E fault counters
         self.rx.poll_timeouts(now);
 
-        // measured vehicle speed (V = r·OmegaRef when valid, else the
+        // measured vehicle speed (V = r_ref·OmegaRef when valid, r_ref the
+        // reference wheel's radius, not the driven tyre's r; else the
         // VehicleSpeed frame when valid and fresh), from fresh frames only:
         // a wheel-speed frame older than `sensor_timeout_ms` is no
         // measurement (the loop is then in its safe state; its record says
@@ -463,7 +469,7 @@ impl TcsLoop {
         let ws = Self::fresh(&self.ws, now, self.sensor_timeout_ns);
         let omega = ws.map_or(0.0, |w| w.omega_driven);
         let v = match ws {
-            Some(w) if w.ref_valid => Some(self.r * w.omega_ref),
+            Some(w) if w.ref_valid => Some(self.r_ref * w.omega_ref),
             _ => Self::fresh(&self.vs, now, self.vspeed_timeout_ns)
                 .filter(|s| s.valid)
                 .map(|s| s.speed),

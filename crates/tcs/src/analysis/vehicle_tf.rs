@@ -4,7 +4,10 @@
 //!
 //! - `m = M/n`: the vehicle mass carried by the driven wheel (paper: M; the
 //!   paper's Table IV values are per vehicle, the one-wheel model needs the
-//!   share, crates/physics/README.md "Plant"), `N = m g`.
+//!   share, crates/physics/README.md "Plant").
+//! - `N`: the driven wheel's normal force, the vehicle's own
+//!   [`VehicleParams::normal_force`], N = share · M g / n (`share` =
+//!   `driven_load_share`; M g / n = m g on the paper's quarter car, share 1).
 //! - `J(λ) = J_w + m r² (1 − λ)`: the inertia felt at the wheel at a constant
 //!   slip λ (paper eq. 1); `J_model = J(0)` (eq. 2).
 //! - `K`: motor torque constant, N m/A ([`K_MOTOR`] = 1 N m/A, so a current
@@ -15,7 +18,7 @@
 //! - `M_w = J_w / r²`: the wheel's inertia as an equivalent mass (the paper's
 //!   "M_W wheel inertia" in eqs. 7-8; not the wheel's mass m_wheel).
 
-use grip_physics::{G, VehicleParams};
+use grip_physics::VehicleParams;
 
 use super::AnalysisError;
 use super::poly::Poly;
@@ -199,7 +202,7 @@ pub fn src_slip(
     check("a", a, true, "slope must be finite")?;
     check("v_w", v_w, v_w > 0.0, "wheel speed must be > 0")?;
     let m = v.mass_share();
-    let n = m * G;
+    let n = v.normal_force();
     let m_w = v.j_w / (v.r * v.r);
     let n_e = (m_w + m * (1.0 - lambda_o)) / m * n;
     Ok(SrcSlip {
@@ -226,11 +229,7 @@ pub fn src_slip(
 /// of the road, μ_T = T / (r N): λ / μ_T = r N · λ / T (dimensionless both
 /// sides; used for the ν-gap).
 pub fn src_slip_tf(s: &SrcSlip, v: &VehicleParams, per_mu: bool) -> Result<Tf, AnalysisError> {
-    let scale = if per_mu {
-        v.r * v.mass_share() * G
-    } else {
-        1.0
-    };
+    let scale = if per_mu { v.r * v.normal_force() } else { 1.0 };
     Tf::new(
         p(&[scale * (1.0 - s.lambda_o)])?,
         p(&[v.r * s.m_w * s.v_w, v.r * s.a * s.n_e])?,
@@ -408,11 +407,45 @@ mod tests {
         let (lo, a, vw) = (0.08, 2.5, 5.0);
         let s = src_slip(&v, lo, a, vw).unwrap();
         let m = v.mass_share();
-        let n = m * G;
+        let n = v.normal_force();
         let b_t = (1.0 - lo) * v.r / v.j_w / vw; // ∂λ̇/∂T
         let b_l = -a * n * ((1.0 - lo) * v.r * v.r / v.j_w + 1.0 / m) / vw; // ∂λ̇/∂λ
         assert!((s.gain - b_t / -b_l).abs() < 1e-12 * s.gain);
         assert!((s.tau - 1.0 / -b_l).abs() < 1e-12 * s.tau);
+    }
+
+    /// N in the SRC slip plant (eq. 8's N_e and the per-μ scale r N) is
+    /// the vehicle's own normal force, the one the plant's tyre force uses:
+    /// share · M g / n, not (M/n) g, which is twice it on a rear-driven car
+    /// with half its weight on the driven axle (front-mic.toml).
+    #[test]
+    fn src_uses_the_plants_normal_force() {
+        use grip_physics::{Plant, PlantState, Road};
+        for v in [
+            v(),
+            VehicleParams {
+                n_driven: 2.0,
+                driven_load_share: 0.5,
+                mic_lead_m: 2.77,
+                ..v()
+            },
+        ] {
+            let snow = Road::burckhardt("snow", 0.1946, 94.129, 0.0646).unwrap();
+            let mut plant = Plant::new(v, PlantState::rolling(5.0, v.r)).unwrap();
+            plant.step(1e-3, 100.0, &snow, 0.0);
+            let n_plant = plant.fx() / plant.mu();
+            assert!((n_plant - v.normal_force()).abs() < 1e-9 * n_plant);
+            let (lo, a) = (0.1, 3.0);
+            let s = src_slip(&v, lo, a, 6.0).unwrap();
+            let m = v.mass_share();
+            let n = s.n_e * m / (s.m_w + m * (1.0 - lo));
+            assert!((n - n_plant).abs() < 1e-9 * n_plant, "{n} vs {n_plant}");
+            let x = Complex::new(0.0, 0.0);
+            let per_t = src_slip_tf(&s, &v, false).unwrap().eval_c(x);
+            let per_mu = src_slip_tf(&s, &v, true).unwrap().eval_c(x);
+            let scale = (per_mu / per_t).re;
+            assert!((scale - v.r * n_plant).abs() < 1e-9 * scale, "{scale}");
+        }
     }
 
     #[test]

@@ -8,7 +8,7 @@
 //!   space-separated (`--p1 100/2,1 --p2 "100 / 2 -1"`).
 
 use anyhow::{Context, bail};
-use grip_physics::{G, RoadCatalogue};
+use grip_physics::{G, RoadCatalogue, VehicleParams};
 use grip_tcs::analysis::gaps::{
     GapSetup, PAPER_CLASSES, TABLE_II, paper_classes, structure_gaps, worst,
 };
@@ -198,11 +198,11 @@ fn run_report(ctx: &Ctx, args: &Args) -> anyhow::Result<()> {
 
     println!("== Vehicle ({}) ==", dir.vehicle_path().display());
     println!(
-        "  M = {} kg, n = {} driven wheels -> the wheel carries M/n = {} kg, N = M g / n = {} N",
+        "  M = {} kg, n = {} driven wheels -> the wheel carries M/n = {} kg, {}",
         fmt_num(v.mass),
         fmt_num(v.n_driven),
         fmt_num(m),
-        fmt_num(v.normal_force())
+        normal_force_text(&v)
     );
     println!(
         "  J_w = {} kg m^2, r = {} m, M_w = J_w / r^2 = {} kg, J_model = J_w + (M/n) r^2 = {} kg m^2",
@@ -448,15 +448,50 @@ fn run_report(ctx: &Ctx, args: &Args) -> anyhow::Result<()> {
         println!("    {:<5} {}", s.structure.name(), row.join("  "));
     }
     println!(
-        "\n  Definitions, corrections and why ours differ from the paper: crates/tcs/README.md, \"Analysis\". N = {} N (g = {G}).",
-        fmt_num(m * G)
+        "\n  Definitions, corrections and why ours differ from the paper: crates/tcs/README.md, \"Analysis\". {} (g = {G}).",
+        normal_force_text(&v)
     );
     Ok(())
+}
+
+/// The driven wheel's normal force as every line of the report states it:
+/// the vehicle's own [`VehicleParams::normal_force`] (what the plant, the
+/// controllers and the analysis use), with its formula.
+fn normal_force_text(v: &VehicleParams) -> String {
+    format!(
+        "N = share M g / n = {} x {} kg x {G} m/s^2 / {} = {} N",
+        fmt_num(v.driven_load_share),
+        fmt_num(v.mass),
+        fmt_num(v.n_driven),
+        fmt_num(v.normal_force())
+    )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One N, with its label, for the shipped profiles: the paper's quarter
+    /// car (share 1, n = 4) and the rear-driven front-mic car (share 0.5,
+    /// n = 2), whose N the report once gave as M g / n = 6867 N in one line
+    /// and 3433.5 N in another.
+    #[test]
+    fn the_normal_force_is_the_vehicles_own() {
+        let config = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
+        for (file, want) in [
+            (
+                "vehicle.toml",
+                "N = share M g / n = 1 x 1400 kg x 9.81 m/s^2 / 4 = 3433.5 N",
+            ),
+            (
+                "vehicles/front-mic.toml",
+                "N = share M g / n = 0.5 x 1400 kg x 9.81 m/s^2 / 2 = 3433.5 N",
+            ),
+        ] {
+            let (v, _) = grip_config::load_vehicle(config.join(file)).unwrap();
+            assert_eq!(normal_force_text(&v), want, "{file}");
+        }
+    }
 
     #[test]
     fn parses_commas_and_spaces() {

@@ -1,0 +1,66 @@
+//! The vehicle file as a user writes it for their own car: `grip sim`
+//! names the `[vehicle]` fields it left to the paper's quarter-car defaults
+//! (and the shipped files, which set them all, get no warning), and refuses
+//! an implausible value naming the file, field, range and unit.
+
+use std::process::Output;
+
+mod common;
+use common::{config_dir, grip};
+
+fn sim(vehicle: &std::path::Path, out: &std::path::Path) -> Output {
+    grip()
+        .args(["sim", "--seeds", "1", "--variants", "mtte", "--vehicle"])
+        .arg(vehicle)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn defaulted_fields_are_named_and_implausible_values_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    // a partial file: every field but the drive layout and the limit
+    let partial = tmp.path().join("my-car.toml");
+    std::fs::write(
+        &partial,
+        "[vehicle]\nmass = 1400.0\nj_w = 0.6\nr = 0.28\nm_wheel = 10.0\ntau_m = 0.05\nc_rr = 0.015\nrho = 1.2\nc_d_a = 0.7\nv_eps = 0.1\nmic_lead_m = 0.0\n",
+    )
+    .unwrap();
+    let o = sim(&partial, &tmp.path().join("a"));
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("my-car.toml: [vehicle] does not set n_driven, torque_max, driven_load_share: they take the paper's quarter-car defaults (n_driven = 4, torque_max = 1000, driven_load_share = 1)"),
+        "{err}"
+    );
+    // the shipped files set every field
+    for f in ["vehicle.toml", "vehicles/front-mic.toml"] {
+        let o = sim(&config_dir().join(f), &tmp.path().join("b"));
+        let err = stderr(&o);
+        assert!(o.status.success(), "{f}: {err}");
+        assert!(!err.contains("does not set"), "{f}: {err}");
+    }
+    // millimetres typed as metres
+    let mm = tmp.path().join("mm.toml");
+    let text = std::fs::read_to_string(config_dir().join("vehicle.toml"))
+        .unwrap()
+        .replace("r = 0.28 ", "r = 334.0 ");
+    std::fs::write(&mm, text).unwrap();
+    let o = sim(&mm, &tmp.path().join("c"));
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    for says in [
+        "mm.toml",
+        "vehicle.r",
+        "334 m is outside [0.1, 1] m",
+        "334 mm is 0.334 m",
+    ] {
+        assert!(err.contains(says), "{says}: {err}");
+    }
+}
