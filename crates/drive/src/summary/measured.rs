@@ -669,7 +669,13 @@ impl Measured {
         let _ = writeln!(
             o,
             "  slip λ_m = (r ω − V) / max(r ω, V, v_eps), r {:.3} m, v_eps {:.2} m/s: {} cycles ({:.3} s) with a valid V and max(r ω, V) at or above {MIN_SPEED_MPS} m/s, the loop out of its safe state; left out: {} without a valid V, {} below {MIN_SPEED_MPS} m/s, {} in the safe state (its ω then not a measurement)",
-            self.r, self.v_eps, self.slip_cycles, self.slip_s, self.no_valid_v, self.slow, self.safe
+            self.r,
+            self.v_eps,
+            self.slip_cycles,
+            self.slip_s,
+            self.no_valid_v,
+            self.slow,
+            self.safe
         );
         if self.slip_cycles > 0 {
             let _ = writeln!(

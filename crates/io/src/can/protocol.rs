@@ -872,7 +872,8 @@ pub struct WheelSpeeds {
     pub ref_valid: bool,
     /// Driven wheel ω, rad/s.
     pub omega_driven: f64,
-    /// Non-driven reference wheel, rad/s (V = r · omega_ref).
+    /// Non-driven reference wheel, rad/s (V = r_ref · omega_ref, r_ref the
+    /// reference wheel's rolling radius).
     pub omega_ref: f64,
 }
 impl ProtocolMessage for WheelSpeeds {
