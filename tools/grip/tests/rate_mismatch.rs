@@ -34,6 +34,16 @@ fn grip_in(config: Option<&Path>, args: &[&std::ffi::OsStr]) -> (bool, String, S
 /// `grip train` of an RBF SVM on the Rich features of `data` into `model`,
 /// with `extra` arguments.
 fn train_svm(data: &Path, model: &Path, extra: &[&std::ffi::OsStr]) -> (bool, String, String) {
+    train_svm_in(None, data, model, extra)
+}
+
+/// [`train_svm`] on `config` (the repository's when `None`).
+fn train_svm_in(
+    config: Option<&Path>,
+    data: &Path,
+    model: &Path,
+    extra: &[&std::ffi::OsStr],
+) -> (bool, String, String) {
     let mut args = vec![
         os("train"),
         os("--data"),
@@ -46,7 +56,7 @@ fn train_svm(data: &Path, model: &Path, extra: &[&std::ffi::OsStr]) -> (bool, St
         model.as_os_str(),
     ];
     args.extend_from_slice(extra);
-    grip_in(None, &args)
+    grip_in(config, &args)
 }
 
 /// A dataset of `classes` × 2 recordings × 0.5 s at `rate` Hz.
@@ -373,22 +383,7 @@ fn a_class_that_is_no_road_of_the_catalogue_is_refused_up_front() {
         "\n[[road]]\nname = \"cobble\"\nmodel = \"burckhardt\"\nc1 = 1.37\nc2 = 6.46\nc3 = 0.67\n",
     );
     std::fs::write(&roads, text).unwrap();
-    let (ok, so, err) = grip_in(
-        Some(&cfg),
-        &[
-            os("train"),
-            os("--data"),
-            data.as_os_str(),
-            os("--classifier"),
-            os("svm"),
-            os("--features"),
-            os("rich"),
-            os("--folds"),
-            os("2"),
-            os("--out"),
-            model.as_os_str(),
-        ],
-    );
+    let (ok, so, err) = train_svm_in(Some(&cfg), &data, &model, &[os("--folds"), os("2")]);
     assert!(ok, "{so}{err}");
     assert!(model.exists());
     // ... and a drive on the repository's configuration refuses it
