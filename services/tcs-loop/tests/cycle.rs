@@ -590,6 +590,31 @@ fn shutdown_sends_zero_torque_with_enable_cleared() {
     assert!(rx.receive(&sent[0], now).is_ok());
 }
 
+/// The repository's road catalogue, road-knowledge rule, controllers and
+/// the vehicle file `vehicle` (relative to `config/`).
+struct Shipped {
+    roads: grip_physics::RoadCatalogue,
+    table: grip_tcs::RoadTable,
+    controllers: grip_tcs::ControllersConfig,
+    vehicle: grip_physics::VehicleParams,
+}
+
+fn shipped(vehicle: &str) -> Shipped {
+    let dir = grip_config::ConfigDir::new(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config"),
+    );
+    let roads = dir.roads().unwrap();
+    let table = dir.road_table(&roads).unwrap();
+    let controllers = grip_config::load_controllers(dir.file("controllers.toml")).unwrap();
+    let (vehicle, _) = grip_config::load_vehicle(dir.file(vehicle)).unwrap();
+    Shipped {
+        roads,
+        table,
+        controllers,
+        vehicle,
+    }
+}
+
 /// Snow heard ahead: with the microphone 2.77 m ahead of the driven wheel
 /// (`config/vehicles/front-mic.toml`) and the shipped controllers, roads and
 /// road table, estimates of snow queued where they were heard bring the
@@ -598,13 +623,12 @@ fn shutdown_sends_zero_torque_with_enable_cleared() {
 /// snow, for every controller; far from the snow the command is not capped.
 #[test]
 fn snow_heard_ahead_caps_the_torque_before_the_wheel_gets_there() {
-    let dir = grip_config::ConfigDir::new(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config"),
-    );
-    let roads = dir.roads().unwrap();
-    let table = dir.road_table(&roads).unwrap();
-    let controllers = grip_config::load_controllers(dir.file("controllers.toml")).unwrap();
-    let (vehicle, _) = grip_config::load_vehicle(dir.file("vehicles/front-mic.toml")).unwrap();
+    let Shipped {
+        roads,
+        table,
+        controllers,
+        vehicle,
+    } = shipped("vehicles/front-mic.toml");
     assert!((vehicle.mic_lead_m - 2.77).abs() < 1e-12);
     let snow = roads.index_of("snow").unwrap();
     let limit = table.info(snow).mu_peak * vehicle.normal_force() * vehicle.r;
@@ -699,13 +723,12 @@ fn snow_heard_ahead_caps_the_torque_before_the_wheel_gets_there() {
 /// 2026-12-05) leaves the patch as the asphalt heard before it: no cap.
 #[test]
 fn a_burst_of_estimates_is_queued_whole() {
-    let dir = grip_config::ConfigDir::new(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config"),
-    );
-    let roads = dir.roads().unwrap();
-    let table = dir.road_table(&roads).unwrap();
-    let controllers = grip_config::load_controllers(dir.file("controllers.toml")).unwrap();
-    let (vehicle, _) = grip_config::load_vehicle(dir.file("vehicles/front-mic.toml")).unwrap();
+    let Shipped {
+        roads,
+        table,
+        controllers,
+        vehicle,
+    } = shipped("vehicles/front-mic.toml");
     let snow = roads.index_of("snow").unwrap();
     let limit = table.info(snow).mu_peak * vehicle.normal_force() * vehicle.r;
     let frame_ns = 100 * MS;
@@ -863,13 +886,12 @@ fn the_odometer_counts_skipped_periods_and_no_stale_speed() {
 /// confidence is no number is no decision.
 #[test]
 fn a_future_stamp_or_a_nan_confidence_does_not_keep_knowledge_alive() {
-    let dir = grip_config::ConfigDir::new(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config"),
-    );
-    let roads = dir.roads().unwrap();
-    let table = dir.road_table(&roads).unwrap();
-    let controllers = grip_config::load_controllers(dir.file("controllers.toml")).unwrap();
-    let (vehicle, _) = grip_config::load_vehicle(dir.file("vehicle.toml")).unwrap();
+    let Shipped {
+        roads,
+        table,
+        controllers,
+        vehicle,
+    } = shipped("vehicle.toml");
     let max_age_ms = (controllers.arte.max_age_s * 1e3).round() as usize;
     let build = || {
         TcsLoop::new(
