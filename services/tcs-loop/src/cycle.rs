@@ -640,7 +640,14 @@ impl TcsLoop {
 
     /// Stop: sends 0 N m with `Enable` cleared (and logs the frame), so the
     /// inverter drops torque at once instead of after its command timeout.
-    pub fn shutdown<B: CanBus, S: RecordSink>(&mut self, now_ns: u64, bus: &mut B, sink: &mut S) {
+    /// Returns whether the frame went out (not when the bus is gone or
+    /// down: the inverter's own command timeout then drops the torque).
+    pub fn shutdown<B: CanBus, S: RecordSink>(
+        &mut self,
+        now_ns: u64,
+        bus: &mut B,
+        sink: &mut S,
+    ) -> bool {
         let frame = self.tx.encode(
             &TorqueCommand {
                 torque_request: 0.0,
@@ -648,15 +655,19 @@ impl TcsLoop {
             },
             now_ns,
         );
-        self.send(bus, &frame);
+        let sent = self.send(bus, &frame);
         sink.can(&frame);
+        sent
     }
 
-    fn send<B: CanBus>(&mut self, bus: &mut B, frame: &CanFrame) {
+    /// Sends `frame`, counting it or the error; whether it went out.
+    fn send<B: CanBus>(&mut self, bus: &mut B, frame: &CanFrame) -> bool {
         if bus.send(frame).is_ok() {
             self.can_tx += 1;
+            true
         } else {
             self.bus_errors += 1;
+            false
         }
     }
 

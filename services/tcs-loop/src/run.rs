@@ -376,7 +376,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
         }
     }
     grip_io::systemd::notify_stopping();
-    lp.shutdown(clock.now_ns(), &mut bus, &mut sink);
+    let stop_sent = lp.shutdown(clock.now_ns(), &mut bus, &mut sink);
     done.store(true, Ordering::Relaxed);
     let _ = helper.join();
 
@@ -408,7 +408,12 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
         can_log_published = sink.can_published,
         publish_errors = sink.errors,
         road_errors = road.errors,
-        "tcs-loop stopped (zero torque sent, enable cleared)"
+        stop_frame = if stop_sent {
+            "sent"
+        } else {
+            "NOT sent: the bus is gone or down, the inverter's own command timeout drops the torque"
+        },
+        "tcs-loop stopped (last command: zero torque, enable cleared; see stop_frame)"
     );
     drop(report);
     Ok(summary)

@@ -579,7 +579,7 @@ fn shutdown_sends_zero_torque_with_enable_cleared() {
     let mut r = Rig::new(ControllerKind::Mtte, false);
     r.run_ok(100);
     let now = r.now();
-    r.lp.shutdown(now, &mut r.bus, &mut r.sink);
+    assert!(r.lp.shutdown(now, &mut r.bus, &mut r.sink), "sent");
     let sent = r.bus.take_sent();
     assert_eq!(sent.len(), 1);
     let c = TorqueCommand::read_signals(&sent[0].data);
@@ -588,6 +588,35 @@ fn shutdown_sends_zero_torque_with_enable_cleared() {
     // and it passes the inverter's E2E check after the loop's commands
     let mut rx = grip_io::can::protocol::ProtocolRx::for_inverter();
     assert!(rx.receive(&sent[0], now).is_ok());
+    // a bus that is gone: the loop says the frame did not go out (its stop
+    // line said "zero torque sent" before), and counts the error
+    let errors = r.lp.bus_errors();
+    assert!(!r.lp.shutdown(now, &mut GoneBus, &mut r.sink), "not sent");
+    assert_eq!(r.lp.bus_errors(), errors + 1);
+}
+
+/// A bus whose interface is gone: every send fails.
+struct GoneBus;
+
+impl grip_io::can::CanBus for GoneBus {
+    fn send(&mut self, _: &CanFrame) -> Result<(), grip_io::can::CanError> {
+        Err(grip_io::can::CanError::Transfer {
+            op: "send",
+            kind: std::io::ErrorKind::NotFound,
+        })
+    }
+    fn try_recv(&mut self) -> Result<Option<CanFrame>, grip_io::can::CanError> {
+        Ok(None)
+    }
+    fn recv_timeout(
+        &mut self,
+        _: std::time::Duration,
+    ) -> Result<Option<CanFrame>, grip_io::can::CanError> {
+        Ok(None)
+    }
+    fn kind(&self) -> grip_io::can::BusKind {
+        grip_io::can::BusKind::Sim
+    }
 }
 
 /// The repository's road catalogue, road-knowledge rule, controllers and
