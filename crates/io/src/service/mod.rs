@@ -234,6 +234,7 @@ pub fn install_protocol(
         tracing::info!(
             dbc = can.dbc.as_deref().unwrap_or("(built in)"),
             messages = %p.describe(),
+            bus = %p.describe_bus(),
             "CAN protocol"
         );
     }
@@ -254,6 +255,17 @@ pub fn parse_can(file: &Path, text: &str) -> Result<CanBusConfig, ConfigError> {
     let c: CanBusConfig = parse_toml(file, text)?;
     if c.interface.trim().is_empty() {
         return Err(ConfigError::new(file, "interface", "must not be empty"));
+    }
+    // the iceoryx2 service `grip/canbus/<sim_bus>`: a name, or left out
+    // (the interface's)
+    if let Some(b) = &c.sim_bus
+        && b.trim().is_empty()
+    {
+        return Err(ConfigError::new(
+            file,
+            "sim_bus",
+            "must not be empty (leave it out to use the interface's name)",
+        ));
     }
     if let Some(d) = &c.dbc {
         let plain = !d.contains('/') && !d.contains('\\') && d != ".dbc";
@@ -392,6 +404,9 @@ mod tests {
             assert_eq!(e.field, "dbc", "{bad}: {e}");
         }
         assert!(parse_can(f, &format!("{base}dbc = \"car.dbc\"\n")).is_ok());
+        let e = parse_can(f, &format!("{base}sim_bus = \" \"\n")).unwrap_err();
+        assert_eq!(e.field, "sim_bus", "{e}");
+        assert!(e.to_string().contains("must not be empty"), "{e}");
         let e = parse_can(
             f,
             &format!("{base}dbc = \"car.dbc\"\n[dbc_names]\nTorqueCommand = \" \"\n"),

@@ -52,6 +52,9 @@ pub fn load_model(path: &Path) -> Result<Model> {
 /// One frame's decision: start and end time (s), class, probabilities.
 pub type FrameDecision = (f64, f64, usize, Vec<f64>);
 
+/// The highest `--speed` taken, km/h: beyond any road vehicle's.
+const MAX_SPEED_KMH: f64 = 400.0;
+
 /// Per-frame decisions of the frames `judge` accepts (the arte service's
 /// audio-quality rule).
 pub fn classify(
@@ -62,10 +65,14 @@ pub fn classify(
     judge: &mut FileJudge,
 ) -> Result<Vec<FrameDecision>> {
     let cfg = model.feature_config();
+    if let Some(v) = speed_kmh
+        && !(v.is_finite() && (0.0..=MAX_SPEED_KMH).contains(&v))
+    {
+        bail!("--speed: {v} km/h is not a road vehicle's speed (0 to {MAX_SPEED_KMH} km/h)");
+    }
     if cfg.speed_norm.is_some() {
         match speed_kmh {
-            Some(v) if v.is_finite() && v >= 0.0 => {}
-            Some(v) => bail!("--speed: {v} km/h is not a speed"),
+            Some(_) => {}
             None => bail!(
                 "this model is speed-normalised: give the vehicle speed of the recording with --speed KMH"
             ),
@@ -240,5 +247,24 @@ mod tests {
         assert_eq!(ex.frames(), (1.0 / frame).round() as usize);
         assert_eq!(ex.judged, ex.frames() + rows.len());
         assert!(ex.files.is_empty());
+    }
+
+    /// `--speed` is a road vehicle's speed: 2000 km/h, a negative or a
+    /// non-finite speed is refused whatever the model (it was taken
+    /// silently, found in review); 0 (standing) and 400 are taken.
+    #[test]
+    fn a_speed_no_vehicle_drives_is_refused() {
+        let (m, x) = model_and_road(0.3);
+        let fs = m.feature_config().sample_rate;
+        for bad in [2000.0, -1.0, f64::NAN] {
+            let e = classify(&m, &x, fs, (None, Some(bad)), &mut FileJudge::new()).unwrap_err();
+            assert!(
+                e.to_string().contains("is not a road vehicle's speed"),
+                "{e}"
+            );
+        }
+        for ok in [0.0, 400.0] {
+            assert!(classify(&m, &x, fs, (None, Some(ok)), &mut FileJudge::new()).is_ok());
+        }
     }
 }

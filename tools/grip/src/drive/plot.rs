@@ -97,8 +97,11 @@ fn series(log: &DriveLog, r: f64, v_eps: f64) -> Series {
     let x = |ns: u64| tb.axis(ns);
     let name = |n: Option<&str>| n.unwrap_or("?").to_owned();
     let valid_v: Vec<_> = log.cycles.iter().filter(|c| c.v_valid != 0).collect();
+    // the measured section's rule: no slip in the loop's safe state, whose
+    // record holds ω = 0 for a wheel speed it no longer has
     let slips: Vec<(f64, f64)> = valid_v
         .iter()
+        .filter(|c| c.safe_state == 0)
         .filter_map(|c| {
             grip_drive::summary::measured::slip(r, v_eps, c.omega, c.v).map(|l| (x(c.stamp_ns), l))
         })
@@ -567,7 +570,7 @@ fn draw_drive(root: &Area<'_>, log: &DriveLog, r: f64, v_eps: f64) -> Res {
         panel(
             &p2,
             &s,
-            "slip λ_m measured by tcs-loop ((r ω − V) / max(r ω, V, v_eps), V valid, max(r ω, V) ≥ 1 m/s; the log has no ground truth)",
+            "slip λ_m measured by tcs-loop ((r ω − V) / max(r ω, V, v_eps), V valid, max(r ω, V) ≥ 1 m/s, out of the safe state; the log has no ground truth)",
             (lo, hi),
             false,
             &[
