@@ -144,6 +144,10 @@ pub struct DrivePlan {
     /// `--vehicle FILE` for plant-sim and tcs-loop (absolute); `None`: the
     /// services' default `<config-dir>/vehicle.toml`.
     pub vehicle: Option<PathBuf>,
+    /// The model file the user gave (`grip drive --model`; the services run
+    /// a copy under the configuration's `model` name): recorded as
+    /// `model_given` in `grip.run`, so that the log names the user's file.
+    pub model: Option<PathBuf>,
 }
 
 /// The name under which the recorder attaches a drive's `--vehicle` file.
@@ -178,6 +182,7 @@ impl DrivePlan {
             instance: instance.to_owned(),
             ready_timeout: Duration::from_secs_f64(DEFAULT_READY_TIMEOUT_S),
             vehicle: None,
+            model: None,
         }
     }
 
@@ -198,6 +203,9 @@ impl DrivePlan {
                     ("instance", self.instance.clone()),
                 ] {
                     a.extend([s("--meta"), format!("{k}={v}")]);
+                }
+                if let Some(m) = &self.model {
+                    a.extend([s("--meta"), format!("model_given={}", m.display())]);
                 }
                 if let Some(v) = &self.vehicle {
                     a.extend([s("--meta"), format!("vehicle={}", v.display())]);
@@ -475,6 +483,7 @@ mod tests {
             instance: "t".into(),
             ready_timeout: Duration::from_secs(1),
             vehicle: None,
+            model: None,
         };
         for s in Service::START_ORDER {
             let a = plan.args(s);
@@ -494,6 +503,24 @@ mod tests {
             plan.args(Service::Recorder)
                 .join(" ")
                 .contains("--out /tmp/x.mcap")
+        );
+        // --model: the user's file recorded by the recorder (the services
+        // run a copy under the configuration's name)
+        let given = DrivePlan {
+            model: Some(PathBuf::from("/srv/recordings/mine.model")),
+            ..plan.clone()
+        };
+        assert!(
+            given
+                .args(Service::Recorder)
+                .join(" ")
+                .contains("--meta model_given=/srv/recordings/mine.model")
+        );
+        assert!(
+            !plan
+                .args(Service::Recorder)
+                .join(" ")
+                .contains("model_given")
         );
         // --vehicle goes to the two services that read the vehicle, after
         // the unit's command line

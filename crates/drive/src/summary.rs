@@ -607,6 +607,11 @@ pub fn model_of(log: &DriveLog) -> Option<ModelInfo> {
     let v: toml::Table = toml::from_str(text).ok()?;
     let name = v.get("model")?.as_str()?.to_owned();
     let recorded = log.run.get(&format!("model.{name}")).cloned();
+    // `grip drive --model FILE`: the services ran a copy of the user's file
+    // under this name; the log names the user's file
+    let given = log.run.get("model_given").map_or_else(String::new, |g| {
+        format!("; grip drive --model {g}, run as this copy")
+    });
     let (sha256, from) = match (log.attachments.get(&name), recorded) {
         (Some(d), _) => (
             Some(grip_digest::sha256_hex(d)),
@@ -622,7 +627,11 @@ pub fn model_of(log: &DriveLog) -> Option<ModelInfo> {
             "arte-svc.toml's model; neither attached nor in grip.run".to_owned(),
         ),
     };
-    Some(ModelInfo { name, sha256, from })
+    Some(ModelInfo {
+        name,
+        sha256,
+        from: from + &given,
+    })
 }
 
 /// The wheel reaching a road that carries less (`grip inspect`'s
@@ -2624,5 +2633,33 @@ mod tests {
         );
         assert!((s.cmd_from_s.unwrap() - 0.001).abs() < 1e-9);
         assert!(s.render().contains("command total variation"));
+    }
+
+    /// A drive with `grip drive --model FILE` names the user's file: the
+    /// services ran a copy under arte-svc.toml's `model`, and the summary
+    /// said only "arte-svc.toml's model" (found in review).
+    #[test]
+    fn the_model_the_user_gave_is_named() {
+        let mut log = DriveLog::default();
+        log.attachments.insert(
+            "arte-svc.toml".into(),
+            b"model = \"models/mine.model\"\n".to_vec(),
+        );
+        log.attachments
+            .insert("models/mine.model".into(), b"bytes".to_vec());
+        let plain = model_of(&log).unwrap();
+        assert_eq!(plain.name, "models/mine.model");
+        assert!(!plain.from.contains("--model"), "{}", plain.from);
+        log.run
+            .insert("model_given".into(), "/srv/recordings/mine.model".into());
+        let given = model_of(&log).unwrap();
+        assert!(
+            given
+                .from
+                .ends_with("; grip drive --model /srv/recordings/mine.model, run as this copy"),
+            "{}",
+            given.from
+        );
+        assert_eq!(given.sha256, plain.sha256);
     }
 }

@@ -163,6 +163,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         instance: drive::new_instance(),
         ready_timeout: Duration::from_secs_f64(args.ready_timeout),
         vehicle,
+        model: model.clone(),
     };
     if args.dry_run {
         if let Some(v) = &view {
