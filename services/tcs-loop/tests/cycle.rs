@@ -628,6 +628,25 @@ struct Shipped {
     vehicle: grip_physics::VehicleParams,
 }
 
+/// A rig whose loop has the road knowledge (`grip sim`'s "with ARTE"),
+/// the motor at 250 N m and the driver asking for 300.
+fn aware_rig(
+    kind: ControllerKind,
+    roads: &grip_physics::RoadCatalogue,
+    table: &grip_tcs::RoadTable,
+    controllers: &grip_tcs::ControllersConfig,
+    vehicle: &grip_physics::VehicleParams,
+) -> Rig {
+    let mut r = Rig::new(kind, true);
+    r.lp = TcsLoop::new(kind, true, controllers, vehicle, &SafetyConfig::default())
+        .unwrap()
+        .with_road_aware(roads, table.clone(), controllers, vehicle)
+        .unwrap();
+    r.feed.torque = 250.0;
+    r.feed.demand = 300.0;
+    r
+}
+
 fn shipped(vehicle: &str) -> Shipped {
     let dir = grip_config::ConfigDir::new(
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config"),
@@ -665,14 +684,7 @@ fn snow_heard_ahead_caps_the_torque_before_the_wheel_gets_there() {
     let frame_m = 0.1 * 0.28 * 9.9; // one 0.1 s frame at V = r·OmegaRef
 
     for kind in ControllerKind::ALL {
-        let lp = TcsLoop::new(kind, true, &controllers, &vehicle, &SafetyConfig::default())
-            .unwrap()
-            .with_road_aware(&roads, table.clone(), &controllers, &vehicle)
-            .unwrap();
-        let mut r = Rig::new(kind, true);
-        r.lp = lp;
-        r.feed.torque = 250.0;
-        r.feed.demand = 300.0;
+        let mut r = aware_rig(kind, &roads, &table, &controllers, &vehicle);
         let mut seq = 0;
         // an estimate of `road` for the frame that just ended, stamped by
         // arte with the odometer it was heard at
@@ -765,14 +777,7 @@ fn a_burst_of_estimates_is_queued_whole() {
     // (the most torque commanded in the last 20 ms before the patch, the
     // cycle that took the burst's record)
     let drive = |kind: ControllerKind, newest_only: bool| -> (f64, CycleRecord) {
-        let lp = TcsLoop::new(kind, true, &controllers, &vehicle, &SafetyConfig::default())
-            .unwrap()
-            .with_road_aware(&roads, table.clone(), &controllers, &vehicle)
-            .unwrap();
-        let mut r = Rig::new(kind, true);
-        r.lp = lp;
-        r.feed.torque = 250.0;
-        r.feed.demand = 300.0;
+        let mut r = aware_rig(kind, &roads, &table, &controllers, &vehicle);
         // (stamp, odometer) of every cycle: where each frame was heard
         let mut odo: Vec<(u64, f64)> = Vec::new();
         let at = |odo: &[(u64, f64)], t: u64| {
