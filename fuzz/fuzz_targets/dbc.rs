@@ -3,13 +3,17 @@
 //! the decoders and the E2E receiver.
 //!
 //! Input: one set-up byte (bit 0: use the name map `tests/data/own-bus.dbc`
-//! needs, as its `can.toml [dbc_names]` would give it; otherwise none), then
-//! the DBC's text (UTF-8, else read byte by byte as Latin-1, as
-//! `Protocol::load_dbc` does). The values encoded are drawn from a hash of
-//! the whole input.
+//! needs, as its `can.toml [dbc_names]` would give it; otherwise none; bit
+//! 1: a `[dbc_valid]` of `WheelSpeeds.DrivenValid` = 0 and
+//! `VehicleSpeed.Valid` = bits 2-3; bit 4: the wheels' radii given, 0.3 m
+//! and 0.29 m, so wheel speeds in km/h or m/s load), then the DBC's text
+//! (UTF-8, else read byte by byte as Latin-1, as `Protocol::load_dbc`
+//! does). The values encoded are drawn from a hash of the whole input.
 //!
 //! Checked besides "no panic":
-//! - a refusal's `Display` starts with the file name given (`fuzz.dbc: `);
+//! - a refusal's `Display` starts with the file name given (`fuzz.dbc: `),
+//!   or, for a `[dbc_valid]` value the DBC's field cannot carry, with
+//!   `can.toml: [dbc_valid] `;
 //! - an accepted protocol has grip's five messages in `MsgKind` order, with
 //!   distinct 11-bit ids (≤ 0x7FF), DLC 8, grip's signals in grip's order,
 //!   the CRC in one whole byte and a 4-bit counter; `spec`/`spec_for_id`
@@ -18,7 +22,8 @@
 //!   finite, and any payload decodes (`decode_as`) to finite values;
 //! - for each message, a few messages with values from the input, encoded
 //!   with `encode_in`, decode back (`read_signals_in`, `decode_as`): flags
-//!   exactly, the fault code as its bit field holds it, a value in the
+//!   exactly (each in its sense: `[dbc_valid]`, the DBC's `VAL_`, else
+//!   non-zero), the fault code as its bit field holds it, a value in the
 //!   signal's range to within half its resolution (plus rounding), one
 //!   beyond the range to the nearer end, a non-finite one as the physical
 //!   value 0 (saturated at the range like any other); the
@@ -30,9 +35,11 @@
 use std::collections::BTreeMap;
 use std::sync::{Mutex, OnceLock};
 
+use grip_io::can::DbcSettings;
 use grip_io::can::protocol::{
     DriverDemand, E2eError, E2eReceiver, InverterMsg, MessageSpec, MotorStatus, MsgKind, Protocol,
-    ProtocolMessage, SignalSpec, TorqueCommand, VehicleSpeed, WheelSpeeds, e2e_crc_at, encode_in,
+    ProtocolMessage, SignalSpec, TorqueCommand, VehicleSpeed, WheelRadii, WheelSpeeds, e2e_crc_at,
+    encode_in,
 };
 use libfuzzer_sys::fuzz_target;
 
@@ -63,10 +70,27 @@ fn check_repository_dbcs() {
         let p = Protocol::load_dbc(&root.join("config/inverter.dbc"), &BTreeMap::new())
             .expect("config/inverter.dbc");
         assert_eq!(&p, Protocol::builtin(), "config/inverter.dbc != built-in");
+        let with_radii = DbcSettings {
+            radii: Some(RADII),
+            ..DbcSettings::default()
+        };
+        let p = Protocol::load_dbc_with(&root.join("config/inverter.dbc"), &with_radii)
+            .expect("config/inverter.dbc with radii");
+        assert_eq!(
+            &p,
+            Protocol::builtin(),
+            "config/inverter.dbc with radii != built-in"
+        );
         Protocol::load_dbc(&root.join("tests/data/own-bus.dbc"), own_bus_names())
             .expect("tests/data/own-bus.dbc");
     });
 }
+
+/// The radii given with set-up bit 4.
+const RADII: WheelRadii = WheelRadii {
+    driven_m: 0.3,
+    reference_m: 0.29,
+};
 
 /// `&'static` specifications for `E2eReceiver`: accepted protocols are
 /// leaked once each (most accepted inputs give one already seen).
@@ -417,24 +441,40 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     check_repository_dbcs();
-    let names = if setup & 1 == 1 {
-        own_bus_names().clone()
-    } else {
-        BTreeMap::new()
-    };
+    let mut settings = DbcSettings::default();
+    if setup & 1 == 1 {
+        settings.names = own_bus_names().clone();
+    }
+    if setup & 2 == 2 {
+        settings.valid = [
+            ("WheelSpeeds.DrivenValid".to_owned(), 0),
+            ("VehicleSpeed.Valid".to_owned(), i64::from(setup >> 2 & 3)),
+        ]
+        .into();
+    }
+    if setup & 16 == 16 {
+        settings.radii = Some(RADII);
+    }
     // as Protocol::load_dbc reads a file
     let text = match std::str::from_utf8(text) {
         Ok(t) => t.to_owned(),
         Err(_) => text.iter().map(|&b| char::from(b)).collect(),
     };
-    match Protocol::from_dbc(&text, FILE, &names) {
+    match Protocol::from_dbc_with(&text, FILE, &settings) {
         Err(e) => {
             let msg = e.to_string();
-            assert!(
-                msg.starts_with(&format!("{FILE}: ")),
-                "refusal does not start with the file name: {msg}"
-            );
-            assert_eq!(e.file, FILE);
+            if e.file == "can.toml" {
+                assert!(
+                    !settings.valid.is_empty() && msg.starts_with("can.toml: [dbc_valid] "),
+                    "a refusal of can.toml that is not its [dbc_valid]: {msg}"
+                );
+            } else {
+                assert!(
+                    msg.starts_with(&format!("{FILE}: ")),
+                    "refusal does not start with the file name: {msg}"
+                );
+                assert_eq!(e.file, FILE);
+            }
         }
         Ok(p) => {
             let p = leak(p);

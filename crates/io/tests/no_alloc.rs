@@ -58,6 +58,41 @@ fn a_dbc_protocol_hot_path_allocates_nothing() {
         grip_testkit::own_bus::names(),
     );
     let p: &'static Protocol = Box::leak(Box::new(Protocol::load_dbc(&path, &names).unwrap()));
+    dbc_protocol_hot_path(p);
+}
+
+/// And for a bus with wheel speeds in km/h (folded with the rolling
+/// radius) and an inverted validity bit (`[dbc_valid]`), its flags
+/// toggling.
+#[test]
+fn a_km_h_and_inverted_validity_protocol_hot_path_allocates_nothing() {
+    let shipped = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../config/inverter.dbc"
+    ))
+    .unwrap();
+    let text = shipped.replacen(
+        "OmegaDriven : 16|16@1- (0.01,0) [-327.68|327.67] \"rad/s\"",
+        "OmegaDriven : 16|16@1- (0.01,0) [-327.68|327.67] \"km/h\"",
+        1,
+    );
+    assert_ne!(text, shipped);
+    let settings = grip_io::can::DbcSettings {
+        valid: [("WheelSpeeds.DrivenValid".to_owned(), 0)].into(),
+        radii: Some(WheelRadii {
+            driven_m: 0.3,
+            reference_m: 0.3,
+        }),
+        ..Default::default()
+    };
+    let p: &'static Protocol = Box::leak(Box::new(
+        Protocol::from_dbc_with(&text, "car.dbc", &settings).unwrap(),
+    ));
+    assert_eq!(p.spec(MsgKind::WheelSpeeds).signals[2].set_raw, Some(0));
+    dbc_protocol_hot_path(p);
+}
+
+fn dbc_protocol_hot_path(p: &'static Protocol) {
     let mut rx: Vec<E2eReceiver> = p.messages().iter().map(E2eReceiver::new).collect();
     let mut decoded = 0u64;
     let n = allocations(|| {
@@ -87,6 +122,7 @@ fn a_dbc_protocol_hot_path_allocates_nothing() {
                     p.spec(MsgKind::WheelSpeeds),
                     &WheelSpeeds {
                         omega_driven: x,
+                        driven_valid: i % 2 == 0,
                         ..WheelSpeeds::default()
                     },
                     c,

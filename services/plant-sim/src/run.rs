@@ -116,7 +116,13 @@ pub fn load(opts: &Options) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), 
     let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
     let (vehicle, sensors) = grip_config::load_vehicle(&vehicle_path)?;
     let can = load_can(&dir)?;
-    let protocol = grip_io::service::install_protocol(&dir, &can)?;
+    // the wheels' radii convert the wheel speeds it sends where the DBC
+    // gives them in km/h or m/s (v = ω · r), as tcs-loop reads them
+    let radii = grip_io::can::protocol::WheelRadii {
+        driven_m: vehicle.r,
+        reference_m: vehicle.ref_radius(),
+    };
+    let protocol = grip_io::service::install_protocol_with(&dir, &can, Some(radii))?;
     // the inverter's command timeout must span two of the command's periods
     let tc = protocol.spec(grip_io::can::protocol::MsgKind::TorqueCommand);
     if cfg.cmd_timeout_ms < 2.0 * f64::from(tc.cycle_ms) {

@@ -121,7 +121,8 @@ pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
     let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
     let (vehicle, _) = grip_config::load_vehicle(&vehicle_path)?;
     let can = load_can(&dir)?;
-    grip_io::service::install_protocol(&dir, &can)?;
+    // the wheels' radii convert a wheel speed the DBC gives in km/h or m/s
+    grip_io::service::install_protocol_with(&dir, &can, Some(wheel_radii(&vehicle)))?;
     let roads = dir.roads()?;
     let road_table = dir.road_table(&roads)?;
     Ok(LoadedConfig {
@@ -135,6 +136,16 @@ pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
         controllers_path,
         own_path,
     })
+}
+
+/// The wheels' rolling radii a bus's wheel speeds in km/h or m/s are
+/// converted with (ω = v ÷ r): the driven wheel's `r`, the reference
+/// wheel's `r_ref` (else `r`), as the loop computes V = r_ref · OmegaRef.
+pub fn wheel_radii(vehicle: &grip_physics::VehicleParams) -> grip_io::can::protocol::WheelRadii {
+    grip_io::can::protocol::WheelRadii {
+        driven_m: vehicle.r,
+        reference_m: vehicle.ref_radius(),
+    }
 }
 
 /// The bus against tcs-loop's settings: `TorqueRequest` must carry the
@@ -289,6 +300,20 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
     let cfg = load(opts)?;
     let mut lp = build(&cfg)?;
     let kind = lp.controller_kind();
+    if kind == grip_tcs::ControllerKind::Mfc {
+        // the gain is the paper's car's: say where it overshoots on this one
+        match grip_tcs::analysis::vehicle_tf::kmfc_warning(
+            &cfg.vehicle,
+            &cfg.vehicle_path,
+            &cfg.roads,
+            &cfg.controllers.mfc,
+            &cfg.controllers_path,
+        ) {
+            Ok(Some(w)) => tracing::warn!("{w}"),
+            Ok(None) => {}
+            Err(e) => tracing::warn!(error = %e, "tcs-loop: the MFC gain check could not run"),
+        }
+    }
     let rate = cfg.controllers.loop_.rate_hz;
     let period_ns = (1e9 / rate).round() as u64;
     tracing::info!(

@@ -11,11 +11,16 @@
 //! (grip's names, looked up in the DBC, or mapped to the DBC's own names by
 //! `[dbc_names]` in `can.toml`), the physical units the code computes in
 //! (a DBC unit grip knows is converted: rpm to rad/s, km/h to m/s, g to
-//! m/s²), 8-byte classic CAN frames with 11-bit ids (a message whose
-//! `VFrameFormat` is CAN FD or extended is refused), and the E2E scheme (CRC-8 SAE
-//! J1850 over the data id and the other seven bytes, in a whole byte; a
-//! 4-bit alive counter). Every refusal names the file, the message or
-//! signal, and the reason.
+//! m/s²; a wheel speed in km/h or m/s to rad/s with the wheel's rolling
+//! radius, ω = v ÷ r, given by the service from the vehicle file:
+//! [`DbcSettings::radii`]), 8-byte classic CAN frames with 11-bit ids (a
+//! message whose `VFrameFormat` is CAN FD or extended is refused), and the
+//! E2E scheme (CRC-8 SAE J1850 over the data id and the other seven bytes,
+//! in a whole byte; a 4-bit alive counter). The raw value that means
+//! "valid" in grip's three validity flags is the DBC's to choose too
+//! (`[dbc_valid]` in `can.toml`, or the DBC's `VAL_` table; default:
+//! non-zero). Every refusal names the file, the message or signal, and the
+//! reason.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -27,8 +32,138 @@ use can_dbc::{
 
 use super::protocol::{
     BusTiming, DEFAULT_BITRATE, MAX_BUS_LOAD, MessageSpec, MsgKind, Protocol, SignalList,
-    SignalSpec, classic_frame_bits_worst,
+    SignalSpec, WheelRadii, classic_frame_bits_worst,
 };
+
+/// What the DBC loader reads besides the DBC itself: `can.toml`'s
+/// `[dbc_names]` and `[dbc_valid]`, and the wheels' rolling radii from the
+/// vehicle file.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DbcSettings {
+    /// `[dbc_names]`: grip's names (`TorqueCommand`,
+    /// `TorqueCommand.TorqueRequest`) mapped to the DBC's where they
+    /// differ.
+    pub names: BTreeMap<String, String>,
+    /// `[dbc_valid]`: for grip's validity flags ([`VALID_FLAGS`]), the raw
+    /// value that means valid (e.g. 0 for a bit that says *invalid* when
+    /// set). It wins over the DBC's `VAL_` table; a flag in neither is
+    /// valid when non-zero.
+    pub valid: BTreeMap<String, i64>,
+    /// The wheels' rolling radii (the vehicle file's `r` and `r_ref`): a
+    /// DBC whose `OmegaDriven` or `OmegaRef` is in km/h or m/s (a wheel's
+    /// circumferential speed) is converted with them, ω = v ÷ r, and
+    /// refused without them.
+    pub radii: Option<WheelRadii>,
+}
+
+impl DbcSettings {
+    /// Only a name map (no `[dbc_valid]`, no radii).
+    pub fn with_names(names: &BTreeMap<String, String>) -> Self {
+        Self {
+            names: names.clone(),
+            ..Self::default()
+        }
+    }
+    /// `can`'s `[dbc_names]` and `[dbc_valid]`, and `radii` (`None`: no
+    /// vehicle file at hand).
+    pub fn from_can(can: &super::CanBusConfig, radii: Option<WheelRadii>) -> Self {
+        Self {
+            names: can.dbc_names.clone(),
+            valid: can.dbc_valid.clone(),
+            radii,
+        }
+    }
+}
+
+/// grip's validity flags, the keys `[dbc_valid]` takes: (message, signal
+/// index in the built-in order, `Message.Signal`).
+pub const VALID_FLAGS: [(MsgKind, usize, &str); 3] = [
+    (MsgKind::WheelSpeeds, 2, "WheelSpeeds.DrivenValid"),
+    (MsgKind::WheelSpeeds, 3, "WheelSpeeds.RefValid"),
+    (MsgKind::VehicleSpeed, 2, "VehicleSpeed.Valid"),
+];
+
+/// The wheel whose rolling radius converts a linear speed in grip's
+/// signal `signal` of `kind`, if it is a wheel speed: `Some(true)` the
+/// driven wheel (`OmegaDriven`), `Some(false)` the reference wheel
+/// (`OmegaRef`).
+fn wheel_of(kind: MsgKind, signal: &str) -> Option<bool> {
+    match (kind, signal) {
+        (MsgKind::WheelSpeeds, "OmegaDriven") => Some(true),
+        (MsgKind::WheelSpeeds, "OmegaRef") => Some(false),
+        _ => None,
+    }
+}
+
+/// Checks `[dbc_valid]`'s keys before the DBC is read: each must be one of
+/// [`VALID_FLAGS`]; the reason names what the key is instead.
+fn check_valid_keys(valid: &BTreeMap<String, i64>) -> Result<(), DbcError> {
+    let flags: Vec<&str> = VALID_FLAGS.iter().map(|(_, _, k)| *k).collect();
+    let list = flags
+        .iter()
+        .map(|k| format!("\"{k}\""))
+        .collect::<Vec<_>>()
+        .join(", ");
+    for k in valid.keys() {
+        if flags.contains(&k.as_str()) {
+            continue;
+        }
+        // what the key is, if it is one of grip's names at all
+        let signal = MsgKind::ALL.into_iter().find_map(|kind| {
+            let b = kind.builtin();
+            b.signals
+                .iter()
+                .enumerate()
+                .find(|(_, s)| format!("{}.{}", b.name, s.name) == *k)
+                .map(|(i, s)| (i, *s))
+        });
+        let reason = match signal {
+            Some((i, s)) if i >= 2 && s.len == 1 => format!(
+                "a flag, but not a validity flag: [dbc_valid] takes {list} (the raw value that means valid)"
+            ),
+            Some(_) => format!(
+                "not a flag (a value grip reads as a number): [dbc_valid] takes {list} (the raw value that means valid)"
+            ),
+            None => match flags.iter().find(|g| g.eq_ignore_ascii_case(k)) {
+                Some(g) => format!("not one of grip's validity flags (did you mean \"{g}\"?)"),
+                None if MsgKind::ALL.iter().any(|m| m.builtin().name == k) => format!(
+                    "a message, not a flag: [dbc_valid] takes {list} (the raw value that means valid)"
+                ),
+                None => format!(
+                    "not one of grip's validity flags: [dbc_valid] takes {list}, with grip's names (map the DBC's in [dbc_names])"
+                ),
+            },
+        };
+        return Err(DbcError {
+            file: "can.toml".into(),
+            what: format!("[dbc_valid] {k}"),
+            reason,
+        });
+    }
+    Ok(())
+}
+
+/// The raw value the DBC's `VAL_` table names valid for a flag: the one
+/// state whose description is `Valid` (case, spaces and punctuation
+/// ignored; `"Invalid"`, `"Not valid"` are not). `None` when the table
+/// names no such state, or more than one.
+fn valid_from_val_table(dbc: &Dbc, id: MessageId, signal: &str) -> Option<i64> {
+    let table = dbc.value_descriptions_for_signal(id, signal)?;
+    let mut valid = table.iter().filter(|v| {
+        let norm: String = v
+            .description
+            .chars()
+            .filter(|c| c.is_alphanumeric())
+            .collect::<String>()
+            .to_lowercase();
+        norm == "valid"
+    });
+    let first = valid.next()?;
+    if valid.next().is_some() {
+        return None;
+    }
+    Some(first.id)
+}
 
 /// A DBC that grip cannot speak: the file, what in it, and why.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -338,13 +473,19 @@ impl Protocol {
     /// names (`TorqueCommand`, `TorqueCommand.TorqueRequest`) to the DBC's
     /// where they differ.
     pub fn load_dbc(path: &Path, names: &BTreeMap<String, String>) -> Result<Self, DbcError> {
+        Self::load_dbc_with(path, &DbcSettings::with_names(names))
+    }
+
+    /// [`load_dbc`](Self::load_dbc) with `can.toml`'s `[dbc_valid]` and the
+    /// wheels' radii besides the names (what the services call).
+    pub fn load_dbc_with(path: &Path, settings: &DbcSettings) -> Result<Self, DbcError> {
         let file = path.display().to_string();
         let bytes = std::fs::read(path).map_err(|e| DbcError {
             file: file.clone(),
             what: "file".into(),
             reason: format!("cannot be read (can.toml's dbc names it): {e}"),
         })?;
-        Self::from_dbc_bytes(&bytes, &file, names)
+        Self::from_dbc_bytes_with(&bytes, &file, settings)
     }
 
     /// [`load_dbc`](Self::load_dbc) from the file's bytes (a drive log's
@@ -356,21 +497,42 @@ impl Protocol {
         file: &str,
         names: &BTreeMap<String, String>,
     ) -> Result<Self, DbcError> {
+        Self::from_dbc_bytes_with(bytes, file, &DbcSettings::with_names(names))
+    }
+
+    /// [`from_dbc_bytes`](Self::from_dbc_bytes) with `[dbc_valid]` and the
+    /// wheels' radii ([`DbcSettings`]).
+    pub fn from_dbc_bytes_with(
+        bytes: &[u8],
+        file: &str,
+        settings: &DbcSettings,
+    ) -> Result<Self, DbcError> {
         let text = match std::str::from_utf8(bytes) {
             Ok(t) => std::borrow::Cow::Borrowed(t),
             Err(_) => std::borrow::Cow::Owned(bytes.iter().map(|&b| char::from(b)).collect()),
         };
         let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
-        Self::from_dbc(text, file, names)
+        Self::from_dbc_with(text, file, settings)
     }
 
     /// [`load_dbc`](Self::load_dbc) from the file's text; `file` names it in
-    /// errors.
+    /// errors. Without `[dbc_valid]` and without the wheels' radii: a DBC
+    /// whose wheel speeds are in km/h or m/s is refused
+    /// ([`from_dbc_with`](Self::from_dbc_with) takes them).
     pub fn from_dbc(
         text: &str,
         file: &str,
         names: &BTreeMap<String, String>,
     ) -> Result<Self, DbcError> {
+        Self::from_dbc_with(text, file, &DbcSettings::with_names(names))
+    }
+
+    /// [`from_dbc`](Self::from_dbc) with `can.toml`'s `[dbc_valid]` (the raw
+    /// value that means valid in grip's validity flags) and the wheels'
+    /// rolling radii (for a wheel speed in km/h or m/s, ω = v ÷ r; folded
+    /// into the signal's factor, so decoding costs what it did).
+    pub fn from_dbc_with(text: &str, file: &str, settings: &DbcSettings) -> Result<Self, DbcError> {
+        let names = &settings.names;
         let err = |what: String, reason: String| DbcError {
             file: file.to_owned(),
             what,
@@ -392,6 +554,21 @@ impl Protocol {
                 });
             }
         }
+        check_valid_keys(&settings.valid)?;
+        if let Some(r) = settings.radii {
+            for (field, v) in [("r", r.driven_m), ("r_ref", r.reference_m)] {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(DbcError {
+                        file: "vehicle file".into(),
+                        what: format!("vehicle.{field}"),
+                        reason: format!(
+                            "{v} m: a wheel's rolling radius must be a positive length (it converts a wheel speed in km/h or m/s to rad/s)"
+                        ),
+                    });
+                }
+            }
+        }
+        let mut radii_used = false;
         let dbc = Dbc::try_from(text).map_err(|e| {
             err(
                 "file".into(),
@@ -614,18 +791,93 @@ impl Protocol {
                         ),
                     ));
                 }
-                let k = unit_factor(bs.unit, &d.unit).ok_or_else(|| {
-                    err(
-                        what.clone(),
-                        format!(
-                            "unit \"{}\": grip computes {} in {} and converts from {}",
-                            d.unit,
-                            bs.name,
-                            bs.unit,
-                            accepted_units(bs.unit)
-                        ),
-                    )
-                })?;
+                let wheel = wheel_of(kind, bs.name);
+                let k = match (unit_factor(bs.unit, &d.unit), wheel) {
+                    (Some(k), _) => k,
+                    // a wheel's circumferential speed: ω = v ÷ r
+                    (None, Some(driven)) if unit_factor("m/s", &d.unit).is_some() => {
+                        let to_mps = unit_factor("m/s", &d.unit).unwrap_or(1.0);
+                        let (field, wheel_name) = if driven {
+                            ("r", "the driven wheel's")
+                        } else {
+                            ("r_ref", "the reference wheel's")
+                        };
+                        let Some(radii) = settings.radii else {
+                            return Err(err(
+                                what,
+                                format!(
+                                    "unit \"{}\": a wheel's circumferential speed; grip computes {} in rad/s (ω = v ÷ r) and needs {wheel_name} rolling radius ({field} in the vehicle file) to convert it, which this reader was not given (tcs-loop and plant-sim give their vehicle file's): it is not read as rad/s",
+                                    d.unit, bs.name
+                                ),
+                            ));
+                        };
+                        radii_used = true;
+                        let r = if driven {
+                            radii.driven_m
+                        } else {
+                            radii.reference_m
+                        };
+                        to_mps / r
+                    }
+                    (None, _) => {
+                        let linear = if wheel.is_some() {
+                            format!(
+                                ", and, as the wheel's circumferential speed converted with its rolling radius (ω = v ÷ r), from {}",
+                                accepted_units("m/s")
+                            )
+                        } else {
+                            String::new()
+                        };
+                        return Err(err(
+                            what,
+                            format!(
+                                "unit \"{}\": grip computes {} in {} and converts from {}{linear}",
+                                d.unit,
+                                bs.name,
+                                bs.unit,
+                                accepted_units(bs.unit)
+                            ),
+                        ));
+                    }
+                };
+                // a validity flag's valid value: can.toml's [dbc_valid],
+                // else the DBC's VAL_ table, else non-zero
+                let valid_key = VALID_FLAGS
+                    .iter()
+                    .find(|(vk, vi, _)| *vk == kind && *vi == i)
+                    .map(|(_, _, key)| *key);
+                let set_raw = match valid_key {
+                    None => None,
+                    Some(key) => {
+                        let (f_lo, f_hi) = if d.value_type == ValueType::Signed {
+                            (-(1i64 << (len - 1)), (1i64 << (len - 1)) - 1)
+                        } else {
+                            (0, (1i64 << len) - 1)
+                        };
+                        let v = match settings.valid.get(key) {
+                            Some(&v) if (f_lo..=f_hi).contains(&v) => Some(v),
+                            Some(&v) => {
+                                return Err(DbcError {
+                                    file: "can.toml".into(),
+                                    what: format!("[dbc_valid] {key}"),
+                                    reason: format!(
+                                        "{v}: the DBC's {what} is a {len}-bit {} field, which carries raw {f_lo}..={f_hi} only",
+                                        if d.value_type == ValueType::Signed {
+                                            "signed"
+                                        } else {
+                                            "unsigned"
+                                        }
+                                    ),
+                                });
+                            }
+                            None => valid_from_val_table(&dbc, m.id, &d.name)
+                                .filter(|v| (f_lo..=f_hi).contains(v)),
+                        };
+                        // a 1-bit field's non-zero value is "non-zero":
+                        // the same flag as grip's default
+                        v.filter(|&v| !(len == 1 && v != 0))
+                    }
+                };
                 let spec = SignalSpec {
                     name: bs.name,
                     start,
@@ -637,6 +889,7 @@ impl Protocol {
                     max: num(&d.max) * k,
                     unit: bs.unit,
                     motorola,
+                    set_raw,
                 };
                 // every raw value the field holds must decode to a number,
                 // also beyond the range (what is received is decoded as it is)
@@ -695,7 +948,7 @@ impl Protocol {
         let specs: [MessageSpec; 5] = specs
             .try_into()
             .unwrap_or_else(|_| unreachable!("five kinds, five specs"));
-        let p = Self::from_specs(specs, bus);
+        let p = Self::from_specs(specs, bus, settings.radii.filter(|_| radii_used));
         let load = p.bus_load();
         if load > MAX_BUS_LOAD {
             let periods: Vec<String> = p

@@ -15,7 +15,10 @@ mod socket;
 
 use core::time::Duration;
 
-pub use dbc::{DbcError, message_names as dbc_message_names, name_keys as dbc_name_keys};
+pub use dbc::{
+    DbcError, DbcSettings, VALID_FLAGS as DBC_VALID_FLAGS, message_names as dbc_message_names,
+    name_keys as dbc_name_keys,
+};
 pub use grip_msgs::CanFrame;
 pub use mem::{FrameQueue, MEM_BUS_CAPACITY, MemBus, frame_queue};
 pub use sim::SimBus;
@@ -262,6 +265,14 @@ pub struct CanBusConfig {
     /// differ.
     #[serde(default)]
     pub dbc_names: std::collections::BTreeMap<String, String>,
+    /// grip's validity flags (`WheelSpeeds.DrivenValid`,
+    /// `WheelSpeeds.RefValid`, `VehicleSpeed.Valid`) mapped to the raw
+    /// value that means valid on this bus (0 for a bit that says
+    /// *invalid*; one state of a multi-bit status). Wins over the DBC's
+    /// `VAL_` table; a flag in neither is valid when non-zero
+    /// ([`DbcSettings::valid`]).
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub dbc_valid: std::collections::BTreeMap<String, i64>,
 }
 
 impl Default for CanBusConfig {
@@ -273,6 +284,7 @@ impl Default for CanBusConfig {
             bus_id: 0,
             dbc: None,
             dbc_names: std::collections::BTreeMap::new(),
+            dbc_valid: std::collections::BTreeMap::new(),
         }
     }
 }

@@ -57,6 +57,13 @@ pub struct SignalSpec {
     /// significant bit in the DBC's numbering (bit 7 of byte 0 is 7, bit 0
     /// of byte 1 is 8). grip's own DBC is all Intel.
     pub motorola: bool,
+    /// For a flag: the one raw value that means set (for grip's validity
+    /// flags: valid), e.g. `Some(0)` for a bus whose bit says *invalid*
+    /// when it is 1 (`can.toml` `[dbc_valid]`, or the DBC's `VAL_` table
+    /// naming a state `"Valid"`). `None`: any non-zero raw value is set,
+    /// grip's own convention and the built-in protocol's
+    /// ([`get_flag`](Self::get_flag), [`put_flag`](Self::put_flag)).
+    pub set_raw: Option<i64>,
 }
 
 impl SignalSpec {
@@ -81,6 +88,7 @@ impl SignalSpec {
             max,
             unit,
             motorola: false,
+            set_raw: None,
         }
     }
     const fn flag(name: &'static str, start: u8) -> Self {
@@ -235,6 +243,37 @@ impl SignalSpec {
         let mut d = [0u8; 8];
         self.put_raw(&mut d, -1);
         u64::from_le_bytes(d)
+    }
+    /// Reads a flag: true when the raw value is [`set_raw`](Self::set_raw),
+    /// or, without one, when it is non-zero. Allocation-free.
+    pub fn get_flag(&self, data: &[u8; 8]) -> bool {
+        let raw = self.get_raw(data);
+        match self.set_raw {
+            None => raw != 0,
+            Some(v) => raw == v,
+        }
+    }
+    /// The raw value a flag is sent with when cleared (for a validity flag:
+    /// invalid): 0, or, where 0 is the set value ([`set_raw`](Self::set_raw)
+    /// `Some(0)`, an inverted bit), 1 (-1 in a signed 1-bit field, which
+    /// holds only -1 and 0).
+    pub fn clear_raw(&self) -> i64 {
+        match self.set_raw {
+            Some(0) if self.field_raw_max() >= 1 => 1,
+            Some(0) => -1,
+            _ => 0,
+        }
+    }
+    /// Writes a flag: [`set_raw`](Self::set_raw) (without one, 1) when
+    /// `on`, else [`clear_raw`](Self::clear_raw), so that
+    /// [`get_flag`](Self::get_flag) reads back `on`.
+    pub fn put_flag(&self, data: &mut [u8; 8], on: bool) {
+        let raw = if on {
+            self.set_raw.unwrap_or(1)
+        } else {
+            self.clear_raw()
+        };
+        self.put_raw(data, raw);
     }
     /// Writes a physical value (see [`to_raw`](Self::to_raw)).
     pub fn put(&self, data: &mut [u8; 8], phys: f64) {
@@ -488,6 +527,7 @@ impl MsgKind {
 pub struct Protocol {
     messages: [MessageSpec; 5],
     bus: BusTiming,
+    wheel_radii: Option<WheelRadii>,
 }
 
 static BUILTIN: Protocol = Protocol {
@@ -499,7 +539,22 @@ static BUILTIN: Protocol = Protocol {
         DRIVER_DEMAND,
     ],
     bus: BusTiming::ASSUMED,
+    wheel_radii: None,
 };
+
+/// The wheels' rolling radii, m, from the vehicle file (`r` and `r_ref`,
+/// which defaults to `r`): what converts a wheel's circumferential speed
+/// on the bus (`OmegaDriven` or `OmegaRef` in km/h or m/s) to the angular
+/// speed grip computes in, ω = v ÷ r, folded into the signal's factor when
+/// the DBC is read ([`Protocol::from_dbc_with`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WheelRadii {
+    /// The driven wheel's, for `WheelSpeeds.OmegaDriven` (`r`).
+    pub driven_m: f64,
+    /// The non-driven reference wheel's, for `WheelSpeeds.OmegaRef`
+    /// (`r_ref`, else `r`).
+    pub reference_m: f64,
+}
 
 /// The bus a protocol runs on, as its DBC declares it: the bit rate
 /// (`BA_ "Baudrate"`) and whether it is a CAN FD bus (`BA_ "BusType" "CAN
@@ -587,8 +642,22 @@ impl Protocol {
     }
     /// Built from five specifications in [`MsgKind`] order (the DBC loader's
     /// constructor; checked there).
-    pub(crate) fn from_specs(messages: [MessageSpec; 5], bus: BusTiming) -> Self {
-        Self { messages, bus }
+    pub(crate) fn from_specs(
+        messages: [MessageSpec; 5],
+        bus: BusTiming,
+        wheel_radii: Option<WheelRadii>,
+    ) -> Self {
+        Self {
+            messages,
+            bus,
+            wheel_radii,
+        }
+    }
+    /// The radii a wheel speed in km/h or m/s on the bus was converted with
+    /// (folded into its factor); `None` when the wheel speeds are angular
+    /// (the built-in protocol's rad/s, or rpm), whatever radii were given.
+    pub fn wheel_radii(&self) -> Option<WheelRadii> {
+        self.wheel_radii
     }
     /// The bus as the DBC declares it (the built-in protocol's: 1 Mbit/s,
     /// classic CAN).
@@ -629,6 +698,35 @@ impl Protocol {
             100.0 * self.bus_load(),
             100.0 * MAX_BUS_LOAD
         )
+    }
+    /// One line for a log: how the wheel speeds and the validity flags are
+    /// read, e.g. `wheel speeds converted from km/h or m/s with r = 0.3 m,
+    /// r_ref = 0.3 m; valid: WheelSpeeds.DrivenValid = 0,
+    /// WheelSpeeds.RefValid = 0, VehicleSpeed.Valid non-zero`.
+    pub fn describe_speeds(&self) -> String {
+        let wheels = match self.wheel_radii {
+            None => "wheel speeds angular".to_owned(),
+            Some(r) => format!(
+                "wheel speeds converted from km/h or m/s with r = {} m, r_ref = {} m",
+                r.driven_m, r.reference_m
+            ),
+        };
+        let flags: Vec<String> = [
+            (MsgKind::WheelSpeeds, 2),
+            (MsgKind::WheelSpeeds, 3),
+            (MsgKind::VehicleSpeed, 2),
+        ]
+        .into_iter()
+        .map(|(k, i)| {
+            let m = self.spec(k);
+            let s = &m.signals[i];
+            match s.set_raw {
+                None => format!("{}.{} non-zero", m.name, s.name),
+                Some(v) => format!("{}.{} = {v}", m.name, s.name),
+            }
+        })
+        .collect();
+        format!("{wheels}; valid: {}", flags.join(", "))
     }
     /// The specification of `kind`.
     pub fn spec(&self, kind: MsgKind) -> &MessageSpec {
@@ -797,12 +895,12 @@ pub struct TorqueCommand {
 impl ProtocolMessage for TorqueCommand {
     const KIND: MsgKind = MsgKind::TorqueCommand;
     fn write_signals_in(&self, s: &MessageSpec, d: &mut [u8; 8]) {
-        sig(s, 2).put_raw(d, i64::from(self.enable));
+        sig(s, 2).put_flag(d, self.enable);
         sig(s, 3).put(d, self.torque_request);
     }
     fn read_signals_in(s: &MessageSpec, d: &[u8; 8]) -> Self {
         Self {
-            enable: sig(s, 2).get_raw(d) != 0,
+            enable: sig(s, 2).get_flag(d),
             torque_request: sig(s, 3).get(d),
         }
     }
@@ -833,20 +931,20 @@ pub struct MotorStatus {
 impl ProtocolMessage for MotorStatus {
     const KIND: MsgKind = MsgKind::MotorStatus;
     fn write_signals_in(&self, s: &MessageSpec, d: &mut [u8; 8]) {
-        sig(s, 2).put_raw(d, i64::from(self.ready));
-        sig(s, 3).put_raw(d, i64::from(self.fault));
-        sig(s, 4).put_raw(d, i64::from(self.derating));
-        sig(s, 5).put_raw(d, i64::from(self.cmd_timeout));
+        sig(s, 2).put_flag(d, self.ready);
+        sig(s, 3).put_flag(d, self.fault);
+        sig(s, 4).put_flag(d, self.derating);
+        sig(s, 5).put_flag(d, self.cmd_timeout);
         sig(s, 6).put(d, self.torque_actual);
         sig(s, 7).put(d, self.motor_speed);
         sig(s, 8).put_raw(d, i64::from(self.fault_code));
     }
     fn read_signals_in(s: &MessageSpec, d: &[u8; 8]) -> Self {
         Self {
-            ready: sig(s, 2).get_raw(d) != 0,
-            fault: sig(s, 3).get_raw(d) != 0,
-            derating: sig(s, 4).get_raw(d) != 0,
-            cmd_timeout: sig(s, 5).get_raw(d) != 0,
+            ready: sig(s, 2).get_flag(d),
+            fault: sig(s, 3).get_flag(d),
+            derating: sig(s, 4).get_flag(d),
+            cmd_timeout: sig(s, 5).get_flag(d),
             torque_actual: sig(s, 6).get(d),
             motor_speed: sig(s, 7).get(d),
             fault_code: sig(s, 8).get_raw(d) as u8,
@@ -879,15 +977,15 @@ pub struct WheelSpeeds {
 impl ProtocolMessage for WheelSpeeds {
     const KIND: MsgKind = MsgKind::WheelSpeeds;
     fn write_signals_in(&self, s: &MessageSpec, d: &mut [u8; 8]) {
-        sig(s, 2).put_raw(d, i64::from(self.driven_valid));
-        sig(s, 3).put_raw(d, i64::from(self.ref_valid));
+        sig(s, 2).put_flag(d, self.driven_valid);
+        sig(s, 3).put_flag(d, self.ref_valid);
         sig(s, 4).put(d, self.omega_driven);
         sig(s, 5).put(d, self.omega_ref);
     }
     fn read_signals_in(s: &MessageSpec, d: &[u8; 8]) -> Self {
         Self {
-            driven_valid: sig(s, 2).get_raw(d) != 0,
-            ref_valid: sig(s, 3).get_raw(d) != 0,
+            driven_valid: sig(s, 2).get_flag(d),
+            ref_valid: sig(s, 3).get_flag(d),
             omega_driven: sig(s, 4).get(d),
             omega_ref: sig(s, 5).get(d),
         }
@@ -913,13 +1011,13 @@ pub struct VehicleSpeed {
 impl ProtocolMessage for VehicleSpeed {
     const KIND: MsgKind = MsgKind::VehicleSpeed;
     fn write_signals_in(&self, s: &MessageSpec, d: &mut [u8; 8]) {
-        sig(s, 2).put_raw(d, i64::from(self.valid));
+        sig(s, 2).put_flag(d, self.valid);
         sig(s, 3).put(d, self.speed);
         sig(s, 4).put(d, self.long_accel);
     }
     fn read_signals_in(s: &MessageSpec, d: &[u8; 8]) -> Self {
         Self {
-            valid: sig(s, 2).get_raw(d) != 0,
+            valid: sig(s, 2).get_flag(d),
             speed: sig(s, 3).get(d),
             long_accel: sig(s, 4).get(d),
         }
@@ -946,15 +1044,15 @@ pub struct DriverDemand {
 impl ProtocolMessage for DriverDemand {
     const KIND: MsgKind = MsgKind::DriverDemand;
     fn write_signals_in(&self, s: &MessageSpec, d: &mut [u8; 8]) {
-        sig(s, 2).put_raw(d, i64::from(self.brake_pressed));
-        sig(s, 3).put_raw(d, i64::from(self.tcs_enable));
+        sig(s, 2).put_flag(d, self.brake_pressed);
+        sig(s, 3).put_flag(d, self.tcs_enable);
         sig(s, 4).put(d, self.torque_demand);
         sig(s, 5).put(d, self.pedal_position);
     }
     fn read_signals_in(s: &MessageSpec, d: &[u8; 8]) -> Self {
         Self {
-            brake_pressed: sig(s, 2).get_raw(d) != 0,
-            tcs_enable: sig(s, 3).get_raw(d) != 0,
+            brake_pressed: sig(s, 2).get_flag(d),
+            tcs_enable: sig(s, 3).get_flag(d),
             torque_demand: sig(s, 4).get(d),
             pedal_position: sig(s, 5).get(d),
         }
@@ -1527,6 +1625,46 @@ mod tests {
         assert!((p.bus_load() - 0.432).abs() < 1e-12, "{}", p.bus_load());
         assert!(p.bus_load() <= MAX_BUS_LOAD);
         assert!(p.describe_bus().contains("43.2 %"), "{}", p.describe_bus());
+    }
+
+    /// A flag's sense: without `set_raw` any non-zero value is set (the
+    /// built-in protocol's); with one only that value, and a cleared flag
+    /// is sent as a value that reads back cleared, also in a signed 1-bit
+    /// field (which holds -1 and 0) whose set value is 0.
+    #[test]
+    fn a_flag_reads_and_writes_in_its_sense() {
+        let plain = WHEEL_SPEEDS.signals[2];
+        let inverted = SignalSpec {
+            set_raw: Some(0),
+            ..plain
+        };
+        let signed = SignalSpec {
+            signed: true,
+            ..inverted
+        };
+        let status = SignalSpec {
+            len: 2,
+            set_raw: Some(2),
+            ..plain
+        };
+        for (s, set, clear) in [
+            (plain, 1, 0),
+            (inverted, 0, 1),
+            (signed, 0, -1),
+            (status, 2, 0),
+        ] {
+            let mut d = [0u8; 8];
+            for on in [true, false, true] {
+                s.put_flag(&mut d, on);
+                assert_eq!(s.get_raw(&d), if on { set } else { clear }, "{s:?}");
+                assert_eq!(s.get_flag(&d), on, "{s:?}");
+            }
+        }
+        let mut d = [0u8; 8];
+        status.put_raw(&mut d, 3);
+        assert!(!status.get_flag(&d));
+        plain.put_raw(&mut d, 1);
+        assert!(plain.get_flag(&d) && !inverted.get_flag(&d));
     }
 
     #[test]

@@ -202,9 +202,25 @@ pub fn load_can(dir: &ConfigDir) -> Result<CanBusConfig, ConfigError> {
 /// sends, receives, filters and logs is laid out as the bus's DBC says.
 /// Called by the services' `load` before anything is built from the
 /// protocol. Errors name the DBC file, the message or signal and the reason.
+///
+/// Without the wheels' radii: a DBC whose wheel speeds are in km/h or m/s
+/// is refused; the services, which load the vehicle file, call
+/// [`install_protocol_with`].
 pub fn install_protocol(
     dir: &ConfigDir,
     can: &crate::can::CanBusConfig,
+) -> Result<&'static crate::can::protocol::Protocol, ConfigError> {
+    install_protocol_with(dir, can, None)
+}
+
+/// [`install_protocol`] with the wheels' rolling radii (the vehicle file's
+/// `r` and `r_ref`), which convert a wheel speed the DBC gives in km/h or
+/// m/s to rad/s (ω = v ÷ r). `can.toml`'s `[dbc_valid]` is applied either
+/// way.
+pub fn install_protocol_with(
+    dir: &ConfigDir,
+    can: &crate::can::CanBusConfig,
+    radii: Option<crate::can::protocol::WheelRadii>,
 ) -> Result<&'static crate::can::protocol::Protocol, ConfigError> {
     use crate::can::protocol::{Protocol, install};
     let can_toml = dir.file("can.toml");
@@ -216,10 +232,18 @@ pub fn install_protocol(
                 "names a DBC's messages but no dbc = \"FILE\" is set",
             ));
         }
+        None if !can.dbc_valid.is_empty() => {
+            return Err(ConfigError::new(
+                &can_toml,
+                "dbc_valid",
+                "gives a DBC's validity values but no dbc = \"FILE\" is set (the built-in protocol's flags are valid when 1)",
+            ));
+        }
         None => Protocol::builtin().clone(),
         Some(f) => {
             let path = dir.file(f);
-            Protocol::load_dbc(&path, &can.dbc_names).map_err(|e| {
+            let settings = crate::can::DbcSettings::from_can(can, radii);
+            Protocol::load_dbc_with(&path, &settings).map_err(|e| {
                 // a [dbc_names] key is can.toml's: named by its path
                 let file = if e.file == "can.toml" {
                     can_toml.clone()
@@ -235,6 +259,7 @@ pub fn install_protocol(
             dbc = can.dbc.as_deref().unwrap_or("(built in)"),
             messages = %p.describe(),
             bus = %p.describe_bus(),
+            speeds = %p.describe_speeds(),
             "CAN protocol"
         );
     }

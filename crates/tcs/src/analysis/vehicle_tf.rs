@@ -171,6 +171,71 @@ pub fn kmfc_bound(
     })
 }
 
+/// Where the configured MFC gain lies above bound (4) for this vehicle: for
+/// each road of `cat`, the real inertia at the road's λ_opt (where the MFC
+/// is meant to hold the wheel), the bound with the loop's full lag
+/// (τ₁ = τ_m + `tau_noise`, τ₂ = `tau_hpf`, K = [`K_MOTOR`]) and, if `k_mfc`
+/// exceeds it, (road name, bound). Empty when the gain is within every road's
+/// bound (the shipped vehicles). Above the bound the MFC loop is still
+/// Hurwitz (Δ > 0 at any slip), but its poles are complex: the wheel speed
+/// overshoots and rings where the paper's tuning assumed it would not. The
+/// free-spinning wheel (J_r = J_w) is left out: every configuration exceeds
+/// it, which is MFC's known limit cycle on a spinning wheel.
+pub fn kmfc_above_bound(
+    v: &VehicleParams,
+    cat: &grip_physics::RoadCatalogue,
+    mfc: &crate::MfcParams,
+) -> Result<Vec<(String, f64)>, AnalysisError> {
+    vehicle_ok(v)?;
+    let jm = v.j_model();
+    let mut above = Vec::new();
+    for r in cat.iter() {
+        let b = kmfc_bound(
+            jm,
+            j_real(v, r.lambda_opt()),
+            v.tau_m + mfc.tau_noise,
+            mfc.tau_hpf,
+            K_MOTOR,
+        )?;
+        if mfc.k_mfc > b.bound {
+            above.push((r.name().to_owned(), b.bound));
+        }
+    }
+    Ok(above)
+}
+
+/// The start-up warning for [`kmfc_above_bound`]: `None` when the gain is
+/// within every road's bound; else one line naming the controllers file,
+/// the gain, the vehicle file, the roads with their bounds and what to do.
+pub fn kmfc_warning(
+    v: &VehicleParams,
+    vehicle_file: &std::path::Path,
+    cat: &grip_physics::RoadCatalogue,
+    mfc: &crate::MfcParams,
+    controllers_file: &std::path::Path,
+) -> Result<Option<String>, AnalysisError> {
+    let above = kmfc_above_bound(v, cat, mfc)?;
+    if above.is_empty() {
+        return Ok(None);
+    }
+    let lowest = above.iter().map(|(_, b)| *b).fold(f64::INFINITY, f64::min);
+    let roads: Vec<String> = above.iter().map(|(n, b)| format!("{n} {b:.0}")).collect();
+    Ok(Some(format!(
+        "{}: [mfc] k_mfc = {} N m s/rad is above the MFC's no-overshoot bound (4) for the vehicle of {} \
+         on {} of {} roads (bound at the road's lambda_opt, N m s/rad: {}): the loop stays stable but its \
+         wheel speed overshoots and rings there; the gain is the paper's car's, set k_mfc at or below {:.0} \
+         for this vehicle (`grip analyze --vehicle {}` shows the bounds)",
+        controllers_file.display(),
+        mfc.k_mfc,
+        vehicle_file.display(),
+        above.len(),
+        cat.len(),
+        roads.join(", "),
+        lowest.floor(),
+        vehicle_file.display(),
+    )))
+}
+
 /// Parameters of the SRC slip plant, eqs. (6)-(8).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SrcSlip {
@@ -359,6 +424,63 @@ mod tests {
             let h = t2 * s / (t2 * s + 1.0);
             let want = g * motor / (1.0 + kmfc * h * g * motor);
             assert!((tf.eval_c(s) - want).norm() < 1e-12 * want.norm(), "ω={w}");
+        }
+    }
+
+    #[test]
+    fn the_gain_check_names_the_roads_a_light_car_overshoots_on() {
+        let cat = grip_physics::RoadCatalogue::burckhardt(&["asphalt", "snow", "stone"]).unwrap();
+        let mfc = crate::MfcParams {
+            k_mfc: 177.0,
+            tau_hpf: 1.0,
+            tau_noise: 0.004,
+        };
+        // the paper's car: within every road's bound, no warning
+        assert!(kmfc_above_bound(&v(), &cat, &mfc).unwrap().is_empty());
+        let none = kmfc_warning(&v(), "v.toml".as_ref(), &cat, &mfc, "c.toml".as_ref());
+        assert_eq!(none.unwrap(), None);
+        // a light car with small wheels: J_r on stone ≈ 4.2 kg m², bound well under 177
+        let light = VehicleParams {
+            mass: 800.0,
+            r: 0.25,
+            j_w: 0.4,
+            ..v()
+        };
+        let above = kmfc_above_bound(&light, &cat, &mfc).unwrap();
+        let names: Vec<&str> = above.iter().map(|(n, _)| n.as_str()).collect();
+        assert!(names.contains(&"stone"), "{above:?}");
+        assert!(!names.contains(&"snow"), "{above:?}");
+        // each bound is eq. (4) written out here: J_m (τ₂ − τ₁)² / (4 τ₂² τ₁ Δ)
+        for (name, bound) in &above {
+            let road = cat.iter().find(|r| r.name() == name).unwrap();
+            let m = light.mass_share();
+            let jm = light.j_w + m * light.r * light.r;
+            let jr = light.j_w + m * light.r * light.r * (1.0 - road.lambda_opt());
+            let t1 = light.tau_m + 0.004;
+            let want = jm * (1.0 - t1).powi(2) / (4.0 * t1 * (jm / jr - 1.0));
+            assert!(
+                (bound - want).abs() < 1e-9 * want,
+                "{name}: {bound} vs {want}"
+            );
+            assert!(*bound < 177.0);
+        }
+        let w = kmfc_warning(
+            &light,
+            "my-car.toml".as_ref(),
+            &cat,
+            &mfc,
+            "controllers.toml".as_ref(),
+        )
+        .unwrap()
+        .unwrap();
+        for says in [
+            "controllers.toml",
+            "k_mfc = 177",
+            "my-car.toml",
+            "stone",
+            "grip analyze --vehicle my-car.toml",
+        ] {
+            assert!(w.contains(says), "{says}: {w}");
         }
     }
 

@@ -78,14 +78,14 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     if !(args.ready_timeout.is_finite() && args.ready_timeout > 0.0) {
         bail!("--ready-timeout must be a positive number of seconds");
     }
-    let vehicle = match &args.vehicle {
+    let (vehicle, vehicle_params) = match &args.vehicle {
         Some(v) => {
             let v = cwd.join(v);
             // a bad file fails here, before any service starts
-            grip_config::load_vehicle(&v)?;
-            Some(v)
+            let (params, _) = grip_config::load_vehicle(&v)?;
+            (Some(v), params)
         }
-        None => None,
+        None => (None, dir.vehicle()?.0),
     };
     // arte's model against the audio's rate, before any service starts:
     // arte refuses every block at another rate, and the drive would run to
@@ -130,7 +130,10 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         let dir = grip_config::ConfigDir::new(&config_dir);
         let can = grip_io::service::load_can(&dir)?;
         if let Some(f) = &can.dbc {
-            grip_io::can::protocol::Protocol::load_dbc(&dir.file(f), &can.dbc_names)
+            // with the drive's vehicle's wheel radii, as tcs-loop reads it
+            let radii = grip_tcs_loop::run::wheel_radii(&vehicle_params);
+            let settings = grip_io::can::DbcSettings::from_can(&can, Some(radii));
+            grip_io::can::protocol::Protocol::load_dbc_with(&dir.file(f), &settings)
                 .map_err(|e| anyhow::anyhow!("the CAN bus (can.toml's dbc): {e}"))?;
         }
     }
