@@ -23,7 +23,7 @@ pub mod node {
 pub const AUDIO: &str = "grip/audio/block";
 /// `RoadEstimate` from arte; read by tcs-loop (every one, in order) and recorder.
 pub const ROAD: &str = "grip/arte/road";
-/// `CycleRecord` from tcs-loop, one per control cycle; read by recorder.
+/// `CycleRecord` from tcs-loop, one per control cycle; read by the recorder and arte.
 pub const CYCLE: &str = "grip/tcs/cycle";
 /// `CanFrame` copies of every frame tcs-loop sent or received (any transport),
 /// flagged with direction; read by recorder.

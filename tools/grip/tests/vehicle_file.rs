@@ -64,3 +64,82 @@ fn defaulted_fields_are_named_and_implausible_values_refused() {
         assert!(err.contains(says), "{says}: {err}");
     }
 }
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// MFC's gain is the paper's car's: `grip analyze --vehicle` shows the
+/// bounds of the user's own file, and on a light car with small wheels,
+/// where K_MFC = 177 lies above the no-overshoot bound (4) on some roads,
+/// `grip analyze` and `grip sim` (with an MFC variant) say so, naming the
+/// files and roads; the shipped cars get no such warning.
+#[test]
+fn analyze_takes_the_users_vehicle_and_the_mfc_gain_is_checked_against_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let analyze = |vehicle: &std::path::Path| {
+        grip()
+            .args(["analyze", "--vehicle"])
+            .arg(vehicle)
+            .output()
+            .unwrap()
+    };
+    let front = config_dir().join("vehicles/front-mic.toml");
+    let o = analyze(&front);
+    let out = stdout(&o);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.contains("front-mic.toml) =="), "{out}");
+    // front-mic's heavier wheel share: asphalt's bound is its own, not vehicle.toml's 582
+    let asphalt = out
+        .lines()
+        .find(|l| l.trim_start().starts_with("asphalt (lambda_opt)"))
+        .unwrap();
+    assert!(asphalt.contains("1136.9768"), "{asphalt}");
+    assert!(!out.contains("warning"), "{out}");
+
+    let light = tmp.path().join("light-car.toml");
+    let text = std::fs::read_to_string(config_dir().join("vehicle.toml"))
+        .unwrap()
+        .replace("mass = 1400.0 ", "mass = 800.0 ")
+        .replace("j_w = 0.6 ", "j_w = 0.4 ")
+        .replace("r = 0.28 ", "r = 0.25 ");
+    assert!(text.contains("mass = 800.0") && text.contains("r = 0.25"));
+    std::fs::write(&light, text).unwrap();
+    let o = analyze(&light);
+    let out = stdout(&o);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stone = out
+        .lines()
+        .find(|l| l.trim_start().starts_with("stone (lambda_opt)"))
+        .unwrap();
+    assert!(stone.trim_end().ends_with("NO"), "{stone}");
+    for says in [
+        "warning: ",
+        "controllers.toml: [mfc] k_mfc = 177",
+        "light-car.toml",
+        "stone",
+    ] {
+        assert!(out.contains(says), "{says}: {out}");
+    }
+
+    let sim = |vehicle: &std::path::Path, out: &str| {
+        grip()
+            .args(["sim", "--seeds", "1", "--variants", "mfc", "--vehicle"])
+            .arg(vehicle)
+            .arg("--out")
+            .arg(tmp.path().join(out))
+            .output()
+            .unwrap()
+    };
+    let o = sim(&light, "light");
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("warning: ") && err.contains("k_mfc = 177") && err.contains("light-car.toml"),
+        "{err}"
+    );
+    let o = sim(&config_dir().join("vehicle.toml"), "shipped");
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(!err.contains("k_mfc"), "{err}");
+}

@@ -39,6 +39,11 @@ pub struct Args {
     /// Road the SRC's model assumes without ARTE.
     #[arg(long, default_value = "asphalt")]
     src_nominal_road: String,
+    /// Vehicle and sensors (default: `<config-dir>/vehicle.toml`); e.g.
+    /// config/vehicles/front-mic.toml, or your own car's file, as `grip sim`
+    /// and `grip drive` take it.
+    #[arg(long)]
+    vehicle: Option<std::path::PathBuf>,
 }
 
 #[derive(clap::Subcommand)]
@@ -188,7 +193,8 @@ fn run_report(ctx: &Ctx, args: &Args) -> anyhow::Result<()> {
         );
     }
     let dir = grip_config::ConfigDir::new(&ctx.config_dir);
-    let (v, _) = dir.vehicle()?;
+    let vehicle_path = args.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
+    let (v, _) = grip_config::load_vehicle(&vehicle_path)?;
     let cat: RoadCatalogue = dir.roads()?;
     let ctl_path = dir.file("controllers.toml");
     let ctl = grip_config::load_controllers(&ctl_path)?;
@@ -196,7 +202,7 @@ fn run_report(ctx: &Ctx, args: &Args) -> anyhow::Result<()> {
     let m = v.mass_share();
     let jm = v.j_model();
 
-    println!("== Vehicle ({}) ==", dir.vehicle_path().display());
+    println!("== Vehicle ({}) ==", vehicle_path.display());
     println!(
         "  M = {} kg, n = {} driven wheels -> the wheel carries M/n = {} kg, {}",
         fmt_num(v.mass),
@@ -374,6 +380,11 @@ fn run_report(ctx: &Ctx, args: &Args) -> anyhow::Result<()> {
         fmt_num(ctl.mfc.k_mfc),
         fmt_num(k)
     );
+    if let Some(w) =
+        grip_tcs::analysis::vehicle_tf::kmfc_warning(&v, &vehicle_path, &cat, &ctl.mfc, &ctl_path)?
+    {
+        println!("  warning: {w}");
+    }
 
     let classes = paper_classes(&cat)?;
     println!(
@@ -514,6 +525,7 @@ mod tests {
             k_motor: 1.0,
             speed_kmh: 20.0,
             src_nominal_road: "asphalt".into(),
+            vehicle: None,
         };
         run(&ctx, args).unwrap();
         let bad = Args {
@@ -521,6 +533,7 @@ mod tests {
             k_motor: 1.0,
             speed_kmh: 20.0,
             src_nominal_road: "moon".into(),
+            vehicle: None,
         };
         let e = run(&ctx, bad).unwrap_err().to_string();
         assert!(e.contains("--src-nominal-road `moon`"), "{e}");

@@ -85,7 +85,7 @@ pub struct Args {
     #[arg(long, value_enum, value_delimiter = ',', default_value = "on")]
     arte: Vec<OnOff>,
     /// Vehicle TOML for plant-sim and tcs-loop (attached to each log as
-    /// `grip drive --vehicle` does); default: `<config-dir>/vehicle.toml.`
+    /// `grip drive --vehicle` does); default: `<config-dir>/vehicle.toml`.
     #[arg(long)]
     vehicle: Option<PathBuf>,
     /// Start speed, km/h: one value, or LO:HI drawn uniformly per log

@@ -278,6 +278,22 @@ fn reason_of(e: &grip_sim::SimError) -> String {
     }
 }
 
+/// MFC's gain is the paper's car's: on stderr, the roads where it lies above
+/// the no-overshoot bound (4) for this vehicle (nothing for the shipped ones).
+fn warn_kmfc(config_dir: &Path, setup: &SimSetup, vehicle_path: &Path) -> anyhow::Result<()> {
+    let w = grip_tcs::analysis::vehicle_tf::kmfc_warning(
+        setup.vehicle(),
+        vehicle_path,
+        setup.roads(),
+        &setup.controllers().mfc,
+        &ConfigDir::new(config_dir).file("controllers.toml"),
+    )?;
+    if let Some(w) = w {
+        eprintln!("warning: {w}");
+    }
+    Ok(())
+}
+
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     let variants = Variant::parse_list(&args.variants)?;
     check_acoustic_options(&args)?;
@@ -297,6 +313,12 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         &seeds,
         &spec,
     )?;
+    if variants
+        .iter()
+        .any(|v| v.kind == grip_tcs::ControllerKind::Mfc)
+    {
+        warn_kmfc(&ctx.config_dir, &loaded.setup, &loaded.vehicle_path)?;
+    }
     if let Some(h) = args.max_substep {
         set_max_substep(&mut loaded, h)?;
     }
