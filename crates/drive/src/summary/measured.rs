@@ -267,6 +267,31 @@ fn valid_v(c: &CycleRecord) -> Option<f64> {
     (c.v_valid != 0 && c.v.is_finite()).then_some(c.v)
 }
 
+/// Why a cycle record measures no slip ([`cycle_slip`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NoSlip {
+    /// No valid, finite V, or ω no number.
+    NoValidV,
+    /// The loop was in its safe state: its record then holds ω = 0 for a
+    /// wheel speed it no longer has (a wheel-speed timeout), no locked wheel.
+    SafeState,
+    /// max(r ω, V) below [`MIN_SPEED_MPS`].
+    Slow,
+}
+
+/// The slip a cycle record measures, or why it has none: the one rule of the
+/// measured section, the drive summary's plots and every other reader of a
+/// log's measured slip.
+pub fn cycle_slip(r: f64, v_eps: f64, c: &CycleRecord) -> Result<f64, NoSlip> {
+    let v = valid_v(c)
+        .filter(|_| c.omega.is_finite())
+        .ok_or(NoSlip::NoValidV)?;
+    if c.safe_state != 0 {
+        return Err(NoSlip::SafeState);
+    }
+    slip(r, v_eps, c.omega, v).ok_or(NoSlip::Slow)
+}
+
 /// Time-weighted sums.
 #[derive(Debug, Clone, Copy, Default)]
 struct Acc {
@@ -448,19 +473,24 @@ pub fn measured(
                     .or_insert((0.0, 0.0, 0.0, f64::NAN, Acc::default()));
             belief.0 += dt;
             belief.4.add(c.torque_cmd, dt);
-            let v = valid_v(c).filter(|_| c.omega.is_finite());
-            let Some(v) = v else {
-                m.no_valid_v += 1;
-                continue;
-            };
-            vs.push((c.stamp_ns, v));
-            if c.safe_state != 0 {
-                m.safe += 1;
-                continue;
+            if let Some(v) = valid_v(c).filter(|_| c.omega.is_finite()) {
+                // V counts for the acceleration in the safe state too
+                vs.push((c.stamp_ns, v));
             }
-            let Some(l) = slip(r, v_eps, c.omega, v) else {
-                m.slow += 1;
-                continue;
+            let l = match cycle_slip(r, v_eps, c) {
+                Ok(l) => l,
+                Err(NoSlip::NoValidV) => {
+                    m.no_valid_v += 1;
+                    continue;
+                }
+                Err(NoSlip::SafeState) => {
+                    m.safe += 1;
+                    continue;
+                }
+                Err(NoSlip::Slow) => {
+                    m.slow += 1;
+                    continue;
+                }
             };
             m.slip_cycles += 1;
             m.slip_s += dt;
@@ -951,6 +981,31 @@ mod tests {
             "{r}"
         );
         assert!(r.contains("1 stretch, 0.800 s in all"), "{r}");
+    }
+
+    /// The one rule, each reason apart (the measured section counts them,
+    /// the car-log plot draws only the slips).
+    #[test]
+    fn a_cycle_measures_slip_or_says_why_not() {
+        let mut c = CycleRecord {
+            omega: 20.0,
+            v: 5.0,
+            v_valid: 1,
+            ..Default::default()
+        };
+        let l = cycle_slip(0.28, 0.1, &c).unwrap();
+        assert!((l - (5.6 - 5.0) / 5.6).abs() < 1e-12, "{l}");
+        c.safe_state = 1;
+        assert_eq!(cycle_slip(0.28, 0.1, &c), Err(NoSlip::SafeState));
+        c.safe_state = 0;
+        c.v_valid = 0;
+        assert_eq!(cycle_slip(0.28, 0.1, &c), Err(NoSlip::NoValidV));
+        c.v_valid = 1;
+        c.omega = f64::NAN;
+        assert_eq!(cycle_slip(0.28, 0.1, &c), Err(NoSlip::NoValidV));
+        c.omega = 1.0;
+        c.v = 0.5;
+        assert_eq!(cycle_slip(0.28, 0.1, &c), Err(NoSlip::Slow));
     }
 
     /// A wheel-speed timeout: the loop enters its safe state and records

@@ -97,13 +97,14 @@ fn series(log: &DriveLog, r: f64, v_eps: f64) -> Series {
     let x = |ns: u64| tb.axis(ns);
     let name = |n: Option<&str>| n.unwrap_or("?").to_owned();
     let valid_v: Vec<_> = log.cycles.iter().filter(|c| c.v_valid != 0).collect();
-    // the measured section's rule: no slip in the loop's safe state, whose
-    // record holds ω = 0 for a wheel speed it no longer has
-    let slips: Vec<(f64, f64)> = valid_v
+    // the measured section's rule (no slip in the loop's safe state, ...)
+    let slips: Vec<(f64, f64)> = log
+        .cycles
         .iter()
-        .filter(|c| c.safe_state == 0)
         .filter_map(|c| {
-            grip_drive::summary::measured::slip(r, v_eps, c.omega, c.v).map(|l| (x(c.stamp_ns), l))
+            grip_drive::summary::measured::cycle_slip(r, v_eps, c)
+                .ok()
+                .map(|l| (x(c.stamp_ns), l))
         })
         .collect();
     let est: Vec<(f64, f64, String)> = log
