@@ -58,7 +58,7 @@
 //! [`SharedStatus`] atomics that a non-real-time thread reads and logs.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 
 use grip_io::can::protocol::{
     DriverDemand, E2eSender, InverterMsg, MotorStatus, ProtocolMessage, ProtocolRx, Role,
@@ -121,6 +121,47 @@ impl CycleTick {
     }
 }
 
+/// Why the loop's inputs were invalid: bits of
+/// [`SharedStatus::safe_cause`].
+pub struct SafeCause;
+
+impl SafeCause {
+    /// No fresh `WheelSpeeds` frame with `DrivenValid` valid.
+    pub const WHEEL_SPEED: u8 = 1;
+    /// No fresh `MotorStatus` frame.
+    pub const MOTOR_STATUS: u8 = 2;
+    /// The inverter's `MotorStatus` reports `Fault` (it has zeroed, or
+    /// will not deliver, the torque: the controller's state would wind up
+    /// on a torque that is not there).
+    pub const INVERTER_FAULT: u8 = 4;
+    /// No fresh `DriverDemand` frame.
+    pub const DEMAND: u8 = 8;
+
+    /// The causes in `bits`, in words, for the transition log.
+    pub fn describe(bits: u8, fault_code: u8) -> String {
+        let mut parts = Vec::new();
+        if bits & Self::WHEEL_SPEED != 0 {
+            parts.push("wheel-speed frames missing or invalid".to_owned());
+        }
+        if bits & Self::MOTOR_STATUS != 0 {
+            parts.push("motor-status frames missing".to_owned());
+        }
+        if bits & Self::INVERTER_FAULT != 0 {
+            parts.push(format!(
+                "the inverter reports Fault (FaultCode 0x{fault_code:02X})"
+            ));
+        }
+        if bits & Self::DEMAND != 0 {
+            parts.push("driver-demand frames missing".to_owned());
+        }
+        if parts.is_empty() {
+            "inputs invalid".to_owned()
+        } else {
+            parts.join(", ")
+        }
+    }
+}
+
 /// Loop state published for the non-real-time helper thread (watchdog,
 /// transition logging). Written with relaxed stores every cycle.
 #[derive(Debug, Default)]
@@ -131,6 +172,13 @@ pub struct SharedStatus {
     pub safe_state: AtomicBool,
     /// Times the safe state was entered.
     pub safe_entries: AtomicU64,
+    /// Why the inputs were invalid in the last cycle that found them so
+    /// ([`SafeCause`] bits; kept while they are valid again, so the
+    /// transition log can name the cause of the entry it reports).
+    pub safe_cause: AtomicU8,
+    /// The inverter's `FaultCode` in the last cycle whose `MotorStatus`
+    /// reported `Fault`.
+    pub inverter_fault_code: AtomicU8,
     /// The controller used ARTE's knowledge in the last cycle.
     pub used_arte: AtomicBool,
     /// Road estimates received so far.
@@ -505,7 +553,24 @@ impl TcsLoop {
         // 3. safe state
         let ms = Self::fresh(&self.ms, now, self.sensor_timeout_ns);
         let dd = Self::fresh(&self.dd, now, self.demand_timeout_ns);
-        let inputs_ok = ws.is_some() && ms.is_some() && dd.is_some();
+        // an inverter that reports a fault has zeroed (or will not deliver)
+        // the torque: the controller is not stepped on a torque that is not
+        // there, and is reset once the fault has been gone for recover_ms
+        let inverter_fault = ms.is_some_and(|m| m.fault);
+        let inputs_ok = ws.is_some() && ms.is_some() && !inverter_fault && dd.is_some();
+        if !inputs_ok {
+            let bit = |on: bool, b: u8| if on { b } else { 0 };
+            let cause = bit(ws.is_none(), SafeCause::WHEEL_SPEED)
+                | bit(ms.is_none(), SafeCause::MOTOR_STATUS)
+                | bit(inverter_fault, SafeCause::INVERTER_FAULT)
+                | bit(dd.is_none(), SafeCause::DEMAND);
+            self.status.safe_cause.store(cause, Ordering::Relaxed);
+            if let Some(m) = ms.filter(|m| m.fault) {
+                self.status
+                    .inverter_fault_code
+                    .store(m.fault_code, Ordering::Relaxed);
+            }
+        }
         if inputs_ok {
             self.valid_since_ns.get_or_insert(now);
         } else {

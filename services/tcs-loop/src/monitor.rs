@@ -13,7 +13,7 @@ use grip_io::service::monitor::{
 };
 use grip_io::warn_if_grew;
 
-use crate::cycle::SharedStatus;
+use crate::cycle::{SafeCause, SharedStatus};
 
 /// Spawns the helper thread (call it *before* the calling thread switches to
 /// SCHED_FIFO so the helper stays SCHED_OTHER). It wakes every 50 ms (or at
@@ -74,7 +74,11 @@ impl Monitor for TcsMonitor {
         match self.safe.update(s.safe_state.load(Ordering::Relaxed), now) {
             Some(ToggleEvent::Changed(true)) => tracing::warn!(
                 entries = s.safe_entries.load(Ordering::Relaxed),
-                "SAFE STATE entered: sensor or driver-demand frames missing; commanding 0 N m, enable cleared"
+                "SAFE STATE entered: {}; commanding 0 N m, enable cleared",
+                SafeCause::describe(
+                    s.safe_cause.load(Ordering::Relaxed),
+                    s.inverter_fault_code.load(Ordering::Relaxed)
+                )
             ),
             Some(ToggleEvent::Changed(false)) => {
                 tracing::info!("safe state left: inputs valid again; controller reset")

@@ -26,6 +26,8 @@ struct Feeder {
     omega: f64,
     torque: f64,
     demand: f64,
+    /// `Some(code)`: MotorStatus reports Fault with this FaultCode.
+    fault_code: Option<u8>,
 }
 
 impl Feeder {
@@ -37,6 +39,7 @@ impl Feeder {
             omega: 10.0,
             torque: 50.0,
             demand: 200.0,
+            fault_code: None,
         }
     }
     fn wheel(&self) -> WheelSpeeds {
@@ -55,6 +58,8 @@ impl Feeder {
         self.ms.encode(
             &MotorStatus {
                 ready: true,
+                fault: self.fault_code.is_some(),
+                fault_code: self.fault_code.unwrap_or(0),
                 torque_actual: self.torque,
                 motor_speed: self.omega,
                 ..MotorStatus::default()
@@ -263,6 +268,56 @@ fn motor_status_timeout_enters_safe_state() {
     }
     let (rec, cmd) = r.cycle();
     assert_safe(&rec, &cmd);
+}
+
+/// An inverter that reports Fault has zeroed (or will not deliver) the
+/// torque: the loop enters its safe state in the cycle that reads it (0 N m,
+/// Enable cleared, the controller not stepped), names the cause for the
+/// transition log, and leaves recover_ms after the fault has cleared.
+#[test]
+fn an_inverter_fault_enters_the_safe_state_until_it_has_cleared() {
+    use grip_tcs_loop::cycle::SafeCause;
+    let mut r = Rig::new(ControllerKind::Src, false);
+    r.run_ok(100);
+    assert_eq!(r.lp.last_record().safe_state, 0);
+    r.feed.fault_code = Some(0x2A);
+    for _ in 0..30 {
+        r.feed(true, true, true);
+        let (rec, cmd) = r.cycle();
+        assert_safe(&rec, &cmd);
+    }
+    assert_eq!(r.lp.safe_entries(), 1);
+    let st = r.lp.status();
+    let cause = st.safe_cause.load(std::sync::atomic::Ordering::Relaxed);
+    assert_eq!(cause, SafeCause::INVERTER_FAULT);
+    let code = st
+        .inverter_fault_code
+        .load(std::sync::atomic::Ordering::Relaxed);
+    assert_eq!(
+        SafeCause::describe(cause, code),
+        "the inverter reports Fault (FaultCode 0x2A)"
+    );
+    // the fault clears: control again exactly recover_ms (50) later
+    r.feed.fault_code = None;
+    let mut left_at = None;
+    for i in 0..80 {
+        r.feed(true, true, true);
+        let (rec, cmd) = r.cycle();
+        if rec.safe_state == 0 {
+            assert!(cmd.enable);
+            left_at.get_or_insert(i);
+        } else {
+            assert!(left_at.is_none(), "re-entered the safe state at {i}");
+            assert_safe(&rec, &cmd);
+        }
+    }
+    assert_eq!(left_at, Some(50));
+    assert_eq!(r.lp.safe_entries(), 1);
+    // a missing frame and the fault together are both named
+    assert_eq!(
+        SafeCause::describe(SafeCause::WHEEL_SPEED | SafeCause::INVERTER_FAULT, 1),
+        "wheel-speed frames missing or invalid, the inverter reports Fault (FaultCode 0x01)"
+    );
 }
 
 #[test]
