@@ -29,7 +29,7 @@ use crate::replay::{
 pub const OPEN_LOOP: &str = "open loop: the logged wheel speeds, vehicle speed and motor torque are replayed as recorded; they do not react to a replayed torque command";
 
 /// The text of a closed-loop report.
-pub const CLOSED_LOOP: &str = "closed loop: plant-sim's loop re-simulates the vehicle from the drive's scenario, seed and vehicle in lock step with tcs-loop (1 kHz, manual clock, in-memory bus); ARTE's estimates are the drive's (what the microphone heard on the logged drive), handed over in the cycle the drive took them";
+pub const CLOSED_LOOP: &str = "closed loop: plant-sim's loop re-simulates the vehicle from the drive's scenario, seed and vehicle beside tcs-loop's, each cycle run when, and with the frames, the logged drive's ran (the plant from its first cycle and started when the live one started; each loop cycle drains what the logged one drained; in-memory bus, the logged clocks); ARTE's estimates are the drive's (what the microphone heard on the logged drive), handed over in the cycle the drive took them";
 
 /// Fields carried over from the log, not recomputed: they measure the
 /// machine, and the replay feeds them to the loop as inputs.
@@ -578,7 +578,7 @@ pub fn replay(
     if closed {
         let _ = writeln!(
             o,
-            "\nper topic (field by field; in closed loop the plant's own frames and timing differ by construction):"
+            "\nper topic (field by field; in closed loop, with nothing changed, the drive's own cycles and frames are reproduced: a difference is the change's, or a schedule the log did not fully tell):"
         );
     } else {
         let _ = writeln!(o, "\nper topic (field by field, no tolerance):");

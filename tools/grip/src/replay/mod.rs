@@ -19,8 +19,11 @@
 //! Open loop: the logged wheel speeds, vehicle speed and motor torque are
 //! replayed as recorded; they do not react to a replayed torque command.
 
+mod closed;
 pub mod compare;
 pub mod config;
+
+pub use closed::closed_loop;
 
 use std::cell::{Cell, RefCell};
 use std::collections::VecDeque;
@@ -495,81 +498,6 @@ pub fn replay_tcs(
         lp.shutdown(f.stamp_ns, &mut bus, &mut out);
     }
     out
-}
-
-/// Collects plant-sim's ground truth.
-#[derive(Debug, Default)]
-struct Truths(Vec<GroundTruth>);
-
-impl grip_plant_sim::TruthSink for Truths {
-    fn truth(&mut self, g: &GroundTruth) {
-        self.0.push(*g);
-    }
-}
-
-/// What a closed-loop replay produced.
-#[derive(Debug, Default)]
-pub struct ClosedLoop {
-    /// The re-simulated plant's ground truth.
-    pub truth: Vec<GroundTruth>,
-    /// The loop's outputs.
-    pub outs: Outputs,
-}
-
-/// `--closed-loop`: plant-sim's own loop (`PlantSim::cycle`, built by its
-/// start-up from the drive's scenario, seed and vehicle) and `lp` in lock
-/// step on a manual clock at the loop period over an in-memory bus pair,
-/// from the first logged cycle's deadline; the plant is asked to start when
-/// the logged drive's scenario started (it then waits for valid commands,
-/// as in the drive). The road estimates are the logged (or arte's replayed)
-/// ones, handed over in the cycle the drive took them: what the microphone
-/// heard on the logged drive (the acoustics stay open loop). Runs until
-/// plant-sim ends the scenario, or twice the logged cycles.
-pub fn closed_loop(
-    lp: &mut TcsLoop,
-    plant: &mut grip_plant_sim::PlantSim,
-    log: &DriveLog,
-    roads: &[RoadEstimate],
-    period_ns: u64,
-) -> ClosedLoop {
-    use grip_io::clock::ManualClock;
-    let t0 = log.cycles[0].stamp_ns;
-    let clock = ManualClock::new(t0);
-    let (mut bus_p, mut bus_t) = MemBus::pair();
-    let start_ns = grip_drive::summary::scenario_start(&log.truth)
-        .and_then(|i| log.truth.get(i))
-        .map_or(t0, |g| g.stamp_ns);
-    let taken = taken_per_cycle(log);
-    let mut truths = Truths::default();
-    let mut outs = Outputs::default();
-    for k in 0..log.cycles.len() * 2 {
-        let now = clock.now_ns();
-        if now >= start_ns {
-            plant.request_start();
-        }
-        let o = plant.cycle(
-            &grip_plant_sim::PlantTick::at(now),
-            &clock,
-            &mut bus_p,
-            &mut truths,
-        );
-        if o == grip_plant_sim::Outcome::Finished {
-            break;
-        }
-        let mut road = Road::of(taken.of(k), roads);
-        lp.cycle(
-            &CycleTick::at(now),
-            &clock,
-            &mut bus_t,
-            &mut road,
-            &mut outs,
-        );
-        clock.advance_ns(period_ns);
-    }
-    ClosedLoop {
-        truth: truths.0,
-        outs,
-    }
 }
 
 /// The estimates each logged cycle took: indices into `log.roads`, in the
