@@ -9,17 +9,8 @@ use grip_testkit::svc::{NotifySocket, Service, copy_config, strip_rt};
 
 const BIN: &str = env!("CARGO_BIN_EXE_tcs-loop");
 
-/// The shipped files tcs-loop reads.
-const CONFIG: [&str; 8] = [
-    "controllers.toml",
-    "vehicle.toml",
-    "can.toml",
-    "inverter.dbc",
-    "tcs-loop.toml",
-    "roads.toml",
-    "roads",
-    "arte-svc.toml",
-];
+mod common;
+use common::CONFIG;
 
 fn run(args: &[&str]) -> (i32, String) {
     let instance = format!("tcs-cli-{}", std::process::id());

@@ -178,15 +178,9 @@ fn assert_safe(rec: &CycleRecord, cmd: &TorqueCommand) {
     assert_eq!(cmd.torque_request, 0.0);
 }
 
-#[test]
-fn starts_safe_and_leaves_after_recover_time() {
-    let mut r = Rig::new(ControllerKind::Mtte, false);
-    // no frames at all: safe
-    for _ in 0..20 {
-        let (rec, cmd) = r.cycle();
-        assert_safe(&rec, &cmd);
-    }
-    // valid frames: still safe until 50 ms of valid inputs
+/// 80 cycles of valid frames: the cycle (counted from 0) in which the loop
+/// left its safe state, having stayed safe before and in control after.
+fn control_again(r: &mut Rig) -> Option<usize> {
     let mut left_at = None;
     for i in 0..80 {
         r.feed(true, true, true);
@@ -199,7 +193,23 @@ fn starts_safe_and_leaves_after_recover_time() {
             assert_safe(&rec, &cmd);
         }
     }
-    assert_eq!(left_at, Some(50), "leaves after exactly recover_ms = 50 ms");
+    left_at
+}
+
+#[test]
+fn starts_safe_and_leaves_after_recover_time() {
+    let mut r = Rig::new(ControllerKind::Mtte, false);
+    // no frames at all: safe
+    for _ in 0..20 {
+        let (rec, cmd) = r.cycle();
+        assert_safe(&rec, &cmd);
+    }
+    // valid frames: still safe until 50 ms of valid inputs
+    assert_eq!(
+        control_again(&mut r),
+        Some(50),
+        "leaves after exactly recover_ms = 50 ms"
+    );
     assert_eq!(r.lp.safe_entries(), 0, "the start is not an entry");
 }
 
@@ -299,19 +309,7 @@ fn an_inverter_fault_enters_the_safe_state_until_it_has_cleared() {
     );
     // the fault clears: control again exactly recover_ms (50) later
     r.feed.fault_code = None;
-    let mut left_at = None;
-    for i in 0..80 {
-        r.feed(true, true, true);
-        let (rec, cmd) = r.cycle();
-        if rec.safe_state == 0 {
-            assert!(cmd.enable);
-            left_at.get_or_insert(i);
-        } else {
-            assert!(left_at.is_none(), "re-entered the safe state at {i}");
-            assert_safe(&rec, &cmd);
-        }
-    }
-    assert_eq!(left_at, Some(50));
+    assert_eq!(control_again(&mut r), Some(50));
     assert_eq!(r.lp.safe_entries(), 1);
     // a missing frame and the fault together are both named
     assert_eq!(

@@ -12,28 +12,14 @@
 
 mod common;
 
-use common::{LastSink, MemBus};
-use grip_io::can::protocol::{
-    DriverDemand, E2eSender, MotorStatus, MsgKind, WheelSpeeds, active, e2e_crc_at,
-};
+use common::{CONFIG, LastSink, MemBus};
+use grip_io::can::protocol::{E2eSender, MsgKind, WheelSpeeds, active, e2e_crc_at};
 use grip_io::clock::{Clock, ManualClock};
 use grip_io::service::ConfigArgs;
 use grip_msgs::{CanFrame, CycleRecord, can_dir};
-use grip_tcs_loop::{CycleTick, NoRoad, Options};
+use grip_tcs_loop::Options;
 
 const MS: u64 = 1_000_000;
-
-/// The shipped files tcs-loop reads.
-const CONFIG: [&str; 8] = [
-    "controllers.toml",
-    "vehicle.toml",
-    "can.toml",
-    "inverter.dbc",
-    "tcs-loop.toml",
-    "roads.toml",
-    "roads",
-    "arte-svc.toml",
-];
 
 /// A WheelSpeeds frame as the car's ABS lays it out, byte by byte: bit 12
 /// set when the driven wheel's speed is invalid, bit 13 (RefValid, grip's
@@ -116,10 +102,7 @@ fn a_bus_in_km_h_with_an_inverted_validity_bit_is_read_right() {
     let clock = ManualClock::new(1_000 * MS);
     let mut bus = MemBus::new();
     let mut sink = LastSink::default();
-    let (mut ms, mut dd) = (
-        E2eSender::<MotorStatus>::new(),
-        E2eSender::<DriverDemand>::new(),
-    );
+    let mut inverter = common::Inverter::new();
     let omega = 36.0 / 3.6 / 0.28; // 35.71 rad/s: 10 m/s at r = 0.28 m
     // the last record and the frames the E2E check rejected so far
     let mut run = |cycles: u64, driven_invalid: bool, k0: u64| -> (CycleRecord, u64) {
@@ -127,35 +110,8 @@ fn a_bus_in_km_h_with_an_inverted_validity_bit_is_read_right() {
         for k in k0..k0 + cycles {
             let now = clock.now_ns();
             bus.inject(abs_frame(k as u8, driven_invalid, 36.0, 36.0, now));
-            bus.inject(ms.encode(
-                &MotorStatus {
-                    ready: true,
-                    torque_actual: 50.0,
-                    motor_speed: omega,
-                    ..MotorStatus::default()
-                },
-                now,
-            ));
-            if k % 10 == 0 {
-                bus.inject(dd.encode(
-                    &DriverDemand {
-                        brake_pressed: false,
-                        tcs_enable: true,
-                        torque_demand: 100.0,
-                        pedal_position: 20.0,
-                    },
-                    now,
-                ));
-            }
-            last = Some(*lp.cycle(
-                &CycleTick::at(now),
-                &clock,
-                &mut bus,
-                &mut NoRoad,
-                &mut sink,
-            ));
-            bus.take_sent();
-            clock.advance_ns(MS);
+            inverter.send(&mut bus, k, now, omega);
+            last = Some(common::step(&mut lp, &clock, &mut bus, &mut sink));
         }
         (last.unwrap(), sink.can_rejected)
     };

@@ -9,12 +9,12 @@ mod common;
 use std::path::Path;
 
 use common::{LastSink, MemBus};
-use grip_io::can::protocol::{DriverDemand, E2eSender, MotorStatus, WheelSpeeds};
+use grip_io::can::protocol::{E2eSender, WheelSpeeds};
 use grip_io::clock::{Clock, ManualClock};
 use grip_msgs::CycleRecord;
 use grip_physics::VehicleParams;
 use grip_tcs::{ControllerKind, ControllersConfig};
-use grip_tcs_loop::{CycleTick, NoRoad, SafetyConfig, TcsLoop};
+use grip_tcs_loop::{SafetyConfig, TcsLoop};
 
 const MS: u64 = 1_000_000;
 
@@ -50,11 +50,8 @@ fn rolling(vehicle: &VehicleParams, v: f64) -> CycleRecord {
     let clock = ManualClock::new(1_000 * MS);
     let mut bus = MemBus::new();
     let mut sink = LastSink::default();
-    let (mut ws, mut ms, mut dd) = (
-        E2eSender::<WheelSpeeds>::new(),
-        E2eSender::<MotorStatus>::new(),
-        E2eSender::<DriverDemand>::new(),
-    );
+    let mut ws = E2eSender::<WheelSpeeds>::new();
+    let mut inverter = common::Inverter::new();
     let omega = v / vehicle.r;
     let mut last = None;
     for k in 0..100u64 {
@@ -68,35 +65,8 @@ fn rolling(vehicle: &VehicleParams, v: f64) -> CycleRecord {
             },
             now,
         ));
-        bus.inject(ms.encode(
-            &MotorStatus {
-                ready: true,
-                torque_actual: 50.0,
-                motor_speed: omega,
-                ..MotorStatus::default()
-            },
-            now,
-        ));
-        if k % 10 == 0 {
-            bus.inject(dd.encode(
-                &DriverDemand {
-                    brake_pressed: false,
-                    tcs_enable: true,
-                    torque_demand: 100.0,
-                    pedal_position: 20.0,
-                },
-                now,
-            ));
-        }
-        last = Some(*lp.cycle(
-            &CycleTick::at(now),
-            &clock,
-            &mut bus,
-            &mut NoRoad,
-            &mut sink,
-        ));
-        bus.take_sent();
-        clock.advance_ns(MS);
+        inverter.send(&mut bus, k, now, omega);
+        last = Some(common::step(&mut lp, &clock, &mut bus, &mut sink));
     }
     last.unwrap()
 }
