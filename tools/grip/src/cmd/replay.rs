@@ -59,7 +59,11 @@ pub struct Args {
     /// What if: arte runs this model file.
     #[arg(long)]
     model: Option<PathBuf>,
-    /// What if: one parameter, `[FILE:]SECTION.KEY=VALUE` (e.g. `mfc.k_mfc=1.01`); repeatable.
+    /// What if: one parameter, `[FILE:]SECTION.KEY=VALUE` (e.g. `mfc.k_mfc=150`,
+    /// `roads.toml:road[snow].c1=0.15`), or `[FILE:]KEY=VALUE` for a key outside
+    /// any table (`tcs-loop.toml:controller=src`); the value keeps the key's TOML
+    /// type; a file or key the replay does not read is refused; repeatable, once
+    /// per key.
     #[arg(long = "set", value_name = "[FILE:]SECTION.KEY=VALUE")]
     set: Vec<String>,
     /// Exit with status 1 unless every replayed topic is identical to the log.
@@ -118,6 +122,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         vehicle: args.vehicle.clone(),
         model: args.model.clone(),
         set: args.set.clone(),
+        closed_loop: args.closed_loop,
     };
     if args.log.is_dir() {
         return replay_dir(&args, &what);
@@ -449,7 +454,8 @@ pub fn replay(
         },
         &clock,
     )
-    .context("arte's start-up on the replay configuration")?;
+    .context("arte's start-up on the replay configuration")
+    .map_err(|e| cfg.explain(e))?;
     let mut setup_s = t_setup.elapsed().as_secs_f64();
     let t1 = Instant::now();
     let roads = replay_arte(&mut prepared.lp, &clock, &log, &mut speed);
@@ -472,8 +478,14 @@ pub fn replay(
         run_for_s: None,
         vehicle: cfg.vehicle.clone(),
     };
-    let loaded = grip_tcs_loop::load(&opts).context("tcs-loop's configuration")?;
-    let mut lp = grip_tcs_loop::build(&loaded).context("tcs-loop's start-up")?;
+    // an error names the file as in the log's configuration, and the
+    // `--set` that made it, not the replay's temporary copy
+    let loaded = grip_tcs_loop::load(&opts)
+        .context("tcs-loop's configuration")
+        .map_err(|e| cfg.explain(e))?;
+    let mut lp = grip_tcs_loop::build(&loaded)
+        .context("tcs-loop's start-up")
+        .map_err(|e| cfg.explain(e))?;
     let can = split_can(&log)?;
     setup_s += t_setup.elapsed().as_secs_f64();
     let t2 = Instant::now();
@@ -494,7 +506,8 @@ pub fn replay(
             start_on: Some(grip_plant_sim::StartOn::Signal),
             vehicle: cfg.vehicle.clone(),
         })
-        .context("plant-sim's start-up on the replay configuration")?;
+        .context("plant-sim's start-up on the replay configuration")
+        .map_err(|e| cfg.explain(e))?;
         let period_ns = (1e9 / loaded.controllers.loop_.rate_hz).round() as u64;
         let cl = crate::replay::closed_loop(&mut lp, &mut plant, &log, &roads, period_ns);
         roadm = crate::replay::taken_per_cycle(&log).matched;

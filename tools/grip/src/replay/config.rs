@@ -24,8 +24,10 @@ pub struct WhatIf {
     pub vehicle: Option<PathBuf>,
     /// `--model`.
     pub model: Option<PathBuf>,
-    /// `--set [FILE:]SECTION.KEY=VALUE`.
+    /// `--set [FILE:]SECTION.KEY=VALUE` (or `[FILE:]KEY=VALUE`).
     pub set: Vec<String>,
+    /// `--closed-loop`: plant-sim is re-run, so its files are read ([`Reads`]).
+    pub closed_loop: bool,
 }
 
 /// The configuration directory and the service overrides of a replay.
@@ -46,6 +48,10 @@ pub struct ReplayConfig {
     pub model: Option<PathBuf>,
     /// The changes against the drive, one line each (empty: none).
     pub changes: Vec<String>,
+    /// The `--set`s, as applied.
+    pub applied: Vec<Applied>,
+    /// Files of `dir` the user knows by another name (a copied `--vehicle`).
+    shown_paths: Vec<(PathBuf, String)>,
 }
 
 fn safe_name(name: &str) -> bool {
@@ -182,50 +188,31 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
         }
     };
 
-    let own_controller = || -> Option<String> {
-        let text = std::fs::read_to_string(dir.join("tcs-loop.toml")).ok()?;
-        let v: toml::Value = toml::from_str(&text).ok()?;
-        v.get("controller")?.as_str().map(str::to_owned)
-    };
-    let logged_controller = log.run.get("controller").cloned();
-    let controller = match &w.controller {
-        Some(c) => {
-            changes.push(format!(
-                "controller {} -> {c}",
-                logged_controller.as_deref().unwrap_or("?")
-            ));
-            c.clone()
-        }
-        None => logged_controller
-            .or_else(own_controller)
-            .context("neither the log's grip.run nor tcs-loop.toml names the controller")?,
-    };
-    let logged_arte = log.run.get("arte").map(|a| a == "on");
-    let arte = match w.arte {
-        Some(a) => {
-            changes.push(format!(
-                "ARTE in the controller {} -> {}",
-                logged_arte.map_or("?", |x| if x { "on" } else { "off" }),
-                if a { "on" } else { "off" }
-            ));
-            a
-        }
-        None => match logged_arte {
-            Some(a) => a,
-            None => {
-                let text = std::fs::read_to_string(dir.join("tcs-loop.toml")).unwrap_or_default();
-                toml::from_str::<toml::Value>(&text)
-                    .ok()
-                    .and_then(|v| v.get("arte").and_then(toml::Value::as_bool))
-                    .unwrap_or(true)
-            }
-        },
-    };
+    // the vehicle first: a `--set` on the vehicle goes to the file the
+    // replay reads
+    let mut shown_paths = Vec::new();
+    let mut vehicle_file = None;
     let vehicle = match &w.vehicle {
-        Some(v) => {
-            changes.push(format!("vehicle {}", v.display()));
-            Some(v.clone())
+        Some(v) if !w.set.is_empty() => {
+            // a copy: a `--set` must never rewrite the user's own file
+            let name = v.file_name().map_or_else(
+                || "vehicle.toml".into(),
+                |n| n.to_string_lossy().into_owned(),
+            );
+            let rel = format!("what-if/{name}");
+            let p = dir.join(&rel);
+            std::fs::create_dir_all(dir.join("what-if"))?;
+            std::fs::copy(v, &p)
+                .with_context(|| format!("--vehicle {}: reading it", v.display()))?;
+            shown_paths.push((p.clone(), v.display().to_string()));
+            vehicle_file = Some(VehicleFile {
+                rel,
+                shown: format!("{name} (--vehicle {})", v.display()),
+                names: vec![name],
+            });
+            Some(p)
         }
+        Some(v) => Some(v.clone()),
         None => match (
             log.run.get("vehicle"),
             log.attachments.get(VEHICLE_ATTACHMENT),
@@ -236,6 +223,11 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
                     std::fs::create_dir_all(parent)?;
                 }
                 std::fs::write(&p, data)?;
+                vehicle_file = Some(VehicleFile {
+                    rel: VEHICLE_ATTACHMENT.to_owned(),
+                    shown: format!("{VEHICLE_ATTACHMENT} (the drive's --vehicle, from the log)"),
+                    names: vec![VEHICLE_ATTACHMENT.to_owned()],
+                });
                 Some(p)
             }
             (Some(v), None) => bail!(
@@ -245,12 +237,128 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
             (None, None) => None,
         },
     };
+    let scenario = log.run.get("scenario").and_then(|s| {
+        let p = grip_config::ConfigDir::new(&dir).scenario_path(s);
+        p.strip_prefix(&dir)
+            .ok()
+            .map(|r| r.to_string_lossy().into_owned())
+    });
+    let reads = Reads {
+        closed: w.closed_loop,
+        vehicle: vehicle_file,
+        scenario,
+        logged_seed: log.run.contains_key("seed"),
+    };
+    let mut applied: Vec<Applied> = Vec::new();
+    for s in &w.set {
+        let a = set_key(&dir, s, &reads)?;
+        if let Some(p) = applied.iter().find(|p| p.rel == a.rel && p.path == a.path) {
+            bail!(
+                "--set {} and --set {}: both set {} of {}; give it once",
+                p.spec,
+                a.spec,
+                a.path,
+                a.shown
+            );
+        }
+        applied.push(a);
+    }
+    // tcs-loop.toml's `controller` and `arte` are what --controller and
+    // --arte set: the drive's (grip.run) would otherwise win over the file
+    let own_set = |key: &str| {
+        applied
+            .iter()
+            .position(|a| a.rel == "tcs-loop.toml" && a.path == key)
+    };
+
+    let own_controller = || -> Option<String> {
+        let text = std::fs::read_to_string(dir.join("tcs-loop.toml")).ok()?;
+        let v: toml::Value = toml::from_str(&text).ok()?;
+        v.get("controller")?.as_str().map(str::to_owned)
+    };
+    let logged_controller = log.run.get("controller").cloned();
+    let set_controller = own_set("controller").map(|i| {
+        let a = &applied[i];
+        (
+            i,
+            a.spec.clone(),
+            a.value.as_str().unwrap_or_default().to_owned(),
+        )
+    });
+    let set_arte = own_set("arte").map(|i| {
+        (
+            i,
+            applied[i].spec.clone(),
+            applied[i].value.as_bool() == Some(true),
+        )
+    });
+    let controller = match (&w.controller, set_controller) {
+        (Some(c), Some((_, spec, s))) if *c != s => {
+            bail!("--controller {c} and --set {spec}: two controllers; give one")
+        }
+        (_, Some((i, spec, c))) => {
+            if let Err(e) = c.parse::<grip_tcs::ControllerKind>() {
+                bail!("--set {spec}: tcs-loop.toml: field `controller`: {e}");
+            }
+            applied[i].line = format!(
+                "tcs-loop.toml: controller {} -> {c} (the replay's controller, as --controller {c})",
+                logged_controller.as_deref().unwrap_or("?")
+            );
+            c
+        }
+        (Some(c), None) => {
+            changes.push(format!(
+                "controller {} -> {c}",
+                logged_controller.as_deref().unwrap_or("?")
+            ));
+            c.clone()
+        }
+        (None, None) => logged_controller
+            .clone()
+            .or_else(own_controller)
+            .context("neither the log's grip.run nor tcs-loop.toml names the controller")?,
+    };
+    let logged_arte = log.run.get("arte").map(|a| a == "on");
+    let on_off = |x: bool| if x { "on" } else { "off" };
+    let arte = match (w.arte, set_arte) {
+        (Some(a), Some((_, spec, s))) if a != s => bail!(
+            "--arte {} and --set {spec}: two ARTE switches; give one",
+            on_off(a)
+        ),
+        (_, Some((i, _, a))) => {
+            applied[i].line = format!(
+                "tcs-loop.toml: arte {} -> {a} (ARTE in the controller, as --arte {})",
+                logged_arte.map_or("?", |x| if x { "true" } else { "false" }),
+                on_off(a)
+            );
+            a
+        }
+        (Some(a), None) => {
+            changes.push(format!(
+                "ARTE in the controller {} -> {}",
+                logged_arte.map_or("?", on_off),
+                on_off(a)
+            ));
+            a
+        }
+        (None, None) => match logged_arte {
+            Some(a) => a,
+            None => {
+                let text = std::fs::read_to_string(dir.join("tcs-loop.toml")).unwrap_or_default();
+                toml::from_str::<toml::Value>(&text)
+                    .ok()
+                    .and_then(|v| v.get("arte").and_then(toml::Value::as_bool))
+                    .unwrap_or(true)
+            }
+        },
+    };
+    if let Some(v) = &w.vehicle {
+        changes.push(format!("vehicle {}", v.display()));
+    }
     if let Some(m) = &w.model {
         changes.push(format!("model {}", m.display()));
     }
-    for s in &w.set {
-        changes.push(set_key(&dir, s)?);
-    }
+    changes.extend(applied.iter().map(|a| a.line.clone()));
     check_model_rate(log, w, &dir, &changes)?;
     Ok(ReplayConfig {
         dir,
@@ -261,6 +369,8 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
         vehicle,
         model: w.model.clone(),
         changes,
+        applied,
+        shown_paths,
     })
 }
 
@@ -334,10 +444,294 @@ fn check_model_rate(
     )
 }
 
-/// Applies `[FILE:]SECTION.KEY=VALUE` to the one TOML file of `dir` whose
-/// table SECTION has KEY (or to FILE); VALUE is a TOML value (a bare word
-/// is taken as a string). Returns the change as a line.
-pub fn set_key(dir: &Path, spec: &str) -> anyhow::Result<String> {
+/// The vehicle file a replay reads when it is not the configuration's
+/// `vehicle.toml`: the drive's `--vehicle` (the log's `drive/vehicle.toml`)
+/// or the replay's `--vehicle` (copied into the replay's configuration when
+/// a `--set` may change it, so the user's file is never touched).
+#[derive(Debug, Clone, PartialEq)]
+pub struct VehicleFile {
+    /// Where it is, relative to the replay's configuration directory.
+    pub rel: String,
+    /// How the user knows it (in change lines and errors).
+    pub shown: String,
+    /// The names `--set FILE:` may give it.
+    pub names: Vec<String>,
+}
+
+/// Which files, and which keys of them, a replay reads: a `--set`
+/// anywhere else could have no effect and is refused, naming why.
+#[derive(Debug, Clone, Default)]
+pub struct Reads {
+    /// `--closed-loop`: plant-sim is re-run (plant-sim.toml, the drive's
+    /// scenario, the vehicle's `[sensors]`, the bus).
+    pub closed: bool,
+    /// The vehicle file, when not `vehicle.toml`.
+    pub vehicle: Option<VehicleFile>,
+    /// The drive's scenario file (relative), read by plant-sim in closed loop.
+    pub scenario: Option<String>,
+    /// `grip.run` records the seed (plant-sim.toml's `seed` is then not read).
+    pub logged_seed: bool,
+}
+
+impl Reads {
+    /// Why the replay does not read `path` of `file` (`None`: it does).
+    fn unread(&self, file: &str, path: &[Seg]) -> Option<String> {
+        let first = path[0].name.as_str();
+        let rt = || {
+            "[rt] sets up the live service's real-time thread (priority, memory lock, CPUs); a replay runs the loop on a scripted clock and reads none of it".to_owned()
+        };
+        let vehicle_rel = self.vehicle.as_ref().map_or("vehicle.toml", |v| &v.rel);
+        if file == vehicle_rel {
+            return (first == "sensors" && !self.closed).then(|| {
+                "[sensors] of the vehicle are plant-sim's sensor models; in open loop the sensor readings are the log's (tcs-loop reads [vehicle] only): replay with --closed-loop".to_owned()
+            });
+        }
+        if self.scenario.as_deref() == Some(file) && self.closed {
+            return None;
+        }
+        let not_closed = |what: &str| {
+            format!(
+                "{what} plant-sim's, which an open-loop replay does not re-run: the wheel speeds, vehicle speed and ground truth are the log's (--closed-loop re-runs plant-sim)"
+            )
+        };
+        match file {
+            "controllers.toml" | "roads.toml" => None,
+            "vehicle.toml" => Some(match &self.vehicle {
+                Some(v) => format!(
+                    "the replay's vehicle is {}, not vehicle.toml: name it (--set {}:...) or leave the file out",
+                    v.shown, v.names[0]
+                ),
+                None => "the replay reads another vehicle file".into(),
+            }),
+            "tcs-loop.toml" => (first == "rt").then(rt),
+            "arte-svc.toml" => match (first, path.get(1).map(|s| s.name.as_str())) {
+                ("rt", _) => Some(rt()),
+                ("input", Some("poll_interval_ms")) => Some(
+                    "arte-svc.toml [input] poll_interval_ms is how often the live service polls the audio topic; a replay hands arte every block in turn".into(),
+                ),
+                _ => None,
+            },
+            "can.toml" if !self.closed => Some(
+                "can.toml is the drive's bus: an open-loop replay reads the recorded frames as they were sent, with the log's can.toml and DBC (a what-if on the bus needs --closed-loop, where plant-sim sends the frames)".into(),
+            ),
+            "can.toml" => matches!(first, "transport" | "interface" | "sim_bus" | "bus_id").then(|| {
+                format!("can.toml's {first} is the live bus's; a replay's bus is in memory")
+            }),
+            "plant-sim.toml" if !self.closed => Some(not_closed("plant-sim.toml is")),
+            "plant-sim.toml" => match first {
+                "scenario" => Some("the replay runs the drive's scenario (grip.run's `scenario`), not plant-sim.toml's".into()),
+                "seed" if self.logged_seed => Some("the replay runs the drive's seed (grip.run's `seed`), not plant-sim.toml's".into()),
+                "start_on" | "exit_at_end" => Some(format!(
+                    "plant-sim.toml's {first} is replaced by the replay: the plant starts in the cycle the logged plant started and ends at the scenario's end"
+                )),
+                "allow_physical_bus" => Some("a replay's bus is in memory; plant-sim.toml's allow_physical_bus guards a live bus".into()),
+                "rt" => Some(rt()),
+                _ => None,
+            },
+            "audio-acq.toml" => Some(
+                "audio-acq is not re-run: the replay feeds arte the log's audio blocks as recorded (a model for another sample rate: --model)".into(),
+            ),
+            "recorder.toml" => Some(
+                "the recorder is not re-run: the replay compares and writes (--out) the replayed messages itself".into(),
+            ),
+            "sim-confusion.toml" => Some(
+                "sim-confusion.toml is grip sim's confusion model of ARTE; no service of a replay reads it".into(),
+            ),
+            f if f.starts_with("scenarios/") => Some(if self.closed {
+                format!(
+                    "the replay runs the drive's scenario ({}), not this one",
+                    self.scenario.as_deref().unwrap_or("?")
+                )
+            } else {
+                not_closed("scenarios are")
+            }),
+            f if f.starts_with("vehicles/") || f.starts_with("drive/") => Some(format!(
+                "the replay's vehicle is {}",
+                self.vehicle.as_ref().map_or("vehicle.toml", |v| &v.shown)
+            )),
+            _ => Some("no service the replay runs reads this file".into()),
+        }
+    }
+
+    /// The TOML files `--set` may name in `dir`: the directory's own, the
+    /// vehicle file and (closed loop) the drive's scenario, relative.
+    fn files(&self, dir: &Path) -> anyhow::Result<Vec<String>> {
+        let mut files: Vec<String> = std::fs::read_dir(dir)?
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".toml") && dir.join(n).is_file())
+            .collect();
+        files.sort();
+        if let Some(v) = &self.vehicle {
+            files.push(v.rel.clone());
+        }
+        if let Some(s) = &self.scenario
+            && self.closed
+        {
+            files.push(s.clone());
+        }
+        Ok(files)
+    }
+
+    /// How the user knows `rel`.
+    fn shown(&self, rel: &str) -> String {
+        match &self.vehicle {
+            Some(v) if v.rel == rel => v.shown.clone(),
+            _ => rel.to_owned(),
+        }
+    }
+}
+
+/// A `--set` as applied.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Applied {
+    /// The `--set` value as typed.
+    pub spec: String,
+    /// The file, relative to the replay's configuration directory.
+    pub rel: String,
+    /// The file as the user knows it (`controllers.toml`, `drive/vehicle.toml
+    /// (the drive's --vehicle, from the log)`).
+    pub shown: String,
+    /// The key's dotted path (`mfc.k_mfc`, `controller`, `road[snow].c1`).
+    pub path: String,
+    /// The value written.
+    pub value: toml::Value,
+    /// The change, one line of the report (`FILE: [SECTION] KEY old -> new`).
+    pub line: String,
+}
+
+/// One part of a `--set` key path: a key, and for an array of tables
+/// (`[[road]]`) which element: `road[snow]` (its `name`) or `road[2]`.
+#[derive(Debug, Clone, PartialEq)]
+struct Seg {
+    name: String,
+    sel: Option<String>,
+}
+
+impl std::fmt::Display for Seg {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.sel {
+            Some(s) => write!(f, "{}[{s}]", self.name),
+            None => f.write_str(&self.name),
+        }
+    }
+}
+
+fn parse_path(p: &str) -> Option<Vec<Seg>> {
+    p.split('.')
+        .map(|part| {
+            let part = part.trim();
+            let (name, sel) = match part.split_once('[') {
+                Some((n, rest)) => (n, Some(rest.strip_suffix(']')?.trim().to_owned())),
+                None => (part, None),
+            };
+            (!name.is_empty()
+                && !name.contains([']', ' '])
+                && sel.as_ref().is_none_or(|s| !s.is_empty()))
+            .then(|| Seg {
+                name: name.to_owned(),
+                sel,
+            })
+        })
+        .collect()
+}
+
+/// The table `segs` leads to in `t`, or why there is none.
+fn table_at<'a>(mut t: &'a mut toml::Table, segs: &[Seg]) -> Result<&'a mut toml::Table, String> {
+    for s in segs {
+        let v = t
+            .get_mut(&s.name)
+            .ok_or_else(|| format!("no [{}]", s.name))?;
+        t = match (&s.sel, v) {
+            (None, toml::Value::Table(x)) => x,
+            (None, toml::Value::Array(_)) => {
+                return Err(format!(
+                    "{} is an array of tables: name the element, {}[NAME] or {}[INDEX]",
+                    s.name, s.name, s.name
+                ));
+            }
+            (Some(sel), toml::Value::Array(a)) => {
+                let names: Vec<String> = a
+                    .iter()
+                    .filter_map(|e| e.get("name").and_then(toml::Value::as_str))
+                    .map(str::to_owned)
+                    .collect();
+                let n = a.len();
+                let i = match sel.parse::<usize>() {
+                    Ok(i) => Some(i).filter(|&i| i < n),
+                    Err(_) => names.iter().position(|x| x == sel),
+                };
+                let Some(i) = i else {
+                    return Err(if names.is_empty() {
+                        format!(
+                            "no {}[{sel}] ({n} of them, 0 to {})",
+                            s.name,
+                            n.saturating_sub(1)
+                        )
+                    } else {
+                        format!("no {}[{sel}] (its names: {})", s.name, names.join(", "))
+                    });
+                };
+                a[i].as_table_mut()
+                    .ok_or_else(|| format!("{}[{sel}] is not a table", s.name))?
+            }
+            (_, v) => {
+                return Err(format!("{s} is {}, not a table", type_name(v)));
+            }
+        };
+    }
+    Ok(t)
+}
+
+fn type_name(v: &toml::Value) -> &'static str {
+    match v {
+        toml::Value::String(_) => "a string",
+        toml::Value::Integer(_) => "an integer",
+        toml::Value::Float(_) => "a float",
+        toml::Value::Boolean(_) => "a boolean",
+        toml::Value::Datetime(_) => "a date-time",
+        toml::Value::Array(_) => "an array",
+        toml::Value::Table(_) => "a table",
+    }
+}
+
+/// `raw` as a value of `old`'s TOML type: a string key takes a bare word
+/// (`controller=src`) or a quoted string; a float takes an integer
+/// (`k_mfc=150` is 150.0); any other difference is refused, naming both
+/// types.
+fn typed(old: &toml::Value, raw: &str) -> Result<toml::Value, String> {
+    let raw = raw.trim();
+    let parsed = toml::from_str::<toml::Table>(&format!("v = {raw}"))
+        .ok()
+        .and_then(|mut t| t.remove("v"));
+    match (old, parsed) {
+        (toml::Value::String(_), Some(v @ toml::Value::String(_))) => Ok(v),
+        (toml::Value::String(_), _) => Ok(toml::Value::String(raw.to_owned())),
+        (toml::Value::Float(_), Some(toml::Value::Integer(i))) => Ok(toml::Value::Float(i as f64)),
+        (toml::Value::Table(_), _) => Err(
+            "the key is a table: set its keys one by one (--set FILE:SECTION.TABLE.KEY=VALUE)"
+                .into(),
+        ),
+        (o, Some(v)) if std::mem::discriminant(o) == std::mem::discriminant(&v) => Ok(v),
+        (o, Some(v)) => Err(format!(
+            "{raw} is {}, but the key is {} ({o} in the file)",
+            type_name(&v),
+            type_name(o)
+        )),
+        // a bare word (`on`) is a string to TOML's eyes
+        (o, None) => Err(format!(
+            "{raw} is a string (a bare word), but the key is {} ({o} in the file{})",
+            type_name(o),
+            if o.is_bool() { "; true or false" } else { "" }
+        )),
+    }
+}
+
+/// Applies `[FILE:]SECTION.KEY=VALUE` (or `[FILE:]KEY=VALUE`, a key
+/// outside any table) to the one file of `dir` the replay reads whose
+/// table SECTION has KEY (or to FILE), keeping the key's TOML type. A file
+/// or key the replay does not read is refused with the reason ([`Reads`]).
+pub fn set_key(dir: &Path, spec: &str, reads: &Reads) -> anyhow::Result<Applied> {
     let (lhs, value) = spec
         .split_once('=')
         .with_context(|| format!("--set {spec}: expected [FILE:]SECTION.KEY=VALUE"))?;
@@ -345,87 +739,274 @@ pub fn set_key(dir: &Path, spec: &str) -> anyhow::Result<String> {
         Some((f, p)) => (Some(f.trim()), p.trim()),
         None => (None, lhs.trim()),
     };
-    let (section, key) = path
-        .rsplit_once('.')
-        .with_context(|| format!("--set {spec}: expected SECTION.KEY before '='"))?;
-    let new: toml::Value = match toml::from_str::<toml::Table>(&format!("v = {value}")) {
-        Ok(t) => t["v"].clone(),
-        Err(_) => toml::Value::String(value.to_owned()),
+    let segs = parse_path(path).with_context(|| {
+        format!(
+            "--set {spec}: expected [FILE:]SECTION.KEY=VALUE, or [FILE:]KEY=VALUE for a key outside any table (a part of {path:?} is empty)"
+        )
+    })?;
+    let (key, section) = segs.split_last().context("empty key")?;
+    if key.sel.is_some() {
+        bail!(
+            "--set {spec}: {key} is an element of an array of tables: set one of its keys ({key}.KEY=VALUE)"
+        );
+    }
+    let key = key.name.as_str();
+    let where_ = if section.is_empty() {
+        key.to_owned()
+    } else {
+        format!(
+            "[{}] {key}",
+            section
+                .iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join(".")
+        )
     };
-    let mut files: Vec<PathBuf> = match file {
-        // a plain file name of the configuration directory: an absolute
-        // path or one with `..` would rewrite a file outside the copy the
-        // replay reads (the user's own, its comments and layout lost)
-        Some(f) if !safe_name(f) || f.contains(['/', '\\']) => bail!(
-            "--set {spec}: FILE {f:?} is not a file name of the configuration directory: the replay changes its own copy of the configuration, never a file elsewhere; name the file alone (--set {}:{path}={value})",
-            Path::new(f)
-                .file_name()
-                .map_or("controllers.toml".into(), |n| n.to_string_lossy())
-        ),
-        Some(f) => vec![dir.join(f)],
-        None => std::fs::read_dir(dir)?
-            .flatten()
-            .map(|e| e.path())
-            .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-            .collect(),
-    };
-    files.sort();
-    let mut hits = Vec::new();
-    for f in &files {
-        let text = std::fs::read_to_string(f)
-            .with_context(|| format!("--set: reading {}", f.display()))?;
-        let doc: toml::Table =
-            toml::from_str(&text).with_context(|| format!("--set: parsing {}", f.display()))?;
-        let mut t = &doc;
-        let mut found = true;
-        for part in section.split('.') {
-            match t.get(part).and_then(toml::Value::as_table) {
-                Some(x) => t = x,
-                None => {
-                    found = false;
-                    break;
-                }
+    let all = reads.files(dir)?;
+    let files: Vec<String> = match file {
+        Some(f) => {
+            let named = reads
+                .vehicle
+                .as_ref()
+                .filter(|v| v.names.iter().any(|n| n == f))
+                .map(|v| v.rel.clone())
+                .or_else(|| all.iter().find(|x| *x == f).cloned());
+            match named {
+                Some(r) => vec![r],
+                // a relative name of a file of the replay's copy that the
+                // replay does not read (vehicles/..., scenarios/...)
+                None if safe_name(f) && dir.join(f).is_file() => vec![f.to_owned()],
+                // a plain file name of the configuration directory: an
+                // absolute path or one with `..` would rewrite a file outside
+                // the copy the replay reads (the user's own, its comments and
+                // layout lost)
+                None if !safe_name(f) || f.contains(['/', '\\']) => bail!(
+                    "--set {spec}: FILE {f:?} is not a file name of the configuration directory: the replay changes its own copy of the configuration, never a file elsewhere; name the file alone (--set {}:{path}={value})",
+                    Path::new(f)
+                        .file_name()
+                        .map_or("controllers.toml".into(), |n| n.to_string_lossy())
+                ),
+                None => bail!(
+                    "--set {spec}: the replay's configuration has no {f} (its files: {})",
+                    all.iter()
+                        .map(|x| reads.shown(x))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
             }
         }
-        if !found || !t.contains_key(key) {
+        None => all.clone(),
+    };
+    // every file with the key: those the replay reads, and those it does not, with why
+    let mut hits = Vec::new();
+    let mut unread = Vec::new();
+    let mut missing: Vec<(bool, String)> = Vec::new();
+    for f in &files {
+        let p = dir.join(f);
+        let shown = reads.shown(f);
+        let text = std::fs::read_to_string(&p)
+            .with_context(|| format!("--set {spec}: reading {shown}"))?;
+        let mut doc: toml::Table =
+            toml::from_str(&text).with_context(|| format!("--set {spec}: parsing {shown}"))?;
+        // a named file the replay does not read is refused as such, the
+        // key there or not
+        if file.is_some()
+            && let Some(why) = reads.unread(f, &segs)
+        {
+            unread.push((shown, why));
             continue;
         }
-        hits.push((f.clone(), doc));
+        // the file has the section's first table: how near it came
+        let near = section.first().is_some_and(|s| doc.contains_key(&s.name));
+        match table_at(&mut doc, section) {
+            Ok(t) if t.contains_key(key) => {}
+            Ok(_) => {
+                missing.push((near, format!("{shown} has no {where_}")));
+                continue;
+            }
+            Err(why) => {
+                missing.push((near, format!("{shown}: {why}")));
+                continue;
+            }
+        }
+        match reads.unread(f, &segs) {
+            Some(why) => unread.push((shown, why)),
+            None => hits.push((f.clone(), doc)),
+        }
     }
-    let name = |p: &Path| {
-        p.file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default()
-    };
     match hits.len() {
-        0 => bail!(
-            "--set {spec}: no configuration file has [{section}] {key} (searched {})",
-            files.iter().map(|f| name(f)).collect::<Vec<_>>().join(", ")
-        ),
         1 => {}
-        _ => bail!(
-            "--set {spec}: [{section}] {key} is in {}; name the file: --set FILE:{path}={value}",
-            hits.iter()
-                .map(|(f, _)| name(f))
+        0 if !unread.is_empty() => bail!(
+            "--set {spec}: the replay does not read {where_} of {}, so the change could have no effect: {}",
+            unread
+                .iter()
+                .map(|(f, _)| f.as_str())
                 .collect::<Vec<_>>()
-                .join(" and ")
+                .join(" or "),
+            unread
+                .iter()
+                .map(|(f, w)| if unread.len() > 1 {
+                    format!("{f}: {w}")
+                } else {
+                    w.clone()
+                })
+                .collect::<Vec<_>>()
+                .join("; ")
+        ),
+        0 if file.is_some() => bail!(
+            "--set {spec}: {}. --set changes a key the file has (one it leaves out takes the service's default, whose type is not known here)",
+            missing
+                .iter()
+                .map(|(_, m)| m.as_str())
+                .collect::<Vec<_>>()
+                .join("; ")
+        ),
+        0 => bail!(
+            "--set {spec}: no configuration file has {where_} (searched {}){}",
+            files
+                .iter()
+                .map(|f| reads.shown(f))
+                .collect::<Vec<_>>()
+                .join(", "),
+            missing
+                .iter()
+                .filter(|(near, _)| *near)
+                .map(|(_, m)| format!("; {m}"))
+                .collect::<String>()
+        ),
+        _ => bail!(
+            "--set {spec}: {where_} is in {}, all read by the replay; name the file: --set FILE:{path}={}",
+            hits.iter()
+                .map(|(f, _)| reads.shown(f))
+                .collect::<Vec<_>>()
+                .join(" and "),
+            value.trim()
         ),
     }
-    let (f, mut doc) = hits.remove(0);
-    let mut t = &mut doc;
-    for part in section.split('.') {
-        t = t
-            .get_mut(part)
-            .and_then(toml::Value::as_table_mut)
-            .context("section vanished")?;
+    let (rel, mut doc) = hits.remove(0);
+    let shown = reads.shown(&rel);
+    let t = table_at(&mut doc, section).map_err(anyhow::Error::msg)?;
+    let old = t.get(key).cloned().context("key vanished")?;
+    let new = typed(&old, value)
+        .map_err(|why| anyhow::anyhow!("--set {spec}: {shown}'s {where_}: {why}"))?;
+    t.insert(key.to_owned(), new.clone());
+    std::fs::write(dir.join(&rel), toml::to_string(&doc)?)
+        .with_context(|| format!("--set {spec}: writing the replay's copy of {shown}"))?;
+    let same = if old == new { " (unchanged)" } else { "" };
+    Ok(Applied {
+        spec: spec.to_owned(),
+        line: format!("{shown}: {where_} {old} -> {new}{same}"),
+        rel,
+        shown,
+        path: segs
+            .iter()
+            .map(ToString::to_string)
+            .collect::<Vec<_>>()
+            .join("."),
+        value: new,
+    })
+}
+
+impl ReplayConfig {
+    /// An error of a service's start-up on this configuration in the
+    /// user's terms: the files as named in the log's configuration (not the
+    /// replay's temporary copy), and, when a `--set` changed the file at
+    /// fault, that `--set` as typed first (the one whose key the service
+    /// names, else every one on that file).
+    pub fn explain(&self, e: anyhow::Error) -> anyhow::Error {
+        let ce = e.chain().find_map(|c| {
+            c.downcast_ref::<grip_config::ConfigError>()
+                .or_else(|| match c.downcast_ref::<grip_arte_svc::ArteError>() {
+                    Some(grip_arte_svc::ArteError::Config(x)) => Some(x),
+                    _ => None,
+                })
+                .or_else(|| match c.downcast_ref::<grip_plant_sim::RunError>() {
+                    Some(grip_plant_sim::RunError::Config(x)) => Some(x),
+                    _ => None,
+                })
+        });
+        let rel = ce.and_then(|c| c.file.strip_prefix(&self.dir).ok());
+        let rel = rel.map(|r| r.to_string_lossy().into_owned());
+        let on_file: Vec<&Applied> = self
+            .applied
+            .iter()
+            .filter(|a| Some(&a.rel) == rel.as_ref())
+            .collect();
+        let (Some(ce), false) = (ce, on_file.is_empty()) else {
+            // no ConfigError to read (a service's own error type): the
+            // `--set`s on a file the message names, the one whose field it
+            // names first
+            let text = self.user_paths(&format!("{e:#}"));
+            let names = |a: &&Applied| {
+                text.contains(&format!("{}: ", a.shown))
+                    || text.contains(&format!("{}: ", a.rel))
+                    || a.value
+                        .as_str()
+                        .is_some_and(|v| !v.is_empty() && text.contains(v))
+            };
+            let on_file: Vec<&Applied> = self.applied.iter().filter(names).collect();
+            let exact: Vec<&Applied> = on_file
+                .iter()
+                .copied()
+                .filter(|a| text.contains(&format!("field `{}`", a.path)))
+                .collect();
+            let blame = if exact.is_empty() { on_file } else { exact };
+            if blame.is_empty() {
+                return anyhow::anyhow!(text);
+            }
+            let sets = blame
+                .iter()
+                .map(|a| format!("--set {}", a.spec))
+                .collect::<Vec<_>>()
+                .join(", ");
+            return anyhow::anyhow!("{sets}: {text}");
+        };
+        let field = ce.field.as_str();
+        let exact: Vec<&Applied> = on_file
+            .iter()
+            .copied()
+            .filter(|a| {
+                a.path == field
+                    || field
+                        .strip_prefix(a.path.as_str())
+                        .is_some_and(|r| r.starts_with(['.', '[']))
+                    || a.path
+                        .strip_prefix(field)
+                        .is_some_and(|r| r.starts_with(['.', '[']))
+            })
+            .collect();
+        let blame = if exact.is_empty() { on_file } else { exact };
+        let sets = blame
+            .iter()
+            .map(|a| format!("--set {}", a.spec))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let shown = &blame[0].shown;
+        let reason = self.user_paths(&ce.reason);
+        let what = if field.is_empty() {
+            format!("{shown}: {reason}")
+        } else {
+            format!("{shown}: field `{field}`: {reason}")
+        };
+        anyhow::anyhow!(
+            "{sets}: {what} (refused by {})",
+            self.user_paths(&e.to_string())
+        )
     }
-    let old = t.insert(key.to_owned(), new.clone());
-    std::fs::write(&f, toml::to_string(&doc)?)?;
-    Ok(format!(
-        "{}: [{section}] {key} {} -> {new}",
-        name(&f),
-        old.map_or("(unset)".into(), |o| o.to_string())
-    ))
+
+    /// `text` with the replay's temporary configuration directory taken
+    /// out: its files as named in the log's configuration, a copied
+    /// `--vehicle` as given.
+    fn user_paths(&self, text: &str) -> String {
+        let mut t = text.to_owned();
+        for (p, shown) in &self.shown_paths {
+            t = t.replace(&p.display().to_string(), shown);
+        }
+        let d = self.dir.display().to_string();
+        t.replace(&format!("{d}/"), "")
+            .replace(&d, "the replay's configuration")
+    }
 }
 
 #[cfg(test)]
@@ -468,6 +1049,8 @@ mod tests {
         );
     }
 
+    /// A key in one file the replay reads is found without naming the
+    /// file; in two it must be named (the change says which file took it).
     #[test]
     fn set_finds_the_one_file_or_asks_for_it() {
         let d = tempfile::tempdir().unwrap();
@@ -476,19 +1059,335 @@ mod tests {
             "[mfc]\nk = 1.0\n[loop]\nrate_hz = 1000.0\n",
         )
         .unwrap();
-        std::fs::write(d.path().join("other.toml"), "[loop]\nrate_hz = 5.0\n").unwrap();
-        let c = set_key(d.path(), "mfc.k=1.01").unwrap();
-        assert!(c.contains("controllers.toml: [mfc] k 1.0 -> 1.01"), "{c}");
+        std::fs::write(d.path().join("roads.toml"), "[loop]\nrate_hz = 5.0\n").unwrap();
+        let r = Reads::default();
+        let c = set_key(d.path(), "mfc.k=1.01", &r).unwrap();
+        assert_eq!(c.line, "controllers.toml: [mfc] k 1.0 -> 1.01");
         let t = std::fs::read_to_string(d.path().join("controllers.toml")).unwrap();
         assert!(t.contains("k = 1.01"), "{t}");
-        let e = set_key(d.path(), "loop.rate_hz=500")
+        let e = set_key(d.path(), "loop.rate_hz=500", &r)
             .unwrap_err()
             .to_string();
-        assert!(e.contains("controllers.toml and other.toml"), "{e}");
-        set_key(d.path(), "other.toml:loop.rate_hz=500").unwrap();
-        let e = set_key(d.path(), "mfc.nope=1").unwrap_err().to_string();
+        assert!(e.contains("controllers.toml and roads.toml"), "{e}");
+        set_key(d.path(), "roads.toml:loop.rate_hz=500", &r).unwrap();
+        let e = set_key(d.path(), "mfc.nope=1", &r).unwrap_err().to_string();
         assert!(e.contains("no configuration file has [mfc] nope"), "{e}");
-        assert!(set_key(d.path(), "mfc.k").is_err());
+        let e = set_key(d.path(), "controllers.toml:mfc.nope=1", &r)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("controllers.toml has no [mfc] nope"), "{e}");
+        assert!(set_key(d.path(), "mfc.k", &r).is_err());
+    }
+
+    /// The reference drive's log, without its audio (the configuration
+    /// is all `prepare` needs).
+    fn reference() -> DriveLog {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/reference-drive.mcap");
+        DriveLog::load(&p).unwrap()
+    }
+
+    fn with_sets(sets: &[&str], closed_loop: bool) -> anyhow::Result<ReplayConfig> {
+        let w = WhatIf {
+            set: sets.iter().map(|s| (*s).to_owned()).collect(),
+            closed_loop,
+            ..WhatIf::default()
+        };
+        prepare(&reference(), &w)
+    }
+
+    /// Item 1: a value the service refuses is told as the `--set` typed,
+    /// with the file as named in the log's configuration, the field and
+    /// the reason, never the replay's temporary copy.
+    #[test]
+    fn a_refused_set_is_named_as_typed_not_by_the_temporary_copy() {
+        for (spec, file, field) in [
+            ("mfc.k_mfc=-5", "controllers.toml", "mfc.k_mfc"),
+            (
+                "preview.cap_share=7",
+                "controllers.toml",
+                "preview.cap_share",
+            ),
+            (
+                "controllers.toml:mtte.alpha=2",
+                "controllers.toml",
+                "mtte.alpha",
+            ),
+        ] {
+            let cfg = with_sets(&[spec], false).unwrap();
+            let e = grip_tcs_loop::load(&grip_tcs_loop::Options {
+                config: grip_io::service::ConfigArgs::in_dir(&cfg.dir),
+                controller: None,
+                arte: None,
+                run_for_s: None,
+                vehicle: cfg.vehicle.clone(),
+            })
+            .context("tcs-loop's configuration")
+            .unwrap_err();
+            let raw = format!("{e:#}");
+            assert!(raw.contains(&cfg.dir.display().to_string()), "{raw}");
+            let e = cfg.explain(e).to_string();
+            assert!(
+                e.starts_with(&format!("--set {spec}: {file}: field `{field}`: ")),
+                "{e}"
+            );
+            assert!(!e.contains(&cfg.dir.display().to_string()), "{e}");
+            assert!(e.ends_with("(refused by tcs-loop's configuration)"), "{e}");
+        }
+        // arte's start-up (its own error type), and an error a service
+        // gives without a ConfigError (the bus timing against the DBC)
+        let cfg = with_sets(&["arte-svc.toml:stream.hop_s=-1"], false).unwrap();
+        let e = grip_arte_svc::prepare_with_clock(
+            &grip_arte_svc::Options {
+                config: grip_io::service::ConfigArgs::in_dir(&cfg.dir),
+                model: None,
+                run_for: None,
+            },
+            &crate::replay::ScriptClock::default(),
+        )
+        .map(|_| ())
+        .context("arte's start-up")
+        .unwrap_err();
+        let e = cfg.explain(e).to_string();
+        assert!(
+            e.starts_with(
+                "--set arte-svc.toml:stream.hop_s=-1: arte-svc.toml: field `stream.hop_s`: "
+            ),
+            "{e}"
+        );
+        let cfg = with_sets(&["loop.rate_hz=500"], false).unwrap();
+        let e = anyhow::anyhow!(
+            "{}: field `loop.rate_hz`: the DBC's period differs",
+            cfg.dir.join("controllers.toml").display()
+        );
+        let e = cfg.explain(e).to_string();
+        assert_eq!(
+            e,
+            "--set loop.rate_hz=500: controllers.toml: field `loop.rate_hz`: the DBC's period differs"
+        );
+    }
+
+    /// Item 2: a file or key the replay does not read is refused with
+    /// the reason; plant-sim's files and the vehicle's `[sensors]` are read
+    /// in closed loop only.
+    #[test]
+    fn a_set_the_replay_cannot_read_is_refused_with_why() {
+        for (spec, why) in [
+            (
+                "audio-acq.toml:audio.sample_rate=16000",
+                "audio-acq is not re-run",
+            ),
+            (
+                "recorder.toml:rt.fifo_priority=10",
+                "the recorder is not re-run",
+            ),
+            (
+                "tcs-loop.toml:rt.fifo_priority=10",
+                "[rt] sets up the live service",
+            ),
+            (
+                "arte-svc.toml:input.poll_interval_ms=1",
+                "hands arte every block",
+            ),
+            (
+                "plant-sim.toml:cmd_timeout_ms=30",
+                "open-loop replay does not re-run",
+            ),
+            ("sensors.omega_noise_std=0.1", "plant-sim's sensor models"),
+            ("can.toml:bus_id=1", "recorded frames as they were sent"),
+            (
+                "scenarios/e2e.toml:duration=2",
+                "open-loop replay does not re-run",
+            ),
+        ] {
+            let e = with_sets(&[spec], false).unwrap_err().to_string();
+            assert!(
+                e.starts_with(&format!("--set {spec}: the replay does not read "))
+                    && e.contains(why),
+                "{e}"
+            );
+        }
+        // closed loop: plant-sim's own, but not what the replay decides
+        let cfg = with_sets(
+            &[
+                "plant-sim.toml:cmd_timeout_ms=30",
+                "sensors.omega_noise_std=0.1",
+                "scenarios/e2e.toml:segment[1].road=ice",
+            ],
+            true,
+        )
+        .unwrap();
+        assert!(
+            cfg.changes
+                .contains(&"scenarios/e2e.toml: [segment[1]] road \"snow\" -> \"ice\"".to_owned()),
+            "{:?}",
+            cfg.changes
+        );
+        for (spec, why) in [
+            ("plant-sim.toml:seed=3", "the drive's seed"),
+            ("plant-sim.toml:scenario=paper", "the drive's scenario"),
+            ("can.toml:interface=can1", "in memory"),
+            (
+                "scenarios/paper.toml:duration=2",
+                "the drive's scenario (scenarios/e2e.toml)",
+            ),
+        ] {
+            let e = with_sets(&[spec], true).unwrap_err().to_string();
+            assert!(e.contains("does not read") && e.contains(why), "{e}");
+        }
+    }
+
+    /// Item 3: a key outside any table (`FILE:KEY=VALUE`) keeps its TOML
+    /// type; tcs-loop.toml's controller and arte are the replay's, as
+    /// --controller and --arte; a value of another type is refused naming
+    /// both types.
+    #[test]
+    fn a_top_level_key_is_set_with_its_type() {
+        for spec in [
+            "tcs-loop.toml:controller=src",
+            "controller=src",
+            "controller=\"src\"",
+        ] {
+            let cfg = with_sets(&[spec], false).unwrap();
+            assert_eq!(cfg.controller, "src");
+            let t = std::fs::read_to_string(cfg.dir.join("tcs-loop.toml")).unwrap();
+            let v: toml::Table = toml::from_str(&t).unwrap();
+            assert_eq!(v["controller"], toml::Value::String("src".into()), "{t}");
+            assert_eq!(
+                cfg.changes,
+                [
+                    "tcs-loop.toml: controller mtte -> src (the replay's controller, as --controller src)"
+                ]
+            );
+        }
+        let cfg = with_sets(&["tcs-loop.toml:arte=false"], false).unwrap();
+        assert!(!cfg.arte);
+        let e = with_sets(&["tcs-loop.toml:arte=on"], false)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("on is a string (a bare word), but the key is a boolean"),
+            "{e}"
+        );
+        let e = with_sets(&["tcs-loop.toml:controller=pid"], false)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(
+                "--set tcs-loop.toml:controller=pid: tcs-loop.toml: field `controller`: "
+            ),
+            "{e}"
+        );
+        let w = WhatIf {
+            controller: Some("mfc".into()),
+            set: vec!["controller=src".into()],
+            ..WhatIf::default()
+        };
+        let e = prepare(&reference(), &w).unwrap_err().to_string();
+        assert!(
+            e.contains("--controller mfc and --set controller=src"),
+            "{e}"
+        );
+        // an integer where the file has a float is that float
+        let cfg = with_sets(&["mfc.k_mfc=150"], false).unwrap();
+        assert_eq!(
+            cfg.changes,
+            ["controllers.toml: [mfc] k_mfc 177.0 -> 150.0"]
+        );
+        let f = |old: &str, raw: &str| {
+            let t: toml::Table = toml::from_str(&format!("v = {old}")).unwrap();
+            typed(&t["v"], raw)
+        };
+        assert_eq!(f("1.0", "2"), Ok(toml::Value::Float(2.0)));
+        assert_eq!(f("\"a\"", "3"), Ok(toml::Value::String("3".into())));
+        assert_eq!(
+            f("[1]", "[0, 1]").unwrap().as_array().map(Vec::len),
+            Some(2)
+        );
+        let e = f("2", "2.5").unwrap_err();
+        assert_eq!(
+            e,
+            "2.5 is a float, but the key is an integer (2 in the file)"
+        );
+        let e = f("true", "1").unwrap_err();
+        assert!(
+            e.contains("1 is an integer, but the key is a boolean"),
+            "{e}"
+        );
+        let e = f("1.0", "fast").unwrap_err();
+        assert!(
+            e.contains("fast is a string (a bare word), but the key is a float"),
+            "{e}"
+        );
+        assert!(
+            f("{a = 1}", "1")
+                .unwrap_err()
+                .contains("set its keys one by one")
+        );
+    }
+
+    /// Item 4: a nested table (`preview.src`) is not its parent; a road of
+    /// roads.toml's array by name or index; the same key twice is refused;
+    /// the vehicle is the file the replay reads (the drive's --vehicle, a
+    /// copy of the replay's own --vehicle: the user's file untouched).
+    #[test]
+    fn nested_tables_arrays_repeats_and_the_vehicle() {
+        let cfg = with_sets(&["preview.src.cap_share=0.5"], false).unwrap();
+        let t: toml::Table =
+            toml::from_str(&std::fs::read_to_string(cfg.dir.join("controllers.toml")).unwrap())
+                .unwrap();
+        assert_eq!(t["preview"]["src"]["cap_share"].as_float(), Some(0.5));
+        assert_eq!(t["preview"]["cap_share"].as_float(), Some(1.0));
+        for (spec, sel) in [
+            ("roads.toml:road[snow].c1=0.15", "snow"),
+            ("road[2].c1=0.15", "2"),
+        ] {
+            let cfg = with_sets(&[spec], false).unwrap();
+            assert_eq!(
+                cfg.changes,
+                [format!("roads.toml: [road[{sel}]] c1 0.1946 -> 0.15")]
+            );
+        }
+        let e = with_sets(&["road[snw].c1=1"], false)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("its names: asphalt, gravel, snow"), "{e}");
+        let e = with_sets(&["mfc.k_mfc=100", "controllers.toml:mfc.k_mfc=120"], false)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(
+                "--set mfc.k_mfc=100 and --set controllers.toml:mfc.k_mfc=120: both set mfc.k_mfc"
+            ),
+            "{e}"
+        );
+
+        let user = tempfile::tempdir().unwrap();
+        let mine = user.path().join("mine.toml");
+        let text = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/vehicles/front-mic.toml"),
+        )
+        .unwrap();
+        std::fs::write(&mine, &text).unwrap();
+        let w = |set: &str| WhatIf {
+            vehicle: Some(mine.clone()),
+            set: vec![set.into()],
+            ..WhatIf::default()
+        };
+        for spec in ["vehicle.mass=1500", "mine.toml:vehicle.mass=1500"] {
+            let cfg = prepare(&reference(), &w(spec)).unwrap();
+            let used = std::fs::read_to_string(cfg.vehicle.as_ref().unwrap()).unwrap();
+            assert!(used.contains("mass = 1500.0"), "{used}");
+            assert!(
+                cfg.changes[1].starts_with("mine.toml (--vehicle "),
+                "{:?}",
+                cfg.changes
+            );
+        }
+        let e = prepare(&reference(), &w("vehicle.toml:vehicle.mass=1500"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("the replay's vehicle is mine.toml"), "{e}");
+        assert_eq!(std::fs::read_to_string(&mine).unwrap(), text);
     }
 
     /// `--set FILE:...` names a file of the replay's own configuration copy:
@@ -511,7 +1410,9 @@ mod tests {
                 .display()
         );
         for spec in [abs.as_str(), rel.as_str(), "sub/controllers.toml:mfc.k=1.2"] {
-            let e = set_key(cfg.path(), spec).unwrap_err().to_string();
+            let e = set_key(cfg.path(), spec, &Reads::default())
+                .unwrap_err()
+                .to_string();
             assert!(
                 e.contains(&format!("--set {spec}")) && e.contains("not a file name"),
                 "{e}"
