@@ -23,6 +23,11 @@
 //!   scenario window (none when the log has no scenario window);
 //! - CAN: frames per message and direction, E2E rejections, the loop's
 //!   fault counters;
+//! - the inverter ([`inverter()`]): from its `MotorStatus` frames on the
+//!   loop's CAN log, the episodes of `Fault`, `Derating`, `CmdTimeout` and
+//!   not `Ready` (during the scenario and over the whole log), the
+//!   FaultCodes it sent, and whether the loop was in its safe state during
+//!   each fault;
 //! - ARTE: accuracy against the ground truth during the scenario (and over
 //!   the whole log, labelled so), per-road recall, detection delay at each
 //!   change of the road at the microphone (from the first truth sample, so
@@ -43,7 +48,9 @@ use grip_tcs::{Metrics, MetricsAccumulator, Sample};
 use crate::log::DriveLog;
 use crate::roads::LogRoads;
 
+pub mod inverter;
 pub mod measured;
+pub use inverter::{Inverter, inverter};
 pub use measured::{Measured, measured};
 
 /// The plant's period, ns: a truth sample stands for this long (the last
@@ -503,6 +510,10 @@ pub struct Summary {
     /// without one the time the driver demanded torque; not ground truth
     /// ([`measured()`]).
     pub measured: Measured,
+    /// The inverter as its `MotorStatus` frames report it: fault,
+    /// derating, command-timeout and not-ready episodes, FaultCodes, the
+    /// loop's safe state during faults ([`inverter()`]).
+    pub inverter: Inverter,
 }
 
 /// The model arte ran, as the log says it ([`model_of`]).
@@ -1300,6 +1311,7 @@ pub fn summarize(
     if let Some(c) = log.cycles.last() {
         s.can.faults = c.faults;
     }
+    s.inverter = inverter(log, &protocol, s.window_ns);
     if let Some((ws, we)) = s.window_ns {
         let period = u64::try_from(s.timing.period_ns)
             .ok()
@@ -1931,6 +1943,7 @@ impl Summary {
             "  loop fault counters, whole log (incl. start-up and after plant-sim stopped): {}",
             fmt_f(&self.can.faults)
         );
+        o.push_str(&self.inverter.render());
 
         let a = &self.arte;
         let _ = writeln!(

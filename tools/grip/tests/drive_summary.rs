@@ -1,7 +1,8 @@
 //! `grip drive`'s summary is `grip inspect`'s, by the same code: the road
-//! catalogue line, the model arte ran, the histogram and the road timeline
-//! included. The services are stand-ins (`common/fake_services.rs`) whose
-//! recorder writes a copy of the reference drive as the drive's log.
+//! catalogue line, the model arte ran, the histogram, the road timeline
+//! and the inverter's episodes included. The services are stand-ins
+//! (`common/fake_services.rs`) whose recorder writes a copy of the
+//! reference drive as the drive's log.
 
 mod common;
 #[path = "common/fake_services.rs"]
@@ -33,6 +34,9 @@ fn the_drive_prints_what_inspect_prints() {
         "model: models/default.model (sha256 4a6ce5407aaf, ",
         "loop wake-up latency histogram:",
         "road timeline (every 0.1 s; ",
+        // the inverter's episodes (the reference drive's start-up fault)
+        "\ninverter (its MotorStatus frames tcs-loop received and the E2E check accepted: 1675, ",
+        "  whole log: fault 1 (0.001 s), derating 0, command timeout 1 (0.001 s), not ready 0\n",
     ] {
         assert!(
             drive_out.contains(want),

@@ -116,3 +116,115 @@ fn inspect_says_control_was_lost_and_exits_0() {
     let v: serde_json::Value = serde_json::from_str(json.trim()).unwrap();
     assert_eq!(v["control_lost"], false, "{v}");
 }
+
+/// A 1 s drive whose inverter faults with FaultCode 0x2A from 0.300 to
+/// 0.400 s of the scenario (the loop in its safe state from the cycle after
+/// the first fault frame to 50 ms after the fault cleared, as tcs-loop does
+/// since it acts on Fault), derates from 0.600 to 0.700 s and times out the
+/// commands from 0.800 to 0.820 s; as plant-sim does, it comes up in Fault
+/// and CmdTimeout with FaultCode 0x01 (its first 3 frames) and is back in
+/// them from 0.050 s after the scenario's end (the commands stopped).
+/// Written as the recorder writes a log.
+fn write_faulting_drive(path: &Path) {
+    use grip_io::can::protocol::{MotorStatus, encode_in};
+    let mut w = McapWriter::create(path, McapWriterOptions::default()).unwrap();
+    let mut extra = BTreeMap::new();
+    extra.insert("scenario".to_owned(), "test".to_owned());
+    extra.insert("scenario_duration_s".to_owned(), "1".to_owned());
+    w.write_run_info(&RunInfo {
+        version: "test".into(),
+        git_revision: "unknown".into(),
+        extra,
+        ..RunInfo::default()
+    })
+    .unwrap();
+    let p = Protocol::builtin();
+    // scenario time, ms
+    let t = |k: u64| k as i64 - START_MS as i64;
+    for k in 0..1100u64 {
+        let mut g = GroundTruth::zeroed();
+        g.seq = k;
+        g.stamp_ns = k * MS;
+        g.x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
+        g.v = 3.0;
+        g.omega = 10.0;
+        g.road_name = name_to_bytes("asphalt");
+        g.mic_road_name = g.road_name;
+        w.write(topics::TRUTH, &g).unwrap();
+        let timed_out = k < 3 || t(k) >= 1050;
+        let m = MotorStatus {
+            ready: true,
+            fault: timed_out || (300..400).contains(&t(k)),
+            derating: (600..700).contains(&t(k)),
+            cmd_timeout: timed_out || (800..820).contains(&t(k)),
+            fault_code: if timed_out {
+                0x01
+            } else if (300..400).contains(&t(k)) {
+                0x2A
+            } else {
+                0
+            },
+            ..MotorStatus::default()
+        };
+        let mut f = encode_in(p.spec(MsgKind::MotorStatus), &m, (k % 16) as u8, k * MS);
+        f.direction = can_dir::RX;
+        w.write(topics::CAN_LOG, &f).unwrap();
+        let mut c = CycleRecord::zeroed();
+        c.seq = k;
+        c.stamp_ns = k * MS;
+        c.safe_state = u8::from(k < 20 || (301..450).contains(&t(k)) || t(k) >= 1051);
+        c.torque_cmd = if c.safe_state != 0 { 0.0 } else { 200.0 };
+        w.write(topics::CYCLE, &c).unwrap();
+    }
+    w.write_metadata("grip.recorder", &BTreeMap::new()).unwrap();
+    w.finish().unwrap();
+}
+
+/// `grip inspect` and `--json` of that drive: each flag's episodes during
+/// the scenario and over the whole log, the fault codes with their first
+/// time, and the loop's safe state during the fault.
+#[test]
+fn inspect_shows_the_inverters_episodes_and_the_loop_during_its_fault() {
+    let d = tempfile::tempdir().unwrap();
+    let log = d.path().join("fault.mcap");
+    write_faulting_drive(&log);
+    let (ok, out, err) = common::output(&["inspect".as_ref(), log.as_os_str()]);
+    assert!(ok, "{out}{err}");
+    for want in [
+        "\ninverter (its MotorStatus frames tcs-loop received and the E2E check accepted: 1100, -0.009 to 1.090 s; t from the scenario start)\n",
+        "  during the scenario (0.000-1.000 s, 1000 frames): fault 1 (0.100 s), derating 1 (0.100 s), command timeout 1 (0.020 s), not ready 0\n",
+        "  whole log: fault 3 (0.144 s), derating 1 (0.100 s), command timeout 3 (0.064 s), not ready 0\n",
+        "  fault: 3 episodes (1 before the scenario, 1 during the scenario, 1 after the scenario)\n",
+        "    -0.009 to -0.006 s (0.003 s, 3 frames), before the scenario, from the inverter's first frame, FaultCode 0x01: the loop in its safe state throughout (3 cycles)\n",
+        "    0.300 to 0.400 s (0.100 s, 100 frames), during the scenario, FaultCode 0x2A: the loop in its safe state in 99 of its 100 cycles, from 0.001 s after it began\n",
+        "    1.050 s to the end of the MotorStatus frames (0.041 s, 41 frames; still set in the last one), after the scenario, FaultCode 0x01: the loop in its safe state in 40 of its 41 cycles, from 0.001 s after it began\n",
+        "  derating: 1 episode (1 during the scenario)\n    0.600 to 0.700 s (0.100 s, 100 frames), during the scenario\n",
+        "    0.800 to 0.820 s (0.020 s, 20 frames), during the scenario\n",
+        "  fault codes: 0x01 first at -0.009 s (44 frames), 0x2A first at 0.300 s (100 frames)\n",
+    ] {
+        assert!(out.contains(want), "{want:?} not in\n{out}");
+    }
+    let (ok, json, err) = common::output(&["inspect".as_ref(), "--json".as_ref(), log.as_os_str()]);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(json.trim()).unwrap();
+    let inv = &v["inverter"];
+    assert_eq!(inv["fault"]["episodes"], 3, "{inv}");
+    assert_eq!(inv["fault"]["entered"], 2, "{inv}");
+    assert_eq!(inv["fault"]["episodes_in_scenario"], 1, "{inv}");
+    let e = &inv["fault"]["listed"][1];
+    assert_eq!(
+        (e["safe_cycles"].as_u64(), e["cycles"].as_u64()),
+        (Some(99), Some(100)),
+        "{e}"
+    );
+    assert_eq!(e["fault_codes"], serde_json::json!([42]), "{e}");
+    assert!((e["start_s"].as_f64().unwrap() - 0.3).abs() < 1e-9, "{e}");
+    assert!(
+        inv["fault"]["listed"][2]["end_s"].is_null(),
+        "to the end: {inv}"
+    );
+    assert_eq!(inv["derating"]["episodes_in_scenario"], 1, "{inv}");
+    assert_eq!(inv["cmd_timeout"]["after_scenario"], 1, "{inv}");
+    // clear -> set: the scenario's timeout and the one after the drive
+    assert_eq!(v["command_timeouts"], 2, "{v}");
+}

@@ -404,3 +404,73 @@ fn the_replay_table_says_each_rows_window() {
         withheld / time
     );
 }
+
+/// The inverter section of the reference drive as it is: plant-sim, the
+/// inverter, comes up reporting Fault and CmdTimeout with FaultCode 0x01
+/// (no command has reached it yet) in its first frame, 0.073 s before the
+/// scenario start, and reports ready with no flag in every frame after it,
+/// the scenario's 1499 and the stop's (it ends before tcs-loop stops
+/// sending, so the log has no timeout after the drive). The start-up
+/// episode is listed before the scenario, from the inverter's first frame,
+/// with the loop already in its safe state (start-up); `--json` gives the
+/// same, and `command_timeouts` (clear → set) stays 0.
+#[test]
+fn inspect_shows_the_inverter_as_its_motor_status_frames_report_it() {
+    let (ok, out, err) = common::output(&["inspect".as_ref(), reference().as_os_str()]);
+    assert!(ok, "{out}{err}");
+    let want = "
+inverter (its MotorStatus frames tcs-loop received and the E2E check accepted: 1675, -0.073 to 1.602 s; t from the scenario start)
+  during the scenario (0.000-1.500 s, 1499 frames): ready throughout, no fault, derating or command timeout
+  whole log: fault 1 (0.001 s), derating 0, command timeout 1 (0.001 s), not ready 0
+  fault: 1 episode (1 before the scenario)
+    -0.073 to -0.072 s (0.001 s, 1 frame), before the scenario, from the inverter's first frame, FaultCode 0x01: the loop in its safe state throughout (1 cycle; in it already before the fault began)
+  command timeout: 1 episode (1 before the scenario)
+    -0.073 to -0.072 s (0.001 s, 1 frame), before the scenario, from the inverter's first frame
+  fault codes: 0x01 first at -0.073 s (1 frame)
+";
+    assert!(out.contains(want), "{want} not in\n{out}");
+    // after the CAN section, before ARTE's
+    let at = |s: &str| out.find(s).unwrap_or_else(|| panic!("{s:?} not in\n{out}"));
+    assert!(at("\nCAN frames") < at("\ninverter (") && at("\ninverter (") < at("\nARTE ("));
+
+    let j = json_of(&reference());
+    let inv = &j["inverter"];
+    assert_eq!(inv["motor_status_frames"], 1675, "{inv}");
+    assert_eq!(inv["rejected_frames"], 0);
+    assert_eq!(inv["frames_in_scenario"], 1499);
+    assert_eq!(inv["origin"], "scenario_start");
+    assert_eq!(inv["clean"], false);
+    for flag in ["fault", "cmd_timeout"] {
+        let f = &inv[flag];
+        assert_eq!(
+            (
+                f["episodes"].as_u64(),
+                f["entered"].as_u64(),
+                f["episodes_in_scenario"].as_u64(),
+                f["before_scenario"].as_u64()
+            ),
+            (Some(1), Some(0), Some(0), Some(1)),
+            "{flag}: {f}"
+        );
+        let e = &f["listed"][0];
+        assert_eq!(e["place"], "before", "{e}");
+        assert_eq!(e["at_first_frame"], true, "{e}");
+        assert!(
+            (e["start_s"].as_f64().unwrap() + 0.0732).abs() < 1e-3,
+            "{e}"
+        );
+    }
+    assert_eq!(
+        inv["fault"]["listed"][0]["fault_codes"],
+        serde_json::json!([1])
+    );
+    assert_eq!(inv["fault"]["listed"][0]["safe_before"], true);
+    assert_eq!(inv["fault"]["safe_throughout"], 1);
+    for flag in ["derating", "not_ready"] {
+        assert_eq!(inv[flag]["episodes"], 0, "{flag}: {inv}");
+    }
+    assert_eq!(inv["fault_codes"][0]["code"], 1, "{inv}");
+    assert_eq!(inv["fault_codes"][0]["frames"], 1, "{inv}");
+    assert_eq!(inv["fault_codes"].as_array().map(Vec::len), Some(1));
+    assert_eq!(j["command_timeouts"], 0, "no clear -> set in the drive");
+}

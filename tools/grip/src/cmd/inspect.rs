@@ -34,7 +34,8 @@ pub struct Args {
     /// One JSON object per log on stdout, one per line (JSON Lines):
     /// run metadata, metrics, ARTE accuracy per road and per speed band,
     /// confusion counts, detection delays, deadline misses, safe-state
-    /// entries, E2E faults, command timeouts (`tools/grip/README.md`,
+    /// entries, E2E faults, command timeouts, the inverter's episodes
+    /// (`tools/grip/README.md`,
     /// "grip inspect --json"). A bad log gives an object whose `status` says
     /// why (exit status 0 unless --strict).
     #[arg(long, conflicts_with_all = ["csv", "plot"])]

@@ -6,16 +6,16 @@
 //! road, per speed band, the confusion counts; during the scenario, and
 //! over the whole log as `_whole_log`), road-change detection delays,
 //! deadline misses, wake-up latency and safe-state entries (over the whole
-//! log, and during the scenario as `_in_scenario`), E2E faults and the
-//! inverter's command timeouts. Counts are given as counts (judged,
-//! correct) so that a fleet can add them up without re-implementing any
-//! of this; NaN and missing figures are `null`.
+//! log, and during the scenario as `_in_scenario`), E2E faults, the
+//! inverter's command timeouts and its episodes (`inverter`: fault,
+//! derating, command timeout, not ready; FaultCodes). Counts are given as
+//! counts (judged, correct) so that a fleet can add them up without
+//! re-implementing any of this; NaN and missing figures are `null`.
 
 use std::path::Path;
 
 use grip_drive::{DriveLog, summary};
-use grip_io::can::protocol::InverterMsg;
-use grip_msgs::{E2eFaults, can_dir};
+use grip_msgs::E2eFaults;
 use serde_json::{Value, json};
 
 /// A finite number, else `null`.
@@ -35,23 +35,65 @@ fn faults(f: &E2eFaults) -> Value {
     })
 }
 
-/// Command-timeout episodes of the inverter, as its `MotorStatus` frames on
-/// the loop's CAN log report them: `CmdTimeout` going from clear to set.
-pub fn command_timeouts(log: &DriveLog) -> u64 {
-    let protocol = log
-        .protocol()
-        .unwrap_or_else(|_| grip_io::can::protocol::Protocol::builtin().clone());
-    let mut last: Option<bool> = None;
-    let mut n = 0;
-    for f in log.can.iter().filter(|f| f.direction != can_dir::TX) {
-        if let Some(InverterMsg::MotorStatus(m)) = InverterMsg::decode_in(&protocol, f) {
-            if last == Some(false) && m.cmd_timeout {
-                n += 1;
-            }
-            last = Some(m.cmd_timeout);
-        }
+/// `inverter`: the inverter's episodes and FaultCodes from its
+/// `MotorStatus` frames ([`summary::inverter()`]); times on its `origin`.
+fn inverter_json(inv: &summary::Inverter) -> Value {
+    let episode = |e: &summary::inverter::Episode| {
+        json!({
+            "start_s": num(e.start_s),
+            "end_s": e.end_s.map(num),
+            "duration_s": num(e.duration_s),
+            "frames": e.frames,
+            "at_first_frame": e.at_first_frame,
+            "place": e.place.map(|p| p.as_str()),
+            "fault_codes": e.codes,
+            "safe_cycles": e.safe.map(|s| s.safe),
+            "cycles": e.safe.map(|s| s.cycles),
+            "safe_before": e.safe.map(|s| s.safe_before),
+        })
+    };
+    let mut o = serde_json::Map::new();
+    o.insert("motor_status_frames".into(), json!(inv.frames));
+    o.insert("rejected_frames".into(), json!(inv.rejected));
+    o.insert(
+        "origin".into(),
+        json!(if inv.from_scenario_start {
+            "scenario_start"
+        } else {
+            "first_message"
+        }),
+    );
+    o.insert(
+        "span_s".into(),
+        json!(inv.span_s.map(|(a, b)| [num(a), num(b)])),
+    );
+    o.insert("frames_in_scenario".into(), json!(inv.frames_in_scenario));
+    o.insert("clean".into(), json!(inv.clean()));
+    for f in &inv.flags {
+        o.insert(
+            f.flag.as_str().into(),
+            json!({
+                "episodes": f.count,
+                "entered": f.entered,
+                "time_s": num(f.time_s),
+                "episodes_in_scenario": f.in_scenario.map(|(n, _)| n),
+                "time_in_scenario_s": f.in_scenario.map(|(_, t)| num(t)),
+                "before_scenario": f.in_scenario.map(|_| f.places[0]),
+                "after_scenario": f.in_scenario.map(|_| f.places[2]),
+                "safe_throughout": (f.flag == summary::inverter::Flag::Fault).then_some(f.safe_throughout),
+                "listed": f.listed.iter().map(episode).collect::<Vec<_>>(),
+            }),
+        );
     }
-    n
+    o.insert(
+        "fault_codes".into(),
+        inv.codes
+            .iter()
+            .map(|c| json!({"code": c.code, "first_s": num(c.first_s), "frames": c.frames}))
+            .collect::<Vec<_>>()
+            .into(),
+    );
+    Value::Object(o)
 }
 
 /// The status and reason of a loaded log (as `grip inspect DIR` gives them).
@@ -320,7 +362,13 @@ pub fn summary_json(
         "e2e_faults": faults(&s.can.faults),
         "e2e_faults_in_scenario": s.can.faults_in_window.as_ref().map_or(Value::Null, faults),
         "e2e_rejected_frames": s.can.rejected,
-        "command_timeouts": command_timeouts(log),
+        // the inverter's CmdTimeout going from clear to set (not the state
+        // it came up in), in its frames the E2E check accepted
+        "command_timeouts": s
+            .inverter
+            .flag(summary::inverter::Flag::CmdTimeout)
+            .map_or(0, |f| f.entered),
+        "inverter": inverter_json(&s.inverter),
         "bad_messages": log.report.bad,
         "warnings": warnings,
     })
