@@ -57,10 +57,15 @@ fn write_drive(path: &Path, back_ms: Option<u64>) {
                 MsgKind::MotorStatus,
                 MsgKind::DriverDemand,
             ] {
+                // a healthy inverter: MotorStatus with Ready (bit 12) set
+                let mut data = [0u8; 8];
+                if kind == MsgKind::MotorStatus {
+                    data[1] = 0x10;
+                }
                 let f = CanFrame {
                     stamp_ns: k * MS,
                     direction: can_dir::RX,
-                    ..CanFrame::new(p.spec(kind).id, &[0; 8])
+                    ..CanFrame::new(p.spec(kind).id, &data)
                 };
                 w.write(topics::CAN_LOG, &f).unwrap();
             }
