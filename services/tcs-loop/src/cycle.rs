@@ -136,6 +136,10 @@ impl SafeCause {
     pub const INVERTER_FAULT: u8 = 4;
     /// No fresh `DriverDemand` frame.
     pub const DEMAND: u8 = 8;
+    /// With [`Self::INVERTER_FAULT`]: the `MotorStatus` also reports
+    /// `CmdTimeout`, i.e. this loop's commands stopped reaching the inverter
+    /// (a stall of the loop, or of the bus), not a fault of the inverter's own.
+    pub const INVERTER_CMD_TIMEOUT: u8 = 16;
 
     /// The causes in `bits`, in words, for the transition log.
     pub fn describe(bits: u8, fault_code: u8) -> String {
@@ -147,9 +151,13 @@ impl SafeCause {
             parts.push("motor-status frames missing".to_owned());
         }
         if bits & Self::INVERTER_FAULT != 0 {
-            parts.push(format!(
-                "the inverter reports Fault (FaultCode 0x{fault_code:02X})"
-            ));
+            parts.push(if bits & Self::INVERTER_CMD_TIMEOUT != 0 {
+                format!(
+                    "the inverter reports Fault (FaultCode 0x{fault_code:02X}) with its command timeout: this loop's commands stopped reaching it (a stall of the loop or of the bus)"
+                )
+            } else {
+                format!("the inverter reports Fault (FaultCode 0x{fault_code:02X})")
+            });
         }
         if bits & Self::DEMAND != 0 {
             parts.push("driver-demand frames missing".to_owned());
@@ -563,7 +571,11 @@ impl TcsLoop {
             let cause = bit(ws.is_none(), SafeCause::WHEEL_SPEED)
                 | bit(ms.is_none(), SafeCause::MOTOR_STATUS)
                 | bit(inverter_fault, SafeCause::INVERTER_FAULT)
-                | bit(dd.is_none(), SafeCause::DEMAND);
+                | bit(dd.is_none(), SafeCause::DEMAND)
+                | bit(
+                    ms.is_some_and(|m| m.fault && m.cmd_timeout),
+                    SafeCause::INVERTER_CMD_TIMEOUT,
+                );
             self.status.safe_cause.store(cause, Ordering::Relaxed);
             if let Some(m) = ms.filter(|m| m.fault) {
                 self.status

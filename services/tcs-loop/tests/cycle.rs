@@ -311,6 +311,14 @@ fn an_inverter_fault_enters_the_safe_state_until_it_has_cleared() {
     r.feed.fault_code = None;
     assert_eq!(control_again(&mut r), Some(50));
     assert_eq!(r.lp.safe_entries(), 1);
+    // the inverter's own command timeout says whose fault it is
+    assert!(
+        SafeCause::describe(
+            SafeCause::INVERTER_FAULT | SafeCause::INVERTER_CMD_TIMEOUT,
+            1
+        )
+        .contains("with its command timeout: this loop's commands stopped reaching it")
+    );
     // a missing frame and the fault together are both named
     assert_eq!(
         SafeCause::describe(SafeCause::WHEEL_SPEED | SafeCause::INVERTER_FAULT, 1),
