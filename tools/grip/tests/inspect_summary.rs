@@ -423,7 +423,7 @@ inverter (its MotorStatus frames tcs-loop received and the E2E check accepted: 1
   during the scenario (0.000-1.500 s, 1499 frames): ready throughout, no fault, derating or command timeout
   whole log: fault 1 (0.001 s), derating 0, command timeout 1 (0.001 s), not ready 0
   fault: 1 episode (1 before the scenario)
-    -0.073 to -0.072 s (0.001 s, 1 frame), before the scenario, from the inverter's first frame, FaultCode 0x01: the loop in its safe state throughout (1 cycle; in it already before the fault began)
+    -0.073 to -0.072 s (0.001 s, 1 frame), before the scenario, from the inverter's first frame, FaultCode 0x01: the loop in its safe state throughout (1 cycle)
   command timeout: 1 episode (1 before the scenario)
     -0.073 to -0.072 s (0.001 s, 1 frame), before the scenario, from the inverter's first frame
   fault codes: 0x01 first at -0.073 s (1 frame)
@@ -464,7 +464,8 @@ inverter (its MotorStatus frames tcs-loop received and the E2E check accepted: 1
         inv["fault"]["listed"][0]["fault_codes"],
         serde_json::json!([1])
     );
-    assert_eq!(inv["fault"]["listed"][0]["safe_before"], true);
+    // the loop's first cycle read it: safe from the start, nothing before
+    assert_eq!(inv["fault"]["listed"][0]["safe_before"], false);
     assert_eq!(inv["fault"]["safe_throughout"], 1);
     for flag in ["derating", "not_ready"] {
         assert_eq!(inv[flag]["episodes"], 0, "{flag}: {inv}");
