@@ -497,6 +497,13 @@ pub fn replay(
                 path.display()
             )
         })?;
+        // the plant's schedule (its cycles' stamps) is read from the ground
+        // truth: without it there is no time line to replay the plant on
+        anyhow::ensure!(
+            !log.truth.is_empty(),
+            "{}: no ground truth (grip/plant/truth) in the log: --closed-loop replays plant-sim's cycles as the drive ran them, which the ground truth records (a drive on a car has none: replay it open loop)",
+            path.display()
+        );
         let seed = log.run.get("seed").and_then(|s| s.parse().ok());
         let (_, mut plant, _) = grip_plant_sim::run::load(&grip_plant_sim::Options {
             config: config.clone(),

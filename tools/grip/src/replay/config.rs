@@ -659,7 +659,11 @@ fn table_at<'a>(mut t: &'a mut toml::Table, segs: &[Seg]) -> Result<&'a mut toml
                 let n = a.len();
                 let i = match sel.parse::<usize>() {
                     Ok(i) => Some(i).filter(|&i| i < n),
-                    Err(_) => names.iter().position(|x| x == sel),
+                    // the index in the whole array (elements without a
+                    // name included), not among the named ones
+                    Err(_) => a.iter().position(|e| {
+                        e.get("name").and_then(toml::Value::as_str) == Some(sel.as_str())
+                    }),
                 };
                 let Some(i) = i else {
                     return Err(if names.is_empty() {
@@ -1012,6 +1016,17 @@ impl ReplayConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An element chosen by name is that element even where unnamed ones
+    /// stand before it (the index was taken among the named ones).
+    #[test]
+    fn a_named_element_is_found_among_unnamed_ones() {
+        let mut t: toml::Table =
+            toml::from_str("[[road]]\nc1 = 1.0\n[[road]]\nname = \"snow\"\nc1 = 2.0\n").unwrap();
+        let segs = parse_path("road[snow]").unwrap();
+        let snow = table_at(&mut t, &segs).unwrap();
+        assert_eq!(snow.get("c1").and_then(toml::Value::as_float), Some(2.0));
+    }
 
     /// The drive's own model at another rate than the log's audio is
     /// replayed with a warning; a `--set` on arte's file (`arte-svc.toml`)
