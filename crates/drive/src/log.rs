@@ -200,16 +200,13 @@ impl DriveLog {
         })?;
         // the wheels' radii of the drive's vehicle (attached), for a bus
         // whose wheel speeds are in km/h or m/s, as tcs-loop read it
-        let radii = [crate::plan::VEHICLE_ATTACHMENT, "vehicle.toml"]
-            .iter()
-            .find_map(|name| {
-                let text = self.attachment_text(name)?;
-                grip_config::parse_vehicle(Path::new(name), text).ok()
-            })
-            .map(|(v, _)| grip_io::can::protocol::WheelRadii {
+        // (the vehicle the summary uses, as far as the log tells it)
+        let radii = crate::plan::vehicle_of_log(self, &mut Vec::new()).map(|(v, _)| {
+            grip_io::can::protocol::WheelRadii {
                 driven_m: v.r,
                 reference_m: v.ref_radius(),
-            });
+            }
+        });
         let settings = grip_io::can::DbcSettings::from_can(&can, radii);
         // decoded as the services decode the file (UTF-8, else Latin-1)
         Protocol::from_dbc_bytes_with(bytes, &format!("{dbc} (attached)"), &settings)

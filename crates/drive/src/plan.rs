@@ -68,41 +68,8 @@ pub fn attached_label(name: &str) -> String {
 /// the warnings to print (files that could not be used).
 pub fn vehicle_for(log: &DriveLog, config_dir: &Path) -> (VehicleParams, String, Vec<String>) {
     let mut warnings = Vec::new();
-    let attached = |name: &str, warnings: &mut Vec<String>| {
-        let text = log.attachment_text(name)?;
-        match grip_config::parse_vehicle(Path::new(&format!("{name} (attached)")), text) {
-            Ok((v, _)) => Some(v),
-            Err(e) => {
-                warnings.push(format!("warning: {e}"));
-                None
-            }
-        }
-    };
-    if let Some(v) = attached(VEHICLE_ATTACHMENT, &mut warnings) {
-        return (v, attached_label(VEHICLE_ATTACHMENT), warnings);
-    }
-    if let Some(p) = log.run.get("vehicle") {
-        let name = log
-            .attachments
-            .keys()
-            .filter(|name| p.ends_with(&format!("/{name}")) || p == *name)
-            .max_by_key(|name| name.len());
-        if let Some(name) = name
-            && let Some(v) = attached(name, &mut warnings)
-        {
-            return (v, attached_label(name), warnings);
-        }
-        match grip_config::load_vehicle(p) {
-            Ok((v, _)) => {
-                return (v, format!("{p} (read from disk: not attached to the log)"), warnings);
-            }
-            Err(e) => warnings.push(format!(
-                "warning: the drive ran with vehicle {p}, which is neither attached to the log nor readable ({e}); using vehicle.toml instead"
-            )),
-        }
-    }
-    if let Some(v) = attached("vehicle.toml", &mut warnings) {
-        return (v, attached_label("vehicle.toml"), warnings);
+    if let Some((v, from)) = vehicle_of_log(log, &mut warnings) {
+        return (v, from, warnings);
     }
     let dir = ConfigDir::new(config_dir);
     match dir.vehicle() {
@@ -118,6 +85,52 @@ pub fn vehicle_for(log: &DriveLog, config_dir: &Path) -> (VehicleParams, String,
             (VehicleParams::default(), "defaults".into(), warnings)
         }
     }
+}
+
+/// The steps of [`vehicle_for`] that the log itself answers (its attached
+/// vehicle files, or `grip.run`'s `vehicle=PATH` read from disk); `None`
+/// when none gives a vehicle. Files that could not be used are added to
+/// `warnings`. [`DriveLog::protocol`] takes the wheel radii from it, so a
+/// bus whose wheel speeds are in km/h is read with the vehicle the summary
+/// uses.
+pub fn vehicle_of_log(
+    log: &DriveLog,
+    warnings: &mut Vec<String>,
+) -> Option<(VehicleParams, String)> {
+    let attached = |name: &str, warnings: &mut Vec<String>| {
+        let text = log.attachment_text(name)?;
+        match grip_config::parse_vehicle(Path::new(&format!("{name} (attached)")), text) {
+            Ok((v, _)) => Some(v),
+            Err(e) => {
+                warnings.push(format!("warning: {e}"));
+                None
+            }
+        }
+    };
+    if let Some(v) = attached(VEHICLE_ATTACHMENT, warnings) {
+        return Some((v, attached_label(VEHICLE_ATTACHMENT)));
+    }
+    if let Some(p) = log.run.get("vehicle") {
+        let name = log
+            .attachments
+            .keys()
+            .filter(|name| p.ends_with(&format!("/{name}")) || p == *name)
+            .max_by_key(|name| name.len());
+        if let Some(name) = name
+            && let Some(v) = attached(name, warnings)
+        {
+            return Some((v, attached_label(name)));
+        }
+        match grip_config::load_vehicle(p) {
+            Ok((v, _)) => {
+                return Some((v, format!("{p} (read from disk: not attached to the log)")));
+            }
+            Err(e) => warnings.push(format!(
+                "warning: the drive ran with vehicle {p}, which is neither attached to the log nor readable ({e}); using vehicle.toml instead"
+            )),
+        }
+    }
+    attached("vehicle.toml", warnings).map(|v| (v, attached_label("vehicle.toml")))
 }
 
 /// What a drive is asked to do.
