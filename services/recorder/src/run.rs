@@ -211,14 +211,20 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
     let can = grip_io::service::load_can(&dir);
     if let Err(e) = can.as_ref().map_err(Clone::clone).and_then(|can| {
         // the recorder reads ids and alive counters only, which no
-        // wheel radius moves: a bus whose wheel speeds are in km/h or
-        // m/s is read with a placeholder radius of 1 m (never used
-        // for a speed here)
-        let any = grip_io::can::protocol::WheelRadii {
-            driven_m: 1.0,
-            reference_m: 1.0,
-        };
-        grip_io::service::install_protocol_with(&dir, can, Some(any)).map(|_| ())
+        // wheel radius moves; the configuration's vehicle gives the radii
+        // its protocol line names (none readable: 1 m, never used for a
+        // speed here)
+        let radii = dir.vehicle().map_or(
+            grip_io::can::protocol::WheelRadii {
+                driven_m: 1.0,
+                reference_m: 1.0,
+            },
+            |(v, _)| grip_io::can::protocol::WheelRadii {
+                driven_m: v.r,
+                reference_m: v.ref_radius(),
+            },
+        );
+        grip_io::service::install_protocol_with(&dir, can, Some(radii)).map(|_| ())
     }) {
         tracing::warn!(error = %e, "CAN alive counters read as the built-in protocol places them (and, with bus = \"foreign\", grip's ids on the bus are the built-in ones)");
     }
