@@ -207,7 +207,10 @@ impl DriveLog {
                 reference_m: v.ref_radius(),
             }
         });
-        let settings = grip_io::can::DbcSettings::from_can(&can, radii);
+        let mut settings = grip_io::can::DbcSettings::from_can(&can, radii);
+        // the bus load was judged when the drive started, at the rate its
+        // interface ran at (which the log does not keep): not again here
+        settings.skip_bus_load = true;
         // decoded as the services decode the file (UTF-8, else Latin-1)
         Protocol::from_dbc_bytes_with(bytes, &format!("{dbc} (attached)"), &settings)
             .map_err(|e| e.to_string())

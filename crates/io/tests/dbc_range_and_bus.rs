@@ -204,7 +204,8 @@ fn a_bus_too_slow_for_grips_messages_is_refused_with_its_load() {
         *p.bus(),
         BusTiming {
             bitrate: 1_000_000,
-            bitrate_declared: true,
+            dbc_bitrate: Some(1_000_000),
+            interface: None,
             can_fd_bus: false
         }
     );

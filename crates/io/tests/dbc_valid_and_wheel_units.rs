@@ -65,6 +65,7 @@ fn an_inverted_validity_bit_is_read_and_sent_in_its_sense() {
         names: names.clone(),
         valid: valid(&[("WheelSpeeds.DrivenValid", 0)]),
         radii: None,
+        skip_bus_load: false,
     };
     let p: &'static Protocol = Box::leak(Box::new(load(&text, &inverted).unwrap()));
     let spec = p.spec(MsgKind::WheelSpeeds);

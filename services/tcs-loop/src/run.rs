@@ -425,6 +425,9 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
         deadline_misses = summary.deadline_misses,
         safe_entries = summary.safe_entries,
         e2e_faults = summary.faults_total,
+        // of them, input timeout episodes (the rest are frames rejected:
+        // CRC, length, alive counter, unknown id)
+        e2e_timeouts = lp.protocol_rx().faults().timeout,
         can_tx = lp.can_tx(),
         can_rx = lp.can_rx(),
         bus_errors = lp.bus_errors(),

@@ -6,7 +6,7 @@
 //! uses, the E2E data id (`GripE2eDataId`), the transmission period
 //! (`GenMsgCycleTime`), the receive timeout (`GripTimeoutMs`), each scaled
 //! signal's range (grip saturates what it sends there) and the bus's bit
-//! rate (`Baudrate`, for the bus load: at most [`MAX_BUS_LOAD`]). What it
+//! rate (`Baudrate`, for the bus load: at most [`MAX_BUS_LOAD`](super::protocol::MAX_BUS_LOAD)). What it
 //! cannot change: which five messages there are and what each signal means
 //! (grip's names, looked up in the DBC, or mapped to the DBC's own names by
 //! `[dbc_names]` in `can.toml`), the physical units the code computes in
@@ -31,8 +31,7 @@ use can_dbc::{
 };
 
 use super::protocol::{
-    BusTiming, DEFAULT_BITRATE, MAX_BUS_LOAD, MessageSpec, MsgKind, Protocol, SignalList,
-    SignalSpec, WheelRadii, classic_frame_bits_worst,
+    BusTiming, MessageSpec, MsgKind, Protocol, SignalList, SignalSpec, WheelRadii,
 };
 
 /// What the DBC loader reads besides the DBC itself: `can.toml`'s
@@ -54,6 +53,13 @@ pub struct DbcSettings {
     /// circumferential speed) is converted with them, ω = v ÷ r, and
     /// refused without them.
     pub radii: Option<WheelRadii>,
+    /// Leave the bus load to the caller: the services judge it at the bit
+    /// rate their interface runs at ([`crate::service::resolve_protocol`]),
+    /// a drive log's reader not at all (what was recorded was accepted
+    /// then). `false` (the default): refused here at the DBC's `Baudrate`
+    /// (else [`super::protocol::DEFAULT_BITRATE`]) when over
+    /// [`MAX_BUS_LOAD`](super::protocol::MAX_BUS_LOAD).
+    pub skip_bus_load: bool,
 }
 
 impl DbcSettings {
@@ -71,6 +77,7 @@ impl DbcSettings {
             names: can.dbc_names.clone(),
             valid: can.dbc_valid.clone(),
             radii,
+            skip_bus_load: false,
         }
     }
 }
@@ -303,7 +310,7 @@ fn bus_timing(dbc: &Dbc, err: &dyn Fn(String, String) -> DbcError) -> Result<Bus
             Some(b) if b == 0.0 && from != "BA_" => {}
             Some(b) if (10_000.0..=1_000_000.0).contains(&b) && b.fract() == 0.0 => {
                 bus.bitrate = b as u32;
-                bus.bitrate_declared = true;
+                bus.dbc_bitrate = Some(b as u32);
             }
             Some(b) if b > 1_000_000.0 => {
                 return Err(err(
@@ -949,37 +956,10 @@ impl Protocol {
             .try_into()
             .unwrap_or_else(|_| unreachable!("five kinds, five specs"));
         let p = Self::from_specs(specs, bus, settings.radii.filter(|_| radii_used));
-        let load = p.bus_load();
-        if load > MAX_BUS_LOAD {
-            let periods: Vec<String> = p
-                .messages()
-                .iter()
-                .map(|m| format!("{} every {} ms", m.name, m.cycle_ms))
-                .collect();
-            let (what, rate) = if bus.bitrate_declared {
-                (
-                    "attribute Baudrate".to_owned(),
-                    format!("the DBC's {} kbit/s", f64::from(bus.bitrate) / 1e3),
-                )
-            } else {
-                (
-                    "bus load".to_owned(),
-                    format!(
-                        "{} kbit/s (no Baudrate in the DBC: grip's bus assumed)",
-                        f64::from(DEFAULT_BITRATE) / 1e3
-                    ),
-                )
-            };
-            return Err(err(
-                what,
-                format!(
-                    "grip's five messages would take {:.1} % of {rate} at worst ({} bits per 8-byte frame with worst-case bit stuffing; {}); grip allows at most {:.0} %: run the bus at 1 Mbit/s or give the messages longer periods (GenMsgCycleTime)",
-                    100.0 * load,
-                    classic_frame_bits_worst(8, false),
-                    periods.join(", "),
-                    100.0 * MAX_BUS_LOAD
-                ),
-            ));
+        if !settings.skip_bus_load
+            && let Some((what, reason)) = p.bus_load_refusal()
+        {
+            return Err(err(what, reason));
         }
         Ok(p)
     }

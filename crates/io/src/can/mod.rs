@@ -7,6 +7,7 @@
 //! and logs which and why. Each bus delivers what its [`RxFilter`] lets
 //! through: a service's bus only the ids its [`Role`] receives.
 
+pub mod bitrate;
 mod dbc;
 mod mem;
 pub mod protocol;
@@ -15,6 +16,9 @@ mod socket;
 
 use core::time::Duration;
 
+pub use bitrate::{
+    BitrateChoice, BitrateSource, InterfaceBitrate, choose_bitrate, read_interface_bitrate,
+};
 pub use dbc::{
     DbcError, DbcSettings, VALID_FLAGS as DBC_VALID_FLAGS, message_names as dbc_message_names,
     name_keys as dbc_name_keys,

@@ -556,16 +556,24 @@ pub struct WheelRadii {
     pub reference_m: f64,
 }
 
-/// The bus a protocol runs on, as its DBC declares it: the bit rate
-/// (`BA_ "Baudrate"`) and whether it is a CAN FD bus (`BA_ "BusType" "CAN
-/// FD"`; grip's messages are classic frames on it, at the nominal rate).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// The bus a protocol runs on: the bit rate its bus load is judged at
+/// (the interface's where the services read one, else the DBC's
+/// `BA_ "Baudrate"`, else [`DEFAULT_BITRATE`]; [`super::bitrate`]) and
+/// whether the DBC declares a CAN FD bus (`BA_ "BusType" "CAN FD"`; grip's
+/// messages are classic frames on it, at the nominal rate).
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct BusTiming {
-    /// Bit rate, bit/s (the nominal, arbitration rate on a CAN FD bus).
+    /// Bit rate, bit/s (the nominal, arbitration rate on a CAN FD bus):
+    /// the one [`Protocol::bus_load`] divides by.
     pub bitrate: u32,
-    /// True when the DBC gives the bit rate (`Baudrate`, or its
-    /// `BA_DEF_DEF_` default); false: [`DEFAULT_BITRATE`] assumed.
-    pub bitrate_declared: bool,
+    /// The DBC's bit rate (`Baudrate`, or its `BA_DEF_DEF_` default), if
+    /// it gives one; `None`: [`DEFAULT_BITRATE`] assumed unless the
+    /// interface reports its own.
+    pub dbc_bitrate: Option<u32>,
+    /// `Some(name)`: `bitrate` is the one interface `name` reports (read
+    /// from the kernel at start-up, [`Protocol::with_bitrate`]), which wins
+    /// over the DBC's.
+    pub interface: Option<String>,
     /// The DBC's `BusType` is `"CAN FD"`.
     pub can_fd_bus: bool,
 }
@@ -585,7 +593,8 @@ impl BusTiming {
     /// No bit rate in the DBC: [`DEFAULT_BITRATE`], classic CAN.
     pub const ASSUMED: Self = Self {
         bitrate: DEFAULT_BITRATE,
-        bitrate_declared: false,
+        dbc_bitrate: None,
+        interface: None,
         can_fd_bus: false,
     };
 }
@@ -678,18 +687,38 @@ impl Protocol {
             .sum();
         bits_per_s / f64::from(self.bus.bitrate)
     }
+    /// This protocol on a bus that runs at `choice`'s bit rate (the
+    /// interface's, read at start-up; [`super::bitrate::choose_bitrate`]):
+    /// [`Self::bus_load`] and [`Self::bus_load_refusal`] judge that rate.
+    pub fn with_bitrate(mut self, choice: &super::bitrate::BitrateChoice) -> Self {
+        self.bus.bitrate = choice.bitrate;
+        self.bus.interface = match &choice.source {
+            super::bitrate::BitrateSource::Interface(name) => Some(name.clone()),
+            _ => None,
+        };
+        self
+    }
     /// One line for a log: the bit rate, where it comes from, and grip's
     /// worst-case share of it, e.g. `1000 kbit/s (assumed: no Baudrate in
-    /// the DBC), grip's messages 43.2 % of it at worst`.
+    /// the DBC), grip's messages 43.2 % of it at worst`, or `1000 kbit/s
+    /// (1000000 bit/s read from can0; the DBC's Baudrate agrees), ...`.
     pub fn describe_bus(&self) -> String {
+        let from = match (&self.bus.interface, self.bus.dbc_bitrate) {
+            (Some(i), dbc) => format!(
+                "{} bit/s read from {i}; {}",
+                self.bus.bitrate,
+                match dbc {
+                    None => "the DBC gives no Baudrate".to_owned(),
+                    Some(d) if d == self.bus.bitrate => "the DBC's Baudrate agrees".to_owned(),
+                    Some(d) => format!("the DBC's Baudrate says {d} bit/s"),
+                }
+            ),
+            (None, Some(_)) => "the DBC's Baudrate".to_owned(),
+            (None, None) => "assumed: no Baudrate in the DBC".to_owned(),
+        };
         format!(
-            "{} kbit/s ({}){}, grip's messages {:.1} % of it at worst (limit {:.0} %)",
+            "{} kbit/s ({from}){}, grip's messages {:.1} % of it at worst (limit {:.0} %)",
             f64::from(self.bus.bitrate) / 1e3,
-            if self.bus.bitrate_declared {
-                "the DBC's Baudrate"
-            } else {
-                "assumed: no Baudrate in the DBC"
-            },
             if self.bus.can_fd_bus {
                 ", a CAN FD bus carrying grip's messages as classic frames"
             } else {
@@ -698,6 +727,58 @@ impl Protocol {
             100.0 * self.bus_load(),
             100.0 * MAX_BUS_LOAD
         )
+    }
+    /// Why grip refuses this bus, if it does: its five messages would take
+    /// more than [`MAX_BUS_LOAD`] of the bit rate at worst
+    /// ([`Self::bus_load`]). `(what, reason)`: what is to blame (`interface`
+    /// when the rate is the interface's, whose name the reason gives with
+    /// its bit rate; `attribute Baudrate` when it is the DBC's; `bus load`
+    /// when it is assumed) and the load, the rate and the periods.
+    pub fn bus_load_refusal(&self) -> Option<(String, String)> {
+        let load = self.bus_load();
+        if load <= MAX_BUS_LOAD {
+            return None;
+        }
+        let periods: Vec<String> = self
+            .messages
+            .iter()
+            .map(|m| format!("{} every {} ms", m.name, m.cycle_ms))
+            .collect();
+        let (what, rate, remedy) = match (&self.bus.interface, self.bus.dbc_bitrate) {
+            (Some(i), _) => (
+                "interface",
+                format!(
+                    "{i}'s {} bit/s (the interface's bit rate, read from the kernel)",
+                    self.bus.bitrate
+                ),
+                format!(
+                    "run {i} at 1 Mbit/s (ip link set {i} down; ip link set {i} type can bitrate 1000000; ip link set {i} up)"
+                ),
+            ),
+            (None, Some(d)) => (
+                "attribute Baudrate",
+                format!("the DBC's {} kbit/s", f64::from(d) / 1e3),
+                "run the bus at 1 Mbit/s".to_owned(),
+            ),
+            (None, None) => (
+                "bus load",
+                format!(
+                    "{} kbit/s (no Baudrate in the DBC: grip's bus assumed)",
+                    f64::from(DEFAULT_BITRATE) / 1e3
+                ),
+                "run the bus at 1 Mbit/s".to_owned(),
+            ),
+        };
+        Some((
+            what.to_owned(),
+            format!(
+                "grip's five messages would take {:.1} % of {rate} at worst ({} bits per 8-byte frame with worst-case bit stuffing; {}); grip allows at most {:.0} %: {remedy} or give the messages longer periods (GenMsgCycleTime)",
+                100.0 * load,
+                classic_frame_bits_worst(8, false),
+                periods.join(", "),
+                100.0 * MAX_BUS_LOAD
+            ),
+        ))
     }
     /// One line for a log: how the wheel speeds and the validity flags are
     /// read, e.g. `wheel speeds converted from km/h or m/s with r = 0.3 m,
@@ -1625,6 +1706,63 @@ mod tests {
         assert!((p.bus_load() - 0.432).abs() < 1e-12, "{}", p.bus_load());
         assert!(p.bus_load() <= MAX_BUS_LOAD);
         assert!(p.describe_bus().contains("43.2 %"), "{}", p.describe_bus());
+    }
+
+    /// The bus load at the interface's bit rate: 43.2 % of can0's 1 Mbit/s
+    /// is accepted and said to be read from can0; 500 kbit/s is refused
+    /// naming the interface, its rate and the load, even where the DBC says
+    /// 1 Mbit/s; without the interface's rate, today's DBC-or-assumed rule.
+    #[test]
+    fn the_bus_load_is_judged_at_the_interfaces_bit_rate() {
+        use crate::can::bitrate::{InterfaceBitrate, choose_bitrate};
+        let at = |read: InterfaceBitrate, dbc: Option<u32>| {
+            let mut p = Protocol::builtin().clone();
+            p.bus.dbc_bitrate = dbc;
+            if let Some(d) = dbc {
+                p.bus.bitrate = d;
+            }
+            p.with_bitrate(&choose_bitrate("can0", &read, dbc))
+        };
+        let p = at(InterfaceBitrate::Reported(1_000_000), Some(1_000_000));
+        assert_eq!(p.bus_load_refusal(), None);
+        assert!(
+            p.describe_bus().starts_with(
+                "1000 kbit/s (1000000 bit/s read from can0; the DBC's Baudrate agrees), grip's messages 43.2 %"
+            ),
+            "{}",
+            p.describe_bus()
+        );
+        // a DBC that says 500 kbit/s on a 1 Mbit/s interface: accepted
+        let p = at(InterfaceBitrate::Reported(1_000_000), Some(500_000));
+        assert_eq!(p.bus_load_refusal(), None);
+        assert!(
+            p.describe_bus()
+                .contains("the DBC's Baudrate says 500000 bit/s"),
+            "{}",
+            p.describe_bus()
+        );
+        for dbc in [None, Some(1_000_000)] {
+            let p = at(InterfaceBitrate::Reported(500_000), dbc);
+            let (what, reason) = p.bus_load_refusal().expect("86.4 % refused");
+            assert_eq!(what, "interface");
+            assert!(
+                reason.starts_with(
+                    "grip's five messages would take 86.4 % of can0's 500000 bit/s (the interface's bit rate, read from the kernel)"
+                ) && reason.contains("ip link set can0 type can bitrate 1000000"),
+                "{reason}"
+            );
+        }
+        // vcan: the DBC's rate as before, refused naming the DBC's attribute
+        let p = at(InterfaceBitrate::NotReported, Some(500_000));
+        let (what, reason) = p.bus_load_refusal().expect("86.4 % refused");
+        assert_eq!(what, "attribute Baudrate");
+        assert!(
+            reason.contains("86.4 % of the DBC's 500 kbit/s"),
+            "{reason}"
+        );
+        let p = at(InterfaceBitrate::NotReported, None);
+        assert_eq!(p.bus_load_refusal(), None);
+        assert_eq!(*p.bus(), BusTiming::ASSUMED);
     }
 
     /// A flag's sense: without `set_raw` any non-zero value is set (the

@@ -216,13 +216,66 @@ pub fn install_protocol(
 /// [`install_protocol`] with the wheels' rolling radii (the vehicle file's
 /// `r` and `r_ref`), which convert a wheel speed the DBC gives in km/h or
 /// m/s to rad/s (ω = v ÷ r). `can.toml`'s `[dbc_valid]` is applied either
-/// way.
+/// way. The bus load is judged at the bit rate the interface runs at
+/// ([`resolve_protocol`]); the choice and its warnings are logged once.
 pub fn install_protocol_with(
     dir: &ConfigDir,
     can: &crate::can::CanBusConfig,
     radii: Option<crate::can::protocol::WheelRadii>,
 ) -> Result<&'static crate::can::protocol::Protocol, ConfigError> {
-    use crate::can::protocol::{Protocol, install};
+    use crate::can::protocol::install;
+    let can_toml = dir.file("can.toml");
+    let (p, rate) = resolve_protocol(dir, can, radii)?;
+    if crate::can::protocol::installed().is_none() {
+        for w in &rate.warnings {
+            tracing::warn!("{w}");
+        }
+        tracing::info!(
+            dbc = can.dbc.as_deref().unwrap_or("(built in)"),
+            messages = %p.describe(),
+            bus = %p.describe_bus(),
+            bit_rate = %rate.note,
+            speeds = %p.describe_speeds(),
+            "CAN protocol"
+        );
+    }
+    install(p).map_err(|e| {
+        ConfigError::new(
+            &can_toml,
+            "dbc",
+            format!(
+                "{e} (one process speaks one bus; {} is not the one already in use)",
+                can.dbc.as_deref().unwrap_or("the built-in protocol")
+            ),
+        )
+    })
+}
+
+/// The protocol `can` names (its DBC, else the built-in one; see
+/// [`install_protocol_with`] for `radii`) on the bus it runs on: the bit
+/// rate is the interface's where the kernel reports one (`ip link set can0
+/// type can bitrate N`), else the DBC's `Baudrate`, else 1 Mbit/s
+/// ([`crate::can::choose_bitrate`]; the choice, with the warnings to log,
+/// is returned beside it). A bus load over
+/// [`crate::can::protocol::MAX_BUS_LOAD`] at that rate is refused: at the
+/// interface's rate naming `can.toml`'s `interface`, the interface and its
+/// rate; at the DBC's or the assumed one naming the DBC, as the DBC loader
+/// does. Reading the interface's rate never fails (a netlink error is a
+/// warning in the choice). Installs nothing: `grip drive`'s check before
+/// it starts the services calls it too.
+pub fn resolve_protocol(
+    dir: &ConfigDir,
+    can: &crate::can::CanBusConfig,
+    radii: Option<crate::can::protocol::WheelRadii>,
+) -> Result<
+    (
+        crate::can::protocol::Protocol,
+        crate::can::bitrate::BitrateChoice,
+    ),
+    ConfigError,
+> {
+    use crate::can::bitrate::{BitrateSource, choose_bitrate, read_interface_bitrate};
+    use crate::can::protocol::Protocol;
     let can_toml = dir.file("can.toml");
     let p = match &can.dbc {
         None if !can.dbc_names.is_empty() => {
@@ -242,7 +295,9 @@ pub fn install_protocol_with(
         None => Protocol::builtin().clone(),
         Some(f) => {
             let path = dir.file(f);
-            let settings = crate::can::DbcSettings::from_can(can, radii);
+            let mut settings = crate::can::DbcSettings::from_can(can, radii);
+            // judged below, at the rate the bus runs at
+            settings.skip_bus_load = true;
             Protocol::load_dbc_with(&path, &settings).map_err(|e| {
                 // a [dbc_names] key is can.toml's: named by its path
                 let file = if e.file == "can.toml" {
@@ -254,25 +309,17 @@ pub fn install_protocol_with(
             })?
         }
     };
-    if crate::can::protocol::installed().is_none() {
-        tracing::info!(
-            dbc = can.dbc.as_deref().unwrap_or("(built in)"),
-            messages = %p.describe(),
-            bus = %p.describe_bus(),
-            speeds = %p.describe_speeds(),
-            "CAN protocol"
-        );
+    let read = read_interface_bitrate(can);
+    let rate = choose_bitrate(&can.interface, &read, p.bus().dbc_bitrate);
+    let p = p.with_bitrate(&rate);
+    if let Some((what, reason)) = p.bus_load_refusal() {
+        let file = match (&rate.source, &can.dbc) {
+            (BitrateSource::Interface(_), _) | (_, None) => can_toml,
+            (_, Some(f)) => dir.file(f),
+        };
+        return Err(ConfigError::new(file, what, reason));
     }
-    install(p).map_err(|e| {
-        ConfigError::new(
-            &can_toml,
-            "dbc",
-            format!(
-                "{e} (one process speaks one bus; {} is not the one already in use)",
-                can.dbc.as_deref().unwrap_or("the built-in protocol")
-            ),
-        )
-    })
+    Ok((p, rate))
 }
 
 /// Parses `text`, the contents of `can.toml` at `file` (see [`load_can`]).

@@ -129,13 +129,16 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     {
         let dir = grip_config::ConfigDir::new(&config_dir);
         let can = grip_io::service::load_can(&dir)?;
-        if let Some(f) = &can.dbc {
-            // with the drive's vehicle's wheel radii, as tcs-loop reads it
-            let radii = grip_tcs_loop::run::wheel_radii(&vehicle_params);
-            let settings = grip_io::can::DbcSettings::from_can(&can, Some(radii));
-            grip_io::can::protocol::Protocol::load_dbc_with(&dir.file(f), &settings)
-                .map_err(|e| anyhow::anyhow!("the CAN bus (can.toml's dbc): {e}"))?;
-        }
+        // with the drive's vehicle's wheel radii, and the bus load at the
+        // bit rate the interface runs at, as tcs-loop reads them
+        let radii = grip_tcs_loop::run::wheel_radii(&vehicle_params);
+        grip_io::service::resolve_protocol(&dir, &can, Some(radii)).map_err(|e| {
+            if can.dbc.is_some() {
+                anyhow::anyhow!("the CAN bus (can.toml's dbc): {e}")
+            } else {
+                anyhow::anyhow!("the CAN bus (can.toml): {e}")
+            }
+        })?;
     }
     // `--model`: the services get a view of the configuration whose
     // arte-svc.toml names the model (the log then carries it)
