@@ -40,7 +40,7 @@ use std::fmt::Write as _;
 use grip_io::can::protocol::{InverterMsg, MotorStatus, MsgKind, Protocol};
 use grip_msgs::{CanFrame, CycleRecord, can_dir, can_flags};
 
-use super::{Percentiles, secs_between};
+use super::secs_between;
 use crate::log::DriveLog;
 
 /// Episodes listed per flag in the report (and in `--json`); all are
@@ -340,15 +340,7 @@ pub fn inverter(log: &DriveLog, protocol: &Protocol, window_ns: Option<(u64, u64
         *n = frames.iter().filter(|(t, _)| (ws..we).contains(t)).count() as u64;
     }
     // the frames' period: what the last frame stands for
-    let mut periods: Vec<i64> = frames
-        .windows(2)
-        .filter_map(|w| i64::try_from(w[1].0.checked_sub(w[0].0)?).ok())
-        .filter(|&p| p > 0)
-        .collect();
-    let period = u64::try_from(Percentiles::of(&mut periods).p50)
-        .ok()
-        .filter(|&p| p > 0)
-        .unwrap_or(1_000_000);
+    let period = super::measured::median_period_ns(frames.iter().map(|(t, _)| *t));
     let end_of_log = last.0.saturating_add(period);
 
     for flag in Flag::ALL {

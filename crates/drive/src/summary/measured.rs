@@ -267,6 +267,21 @@ fn valid_v(c: &CycleRecord) -> Option<f64> {
     (c.v_valid != 0 && c.v.is_finite()).then_some(c.v)
 }
 
+/// The median of the positive steps between successive `stamps`, ns (what
+/// one record stands for); 1 ms when there is none.
+pub(crate) fn median_period_ns(stamps: impl Iterator<Item = u64>) -> u64 {
+    let stamps: Vec<u64> = stamps.collect();
+    let mut periods: Vec<i64> = stamps
+        .windows(2)
+        .filter_map(|w| i64::try_from(w[1].checked_sub(w[0])?).ok())
+        .filter(|&p| p > 0)
+        .collect();
+    u64::try_from(Percentiles::of(&mut periods).p50)
+        .ok()
+        .filter(|&p| p > 0)
+        .unwrap_or(1_000_000)
+}
+
 /// Why a cycle record measures no slip ([`cycle_slip`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum NoSlip {
@@ -351,15 +366,7 @@ pub fn measured(
     if cycles.is_empty() {
         return m;
     }
-    let mut periods: Vec<i64> = cycles
-        .windows(2)
-        .filter_map(|w| i64::try_from(w[1].stamp_ns.checked_sub(w[0].stamp_ns)?).ok())
-        .filter(|&p| p > 0)
-        .collect();
-    let period = u64::try_from(Percentiles::of(&mut periods).p50)
-        .ok()
-        .filter(|&p| p > 0)
-        .unwrap_or(1_000_000);
+    let period = median_period_ns(cycles.iter().map(|c| c.stamp_ns));
     let max_dt = period.saturating_mul(MAX_DT_PERIODS);
     // each cycle's time, ns: to the next record, at most `max_dt`, clipped
     // to the scenario window's end
