@@ -19,13 +19,13 @@ const MS: u64 = 1_000_000;
 /// The last held sample: the scenario start.
 const START_MS: u64 = 9;
 
-/// A 3 s drive: the bus gone at 1.5 s (no frame received after), the safe
-/// state from 1.52 s, until `back_ms` (scenario time; None: to the end).
-fn write_drive(path: &Path, back_ms: Option<u64>) {
+/// A log written as the recorder writes one, with its run info: scenario
+/// `test` of `duration_s`.
+fn create_log(path: &Path, duration_s: &str) -> McapWriter {
     let mut w = McapWriter::create(path, McapWriterOptions::default()).unwrap();
     let mut extra = BTreeMap::new();
     extra.insert("scenario".to_owned(), "test".to_owned());
-    extra.insert("scenario_duration_s".to_owned(), "3".to_owned());
+    extra.insert("scenario_duration_s".to_owned(), duration_s.to_owned());
     w.write_run_info(&RunInfo {
         version: "test".into(),
         git_revision: "unknown".into(),
@@ -33,22 +33,35 @@ fn write_drive(path: &Path, back_ms: Option<u64>) {
         ..RunInfo::default()
     })
     .unwrap();
+    w
+}
+
+/// Plant-sim's ground truth at cycle `k`: asphalt, 3 m/s, moving from cycle
+/// 10 (the scenario starts at `START_MS`).
+fn truth(k: u64) -> GroundTruth {
+    let mut g = GroundTruth::zeroed();
+    g.seq = k;
+    g.stamp_ns = k * MS;
+    g.x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
+    g.v = 3.0;
+    g.omega = 10.0;
+    g.road_index = 0;
+    g.road_name = name_to_bytes("asphalt");
+    g.mic_road_index = 0;
+    g.mic_road_name = g.road_name;
+    g
+}
+
+/// A 3 s drive: the bus gone at 1.5 s (no frame received after), the safe
+/// state from 1.52 s, until `back_ms` (scenario time; None: to the end).
+fn write_drive(path: &Path, back_ms: Option<u64>) {
+    let mut w = create_log(path, "3");
     let p = Protocol::builtin();
     let safe = |t: u64| t >= START_MS + 1520 && back_ms.is_none_or(|b| t < START_MS + b);
     let mut timeouts = 0;
     for k in 0..3200u64 {
         if k < 3110 {
-            let mut g = GroundTruth::zeroed();
-            g.seq = k;
-            g.stamp_ns = k * MS;
-            g.x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
-            g.v = 3.0;
-            g.omega = 10.0;
-            g.road_index = 0;
-            g.road_name = name_to_bytes("asphalt");
-            g.mic_road_index = 0;
-            g.mic_road_name = g.road_name;
-            w.write(topics::TRUTH, &g).unwrap();
+            w.write(topics::TRUTH, &truth(k)).unwrap();
         }
         let gone = k >= START_MS + 1500 && back_ms.is_none_or(|b| k < START_MS + b - 60);
         if !gone {
@@ -132,30 +145,12 @@ fn inspect_says_control_was_lost_and_exits_0() {
 /// Written as the recorder writes a log.
 fn write_faulting_drive(path: &Path) {
     use grip_io::can::protocol::{MotorStatus, encode_in};
-    let mut w = McapWriter::create(path, McapWriterOptions::default()).unwrap();
-    let mut extra = BTreeMap::new();
-    extra.insert("scenario".to_owned(), "test".to_owned());
-    extra.insert("scenario_duration_s".to_owned(), "1".to_owned());
-    w.write_run_info(&RunInfo {
-        version: "test".into(),
-        git_revision: "unknown".into(),
-        extra,
-        ..RunInfo::default()
-    })
-    .unwrap();
+    let mut w = create_log(path, "1");
     let p = Protocol::builtin();
     // scenario time, ms
     let t = |k: u64| k as i64 - START_MS as i64;
     for k in 0..1100u64 {
-        let mut g = GroundTruth::zeroed();
-        g.seq = k;
-        g.stamp_ns = k * MS;
-        g.x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
-        g.v = 3.0;
-        g.omega = 10.0;
-        g.road_name = name_to_bytes("asphalt");
-        g.mic_road_name = g.road_name;
-        w.write(topics::TRUTH, &g).unwrap();
+        w.write(topics::TRUTH, &truth(k)).unwrap();
         let timed_out = k < 3 || t(k) >= 1050;
         let m = MotorStatus {
             ready: true,
