@@ -792,21 +792,17 @@ impl Protocol {
                 r.driven_m, r.reference_m
             ),
         };
-        let flags: Vec<String> = [
-            (MsgKind::WheelSpeeds, 2),
-            (MsgKind::WheelSpeeds, 3),
-            (MsgKind::VehicleSpeed, 2),
-        ]
-        .into_iter()
-        .map(|(k, i)| {
-            let m = self.spec(k);
-            let s = &m.signals[i];
-            match s.set_raw {
-                None => format!("{}.{} non-zero", m.name, s.name),
-                Some(v) => format!("{}.{} = {v}", m.name, s.name),
-            }
-        })
-        .collect();
+        let flags: Vec<String> = super::dbc::VALID_FLAGS
+            .into_iter()
+            .map(|(k, i, _)| {
+                let m = self.spec(k);
+                let s = &m.signals[i];
+                match s.set_raw {
+                    None => format!("{}.{} non-zero", m.name, s.name),
+                    Some(v) => format!("{}.{} = {v}", m.name, s.name),
+                }
+            })
+            .collect();
         format!("{wheels}; valid: {}", flags.join(", "))
     }
     /// The specification of `kind`.
