@@ -770,6 +770,24 @@ impl RoadAware {
         let said = binding.is_some_and(contradicts);
         self.here_release
             .step(here_road, keep, binding, said, dt, p);
+        // One verdict per road: a wheel that has overruled road r's cap has
+        // overruled it whichever way the cap came, the belief or the heard
+        // road under the wheel (gravel heard as snow, released on the
+        // wheel's word, was capped again at snow's torque for another
+        // `release_s` when the belief's confidence fell under the gate and
+        // the heard road's cap took over).
+        if let Some(r) = self.release.released
+            && here_road == Some(r)
+            && self.here_release.released.is_none()
+        {
+            self.here_release.released = Some(r);
+        }
+        if let Some(r) = self.here_release.released
+            && believed == Some(r)
+            && self.release.released.is_none()
+        {
+            self.release.released = Some(r);
+        }
 
         let released = self.release.released;
         let here_released = self.here_release.released;
@@ -1119,6 +1137,59 @@ mod tests {
             let g = a.step(&slipping(t, 0.037, snow_cap), 5.0 * t);
             assert!(g.torque_cap <= snow_cap + 1.0, "{t}: {g:?}");
         }
+    }
+
+    /// Gravel heard as snow, believed snow: the wheel carries snow's cap
+    /// at 1 % slip and lifts it. The motor then delivers the demand and
+    /// the belief leaves snow; the road heard under the wheel is still
+    /// snow, and its cap, which now binds, was overruled by the same
+    /// wheel: it must not come back for another `release_s` (it did, in
+    /// `grip sim` on paper.toml, 300 → 183 → 300 N m on gravel).
+    #[test]
+    fn a_cap_the_wheel_overruled_stays_lifted_when_the_belief_moves_on() {
+        let mut a = aware(0.0);
+        let snow_cap = 0.19 * 3433.5 * 0.28;
+        let asphalt = roads()[0].clone();
+        // asphalt's slip for the full 300 N m
+        let mu_300 = 300.0 / (3433.5 * 0.28);
+        let lam_300 = (1..1000)
+            .map(|k| k as f64 * 1e-4)
+            .find(|&l| asphalt.mu(l) >= mu_300)
+            .unwrap();
+        let mut released_at = None;
+        let mut recapped = Vec::new();
+        let mut left_snow = false;
+        for k in 1..600 {
+            let t = k as f64 * 1e-3;
+            let x = 5.0 * t;
+            if k % 25 == 1 {
+                // snow heard under the wheel, every hop (a live stream)
+                a.decision(1, 0.95, t, x - 0.1, x);
+            }
+            let m = if released_at.is_none() {
+                Measurement {
+                    torque: snow_cap,
+                    ..cruise(t, 0)
+                }
+            } else {
+                slipping(t, lam_300, 300.0)
+            };
+            let g = a.step(&m, x);
+            if released_at.is_none() && g.torque_cap.is_infinite() {
+                released_at = Some(t);
+            } else if released_at.is_some() {
+                left_snow |= g.belief.0 != 1;
+                if g.torque_cap < 300.0 {
+                    recapped.push((t, g.torque_cap, g.belief));
+                }
+            }
+        }
+        assert!(released_at.is_some(), "the wheel's word lifted snow's cap");
+        assert!(
+            left_snow,
+            "the belief never left snow: the case is not made"
+        );
+        assert!(recapped.is_empty(), "capped again: {recapped:?}");
     }
 
     /// Wet stone heard as snow (a confusion the acoustic model makes): the
