@@ -201,12 +201,8 @@ impl DriveLog {
         // the wheels' radii of the drive's vehicle (attached), for a bus
         // whose wheel speeds are in km/h or m/s, as tcs-loop read it
         // (the vehicle the summary uses, as far as the log tells it)
-        let radii = crate::plan::vehicle_of_log(self, &mut Vec::new()).map(|(v, _)| {
-            grip_io::can::protocol::WheelRadii {
-                driven_m: v.r,
-                reference_m: v.ref_radius(),
-            }
-        });
+        let radii = crate::plan::vehicle_of_log(self, &mut Vec::new())
+            .map(|(v, _)| grip_io::can::protocol::WheelRadii::of(&v));
         let mut settings = grip_io::can::DbcSettings::from_can(&can, radii);
         // the bus load was judged when the drive started, at the rate its
         // interface ran at (which the log does not keep): not again here

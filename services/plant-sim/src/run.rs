@@ -118,10 +118,7 @@ pub fn load(opts: &Options) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), 
     let can = load_can(&dir)?;
     // the wheels' radii convert the wheel speeds it sends where the DBC
     // gives them in km/h or m/s (v = ω · r), as tcs-loop reads them
-    let radii = grip_io::can::protocol::WheelRadii {
-        driven_m: vehicle.r,
-        reference_m: vehicle.ref_radius(),
-    };
+    let radii = grip_io::can::protocol::WheelRadii::of(&vehicle);
     let protocol = grip_io::service::install_protocol_with(&dir, &can, Some(radii))?;
     // the inverter's command timeout must span two of the command's periods
     let tc = protocol.spec(grip_io::can::protocol::MsgKind::TorqueCommand);

@@ -219,10 +219,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
                 driven_m: 1.0,
                 reference_m: 1.0,
             },
-            |(v, _)| grip_io::can::protocol::WheelRadii {
-                driven_m: v.r,
-                reference_m: v.ref_radius(),
-            },
+            |(v, _)| grip_io::can::protocol::WheelRadii::of(&v),
         );
         grip_io::service::install_protocol_with(&dir, can, Some(radii)).map(|_| ())
     }) {

@@ -122,7 +122,8 @@ pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
     let (vehicle, _) = grip_config::load_vehicle(&vehicle_path)?;
     let can = load_can(&dir)?;
     // the wheels' radii convert a wheel speed the DBC gives in km/h or m/s
-    grip_io::service::install_protocol_with(&dir, &can, Some(wheel_radii(&vehicle)))?;
+    let radii = grip_io::can::protocol::WheelRadii::of(&vehicle);
+    grip_io::service::install_protocol_with(&dir, &can, Some(radii))?;
     let roads = dir.roads()?;
     let road_table = dir.road_table(&roads)?;
     Ok(LoadedConfig {
@@ -136,16 +137,6 @@ pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
         controllers_path,
         own_path,
     })
-}
-
-/// The wheels' rolling radii a bus's wheel speeds in km/h or m/s are
-/// converted with (ω = v ÷ r): the driven wheel's `r`, the reference
-/// wheel's `r_ref` (else `r`), as the loop computes V = r_ref · OmegaRef.
-pub fn wheel_radii(vehicle: &grip_physics::VehicleParams) -> grip_io::can::protocol::WheelRadii {
-    grip_io::can::protocol::WheelRadii {
-        driven_m: vehicle.r,
-        reference_m: vehicle.ref_radius(),
-    }
 }
 
 /// The bus against tcs-loop's settings: `TorqueRequest` must carry the

@@ -556,6 +556,21 @@ pub struct WheelRadii {
     pub reference_m: f64,
 }
 
+impl WheelRadii {
+    /// The one rule for a vehicle's radii on the bus: the driven wheel's
+    /// is `r`, the reference wheel's is `r_ref`, else `r`
+    /// ([`VehicleParams::ref_radius`](grip_physics::VehicleParams::ref_radius)),
+    /// as tcs-loop computes V = r_ref · OmegaRef and plant-sim sends
+    /// OmegaRef = V ÷ r_ref. Used by tcs-loop, plant-sim, the recorder and
+    /// a drive log's reader alike.
+    pub fn of(vehicle: &grip_physics::VehicleParams) -> Self {
+        Self {
+            driven_m: vehicle.r,
+            reference_m: vehicle.ref_radius(),
+        }
+    }
+}
+
 /// The bus a protocol runs on: the bit rate its bus load is judged at
 /// (the interface's where the services read one, else the DBC's
 /// `BA_ "Baudrate"`, else [`DEFAULT_BITRATE`]; [`super::bitrate`]) and
@@ -1537,6 +1552,35 @@ impl ProtocolRx {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn wheel_radii_of_a_vehicle() {
+        // no r_ref: the reference wheel rolls on the driven tyre's radius
+        let v = grip_physics::VehicleParams {
+            r: 0.31,
+            r_ref: None,
+            ..Default::default()
+        };
+        assert_eq!(
+            WheelRadii::of(&v),
+            WheelRadii {
+                driven_m: 0.31,
+                reference_m: 0.31,
+            }
+        );
+        // r_ref given: the reference wheel's own
+        let v = grip_physics::VehicleParams {
+            r_ref: Some(0.29),
+            ..v
+        };
+        assert_eq!(
+            WheelRadii::of(&v),
+            WheelRadii {
+                driven_m: 0.31,
+                reference_m: 0.29,
+            }
+        );
+    }
 
     #[test]
     fn crc8_j1850_check_value() {

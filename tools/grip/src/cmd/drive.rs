@@ -131,7 +131,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         let can = grip_io::service::load_can(&dir)?;
         // with the drive's vehicle's wheel radii, and the bus load at the
         // bit rate the interface runs at, as tcs-loop reads them
-        let radii = grip_tcs_loop::run::wheel_radii(&vehicle_params);
+        let radii = grip_io::can::protocol::WheelRadii::of(&vehicle_params);
         grip_io::service::resolve_protocol(&dir, &can, Some(radii)).map_err(|e| {
             if can.dbc.is_some() {
                 anyhow::anyhow!("the CAN bus (can.toml's dbc): {e}")
