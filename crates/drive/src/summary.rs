@@ -2129,7 +2129,8 @@ pub fn replay_notes(a: &Summary, b: &Summary) -> Vec<String> {
 }
 
 /// `grip inspect A B`: the two drives' metrics side by side with A / B
-/// (`grip inspect on.mcap off.mcap`: what ARTE changed), then each one's
+/// (`grip inspect on.mcap off.mcap`: what ARTE changed), the inverter's
+/// episodes and FaultCodes ([`inverter::compare_rows`]), then each one's
 /// preview events. A warning heads the table when the two are not
 /// comparable ([`comparability`]); each side's warnings follow it.
 pub fn compare(a: &Summary, b: &Summary) -> String {
@@ -2312,6 +2313,7 @@ B: {}",
         acc(a),
         acc(b)
     );
+    o.push_str(&inverter::compare_rows(&a.inverter, &b.inverter));
     let _ = writeln!(
         o,
         "vehicle A: {} (sha256 {})

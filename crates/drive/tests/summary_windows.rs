@@ -267,7 +267,8 @@ fn d_arte_accuracy_is_the_scenarios_and_the_whole_log_is_labelled() {
 
 /// E: two drives of different scenarios, vehicles and lengths, and one
 /// incomplete: `compare` warns before its ratios and names each reason and
-/// side; one side without metrics is named with why.
+/// side; one side without metrics is named with why; two sides without
+/// MotorStatus frames are named instead of the inverter's rows.
 #[test]
 fn e_compare_warns_when_the_drives_are_not_comparable() {
     let a = front_mic_drive();
@@ -285,6 +286,14 @@ fn e_compare_warns_when_the_drives_are_not_comparable() {
     assert!(c.contains("scenarios differ"), "{c}");
     assert!(c.contains("vehicles differ"), "{c}");
     assert!(c.contains("0.200 s in A and 0.150 s in B"), "{c}");
+    // neither log has a CAN frame: the inverter's rows say so, no zeros
+    assert!(
+        c.contains(
+            "\ninverter A: no MotorStatus frames in the log (no CAN frame logged)\ninverter B: no MotorStatus frames in the log (no CAN frame logged)\n"
+        ),
+        "{c}"
+    );
+    assert!(!c.contains("fault episodes"), "{c}");
     // the same drive twice: no warning
     let c = summary::compare(&sa, &summary_of(&a));
     assert!(!c.contains("WARNING"), "{c}");

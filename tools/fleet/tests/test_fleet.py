@@ -140,6 +140,8 @@ def test_the_table_has_what_the_loop_measured_and_control_lost_as_grip_gives_the
     df = pd.read_parquet(out)
     assert str(df["spin_events"].dtype) == "Int64"
     assert str(df["control_lost"].dtype) == "boolean"
+    for c in ("inverter_faults_in_scenario", "inverter_faults_whole_log", "inverter_derating_in_scenario", "inverter_derating_whole_log"):
+        assert str(df[c].dtype) == "Int64", c
     for c in [*MEASURED_COLUMNS, "control_out_at_end_s"]:
         assert df[c].dtype == "float64", c
     by = df.set_index("file")
@@ -154,9 +156,16 @@ def test_the_table_has_what_the_loop_measured_and_control_lost_as_grip_gives_the
         assert row["control_lost"] == o["control_lost"]
         assert o["control_lost"] is False  # generated drives stay in control
         assert math.isnan(row["control_out_at_end_s"])
+        inv = o["inverter"]
+        for flag, col in (("fault", "inverter_faults"), ("derating", "inverter_derating")):
+            assert row[f"{col}_in_scenario"] == inv[flag]["episodes_in_scenario"], (o["file"], col)
+            assert row[f"{col}_whole_log"] == inv[flag]["episodes"], (o["file"], col)
+        # the generated inverter faults at start-up only (before the window)
+        assert row["inverter_faults_in_scenario"] == 0 and row["inverter_faults_whole_log"] >= 1, o["file"]
     # a log grip could not read: every one of them missing
     g = by.loc["garbage.mcap"]
     assert pd.isna(g["control_lost"]) and pd.isna(g["spin_events"]) and pd.isna(g["measured_window"])
+    assert pd.isna(g["inverter_faults_whole_log"]) and pd.isna(g["inverter_faults_in_scenario"])
     assert all(math.isnan(g[c]) for c in MEASURED_COLUMNS)
     # the summary lines add up grip's per-log figures
     spins = {o["file"]: o["measured"]["spin_events"] for o in direct}

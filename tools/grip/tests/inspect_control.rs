@@ -5,6 +5,9 @@
 //! it was in control at the end. The logs are written with grip-io's MCAP
 //! writer, as the recorder writes them. (`grip drive` fails the first kind
 //! by the same `ControlHealth::lost`: `crates/drive/tests/control_health.rs`.)
+//! A drive whose inverter faults, derates and times out the commands: its
+//! episodes in `grip inspect`, against a clean one in `grip inspect A B`,
+//! and in `grip inspect DIR`'s table and CSV.
 
 mod common;
 
@@ -144,22 +147,33 @@ fn inspect_says_control_was_lost_and_exits_0() {
 /// them from 0.050 s after the scenario's end (the commands stopped).
 /// Written as the recorder writes a log.
 fn write_faulting_drive(path: &Path) {
+    write_inverter_drive(path, true, true);
+}
+
+/// That drive, its fault, derating and timeout during the scenario only
+/// when `faulty` (else the inverter reports them at start-up and after the
+/// drive only, as on a clean live drive), its ground truth only
+/// `with_truth` (else a log from the car: no scenario window).
+fn write_inverter_drive(path: &Path, faulty: bool, with_truth: bool) {
     use grip_io::can::protocol::{MotorStatus, encode_in};
     let mut w = create_log(path, "1");
     let p = Protocol::builtin();
     // scenario time, ms
     let t = |k: u64| k as i64 - START_MS as i64;
+    let during = |k: u64, ms: std::ops::Range<i64>| faulty && ms.contains(&t(k));
     for k in 0..1100u64 {
-        w.write(topics::TRUTH, &truth(k)).unwrap();
+        if with_truth {
+            w.write(topics::TRUTH, &truth(k)).unwrap();
+        }
         let timed_out = k < 3 || t(k) >= 1050;
         let m = MotorStatus {
             ready: true,
-            fault: timed_out || (300..400).contains(&t(k)),
-            derating: (600..700).contains(&t(k)),
-            cmd_timeout: timed_out || (800..820).contains(&t(k)),
+            fault: timed_out || during(k, 300..400),
+            derating: during(k, 600..700),
+            cmd_timeout: timed_out || during(k, 800..820),
             fault_code: if timed_out {
                 0x01
-            } else if (300..400).contains(&t(k)) {
+            } else if during(k, 300..400) {
                 0x2A
             } else {
                 0
@@ -179,7 +193,7 @@ fn write_faulting_drive(path: &Path) {
         c.seq = k;
         c.stamp_ns = k * MS;
         // safe in the cycle that read the fault, as tcs-loop is
-        c.safe_state = u8::from(k < 20 || (300..450).contains(&t(k)) || t(k) >= 1050);
+        c.safe_state = u8::from(k < 20 || during(k, 300..450) || t(k) >= 1050);
         c.torque_cmd = if c.safe_state != 0 { 0.0 } else { 200.0 };
         w.write(topics::CYCLE, &c).unwrap();
     }
@@ -234,4 +248,136 @@ fn inspect_shows_the_inverters_episodes_and_the_loop_during_its_fault() {
     assert_eq!(inv["cmd_timeout"]["after_scenario"], 1, "{inv}");
     // clear -> set: the scenario's timeout and the one after the drive
     assert_eq!(v["command_timeouts"], 2, "{v}");
+}
+
+/// A log without a CAN frame: the drive's ground truth and cycle records
+/// (in control), nothing from the inverter.
+fn write_drive_without_can(path: &Path) {
+    let mut w = create_log(path, "1");
+    for k in 0..1100u64 {
+        w.write(topics::TRUTH, &truth(k)).unwrap();
+        let mut c = CycleRecord::zeroed();
+        c.seq = k;
+        c.stamp_ns = k * MS;
+        c.safe_state = u8::from(!(20..START_MS + 1050).contains(&k));
+        c.torque_cmd = 200.0;
+        w.write(topics::CYCLE, &c).unwrap();
+    }
+    w.write_metadata("grip.recorder", &BTreeMap::new()).unwrap();
+    w.finish().unwrap();
+}
+
+/// `grip inspect A B` and `grip inspect DIR` show the inverter: the
+/// faulting drive above against the same drive with a clean inverter
+/// (faults at start-up and after the drive only), each flag's episodes and
+/// the loop's cycles in the faults as "scenario / whole log", the
+/// FaultCodes; a log without MotorStatus frames is `-` and named, not
+/// zeros. The directory's table counts the fault and derating episodes
+/// during the scenario (the whole log's for a log from the car, which has
+/// no scenario window), the CSV both.
+#[test]
+fn inspect_a_b_and_a_directory_show_the_inverters_faults() {
+    let d = tempfile::tempdir().unwrap();
+    let (fault, clean, car, nocan) = (
+        d.path().join("fault.mcap"),
+        d.path().join("clean.mcap"),
+        d.path().join("car.mcap"),
+        d.path().join("nocan.mcap"),
+    );
+    write_inverter_drive(&fault, true, true);
+    write_inverter_drive(&clean, false, true);
+    write_inverter_drive(&car, true, false);
+    write_drive_without_can(&nocan);
+    let row = |name: &str, a: &str, b: &str| format!("\n{name:<34} {a:>12} {b:>12}\n");
+
+    let (ok, out, err) =
+        common::output(&["inspect".as_ref(), fault.as_os_str(), clean.as_os_str()]);
+    assert!(ok, "{out}{err}");
+    for want in [
+        "\ninverter (MotorStatus frames tcs-loop received and the E2E check accepted; during the scenario / whole log)\n".to_owned(),
+        row("MotorStatus frames", "1000 / 1100", "1000 / 1100"),
+        row("fault episodes", "1 / 3", "0 / 2"),
+        row("derating episodes", "1 / 1", "0 / 0"),
+        row("command timeout episodes", "1 / 3", "0 / 2"),
+        row("not ready episodes", "0 / 0", "0 / 0"),
+        // the scenario's fault (100 cycles), start-up's (3), after (41)
+        row("loop cycles in fault episodes", "100 / 144", "0 / 44"),
+        row("  of them in the safe state", "100 / 144", "0 / 44"),
+        row("fault codes (whole log)", "0x01, 0x2A", "0x01"),
+    ] {
+        assert!(out.contains(&want), "{want:?} not in\n{out}");
+    }
+    assert!(!out.contains("no MotorStatus frames"), "{out}");
+
+    let (ok, out, err) = common::output(&["inspect".as_ref(), car.as_os_str(), nocan.as_os_str()]);
+    assert!(ok, "{out}{err}");
+    for want in [
+        row("fault episodes", "- / 3", "-"),
+        row("derating episodes", "- / 1", "-"),
+        row("fault codes (whole log)", "0x01, 0x2A", "-"),
+        "\ninverter B: no MotorStatus frames in the log (no CAN frame logged)\n".to_owned(),
+    ] {
+        assert!(out.contains(&want), "{want:?} not in\n{out}");
+    }
+
+    let csv = d.path().join("table.csv");
+    let (ok, out, err) = common::output(&[
+        "inspect".as_ref(),
+        d.path().as_os_str(),
+        "--csv".as_ref(),
+        csv.as_os_str(),
+    ]);
+    assert!(ok, "{out}{err}");
+    let head: Vec<&str> = out.lines().next().unwrap().split_whitespace().collect();
+    let at = head.iter().position(|w| *w == "inv_faults").unwrap();
+    assert_eq!(
+        head[at - 1..at + 2],
+        ["faults", "inv_faults", "inv_derate"],
+        "{out}"
+    );
+    let cols = |file: &str| -> Vec<String> {
+        let words: Vec<String> = out
+            .lines()
+            .find(|l| l.starts_with(file))
+            .unwrap_or_else(|| panic!("{file} not in\n{out}"))
+            .split_whitespace()
+            .map(str::to_owned)
+            .collect();
+        words[at..at + 2].to_vec()
+    };
+    assert_eq!(cols("fault.mcap"), ["1", "1"], "{out}");
+    assert_eq!(cols("clean.mcap"), ["0", "0"], "{out}");
+    assert_eq!(cols("car.mcap"), ["3", "1"], "the whole log's: {out}");
+    assert_eq!(cols("nocan.mcap"), ["-", "-"], "{out}");
+    assert!(
+        out.contains("inv_faults and inv_derate: the inverter's fault and derating episodes"),
+        "{out}"
+    );
+
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let new = [
+        "inverter_faults_in_scenario",
+        "inverter_faults_whole_log",
+        "inverter_derating_in_scenario",
+        "inverter_derating_whole_log",
+    ];
+    let i = header.iter().position(|h| *h == new[0]).unwrap();
+    assert_eq!(header[i..i + 4], new, "{header:?}");
+    // no field of these logs holds a comma
+    let csv_row = |file: &str| -> Vec<String> {
+        let r: Vec<&str> = lines
+            .clone()
+            .find(|l| l.starts_with(file))
+            .unwrap_or_else(|| panic!("{file} not in\n{text}"))
+            .split(',')
+            .collect();
+        assert_eq!(r.len(), header.len(), "{r:?}");
+        r[i..i + 4].iter().map(|x| (*x).to_owned()).collect()
+    };
+    assert_eq!(csv_row("fault.mcap"), ["1", "3", "1", "1"]);
+    assert_eq!(csv_row("clean.mcap"), ["0", "2", "0", "0"]);
+    assert_eq!(csv_row("car.mcap"), ["", "3", "", "1"]);
+    assert_eq!(csv_row("nocan.mcap"), ["", "", "", ""]);
 }

@@ -133,7 +133,9 @@ fn inspect_dir_has_the_measured_figures_and_control_lost() {
         "measured_withheld_nms",
         "control_lost",
     ];
-    assert_eq!(header[header.len() - new.len()..], new, "{header:?}");
+    // the inverter's four columns follow them
+    let first = header.len() - new.len() - 4;
+    assert_eq!(header[first..first + new.len()], new, "{header:?}");
     // each row's fields from the end (the reason, third, may hold quoted
     // commas; none of the later fields does), file and status first
     let rows: BTreeMap<&str, Vec<&str>> = lines
@@ -191,6 +193,13 @@ fn inspect_dir_has_the_measured_figures_and_control_lost() {
     assert_eq!(col("reference.mcap", "control_lost"), "false");
     assert_eq!(col("reference.mcap", "measured_window"), "scenario");
     assert!(number(&header, &rows["reference.mcap"], "measured_mean_abs_slip") > 0.0);
+    // the inverter: the reference drive's start-up fault is before the
+    // scenario; the constructed logs have no CAN frame (empty, not 0)
+    assert_eq!(col("reference.mcap", "inverter_faults_in_scenario"), "0");
+    assert_eq!(col("reference.mcap", "inverter_faults_whole_log"), "1");
+    for file in ["lost.mcap", "car.mcap"] {
+        assert_eq!(col(file, "inverter_faults_whole_log"), "", "{file}");
+    }
     // an unreadable log: every new column empty
     assert_eq!(col("text.mcap", "status"), "unreadable");
     for c in new {

@@ -257,6 +257,14 @@ pub struct FlagEpisodes {
     /// Fault episodes with the loop in its safe state for all their cycle
     /// records (and at least one).
     pub safe_throughout: u64,
+    /// Fault episodes: the loop's cycle records in them and, of those, the
+    /// ones in the safe state ([`SafeOverlap`]'s `cycles` and `safe`),
+    /// summed over every episode, listed or not (zero for the other flags).
+    pub loop_cycles: (u64, u64),
+    /// The same over the episodes overlapping the scenario window (each
+    /// one's cycle records all counted, as [`SafeOverlap`] counts them;
+    /// None: no window).
+    pub loop_cycles_in_scenario: Option<(u64, u64)>,
     /// The first [`LISTED`] episodes, in time order.
     pub listed: Vec<Episode>,
 }
@@ -352,6 +360,8 @@ pub fn inverter(log: &DriveLog, protocol: &Protocol, window_ns: Option<(u64, u64
             in_scenario: window_ns.map(|_| (0, 0.0)),
             places: [0; 3],
             safe_throughout: 0,
+            loop_cycles: (0, 0),
+            loop_cycles_in_scenario: window_ns.map(|_| (0, 0)),
             listed: Vec::new(),
         };
         // the open episode: (index of its first frame, frames, codes)
@@ -385,6 +395,16 @@ pub fn inverter(log: &DriveLog, protocol: &Protocol, window_ns: Option<(u64, u64
             let safe = (flag == Flag::Fault).then(|| safe_overlap(&log.cycles, s_ns, end, last_ns));
             fe.safe_throughout +=
                 u64::from(safe.is_some_and(|s| s.cycles > 0 && s.safe == s.cycles));
+            if let Some(s) = safe {
+                fe.loop_cycles.0 += s.cycles;
+                fe.loop_cycles.1 += s.safe;
+                if let Some(c) = fe.loop_cycles_in_scenario.as_mut()
+                    && place == Some(Place::Scenario)
+                {
+                    c.0 += s.cycles;
+                    c.1 += s.safe;
+                }
+            }
             if fe.listed.len() < LISTED {
                 fe.listed.push(Episode {
                     start_s: rel(s_ns),
@@ -524,6 +544,25 @@ impl Inverter {
         v.map(|v| Self::counts(v.into_iter()))
     }
 
+    /// `no MotorStatus frames in the log (why)` when it has none (None:
+    /// it has some).
+    pub fn absent(&self) -> Option<String> {
+        if self.frames > 0 {
+            return None;
+        }
+        let why = if self.can_frames == 0 {
+            "no CAN frame logged".to_owned()
+        } else if self.rejected > 0 {
+            format!("{} received, all rejected by the E2E check", self.rejected)
+        } else {
+            format!(
+                "{} CAN frames logged, none a MotorStatus frame tcs-loop received",
+                self.can_frames
+            )
+        };
+        Some(format!("no MotorStatus frames in the log ({why})"))
+    }
+
     /// The report's section (a blank line, then the lines).
     pub fn render(&self) -> String {
         const CLEAN: &str = "ready throughout, no fault, derating or command timeout";
@@ -536,18 +575,8 @@ impl Inverter {
         } else {
             String::new()
         };
-        if self.frames == 0 {
-            let why = if self.can_frames == 0 {
-                "no CAN frame logged".to_owned()
-            } else if self.rejected > 0 {
-                format!("{} received, all rejected by the E2E check", self.rejected)
-            } else {
-                format!(
-                    "{} CAN frames logged, none a MotorStatus frame tcs-loop received",
-                    self.can_frames
-                )
-            };
-            let _ = writeln!(o, "\ninverter: no MotorStatus frames in the log ({why})");
+        if let Some(none) = self.absent() {
+            let _ = writeln!(o, "\ninverter: {none}");
             return o;
         }
         if self.clean() {
@@ -636,6 +665,72 @@ impl Inverter {
         }
         o
     }
+}
+
+/// `grip inspect A B`'s inverter rows ([`super::compare`], in its
+/// columns): the `MotorStatus` frames read, each flag's episodes, the
+/// loop's cycle records during the fault episodes and how many of them in
+/// the safe state, each as "during the scenario / over the whole log"
+/// (the scenario's: the episodes overlapping the window, `-` without one),
+/// and the FaultCodes sent over the whole log. A side without
+/// `MotorStatus` frames has `-` in every row and a line that says so (as
+/// [`Inverter::render`] does); when neither has any, the two lines alone.
+pub fn compare_rows(a: &Inverter, b: &Inverter) -> String {
+    let mut o = String::new();
+    if a.frames > 0 || b.frames > 0 {
+        let _ = writeln!(
+            o,
+            "inverter (MotorStatus frames tcs-loop received and the E2E check accepted; during the scenario / whole log)"
+        );
+        let pair = |scn: Option<u64>, all: u64| {
+            format!("{} / {all}", scn.map_or("-".to_owned(), |n| n.to_string()))
+        };
+        let mut row = |name: &str, cell: &dyn Fn(&Inverter) -> String| {
+            let side = |s: &Inverter| {
+                if s.frames == 0 {
+                    "-".to_owned()
+                } else {
+                    cell(s)
+                }
+            };
+            let _ = writeln!(o, "{name:<34} {:>12} {:>12}", side(a), side(b));
+        };
+        row("MotorStatus frames", &|s| {
+            pair(s.frames_in_scenario, s.frames)
+        });
+        for flag in Flag::ALL {
+            row(&format!("{} episodes", flag.words()), &|s| {
+                s.flag(flag).map_or("-".to_owned(), |f| {
+                    pair(f.in_scenario.map(|(n, _)| n), f.count)
+                })
+            });
+        }
+        let fault = |s: &Inverter, which: fn((u64, u64)) -> u64| {
+            s.flag(Flag::Fault).map_or("-".to_owned(), |f| {
+                pair(f.loop_cycles_in_scenario.map(which), which(f.loop_cycles))
+            })
+        };
+        row("loop cycles in fault episodes", &|s| fault(s, |c| c.0));
+        row("  of them in the safe state", &|s| fault(s, |c| c.1));
+        row("fault codes (whole log)", &|s| {
+            if s.codes.is_empty() {
+                "none".to_owned()
+            } else {
+                let c: Vec<String> = s
+                    .codes
+                    .iter()
+                    .map(|c| format!("0x{:02X}", c.code))
+                    .collect();
+                c.join(", ")
+            }
+        });
+    }
+    for (tag, s) in [("A", a), ("B", b)] {
+        if let Some(none) = s.absent() {
+            let _ = writeln!(o, "inverter {tag}: {none}");
+        }
+    }
+    o
 }
 
 #[cfg(test)]
@@ -882,6 +977,73 @@ mod tests {
             inverter(&only_cmd, p, None)
                 .render()
                 .contains("1 CAN frames logged, none a MotorStatus frame tcs-loop received")
+        );
+    }
+
+    /// `grip inspect A B`'s rows: the faulty log (scenario window 100-900
+    /// ms) against a clean one without a window, each flag's episodes and
+    /// the loop's cycles in the faults as "scenario / whole log", the
+    /// FaultCodes; a side without MotorStatus frames is `-` and says so.
+    #[test]
+    fn compare_rows_put_the_two_inverters_side_by_side() {
+        let p = Protocol::builtin();
+        let window = Some((100 * MS, 900 * MS));
+        let faulty = inverter(&faulty_log(), p, window);
+        let clean = inverter(
+            &DriveLog {
+                can: (0..300).map(|k| status(p, k, |_| {})).collect(),
+                ..DriveLog::default()
+            },
+            p,
+            None,
+        );
+        let row = |name: &str, a: &str, b: &str| format!("\n{name:<34} {a:>12} {b:>12}\n");
+        let c = compare_rows(&faulty, &clean);
+        assert!(
+            c.starts_with("inverter (MotorStatus frames tcs-loop received and the E2E check accepted; during the scenario / whole log)\n"),
+            "{c}"
+        );
+        for want in [
+            row("MotorStatus frames", "800 / 1000", "- / 300"),
+            row("fault episodes", "1 / 2", "- / 0"),
+            row("derating episodes", "1 / 1", "- / 0"),
+            row("command timeout episodes", "1 / 2", "- / 0"),
+            row("not ready episodes", "0 / 1", "- / 0"),
+            // the scenario's fault (50 cycles) and the start-up's (5)
+            row("loop cycles in fault episodes", "50 / 55", "- / 0"),
+            row("  of them in the safe state", "50 / 55", "- / 0"),
+            row("fault codes (whole log)", "0x01, 0x2A", "none"),
+        ] {
+            assert!(c.contains(&want), "{want:?} not in\n{c}");
+        }
+        assert!(!c.contains("no MotorStatus frames"), "{c}");
+        // the loop out of its safe state from cycle 320: 20 of the
+        // scenario fault's 50 cycles safe
+        let mut late = faulty_log();
+        for c in &mut late.cycles[320..400] {
+            c.safe_state = 0;
+        }
+        let c = compare_rows(&clean, &inverter(&late, p, window));
+        assert!(
+            c.contains(&row("  of them in the safe state", "- / 0", "20 / 25")),
+            "{c}"
+        );
+        // no MotorStatus frames: `-` and the reason, not zeros
+        let none = inverter(&DriveLog::default(), p, window);
+        let c = compare_rows(&faulty, &none);
+        for want in [
+            row("fault episodes", "1 / 2", "-"),
+            row("fault codes (whole log)", "0x01, 0x2A", "-"),
+        ] {
+            assert!(c.contains(&want), "{want:?} not in\n{c}");
+        }
+        assert!(
+            c.ends_with("\ninverter B: no MotorStatus frames in the log (no CAN frame logged)\n"),
+            "{c}"
+        );
+        assert_eq!(
+            compare_rows(&none, &none),
+            "inverter A: no MotorStatus frames in the log (no CAN frame logged)\ninverter B: no MotorStatus frames in the log (no CAN frame logged)\n"
         );
     }
 

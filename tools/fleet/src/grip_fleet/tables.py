@@ -52,7 +52,10 @@ def drive_rows(objs: list[dict[str, Any]]) -> pd.DataFrame:
     ``_whole_log``. ``measured_*`` and ``spin_events`` are what the loop
     measured (over ``measured_window``: the scenario window, else the time
     the driver demanded torque); ``control_lost`` is grip's control
-    statement (``None`` without a scenario window)."""
+    statement (``None`` without a scenario window); ``inverter_*`` count the
+    inverter's fault and derating episodes (``inverter``'s
+    ``episodes_in_scenario`` and ``episodes``; ``None`` without
+    ``MotorStatus`` frames), as ``grip inspect DIR``'s CSV does."""
     roads = sorted({r for o in objs for r in (o.get("arte_per_road") or {})})
     rows = []
     for o in objs:
@@ -60,6 +63,7 @@ def drive_rows(objs: list[dict[str, Any]]) -> pd.DataFrame:
         meas = o.get("measured") or {}
         e2e = o.get("e2e_faults") or {}
         e2e_in = o.get("e2e_faults_in_scenario") or {}
+        inv = o.get("inverter") or {}
         row: dict[str, Any] = {
             "file": o.get("file"),
             "path": o.get("path"),
@@ -112,6 +116,10 @@ def drive_rows(objs: list[dict[str, Any]]) -> pd.DataFrame:
                 "e2e_faults": e2e.get("total"),
                 "e2e_faults_in_scenario": e2e_in.get("total"),
                 "command_timeouts": o.get("command_timeouts"),
+                "inverter_faults_in_scenario": (inv.get("fault") or {}).get("episodes_in_scenario"),
+                "inverter_faults_whole_log": (inv.get("fault") or {}).get("episodes"),
+                "inverter_derating_in_scenario": (inv.get("derating") or {}).get("episodes_in_scenario"),
+                "inverter_derating_whole_log": (inv.get("derating") or {}).get("episodes"),
                 "road_changes": json.dumps(o.get("road_changes")) if "road_changes" in o else None,
             }
         )
@@ -123,7 +131,7 @@ def drive_rows(objs: list[dict[str, Any]]) -> pd.DataFrame:
         rows.append(row)
     df = pd.DataFrame(rows)
     for c in df.columns:
-        if c.startswith(("arte_judged", "arte_correct", "cycles", "deadline", "wakeup_", "safe_", "e2e", "command_", "changes_", "arte_estimates", "spin_events")):
+        if c.startswith(("arte_judged", "arte_correct", "cycles", "deadline", "wakeup_", "safe_", "e2e", "command_", "changes_", "arte_estimates", "spin_events", "inverter_")):
             df[c] = df[c].astype("Int64")
     if "control_lost" in df:
         df["control_lost"] = df["control_lost"].astype("boolean")

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use grip_drive::DriveLog;
+use grip_drive::summary::inverter::Flag;
 use grip_drive::summary::measured::MeasuredWindow;
 use grip_drive::summary::summarize_with_roads;
 
@@ -44,8 +45,12 @@ pub fn bar(n: usize, what: &str) -> indicatif::ProgressBar {
 /// of the scenario window; `_whole_log` ones cover the whole log; the
 /// `measured_` ones and `spin_events` are what the loop measured, over
 /// `measured_window`, [`grip_drive::summary::Measured`]; `control_lost` is
-/// [`grip_drive::summary::ControlHealth::lost`], empty without a window).
-pub const COLUMNS: [&str; 37] = [
+/// [`grip_drive::summary::ControlHealth::lost`], empty without a window;
+/// the `inverter_` ones count the inverter's fault and derating episodes
+/// from its `MotorStatus` frames, [`grip_drive::summary::Inverter`], those
+/// overlapping the scenario window and over the whole log, empty without
+/// `MotorStatus` frames).
+pub const COLUMNS: [&str; 41] = [
     "file",
     "status",
     "reason",
@@ -83,6 +88,10 @@ pub const COLUMNS: [&str; 37] = [
     "measured_cmd_over_demand",
     "measured_withheld_nms",
     "control_lost",
+    "inverter_faults_in_scenario",
+    "inverter_faults_whole_log",
+    "inverter_derating_in_scenario",
+    "inverter_derating_whole_log",
 ];
 
 fn num(x: f64) -> String {
@@ -186,6 +195,15 @@ pub fn row(path: &Path, config_dir: &Path) -> (Vec<String>, bool) {
         .control
         .as_ref()
         .map_or(String::new(), |c| c.lost().to_string());
+    let inv = &s.inverter;
+    if inv.frames > 0 {
+        for (i, flag) in [(37, Flag::Fault), (39, Flag::Derating)] {
+            if let Some(f) = inv.flag(flag) {
+                r[i] = f.in_scenario.map_or(String::new(), |(n, _)| n.to_string());
+                r[i + 1] = f.count.to_string();
+            }
+        }
+    }
     (r, good)
 }
 
@@ -222,16 +240,26 @@ fn count(field: &str) -> &str {
     if field.is_empty() { "-" } else { field }
 }
 
+/// An inverter count in the text table: the scenario's, else (no scenario
+/// window) the whole log's, else (no `MotorStatus` frames) `-`.
+fn inverter_count<'a>(in_scenario: &'a str, whole_log: &'a str) -> &'a str {
+    if in_scenario.is_empty() {
+        count(whole_log)
+    } else {
+        in_scenario
+    }
+}
+
 /// The printed table of `grip inspect DIR` (the CSV has every column at
 /// full precision): numbers rounded, ARTE accuracy in %, the road changes
 /// ARTE missed beside the mean detection delay, the deadline misses
-/// named as such, the key figures the loop measured and whether control
-/// was lost.
+/// named as such, the inverter's fault and derating episodes, the key
+/// figures the loop measured and whether control was lost.
 pub fn table(rows: &[Vec<String>]) -> String {
     let mut text = String::new();
     let _ = writeln!(
         text,
-        "{:<28} {:<11} {:>8} {:>9} {:>8} {:>8} {:>10} {:>8} {:>7} {:>15} {:>6} {:>6} {:>6} {:>5} {:>7} {:>7}  window",
+        "{:<28} {:<11} {:>8} {:>9} {:>8} {:>8} {:>10} {:>8} {:>7} {:>15} {:>6} {:>10} {:>10} {:>6} {:>6} {:>5} {:>7} {:>7}  window",
         "file",
         "status",
         "cycles",
@@ -243,6 +271,8 @@ pub fn table(rows: &[Vec<String>]) -> String {
         "missed",
         "deadline_misses",
         "faults",
+        "inv_faults",
+        "inv_derate",
         "m_slip",
         "m_max",
         "spins",
@@ -252,7 +282,7 @@ pub fn table(rows: &[Vec<String>]) -> String {
     for r in rows {
         let _ = writeln!(
             text,
-            "{:<28} {:<11} {:>8} {:>9} {:>8} {:>8} {:>10} {:>8} {:>7} {:>15} {:>6} {:>6} {:>6} {:>5} {:>7} {:>7}  {}",
+            "{:<28} {:<11} {:>8} {:>9} {:>8} {:>8} {:>10} {:>8} {:>7} {:>15} {:>6} {:>10} {:>10} {:>6} {:>6} {:>5} {:>7} {:>7}  {}",
             r[0],
             r[1],
             count(&r[6]),
@@ -268,6 +298,8 @@ pub fn table(rows: &[Vec<String>]) -> String {
             },
             count(&r[19]),
             count(&r[21]),
+            inverter_count(&r[37], &r[38]),
+            inverter_count(&r[39], &r[40]),
             rounded(&r[28], 1.0, 3),
             rounded(&r[30], 1.0, 3),
             count(&r[32]),
@@ -278,7 +310,7 @@ pub fn table(rows: &[Vec<String>]) -> String {
     }
     let _ = writeln!(
         text,
-        "(during the scenario window: the metrics (slip_dev, effort N m, dist_m), arte_acc_% (ARTE accuracy, %), delay_s (mean detection delay of the road changes detected), missed (road changes at the microphone not detected, of all), deadline_misses (the control loop's missed deadlines) and faults (E2E faults); measured by the loop, NOT ground truth (over the scenario window, else the time the driver demanded torque): m_slip (mean |slip|), m_max (max |slip|), spins (spin events), m_accel (mean acceleration from V, m/s^2); control: LOST when control was lost and not regained in the scenario window; window: how much of the scenario the log covers; --csv FILE: every column at full precision)"
+        "(during the scenario window: the metrics (slip_dev, effort N m, dist_m), arte_acc_% (ARTE accuracy, %), delay_s (mean detection delay of the road changes detected), missed (road changes at the microphone not detected, of all), deadline_misses (the control loop's missed deadlines) and faults (E2E faults); inv_faults and inv_derate: the inverter's fault and derating episodes from its MotorStatus frames, during the scenario window (over the whole log when the log has none; - without MotorStatus frames); measured by the loop, NOT ground truth (over the scenario window, else the time the driver demanded torque): m_slip (mean |slip|), m_max (max |slip|), spins (spin events), m_accel (mean acceleration from V, m/s^2); control: LOST when control was lost and not regained in the scenario window; window: how much of the scenario the log covers; --csv FILE: every column at full precision)"
     );
     text
 }
