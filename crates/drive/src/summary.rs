@@ -2035,7 +2035,9 @@ pub fn short_sha(h: Option<&String>) -> String {
 
 /// Why the two drives' figures do not compare like for like: different
 /// scenarios (name or file), vehicles (file or parameters), window
-/// lengths, or a side that is not a complete drive.
+/// lengths, a side that is not a complete drive or lost control, or
+/// inverters that faulted or derated differently during the scenario
+/// ([`inverter::comparability`]).
 pub fn comparability(a: &Summary, b: &Summary) -> Vec<String> {
     let mut w = Vec::new();
     let scen = |s: &Summary| {
@@ -2084,6 +2086,7 @@ pub fn comparability(a: &Summary, b: &Summary) -> Vec<String> {
             ));
         }
     }
+    w.extend(inverter::comparability(&a.inverter, &b.inverter));
     w
 }
 

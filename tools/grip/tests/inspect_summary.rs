@@ -467,6 +467,15 @@ inverter (its MotorStatus frames tcs-loop received and the E2E check accepted: 1
     // the loop's first cycle read it: safe from the start, nothing before
     assert_eq!(inv["fault"]["listed"][0]["safe_before"], false);
     assert_eq!(inv["fault"]["safe_throughout"], 1);
+    // the totals over every fault episode: here the one listed, before
+    // the scenario (none of its cycles in it)
+    let f = &inv["fault"];
+    assert!(f["listed"][0]["cycles"].as_u64() > Some(0), "{f}");
+    assert_eq!(f["loop_cycles"], f["listed"][0]["cycles"], "{f}");
+    assert_eq!(f["loop_cycles_safe"], f["listed"][0]["safe_cycles"], "{f}");
+    assert_eq!(f["loop_cycles_in_scenario"], 0, "{f}");
+    assert_eq!(f["loop_cycles_safe_in_scenario"], 0, "{f}");
+    assert_eq!(inv["derating"]["loop_cycles"], serde_json::Value::Null);
     for flag in ["derating", "not_ready"] {
         assert_eq!(inv[flag]["episodes"], 0, "{flag}: {inv}");
     }

@@ -667,6 +667,32 @@ impl Inverter {
     }
 }
 
+/// What makes two drives' inverters unlike for `grip inspect A B`
+/// ([`super::comparability`]): a different number of fault or derating
+/// episodes during the scenario (a log without `MotorStatus` frames or
+/// without a scenario window counts none). A drive whose inverter faulted
+/// or derated while the other's did not differs in the torque the motor
+/// could give, whatever the controllers did.
+pub fn comparability(a: &Inverter, b: &Inverter) -> Vec<String> {
+    let in_scenario = |inv: &Inverter, flag: Flag| {
+        inv.flag(flag)
+            .and_then(|f| f.in_scenario)
+            .map_or(0, |(n, _)| n)
+    };
+    [Flag::Fault, Flag::Derating]
+        .into_iter()
+        .filter_map(|flag| {
+            let (na, nb) = (in_scenario(a, flag), in_scenario(b, flag));
+            (na != nb).then(|| {
+                format!(
+                    "the inverters' {} episodes during the scenario differ: A {na}, B {nb} (the torque the motor could give differed, whatever the controllers did)",
+                    flag.words()
+                )
+            })
+        })
+        .collect()
+}
+
 /// `grip inspect A B`'s inverter rows ([`super::compare`], in its
 /// columns): the `MotorStatus` frames read, each flag's episodes, the
 /// loop's cycle records during the fault episodes and how many of them in
@@ -978,6 +1004,41 @@ mod tests {
                 .render()
                 .contains("1 CAN frames logged, none a MotorStatus frame tcs-loop received")
         );
+    }
+
+    /// A drive whose inverter faulted and derated in the scenario beside
+    /// one whose did not is named unlike, once per flag; two alike are not.
+    #[test]
+    fn inverters_that_faulted_differently_make_drives_unlike() {
+        let p = Protocol::builtin();
+        let window = Some((100 * MS, 900 * MS));
+        let faulty = inverter(&faulty_log(), p, window);
+        let clean = inverter(
+            &DriveLog {
+                can: (0..1000).map(|k| status(p, k, |_| {})).collect(),
+                ..DriveLog::default()
+            },
+            p,
+            window,
+        );
+        let w = comparability(&faulty, &clean);
+        assert_eq!(w.len(), 2, "{w:?}");
+        assert!(
+            w[0].starts_with("the inverters' fault episodes during the scenario differ: A 1, B 0"),
+            "{w:?}"
+        );
+        assert!(
+            w[1].starts_with(
+                "the inverters' derating episodes during the scenario differ: A 1, B 0"
+            ),
+            "{w:?}"
+        );
+        assert!(comparability(&faulty, &faulty).is_empty());
+        assert!(comparability(&clean, &clean).is_empty());
+        // no MotorStatus frames counts none: unlike the faulty one
+        let none = inverter(&DriveLog::default(), p, window);
+        assert_eq!(comparability(&none, &faulty).len(), 2);
+        assert!(comparability(&none, &clean).is_empty());
     }
 
     /// `grip inspect A B`'s rows: the faulty log (scenario window 100-900

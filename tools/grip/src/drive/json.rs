@@ -81,6 +81,16 @@ fn inverter_json(inv: &summary::Inverter) -> Value {
                 "before_scenario": f.in_scenario.map(|_| f.places[0]),
                 "after_scenario": f.in_scenario.map(|_| f.places[2]),
                 "safe_throughout": (f.flag == summary::inverter::Flag::Fault).then_some(f.safe_throughout),
+                // the loop's cycle records in the fault episodes and, of
+                // them, those in its safe state (every episode, listed or not)
+                "loop_cycles": (f.flag == summary::inverter::Flag::Fault).then_some(f.loop_cycles.0),
+                "loop_cycles_safe": (f.flag == summary::inverter::Flag::Fault).then_some(f.loop_cycles.1),
+                "loop_cycles_in_scenario": (f.flag == summary::inverter::Flag::Fault)
+                    .then_some(f.loop_cycles_in_scenario.map(|c| c.0))
+                    .flatten(),
+                "loop_cycles_safe_in_scenario": (f.flag == summary::inverter::Flag::Fault)
+                    .then_some(f.loop_cycles_in_scenario.map(|c| c.1))
+                    .flatten(),
                 "listed": f.listed.iter().map(episode).collect::<Vec<_>>(),
             }),
         );
