@@ -320,13 +320,7 @@ fn inspect_a_b_and_a_directory_show_the_inverters_faults() {
         assert!(out.contains(&want), "{want:?} not in\n{out}");
     }
 
-    let csv = d.path().join("table.csv");
-    let (ok, out, err) = common::output(&[
-        "inspect".as_ref(),
-        d.path().as_os_str(),
-        "--csv".as_ref(),
-        csv.as_os_str(),
-    ]);
+    let (ok, out, err, csv) = common::inspect_dir(d.path());
     assert!(ok, "{out}{err}");
     let head: Vec<&str> = out.lines().next().unwrap().split_whitespace().collect();
     let at = head.iter().position(|w| *w == "inv_faults").unwrap();

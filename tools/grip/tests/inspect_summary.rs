@@ -121,14 +121,8 @@ fn inspect_json_separates_the_scenario_from_the_whole_log() {
     );
 
     // the directory table carries the window's status
-    let csv = d.path().join("table.csv");
     std::os::unix::fs::symlink(reference(), d.path().join("ref.mcap")).unwrap();
-    let (ok, out, err) = common::output(&[
-        "inspect".as_ref(),
-        d.path().as_os_str(),
-        "--csv".as_ref(),
-        csv.as_os_str(),
-    ]);
+    let (ok, out, err, csv) = common::inspect_dir(d.path());
     assert!(ok, "{out}{err}");
     let table = std::fs::read_to_string(&csv).unwrap();
     let head: Vec<&str> = table.lines().next().unwrap().split(',').collect();

@@ -37,13 +37,7 @@ fn dir_with(good: usize) -> tempfile::TempDir {
 #[test]
 fn inspect_dir_one_row_per_drive_bad_ones_named() {
     let d = dir_with(46);
-    let csv = d.path().join("table.csv");
-    let (ok, out, err) = grip(&[
-        "inspect".as_ref(),
-        d.path().as_os_str(),
-        "--csv".as_ref(),
-        csv.as_os_str(),
-    ]);
+    let (ok, out, err, csv) = common::inspect_dir(d.path());
     assert!(ok, "{out}{err}");
     assert!(
         out.contains("50 logs, 4 bad: cut.mcap, flip.mcap, header.mcap, text.mcap"),

@@ -109,13 +109,7 @@ fn inspect_dir_has_the_measured_figures_and_control_lost() {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/reference-drive.mcap");
     std::os::unix::fs::symlink(&reference, d.path().join("reference.mcap")).unwrap();
     std::fs::write(d.path().join("text.mcap"), "not a log").unwrap();
-    let csv = d.path().join("table.csv");
-    let (ok, out, err) = common::output(&[
-        "inspect".as_ref(),
-        d.path().as_os_str(),
-        "--csv".as_ref(),
-        csv.as_os_str(),
-    ]);
+    let (ok, out, err, csv) = common::inspect_dir(d.path());
     assert!(ok, "{out}{err}");
 
     let text = std::fs::read_to_string(&csv).unwrap();

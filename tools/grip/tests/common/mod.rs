@@ -19,6 +19,19 @@ pub fn output(args: &[&std::ffi::OsStr]) -> (bool, String, String) {
     output_in(&config_dir(), args)
 }
 
+/// `grip inspect DIR --csv DIR/table.csv` on the repository's `config/`:
+/// (success, stdout, stderr) and the CSV's path.
+pub fn inspect_dir(dir: &Path) -> (bool, String, String, std::path::PathBuf) {
+    let csv = dir.join("table.csv");
+    let (ok, out, err) = output(&[
+        "inspect".as_ref(),
+        dir.as_os_str(),
+        "--csv".as_ref(),
+        csv.as_os_str(),
+    ]);
+    (ok, out, err, csv)
+}
+
 /// The same with `--config-dir DIR`.
 pub fn output_in(dir: &Path, args: &[&std::ffi::OsStr]) -> (bool, String, String) {
     let o = Command::new(env!("CARGO_BIN_EXE_grip"))
