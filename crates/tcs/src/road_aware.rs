@@ -1264,6 +1264,61 @@ mod tests {
         );
     }
 
+    /// The other half of one verdict per road: wet stone believed (from
+    /// the slip), snow heard under the wheel, the wheel carrying snow's cap
+    /// at 1.9 % lifts the heard road's cap. The wheel then slips too little
+    /// to say anything (0.5 % at 300 N m), the slip evidence fades and the
+    /// belief follows the microphone to snow: the believed road's cap is
+    /// snow's, which the same wheel has overruled, so it must not bind for
+    /// another `release_s`.
+    #[test]
+    fn a_heard_roads_cap_the_wheel_overruled_stays_lifted_when_believed() {
+        let roads = RoadCatalogue::burckhardt(&["asphalt", "snow", "wet_stone"]).unwrap();
+        let mut a = RoadAware::new(
+            ControllerKind::Mtte,
+            &roads,
+            RoadTable::new(&roads, &KnowledgeConfig::default()).unwrap(),
+            &VehicleParams::default(),
+            &ControllersConfig::default(),
+            1e-3,
+        )
+        .unwrap();
+        let snow_cap = roads[1].mu_peak() * 3433.5 * 0.28;
+        let mut released_at = None;
+        let mut believed_snow = 0;
+        let mut capped = Vec::new();
+        for k in 1..1500 {
+            let t = k as f64 * 1e-3;
+            if k >= 300 && k % 25 == 0 {
+                // snow heard under the wheel, every hop
+                a.decision(1, 0.93, t, 5.0 * t - 0.1, 5.0 * t);
+            }
+            let m = if k < 300 {
+                slipping(t, 0.044, 300.0)
+            } else if released_at.is_none() {
+                slipping(t, 0.019, snow_cap)
+            } else {
+                slipping(t, 0.005, 300.0)
+            };
+            let g = a.step(&m, 5.0 * t);
+            if k > 300 && released_at.is_none() && g.torque_cap > 1.5 * snow_cap {
+                assert_eq!(g.belief.0, 2, "the heard road's cap lifted: {g:?}");
+                released_at = Some(t);
+            } else if released_at.is_some() && g.belief.0 == 1 {
+                believed_snow += 1;
+                if g.torque_cap < 300.0 {
+                    capped.push((t, g.torque_cap));
+                }
+            }
+        }
+        assert!(released_at.is_some(), "the heard road's cap was lifted");
+        assert!(
+            believed_snow > 100,
+            "the belief never followed the microphone to snow ({believed_snow} cycles): the case is not made"
+        );
+        assert!(capped.is_empty(), "snow's cap came back: {capped:?}");
+    }
+
     /// Believed snow; the wheel spins at 30 % slip under 300 N m, then, the
     /// motor at 80 N m, comes back 0.5 % every 2 ms. The slip at which the
     /// cap is back at snow's cap (None: never above λ_opt).

@@ -308,6 +308,15 @@ fn inspect_a_b_and_a_directory_show_the_inverters_faults() {
         assert!(out.contains(&want), "{want:?} not in\n{out}");
     }
     assert!(!out.contains("no MotorStatus frames"), "{out}");
+    // the two inverters faulted differently: the comparison says so first
+    assert!(
+        out.contains("the inverters' fault episodes during the scenario differ: A 1, B 0"),
+        "{out}"
+    );
+    assert!(
+        out.contains("the inverters' derating episodes during the scenario differ: A 1, B 0"),
+        "{out}"
+    );
 
     let (ok, out, err) = common::output(&["inspect".as_ref(), car.as_os_str(), nocan.as_os_str()]);
     assert!(ok, "{out}{err}");

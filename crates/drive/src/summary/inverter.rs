@@ -669,28 +669,50 @@ impl Inverter {
 
 /// What makes two drives' inverters unlike for `grip inspect A B`
 /// ([`super::comparability`]): a different number of fault or derating
-/// episodes during the scenario (a log without `MotorStatus` frames or
-/// without a scenario window counts none). A drive whose inverter faulted
-/// or derated while the other's did not differs in the torque the motor
-/// could give, whatever the controllers did.
+/// episodes during the scenario (a log without a scenario window counts
+/// none). A drive whose inverter faulted or derated while the other's did
+/// not differs in the torque the motor could give, whatever the
+/// controllers did. A side without `MotorStatus` frames beside one whose
+/// inverter faulted or derated is named as unknown, not as clean.
 pub fn comparability(a: &Inverter, b: &Inverter) -> Vec<String> {
     let in_scenario = |inv: &Inverter, flag: Flag| {
         inv.flag(flag)
             .and_then(|f| f.in_scenario)
             .map_or(0, |(n, _)| n)
     };
-    [Flag::Fault, Flag::Derating]
-        .into_iter()
-        .filter_map(|flag| {
-            let (na, nb) = (in_scenario(a, flag), in_scenario(b, flag));
-            (na != nb).then(|| {
-                format!(
-                    "the inverters' {} episodes during the scenario differ: A {na}, B {nb} (the torque the motor could give differed, whatever the controllers did)",
-                    flag.words()
-                )
+    let episodes = |inv: &Inverter| {
+        [Flag::Fault, Flag::Derating]
+            .map(|flag| format!("{} {}", in_scenario(inv, flag), flag.words()))
+            .join(", ")
+    };
+    let troubled =
+        |inv: &Inverter| in_scenario(inv, Flag::Fault) + in_scenario(inv, Flag::Derating) > 0;
+    match (a.frames == 0, b.frames == 0) {
+        (true, true) => Vec::new(),
+        (true, false) | (false, true) => {
+            let (none, other, seen) = if a.frames == 0 { ("A", "B", b) } else { ("B", "A", a) };
+            if troubled(seen) {
+                vec![format!(
+                    "{none} has no MotorStatus frames: whether its inverter faulted or derated during the scenario is not known ({other}: {} episodes)",
+                    episodes(seen)
+                )]
+            } else {
+                Vec::new()
+            }
+        }
+        (false, false) => [Flag::Fault, Flag::Derating]
+            .into_iter()
+            .filter_map(|flag| {
+                let (na, nb) = (in_scenario(a, flag), in_scenario(b, flag));
+                (na != nb).then(|| {
+                    format!(
+                        "the inverters' {} episodes during the scenario differ: A {na}, B {nb} (the torque the motor could give differed, whatever the controllers did)",
+                        flag.words()
+                    )
+                })
             })
-        })
-        .collect()
+            .collect(),
+    }
 }
 
 /// `grip inspect A B`'s inverter rows ([`super::compare`], in its
@@ -1007,7 +1029,8 @@ mod tests {
     }
 
     /// A drive whose inverter faulted and derated in the scenario beside
-    /// one whose did not is named unlike, once per flag; two alike are not.
+    /// one whose did not is named unlike, once per flag; two alike are not;
+    /// a side without MotorStatus frames is unknown.
     #[test]
     fn inverters_that_faulted_differently_make_drives_unlike() {
         let p = Protocol::builtin();
@@ -1035,10 +1058,16 @@ mod tests {
         );
         assert!(comparability(&faulty, &faulty).is_empty());
         assert!(comparability(&clean, &clean).is_empty());
-        // no MotorStatus frames counts none: unlike the faulty one
+        // no MotorStatus frames beside a fault: unknown, not clean
         let none = inverter(&DriveLog::default(), p, window);
-        assert_eq!(comparability(&none, &faulty).len(), 2);
+        assert_eq!(
+            comparability(&none, &faulty),
+            [
+                "A has no MotorStatus frames: whether its inverter faulted or derated during the scenario is not known (B: 1 fault, 1 derating episodes)"
+            ]
+        );
         assert!(comparability(&none, &clean).is_empty());
+        assert!(comparability(&none, &none).is_empty());
     }
 
     /// `grip inspect A B`'s rows: the faulty log (scenario window 100-900
