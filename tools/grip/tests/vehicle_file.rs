@@ -142,4 +142,27 @@ fn analyze_takes_the_users_vehicle_and_the_mfc_gain_is_checked_against_it() {
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert!(!err.contains("k_mfc"), "{err}");
+
+    // a sweep checks each point's gain: the shipped car at 400 N m s/rad
+    // is above the bound on some roads, at 177 it is not
+    let o = grip()
+        .args([
+            "sim",
+            "--seeds",
+            "1",
+            "--variants",
+            "mfc,mfc-arte",
+            "--sweep",
+            "mfc.k_mfc=177,400",
+        ])
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    let warned: Vec<&str> = err.lines().filter(|l| l.contains("bound (4)")).collect();
+    assert_eq!(warned.len(), 1, "{err}");
+    assert!(
+        warned[0].starts_with("warning: --sweep mfc.k_mfc = 400: ") && warned[0].contains("stone"),
+        "{err}"
+    );
 }

@@ -283,6 +283,14 @@ fn reason_of(e: &grip_sim::SimError) -> String {
 /// A check that cannot run (e.g. no lag at all: tau_m + tau_noise = 0, where
 /// bound (4) is not defined) is said, never fatal.
 fn warn_kmfc(config_dir: &Path, setup: &SimSetup, vehicle_path: &Path) {
+    if let Some(w) = kmfc_check(config_dir, setup, vehicle_path) {
+        eprintln!("warning: {w}");
+    }
+}
+
+/// What [`warn_kmfc`] says for `setup` (None: nothing to say); a sweep
+/// says it for each point whose answer differs from the configuration's.
+fn kmfc_check(config_dir: &Path, setup: &SimSetup, vehicle_path: &Path) -> Option<String> {
     match grip_tcs::analysis::vehicle_tf::kmfc_warning(
         setup.vehicle(),
         vehicle_path,
@@ -290,9 +298,10 @@ fn warn_kmfc(config_dir: &Path, setup: &SimSetup, vehicle_path: &Path) {
         &setup.controllers().mfc,
         &ConfigDir::new(config_dir).file("controllers.toml"),
     ) {
-        Ok(Some(w)) => eprintln!("warning: {w}"),
-        Ok(None) => {}
-        Err(e) => eprintln!("warning: the MFC gain check against bound (4) could not run: {e}"),
+        Ok(w) => w,
+        Err(e) => Some(format!(
+            "the MFC gain check against bound (4) could not run: {e}"
+        )),
     }
 }
 

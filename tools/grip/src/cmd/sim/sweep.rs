@@ -306,6 +306,8 @@ pub fn run(
     let vehicle_text = read_file(req.vehicle)?;
     parse_vehicle(req.vehicle, &vehicle_text)?;
     // ... and every point checked before the first run.
+    // what the configuration's MFC gain check said (sim.rs, before the sweep)
+    let base_kmfc = super::kmfc_check(config_dir, &loaded.setup, req.vehicle);
     let mut setups = vec![Point {
         label: "as configured".into(),
         values: Vec::new(),
@@ -351,6 +353,15 @@ pub fn run(
             }
         };
         let setup = build(&loaded.setup)?;
+        // MFC's gain against bound (4) at this point's gain, lags and
+        // vehicle, where its answer is not the configuration's (said
+        // before the sweep starts)
+        if kinds.contains(&ControllerKind::Mfc) {
+            let here = super::kmfc_check(config_dir, &setup, req.vehicle);
+            if here.is_some() && here != base_kmfc {
+                eprintln!("warning: --sweep {label}: {}", here.unwrap_or_default());
+            }
+        }
         let per_seed = loaded
             .per_seed
             .iter()
