@@ -731,6 +731,90 @@ fn typed(old: &toml::Value, raw: &str) -> Result<toml::Value, String> {
     }
 }
 
+/// A key that `rel` (controllers.toml or the replay's vehicle file, named
+/// by `--set FILE:`) leaves out, so its service's default: set to `raw`
+/// (a TOML value; a bare word is a string) with the tables on the way
+/// made, if the file as changed still parses as its service reads it
+/// (both refuse a key they do not know, naming the ones they do). `None`:
+/// another file, a section with an array element, or a file its service
+/// would not read as it stands, where the key's type is not known here.
+fn left_out(
+    dir: &Path,
+    spec: &str,
+    rel: &str,
+    section: &[Seg],
+    key: &str,
+    raw: &str,
+    reads: &Reads,
+) -> anyhow::Result<Option<Applied>> {
+    let vehicle_rel = reads.vehicle.as_ref().map_or("vehicle.toml", |v| &v.rel);
+    let is_vehicle = rel == vehicle_rel;
+    if !(rel == "controllers.toml" || is_vehicle) || section.iter().any(|s| s.sel.is_some()) {
+        return Ok(None);
+    }
+    let shown = reads.shown(rel);
+    let path = dir.join(rel);
+    let text =
+        std::fs::read_to_string(&path).with_context(|| format!("--set {spec}: reading {shown}"))?;
+    let mut doc: toml::Table =
+        toml::from_str(&text).with_context(|| format!("--set {spec}: parsing {shown}"))?;
+    let mut t = &mut doc;
+    for s in section {
+        let v = t
+            .entry(s.name.clone())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        let kind = type_name(v);
+        t = v
+            .as_table_mut()
+            .with_context(|| format!("--set {spec}: {shown}'s {s} is {kind}, not a table"))?;
+    }
+    let raw = raw.trim();
+    let new = toml::from_str::<toml::Table>(&format!("v = {raw}"))
+        .ok()
+        .and_then(|mut v| v.remove("v"))
+        .unwrap_or_else(|| toml::Value::String(raw.to_owned()));
+    t.insert(key.to_owned(), new.clone());
+    let changed = toml::to_string(&doc)?;
+    // parsed as the service reads it, under the name the user knows
+    let named = Path::new(&shown);
+    let parse = |text: &str| {
+        if is_vehicle {
+            grip_config::vehicle::parse_vehicle_file(named, text).map(|_| ())
+        } else {
+            grip_config::controllers::parse_controllers(named, text).map(|_| ())
+        }
+    };
+    // a file its service would not read as it stands says nothing of
+    // the new key: refused as before
+    if parse(&text).is_err() {
+        return Ok(None);
+    }
+    parse(&changed)
+        .map_err(|e| anyhow::anyhow!("--set {spec}: {shown} leaves it out, and as set: {e}"))?;
+    std::fs::write(&path, changed)
+        .with_context(|| format!("--set {spec}: writing the replay's copy of {shown}"))?;
+    let where_ = section
+        .iter()
+        .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join(".");
+    let where_ = if where_.is_empty() {
+        key.to_owned()
+    } else {
+        format!("[{where_}] {key}")
+    };
+    let mut dotted: Vec<String> = section.iter().map(ToString::to_string).collect();
+    dotted.push(key.to_owned());
+    Ok(Some(Applied {
+        spec: spec.to_owned(),
+        line: format!("{shown}: {where_} (left out: the default) -> {new}"),
+        rel: rel.to_owned(),
+        shown,
+        path: dotted.join("."),
+        value: new,
+    }))
+}
+
 /// Applies `[FILE:]SECTION.KEY=VALUE` (or `[FILE:]KEY=VALUE`, a key
 /// outside any table) to the one file of `dir` the replay reads whose
 /// table SECTION has KEY (or to FILE), keeping the key's TOML type. A file
@@ -858,8 +942,13 @@ pub fn set_key(dir: &Path, spec: &str, reads: &Reads) -> anyhow::Result<Applied>
                 .collect::<Vec<_>>()
                 .join("; ")
         ),
+        0 if file.is_some()
+            && let Some(a) = left_out(dir, spec, &files[0], section, key, value, reads)? =>
+        {
+            return Ok(a);
+        }
         0 if file.is_some() => bail!(
-            "--set {spec}: {}. --set changes a key the file has (one it leaves out takes the service's default, whose type is not known here)",
+            "--set {spec}: {}. --set changes a key the file has (one it leaves out takes the service's default, whose type is not known here; controllers.toml and the vehicle file take one they leave out)",
             missing
                 .iter()
                 .map(|(_, m)| m.as_str())
@@ -1255,6 +1344,55 @@ mod tests {
     /// type; tcs-loop.toml's controller and arte are the replay's, as
     /// --controller and --arte; a value of another type is refused naming
     /// both types.
+    /// A key controllers.toml or the vehicle file leaves out (its
+    /// service's default) is set when the file is named, with the tables
+    /// on the way made, if the file then parses as its service reads it:
+    /// a typo or a bad value is refused naming the file and the field;
+    /// without the file named it is still refused.
+    #[test]
+    fn a_left_out_key_of_controllers_or_the_vehicle_is_set_when_the_file_is_named() {
+        let cfg = with_sets(
+            &[
+                "controllers.toml:preview.mfc.cap_share=0.9",
+                "vehicle.toml:vehicle.r_ref=0.29",
+            ],
+            false,
+        )
+        .unwrap();
+        let c: toml::Table =
+            toml::from_str(&std::fs::read_to_string(cfg.dir.join("controllers.toml")).unwrap())
+                .unwrap();
+        assert_eq!(c["preview"]["mfc"]["cap_share"], toml::Value::Float(0.9));
+        let v: toml::Table =
+            toml::from_str(&std::fs::read_to_string(cfg.dir.join("vehicle.toml")).unwrap())
+                .unwrap();
+        assert_eq!(v["vehicle"]["r_ref"], toml::Value::Float(0.29));
+        assert_eq!(
+            cfg.changes,
+            [
+                "controllers.toml: [preview.mfc] cap_share (left out: the default) -> 0.9",
+                "vehicle.toml: [vehicle] r_ref (left out: the default) -> 0.29",
+            ]
+        );
+        for (spec, says) in [
+            (
+                "controllers.toml:preview.mfc.cap_shar=0.9",
+                "--set controllers.toml:preview.mfc.cap_shar=0.9: controllers.toml leaves it out, and as set: controllers.toml: field `preview.mfc.cap_shar`",
+            ),
+            (
+                "vehicle.toml:vehicle.r_ref=5",
+                "--set vehicle.toml:vehicle.r_ref=5: vehicle.toml leaves it out, and as set: vehicle.toml: field `vehicle.r_ref`",
+            ),
+            (
+                "preview.mfc.cap_share=0.9",
+                "--set preview.mfc.cap_share=0.9: no configuration file has [preview.mfc] cap_share",
+            ),
+        ] {
+            let e = format!("{:#}", with_sets(&[spec], false).unwrap_err());
+            assert!(e.starts_with(says), "{spec}: {e}");
+        }
+    }
+
     #[test]
     fn a_top_level_key_is_set_with_its_type() {
         for spec in [
