@@ -252,7 +252,7 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
     let mut applied: Vec<Applied> = Vec::new();
     for s in &w.set {
         let a = set_key(&dir, s, &reads)?;
-        if let Some(p) = applied.iter().find(|p| p.rel == a.rel && p.path == a.path) {
+        if let Some(p) = applied.iter().find(|p| p.rel == a.rel && p.key == a.key) {
             bail!(
                 "--set {} and --set {}: both set {} of {}; give it once",
                 p.spec,
@@ -592,12 +592,16 @@ pub struct Applied {
     /// The file as the user knows it (`controllers.toml`, `drive/vehicle.toml
     /// (the drive's --vehicle, from the log)`).
     pub shown: String,
-    /// The key's dotted path (`mfc.k_mfc`, `controller`, `road[snow].c1`).
+    /// The key's dotted path as typed (`mfc.k_mfc`, `controller`,
+    /// `road[snow].c1`).
     pub path: String,
     /// The value written.
     pub value: toml::Value,
     /// The change, one line of the report (`FILE: [SECTION] KEY old -> new`).
     pub line: String,
+    /// The key's dotted path with array elements by index (`road[2].c1`):
+    /// the same key however `--set` named it.
+    pub key: String,
 }
 
 /// One part of a `--set` key path: a key, and for an array of tables
@@ -636,6 +640,41 @@ fn parse_path(p: &str) -> Option<Vec<Seg>> {
         .collect()
 }
 
+/// Which element of an array of tables `sel` names: an index, or the
+/// element whose `name` it is (its index in the whole array, elements
+/// without a name included, not among the named ones).
+fn element_index(a: &[toml::Value], sel: &str) -> Option<usize> {
+    match sel.parse::<usize>() {
+        Ok(i) => Some(i).filter(|&i| i < a.len()),
+        Err(_) => a
+            .iter()
+            .position(|e| e.get("name").and_then(toml::Value::as_str) == Some(sel)),
+    }
+}
+
+/// `segs` with every array element by its index (`road[snow].c1` is
+/// `road[2].c1` where snow is the third road): one key however it was
+/// named, for `--set`'s once-per-key rule.
+fn canonical_path(doc: &toml::Table, segs: &[Seg]) -> String {
+    let mut t = Some(doc);
+    let mut parts = Vec::new();
+    for s in segs {
+        let v = t.and_then(|t| t.get(&s.name));
+        match (&s.sel, v) {
+            (Some(sel), Some(toml::Value::Array(a))) => {
+                let i = element_index(a, sel);
+                parts.push(i.map_or_else(|| s.to_string(), |i| format!("{}[{i}]", s.name)));
+                t = i.and_then(|i| a[i].as_table());
+            }
+            (_, v) => {
+                parts.push(s.to_string());
+                t = v.and_then(toml::Value::as_table);
+            }
+        }
+    }
+    parts.join(".")
+}
+
 /// The table `segs` leads to in `t`, or why there is none.
 fn table_at<'a>(mut t: &'a mut toml::Table, segs: &[Seg]) -> Result<&'a mut toml::Table, String> {
     for s in segs {
@@ -657,14 +696,7 @@ fn table_at<'a>(mut t: &'a mut toml::Table, segs: &[Seg]) -> Result<&'a mut toml
                     .map(str::to_owned)
                     .collect();
                 let n = a.len();
-                let i = match sel.parse::<usize>() {
-                    Ok(i) => Some(i).filter(|&i| i < n),
-                    // the index in the whole array (elements without a
-                    // name included), not among the named ones
-                    Err(_) => a.iter().position(|e| {
-                        e.get("name").and_then(toml::Value::as_str) == Some(sel.as_str())
-                    }),
-                };
+                let i = element_index(a, sel);
                 let Some(i) = i else {
                     return Err(if names.is_empty() {
                         format!(
@@ -805,12 +837,14 @@ fn left_out(
     };
     let mut dotted: Vec<String> = section.iter().map(ToString::to_string).collect();
     dotted.push(key.to_owned());
+    let dotted = dotted.join(".");
     Ok(Some(Applied {
         spec: spec.to_owned(),
         line: format!("{shown}: {where_} (left out: the default) -> {new}"),
         rel: rel.to_owned(),
         shown,
-        path: dotted.join("."),
+        key: dotted.clone(),
+        path: dotted,
         value: new,
     }))
 }
@@ -978,6 +1012,7 @@ pub fn set_key(dir: &Path, spec: &str, reads: &Reads) -> anyhow::Result<Applied>
         ),
     }
     let (rel, mut doc) = hits.remove(0);
+    let canonical = canonical_path(&doc, &segs);
     let shown = reads.shown(&rel);
     let t = table_at(&mut doc, section).map_err(anyhow::Error::msg)?;
     let old = t.get(key).cloned().context("key vanished")?;
@@ -997,6 +1032,7 @@ pub fn set_key(dir: &Path, spec: &str, reads: &Reads) -> anyhow::Result<Applied>
             .map(ToString::to_string)
             .collect::<Vec<_>>()
             .join("."),
+        key: canonical,
         value: new,
     })
 }
@@ -1513,6 +1549,17 @@ mod tests {
             ),
             "{e}"
         );
+        // one road by its name and by its index is one key
+        let e = with_sets(&["road[snow].c1=0.15", "road[2].c1=0.16"], false)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(
+                "--set road[snow].c1=0.15 and --set road[2].c1=0.16: both set road[2].c1"
+            ),
+            "{e}"
+        );
+        with_sets(&["road[snow].c1=0.15", "road[1].c1=0.5"], false).unwrap();
 
         let user = tempfile::tempdir().unwrap();
         let mine = user.path().join("mine.toml");
