@@ -308,7 +308,7 @@ fn inspect_a_b_and_a_directory_show_the_inverters_faults() {
         assert!(out.contains(&want), "{want:?} not in\n{out}");
     }
     assert!(!out.contains("no MotorStatus frames"), "{out}");
-    // the two inverters faulted differently: the comparison says so first
+    // the two inverters faulted differently: the comparison says so
     assert!(
         out.contains("the inverters' fault episodes during the scenario differ: A 1, B 0"),
         "{out}"

@@ -669,24 +669,22 @@ impl Inverter {
 
 /// What makes two drives' inverters unlike for `grip inspect A B`
 /// ([`super::comparability`]): a different number of fault or derating
-/// episodes during the scenario (a log without a scenario window counts
-/// none). A drive whose inverter faulted or derated while the other's did
+/// episodes during the scenario (not said where a side has no scenario
+/// window: that side is named incomplete already). A drive whose inverter faulted or derated while the other's did
 /// not differs in the torque the motor could give, whatever the
 /// controllers did. A side without `MotorStatus` frames beside one whose
 /// inverter faulted or derated is named as unknown, not as clean.
 pub fn comparability(a: &Inverter, b: &Inverter) -> Vec<String> {
-    let in_scenario = |inv: &Inverter, flag: Flag| {
-        inv.flag(flag)
-            .and_then(|f| f.in_scenario)
-            .map_or(0, |(n, _)| n)
-    };
+    // None: no scenario window (that side is named incomplete already)
+    let in_scenario =
+        |inv: &Inverter, flag: Flag| inv.flag(flag).and_then(|f| f.in_scenario).map(|(n, _)| n);
+    let count = |inv: &Inverter, flag: Flag| in_scenario(inv, flag).unwrap_or(0);
     let episodes = |inv: &Inverter| {
         [Flag::Fault, Flag::Derating]
-            .map(|flag| format!("{} {}", in_scenario(inv, flag), flag.words()))
+            .map(|flag| format!("{} {}", count(inv, flag), flag.words()))
             .join(", ")
     };
-    let troubled =
-        |inv: &Inverter| in_scenario(inv, Flag::Fault) + in_scenario(inv, Flag::Derating) > 0;
+    let troubled = |inv: &Inverter| count(inv, Flag::Fault) + count(inv, Flag::Derating) > 0;
     match (a.frames == 0, b.frames == 0) {
         (true, true) => Vec::new(),
         (true, false) | (false, true) => {
@@ -703,7 +701,9 @@ pub fn comparability(a: &Inverter, b: &Inverter) -> Vec<String> {
         (false, false) => [Flag::Fault, Flag::Derating]
             .into_iter()
             .filter_map(|flag| {
-                let (na, nb) = (in_scenario(a, flag), in_scenario(b, flag));
+                let (Some(na), Some(nb)) = (in_scenario(a, flag), in_scenario(b, flag)) else {
+                    return None;
+                };
                 (na != nb).then(|| {
                     format!(
                         "the inverters' {} episodes during the scenario differ: A {na}, B {nb} (the torque the motor could give differed, whatever the controllers did)",
@@ -1068,6 +1068,10 @@ mod tests {
         );
         assert!(comparability(&none, &clean).is_empty());
         assert!(comparability(&none, &none).is_empty());
+        // a side without a scenario window: its count is not known (the
+        // side is named incomplete elsewhere), nothing said of it here
+        let windowless = inverter(&faulty_log(), p, None);
+        assert!(comparability(&windowless, &clean).is_empty());
     }
 
     /// `grip inspect A B`'s rows: the faulty log (scenario window 100-900

@@ -283,14 +283,6 @@ fn reason_of(e: &grip_sim::SimError) -> String {
 /// A check that cannot run (e.g. no lag at all: tau_m + tau_noise = 0, where
 /// bound (4) is not defined) is said, never fatal.
 fn warn_kmfc(config_dir: &Path, setup: &SimSetup, vehicle_path: &Path) {
-    if let Some(w) = kmfc_check(config_dir, setup, vehicle_path) {
-        eprintln!("warning: {w}");
-    }
-}
-
-/// What [`warn_kmfc`] says for `setup` (None: nothing to say); a sweep
-/// says it for each point whose answer differs from the configuration's.
-fn kmfc_check(config_dir: &Path, setup: &SimSetup, vehicle_path: &Path) -> Option<String> {
     match grip_tcs::analysis::vehicle_tf::kmfc_warning(
         setup.vehicle(),
         vehicle_path,
@@ -298,7 +290,32 @@ fn kmfc_check(config_dir: &Path, setup: &SimSetup, vehicle_path: &Path) -> Optio
         &setup.controllers().mfc,
         &ConfigDir::new(config_dir).file("controllers.toml"),
     ) {
-        Ok(w) => w,
+        Ok(Some(w)) => eprintln!("warning: {w}"),
+        Ok(None) => {}
+        Err(e) => eprintln!("warning: the MFC gain check against bound (4) could not run: {e}"),
+    }
+}
+
+/// The same check for a sweep point, whose values are in no file: the
+/// roads where its `k_mfc` lies above bound (4) for its vehicle, without
+/// file names (None: none). A sweep says it for each point whose answer
+/// differs from the configuration's.
+fn kmfc_of_point(setup: &SimSetup) -> Option<String> {
+    let mfc = &setup.controllers().mfc;
+    match grip_tcs::analysis::vehicle_tf::kmfc_above_bound(setup.vehicle(), setup.roads(), mfc) {
+        Ok(above) if above.is_empty() => None,
+        Ok(above) => {
+            let lowest = above.iter().map(|(_, b)| *b).fold(f64::INFINITY, f64::min);
+            let roads: Vec<String> = above.iter().map(|(n, b)| format!("{n} {b:.0}")).collect();
+            Some(format!(
+                "k_mfc = {} N m s/rad is above the MFC's no-overshoot bound (4) for this point's vehicle on {} of {} roads (bound at the road's lambda_opt, N m s/rad: {}): its wheel speed overshoots and rings there; at or below {:.0} it would not",
+                mfc.k_mfc,
+                above.len(),
+                setup.roads().len(),
+                roads.join(", "),
+                lowest.floor()
+            ))
+        }
         Err(e) => Some(format!(
             "the MFC gain check against bound (4) could not run: {e}"
         )),

@@ -767,9 +767,9 @@ fn typed(old: &toml::Value, raw: &str) -> Result<toml::Value, String> {
 /// by `--set FILE:`) leaves out, so its service's default: set to `raw`
 /// (a TOML value; a bare word is a string) with the tables on the way
 /// made, if the file as changed still parses as its service reads it
-/// (both refuse a key they do not know, naming the ones they do). `None`:
-/// another file, a section with an array element, or a file its service
-/// would not read as it stands, where the key's type is not known here.
+/// (both refuse a key they do not know, naming the ones they do; a file
+/// that does not parse as logged is an error). `None`: another file, or a
+/// section with an array element, where the key's type is not known here.
 fn left_out(
     dir: &Path,
     spec: &str,
@@ -805,6 +805,12 @@ fn left_out(
         .ok()
         .and_then(|mut v| v.remove("v"))
         .unwrap_or_else(|| toml::Value::String(raw.to_owned()));
+    if new.is_table() {
+        // as for a key the file has (`typed`): one key, one --set
+        bail!(
+            "--set {spec}: {raw} is a table: set its keys one by one (--set FILE:SECTION.TABLE.KEY=VALUE)"
+        );
+    }
     t.insert(key.to_owned(), new.clone());
     let changed = toml::to_string(&doc)?;
     // parsed as the service reads it, under the name the user knows
@@ -817,12 +823,20 @@ fn left_out(
         }
     };
     // a file its service would not read as it stands says nothing of
-    // the new key: refused as before
-    if parse(&text).is_err() {
-        return Ok(None);
+    // the new key
+    if let Err(e) = parse(&text) {
+        bail!(
+            "--set {spec}: {shown} leaves it out, and a key a file leaves out is taken only from a file its service reads, which this one, as logged, is not: {e}"
+        );
     }
-    parse(&changed)
-        .map_err(|e| anyhow::anyhow!("--set {spec}: {shown} leaves it out, and as set: {e}"))?;
+    // the line numbers are those of the copy as rewritten (comments and
+    // layout gone), not of the file the user knows: left out
+    parse(&changed).map_err(|e| {
+        anyhow::anyhow!(
+            "--set {spec}: {shown} leaves it out, and as set: {}",
+            without_line(&e.to_string())
+        )
+    })?;
     std::fs::write(&path, changed)
         .with_context(|| format!("--set {spec}: writing the replay's copy of {shown}"))?;
     let where_ = section
@@ -847,6 +861,23 @@ fn left_out(
         path: dotted,
         value: new,
     }))
+}
+
+/// A configuration error's text without its `line N: ` (a line of a
+/// rewritten copy, which would point the user at the wrong line).
+fn without_line(e: &str) -> String {
+    match e.find(": line ") {
+        Some(i) => {
+            let rest = &e[i + 2..];
+            match rest.find(": ") {
+                Some(j) if rest[5..j].trim().parse::<u64>().is_ok() => {
+                    format!("{}{}", &e[..i + 2], &rest[j + 2..])
+                }
+                _ => e.to_owned(),
+            }
+        }
+        None => e.to_owned(),
+    }
 }
 
 /// Applies `[FILE:]SECTION.KEY=VALUE` (or `[FILE:]KEY=VALUE`, a key
@@ -1215,7 +1246,10 @@ mod tests {
         let e = set_key(d.path(), "controllers.toml:mfc.nope=1", &r)
             .unwrap_err()
             .to_string();
-        assert!(e.contains("controllers.toml has no [mfc] nope"), "{e}");
+        assert!(
+            e.contains("controllers.toml leaves it out, and a key a file leaves out is taken only from a file its service reads, which this one, as logged, is not: "),
+            "{e}"
+        );
         assert!(set_key(d.path(), "mfc.k", &r).is_err());
     }
 
@@ -1376,10 +1410,6 @@ mod tests {
         }
     }
 
-    /// Item 3: a key outside any table (`FILE:KEY=VALUE`) keeps its TOML
-    /// type; tcs-loop.toml's controller and arte are the replay's, as
-    /// --controller and --arte; a value of another type is refused naming
-    /// both types.
     /// A key controllers.toml or the vehicle file leaves out (its
     /// service's default) is set when the file is named, with the tables
     /// on the way made, if the file then parses as its service reads it:
@@ -1423,12 +1453,22 @@ mod tests {
                 "preview.mfc.cap_share=0.9",
                 "--set preview.mfc.cap_share=0.9: no configuration file has [preview.mfc] cap_share",
             ),
+            (
+                "controllers.toml:preview.mfc={cap_share=0.9}",
+                "--set controllers.toml:preview.mfc={cap_share=0.9}: {cap_share=0.9} is a table: set its keys one by one",
+            ),
         ] {
             let e = format!("{:#}", with_sets(&[spec], false).unwrap_err());
             assert!(e.starts_with(says), "{spec}: {e}");
+            // no line of the rewritten copy
+            assert!(!e.contains(": line "), "{spec}: {e}");
         }
     }
 
+    /// Item 3: a key outside any table (`FILE:KEY=VALUE`) keeps its TOML
+    /// type; tcs-loop.toml's controller and arte are the replay's, as
+    /// --controller and --arte; a value of another type is refused naming
+    /// both types.
     #[test]
     fn a_top_level_key_is_set_with_its_type() {
         for spec in [

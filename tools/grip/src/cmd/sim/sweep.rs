@@ -306,8 +306,10 @@ pub fn run(
     let vehicle_text = read_file(req.vehicle)?;
     parse_vehicle(req.vehicle, &vehicle_text)?;
     // ... and every point checked before the first run.
-    // what the configuration's MFC gain check said (sim.rs, before the sweep)
-    let base_kmfc = super::kmfc_check(config_dir, &loaded.setup, req.vehicle);
+    // the MFC gain check of the configuration (said by sim.rs before the
+    // sweep), in the words of a point's
+    let with_mfc = req.variants.iter().any(|v| v.kind == ControllerKind::Mfc);
+    let base_kmfc = super::kmfc_of_point(&loaded.setup);
     let mut setups = vec![Point {
         label: "as configured".into(),
         values: Vec::new(),
@@ -356,8 +358,8 @@ pub fn run(
         // MFC's gain against bound (4) at this point's gain, lags and
         // vehicle, where its answer is not the configuration's (said
         // before the sweep starts)
-        if kinds.contains(&ControllerKind::Mfc) {
-            let here = super::kmfc_check(config_dir, &setup, req.vehicle);
+        if with_mfc {
+            let here = super::kmfc_of_point(&setup);
             if here.is_some() && here != base_kmfc {
                 eprintln!("warning: --sweep {label}: {}", here.unwrap_or_default());
             }
