@@ -1192,6 +1192,25 @@ mod tests {
         assert!(recapped.is_empty(), "capped again: {recapped:?}");
     }
 
+    /// Asphalt, snow and wet stone, and a maker of MTTE-ARTE's road
+    /// awareness on them (the default vehicle and controllers, 1 kHz).
+    fn with_wet_stone() -> (RoadCatalogue, impl Fn() -> RoadAware) {
+        let roads = RoadCatalogue::burckhardt(&["asphalt", "snow", "wet_stone"]).unwrap();
+        let r = roads.clone();
+        let mk = move || {
+            RoadAware::new(
+                ControllerKind::Mtte,
+                &r,
+                RoadTable::new(&r, &KnowledgeConfig::default()).unwrap(),
+                &VehicleParams::default(),
+                &ControllersConfig::default(),
+                1e-3,
+            )
+            .unwrap()
+        };
+        (roads, mk)
+    }
+
     /// Wet stone heard as snow (a confusion the acoustic model makes): the
     /// belief, from the wheel's slip, is wet stone, so the cap that binds
     /// is the heard road's, snow's. At snow's cap the wheel slips 1.9 %,
@@ -1200,18 +1219,7 @@ mod tests {
     /// as snow would keeps it.
     #[test]
     fn a_wheel_that_slips_too_little_at_the_heard_roads_cap_releases_it() {
-        let roads = RoadCatalogue::burckhardt(&["asphalt", "snow", "wet_stone"]).unwrap();
-        let mk = || {
-            RoadAware::new(
-                ControllerKind::Mtte,
-                &roads,
-                RoadTable::new(&roads, &KnowledgeConfig::default()).unwrap(),
-                &VehicleParams::default(),
-                &ControllersConfig::default(),
-                1e-3,
-            )
-            .unwrap()
-        };
+        let (roads, mk) = with_wet_stone();
         let snow_cap = roads[1].mu_peak() * 3433.5 * 0.28;
         // (released at, cycles at snow's cap under a wet-stone belief) for a
         // wheel at snow's cap and slip
@@ -1273,16 +1281,8 @@ mod tests {
     /// another `release_s`.
     #[test]
     fn a_heard_roads_cap_the_wheel_overruled_stays_lifted_when_believed() {
-        let roads = RoadCatalogue::burckhardt(&["asphalt", "snow", "wet_stone"]).unwrap();
-        let mut a = RoadAware::new(
-            ControllerKind::Mtte,
-            &roads,
-            RoadTable::new(&roads, &KnowledgeConfig::default()).unwrap(),
-            &VehicleParams::default(),
-            &ControllersConfig::default(),
-            1e-3,
-        )
-        .unwrap();
+        let (roads, mk) = with_wet_stone();
+        let mut a = mk();
         let snow_cap = roads[1].mu_peak() * 3433.5 * 0.28;
         let mut released_at = None;
         let mut believed_snow = 0;
