@@ -204,6 +204,15 @@ pub fn kmfc_above_bound(
     Ok(above)
 }
 
+/// The roads [`kmfc_above_bound`] found, as the warnings list them
+/// (`"gravel 359, stone 181"`, bounds in N m s/rad), and the lowest of
+/// their bounds, floored: the largest gain within all of them.
+pub fn kmfc_above_list(above: &[(String, f64)]) -> (String, f64) {
+    let lowest = above.iter().map(|(_, b)| *b).fold(f64::INFINITY, f64::min);
+    let roads: Vec<String> = above.iter().map(|(n, b)| format!("{n} {b:.0}")).collect();
+    (roads.join(", "), lowest.floor())
+}
+
 /// The start-up warning for [`kmfc_above_bound`]: `None` when the gain is
 /// within every road's bound; else one line naming the controllers file,
 /// the gain, the vehicle file, the roads with their bounds and what to do.
@@ -218,8 +227,7 @@ pub fn kmfc_warning(
     if above.is_empty() {
         return Ok(None);
     }
-    let lowest = above.iter().map(|(_, b)| *b).fold(f64::INFINITY, f64::min);
-    let roads: Vec<String> = above.iter().map(|(n, b)| format!("{n} {b:.0}")).collect();
+    let (roads, lowest) = kmfc_above_list(&above);
     Ok(Some(format!(
         "{}: [mfc] k_mfc = {} N m s/rad is above the MFC's no-overshoot bound (4) for the vehicle of {} \
          on {} of {} roads (bound at the road's lambda_opt, N m s/rad: {}): the loop stays stable but its \
@@ -230,8 +238,8 @@ pub fn kmfc_warning(
         vehicle_file.display(),
         above.len(),
         cat.len(),
-        roads.join(", "),
-        lowest.floor(),
+        roads,
+        lowest,
         vehicle_file.display(),
     )))
 }

@@ -305,15 +305,14 @@ fn kmfc_of_point(setup: &SimSetup) -> Option<String> {
     match grip_tcs::analysis::vehicle_tf::kmfc_above_bound(setup.vehicle(), setup.roads(), mfc) {
         Ok(above) if above.is_empty() => None,
         Ok(above) => {
-            let lowest = above.iter().map(|(_, b)| *b).fold(f64::INFINITY, f64::min);
-            let roads: Vec<String> = above.iter().map(|(n, b)| format!("{n} {b:.0}")).collect();
+            let (roads, lowest) = grip_tcs::analysis::vehicle_tf::kmfc_above_list(&above);
             Some(format!(
                 "k_mfc = {} N m s/rad is above the MFC's no-overshoot bound (4) for this point's vehicle on {} of {} roads (bound at the road's lambda_opt, N m s/rad: {}): its wheel speed overshoots and rings there; at or below {:.0} it would not",
                 mfc.k_mfc,
                 above.len(),
                 setup.roads().len(),
-                roads.join(", "),
-                lowest.floor()
+                roads,
+                lowest
             ))
         }
         Err(e) => Some(format!(
