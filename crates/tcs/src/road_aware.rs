@@ -319,43 +319,80 @@ impl PreviewParams {
     }
 }
 
-/// The wheel's word on a binding cap, in the grippy direction
-/// (`release_slip_share`, `release_s`): one rule, kept for the believed
-/// road's cap and for the cap of the road the microphone says is under
-/// the wheel.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-struct CapRelease {
-    /// How long the wheel has contradicted the cap, s.
-    contradicted_s: f64,
-    /// The road whose cap the wheel has overruled, if any.
-    released: Option<usize>,
+/// The wheel's word on binding caps, in the grippy direction
+/// (`release_slip_share`, `release_s`): one verdict per road. A wheel that
+/// has overruled road r's cap has overruled it whichever way the cap comes,
+/// as the believed road's or as the road the microphone says is under the
+/// wheel; the verdict holds while either still names r (the belief with a
+/// usable estimate, or the heard road with a live decision stream) and the
+/// wheel does not spin. Each way has its own clock of contradiction, since
+/// each is a different cap binding.
+#[derive(Debug, Clone, PartialEq, Default)]
+struct Verdicts {
+    /// Per road of the catalogue: the wheel has overruled its cap.
+    overruled: Vec<bool>,
+    /// How long the wheel has contradicted the believed road's cap, s.
+    believed_s: f64,
+    /// How long the wheel has contradicted the heard road's cap, s.
+    heard_s: f64,
 }
 
-impl CapRelease {
-    /// One cycle. A release holds while `keep` and while `key` (the road
-    /// the cap belongs to now) is the road released. The cap of
-    /// `candidate`, when there is one and nothing is released, is released
-    /// once the wheel has contradicted it (`contradicts`) for `release_s`.
-    fn step(
+impl Verdicts {
+    fn new(roads: usize) -> Self {
+        Self {
+            overruled: vec![false; roads],
+            ..Self::default()
+        }
+    }
+
+    fn reset(&mut self) {
+        self.overruled.fill(false);
+        self.believed_s = 0.0;
+        self.heard_s = 0.0;
+    }
+
+    /// Road `r`'s cap is overruled (false for a road not in the catalogue).
+    fn overruled(&self, r: Option<usize>) -> bool {
+        r.and_then(|r| self.overruled.get(r).copied())
+            .unwrap_or(false)
+    }
+
+    /// One cycle's hold: only a road still named by `believed` or `heard`
+    /// keeps its verdict, and none while the wheel spins.
+    fn hold(&mut self, believed: Option<usize>, heard: Option<usize>, spinning: bool) {
+        for (r, o) in self.overruled.iter_mut().enumerate() {
+            *o &= !spinning && (believed == Some(r) || heard == Some(r));
+        }
+    }
+
+    /// One cycle of one way's clock (`clock`): the cap of `candidate`,
+    /// when there is one and it is not overruled, is overruled once the
+    /// wheel has contradicted it (`contradicts`) for `release_s`.
+    fn judge(
         &mut self,
-        key: Option<usize>,
-        keep: bool,
+        heard: bool,
         candidate: Option<usize>,
         contradicts: bool,
         dt: f64,
         p: &PreviewParams,
     ) {
-        if !keep || self.released.is_some_and(|r| Some(r) != key) {
-            self.released = None;
-        }
-        match candidate {
-            Some(r) if self.released.is_none() && contradicts => {
-                self.contradicted_s += dt;
-                if self.contradicted_s >= p.release_s && p.release_slip_share > 0.0 {
-                    self.released = Some(r);
+        let open = candidate.filter(|&r| !self.overruled(Some(r)));
+        let clock = if heard {
+            &mut self.heard_s
+        } else {
+            &mut self.believed_s
+        };
+        match open {
+            Some(r) if contradicts => {
+                *clock += dt;
+                if *clock >= p.release_s
+                    && p.release_slip_share > 0.0
+                    && let Some(o) = self.overruled.get_mut(r)
+                {
+                    *o = true;
                 }
             }
-            _ => self.contradicted_s = 0.0,
+            _ => *clock = 0.0,
         }
     }
 }
@@ -394,13 +431,12 @@ pub struct RoadAware {
     lead: f64,
     last_decision: f64,
     dt: f64,
-    /// The wheel's word on the believed road's binding cap.
-    release: CapRelease,
+    /// The wheel's word on binding caps, one verdict per road: the
+    /// believed road's cap and that of the road the microphone says is
+    /// under the wheel (when that carries less than the believed road).
+    verdicts: Verdicts,
     /// Last cycle's cap, N m.
     last_cap: f64,
-    /// The wheel's word on the binding cap of the road the microphone says
-    /// is under it (when that carries less than the believed road).
-    here_release: CapRelease,
     /// Last cycle's cap came from the heard road under the wheel: that road.
     here_binding: Option<usize>,
     /// The wheel's spin and its cut, as of last cycle (see `spin`).
@@ -494,9 +530,8 @@ impl RoadAware {
             lead: vehicle.mic_lead_m,
             last_decision: f64::NEG_INFINITY,
             dt,
-            release: CapRelease::default(),
+            verdicts: Verdicts::new(roads.len()),
             last_cap: f64::INFINITY,
-            here_release: CapRelease::default(),
             here_binding: None,
             spin: Spin::Gripping,
             j_w: vehicle.j_w,
@@ -512,9 +547,8 @@ impl RoadAware {
         self.belief.reset();
         self.queue.clear();
         self.last_decision = f64::NEG_INFINITY;
-        self.release = CapRelease::default();
+        self.verdicts.reset();
         self.last_cap = f64::INFINITY;
-        self.here_release = CapRelease::default();
         self.here_binding = None;
         self.spin = Spin::Gripping;
         self.slip_lp.reset();
@@ -750,47 +784,28 @@ impl RoadAware {
                         * self.lambda_release.get(r).copied().unwrap_or(f64::NAN)
         };
         let (dt, p) = (self.dt, &self.p);
-        // The believed road's cap: released until the belief changes road,
-        // the wheel spins or the estimate is not usable.
+        // The believed road's cap: released until neither the belief (with
+        // a usable estimate) nor the heard road (with a live stream) names
+        // that road any more, or the wheel spins.
         let believed = usable.then_some(road);
-        let keep = !spinning && usable;
+        let here_road = view.here.map(|h| h.road).filter(|_| alive);
+        self.verdicts.hold(believed, here_road, spinning);
         let said = believed.is_some_and(contradicts);
-        self.release.step(Some(road), keep, believed, said, dt, p);
+        self.verdicts.judge(false, believed, said, dt, p);
         // The same word on the cap of the road the microphone says is under
         // the wheel, when that cap is the one binding (it carries less than
         // the believed road: the cautious direction, which the belief alone
         // does not lift): a wheel that carries that road's cap at well
         // under the slip the road would need for it is on a grippier road
         // (wet stone heard as snow: at snow's 183 N m it slips 0.019, snow
-        // would need 0.03). Released until the heard road changes, the
-        // stream dies or the wheel spins.
-        let here_road = view.here.map(|h| h.road);
+        // would need 0.03). One verdict per road: gravel heard as snow,
+        // released on the wheel's word as the believed road, is not capped
+        // again at snow's torque when the belief's confidence falls under
+        // the gate and the heard road's cap would take over.
         let binding = self.here_binding.filter(|&r| Some(r) == here_road);
-        let keep = !spinning && alive;
         let said = binding.is_some_and(contradicts);
-        self.here_release
-            .step(here_road, keep, binding, said, dt, p);
-        // One verdict per road: a wheel that has overruled road r's cap has
-        // overruled it whichever way the cap came, the belief or the heard
-        // road under the wheel (gravel heard as snow, released on the
-        // wheel's word, was capped again at snow's torque for another
-        // `release_s` when the belief's confidence fell under the gate and
-        // the heard road's cap took over).
-        if let Some(r) = self.release.released
-            && here_road == Some(r)
-            && self.here_release.released.is_none()
-        {
-            self.here_release.released = Some(r);
-        }
-        if let Some(r) = self.here_release.released
-            && believed == Some(r)
-            && self.release.released.is_none()
-        {
-            self.release.released = Some(r);
-        }
+        self.verdicts.judge(true, binding, said, dt, p);
 
-        let released = self.release.released;
-        let here_released = self.here_release.released;
         let mut here_cap = f64::INFINITY;
         let mut cap = f64::INFINITY;
         // What the microphone says of the road under the wheel caps too when
@@ -803,15 +818,12 @@ impl RoadAware {
             && here.hits >= self.p.min_hits
         {
             let h = self.table.info(here.road);
-            if (h.mu_peak < info.mu_peak || !usable)
-                && released != Some(here.road)
-                && here_released != Some(here.road)
-            {
+            if (h.mu_peak < info.mu_peak || !usable) && !self.verdicts.overruled(Some(here.road)) {
                 here_cap = self.torque(self.p.cap_share, h.mu_peak);
                 cap = here_cap;
             }
         }
-        if usable && released.is_none() {
+        if usable && !self.verdicts.overruled(Some(road)) {
             let share = if spinning {
                 self.p.recover_share
             } else {
@@ -1902,5 +1914,51 @@ mod tests {
         // neither curve rules out at 1 % slip the belief stays uncertain.
         let g = run(&mut a, 5.0, 25.0, 1, 1);
         assert!(g.belief.1 < 0.999, "{g:?}");
+    }
+
+    #[test]
+    fn one_verdict_per_road_holds_while_either_way_names_it() {
+        let p = PreviewParams::default();
+        let dt = 0.001;
+        let mut v = Verdicts::new(3);
+        // The believed road 1's cap, contradicted for release_s: overruled.
+        let cycles = (p.release_s / dt).ceil() as usize + 1;
+        for _ in 0..cycles {
+            v.hold(Some(1), None, false);
+            v.judge(false, Some(1), true, dt, &p);
+        }
+        assert!(v.overruled(Some(1)));
+        // The belief moves on while the heard road is 1: the verdict holds,
+        // and the heard road's cap of 1 is not judged again.
+        v.hold(Some(2), Some(1), false);
+        v.judge(true, Some(1), true, dt, &p);
+        assert!(v.overruled(Some(1)) && v.heard_s == 0.0);
+        assert!(!v.overruled(Some(2)) && !v.overruled(Some(0)));
+        // Neither way names 1 any more: gone, and coming back to it needs
+        // the wheel's word again.
+        v.hold(Some(2), Some(0), false);
+        v.hold(Some(1), Some(1), false);
+        assert!(!v.overruled(Some(1)));
+        // A spinning wheel ends every verdict, named or not.
+        for _ in 0..cycles {
+            v.judge(true, Some(1), true, dt, &p);
+        }
+        assert!(v.overruled(Some(1)));
+        v.hold(Some(1), Some(1), true);
+        assert!(!v.overruled(Some(1)));
+        // A contradiction broken before release_s starts the clock again.
+        for _ in 0..cycles - 2 {
+            v.judge(false, Some(0), true, dt, &p);
+        }
+        v.judge(false, Some(0), false, dt, &p);
+        v.judge(false, Some(0), true, dt, &p);
+        assert!(!v.overruled(Some(0)));
+        // A road outside the catalogue is never overruled, and no panic.
+        for _ in 0..cycles {
+            v.judge(false, Some(7), true, dt, &p);
+        }
+        assert!(!v.overruled(Some(7)) && !v.overruled(None));
+        v.reset();
+        assert!(!v.overruled.iter().any(|&o| o));
     }
 }
