@@ -129,3 +129,50 @@ fn other_scenarios_run_finite() {
         }
     }
 }
+
+/// The shipped controllers' gains suit the three shipped vehicles, loaded
+/// as the services and `grip sim` load them: MFC's k_mfc is within bound
+/// (4) on every road, and SRC's kp, ti and kp_recover are their derivation
+/// from J_w and tau_m (kp = J_w/(2 tau_m) = 6, ti = 4 tau_m = 0.2,
+/// kp_recover = 20 inside [6, (J_w + (M/n) r^2)/(2 tau_m)]): no start-up
+/// warning for any controller.
+#[test]
+fn the_shipped_gains_suit_the_shipped_vehicles() {
+    use grip_tcs::analysis::vehicle_tf::{gain_warning, src_gains, src_gains_off};
+    let d = dir();
+    let roads = d.roads().unwrap();
+    let controllers_file = d.file("controllers.toml");
+    let controllers = grip_config::load_controllers(&controllers_file).unwrap();
+    for f in [
+        "vehicle.toml",
+        "vehicles/front-mic.toml",
+        "vehicles/rear-mic.toml",
+    ] {
+        let vehicle_file = d.file(f);
+        let (v, _) = grip_config::load_vehicle(&vehicle_file).unwrap();
+        let g = src_gains(&v).unwrap();
+        assert!(
+            (controllers.src.kp / g.kp - 1.0).abs() < 1e-12,
+            "{f}: {g:?}"
+        );
+        assert!(
+            (controllers.src.ti / g.ti - 1.0).abs() < 1e-12,
+            "{f}: {g:?}"
+        );
+        assert!(
+            src_gains_off(&v, &controllers.src).unwrap().is_empty(),
+            "{f}"
+        );
+        for kind in grip_tcs::ControllerKind::ALL {
+            let w = gain_warning(
+                kind,
+                &v,
+                &vehicle_file,
+                &roads,
+                &controllers,
+                &controllers_file,
+            );
+            assert_eq!(w.unwrap(), None, "{f}, {kind}");
+        }
+    }
+}

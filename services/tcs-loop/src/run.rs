@@ -291,19 +291,24 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
     let cfg = load(opts)?;
     let mut lp = build(&cfg)?;
     let kind = lp.controller_kind();
-    if kind == grip_tcs::ControllerKind::Mfc {
-        // the gain is the paper's car's: say where it overshoots on this one
-        match grip_tcs::analysis::vehicle_tf::kmfc_warning(
-            &cfg.vehicle,
-            &cfg.vehicle_path,
-            &cfg.roads,
-            &cfg.controllers.mfc,
-            &cfg.controllers_path,
-        ) {
-            Ok(Some(w)) => tracing::warn!("{w}"),
-            Ok(None) => {}
-            Err(e) => tracing::warn!(error = %e, "tcs-loop: the MFC gain check could not run"),
-        }
+    // MFC's and SRC's gains are the paper's car's: say where they do not
+    // suit this one (MFC: bound (4) per road; SRC: the gains derived from
+    // the wheel and the motor lag)
+    match grip_tcs::analysis::vehicle_tf::gain_warning(
+        kind,
+        &cfg.vehicle,
+        &cfg.vehicle_path,
+        &cfg.roads,
+        &cfg.controllers,
+        &cfg.controllers_path,
+    ) {
+        Ok(Some(w)) => tracing::warn!("{w}"),
+        Ok(None) => {}
+        Err(e) => tracing::warn!(
+            error = %e,
+            "tcs-loop: the {} gain check could not run",
+            kind.as_str().to_uppercase()
+        ),
     }
     let rate = cfg.controllers.loop_.rate_hz;
     let period_ns = (1e9 / rate).round() as u64;

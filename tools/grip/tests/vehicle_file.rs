@@ -3,19 +3,49 @@
 //! (and the shipped files, which set them all, get no warning), and refuses
 //! an implausible value naming the file, field, range and unit.
 
+use std::path::{Path, PathBuf};
 use std::process::Output;
 
 mod common;
 use common::{config_dir, grip};
 
-fn sim(vehicle: &std::path::Path, out: &std::path::Path) -> Output {
+fn sim(vehicle: &Path, out: &Path) -> Output {
+    sim_of("mtte", vehicle, out)
+}
+
+/// `grip sim` of one seed of `variants` with `vehicle`, written to `out`.
+fn sim_of(variants: &str, vehicle: &Path, out: &Path) -> Output {
     grip()
-        .args(["sim", "--seeds", "1", "--variants", "mtte", "--vehicle"])
+        .args(["sim", "--seeds", "1", "--variants", variants, "--vehicle"])
         .arg(vehicle)
         .arg("--out")
         .arg(out)
         .output()
         .unwrap()
+}
+
+/// `grip sim --sweep` of one seed of `variants` on the shipped
+/// configuration, one `--sweep` per axis.
+fn sweep(variants: &str, axes: &[&str]) -> Output {
+    let mut c = grip();
+    c.args(["sim", "--seeds", "1", "--variants", variants]);
+    for axis in axes {
+        c.args(["--sweep", axis]);
+    }
+    c.output().unwrap()
+}
+
+/// `config/vehicle.toml` with each `(from, to)` replaced, as `dir/name`
+/// (a user's own car); every `from` must be in the file.
+fn vehicle_with(dir: &Path, name: &str, changes: &[(&str, &str)]) -> PathBuf {
+    let mut text = std::fs::read_to_string(config_dir().join("vehicle.toml")).unwrap();
+    for (from, to) in changes {
+        assert!(text.contains(from), "{from}");
+        text = text.replace(from, to);
+    }
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
 }
 
 fn stderr(o: &Output) -> String {
@@ -47,11 +77,7 @@ fn defaulted_fields_are_named_and_implausible_values_refused() {
         assert!(!err.contains("does not set"), "{f}: {err}");
     }
     // millimetres typed as metres
-    let mm = tmp.path().join("mm.toml");
-    let text = std::fs::read_to_string(config_dir().join("vehicle.toml"))
-        .unwrap()
-        .replace("r = 0.28 ", "r = 334.0 ");
-    std::fs::write(&mm, text).unwrap();
+    let mm = vehicle_with(tmp.path(), "mm.toml", &[("r = 0.28 ", "r = 334.0 ")]);
     let o = sim(&mm, &tmp.path().join("c"));
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(1), "{err}");
@@ -77,7 +103,7 @@ fn stdout(o: &Output) -> String {
 #[test]
 fn analyze_takes_the_users_vehicle_and_the_mfc_gain_is_checked_against_it() {
     let tmp = tempfile::tempdir().unwrap();
-    let analyze = |vehicle: &std::path::Path| {
+    let analyze = |vehicle: &Path| {
         grip()
             .args(["analyze", "--vehicle"])
             .arg(vehicle)
@@ -97,14 +123,15 @@ fn analyze_takes_the_users_vehicle_and_the_mfc_gain_is_checked_against_it() {
     assert!(asphalt.contains("1136.9768"), "{asphalt}");
     assert!(!out.contains("warning"), "{out}");
 
-    let light = tmp.path().join("light-car.toml");
-    let text = std::fs::read_to_string(config_dir().join("vehicle.toml"))
-        .unwrap()
-        .replace("mass = 1400.0 ", "mass = 800.0 ")
-        .replace("j_w = 0.6 ", "j_w = 0.4 ")
-        .replace("r = 0.28 ", "r = 0.25 ");
-    assert!(text.contains("mass = 800.0") && text.contains("r = 0.25"));
-    std::fs::write(&light, text).unwrap();
+    let light = vehicle_with(
+        tmp.path(),
+        "light-car.toml",
+        &[
+            ("mass = 1400.0 ", "mass = 800.0 "),
+            ("j_w = 0.6 ", "j_w = 0.4 "),
+            ("r = 0.28 ", "r = 0.25 "),
+        ],
+    );
     let o = analyze(&light);
     let out = stdout(&o);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -122,15 +149,7 @@ fn analyze_takes_the_users_vehicle_and_the_mfc_gain_is_checked_against_it() {
         assert!(out.contains(says), "{says}: {out}");
     }
 
-    let sim = |vehicle: &std::path::Path, out: &str| {
-        grip()
-            .args(["sim", "--seeds", "1", "--variants", "mfc", "--vehicle"])
-            .arg(vehicle)
-            .arg("--out")
-            .arg(tmp.path().join(out))
-            .output()
-            .unwrap()
-    };
+    let sim = |vehicle: &Path, out: &str| sim_of("mfc", vehicle, &tmp.path().join(out));
     let o = sim(&light, "light");
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
@@ -145,24 +164,110 @@ fn analyze_takes_the_users_vehicle_and_the_mfc_gain_is_checked_against_it() {
 
     // a sweep checks each point's gain: the shipped car at 400 N m s/rad
     // is above the bound on some roads, at 177 it is not
-    let o = grip()
-        .args([
-            "sim",
-            "--seeds",
-            "1",
-            "--variants",
-            "mfc,mfc-arte",
-            "--sweep",
-            "mfc.k_mfc=177,400",
-        ])
-        .output()
-        .unwrap();
+    let o = sweep("mfc,mfc-arte", &["mfc.k_mfc=177,400"]);
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     let warned: Vec<&str> = err.lines().filter(|l| l.contains("bound (4)")).collect();
     assert_eq!(warned.len(), 1, "{err}");
     assert!(
         warned[0].starts_with("warning: --sweep mfc.k_mfc = 400: ") && warned[0].contains("stone"),
+        "{err}"
+    );
+}
+
+/// Lines of `err` that are warnings about SRC's gains.
+fn src_gain_warnings(err: &str) -> Vec<&str> {
+    err.lines()
+        .filter(|l| l.starts_with("warning: ") && l.contains("the symmetric optimum"))
+        .collect()
+}
+
+/// SRC's gains are derived from the vehicle (kp = J_w/(2 tau_m), ti =
+/// 4 tau_m, kp_recover between J_w/(2 tau_m) and (J_w + (M/n) r^2)/(2
+/// tau_m)): `grip sim` with an SRC variant says which do not suit the
+/// user's car, in one line naming both files and the values derived for
+/// it; the three shipped cars, and a run without SRC, get no such
+/// warning; a sweep says it for each point whose answer differs from the
+/// configuration's, a swept vehicle key or `[src]` key alike.
+#[test]
+fn sim_says_when_the_src_gains_do_not_suit_the_vehicle() {
+    let tmp = tempfile::tempdir().unwrap();
+    // twice the paper's wheel, a motor 2.5 times quicker
+    let car = vehicle_with(
+        tmp.path(),
+        "quick-motor.toml",
+        &[
+            ("j_w = 0.6 ", "j_w = 1.2 "),
+            ("tau_m = 0.05 ", "tau_m = 0.02 "),
+        ],
+    );
+    let o = sim_of("src", &car, &tmp.path().join("a"));
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    let warned = src_gain_warnings(&err);
+    assert_eq!(warned.len(), 1, "{err}");
+    for says in [
+        "controllers.toml: [src] kp = 6 N m s is 0.2x the symmetric optimum J_w/(2 tau_m) = 30 N m s",
+        "[src] ti = 0.2 s is 2.5x the symmetric optimum's 4 tau_m = 0.08 s",
+        "[src] kp_recover = 20 N m s is below J_w/(2 tau_m) = 30 N m s",
+        "quick-motor.toml (J_w = 1.2 kg m^2, tau_m = 0.02 s, M/n = 350 kg, r = 0.28 m)",
+        "set kp = 30 N m s, ti = 0.08 s, kp_recover within [30, 716] N m s",
+    ] {
+        assert!(warned[0].contains(says), "{says}: {err}");
+    }
+    // `grip analyze` shows the derivation for the car, row by row
+    let o = grip()
+        .args(["analyze", "--vehicle"])
+        .arg(&car)
+        .output()
+        .unwrap();
+    let out = stdout(&o);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let row = |key: &str| {
+        out.lines()
+            .find(|l| l.trim_start().starts_with(&format!("{key} ")))
+            .unwrap_or_else(|| panic!("{key}: {out}"))
+            .to_owned()
+    };
+    assert!(row("kp").contains("J_w/(2 tau_m) = 30 N m s"), "{out}");
+    assert!(row("ti").contains("4 tau_m = 0.08 s"), "{out}");
+    assert!(row("kp_recover").contains("= [30, 716] N m s"), "{out}");
+    for key in ["kp", "ti", "kp_recover"] {
+        assert!(row(key).trim_end().ends_with("NO"), "{out}");
+    }
+    assert!(
+        out.contains("  warning: ") && out.contains("[src] kp = 6 N m s"),
+        "{out}"
+    );
+    // MTTE's gain is computed from the vehicle itself: nothing to say
+    let o = sim_of("mtte", &car, &tmp.path().join("b"));
+    assert!(src_gain_warnings(&stderr(&o)).is_empty(), "{}", stderr(&o));
+    for f in [
+        "vehicle.toml",
+        "vehicles/front-mic.toml",
+        "vehicles/rear-mic.toml",
+    ] {
+        let o = sim_of("src,src-arte", &config_dir().join(f), &tmp.path().join("c"));
+        let err = stderr(&o);
+        assert!(o.status.success(), "{f}: {err}");
+        assert!(!err.contains("[src]"), "{f}: {err}");
+    }
+    // a sweep on the shipped car: the points whose gains do not suit
+    // their vehicle, each once (tau_m 0.02 s: kp 15 N m s, ti 0.08 s)
+    let o = sweep("src,src-arte", &["vehicle.tau_m=0.05,0.02", "src.kp=6,15"]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    let warned = src_gain_warnings(&err);
+    assert_eq!(warned.len(), 3, "{err}");
+    for (line, starts) in warned.iter().zip([
+        "warning: --sweep vehicle.tau_m = 0.05, src.kp = 15: [src] kp = 15 N m s is 2.5x",
+        "warning: --sweep vehicle.tau_m = 0.02, src.kp = 6: [src] kp = 6 N m s is 0.4x",
+        "warning: --sweep vehicle.tau_m = 0.02, src.kp = 15: [src] ti = 0.2 s is 2.5x",
+    ]) {
+        assert!(line.starts_with(starts), "{starts}: {err}");
+    }
+    assert!(
+        warned[1].contains("set kp = 15 N m s, ti = 0.08 s for it"),
         "{err}"
     );
 }

@@ -1,7 +1,8 @@
 //! Linear analysis (paper §III, and the ν-gaps of paper §IV): polynomials and
 //! SISO transfer functions, the paper's transfer functions for the configured
 //! vehicle (with the corrections documented in `crates/tcs/README.md`,
-//! section "Analysis"), the K_MFC bound (4), the Vinnicombe ν-gap and the
+//! section "Analysis"), the K_MFC bound (4), SRC's gains derived for the
+//! vehicle, the Vinnicombe ν-gap and the
 //! ν-gaps of the three controller structures with and without ARTE.
 //!
 //! Nothing here runs in a control loop; allocation is allowed.

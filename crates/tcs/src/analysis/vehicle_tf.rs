@@ -21,7 +21,7 @@
 use grip_physics::VehicleParams;
 
 use super::AnalysisError;
-use super::poly::Poly;
+use super::poly::{Poly, fmt_num};
 use super::tf::Tf;
 
 /// Motor torque constant K used when none is given, N m/A.
@@ -242,6 +242,259 @@ pub fn kmfc_warning(
         lowest,
         vehicle_file.display(),
     )))
+}
+
+/// SRC's gains as derived for a vehicle (crates/tcs/README.md,
+/// "Controllers", SRC "Gains"). At the friction peak the slip answers the
+/// torque like an integrator, (1 − λ)/(J_w ω), behind the motor lag τ_m;
+/// the symmetric optimum for k/(s (τ_m s + 1)) gives `kp` and `ti`. Below
+/// the peak the wheel drags its share of the car, (M/n) r², which bounds
+/// `kp_recover`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SrcGains {
+    /// `[src] kp` = J_w / (2 τ_m), N m s (per unit slip and wheel speed).
+    pub kp: f64,
+    /// `[src] ti` = 4 τ_m, s.
+    pub ti: f64,
+    /// The lower end of `[src] kp_recover`, J_w / (2 τ_m), N m s: the
+    /// peak-tuned gain, with which the torque recovers slowly after a cut.
+    pub kp_recover_min: f64,
+    /// The upper end of `[src] kp_recover`, (J_w + (M/n) r²) / (2 τ_m) =
+    /// J_model / (2 τ_m), N m s: the symmetric optimum of the wheel coupled
+    /// to its share of the car, which recovers into a limit cycle on snow.
+    pub kp_recover_max: f64,
+}
+
+/// How far `[src] kp` and `[src] ti` may lie from their derivation, as a
+/// ratio either way, before [`src_gains_off`] names them: within it the
+/// symmetric optimum's phase margin (36.9°) stays within 30.9-41.8° and its
+/// crossover within 0.82-1.21 times the design's (test
+/// `the_src_gain_ratio_keeps_the_symmetric_optimums_margin`;
+/// crates/tcs/README.md, "The SRC gains on another car").
+pub const SRC_GAIN_RATIO: f64 = 1.25;
+
+/// [`SrcGains`] for the vehicle. Needs a motor lag: with τ_m = 0 the
+/// symmetric optimum is not defined (an error naming `tau_m`).
+pub fn src_gains(v: &VehicleParams) -> Result<SrcGains, AnalysisError> {
+    vehicle_ok(v)?;
+    check(
+        "tau_m",
+        v.tau_m,
+        v.tau_m > 0.0,
+        "SRC's gains are derived from the motor lag, which must be > 0",
+    )?;
+    let two_tau = 2.0 * v.tau_m;
+    Ok(SrcGains {
+        kp: v.j_w / two_tau,
+        ti: 4.0 * v.tau_m,
+        kp_recover_min: v.j_w / two_tau,
+        kp_recover_max: v.j_model() / two_tau,
+    })
+}
+
+/// One `[src]` gain that does not suit the vehicle, with what was derived
+/// for it ([`src_gains_off`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SrcGainOff {
+    /// `kp` more than [`SRC_GAIN_RATIO`] either way from J_w / (2 τ_m).
+    Kp {
+        /// As configured, N m s.
+        configured: f64,
+        /// J_w / (2 τ_m), N m s.
+        derived: f64,
+    },
+    /// `ti` more than [`SRC_GAIN_RATIO`] either way from 4 τ_m.
+    Ti {
+        /// As configured, s.
+        configured: f64,
+        /// 4 τ_m, s.
+        derived: f64,
+    },
+    /// `kp_recover` outside [J_w / (2 τ_m), (J_w + (M/n) r²) / (2 τ_m)].
+    KpRecover {
+        /// As configured, N m s.
+        configured: f64,
+        /// J_w / (2 τ_m), N m s.
+        min: f64,
+        /// (J_w + (M/n) r²) / (2 τ_m), N m s.
+        max: f64,
+    },
+}
+
+impl SrcGainOff {
+    /// The key in `[src]`: `kp`, `ti` or `kp_recover`.
+    pub fn key(&self) -> &'static str {
+        match self {
+            Self::Kp { .. } => "kp",
+            Self::Ti { .. } => "ti",
+            Self::KpRecover { .. } => "kp_recover",
+        }
+    }
+
+    /// What is off, for the warnings: `[src] kp = 6 N m s is 0.2x the
+    /// symmetric optimum J_w/(2 tau_m) = 30 N m s`.
+    fn describe(&self) -> String {
+        let ratio = |c: f64, d: f64| fmt_num((100.0 * c / d).round() / 100.0);
+        match *self {
+            Self::Kp {
+                configured,
+                derived,
+            } => format!(
+                "[src] kp = {} N m s is {}x the symmetric optimum J_w/(2 tau_m) = {} N m s",
+                fmt_num(configured),
+                ratio(configured, derived),
+                fmt_num(derived)
+            ),
+            Self::Ti {
+                configured,
+                derived,
+            } => format!(
+                "[src] ti = {} s is {}x the symmetric optimum's 4 tau_m = {} s",
+                fmt_num(configured),
+                ratio(configured, derived),
+                fmt_num(derived)
+            ),
+            Self::KpRecover {
+                configured, min, ..
+            } if configured < min => format!(
+                "[src] kp_recover = {} N m s is below J_w/(2 tau_m) = {} N m s (the torque recovers slowly after a cut)",
+                fmt_num(configured),
+                fmt_num(min)
+            ),
+            Self::KpRecover {
+                configured, max, ..
+            } => format!(
+                "[src] kp_recover = {} N m s is above (J_w + (M/n) r^2)/(2 tau_m) = {} N m s (the recovery overshoots into a limit cycle on snow)",
+                fmt_num(configured),
+                fmt_num(max)
+            ),
+        }
+    }
+
+    /// What to set instead: `kp = 30`, `kp_recover within [30, 716]`.
+    fn fix(&self) -> String {
+        match *self {
+            Self::Kp { derived, .. } => format!("kp = {} N m s", fmt_num(derived)),
+            Self::Ti { derived, .. } => format!("ti = {} s", fmt_num(derived)),
+            Self::KpRecover { min, max, .. } => format!(
+                "kp_recover within [{}, {}] N m s",
+                fmt_num(min),
+                fmt_num(max)
+            ),
+        }
+    }
+}
+
+/// The `[src]` gains that do not suit this vehicle, in the file's order
+/// (kp, ti, kp_recover); empty when all do (the shipped vehicles). `kp` and
+/// `ti` are off when more than [`SRC_GAIN_RATIO`] either way from their
+/// derivation ([`src_gains`]); `kp_recover` when outside its interval (to
+/// rounding: 1e-9 of the end). A warning, never a refusal: the shipped
+/// values are a derivation and a tuning, not limits.
+pub fn src_gains_off(
+    v: &VehicleParams,
+    src: &crate::SrcParams,
+) -> Result<Vec<SrcGainOff>, AnalysisError> {
+    let g = src_gains(v)?;
+    let beyond = |c: f64, d: f64| !(1.0 / SRC_GAIN_RATIO..=SRC_GAIN_RATIO).contains(&(c / d));
+    let mut off = Vec::new();
+    if beyond(src.kp, g.kp) {
+        off.push(SrcGainOff::Kp {
+            configured: src.kp,
+            derived: g.kp,
+        });
+    }
+    if beyond(src.ti, g.ti) {
+        off.push(SrcGainOff::Ti {
+            configured: src.ti,
+            derived: g.ti,
+        });
+    }
+    let (min, max) = (g.kp_recover_min, g.kp_recover_max);
+    if src.kp_recover < min * (1.0 - 1e-9) || src.kp_recover > max * (1.0 + 1e-9) {
+        off.push(SrcGainOff::KpRecover {
+            configured: src.kp_recover,
+            min,
+            max,
+        });
+    }
+    Ok(off)
+}
+
+/// The gains [`src_gains_off`] found, as the warnings say them: what is off
+/// (`[src] kp = 6 N m s is 0.2x ...`), the vehicle's values they are
+/// derived from (J_w and τ_m; M/n and r too when `kp_recover` is off), and
+/// what to set.
+pub fn src_gains_off_list(v: &VehicleParams, off: &[SrcGainOff]) -> (String, String, String) {
+    let what: Vec<String> = off.iter().map(SrcGainOff::describe).collect();
+    let fix: Vec<String> = off.iter().map(SrcGainOff::fix).collect();
+    let mut values = format!(
+        "J_w = {} kg m^2, tau_m = {} s",
+        fmt_num(v.j_w),
+        fmt_num(v.tau_m)
+    );
+    if off
+        .iter()
+        .any(|o| matches!(o, SrcGainOff::KpRecover { .. }))
+    {
+        values.push_str(&format!(
+            ", M/n = {} kg, r = {} m",
+            fmt_num(v.mass_share()),
+            fmt_num(v.r)
+        ));
+    }
+    (what.join(", "), values, fix.join(", "))
+}
+
+/// The start-up warning for [`src_gains_off`]: `None` when SRC's gains
+/// suit the vehicle; else one line naming the controllers file, each key
+/// that is off with its value and the value derived for this vehicle, the
+/// vehicle file with the values it comes from, and what to do.
+pub fn src_gain_warning(
+    v: &VehicleParams,
+    vehicle_file: &std::path::Path,
+    src: &crate::SrcParams,
+    controllers_file: &std::path::Path,
+) -> Result<Option<String>, AnalysisError> {
+    let off = src_gains_off(v, src)?;
+    if off.is_empty() {
+        return Ok(None);
+    }
+    let (what, values, fix) = src_gains_off_list(v, &off);
+    Ok(Some(format!(
+        "{}: {} for the vehicle of {} ({}): SRC's gains follow from the wheel's inertia and the motor's lag, \
+         and these suit another car; set {} for this vehicle (`grip analyze --vehicle {}` shows the derivation)",
+        controllers_file.display(),
+        what,
+        vehicle_file.display(),
+        values,
+        fix,
+        vehicle_file.display(),
+    )))
+}
+
+/// The start-up check of the gains of the controller `kind` against the
+/// vehicle file: [`kmfc_warning`] for MFC, [`src_gain_warning`] for SRC,
+/// none for MTTE (its gain K = J_w/(α (M/n) r) + r is computed from the
+/// vehicle itself). tcs-loop logs it, `grip sim` prints it for each
+/// controller it runs.
+pub fn gain_warning(
+    kind: crate::ControllerKind,
+    v: &VehicleParams,
+    vehicle_file: &std::path::Path,
+    cat: &grip_physics::RoadCatalogue,
+    controllers: &crate::ControllersConfig,
+    controllers_file: &std::path::Path,
+) -> Result<Option<String>, AnalysisError> {
+    match kind {
+        crate::ControllerKind::Mfc => {
+            kmfc_warning(v, vehicle_file, cat, &controllers.mfc, controllers_file)
+        }
+        crate::ControllerKind::Src => {
+            src_gain_warning(v, vehicle_file, &controllers.src, controllers_file)
+        }
+        crate::ControllerKind::Mtte => Ok(None),
+    }
 }
 
 /// Parameters of the SRC slip plant, eqs. (6)-(8).
@@ -490,6 +743,195 @@ mod tests {
         ] {
             assert!(w.contains(says), "{says}: {w}");
         }
+    }
+
+    #[test]
+    fn a_heavier_wheel_with_a_quicker_motor_gets_its_own_src_gains() {
+        let src = crate::SrcParams::default();
+        // the paper's car: the shipped gains are its derivation
+        let g = src_gains(&v()).unwrap();
+        assert!(
+            (g.kp - 6.0).abs() < 1e-12 && (g.ti - 0.2).abs() < 1e-12,
+            "{g:?}"
+        );
+        assert!((g.kp_recover_max - 280.4).abs() < 1e-9, "{g:?}");
+        assert!(src_gains_off(&v(), &src).unwrap().is_empty());
+        let none = src_gain_warning(&v(), "v.toml".as_ref(), &src, "c.toml".as_ref());
+        assert_eq!(none.unwrap(), None);
+        // twice the wheel, a motor 2.5 times quicker
+        let car = VehicleParams {
+            j_w: 1.2,
+            tau_m: 0.02,
+            ..v()
+        };
+        let off = src_gains_off(&car, &src).unwrap();
+        let keys: Vec<&str> = off.iter().map(SrcGainOff::key).collect();
+        assert_eq!(keys, ["kp", "ti", "kp_recover"]);
+        let SrcGainOff::Kp {
+            configured,
+            derived,
+        } = off[0]
+        else {
+            panic!("{off:?}")
+        };
+        assert_eq!(configured, 6.0);
+        assert!((derived - 30.0).abs() < 1e-9, "{derived}");
+        let SrcGainOff::Ti { derived, .. } = off[1] else {
+            panic!("{off:?}")
+        };
+        assert!((derived - 0.08).abs() < 1e-12, "{derived}");
+        // (1.2 + 350 · 0.28²) / 0.04 = 716
+        let SrcGainOff::KpRecover { min, max, .. } = off[2] else {
+            panic!("{off:?}")
+        };
+        assert!(
+            (min - 30.0).abs() < 1e-9 && (max - 716.0).abs() < 1e-9,
+            "{min} {max}"
+        );
+        let w = src_gain_warning(
+            &car,
+            "my-car.toml".as_ref(),
+            &src,
+            "controllers.toml".as_ref(),
+        )
+        .unwrap()
+        .unwrap();
+        assert!(
+            w.starts_with("controllers.toml: [src] kp = 6 N m s is 0.2x"),
+            "{w}"
+        );
+        for says in [
+            "J_w/(2 tau_m) = 30 N m s",
+            "[src] ti = 0.2 s is 2.5x the symmetric optimum's 4 tau_m = 0.08 s",
+            "[src] kp_recover = 20 N m s is below J_w/(2 tau_m) = 30 N m s",
+            "for the vehicle of my-car.toml (J_w = 1.2 kg m^2, tau_m = 0.02 s, M/n = 350 kg, r = 0.28 m)",
+            "set kp = 30 N m s, ti = 0.08 s, kp_recover within [30, 716] N m s",
+            "grip analyze --vehicle my-car.toml",
+        ] {
+            assert!(w.contains(says), "{says}: {w}");
+        }
+        assert_eq!(w.lines().count(), 1, "{w}");
+        // J_w alone: kp moves (12), ti does not, 20 is inside [12, 286.4]
+        let heavy = VehicleParams { j_w: 1.2, ..v() };
+        let keys: Vec<&str> = src_gains_off(&heavy, &src)
+            .unwrap()
+            .iter()
+            .map(SrcGainOff::key)
+            .collect();
+        assert_eq!(keys, ["kp"]);
+    }
+
+    #[test]
+    fn kp_and_ti_are_checked_as_a_ratio_kp_recover_against_its_interval() {
+        let at = |kp, ti, kp_recover| {
+            let src = crate::SrcParams {
+                kp,
+                ti,
+                kp_recover,
+                ..crate::SrcParams::default()
+            };
+            src_gains_off(&v(), &src).unwrap()
+        };
+        // within 1.25x either way of 6 N m s and 0.2 s: nothing
+        assert!(at(7.4, 0.17, 20.0).is_empty());
+        assert!(at(4.9, 0.24, 20.0).is_empty());
+        assert_eq!(at(7.6, 0.2, 20.0)[0].key(), "kp");
+        assert_eq!(at(4.7, 0.2, 20.0)[0].key(), "kp");
+        assert_eq!(at(6.0, 0.15, 20.0)[0].key(), "ti");
+        assert_eq!(at(6.0, 0.26, 20.0)[0].key(), "ti");
+        // kp_recover: anywhere in [6, 280.4], its ends included; no ratio
+        for inside in [6.0, 7.4, 100.0, 280.4] {
+            assert!(at(6.0, 0.2, inside).is_empty(), "{inside}");
+        }
+        for (outside, says) in [
+            (5.9, "is below J_w/(2 tau_m) = 6 N m s"),
+            (281.0, "is above (J_w + (M/n) r^2)/(2 tau_m) = 280.4 N m s"),
+        ] {
+            let src = crate::SrcParams {
+                kp_recover: outside,
+                ..crate::SrcParams::default()
+            };
+            let off = src_gains_off(&v(), &src).unwrap();
+            assert_eq!(off.len(), 1, "{off:?}");
+            assert_eq!(off[0].key(), "kp_recover");
+            let w = src_gain_warning(&v(), "car.toml".as_ref(), &src, "ctl.toml".as_ref())
+                .unwrap()
+                .unwrap();
+            assert!(w.contains(says), "{says}: {w}");
+            assert!(w.contains("M/n = 350 kg, r = 0.28 m"), "{w}");
+            assert!(w.starts_with("ctl.toml: [src] kp_recover = "), "{w}");
+            assert!(w.contains("vehicle of car.toml"), "{w}");
+        }
+        // with kp_recover fine, M/n and r are not the warning's business
+        let w = src_gain_warning(
+            &v(),
+            "car.toml".as_ref(),
+            &crate::SrcParams {
+                kp: 12.0,
+                ..crate::SrcParams::default()
+            },
+            "ctl.toml".as_ref(),
+        )
+        .unwrap()
+        .unwrap();
+        assert!(!w.contains("M/n"), "{w}");
+        // no motor lag, no symmetric optimum: an error naming tau_m
+        let e = src_gains(&VehicleParams { tau_m: 0.0, ..v() }).unwrap_err();
+        assert!(e.to_string().contains("tau_m"), "{e}");
+    }
+
+    /// The tolerance of [`SRC_GAIN_RATIO`] in the loop the gains are
+    /// derived for: the slip at the friction peak, k/s with k = (1 − λ)/(J_w ω),
+    /// behind the motor lag 1/(τ_m s + 1), under the PI
+    /// K_p (1 + 1/(T_i s)) with K_p = c/(2 k τ_m), T_i = d · 4 τ_m. At c = d = 1
+    /// (the symmetric optimum) the phase margin is 36.9° at ω_c = 1/(2 τ_m);
+    /// anywhere in c, d ∈ [1/1.25, 1.25] it is 30.9-41.8° with ω_c
+    /// 0.82-1.21 times that.
+    #[test]
+    fn the_src_gain_ratio_keeps_the_symmetric_optimums_margin() {
+        let tau = v().tau_m;
+        let margin = |c: f64, d: f64| {
+            let open = |w: f64| {
+                let s = Complex::new(0.0, w);
+                c / (2.0 * tau) * (1.0 + 1.0 / (d * 4.0 * tau * s)) / (s * (tau * s + 1.0))
+            };
+            // |L| falls with ω: bisect for the crossover
+            let (mut lo, mut hi) = (1e-3 / tau, 1e3 / tau);
+            for _ in 0..200 {
+                let mid = (lo * hi).sqrt();
+                if open(mid).norm() > 1.0 {
+                    lo = mid
+                } else {
+                    hi = mid
+                }
+            }
+            (180.0 + open(lo).arg().to_degrees(), lo * 2.0 * tau)
+        };
+        let (pm, wc) = margin(1.0, 1.0);
+        assert!(
+            (pm - 36.87).abs() < 0.01 && (wc - 1.0).abs() < 1e-6,
+            "{pm} {wc}"
+        );
+        let r = SRC_GAIN_RATIO;
+        let steps: Vec<f64> = (0..=8)
+            .map(|i| (1.0 / r) * (r * r).powf(i as f64 / 8.0))
+            .collect();
+        let (mut pm_lo, mut pm_hi, mut wc_lo, mut wc_hi) = (f64::MAX, 0.0_f64, f64::MAX, 0.0_f64);
+        for &c in &steps {
+            for &d in &steps {
+                let (pm, wc) = margin(c, d);
+                (pm_lo, pm_hi, wc_lo, wc_hi) =
+                    (pm_lo.min(pm), pm_hi.max(pm), wc_lo.min(wc), wc_hi.max(wc));
+            }
+        }
+        assert!(
+            (30.85..30.95).contains(&pm_lo) && (41.75..41.85).contains(&pm_hi),
+            "{pm_lo} {pm_hi}"
+        );
+        assert!(
+            (0.815..0.825).contains(&wc_lo) && (1.2..1.215).contains(&wc_hi),
+            "{wc_lo} {wc_hi}"
+        );
     }
 
     #[test]

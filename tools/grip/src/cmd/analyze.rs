@@ -2,7 +2,8 @@
 //!
 //! - `grip analyze`: the vehicle parameters used, each transfer function as
 //!   polynomials with its poles, the K_MFC bound (4) for the configured
-//!   gains, and the ν-gap table (ours beside the paper's).
+//!   gains, SRC's gains against their derivation for the vehicle, and the
+//!   ν-gap table (ours beside the paper's).
 //! - `grip analyze gap --p1 NUM/DEN --p2 NUM/DEN`: the ν-gap of any two SISO
 //!   transfer functions, coefficients highest power first, comma- or
 //!   space-separated (`--p1 100/2,1 --p2 "100 / 2 -1"`).
@@ -15,8 +16,9 @@ use grip_tcs::analysis::gaps::{
 use grip_tcs::analysis::poly::fmt_num;
 use grip_tcs::analysis::tf::fmt_roots;
 use grip_tcs::analysis::vehicle_tf::{
-    j_real, kmfc_bound, mfc_omega_diff, mfc_plant, mtte_gain, mtte_observer_plant, mtte_tzw_grip,
-    mtte_tzw_paper, src_slip, src_slip_tf, src_vdiff_tf,
+    SRC_GAIN_RATIO, j_real, kmfc_bound, mfc_omega_diff, mfc_plant, mtte_gain, mtte_observer_plant,
+    mtte_tzw_grip, mtte_tzw_paper, src_gain_warning, src_gains, src_gains_off, src_slip,
+    src_slip_tf, src_vdiff_tf,
 };
 use grip_tcs::analysis::{NuGap, Tf, nu_gap};
 
@@ -160,6 +162,63 @@ fn print_gap(r: &NuGap) {
             r.cancelled
         );
     }
+}
+
+/// SRC's gains against their derivation for this vehicle
+/// ([`src_gains`]), one row per key with its verdict, and the warning of
+/// [`src_gain_warning`] under it when one does not suit.
+fn src_gains_table(
+    v: &VehicleParams,
+    vehicle_path: &std::path::Path,
+    src: &grip_tcs::SrcParams,
+    ctl_path: &std::path::Path,
+) -> anyhow::Result<()> {
+    let g = src_gains(v)?;
+    let off = src_gains_off(v, src)?;
+    println!(
+        "\n== SRC gains: symmetric optimum for the slip at the friction peak (an integrator (1 - lambda)/(J_w omega) behind tau_m) =="
+    );
+    println!(
+        "  (`ok?`: kp and ti within {}x either way of their derivation, kp_recover inside its interval: above it recovery\n   overshoots into a limit cycle on snow, below it the torque recovers slowly after a cut)",
+        fmt_num(SRC_GAIN_RATIO)
+    );
+    println!(
+        "  {:<12} {:>12}  {:<64} {:>4}",
+        "[src] key", "configured", "derived for this vehicle", "ok?"
+    );
+    let rows = [
+        (
+            "kp",
+            format!("{} N m s", fmt_num(src.kp)),
+            format!("J_w/(2 tau_m) = {} N m s", fmt_num(g.kp)),
+        ),
+        (
+            "ti",
+            format!("{} s", fmt_num(src.ti)),
+            format!("4 tau_m = {} s", fmt_num(g.ti)),
+        ),
+        (
+            "kp_recover",
+            format!("{} N m s", fmt_num(src.kp_recover)),
+            format!(
+                "[J_w/(2 tau_m), (J_w + (M/n) r^2)/(2 tau_m)] = [{}, {}] N m s",
+                fmt_num(g.kp_recover_min),
+                fmt_num(g.kp_recover_max)
+            ),
+        ),
+    ];
+    for (key, configured, derived) in rows {
+        let ok = if off.iter().any(|o| o.key() == key) {
+            "NO"
+        } else {
+            "yes"
+        };
+        println!("  {key:<12} {configured:>12}  {derived:<64} {ok:>4}");
+    }
+    if let Some(w) = src_gain_warning(v, vehicle_path, src, ctl_path)? {
+        println!("  warning: {w}");
+    }
+    Ok(())
 }
 
 fn tf_line(name: &str, tf: &Tf) -> anyhow::Result<()> {
@@ -385,6 +444,8 @@ fn run_report(ctx: &Ctx, args: &Args) -> anyhow::Result<()> {
     {
         println!("  warning: {w}");
     }
+
+    src_gains_table(&v, &vehicle_path, &ctl.src, &ctl_path)?;
 
     let classes = paper_classes(&cat)?;
     println!(

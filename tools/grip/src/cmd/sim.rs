@@ -278,28 +278,65 @@ fn reason_of(e: &grip_sim::SimError) -> String {
     }
 }
 
-/// MFC's gain is the paper's car's: on stderr, the roads where it lies above
-/// the no-overshoot bound (4) for this vehicle (nothing for the shipped ones).
-/// A check that cannot run (e.g. no lag at all: tau_m + tau_noise = 0, where
+/// MFC's and SRC's gains are the paper's car's: on stderr, for each
+/// controller in `variants` whose gains are checked
+/// ([`grip_tcs::analysis::vehicle_tf::gain_warning`]), where they do not
+/// suit this vehicle (MFC: the roads where k_mfc lies above the
+/// no-overshoot bound (4); SRC: kp, ti, kp_recover against their
+/// derivation from J_w and tau_m; nothing for the shipped vehicles). A
+/// check that cannot run (e.g. no lag at all: tau_m + tau_noise = 0, where
 /// bound (4) is not defined) is said, never fatal.
-fn warn_kmfc(config_dir: &Path, setup: &SimSetup, vehicle_path: &Path) {
-    match grip_tcs::analysis::vehicle_tf::kmfc_warning(
-        setup.vehicle(),
-        vehicle_path,
-        setup.roads(),
-        &setup.controllers().mfc,
-        &ConfigDir::new(config_dir).file("controllers.toml"),
-    ) {
-        Ok(Some(w)) => eprintln!("warning: {w}"),
-        Ok(None) => {}
-        Err(e) => eprintln!("warning: the MFC gain check against bound (4) could not run: {e}"),
+fn warn_gains(config_dir: &Path, setup: &SimSetup, vehicle_path: &Path, variants: &[Variant]) {
+    let controllers = ConfigDir::new(config_dir).file("controllers.toml");
+    for kind in grip_tcs::ControllerKind::ALL {
+        if !variants.iter().any(|v| v.kind == kind) {
+            continue;
+        }
+        match grip_tcs::analysis::vehicle_tf::gain_warning(
+            kind,
+            setup.vehicle(),
+            vehicle_path,
+            setup.roads(),
+            setup.controllers(),
+            &controllers,
+        ) {
+            Ok(Some(w)) => eprintln!("warning: {w}"),
+            Ok(None) => {}
+            Err(e) => eprintln!("warning: {}: {e}", check_failed(kind)),
+        }
     }
 }
 
-/// The same check for a sweep point, whose values are in no file: the
-/// roads where its `k_mfc` lies above bound (4) for its vehicle, without
-/// file names (None: none). A sweep says it for each point whose answer
-/// differs from the configuration's.
+/// A gain check that could not run, as the warnings say it.
+fn check_failed(kind: grip_tcs::ControllerKind) -> String {
+    match kind {
+        grip_tcs::ControllerKind::Mfc => {
+            "the MFC gain check against bound (4) could not run".into()
+        }
+        k => format!(
+            "the {} gain check against the vehicle could not run",
+            k.as_str().to_uppercase()
+        ),
+    }
+}
+
+/// A gain check of a sweep point: what does not suit its vehicle (None:
+/// all suits).
+pub(super) type PointCheck = fn(&SimSetup) -> Option<String>;
+
+/// The gain checks of [`warn_gains`] for a sweep point, whose values are
+/// in no file, each with the controller whose gains it checks: what does
+/// not suit the point's vehicle, without file names (None: all suit). A
+/// sweep says it for each point whose answer differs from the
+/// configuration's (a swept `vehicle.*` key or a key of that controller's
+/// section, e.g. `mfc.k_mfc`, `src.kp`).
+pub(super) const POINT_CHECKS: [(grip_tcs::ControllerKind, PointCheck); 2] = [
+    (grip_tcs::ControllerKind::Mfc, kmfc_of_point),
+    (grip_tcs::ControllerKind::Src, src_gains_of_point),
+];
+
+/// [`POINT_CHECKS`] for MFC: the roads where the point's `k_mfc` lies
+/// above bound (4) for its vehicle.
 fn kmfc_of_point(setup: &SimSetup) -> Option<String> {
     let mfc = &setup.controllers().mfc;
     match grip_tcs::analysis::vehicle_tf::kmfc_above_bound(setup.vehicle(), setup.roads(), mfc) {
@@ -316,7 +353,27 @@ fn kmfc_of_point(setup: &SimSetup) -> Option<String> {
             ))
         }
         Err(e) => Some(format!(
-            "the MFC gain check against bound (4) could not run: {e}"
+            "{}: {e}",
+            check_failed(grip_tcs::ControllerKind::Mfc)
+        )),
+    }
+}
+
+/// [`POINT_CHECKS`] for SRC: the point's `[src]` gains that do not suit
+/// its vehicle, with the values derived for it.
+fn src_gains_of_point(setup: &SimSetup) -> Option<String> {
+    let v = setup.vehicle();
+    match grip_tcs::analysis::vehicle_tf::src_gains_off(v, &setup.controllers().src) {
+        Ok(off) if off.is_empty() => None,
+        Ok(off) => {
+            let (what, values, fix) = grip_tcs::analysis::vehicle_tf::src_gains_off_list(v, &off);
+            Some(format!(
+                "{what} for this point's vehicle ({values}): set {fix} for it"
+            ))
+        }
+        Err(e) => Some(format!(
+            "{}: {e}",
+            check_failed(grip_tcs::ControllerKind::Src)
         )),
     }
 }
@@ -340,12 +397,12 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         &seeds,
         &spec,
     )?;
-    if variants
-        .iter()
-        .any(|v| v.kind == grip_tcs::ControllerKind::Mfc)
-    {
-        warn_kmfc(&ctx.config_dir, &loaded.setup, &loaded.vehicle_path);
-    }
+    warn_gains(
+        &ctx.config_dir,
+        &loaded.setup,
+        &loaded.vehicle_path,
+        &variants,
+    );
     if let Some(h) = args.max_substep {
         set_max_substep(&mut loaded, h)?;
     }

@@ -306,10 +306,14 @@ pub fn run(
     let vehicle_text = read_file(req.vehicle)?;
     parse_vehicle(req.vehicle, &vehicle_text)?;
     // ... and every point checked before the first run.
-    // the MFC gain check of the configuration (said by sim.rs before the
-    // sweep), in the words of a point's
-    let with_mfc = req.variants.iter().any(|v| v.kind == ControllerKind::Mfc);
-    let base_kmfc = super::kmfc_of_point(&loaded.setup);
+    // the gain checks of the controllers swept (MFC, SRC), each with its
+    // answer for the configuration (said by sim.rs before the sweep), in
+    // the words of a point's
+    let checks: Vec<_> = super::POINT_CHECKS
+        .iter()
+        .filter(|(kind, _)| req.variants.iter().any(|v| v.kind == *kind))
+        .map(|&(_, check)| (check, check(&loaded.setup)))
+        .collect();
     let mut setups = vec![Point {
         label: "as configured".into(),
         values: Vec::new(),
@@ -355,13 +359,12 @@ pub fn run(
             }
         };
         let setup = build(&loaded.setup)?;
-        // MFC's gain against bound (4) at this point's gain, lags and
-        // vehicle, where its answer is not the configuration's (said
-        // before the sweep starts)
-        if with_mfc {
-            let here = super::kmfc_of_point(&setup);
-            if here.is_some() && here != base_kmfc {
-                eprintln!("warning: --sweep {label}: {}", here.unwrap_or_default());
+        // MFC's gain against bound (4), SRC's gains against their
+        // derivation, at this point's gains and vehicle, where the answer
+        // is not the configuration's (said before the sweep starts)
+        for (check, base) in &checks {
+            if let Some(here) = check(&setup).filter(|here| Some(here) != base.as_ref()) {
+                eprintln!("warning: --sweep {label}: {here}");
             }
         }
         let per_seed = loaded
