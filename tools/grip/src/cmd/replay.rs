@@ -410,6 +410,33 @@ fn accuracy_row(
 
 /// Replays `log` with `what` changed (in closed loop with the plant if
 /// `closed`); writes `out` if given.
+/// tcs-loop's configuration as `cfg` makes it; an error names the file as
+/// in the log's configuration, and the `--set` that made it, not the
+/// replay's temporary copy.
+fn tcs_config_of(cfg: &ReplayConfig) -> anyhow::Result<grip_tcs_loop::LoadedConfig> {
+    let opts = grip_tcs_loop::Options {
+        config: ConfigArgs::in_dir(&cfg.dir),
+        controller: Some(
+            cfg.controller
+                .parse()
+                .map_err(|e| anyhow::anyhow!("controller {}: {e}", cfg.controller))?,
+        ),
+        arte: Some(cfg.arte),
+        run_for_s: None,
+        vehicle: cfg.vehicle.clone(),
+    };
+    grip_tcs_loop::load(&opts)
+        .context("tcs-loop's configuration")
+        .map_err(|e| cfg.explain(e))
+}
+
+/// tcs-loop as `cfg` makes it.
+fn tcs_loop_of(cfg: &ReplayConfig) -> anyhow::Result<grip_tcs_loop::TcsLoop> {
+    grip_tcs_loop::build(&tcs_config_of(cfg)?)
+        .context("tcs-loop's start-up")
+        .map_err(|e| cfg.explain(e))
+}
+
 pub fn replay(
     path: &Path,
     what: &WhatIf,
@@ -467,25 +494,11 @@ pub fn replay(
 
     // tcs-loop
     let t_setup = Instant::now();
-    let opts = grip_tcs_loop::Options {
-        config: config.clone(),
-        controller: Some(
-            cfg.controller
-                .parse()
-                .map_err(|e| anyhow::anyhow!("controller {}: {e}", cfg.controller))?,
-        ),
-        arte: Some(cfg.arte),
-        run_for_s: None,
-        vehicle: cfg.vehicle.clone(),
-    };
-    // an error names the file as in the log's configuration, and the
-    // `--set` that made it, not the replay's temporary copy
-    let loaded = grip_tcs_loop::load(&opts)
-        .context("tcs-loop's configuration")
-        .map_err(|e| cfg.explain(e))?;
+    let loaded = tcs_config_of(&cfg)?;
     let mut lp = grip_tcs_loop::build(&loaded)
         .context("tcs-loop's start-up")
         .map_err(|e| cfg.explain(e))?;
+    let mut start_line = None;
     let can = split_can(&log)?;
     setup_s += t_setup.elapsed().as_secs_f64();
     let t2 = Instant::now();
@@ -505,18 +518,56 @@ pub fn replay(
             path.display()
         );
         let seed = log.run.get("seed").and_then(|s| s.parse().ok());
-        let (_, mut plant, _) = grip_plant_sim::run::load(&grip_plant_sim::Options {
-            config: config.clone(),
-            scenario: Some(scenario),
-            seed,
-            exit_at_end: true,
-            start_on: Some(grip_plant_sim::StartOn::Signal),
-            vehicle: cfg.vehicle.clone(),
-        })
-        .context("plant-sim's start-up on the replay configuration")
-        .map_err(|e| cfg.explain(e))?;
+        let plant_of = |cfg: &ReplayConfig| {
+            grip_plant_sim::run::load(&grip_plant_sim::Options {
+                config: ConfigArgs::in_dir(&cfg.dir),
+                scenario: Some(scenario.clone()),
+                seed,
+                exit_at_end: true,
+                start_on: Some(grip_plant_sim::StartOn::Signal),
+                vehicle: cfg.vehicle.clone(),
+            })
+            .map(|(_, plant, _)| plant)
+            .context("plant-sim's start-up on the replay configuration")
+            .map_err(|e| cfg.explain(e))
+        };
+        let mut plant = plant_of(&cfg)?;
         let period_ns = (1e9 / loaded.controllers.loop_.rate_hz).round() as u64;
-        let cl = crate::replay::closed_loop(&mut lp, &mut plant, &log, &roads, period_ns);
+        // where the live plant started: from rest, found by trying the
+        // candidates with the drive's own configuration and estimates
+        let own = crate::replay::config::prepare(
+            &log,
+            &WhatIf {
+                config_dir: what.config_dir.clone(),
+                closed_loop: true,
+                ..WhatIf::default()
+            },
+        );
+        let start = crate::replay::plant_start(&log, |c| {
+            let own = own.as_ref().map_err(|e| anyhow::anyhow!("{e:#}"))?;
+            let mut lp = tcs_loop_of(own)?;
+            let mut plant = plant_of(own)?;
+            Ok(crate::replay::closed_loop(
+                &mut lp,
+                &mut plant,
+                &log,
+                &log.roads,
+                period_ns,
+                Some(c),
+                true,
+            )
+            .agreed)
+        });
+        start_line = Some((start.seq(), start.line(period_ns)));
+        let cl = crate::replay::closed_loop(
+            &mut lp,
+            &mut plant,
+            &log,
+            &roads,
+            period_ns,
+            start.seq(),
+            false,
+        );
         roadm = crate::replay::taken_per_cycle(&log).matched;
         (cl.outs, cl.truth)
     } else {
@@ -549,6 +600,9 @@ pub fn replay(
     let _ = writeln!(o, "replay of {}", path.display());
     if closed {
         let _ = writeln!(o, "  {CLOSED_LOOP}");
+        if let Some((_, l)) = &start_line {
+            let _ = writeln!(o, "  {l}");
+        }
     } else {
         let _ = writeln!(o, "  {OPEN_LOOP}");
     }
@@ -790,6 +844,7 @@ pub fn replay(
         "status": "replayed",
         "mode": if closed { "closed loop" } else { "open loop" },
         "plant_metrics_replayed": closed,
+        "plant_start": start_line.as_ref().map(|(seq, how)| serde_json::json!({"seq": seq, "how": how})),
         "configuration": cfg.source,
         "controller": cfg.controller,
         "arte": if cfg.arte { "on" } else { "off" },

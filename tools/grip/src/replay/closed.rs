@@ -54,6 +54,189 @@ pub struct ClosedLoop {
     pub truth: Vec<GroundTruth>,
     /// The loop's outputs.
     pub outs: Outputs,
+    /// How many of the plant's cycles, from its first, gave the logged
+    /// ground truth bit for bit (a sample the recorder did not write
+    /// counts as agreeing).
+    pub agreed: u64,
+}
+
+/// The same ground truth, bit for bit (NaN equals NaN).
+fn same_truth(a: &GroundTruth, b: &GroundTruth) -> bool {
+    let bits = |g: &GroundTruth| [g.v, g.omega, g.lambda, g.torque, g.x].map(f64::to_bits);
+    a.seq == b.seq
+        && a.stamp_ns == b.stamp_ns
+        && a.road_index == b.road_index
+        && a.mic_road_index == b.mic_road_index
+        && a.road_name == b.road_name
+        && a.mic_road_name == b.mic_road_name
+        && bits(a) == bits(b)
+}
+
+/// The logged ground truth while its sequence numbers rise (a restarted
+/// plant ends it): the live plant's cycles the replay re-runs.
+fn rising(truth: &[GroundTruth]) -> &[GroundTruth] {
+    let n = truth
+        .windows(2)
+        .position(|w| w[1].seq <= w[0].seq)
+        .map_or(truth.len(), |i| i + 1);
+    &truth[..n]
+}
+
+/// The first ground-truth sample that moved (x, V or ω changed), its
+/// sequence number: where a drive that starts moving started (plant-sim
+/// holds the car frozen until its start; with a microphone ahead, the
+/// pre-roll's first cycle). `None`: nothing moved.
+pub fn first_moved(truth: &[GroundTruth]) -> Option<u64> {
+    let f = truth.first()?;
+    truth
+        .iter()
+        .find(|g| g.x != f.x || g.v != f.v || g.omega != f.omega)
+        .map(|g| g.seq)
+}
+
+/// How many plant cycles before the first driver demand the loop received
+/// the start is looked for (`plant_start`): 50 ms at 1 kHz, five
+/// DriverDemand periods of the shipped bus.
+pub const START_WINDOW: u64 = 50;
+
+/// Where a closed-loop replay starts the plant, and how that was found.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PlantStart {
+    /// The drive started moving: the first sample that moved (exact:
+    /// plant-sim steps the car in the cycle it starts). `None`: nothing
+    /// moved (started at once).
+    Moved(Option<u64>),
+    /// From rest nothing moves until the driver's demand has reached the
+    /// motor (a DriverDemand period and more later), so each cycle from
+    /// [`START_WINDOW`] before the loop's first demand up to the first
+    /// that moved was tried with the drive's own configuration; `seq`
+    /// reproduced the most logged ground truth from the plant's first cycle.
+    Probed {
+        /// The plant cycle started in.
+        seq: u64,
+        /// The first sample that moved (the rule for a moving start).
+        moved: Option<u64>,
+        /// Candidates tried.
+        tried: usize,
+        /// Of the logged samples, how many `seq` reproduced bit for bit,
+        /// and how many there are.
+        agreed: (u64, u64),
+    },
+    /// From rest, but the drive's own configuration could not be run to
+    /// try the candidates: the first sample that moved, and why.
+    NotProbed {
+        /// The first sample that moved.
+        moved: Option<u64>,
+        /// Why.
+        why: String,
+    },
+}
+
+impl PlantStart {
+    /// The plant cycle the replay starts the plant in (`None`: at once).
+    pub fn seq(&self) -> Option<u64> {
+        match self {
+            Self::Moved(m) | Self::NotProbed { moved: m, .. } => *m,
+            Self::Probed { seq, .. } => Some(*seq),
+        }
+    }
+
+    /// The report's line.
+    pub fn line(&self, period_ns: u64) -> String {
+        let ms = |d: u64| d as f64 * period_ns as f64 * 1e-6;
+        match self {
+            Self::Moved(Some(s)) => {
+                format!("plant started in its cycle {s} (the first ground-truth sample that moved)")
+            }
+            Self::Moved(None) => {
+                "plant started at once (nothing in the ground truth moved)".to_owned()
+            }
+            Self::Probed {
+                seq,
+                moved,
+                tried,
+                agreed: (a, n),
+            } => {
+                let before = moved.map_or(String::new(), |m| {
+                    format!(
+                        ", {:.0} ms before the first sample that moved",
+                        ms(m.saturating_sub(*seq))
+                    )
+                });
+                let how = if a == n {
+                    "reproduces the logged ground truth bit for bit".to_owned()
+                } else {
+                    format!(
+                        "reproduces {a} of the {n} logged ground-truth samples, the most of them"
+                    )
+                };
+                format!(
+                    "plant started in its cycle {seq}{before}: a drive from rest, so {tried} candidate cycles were tried with the drive's own configuration, and this one {how}"
+                )
+            }
+            Self::NotProbed { moved, why } => format!(
+                "plant started in its cycle {} (the first ground-truth sample that moved; a drive from rest starts earlier, but the candidates could not be tried: {why})",
+                moved.map_or("-".to_owned(), |m| m.to_string())
+            ),
+        }
+    }
+}
+
+/// Where the live plant started (module docs): the first sample that
+/// moved for a drive that starts moving; from rest, each candidate cycle
+/// run by `probe` (a closed loop of the drive's own configuration, from
+/// that cycle, stopped at the first ground-truth sample that differs,
+/// returning [`ClosedLoop::agreed`]) and the one that reproduces the most
+/// of the log taken (of equals, the latest). `probe` failing to start ends
+/// the search with [`PlantStart::NotProbed`].
+pub fn plant_start(
+    log: &DriveLog,
+    mut probe: impl FnMut(u64) -> anyhow::Result<u64>,
+) -> PlantStart {
+    let truth = rising(&log.truth);
+    let moved = first_moved(truth);
+    let Some(first) = truth.first() else {
+        return PlantStart::Moved(moved);
+    };
+    if first.v != 0.0 || first.omega != 0.0 {
+        return PlantStart::Moved(moved);
+    }
+    // the plant's cycle when the loop first had a demand other than its
+    // first cycle's (the holding plant sends 0)
+    let demanded = log.cycles.first().and_then(|c0| {
+        let c = log.cycles.iter().find(|c| c.demand != c0.demand)?;
+        let i = truth.partition_point(|g| g.stamp_ns <= c.stamp_ns);
+        Some(truth.get(i.checked_sub(1)?)?.seq)
+    });
+    let (lo, hi) = match (demanded, moved) {
+        (Some(d), Some(m)) => (d.min(m).saturating_sub(START_WINDOW), m),
+        (Some(d), None) => (d.saturating_sub(START_WINDOW), d),
+        (None, Some(m)) => (m.saturating_sub(START_WINDOW), m),
+        (None, None) => return PlantStart::Moved(None),
+    };
+    let mut best: Option<(u64, u64)> = None;
+    for c in lo..=hi {
+        match probe(c) {
+            Ok(a) => {
+                if best.is_none_or(|(_, b)| a >= b) {
+                    best = Some((c, a));
+                }
+            }
+            Err(e) => {
+                return PlantStart::NotProbed {
+                    moved,
+                    why: format!("{e:#}"),
+                };
+            }
+        }
+    }
+    let (seq, a) = best.unwrap_or((hi, 0));
+    PlantStart::Probed {
+        seq,
+        moved,
+        tried: (hi - lo + 1) as usize,
+        agreed: (a, truth.len() as u64),
+    }
 }
 
 /// plant-sim's cycles as the log's ground truth shows them.
@@ -66,13 +249,7 @@ struct PlantTimes {
 
 impl PlantTimes {
     fn new(truth: &[GroundTruth], period_ns: u64) -> Self {
-        let mut seqs: Vec<&GroundTruth> = Vec::with_capacity(truth.len());
-        for g in truth {
-            if seqs.last().is_some_and(|p| g.seq <= p.seq) {
-                break;
-            }
-            seqs.push(g);
-        }
+        let seqs = rising(truth);
         let p = i128::from(period_ns);
         let dt = period_ns as f64 * 1e-9;
         // Each stamp less its seq's periods: the timer's phase plus the
@@ -91,7 +268,7 @@ impl PlantTimes {
         let mut skipped = 0u64;
         for (i, g) in seqs.iter().enumerate() {
             if i > 0 {
-                let prev = seqs[i - 1];
+                let prev = &seqs[i - 1];
                 // where the car moved, the periods it was stepped are on
                 // record: x advanced by about V dt a period
                 let v = 0.5 * (prev.v + g.v);
@@ -144,20 +321,23 @@ struct LoopCycle<'a> {
 /// `--closed-loop`: plant-sim's own loop (`PlantSim::cycle`, built by its
 /// start-up from the drive's scenario, seed and vehicle) and `lp` over an
 /// in-memory bus, each cycle run when and with what the logged drive's ran
-/// (module docs); the plant is asked to start in the cycle the logged
-/// plant started (the first ground-truth sample that moved; it then also
-/// waits for valid commands, as in the drive). The road estimates are the
-/// logged (or arte's replayed) ones, handed over in the cycle the drive
-/// took them: what the microphone heard on the logged drive (the acoustics
-/// stay open loop). Runs until plant-sim ends the scenario, then the
-/// logged cycles left and the shutdown command; at most twice the logged
-/// cycles.
+/// (module docs); the plant is asked to start in its cycle `start` (where
+/// the logged plant started, [`plant_start`]; `None`: at once; it then
+/// also waits for valid commands, as in the drive). The road estimates are
+/// the logged (or arte's replayed) ones, handed over in the cycle the
+/// drive took them: what the microphone heard on the logged drive (the
+/// acoustics stay open loop). Runs until plant-sim ends the scenario, then
+/// the logged cycles left and the shutdown command; at most twice the
+/// logged cycles; with `probe`, only until the first ground-truth sample
+/// that differs from the logged one.
 pub fn closed_loop(
     lp: &mut TcsLoop,
     plant: &mut PlantSim,
     log: &DriveLog,
     roads: &[RoadEstimate],
     period_ns: u64,
+    start: Option<u64>,
+    probe: bool,
 ) -> ClosedLoop {
     let can = split_can(log).ok();
     let taken = taken_per_cycle(log);
@@ -192,13 +372,11 @@ pub fn closed_loop(
             }
         }
     };
-    // the cycle the live plant started: its first sample that moved
-    let start_seq = log.truth.first().and_then(|f| {
-        log.truth
-            .iter()
-            .find(|g| g.x != f.x || g.v != f.v || g.omega != f.omega)
-            .map(|g| g.seq)
-    });
+    let start_seq = start;
+    let logged = rising(&log.truth);
+    // leading plant cycles that gave the logged truth, and whether one did not
+    let agreed = std::cell::Cell::new(0u64);
+    let diverged = std::cell::Cell::new(false);
 
     let pclock = ScriptClock::default();
     let tclock = ScriptClock::default();
@@ -243,17 +421,38 @@ pub fn closed_loop(
         for f in bus_p.take_sent() {
             frames.push_back((*s, f));
         }
+        if !diverged.get()
+            && let Some(g) = truths.0.last()
+        {
+            let i = logged.partition_point(|l| l.seq < g.seq);
+            match logged.get(i) {
+                Some(l) if l.seq == g.seq && !same_truth(l, g) => diverged.set(true),
+                _ => agreed.set(agreed.get() + 1),
+            }
+        }
         *s += 1;
         o == Outcome::Finished
     };
 
     let mut k = 0usize;
-    while k < nk * 2 && (!finished || k < nk) {
+    while k < nk * 2 && (!finished || k < nk) && !(probe && diverged.get()) {
         let c = loop_at(k);
         let rx_logged = c.rx;
         // the plant cycles that ran before this loop cycle's drain
         while !finished && plant_t.at(s).0 < c.now {
             finished = plant_cycle(&mut s, &mut commands, &mut frames);
+        }
+        if k >= nk {
+            // past the log, a plant cycle at this very instant goes first
+            // (as in `grip generate`'s lock step, which ends the drive
+            // without the loop cycle of the plant's last), and a plant
+            // that has ended the scenario ends the replay
+            while !finished && plant_t.at(s).0 <= c.now {
+                finished = plant_cycle(&mut s, &mut commands, &mut frames);
+            }
+            if finished {
+                break;
+            }
         }
         if !subscribed {
             // the frames sent before the loop's first drain never reached
@@ -327,6 +526,7 @@ pub fn closed_loop(
     ClosedLoop {
         truth: truths.0,
         outs,
+        agreed: agreed.get(),
     }
 }
 
@@ -342,6 +542,85 @@ mod tests {
             x,
             ..GroundTruth::zeroed()
         }
+    }
+
+    /// From rest the start is looked for from [`START_WINDOW`] cycles
+    /// before the loop's first demand to the first sample that moved, and
+    /// the candidate that reproduces the most of the log taken (of equals
+    /// the latest); a drive that starts moving starts at its first moved
+    /// sample without trying any; a probe that cannot run is named.
+    #[test]
+    fn a_start_from_rest_is_the_candidate_that_reproduces_the_log() {
+        let ms = 1_000_000u64;
+        // at rest until seq 120; the loop's demand first at its cycle 100
+        let mut log = DriveLog {
+            truth: (0..200)
+                .map(|q| GroundTruth {
+                    seq: q,
+                    stamp_ns: q * ms,
+                    omega: if q >= 120 { 0.5 } else { 0.0 },
+                    ..GroundTruth::zeroed()
+                })
+                .collect(),
+            cycles: (0..200)
+                .map(|k| grip_msgs::CycleRecord {
+                    stamp_ns: k * ms + 300_000,
+                    demand: if k >= 100 { 10.0 } else { 0.0 },
+                    ..grip_msgs::CycleRecord::default()
+                })
+                .collect(),
+            ..DriveLog::default()
+        };
+        let mut tried = Vec::new();
+        let start = plant_start(&log, |c| {
+            tried.push(c);
+            // the true start 108 reproduces everything; 109 and 110 as much
+            // of it as 108 up to a late divergence, the rest less
+            Ok(match c {
+                108 => 200,
+                109 | 110 => 150,
+                _ => c.min(100),
+            })
+        });
+        assert_eq!(tried.first(), Some(&(100 - START_WINDOW)));
+        assert_eq!(tried.last(), Some(&120));
+        assert_eq!(
+            start,
+            PlantStart::Probed {
+                seq: 108,
+                moved: Some(120),
+                tried: 71,
+                agreed: (200, 200),
+            }
+        );
+        assert_eq!(start.seq(), Some(108));
+        assert!(
+            start.line(ms).contains("12 ms before"),
+            "{}",
+            start.line(ms)
+        );
+        // of equals, the latest
+        let start = plant_start(&log, |c| Ok(if c >= 105 { 200 } else { 0 }));
+        assert_eq!(start.seq(), Some(120));
+        // a probe that cannot run: the first moved sample, and why
+        let start = plant_start(&log, |_| anyhow::bail!("no attachments"));
+        assert_eq!(start.seq(), Some(120));
+        assert!(
+            start.line(ms).contains("no attachments"),
+            "{}",
+            start.line(ms)
+        );
+        // moving from the first sample: no probe
+        for g in &mut log.truth {
+            g.v = 2.0;
+            g.x = if g.seq >= 30 {
+                0.002 * (g.seq - 29) as f64
+            } else {
+                0.0
+            };
+        }
+        let start = plant_start(&log, |_| panic!("probed a moving start"));
+        assert_eq!(start, PlantStart::Moved(Some(30)));
     }
 
     /// A cycle that woke late by most of a period made the timer skip the

@@ -23,7 +23,7 @@ mod closed;
 pub mod compare;
 pub mod config;
 
-pub use closed::closed_loop;
+pub use closed::{closed_loop, plant_start};
 
 use std::cell::{Cell, RefCell};
 use std::collections::VecDeque;
