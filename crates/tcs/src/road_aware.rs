@@ -1946,13 +1946,23 @@ mod tests {
         assert!(v.overruled(Some(1)));
         v.hold(Some(1), Some(1), true);
         assert!(!v.overruled(Some(1)));
-        // A contradiction broken before release_s starts the clock again.
-        for _ in 0..cycles - 2 {
-            v.judge(false, Some(0), true, dt, &p);
+        // A contradiction broken before release_s starts the clock again:
+        // two runs of nearly release_s each, one cycle apart, do not overrule.
+        for _ in 0..2 {
+            for _ in 0..cycles - 2 {
+                v.judge(false, Some(0), true, dt, &p);
+            }
+            assert!(!v.overruled(Some(0)));
+            v.judge(false, Some(0), false, dt, &p);
         }
-        v.judge(false, Some(0), false, dt, &p);
-        v.judge(false, Some(0), true, dt, &p);
-        assert!(!v.overruled(Some(0)));
+        assert!(!v.overruled(Some(0)) && v.believed_s == 0.0);
+        // A spinning wheel ends a verdict whether or not a way names it.
+        for _ in 0..cycles {
+            v.judge(false, Some(2), true, dt, &p);
+        }
+        assert!(v.overruled(Some(2)));
+        v.hold(None, None, true);
+        assert!(!v.overruled(Some(2)));
         // A road outside the catalogue is never overruled, and no panic.
         for _ in 0..cycles {
             v.judge(false, Some(7), true, dt, &p);

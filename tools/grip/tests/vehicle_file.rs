@@ -178,7 +178,7 @@ fn analyze_takes_the_users_vehicle_and_the_mfc_gain_is_checked_against_it() {
 /// Lines of `err` that are warnings about SRC's gains.
 fn src_gain_warnings(err: &str) -> Vec<&str> {
     err.lines()
-        .filter(|l| l.starts_with("warning: ") && l.contains("the symmetric optimum"))
+        .filter(|l| l.starts_with("warning: ") && l.contains("[src]"))
         .collect()
 }
 

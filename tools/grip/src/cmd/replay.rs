@@ -408,8 +408,6 @@ fn accuracy_row(
     )
 }
 
-/// Replays `log` with `what` changed (in closed loop with the plant if
-/// `closed`); writes `out` if given.
 /// tcs-loop's configuration as `cfg` makes it; an error names the file as
 /// in the log's configuration, and the `--set` that made it, not the
 /// replay's temporary copy.
@@ -430,13 +428,48 @@ fn tcs_config_of(cfg: &ReplayConfig) -> anyhow::Result<grip_tcs_loop::LoadedConf
         .map_err(|e| cfg.explain(e))
 }
 
-/// tcs-loop as `cfg` makes it.
-fn tcs_loop_of(cfg: &ReplayConfig) -> anyhow::Result<grip_tcs_loop::TcsLoop> {
-    grip_tcs_loop::build(&tcs_config_of(cfg)?)
+/// tcs-loop as `cfg` makes it, and its loop period, ns.
+fn tcs_loop_of(cfg: &ReplayConfig) -> anyhow::Result<(grip_tcs_loop::TcsLoop, u64)> {
+    let loaded = tcs_config_of(cfg)?;
+    let lp = grip_tcs_loop::build(&loaded)
         .context("tcs-loop's start-up")
-        .map_err(|e| cfg.explain(e))
+        .map_err(|e| cfg.explain(e))?;
+    Ok((lp, (1e9 / loaded.controllers.loop_.rate_hz).round() as u64))
 }
 
+/// The configuration the search for a drive's start runs
+/// (`grip_replay::plant_start`): the drive's own, from the log; where the
+/// log does not hold all of it, with the `--config-dir`, `--vehicle` and
+/// `--model` given (said in the report), never the other what-ifs.
+fn own_config(log: &DriveLog, what: &WhatIf) -> anyhow::Result<(ReplayConfig, &'static str)> {
+    let own = WhatIf {
+        closed_loop: true,
+        ..WhatIf::default()
+    };
+    match crate::replay::config::prepare(log, &own) {
+        Ok(c) => Ok((c, "")),
+        Err(e) if what.config_dir.is_some() || what.vehicle.is_some() || what.model.is_some() => {
+            let given = WhatIf {
+                config_dir: what.config_dir.clone(),
+                vehicle: what.vehicle.clone(),
+                model: what.model.clone(),
+                ..own
+            };
+            crate::replay::config::prepare(log, &given)
+                .map(|c| {
+                    (
+                        c,
+                        " (the log does not hold all of the drive's configuration: tried with the --config-dir, --vehicle and --model given)",
+                    )
+                })
+                .map_err(|e2| e2.context(format!("{e:#}")))
+        }
+        Err(e) => Err(e),
+    }
+}
+
+/// Replays `log` with `what` changed (in closed loop with the plant if
+/// `closed`); writes `out` if given.
 pub fn replay(
     path: &Path,
     what: &WhatIf,
@@ -494,10 +527,7 @@ pub fn replay(
 
     // tcs-loop
     let t_setup = Instant::now();
-    let loaded = tcs_config_of(&cfg)?;
-    let mut lp = grip_tcs_loop::build(&loaded)
-        .context("tcs-loop's start-up")
-        .map_err(|e| cfg.explain(e))?;
+    let (mut lp, period_ns) = tcs_loop_of(&cfg)?;
     let mut start_line = None;
     let can = split_can(&log)?;
     setup_s += t_setup.elapsed().as_secs_f64();
@@ -532,33 +562,32 @@ pub fn replay(
             .map_err(|e| cfg.explain(e))
         };
         let mut plant = plant_of(&cfg)?;
-        let period_ns = (1e9 / loaded.controllers.loop_.rate_hz).round() as u64;
         // where the live plant started: from rest, found by trying the
-        // candidates with the drive's own configuration and estimates
-        let own = crate::replay::config::prepare(
-            &log,
-            &WhatIf {
-                config_dir: what.config_dir.clone(),
-                closed_loop: true,
-                ..WhatIf::default()
-            },
-        );
+        // candidates with the drive's own configuration and estimates (made
+        // only when there is a search)
+        let mut own: Option<(ReplayConfig, &str)> = None;
         let start = crate::replay::plant_start(&log, |c| {
-            let own = own.as_ref().map_err(|e| anyhow::anyhow!("{e:#}"))?;
-            let mut lp = tcs_loop_of(own)?;
+            if own.is_none() {
+                own = Some(own_config(&log, what)?);
+            }
+            let Some((own, _)) = &own else {
+                anyhow::bail!("the drive's own configuration was not made")
+            };
+            let (mut lp, own_period) = tcs_loop_of(own)?;
             let mut plant = plant_of(own)?;
             Ok(crate::replay::closed_loop(
                 &mut lp,
                 &mut plant,
                 &log,
                 &log.roads,
-                period_ns,
+                own_period,
                 Some(c),
                 true,
             )
             .agreed)
         });
-        start_line = Some((start.seq(), start.line(period_ns)));
+        let with = own.as_ref().map_or("", |(_, w)| *w);
+        start_line = Some((start.seq(), format!("{}{with}", start.line(period_ns))));
         let cl = crate::replay::closed_loop(
             &mut lp,
             &mut plant,

@@ -54,9 +54,9 @@ pub struct ClosedLoop {
     pub truth: Vec<GroundTruth>,
     /// The loop's outputs.
     pub outs: Outputs,
-    /// How many of the plant's cycles, from its first, gave the logged
-    /// ground truth bit for bit (a sample the recorder did not write
-    /// counts as agreeing).
+    /// How many logged ground-truth samples the plant gave bit for bit
+    /// before the first that differs (a cycle whose sample the recorder
+    /// did not write, or past the log, counts for nothing).
     pub agreed: u64,
 }
 
@@ -98,6 +98,11 @@ pub fn first_moved(truth: &[GroundTruth]) -> Option<u64> {
 /// the start is looked for (`plant_start`): 50 ms at 1 kHz, five
 /// DriverDemand periods of the shipped bus.
 pub const START_WINDOW: u64 = 50;
+
+/// At most this many candidates are tried ([`plant_start`]): a log whose
+/// first demand and first movement lie further apart (a gap in the
+/// sequence numbers, a damaged log) takes the first sample that moved.
+pub const MAX_CANDIDATES: u64 = 4 * START_WINDOW;
 
 /// Where a closed-loop replay starts the plant, and how that was found.
 #[derive(Debug, Clone, PartialEq)]
@@ -214,6 +219,15 @@ pub fn plant_start(
         (None, Some(m)) => (m.saturating_sub(START_WINDOW), m),
         (None, None) => return PlantStart::Moved(None),
     };
+    if hi - lo > MAX_CANDIDATES {
+        return PlantStart::NotProbed {
+            moved,
+            why: format!(
+                "{} cycles lie between the loop's first demand and the first sample that moved, more than the {MAX_CANDIDATES} tried",
+                hi - lo + 1
+            ),
+        };
+    }
     let mut best: Option<(u64, u64)> = None;
     for c in lo..=hi {
         match probe(c) {
@@ -426,8 +440,14 @@ pub fn closed_loop(
         {
             let i = logged.partition_point(|l| l.seq < g.seq);
             match logged.get(i) {
-                Some(l) if l.seq == g.seq && !same_truth(l, g) => diverged.set(true),
-                _ => agreed.set(agreed.get() + 1),
+                Some(l) if l.seq == g.seq => {
+                    if same_truth(l, g) {
+                        agreed.set(agreed.get() + 1);
+                    } else {
+                        diverged.set(true);
+                    }
+                }
+                _ => {}
             }
         }
         *s += 1;
@@ -435,7 +455,9 @@ pub fn closed_loop(
     };
 
     let mut k = 0usize;
-    while k < nk * 2 && (!finished || k < nk) && !(probe && diverged.get()) {
+    // a probe has nothing left to compare once the plant is past the log
+    let last_logged = logged.last().map_or(0, |g| g.seq);
+    while k < nk * 2 && (!finished || k < nk) && !(probe && (diverged.get() || s > last_logged)) {
         let c = loop_at(k);
         let rx_logged = c.rx;
         // the plant cycles that ran before this loop cycle's drain
