@@ -147,29 +147,64 @@ fn generated_logs_read_inspect_and_replay_like_drives() {
 /// so the plant's start is found by trying candidates; before 2026-12-06
 /// it was started at the first sample that moved, 11 ms late, slip
 /// deviation +18.8 %), and moving (`e2e`: before 2026-12-06 the replay
-/// ran two loop cycles past the generated ones). `grip generate` asks the
-/// plant to start after its 0.5 s hold, at cycle 500.
+/// ran two loop cycles past the generated ones), and from rest with a
+/// driver who waits 0.3 s before the demand ramps up (the start lies that
+/// much before the loop's first demand). `grip generate` asks the plant to
+/// start after its 0.5 s hold, at cycle 500.
 #[test]
 fn generated_drives_replay_identically_in_closed_loop_from_rest_and_moving() {
+    let late = tempfile::tempdir().unwrap();
+    let late_ramp = late.path().join("late-ramp.toml");
+    std::fs::write(
+        &late_ramp,
+        "name = \"late-ramp\"\ndescription = \"from rest, 0.3 s wait, 0 to 250 N m over 0.2 s\"\n\
+         v0_kmh = 0.0\nsegments_by = \"distance\"\nduration = 1.5\n\
+         [demand]\nkind = \"ramp\"\nfrom = 0.0\nto = 250.0\nstart = 0.3\nduration = 0.2\n\
+         [[segment]]\nroad = \"asphalt\"\nlength = 1.0\n[[segment]]\nroad = \"snow\"\nlength = 20.0\n",
+    )
+    .unwrap();
+    let late_ramp = late_ramp.to_str().unwrap();
     for (scenario, how) in [
         ("stop-and-go", "a drive from rest"),
         ("e2e", "the first ground-truth sample that moved"),
+        (late_ramp, "a drive from rest"),
     ] {
         let d = tempfile::tempdir().unwrap();
         generate(d.path(), &["--count", "1", "--scenario", scenario]);
         let f = d.path().join("gen-00000-s1.mcap");
-        let r = json_of(&[
-            os("replay"),
-            os("--json"),
-            os("--closed-loop"),
-            f.as_os_str(),
-        ]);
+        // on the log's own configuration (no --config-dir: the waiting
+        // driver's scenario is in the log only)
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_grip"))
+            .args([
+                os("replay"),
+                os("--json"),
+                os("--closed-loop"),
+                f.as_os_str(),
+            ])
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let r: Value = stdout
+            .lines()
+            .find(|l| l.starts_with('{'))
+            .and_then(|l| serde_json::from_str(l).ok())
+            .unwrap_or_else(|| panic!("{scenario}: no JSON object:\n{stdout}"));
         assert_eq!(r["status"], "replayed", "{scenario}: {r}");
         assert_eq!(r["identical"], true, "{scenario}: {r}");
         assert_eq!(r["differing_messages"], 0, "{scenario}: {r}");
         assert_eq!(r["plant_start"]["seq"], 500, "{scenario}: {r}");
         let line = r["plant_start"]["how"].as_str().unwrap();
         assert!(line.contains(how), "{scenario}: {line}");
+        if scenario == late_ramp {
+            // started 0.3 s and more before the wheel moved
+            let ms: f64 = line
+                .split("cycle 500, ")
+                .nth(1)
+                .and_then(|x| x.split(" ms before").next())
+                .and_then(|x| x.parse().ok())
+                .unwrap_or_else(|| panic!("{line}"));
+            assert!(ms >= 300.0, "{line}");
+        }
         for m in ["slip_deviation", "distance_m", "energy_j"] {
             let old = &r["old"]["metrics"][m];
             assert!(old.as_f64().is_some(), "{scenario}: {m}: {r}");

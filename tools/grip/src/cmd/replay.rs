@@ -566,7 +566,14 @@ pub fn replay(
         // candidates with the drive's own configuration and estimates (made
         // only when there is a search)
         let mut own: Option<(ReplayConfig, &str)> = None;
-        let start = crate::replay::plant_start(&log, |c| {
+        // the plant cycles from the scenario's start to its first demand
+        let sc = plant.scenario();
+        let dt = period_ns as f64 * 1e-9;
+        let demand_after = (0..)
+            .take_while(|&k| (k as f64) * dt < sc.duration)
+            .find(|&k| sc.demand_at(k as f64 * dt) > 0.0)
+            .unwrap_or(0);
+        let start = crate::replay::plant_start(&log, demand_after, |c| {
             if own.is_none() {
                 own = Some(own_config(&log, what)?);
             }

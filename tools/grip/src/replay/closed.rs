@@ -192,10 +192,14 @@ impl PlantStart {
 /// run by `probe` (a closed loop of the drive's own configuration, from
 /// that cycle, stopped at the first ground-truth sample that differs,
 /// returning [`ClosedLoop::agreed`]) and the one that reproduces the most
-/// of the log taken (of equals, the latest). `probe` failing to start ends
-/// the search with [`PlantStart::NotProbed`].
+/// of the log taken (of equals, the latest). The candidates lie before the
+/// loop's first demand by `demand_after`, the plant cycles from the
+/// scenario's start to its first demand (0 for a demand from the start;
+/// a ramp that starts later, steps from 0 N m), and [`START_WINDOW`] more.
+/// `probe` failing to start ends the search with [`PlantStart::NotProbed`].
 pub fn plant_start(
     log: &DriveLog,
+    demand_after: u64,
     mut probe: impl FnMut(u64) -> anyhow::Result<u64>,
 ) -> PlantStart {
     let truth = rising(&log.truth);
@@ -214,11 +218,13 @@ pub fn plant_start(
         Some(truth.get(i.checked_sub(1)?)?.seq)
     });
     let (lo, hi) = match (demanded, moved) {
-        (Some(d), Some(m)) => (d.min(m).saturating_sub(START_WINDOW), m),
-        (Some(d), None) => (d.saturating_sub(START_WINDOW), d),
-        (None, Some(m)) => (m.saturating_sub(START_WINDOW), m),
+        (Some(d), Some(m)) => (d.min(m), m),
+        (Some(d), None) => (d, d),
+        (None, Some(m)) => (m, m),
         (None, None) => return PlantStart::Moved(None),
     };
+    let lo = lo.saturating_sub(demand_after + START_WINDOW);
+    let hi = hi.saturating_sub(demand_after).max(lo);
     if hi - lo > MAX_CANDIDATES {
         return PlantStart::NotProbed {
             moved,
@@ -594,7 +600,7 @@ mod tests {
             ..DriveLog::default()
         };
         let mut tried = Vec::new();
-        let start = plant_start(&log, |c| {
+        let start = plant_start(&log, 0, |c| {
             tried.push(c);
             // the true start 108 reproduces everything; 109 and 110 as much
             // of it as 108 up to a late divergence, the rest less
@@ -622,16 +628,25 @@ mod tests {
             start.line(ms)
         );
         // of equals, the latest
-        let start = plant_start(&log, |c| Ok(if c >= 105 { 200 } else { 0 }));
+        let start = plant_start(&log, 0, |c| Ok(if c >= 105 { 200 } else { 0 }));
         assert_eq!(start.seq(), Some(120));
         // a probe that cannot run: the first moved sample, and why
-        let start = plant_start(&log, |_| anyhow::bail!("no attachments"));
+        let start = plant_start(&log, 0, |_| anyhow::bail!("no attachments"));
         assert_eq!(start.seq(), Some(120));
         assert!(
             start.line(ms).contains("no attachments"),
             "{}",
             start.line(ms)
         );
+        // a demand 0.04 s after the start: the window moves back by as much
+        let mut tried = Vec::new();
+        let start = plant_start(&log, 40, |c| {
+            tried.push(c);
+            Ok(if c == 28 { 200 } else { 10 })
+        });
+        assert_eq!(tried.first(), Some(&(100 - 40 - START_WINDOW)));
+        assert_eq!(tried.last(), Some(&(120 - 40)));
+        assert_eq!(start.seq(), Some(28));
         // moving from the first sample: no probe
         for g in &mut log.truth {
             g.v = 2.0;
@@ -641,7 +656,7 @@ mod tests {
                 0.0
             };
         }
-        let start = plant_start(&log, |_| panic!("probed a moving start"));
+        let start = plant_start(&log, 0, |_| panic!("probed a moving start"));
         assert_eq!(start, PlantStart::Moved(Some(30)));
     }
 
