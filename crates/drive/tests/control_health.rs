@@ -9,7 +9,7 @@
 use grip_drive::summary::{CONTROL_LOST_MIN_S, ControlHealth};
 use grip_drive::{DriveLog, summarize};
 use grip_io::can::protocol::{MsgKind, Protocol};
-use grip_msgs::{CanFrame, CycleRecord, GroundTruth, can_dir, name_to_bytes};
+use grip_msgs::{CanFrame, CycleRecord, can_dir};
 use grip_physics::VehicleParams;
 
 const MS: u64 = 1_000_000;
@@ -25,19 +25,7 @@ const DURATION_S: f64 = 3.0;
 /// received every ms where `rx(t_ms)` says.
 fn drive(safe: impl Fn(i64) -> bool, rx: impl Fn(i64) -> bool) -> DriveLog {
     let truth = (0..3110u64)
-        .map(|k| {
-            let mut g = GroundTruth::zeroed();
-            g.seq = k;
-            g.stamp_ns = k * MS;
-            g.x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
-            g.v = 3.0;
-            g.omega = 10.0;
-            g.road_index = 0;
-            g.road_name = name_to_bytes("asphalt");
-            g.mic_road_index = 0;
-            g.mic_road_name = g.road_name;
-            g
-        })
+        .map(grip_testkit::drives::asphalt_truth)
         .collect();
     let rel = |k: u64| k as i64 - START_MS as i64;
     let mut cycles = Vec::new();

@@ -25,6 +25,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod drives;
 pub mod own_bus;
 pub mod svc;
 

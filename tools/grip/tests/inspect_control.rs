@@ -16,7 +16,7 @@ use std::path::Path;
 
 use grip_io::can::protocol::{MsgKind, Protocol};
 use grip_io::mcaplog::{McapWriter, McapWriterOptions, RunInfo};
-use grip_msgs::{CanFrame, CycleRecord, GroundTruth, can_dir, name_to_bytes, topics};
+use grip_msgs::{CanFrame, CycleRecord, can_dir, topics};
 
 const MS: u64 = 1_000_000;
 /// The last held sample: the scenario start.
@@ -39,22 +39,6 @@ fn create_log(path: &Path, duration_s: &str) -> McapWriter {
     w
 }
 
-/// Plant-sim's ground truth at cycle `k`: asphalt, 3 m/s, moving from cycle
-/// 10 (the scenario starts at `START_MS`).
-fn truth(k: u64) -> GroundTruth {
-    let mut g = GroundTruth::zeroed();
-    g.seq = k;
-    g.stamp_ns = k * MS;
-    g.x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
-    g.v = 3.0;
-    g.omega = 10.0;
-    g.road_index = 0;
-    g.road_name = name_to_bytes("asphalt");
-    g.mic_road_index = 0;
-    g.mic_road_name = g.road_name;
-    g
-}
-
 /// A 3 s drive: the bus gone at 1.5 s (no frame received after), the safe
 /// state from 1.52 s, until `back_ms` (scenario time; None: to the end).
 fn write_drive(path: &Path, back_ms: Option<u64>) {
@@ -64,7 +48,8 @@ fn write_drive(path: &Path, back_ms: Option<u64>) {
     let mut timeouts = 0;
     for k in 0..3200u64 {
         if k < 3110 {
-            w.write(topics::TRUTH, &truth(k)).unwrap();
+            w.write(topics::TRUTH, &grip_testkit::drives::asphalt_truth(k))
+                .unwrap();
         }
         let gone = k >= START_MS + 1500 && back_ms.is_none_or(|b| k < START_MS + b - 60);
         if !gone {
@@ -163,7 +148,8 @@ fn write_inverter_drive(path: &Path, faulty: bool, with_truth: bool) {
     let during = |k: u64, ms: std::ops::Range<i64>| faulty && ms.contains(&t(k));
     for k in 0..1100u64 {
         if with_truth {
-            w.write(topics::TRUTH, &truth(k)).unwrap();
+            w.write(topics::TRUTH, &grip_testkit::drives::asphalt_truth(k))
+                .unwrap();
         }
         let timed_out = k < 3 || t(k) >= 1050;
         let m = MotorStatus {
@@ -255,7 +241,8 @@ fn inspect_shows_the_inverters_episodes_and_the_loop_during_its_fault() {
 fn write_drive_without_can(path: &Path) {
     let mut w = create_log(path, "1");
     for k in 0..1100u64 {
-        w.write(topics::TRUTH, &truth(k)).unwrap();
+        w.write(topics::TRUTH, &grip_testkit::drives::asphalt_truth(k))
+            .unwrap();
         let mut c = CycleRecord::zeroed();
         c.seq = k;
         c.stamp_ns = k * MS;
