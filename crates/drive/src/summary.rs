@@ -855,6 +855,18 @@ pub fn scenario_duration(log: &DriveLog) -> Option<f64> {
     v.get("duration")?.as_float().and_then(valid)
 }
 
+/// When the attached scenario's driver first demands torque, s after its
+/// start (`grip_physics::Demand::begins` on a 1 ms grid; `None` without an
+/// attached scenario whose `[demand]` and `duration` read).
+pub fn scenario_demand_begins(log: &DriveLog) -> Option<f64> {
+    let name = log.run.get("scenario")?;
+    let text = log.attachment_text(&format!("scenarios/{name}.toml"))?;
+    let v: toml::Value = toml::from_str(text).ok()?;
+    let duration = v.get("duration")?.as_float()?;
+    let demand: grip_physics::Demand = v.get("demand")?.clone().try_into().ok()?;
+    demand.begins(duration, 1e-3)
+}
+
 /// SHA-256 of the attachment `name`: the one `grip.run` records for it
 /// (`config.NAME`) when it records one, else of the attached bytes; a
 /// recorded hash the attachment does not match is a warning.
@@ -1519,6 +1531,20 @@ fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> 
             s.warnings.push(w);
         }
         return None;
+    };
+    // From rest nothing moves until the driver's demand has reached the
+    // motor: a driver who waits (the scenario's demand begins later) puts
+    // the first movement that much after the start
+    let i0 = match scenario_demand_begins(log) {
+        Some(wait) if wait > 0.0 && log.truth[0].v == 0.0 && log.truth[0].omega == 0.0 => {
+            let at = log.truth[i0]
+                .stamp_ns
+                .saturating_sub((wait * 1e9).round() as u64);
+            log.truth[..i0]
+                .partition_point(|g| g.stamp_ns <= at)
+                .saturating_sub(1)
+        }
+        _ => i0,
     };
     let start_ns = log.truth[i0].stamp_ns;
     let end_ns = s

@@ -88,6 +88,20 @@ pub enum Demand {
 }
 
 impl Demand {
+    /// When the driver first demands torque, s: the first time on a grid of
+    /// `dt` in `[0, until)` where the demand is above 0 (0 for a demand from
+    /// the start, a ramp with `start` > 0 or steps from 0 N m later; `None`
+    /// when there is none before `until`, or `dt` is not positive).
+    pub fn begins(&self, until: f64, dt: f64) -> Option<f64> {
+        if !(dt > 0.0 && dt.is_finite() && until.is_finite()) {
+            return None;
+        }
+        (0..)
+            .map(|k| k as f64 * dt)
+            .take_while(|&t| t < until)
+            .find(|&t| self.at(t) > 0.0)
+    }
+
     /// Range checks: torques finite and >= 0, times and durations finite and >= 0.
     pub fn validate(&self) -> Result<(), InvalidField> {
         match self {
@@ -338,6 +352,31 @@ impl Scenario {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_demand_begins_when_the_driver_first_asks_for_torque() {
+        let ms = 1e-3;
+        let ramp = Demand::Ramp {
+            from: 0.0,
+            to: 250.0,
+            start: 0.3,
+            duration: 0.2,
+        };
+        let b = ramp.begins(2.0, ms).unwrap();
+        assert!((b - 0.301).abs() < 1e-9, "{b}");
+        let steps = Demand::Steps {
+            times: vec![0.0, 0.25],
+            torques: vec![0.0, 220.0],
+        };
+        assert!((steps.begins(2.0, ms).unwrap() - 0.25).abs() < 1e-9);
+        assert_eq!(
+            Demand::Constant { torque: 300.0 }.begins(2.0, ms),
+            Some(0.0)
+        );
+        assert_eq!(Demand::Constant { torque: 0.0 }.begins(2.0, ms), None);
+        assert_eq!(ramp.begins(0.2, ms), None, "not before until");
+        assert_eq!(ramp.begins(2.0, 0.0), None);
+    }
 
     fn seg(road: usize, span: f64) -> Segment {
         Segment {

@@ -204,6 +204,21 @@ fn generated_drives_replay_identically_in_closed_loop_from_rest_and_moving() {
                 .and_then(|x| x.parse().ok())
                 .unwrap_or_else(|| panic!("{line}"));
             assert!(ms >= 300.0, "{line}");
+            // and the summary's scenario window starts within a
+            // DriverDemand period of where the plant did (0.5 s), not at
+            // the first movement 0.3 s later
+            let (ok, text, err) = grip(&[os("inspect"), f.as_os_str()]);
+            assert!(ok, "{text}{err}");
+            let from: f64 = text
+                .split("scenario window ")
+                .nth(1)
+                .and_then(|x| x.split('-').next())
+                .and_then(|x| x.parse().ok())
+                .unwrap_or_else(|| panic!("{text}"));
+            assert!(
+                (0.5..=0.512).contains(&from),
+                "window from {from} s:\n{text}"
+            );
         }
         for m in ["slip_deviation", "distance_m", "energy_j"] {
             let old = &r["old"]["metrics"][m];

@@ -569,10 +569,10 @@ pub fn replay(
         // the plant cycles from the scenario's start to its first demand
         let sc = plant.scenario();
         let dt = period_ns as f64 * 1e-9;
-        let demand_after = (0..)
-            .take_while(|&k| (k as f64) * dt < sc.duration)
-            .find(|&k| sc.demand_at(k as f64 * dt) > 0.0)
-            .unwrap_or(0);
+        let demand_after = sc
+            .demand
+            .begins(sc.duration, dt)
+            .map_or(0, |t| (t / dt).round() as u64);
         let start = crate::replay::plant_start(&log, demand_after, |c| {
             if own.is_none() {
                 own = Some(own_config(&log, what)?);
