@@ -141,6 +141,16 @@ fn generated_logs_read_inspect_and_replay_like_drives() {
     assert!(r["first_divergence"].as_str().is_some());
 }
 
+/// The number in `text` between the first `before` and the `after` that
+/// follows it.
+fn number_between(text: &str, before: &str, after: &str) -> f64 {
+    text.split(before)
+        .nth(1)
+        .and_then(|x| x.split(after).next())
+        .and_then(|x| x.parse().ok())
+        .unwrap_or_else(|| panic!("no number between {before:?} and {after:?}:\n{text}"))
+}
+
 /// `grip replay --closed-loop` of a generated drive, nothing changed,
 /// gives every logged cycle, frame and ground-truth figure again: from rest
 /// (`stop-and-go`: nothing moves until the demand has reached the motor,
@@ -197,24 +207,14 @@ fn generated_drives_replay_identically_in_closed_loop_from_rest_and_moving() {
         assert!(line.contains(how), "{scenario}: {line}");
         if scenario == late_ramp {
             // started 0.3 s and more before the wheel moved
-            let ms: f64 = line
-                .split("cycle 500, ")
-                .nth(1)
-                .and_then(|x| x.split(" ms before").next())
-                .and_then(|x| x.parse().ok())
-                .unwrap_or_else(|| panic!("{line}"));
+            let ms = number_between(line, "cycle 500, ", " ms before");
             assert!(ms >= 300.0, "{line}");
             // and the summary's scenario window starts within a
             // DriverDemand period of where the plant did (0.5 s), not at
             // the first movement 0.3 s later
             let (ok, text, err) = grip(&[os("inspect"), f.as_os_str()]);
             assert!(ok, "{text}{err}");
-            let from: f64 = text
-                .split("scenario window ")
-                .nth(1)
-                .and_then(|x| x.split('-').next())
-                .and_then(|x| x.parse().ok())
-                .unwrap_or_else(|| panic!("{text}"));
+            let from = number_between(&text, "scenario window ", "-");
             assert!(
                 (0.5..=0.512).contains(&from),
                 "window from {from} s:\n{text}"
