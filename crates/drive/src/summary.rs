@@ -1534,9 +1534,22 @@ fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> 
     };
     // From rest nothing moves until the driver's demand has reached the
     // motor: a driver who waits (the scenario's demand begins later) puts
-    // the first movement that much after the start
+    // the first movement that much after the start; not a car that moved
+    // before the loop had any demand (a hill start rolling back: it moved
+    // as the plant started)
+    let moved_ns = log.truth.get(i0 + 1).map_or(u64::MAX, |g| g.stamp_ns);
+    let demanded_before = log
+        .cycles
+        .iter()
+        .find(|c| c.demand.is_finite() && c.demand > 0.0)
+        .is_some_and(|c| c.stamp_ns <= moved_ns);
     let i0 = match scenario_demand_begins(log) {
-        Some(wait) if wait > 0.0 && log.truth[0].v == 0.0 && log.truth[0].omega == 0.0 => {
+        Some(wait)
+            if wait > 0.0
+                && demanded_before
+                && log.truth[0].v == 0.0
+                && log.truth[0].omega == 0.0 =>
+        {
             let at = log.truth[i0]
                 .stamp_ns
                 .saturating_sub((wait * 1e9).round() as u64);

@@ -159,25 +159,41 @@ fn number_between(text: &str, before: &str, after: &str) -> f64 {
 /// deviation +18.8 %), and moving (`e2e`: before 2026-12-06 the replay
 /// ran two loop cycles past the generated ones), and from rest with a
 /// driver who waits 0.3 s before the demand ramps up (the start lies that
-/// much before the loop's first demand). `grip generate` asks the plant to
-/// start after its 0.5 s hold, at cycle 500.
+/// much before the loop's first demand; on a hill the car rolls back as the
+/// plant starts, which is then the start). `grip generate` asks the plant
+/// to start after its 0.5 s hold, at cycle 500.
 #[test]
 fn generated_drives_replay_identically_in_closed_loop_from_rest_and_moving() {
+    // a driver who waits 0.3 s from rest, on the flat and on a 10 % hill
+    // (where the car rolls back as the plant starts)
     let late = tempfile::tempdir().unwrap();
-    let late_ramp = late.path().join("late-ramp.toml");
-    std::fs::write(
-        &late_ramp,
-        "name = \"late-ramp\"\ndescription = \"from rest, 0.3 s wait, 0 to 250 N m over 0.2 s\"\n\
-         v0_kmh = 0.0\nsegments_by = \"distance\"\nduration = 1.5\n\
-         [demand]\nkind = \"ramp\"\nfrom = 0.0\nto = 250.0\nstart = 0.3\nduration = 0.2\n\
-         [[segment]]\nroad = \"asphalt\"\nlength = 1.0\n[[segment]]\nroad = \"snow\"\nlength = 20.0\n",
-    )
-    .unwrap();
-    let late_ramp = late_ramp.to_str().unwrap();
+    let waiting = |name: &str, road: &str| {
+        let p = late.path().join(format!("{name}.toml"));
+        std::fs::write(
+            &p,
+            format!(
+                "name = \"{name}\"\ndescription = \"from rest, 0.3 s wait, 0 to 300 N m over 0.2 s\"\n\
+                 v0_kmh = 0.0\nsegments_by = \"distance\"\nduration = 1.5\n\
+                 [demand]\nkind = \"ramp\"\nfrom = 0.0\nto = 300.0\nstart = 0.3\nduration = 0.2\n\
+                 {road}"
+            ),
+        )
+        .unwrap();
+        p.to_str().unwrap().to_owned()
+    };
+    let late_ramp = waiting(
+        "late-ramp",
+        "[[segment]]\nroad = \"asphalt\"\nlength = 1.0\n[[segment]]\nroad = \"snow\"\nlength = 20.0\n",
+    );
+    let hill = waiting(
+        "hill-wait",
+        "[[segment]]\nroad = \"asphalt\"\nlength = 30.0\ngrade_pct = 10.0\n",
+    );
     for (scenario, how) in [
         ("stop-and-go", "a drive from rest"),
         ("e2e", "the first ground-truth sample that moved"),
-        (late_ramp, "a drive from rest"),
+        (late_ramp.as_str(), "a drive from rest"),
+        (hill.as_str(), "the first ground-truth sample that moved"),
     ] {
         let d = tempfile::tempdir().unwrap();
         generate(d.path(), &["--count", "1", "--scenario", scenario]);

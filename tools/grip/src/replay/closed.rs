@@ -217,6 +217,13 @@ pub fn plant_start(
         let i = truth.partition_point(|g| g.stamp_ns <= c.stamp_ns);
         Some(truth.get(i.checked_sub(1)?)?.seq)
     });
+    // a car that moved before the loop had any demand moved on its own (a
+    // hill start rolling back): the plant steps it in the cycle it starts
+    if let (Some(d), Some(m)) = (demanded, moved)
+        && m < d
+    {
+        return PlantStart::Moved(Some(m));
+    }
     let (lo, hi) = match (demanded, moved) {
         (Some(d), Some(m)) => (d.min(m), m),
         (Some(d), None) => (d, d),
@@ -647,6 +654,18 @@ mod tests {
         assert_eq!(tried.first(), Some(&(100 - 40 - START_WINDOW)));
         assert_eq!(tried.last(), Some(&(120 - 40)));
         assert_eq!(start.seq(), Some(28));
+        // standing, then rolling before any demand (a hill start rolling
+        // back while the driver waits): it started where it moved
+        for g in &mut log.truth {
+            g.omega = 0.0;
+            g.x = if g.seq >= 60 {
+                -0.001 * (g.seq - 59) as f64
+            } else {
+                0.0
+            };
+        }
+        let start = plant_start(&log, 40, |_| panic!("probed a rolling start"));
+        assert_eq!(start, PlantStart::Moved(Some(60)));
         // moving from the first sample: no probe
         for g in &mut log.truth {
             g.v = 2.0;
