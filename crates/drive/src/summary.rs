@@ -849,19 +849,25 @@ pub fn scenario_duration(log: &DriveLog) -> Option<f64> {
     {
         return Some(d);
     }
+    attached_scenario(log)?
+        .get("duration")?
+        .as_float()
+        .and_then(valid)
+}
+
+/// The attached `scenarios/<grip.run scenario>.toml`, parsed (`None`
+/// without one, or when it does not parse).
+fn attached_scenario(log: &DriveLog) -> Option<toml::Value> {
     let name = log.run.get("scenario")?;
     let text = log.attachment_text(&format!("scenarios/{name}.toml"))?;
-    let v: toml::Value = toml::from_str(text).ok()?;
-    v.get("duration")?.as_float().and_then(valid)
+    toml::from_str(text).ok()
 }
 
 /// When the attached scenario's driver first demands torque, s after its
 /// start (`grip_physics::Demand::begins` on a 1 ms grid; `None` without an
 /// attached scenario whose `[demand]` and `duration` read).
 pub fn scenario_demand_begins(log: &DriveLog) -> Option<f64> {
-    let name = log.run.get("scenario")?;
-    let text = log.attachment_text(&format!("scenarios/{name}.toml"))?;
-    let v: toml::Value = toml::from_str(text).ok()?;
+    let v = attached_scenario(log)?;
     let duration = v.get("duration")?.as_float()?;
     let demand: grip_physics::Demand = v.get("demand")?.clone().try_into().ok()?;
     demand.begins(duration, 1e-3)

@@ -573,7 +573,24 @@ pub fn replay(
             .demand
             .begins(sc.duration, dt)
             .map_or(0, |t| (t / dt).round() as u64);
+        // each candidate is a closed loop over the drive: a spinner with
+        // the count and the time (nothing is drawn when stderr is not a
+        // terminal); made on the first probe, gone with the search
+        let mut bar: Option<indicatif::ProgressBar> = None;
         let start = crate::replay::plant_start(&log, demand_after, |c| {
+            let b = bar.get_or_insert_with(|| {
+                let b = indicatif::ProgressBar::new_spinner();
+                b.set_style(
+                    indicatif::ProgressStyle::with_template(
+                        "{spinner} plant start from rest: {pos} candidates tried ({msg}) {elapsed}",
+                    )
+                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+                );
+                b.enable_steady_tick(std::time::Duration::from_millis(200));
+                b
+            });
+            b.set_message(format!("cycle {c}"));
+            b.inc(1);
             if own.is_none() {
                 own = Some(own_config(&log, what)?);
             }
@@ -593,6 +610,9 @@ pub fn replay(
             )
             .agreed)
         });
+        if let Some(b) = bar.take() {
+            b.finish_and_clear();
+        }
         let with = own.as_ref().map_or("", |(_, w)| *w);
         start_line = Some((start.seq(), format!("{}{with}", start.line(period_ns))));
         let cl = crate::replay::closed_loop(
