@@ -23,7 +23,7 @@ pub fn load_controllers(path: impl AsRef<Path>) -> Result<ControllersConfig, Con
     let text = read_file(path)?;
     let config = parse_controllers(path, &text)?;
     if let Some(w) = old_rule_warning(path, &text, &config) {
-        eprintln!("{w}");
+        crate::warn_once(&w);
     }
     Ok(config)
 }

@@ -22,6 +22,7 @@ pub mod knowledge;
 pub mod roads;
 pub mod scenario;
 pub mod vehicle;
+pub mod warn;
 
 pub use controllers::{load_controllers, parse_controllers};
 pub use dir::ConfigDir;
@@ -30,3 +31,4 @@ pub use knowledge::{load_knowledge, load_road_table, parse_knowledge};
 pub use roads::{load_roads, parse_roads};
 pub use scenario::{load_scenario, parse_scenario};
 pub use vehicle::{VehicleLoad, load_vehicle, parse_vehicle, parse_vehicle_file};
+pub use warn::{first_time, warn_once};

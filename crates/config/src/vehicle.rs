@@ -118,7 +118,7 @@ pub fn load_vehicle(path: impl AsRef<Path>) -> Result<(VehicleParams, SensorPara
     let path = path.as_ref();
     let l = parse_vehicle_file(path, &read_file(path)?)?;
     if let Some(w) = l.defaults_warning(path) {
-        eprintln!("{w}");
+        crate::warn_once(&w);
     }
     Ok((l.vehicle, l.sensors))
 }

@@ -176,3 +176,41 @@ fn the_shipped_gains_suit_the_shipped_vehicles() {
         }
     }
 }
+
+/// The shipped sensors suit the road belief: on the three shipped
+/// vehicles the slip noise of their `[sensors]` at 10 km/h (after the
+/// belief's filter) is within the tolerance of `fusion.sigma_lambda`, so no
+/// start-up warning (`grip_tcs::analysis::sensors`).
+#[test]
+fn the_shipped_sensors_suit_the_road_belief() {
+    use grip_tcs::analysis::sensors::{REF_SPEED_MPS, sensor_warning, slip_noise};
+    let d = dir();
+    let controllers_file = d.file("controllers.toml");
+    let controllers = grip_config::load_controllers(&controllers_file).unwrap();
+    let dt = 1.0 / controllers.loop_.rate_hz;
+    for f in [
+        "vehicle.toml",
+        "vehicles/front-mic.toml",
+        "vehicles/rear-mic.toml",
+    ] {
+        let vehicle_file = d.file(f);
+        let (v, s) = grip_config::load_vehicle(&vehicle_file).unwrap();
+        let n = slip_noise(&v, &s, controllers.fusion.tau_slip_s, dt, REF_SPEED_MPS).unwrap();
+        assert!(
+            n.filtered < 1.25 * controllers.fusion.sigma_lambda,
+            "{f}: {n:?}"
+        );
+        assert_eq!(
+            sensor_warning(
+                &v,
+                &s,
+                &vehicle_file,
+                &controllers.fusion,
+                &controllers_file,
+                dt
+            ),
+            None,
+            "{f}"
+        );
+    }
+}

@@ -125,7 +125,8 @@ pub enum Output {
     Pipe {
         /// Lines kept.
         keep: usize,
-        /// Echo every line (else only `WARN`/`ERROR`/`error` lines).
+        /// Echo every line (else only `WARN`/`ERROR`/`error` lines, and a
+        /// `warning:` line of a configuration file once per process).
         echo_all: bool,
     },
     /// stderr kept in memory in full, nothing echoed (tests that look for
@@ -329,10 +330,19 @@ impl Proc {
                     let Ok(line) = line else { break };
                     let line = strip_ansi(&line);
                     if let Some(all) = echo {
+                        // a configuration file's `warning: FILE: ...` (the
+                        // loaders print it raw) is said once: the same file
+                        // read by grip itself or by another service already
+                        // said it
+                        let warning = line.starts_with("warning:");
                         let loud = line.contains(" WARN ")
                             || line.contains(" ERROR ")
                             || line.starts_with("error");
-                        if all || loud {
+                        if warning {
+                            if grip_config::first_time(&line) {
+                                eprintln!("  [{name}] {line}");
+                            }
+                        } else if all || loud {
                             eprintln!("  [{name}] {line}");
                         }
                     }

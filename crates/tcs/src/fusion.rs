@@ -168,6 +168,20 @@ impl FusionParams {
     }
 }
 
+/// The slip the belief measures and its denominator, m/s: the plant's
+/// slip (rω − V) / max(|rω|, |V|, v_eps) of a wheel of radius `r` at `omega`
+/// (rad/s) on a car at `v` (m/s), and max(|rω|, |V|). The magnitudes, so
+/// that a car rolling back (V < 0) under a forward demand has the slip its
+/// tyre has: over the signed max(rω, V, v_eps) the denominator fell to
+/// v_eps there and the slip and its noise grew 10-30 times (the belief went
+/// to ice and the spin cut held a hill start at 19-48 N m). Also what
+/// [`crate::analysis::sensors`] puts the vehicle's sensors through.
+pub fn measured_slip(r: f64, v_eps: f64, omega: f64, v: f64) -> (f64, f64) {
+    let rw = r * omega;
+    let speed = rw.abs().max(v.abs());
+    ((rw - v) / speed.max(v_eps), speed)
+}
+
 /// See the module docs.
 #[derive(Debug, Clone)]
 pub struct RoadBelief {
@@ -267,15 +281,7 @@ impl RoadBelief {
         }
         let (lambda, speed) = match m.v {
             Some(v) if v.is_finite() && m.omega.is_finite() => {
-                // The plant's slip, (rω − V) / max(|rω|, |V|, v_eps): the
-                // magnitudes, so that a car rolling back (V < 0) under a
-                // forward demand has the slip its tyre has. Over the signed
-                // max(rω, V, v_eps) the denominator fell to v_eps there and
-                // the slip and its noise grew 10-30 times: the belief went
-                // to ice and the spin cut held a hill start at 19-48 N m.
-                let rw = self.r * m.omega;
-                let speed = rw.abs().max(v.abs());
-                ((rw - v) / speed.max(self.v_eps), speed)
+                measured_slip(self.r, self.v_eps, m.omega, v)
             }
             _ => (f64::NAN, f64::NAN),
         };

@@ -91,6 +91,10 @@ pub struct LoadedConfig {
     pub controllers: grip_tcs::ControllersConfig,
     /// `vehicle.toml` `[vehicle]`.
     pub vehicle: grip_physics::VehicleParams,
+    /// `vehicle.toml` `[sensors]`: the car's sensors as the file states
+    /// them (the loop reads its measurements from CAN; this is what the
+    /// start-up check of the road belief's slip noise takes).
+    pub sensors: grip_physics::SensorParams,
     /// `can.toml`.
     pub can: CanBusConfig,
     /// `roads.toml`.
@@ -119,7 +123,7 @@ pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
     let controllers_path = dir.file("controllers.toml");
     let controllers = load_controllers(&controllers_path)?;
     let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
-    let (vehicle, _) = grip_config::load_vehicle(&vehicle_path)?;
+    let (vehicle, sensors) = grip_config::load_vehicle(&vehicle_path)?;
     let can = load_can(&dir)?;
     // the wheels' radii convert a wheel speed the DBC gives in km/h or m/s
     let radii = grip_io::can::protocol::WheelRadii::of(&vehicle);
@@ -130,6 +134,7 @@ pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
         own,
         controllers,
         vehicle,
+        sensors,
         can,
         roads,
         road_table,
@@ -309,6 +314,20 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
             "tcs-loop: the {} gain check could not run",
             kind.as_str().to_uppercase()
         ),
+    }
+    // the road belief's slip noise is the shipped sensors': say where the
+    // vehicle file's sensors are noisier (only the ARTE variants have one)
+    if lp.road_aware()
+        && let Some(w) = grip_tcs::analysis::sensors::sensor_warning(
+            &cfg.vehicle,
+            &cfg.sensors,
+            &cfg.vehicle_path,
+            &cfg.controllers.fusion,
+            &cfg.controllers_path,
+            1.0 / cfg.controllers.loop_.rate_hz,
+        )
+    {
+        tracing::warn!("{w}");
     }
     let rate = cfg.controllers.loop_.rate_hz;
     let period_ns = (1e9 / rate).round() as u64;

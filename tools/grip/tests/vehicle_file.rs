@@ -38,7 +38,13 @@ fn sweep(variants: &str, axes: &[&str]) -> Output {
 /// `config/vehicle.toml` with each `(from, to)` replaced, as `dir/name`
 /// (a user's own car); every `from` must be in the file.
 fn vehicle_with(dir: &Path, name: &str, changes: &[(&str, &str)]) -> PathBuf {
-    let mut text = std::fs::read_to_string(config_dir().join("vehicle.toml")).unwrap();
+    file_with("vehicle.toml", dir, name, changes)
+}
+
+/// The shipped vehicle file `base` (relative to `config/`) with each
+/// `(from, to)` replaced, as `dir/name`; every `from` must be in the file.
+fn file_with(base: &str, dir: &Path, name: &str, changes: &[(&str, &str)]) -> PathBuf {
+    let mut text = std::fs::read_to_string(config_dir().join(base)).unwrap();
     for (from, to) in changes {
         assert!(text.contains(from), "{from}");
         text = text.replace(from, to);
@@ -270,4 +276,100 @@ fn sim_says_when_the_src_gains_do_not_suit_the_vehicle() {
         warned[1].contains("set kp = 15 N m s, ti = 0.08 s for it"),
         "{err}"
     );
+}
+
+/// Lines of `err` that are warnings about the sensors' slip noise.
+fn sensor_warnings(err: &str) -> Vec<&str> {
+    err.lines()
+        .filter(|l| l.starts_with("warning: ") && l.contains("[sensors] give a measured slip"))
+        .collect()
+}
+
+/// Mean `mean_accel` of `variant` in `out/summary.csv`.
+fn mean_accel(out: &Path, variant: &str) -> f64 {
+    let text = std::fs::read_to_string(out.join("summary.csv")).unwrap();
+    let mut lines = text.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
+    let (v, a) = (col("variant"), col("mean_accel"));
+    let xs: Vec<f64> = lines
+        .map(|l| l.split(',').collect::<Vec<_>>())
+        .filter(|f| f[v] == variant)
+        .map(|f| f[a].parse().unwrap())
+        .collect();
+    assert!(!xs.is_empty(), "{variant}: {text}");
+    xs.iter().sum::<f64>() / xs.len() as f64
+}
+
+/// The road belief's slip noise is the shipped sensors': a user's car with
+/// a coarser wheel speed (the front-mic car with a 4096-count encoder over
+/// one 1 ms sample, 4 times the noise) gets one warning from `grip sim` when an ARTE variant
+/// runs, naming the vehicle file, the sensor fields and the omega_window
+/// that brings the noise within; with that window there is no warning and
+/// MTTE-ARTE keeps its baseline's traction (with the coarse encoder the
+/// belief settles on ice and it does not: the hazard the warning names).
+/// No warning without an ARTE variant, none for the shipped cars.
+#[test]
+fn sim_says_when_the_sensors_are_noisier_than_the_road_belief_assumes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let coarse = file_with(
+        "vehicles/front-mic.toml",
+        tmp.path(),
+        "coarse.toml",
+        &[("encoder_ppr = 65536", "encoder_ppr = 4096")],
+    );
+    let o = sim_of("mtte,mtte-arte", &coarse, &tmp.path().join("a"));
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    let warned = sensor_warnings(&err);
+    assert_eq!(warned.len(), 1, "{err}");
+    for says in [
+        "coarse.toml: [sensors] give a measured slip whose noise at 10 km/h",
+        "encoder_ppr 4096 over omega_window 1",
+        "controllers.toml's fusion.sigma_lambda",
+        "set sensors.omega_window = ",
+    ] {
+        assert!(warned[0].contains(says), "{says}: {err}");
+    }
+    let ice =
+        mean_accel(&tmp.path().join("a"), "mtte-arte") / mean_accel(&tmp.path().join("a"), "mtte");
+    assert!(
+        ice < 0.5,
+        "the coarse encoder's ice trap: MTTE-ARTE at {ice}x MTTE"
+    );
+    let w: u32 = warned[0]
+        .split("set sensors.omega_window = ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .and_then(|t| t.parse().ok())
+        .unwrap();
+    let fixed = file_with(
+        "vehicles/front-mic.toml",
+        tmp.path(),
+        "fixed.toml",
+        &[
+            ("encoder_ppr = 65536", "encoder_ppr = 4096"),
+            ("omega_window = 1", &format!("omega_window = {w}")),
+        ],
+    );
+    let o = sim_of("mtte,mtte-arte", &fixed, &tmp.path().join("b"));
+    assert!(sensor_warnings(&stderr(&o)).is_empty(), "{}", stderr(&o));
+    let kept =
+        mean_accel(&tmp.path().join("b"), "mtte-arte") / mean_accel(&tmp.path().join("b"), "mtte");
+    assert!(kept > 0.98, "omega_window {w}: MTTE-ARTE at {kept}x MTTE");
+    // no ARTE variant, no road belief: nothing to say
+    let o = sim_of("mtte,src", &coarse, &tmp.path().join("c"));
+    assert!(sensor_warnings(&stderr(&o)).is_empty(), "{}", stderr(&o));
+    for f in [
+        "vehicle.toml",
+        "vehicles/front-mic.toml",
+        "vehicles/rear-mic.toml",
+    ] {
+        let o = sim_of("mtte-arte", &config_dir().join(f), &tmp.path().join("d"));
+        assert!(
+            sensor_warnings(&stderr(&o)).is_empty(),
+            "{f}: {}",
+            stderr(&o)
+        );
+    }
 }

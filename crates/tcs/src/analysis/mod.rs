@@ -3,13 +3,15 @@
 //! vehicle (with the corrections documented in `crates/tcs/README.md`,
 //! section "Analysis"), the K_MFC bound (4), SRC's gains derived for the
 //! vehicle, the Vinnicombe ν-gap and the
-//! ν-gaps of the three controller structures with and without ARTE.
+//! ν-gaps of the three controller structures with and without ARTE, and the
+//! slip noise of the vehicle's sensors against the road belief's.
 //!
 //! Nothing here runs in a control loop; allocation is allowed.
 
 pub mod gaps;
 pub mod nugap;
 pub mod poly;
+pub mod sensors;
 pub mod tf;
 pub mod vehicle_tf;
 

@@ -221,6 +221,65 @@ fn src_gains_table(
     Ok(())
 }
 
+/// The "slip noise" section: the vehicle's sensors put through the road
+/// belief's slip and filter at 10, 20 and 40 km/h
+/// ([`grip_tcs::analysis::sensors::slip_noise`]) beside `fusion.sigma_lambda`,
+/// and [`grip_tcs::analysis::sensors::sensor_warning`] under it when they
+/// are noisier than it assumes.
+fn sensor_noise_table(
+    v: &VehicleParams,
+    sensors: &grip_physics::SensorParams,
+    vehicle_path: &std::path::Path,
+    ctl: &grip_tcs::ControllersConfig,
+    ctl_path: &std::path::Path,
+) {
+    use grip_tcs::analysis::sensors::{NOISE_TOLERANCE, sensor_warning, slip_noise};
+    let dt = 1.0 / ctl.loop_.rate_hz;
+    let f = &ctl.fusion;
+    println!(
+        "\n== Slip noise of the vehicle's sensors (a wheel rolling without slip through [sensors], the road belief's slip and its {} s filter) ==",
+        fmt_num(f.tau_slip_s)
+    );
+    if !sensors.v_available {
+        println!(
+            "  no V (sensors.v_available = false): the road belief measures no slip, and SRC, which needs V, passes the demand through"
+        );
+        return;
+    }
+    println!(
+        "  encoder_ppr {} over omega_window {} at {} Hz, omega_noise_std {} rad/s, v_noise_std {} m/s, v_lsb {} m/s",
+        sensors.encoder_ppr,
+        sensors.omega_window,
+        fmt_num(ctl.loop_.rate_hz),
+        fmt_num(sensors.omega_noise_std),
+        fmt_num(sensors.v_noise_std),
+        fmt_num(sensors.v_lsb)
+    );
+    println!("  {:>10} {:>10} {:>10}", "speed", "raw sigma", "filtered");
+    for kmh in [10.0, 20.0, 40.0] {
+        if let Some(n) = slip_noise(v, sensors, f.tau_slip_s, dt, kmh / 3.6) {
+            println!(
+                "  {:>6} km/h {:>10.4} {:>10.4}",
+                fmt_num(kmh),
+                n.raw,
+                n.filtered
+            );
+        }
+    }
+    println!(
+        "  fusion.sigma_lambda = {} (within {NOISE_TOLERANCE}x at 10 km/h: {})",
+        fmt_num(f.sigma_lambda),
+        if sensor_warning(v, sensors, vehicle_path, f, ctl_path, dt).is_some() {
+            "NO"
+        } else {
+            "yes"
+        }
+    );
+    if let Some(w) = sensor_warning(v, sensors, vehicle_path, f, ctl_path, dt) {
+        println!("  warning: {w}");
+    }
+}
+
 fn tf_line(name: &str, tf: &Tf) -> anyhow::Result<()> {
     println!("  {name}");
     println!(
@@ -253,7 +312,7 @@ fn run_report(ctx: &Ctx, args: &Args) -> anyhow::Result<()> {
     }
     let dir = grip_config::ConfigDir::new(&ctx.config_dir);
     let vehicle_path = args.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
-    let (v, _) = grip_config::load_vehicle(&vehicle_path)?;
+    let (v, sensors) = grip_config::load_vehicle(&vehicle_path)?;
     let cat: RoadCatalogue = dir.roads()?;
     let ctl_path = dir.file("controllers.toml");
     let ctl = grip_config::load_controllers(&ctl_path)?;
@@ -446,6 +505,7 @@ fn run_report(ctx: &Ctx, args: &Args) -> anyhow::Result<()> {
     }
 
     src_gains_table(&v, &vehicle_path, &ctl.src, &ctl_path)?;
+    sensor_noise_table(&v, &sensors, &vehicle_path, &ctl, &ctl_path);
 
     let classes = paper_classes(&cat)?;
     println!(

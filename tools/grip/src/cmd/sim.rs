@@ -305,6 +305,32 @@ fn warn_gains(config_dir: &Path, setup: &SimSetup, vehicle_path: &Path, variants
             Err(e) => eprintln!("warning: {}: {e}", check_failed(kind)),
         }
     }
+    // SRC's slip is computed from V: without it SRC passes the demand
+    // through (`grip_tcs::slip_control`), which a table would show only as
+    // a zero command variation
+    if !setup.sensors().v_available
+        && variants
+            .iter()
+            .any(|v| v.kind == grip_tcs::ControllerKind::Src || v.arte)
+    {
+        eprintln!(
+            "warning: {}: sensors.v_available = false: the loop gets no car speed V, so SRC and SRC-ARTE pass the driver's demand through unchanged (SRC's slip needs V) and the ARTE variants' road belief has no slip evidence (it also needs V); MFC and MTTE do not use V",
+            vehicle_path.display()
+        );
+    }
+    // the road belief of the ARTE variants against the vehicle's sensors
+    if variants.iter().any(|v| v.arte)
+        && let Some(w) = grip_tcs::analysis::sensors::sensor_warning(
+            setup.vehicle(),
+            setup.sensors(),
+            vehicle_path,
+            &setup.controllers().fusion,
+            &controllers,
+            1.0 / setup.controllers().loop_.rate_hz,
+        )
+    {
+        eprintln!("warning: {w}");
+    }
 }
 
 /// A gain check that could not run, as the warnings say it.
@@ -1120,7 +1146,11 @@ fn load_acoustic(ctx: &Ctx, args: &Args, setup: &SimSetup) -> anyhow::Result<Aco
         )
     })?;
     let model = Model::from_bytes(&bytes).with_context(|| format!("{}", path.display()))?;
-    let mut config = AcousticConfig::default();
+    // the sounds of the roads as audio-acq.toml's [synth.aliases] gives
+    // them (the one map `grip drive`'s audio-acq uses)
+    let mut config = AcousticConfig::default()
+        .with_config_dir(&ctx.config_dir)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
     match args.snr_db.unwrap_or(DEFAULT_SNR) {
         Snr::Off => {}
         Snr::Db(snr) => config = config.with_noise_snr(snr),
