@@ -58,6 +58,19 @@ pub fn attached_label(name: &str) -> String {
     format!("{name} (attached to the log)")
 }
 
+/// How [`vehicle_for`] names the drive's `--vehicle` file it took from the
+/// log ([`VEHICLE_ATTACHMENT`]): by the path the drive was given
+/// (`grip.run` `vehicle`), attached; without that key, as
+/// [`attached_label`] names any attachment.
+pub fn drive_vehicle_label(log: &DriveLog) -> String {
+    match log.run.get("vehicle") {
+        Some(p) => {
+            format!("{p} (grip drive --vehicle; attached to the log as {VEHICLE_ATTACHMENT})")
+        }
+        None => attached_label(VEHICLE_ATTACHMENT),
+    }
+}
+
 /// The vehicle a drive ran with, for the metrics (kinetic energy: M/n and
 /// J_w) and the preview report (N · r): the drive's `--vehicle` file as the
 /// recorder attached it ([`VEHICLE_ATTACHMENT`]); else, with `grip.run`
@@ -108,7 +121,7 @@ pub fn vehicle_of_log(
         }
     };
     if let Some(v) = attached(VEHICLE_ATTACHMENT, warnings) {
-        return Some((v, attached_label(VEHICLE_ATTACHMENT)));
+        return Some((v, drive_vehicle_label(log)));
     }
     if let Some(p) = log.run.get("vehicle") {
         let name = log
@@ -138,8 +151,16 @@ pub fn vehicle_of_log(
 pub struct DrivePlan {
     /// Configuration directory (absolute).
     pub config_dir: PathBuf,
-    /// Scenario name or path.
+    /// Scenario name or path, as given (`grip.run` `scenario`).
     pub scenario: String,
+    /// The scenario file when `scenario` is a path (absolute): plant-sim
+    /// reads it, and the recorder attaches it as [`SCENARIO_ATTACHMENT`]
+    /// (hashed in `grip.run` as `config.drive/scenario.toml`, its path as
+    /// `scenario_file`), so that the log carries the scenario the drive ran
+    /// as it carries the configuration directory's `scenarios/*.toml`.
+    /// `None`: a name under `<config-dir>/scenarios` (attached with the
+    /// directory).
+    pub scenario_file: Option<PathBuf>,
     /// Scenario duration, s.
     pub duration_s: f64,
     /// Controller.
@@ -166,6 +187,10 @@ pub struct DrivePlan {
 /// The name under which the recorder attaches a drive's `--vehicle` file.
 pub const VEHICLE_ATTACHMENT: &str = "drive/vehicle.toml";
 
+/// The name under which the recorder attaches a drive's `--scenario` file
+/// when it was given as a path ([`DrivePlan::scenario_file`]).
+pub const SCENARIO_ATTACHMENT: &str = "drive/scenario.toml";
+
 /// `grip drive`'s default controller.
 pub const DEFAULT_CONTROLLER: &str = "mtte";
 /// `grip drive`'s default plant sensor-noise seed.
@@ -187,6 +212,7 @@ impl DrivePlan {
         Self {
             config_dir: config_dir.to_path_buf(),
             scenario: scenario.to_owned(),
+            scenario_file: None,
             duration_s,
             controller: DEFAULT_CONTROLLER.to_owned(),
             arte: true,
@@ -220,6 +246,13 @@ impl DrivePlan {
                 if let Some(m) = &self.model {
                     a.extend([s("--meta"), format!("model_given={}", m.display())]);
                 }
+                if let Some(f) = &self.scenario_file {
+                    a.extend([s("--meta"), format!("scenario_file={}", f.display())]);
+                    a.extend([
+                        s("--attach"),
+                        format!("{SCENARIO_ATTACHMENT}={}", f.display()),
+                    ]);
+                }
                 if let Some(v) = &self.vehicle {
                     a.extend([s("--meta"), format!("vehicle={}", v.display())]);
                     a.extend([
@@ -229,9 +262,15 @@ impl DrivePlan {
                 }
             }
             Service::PlantSim => {
+                // the file the recorder attaches, whatever plant-sim's
+                // working directory
+                let scenario = self
+                    .scenario_file
+                    .as_ref()
+                    .map_or_else(|| self.scenario.clone(), |f| f.display().to_string());
                 a.extend([
                     s("--scenario"),
-                    self.scenario.clone(),
+                    scenario,
                     s("--seed"),
                     self.seed.to_string(),
                     s("--start-on"),
@@ -477,8 +516,16 @@ mod tests {
         log.run.insert("vehicle".into(), "/nowhere/v.toml".into());
         let (v, from, w) = vehicle_for(&log, &cfg);
         assert_eq!(v.mic_lead_m, 2.77);
-        assert!(from.starts_with(VEHICLE_ATTACHMENT), "{from}");
+        // named by the path the drive was given (a trial's summary said
+        // only `drive/vehicle.toml (attached to the log)`)
+        assert_eq!(
+            from,
+            "/nowhere/v.toml (grip drive --vehicle; attached to the log as drive/vehicle.toml)"
+        );
         assert!(w.is_empty(), "{w:?}");
+        log.run.remove("vehicle");
+        let (_, from, _) = vehicle_for(&log, &cfg);
+        assert_eq!(from, "drive/vehicle.toml (attached to the log)");
     }
 
     /// Every service's drive command line is its unit's command line (base
@@ -488,6 +535,7 @@ mod tests {
         let plan = DrivePlan {
             config_dir: PathBuf::from("/cfg"),
             scenario: "paper".into(),
+            scenario_file: None,
             duration_s: 2.4,
             controller: "src".into(),
             arte: false,
@@ -534,6 +582,27 @@ mod tests {
                 .args(Service::Recorder)
                 .join(" ")
                 .contains("model_given")
+        );
+        // a scenario given as a path: plant-sim reads the file the recorder
+        // attaches (a trial's `--scenario scen/suv.toml` was not in the log,
+        // and a replay from another directory could not read it)
+        assert!(!plan.args(Service::Recorder).join(" ").contains("--attach"));
+        let own = DrivePlan {
+            scenario: "scen/suv.toml".into(),
+            scenario_file: Some(PathBuf::from("/drives/scen/suv.toml")),
+            ..plan.clone()
+        };
+        let r = own.args(Service::Recorder).join(" ");
+        assert!(
+            r.contains("--meta scenario=scen/suv.toml")
+                && r.contains("--meta scenario_file=/drives/scen/suv.toml")
+                && r.contains("--attach drive/scenario.toml=/drives/scen/suv.toml"),
+            "{r}"
+        );
+        assert!(
+            own.args(Service::PlantSim)
+                .join(" ")
+                .contains("--scenario /drives/scen/suv.toml")
         );
         // --vehicle goes to the two services that read the vehicle, after
         // the unit's command line

@@ -467,7 +467,8 @@ pub struct Summary {
     pub scenario_duration_s: Option<f64>,
     /// The scenario (`grip.run` `scenario`).
     pub scenario: Option<String>,
-    /// SHA-256 of the scenario file the drive ran (`grip.run`
+    /// SHA-256 of the scenario file the drive ran ([`scenario_attachment`]:
+    /// `grip.run` `config.drive/scenario.toml` or
     /// `config.scenarios/NAME.toml`, else of the attachment).
     pub scenario_sha256: Option<String>,
     /// SHA-256 of the vehicle file the summary used, when it came from the
@@ -497,6 +498,9 @@ pub struct Summary {
     pub preview: Option<Vec<PreviewEvent>>,
     /// The model arte ran ([`model_of`]; None: the log does not say).
     pub model: Option<ModelInfo>,
+    /// Where arte's audio came from ([`audio_of`]: the attached
+    /// `audio-acq.toml`; None: the log does not carry one).
+    pub audio: Option<AudioSource>,
     /// The log was written by `grip replay --out` (its `grip.replay`
     /// record); None: a drive's (or the recorder's) log.
     pub replay: Option<ReplayInfo>,
@@ -540,6 +544,93 @@ impl ModelInfo {
             self.from
         )
     }
+}
+
+/// Where arte's audio came from: audio-acq's `[audio] source` and what
+/// goes with it, as the attached `audio-acq.toml` says ([`audio_of`]).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct AudioSource {
+    /// `synth` (the plant's roads, synthesised), `wav` (a file) or `alsa`
+    /// (a microphone).
+    pub source: String,
+    /// `[wav] path` (with `source = "wav"`).
+    pub wav: Option<String>,
+    /// `[synth.aliases]`: roads the synthesiser has no sound for, played
+    /// as the synthesiser road named.
+    pub aliases: BTreeMap<String, String>,
+}
+
+impl AudioSource {
+    /// Whether the audio followed the plant's roads (synthesised from its
+    /// ground truth): only then does grading ARTE against them grade the
+    /// chain on what it heard.
+    pub fn follows_the_plant(&self) -> bool {
+        self.source == "synth"
+    }
+
+    /// What a true road sounded like, for a road without a sound of its
+    /// own (not a synthesiser road): `Some(note)` for such a road with
+    /// synthesised audio, `None` otherwise.
+    pub fn road_note(&self, road: &str) -> Option<String> {
+        if !self.follows_the_plant() || grip_arte::synth::road_index(road).is_some() {
+            return None;
+        }
+        Some(match self.aliases.get(road) {
+            Some(to) if grip_arte::synth::road_index(to).is_some() => format!(
+                "no sound of its own: played as {to} (audio-acq.toml [synth.aliases] {road} = \"{to}\")"
+            ),
+            _ => "no sound of its own: vehicle and microphone noise only (no [synth.aliases] entry in audio-acq.toml)".to_owned(),
+        })
+    }
+
+    /// The report's line on the source when the audio did not follow the
+    /// plant's roads (`None` for synthesised audio).
+    pub fn line(&self) -> Option<String> {
+        match self.source.as_str() {
+            "synth" => None,
+            "wav" => Some(format!(
+                "audio: from the WAV file {} (audio-acq.toml [audio] source = \"wav\"), not synthesised from the plant's roads: the accuracy below grades that recording's estimates against the roads of the plant's scenario, which the recording need not follow",
+                self.wav.as_deref().unwrap_or("?")
+            )),
+            other => Some(format!(
+                "audio: from the {} (audio-acq.toml [audio] source = \"{other}\"), not synthesised from the plant's roads: the accuracy below grades its estimates against the roads of the plant's scenario, which it need not follow",
+                if other == "alsa" {
+                    "microphone"
+                } else {
+                    "source"
+                }
+            )),
+        }
+    }
+}
+
+/// Where arte's audio came from: the `audio-acq.toml` attached to the log
+/// (the recorder attaches the configuration the services started with;
+/// `grip drive` runs audio-acq with no `--source`). None without one, or
+/// when it does not parse.
+pub fn audio_of(log: &DriveLog) -> Option<AudioSource> {
+    let v: toml::Table = toml::from_str(log.attachment_text("audio-acq.toml")?).ok()?;
+    let source = v.get("audio")?.get("source")?.as_str()?.to_owned();
+    let wav = v
+        .get("wav")
+        .and_then(|w| w.get("path"))
+        .and_then(|p| p.as_str())
+        .map(str::to_owned);
+    let aliases = v
+        .get("synth")
+        .and_then(|s| s.get("aliases"))
+        .and_then(|a| a.as_table())
+        .map(|t| {
+            t.iter()
+                .filter_map(|(k, v)| Some((k.clone(), v.as_str()?.to_owned())))
+                .collect()
+        })
+        .unwrap_or_default();
+    Some(AudioSource {
+        source,
+        wav,
+        aliases,
+    })
 }
 
 /// A log written by `grip replay --out` (its `grip.replay` metadata).
@@ -618,11 +709,6 @@ pub fn model_of(log: &DriveLog) -> Option<ModelInfo> {
     let v: toml::Table = toml::from_str(text).ok()?;
     let name = v.get("model")?.as_str()?.to_owned();
     let recorded = log.run.get(&format!("model.{name}")).cloned();
-    // `grip drive --model FILE`: the services ran a copy of the user's file
-    // under this name; the log names the user's file
-    let given = log.run.get("model_given").map_or_else(String::new, |g| {
-        format!("; grip drive --model {g}, run as this copy")
-    });
     let (sha256, from) = match (log.attachments.get(&name), recorded) {
         (Some(d), _) => (
             Some(grip_digest::sha256_hex(d)),
@@ -638,11 +724,23 @@ pub fn model_of(log: &DriveLog) -> Option<ModelInfo> {
             "arte-svc.toml's model; neither attached nor in grip.run".to_owned(),
         ),
     };
-    Some(ModelInfo {
-        name,
-        sha256,
-        from: from + &given,
-    })
+    // `grip drive --model FILE`: the services ran a copy of the user's file
+    // under arte-svc.toml's name; the summary names the user's file
+    if let Some(g) = log.run.get("model_given") {
+        return Some(ModelInfo {
+            from: format!(
+                "grip drive --model; the services ran a copy as {}",
+                from.replacen(
+                    "arte-svc.toml's model",
+                    &format!("arte-svc.toml's model {name}"),
+                    1
+                )
+            ),
+            name: g.clone(),
+            sha256,
+        });
+    }
+    Some(ModelInfo { name, sha256, from })
 }
 
 /// The wheel reaching a road that carries less (`grip inspect`'s
@@ -855,11 +953,33 @@ pub fn scenario_duration(log: &DriveLog) -> Option<f64> {
         .and_then(valid)
 }
 
-/// The attached `scenarios/<grip.run scenario>.toml`, parsed (`None`
+/// The attachment that is the scenario file the drive ran: the drive's
+/// own [`crate::plan::SCENARIO_ATTACHMENT`] (`grip drive --scenario PATH`)
+/// when the log carries it or `grip.run` records its hash; else for a
+/// scenario named under the configuration directory
+/// `scenarios/<grip.run scenario>.toml`; else (a path, from a drive before
+/// the file was attached) the attached `scenarios/*.toml` the path ends
+/// with. `None`: the log does not say.
+pub fn scenario_attachment(log: &DriveLog) -> Option<String> {
+    let own = crate::plan::SCENARIO_ATTACHMENT;
+    if log.attachments.contains_key(own) || log.run.contains_key(&format!("config.{own}")) {
+        return Some(own.to_owned());
+    }
+    let name = log.run.get("scenario")?;
+    if !name.contains(['/', '\\']) && !name.ends_with(".toml") {
+        return Some(format!("scenarios/{name}.toml"));
+    }
+    log.attachments
+        .keys()
+        .filter(|a| a.starts_with("scenarios/") && (name.ends_with(&format!("/{a}")) || name == *a))
+        .max_by_key(|a| a.len())
+        .cloned()
+}
+
+/// The attached scenario file ([`scenario_attachment`]), parsed (`None`
 /// without one, or when it does not parse).
 fn attached_scenario(log: &DriveLog) -> Option<toml::Value> {
-    let name = log.run.get("scenario")?;
-    let text = log.attachment_text(&format!("scenarios/{name}.toml"))?;
+    let text = log.attachment_text(&scenario_attachment(log)?)?;
     toml::from_str(text).ok()
 }
 
@@ -894,11 +1014,9 @@ fn attachment_sha256(log: &DriveLog, name: &str, warnings: &mut Vec<String>) -> 
     }
 }
 
-/// SHA-256 of the scenario file the drive ran
-/// (`scenarios/<grip.run scenario>.toml`).
+/// SHA-256 of the scenario file the drive ran ([`scenario_attachment`]).
 fn scenario_sha256(log: &DriveLog, warnings: &mut Vec<String>) -> Option<String> {
-    let name = log.run.get("scenario")?;
-    attachment_sha256(log, &format!("scenarios/{name}.toml"), warnings)
+    attachment_sha256(log, &scenario_attachment(log)?, warnings)
 }
 
 /// SHA-256 of the vehicle file the summary used, when [`crate::vehicle_for`]
@@ -908,6 +1026,9 @@ fn vehicle_sha256(
     vehicle_from: &str,
     warnings: &mut Vec<String>,
 ) -> Option<String> {
+    if crate::plan::drive_vehicle_label(log) == vehicle_from {
+        return attachment_sha256(log, crate::plan::VEHICLE_ATTACHMENT, warnings);
+    }
     let name = log
         .attachments
         .keys()
@@ -1129,6 +1250,7 @@ pub fn summarize(
     }
     s.replay = replay_of(log);
     s.model = model_of(log);
+    s.audio = audio_of(log);
     // a replay's controller and ARTE switch are its own (`grip.run` is
     // the source's, copied)
     if let Some(r) = &s.replay {
@@ -1996,6 +2118,11 @@ impl Summary {
             "\nARTE ({} estimates; judged against the road at the microphone at each frame's midpoint)",
             a.estimates
         );
+        if a.log_judged > 0
+            && let Some(l) = self.audio.as_ref().and_then(AudioSource::line)
+        {
+            let _ = writeln!(o, "  {l}");
+        }
         if a.judged > 0 {
             let _ = writeln!(
                 o,
@@ -2005,9 +2132,14 @@ impl Summary {
                 a.judged
             );
             for (road, (n, c)) in &a.per_road {
+                let note = self
+                    .audio
+                    .as_ref()
+                    .and_then(|au| au.road_note(road))
+                    .map_or_else(String::new, |n| format!(": {n}"));
                 let _ = writeln!(
                     o,
-                    "    {road:<12} recall {:.1} % ({c}/{n})",
+                    "    {road:<12} recall {:.1} % ({c}/{n}){note}",
                     100.0 * *c as f64 / *n as f64
                 );
             }
@@ -2716,13 +2848,137 @@ mod tests {
         log.run
             .insert("model_given".into(), "/srv/recordings/mine.model".into());
         let given = model_of(&log).unwrap();
-        assert!(
-            given
-                .from
-                .ends_with("; grip drive --model /srv/recordings/mine.model, run as this copy"),
-            "{}",
-            given.from
+        // the model line names the file given, not arte-svc.toml's model
+        // (a trial's `model:` line said "arte-svc.toml's model" first)
+        assert_eq!(given.name, "/srv/recordings/mine.model");
+        assert_eq!(
+            given.line(),
+            format!(
+                "/srv/recordings/mine.model (sha256 {}, grip drive --model; the services ran a copy as arte-svc.toml's model models/mine.model, attached to the log)",
+                short_sha(plain.sha256.as_ref())
+            )
         );
         assert_eq!(given.sha256, plain.sha256);
+    }
+
+    /// A drive whose `--scenario` was a path carries the file as
+    /// `drive/scenario.toml`: the summary hashes it and reads its duration
+    /// (a trial's `--scenario scen/suv.toml` gave `scenario_sha256: null`).
+    #[test]
+    fn a_scenario_given_as_a_path_is_the_attached_one() {
+        let text = b"duration = 3.5\n".to_vec();
+        let h = grip_digest::sha256_hex(&text);
+        let mut log = DriveLog::default();
+        log.run.insert("scenario".into(), "scen/suv.toml".into());
+        log.attachments
+            .insert("scenarios/paper.toml".into(), b"duration = 2.4\n".to_vec());
+        assert_eq!(scenario_attachment(&log), None);
+        let s = summarize(&log, &VehicleParams::default(), "defaults", None);
+        assert_eq!(s.scenario_sha256, None);
+        log.attachments
+            .insert(crate::plan::SCENARIO_ATTACHMENT.into(), text.clone());
+        log.run
+            .insert("config.drive/scenario.toml".into(), h.clone());
+        assert_eq!(
+            scenario_attachment(&log).as_deref(),
+            Some("drive/scenario.toml")
+        );
+        assert_eq!(scenario_duration(&log), Some(3.5));
+        let s = summarize(&log, &VehicleParams::default(), "defaults", None);
+        assert_eq!(s.scenario_sha256.as_deref(), Some(h.as_str()));
+        assert!(
+            !s.warnings.iter().any(|w| w.contains("damaged")),
+            "{:?}",
+            s.warnings
+        );
+        // a name: the configuration directory's file, as before
+        let mut log = DriveLog::default();
+        log.run.insert("scenario".into(), "paper".into());
+        log.attachments
+            .insert("scenarios/paper.toml".into(), b"duration = 2.4\n".to_vec());
+        assert_eq!(
+            scenario_attachment(&log).as_deref(),
+            Some("scenarios/paper.toml")
+        );
+        assert_eq!(scenario_duration(&log), Some(2.4));
+        // a path into the configuration directory, from an older drive
+        log.run
+            .insert("scenario".into(), "config/scenarios/paper.toml".into());
+        assert_eq!(
+            scenario_attachment(&log).as_deref(),
+            Some("scenarios/paper.toml")
+        );
+    }
+
+    /// ARTE's accuracy says where the audio came from: a road without a
+    /// sound of its own is noted (played as its alias, or noise only), and
+    /// audio from a WAV file is said to be graded against the plant's
+    /// roads (a trial's report gave `wet_gravel recall 0.0 %` with no note,
+    /// and never said the audio was a file).
+    #[test]
+    fn the_accuracy_says_what_the_microphone_heard() {
+        let mut t = Vec::new();
+        for k in 0..210u64 {
+            let x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
+            let (r, n) = if k < 110 {
+                (0, "asphalt")
+            } else {
+                (1, "wet_gravel")
+            };
+            t.push(truth(k, k, x, r, n));
+        }
+        let est = |seq: u64, t1_ms: u64, name: &str| {
+            let mut e = RoadEstimate::zeroed();
+            e.seq = seq;
+            e.frame_t0_ns = (t1_ms - 20) * 1_000_000;
+            e.frame_t1_ns = t1_ms * 1_000_000;
+            e.stamp_ns = t1_ms * 1_000_000 + 1;
+            e.class_index = 0;
+            e.class_name = grip_msgs::name_to_bytes(name);
+            e
+        };
+        let mut log = DriveLog {
+            truth: t,
+            roads: vec![est(0, 50, "asphalt"), est(1, 160, "gravel")],
+            ..DriveLog::default()
+        };
+        let acq = |source: &str, aliases: &str| {
+            format!(
+                "[audio]\nsource = \"{source}\"\nsample_rate = 44100\nblock_samples = 1024\n[wav]\npath = \"audio/drive.wav\"\n[synth.aliases]\n{aliases}"
+            )
+            .into_bytes()
+        };
+        let render =
+            |log: &DriveLog| summarize(log, &VehicleParams::default(), "defaults", None).render();
+        // no audio-acq.toml: no note (the log does not say)
+        let r = render(&log);
+        assert!(r.contains("    wet_gravel   recall 0.0 % (0/1)\n"), "{r}");
+        log.attachments.insert(
+            "audio-acq.toml".into(),
+            acq("synth", "wet_gravel = \"gravel\"\n"),
+        );
+        let r = render(&log);
+        assert!(
+            r.contains("    wet_gravel   recall 0.0 % (0/1): no sound of its own: played as gravel (audio-acq.toml [synth.aliases] wet_gravel = \"gravel\")\n"),
+            "{r}"
+        );
+        assert!(r.contains("    asphalt      recall 100.0 % (1/1)\n"), "{r}");
+        assert!(!r.contains("audio: from"), "{r}");
+        log.attachments
+            .insert("audio-acq.toml".into(), acq("synth", ""));
+        let r = render(&log);
+        assert!(
+            r.contains("(0/1): no sound of its own: vehicle and microphone noise only"),
+            "{r}"
+        );
+        // a WAV file: said where the accuracy is; no per-road sound notes
+        log.attachments.insert(
+            "audio-acq.toml".into(),
+            acq("wav", "wet_gravel = \"gravel\"\n"),
+        );
+        let r = render(&log);
+        let l = r.find("  audio: from the WAV file audio/drive.wav (audio-acq.toml [audio] source = \"wav\"), not synthesised from the plant's roads").unwrap_or_else(|| panic!("{r}"));
+        assert!(l < r.find("accuracy during the scenario").unwrap(), "{r}");
+        assert!(r.contains("    wet_gravel   recall 0.0 % (0/1)\n"), "{r}");
     }
 }

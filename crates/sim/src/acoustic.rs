@@ -5,11 +5,14 @@
 //!
 //! 1. the plant's true road (catalogue index) is mapped to a road of the
 //!    synthesiser by name (`grip_arte::synth::road_index`); roads the
-//!    synthesiser has no model for follow [`AcousticConfig::sound_as`]
-//!    (default: `asphalt_mf` sounds like `asphalt`, `gravel_table` like
-//!    `gravel`, i.e. the same surface with another friction model; every
-//!    other road, e.g. `ice`, is [`SoundAs::Silence`]: the synthesiser's
-//!    vehicle and microphone sound with no tyre-road component);
+//!    synthesiser has no model for follow [`AcousticConfig::sound_as`]:
+//!    the `[synth.aliases]` of `audio-acq.toml`, the rule `grip drive`'s
+//!    audio-acq plays them by ([`AcousticConfig::with_config_dir`]; default:
+//!    the shipped file's, `asphalt_mf` sounds like `asphalt`, `gravel_table`
+//!    like `gravel`, i.e. the same surface with another friction model);
+//!    every other road, e.g. `ice`, is [`SoundAs::Silence`]: the
+//!    synthesiser's vehicle and microphone sound with no tyre-road
+//!    component;
 //! 2. `RoadAudioSynth::fill` generates the samples that fall due in the
 //!    cycle, `round((t + dt) f_s) − samples so far` (44.1 per millisecond at
 //!    44.1 kHz, so the count alternates 44/45 and never drifts), at the
@@ -35,6 +38,7 @@
 //! synthesiser) and clears the stream, so a run is a function of its seed.
 
 use std::collections::BTreeMap;
+use std::path::Path;
 
 use grip_arte::model::{Model, Predictor};
 use grip_arte::stream::{StreamConfig, StreamEstimator};
@@ -81,20 +85,53 @@ pub struct AcousticConfig {
     pub sound_as: BTreeMap<String, SoundAs>,
 }
 
+/// The shipped `config/audio-acq.toml`: [`AcousticConfig::default`]'s
+/// sound map is its `[synth.aliases]`, the rule `grip drive`'s audio-acq
+/// follows (one home for it).
+const SHIPPED_AUDIO_ACQ: &str = include_str!("../../../config/audio-acq.toml");
+
 impl Default for AcousticConfig {
+    /// No noise, the default stream, and the sound map of the shipped
+    /// `config/audio-acq.toml` (`asphalt_mf` as `asphalt`, `gravel_table` as
+    /// `gravel`; every other road without a sound silent).
     fn default() -> Self {
-        let mut sound_as = BTreeMap::new();
-        sound_as.insert("asphalt_mf".to_owned(), SoundAs::Road("asphalt".to_owned()));
-        sound_as.insert(
-            "gravel_table".to_owned(),
-            SoundAs::Road("gravel".to_owned()),
-        );
         Self {
             noise: None,
             stream: StreamConfig::default(),
-            sound_as,
+            // the file ships with the crate's workspace; a test parses it
+            sound_as: sound_as_of_audio_acq(SHIPPED_AUDIO_ACQ).unwrap_or_default(),
         }
     }
+}
+
+/// The sound map of an `audio-acq.toml` (its text): `[synth.aliases]`,
+/// ROAD = SOUND, each a [`SoundAs::Road`] (audio-acq plays ROAD with the
+/// synthesiser road SOUND; a road neither synthesisable nor listed is
+/// silent, as here). No `[synth.aliases]`: an empty map. Fails when the
+/// text is not TOML or an alias is not a string; an unknown SOUND is
+/// refused by [`AcousticArte::new`] (and by audio-acq's start-up).
+pub fn sound_as_of_audio_acq(text: &str) -> Result<BTreeMap<String, SoundAs>, SimError> {
+    let v: toml::Table =
+        toml::from_str(text).map_err(|e| SimError::invalid("audio-acq.toml", e.to_string()))?;
+    let Some(aliases) = v.get("synth").and_then(|s| s.get("aliases")) else {
+        return Ok(BTreeMap::new());
+    };
+    let Some(aliases) = aliases.as_table() else {
+        return Err(SimError::invalid(
+            "synth.aliases",
+            "is not a table of ROAD = \"SOUND\"",
+        ));
+    };
+    aliases
+        .iter()
+        .map(|(road, sound)| match sound.as_str() {
+            Some(s) => Ok((road.clone(), SoundAs::Road(s.to_owned()))),
+            None => Err(SimError::invalid(
+                format!("synth.aliases.{road}"),
+                format!("{sound} is not a synthesiser road's name (a string)"),
+            )),
+        })
+        .collect()
 }
 
 impl AcousticConfig {
@@ -107,6 +144,31 @@ impl AcousticConfig {
             snr_db,
         });
         self
+    }
+
+    /// The settings with the sound map of the configuration directory
+    /// `dir`: its `audio-acq.toml`'s `[synth.aliases]`
+    /// ([`sound_as_of_audio_acq`]), the map `grip drive`'s audio-acq plays
+    /// the plant's roads with; a directory without `audio-acq.toml` keeps
+    /// [`AcousticConfig::default`]'s (the shipped file's). Errors name the
+    /// file.
+    pub fn with_config_dir(mut self, dir: &Path) -> Result<Self, SimError> {
+        let path = dir.join("audio-acq.toml");
+        let text = match std::fs::read_to_string(&path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(self),
+            Err(e) => {
+                return Err(SimError::invalid(
+                    path.display().to_string(),
+                    format!("cannot read: {e}"),
+                ));
+            }
+        };
+        self.sound_as =
+            sound_as_of_audio_acq(&text).map_err(|SimError::Invalid { field, reason }| {
+                SimError::invalid(format!("{}: {field}", path.display()), reason)
+            })?;
+        Ok(self)
     }
 
     /// Parse `ROAD=SOUND[,ROAD=SOUND...]` (SOUND: a synthesiser road or
@@ -545,5 +607,74 @@ pub(crate) mod tests {
         let e = AcousticArte::new(&model, &roads(), &cfg).unwrap();
         assert_eq!(e.sound_of(4), Some("snow"));
         assert_eq!(e.sound_of(0), None);
+    }
+
+    /// `grip sim --arte acoustic` plays the plant's roads as `grip drive`'s
+    /// audio-acq does: by the configuration directory's `audio-acq.toml`
+    /// `[synth.aliases]` (a trial's `wet_gravel = "gravel"` was silent in
+    /// grip sim, which had the shipped aliases built in). The shipped file
+    /// gives exactly the map that was built in.
+    #[test]
+    fn the_sound_map_is_audio_acq_toml_s_aliases() {
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
+        let before = BTreeMap::from([
+            ("asphalt_mf".to_owned(), SoundAs::Road("asphalt".to_owned())),
+            (
+                "gravel_table".to_owned(),
+                SoundAs::Road("gravel".to_owned()),
+            ),
+        ]);
+        assert_eq!(AcousticConfig::default().sound_as, before);
+        let cfg = AcousticConfig::default().with_config_dir(&shipped).unwrap();
+        assert_eq!(cfg.sound_as, before);
+        // a configuration directory with one more road, mapped to gravel
+        let d = tempfile::tempdir().unwrap();
+        let text = std::fs::read_to_string(shipped.join("audio-acq.toml")).unwrap();
+        let text = text.replace(
+            "gravel_table = \"gravel\"\n",
+            "gravel_table = \"gravel\"\nwet_gravel = \"gravel\"\n",
+        );
+        std::fs::write(d.path().join("audio-acq.toml"), &text).unwrap();
+        let cfg = AcousticConfig::default().with_config_dir(d.path()).unwrap();
+        assert_eq!(
+            cfg.sound_as.get("wet_gravel"),
+            Some(&SoundAs::Road("gravel".to_owned()))
+        );
+        assert_eq!(cfg.sound_as.len(), 3);
+        let wet_gravel = RoadCatalogue::new(vec![
+            Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap(),
+            Road::burckhardt("snow", 0.1946, 94.129, 0.0646).unwrap(),
+            Road::burckhardt("stone", 1.3713, 6.4565, 0.6691).unwrap(),
+            Road::burckhardt("wet_gravel", 0.9, 20.0, 0.4).unwrap(),
+            Road::burckhardt("ice", 0.05, 306.39, 0.0).unwrap(),
+        ])
+        .unwrap();
+        let e = AcousticArte::new(&tiny_model(), &wet_gravel, &cfg).unwrap();
+        assert_eq!(e.sound_of(3), Some("gravel"));
+        assert_eq!(e.sound_of(4), None, "ice: no alias, silent");
+        // no aliases at all: every road without a sound is silent
+        std::fs::write(d.path().join("audio-acq.toml"), "[synth]\nseed = 1\n").unwrap();
+        let cfg = AcousticConfig::default().with_config_dir(d.path()).unwrap();
+        assert!(cfg.sound_as.is_empty());
+        // no audio-acq.toml: the shipped map
+        let empty = tempfile::tempdir().unwrap();
+        let cfg = AcousticConfig::default()
+            .with_config_dir(empty.path())
+            .unwrap();
+        assert_eq!(cfg.sound_as, before);
+        // a bad alias names the file and the key
+        std::fs::write(
+            d.path().join("audio-acq.toml"),
+            "[synth.aliases]\nwet_gravel = 3\n",
+        )
+        .unwrap();
+        let e = AcousticConfig::default()
+            .with_config_dir(d.path())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("audio-acq.toml: synth.aliases.wet_gravel"),
+            "{e}"
+        );
     }
 }

@@ -127,3 +127,32 @@ fn drive_help_gives_model() {
         .unwrap_or_else(|| panic!("no --model in:\n{so}"));
     assert!(line.contains("arte-svc.toml"), "{line}");
 }
+
+/// A drive whose services fail to start leaves the log that was at `--out`
+/// as it was (found in a trial: a bad controllers.toml replaced a 2.9 MB
+/// log with a 0.2 s one): the recorder writes to `--out` + `.partial`,
+/// which takes `--out`'s name only when the drive ran or nothing was there.
+#[test]
+fn a_failed_drive_leaves_the_log_that_was_at_out() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("drive.mcap");
+    std::fs::write(&out, b"the log of yesterday's drive").unwrap();
+    let f = Fakes::new();
+    let (ok, so, err) = f.drive(&common::config_dir(), &[os("--out"), out.as_os_str()]);
+    // the stand-in recorder exits 3: the drive fails at it
+    assert!(!ok, "{so}{err}");
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        b"the log of yesterday's drive",
+        "{err}"
+    );
+    let recorder = f
+        .started()
+        .into_iter()
+        .find(|s| s.starts_with("recorder "))
+        .unwrap();
+    assert!(
+        recorder.contains(&format!("--out {}.partial", out.display())),
+        "{recorder}"
+    );
+}

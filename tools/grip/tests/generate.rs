@@ -292,6 +292,18 @@ fn bad_options_are_refused_with_the_reason() {
     let d = tempfile::tempdir().unwrap();
     let err = refused(d.path(), &["--v0-kmh", "30:10"]);
     assert!(err.contains("LO must not exceed HI"), "{err}");
+    // in the flag's unit, at once (1e9 km/h drew road sequences for ever
+    // before the scenario's check in m/s refused it)
+    let err = refused(d.path(), &["--v0-kmh", "1e9"]);
+    assert!(
+        err.contains("--v0-kmh 1000000000: a start speed must lie within 0..=360 km/h"),
+        "{err}"
+    );
+    let err = refused(d.path(), &["--torque=-5"]);
+    assert!(
+        err.contains("--torque -5: a driver demand must be >= 0 N m"),
+        "{err}"
+    );
     let err = refused(
         d.path(),
         &["--count", "1", "--scenario", "no-such-scenario"],

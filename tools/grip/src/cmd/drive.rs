@@ -64,6 +64,13 @@ pub struct Args {
     verbose: bool,
 }
 
+/// The scenario's file when `--scenario` names one by path (absolute,
+/// relative to `cwd`); `None` for a name under `<config-dir>/scenarios`.
+fn scenario_file(dir: &ConfigDir, scenario: &str, cwd: &std::path::Path) -> Option<PathBuf> {
+    let p = dir.scenario_path(scenario);
+    (p != dir.scenarios_path().join(format!("{scenario}.toml"))).then(|| cwd.join(p))
+}
+
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     // `$GRIP_BIN_DIR`, else beside the running `grip` (`target/<profile>/`)
     let bin = grip_io::binaries::bin_dir()?.path;
@@ -75,6 +82,10 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     let dir = ConfigDir::new(&config_dir);
     let roads = dir.roads()?;
     let scenario = dir.scenario_with(&args.scenario, &roads)?;
+    // a scenario given as a path (not a name under <config-dir>/scenarios,
+    // which the recorder attaches with the directory): its file, attached
+    // to the log as drive/scenario.toml and read by plant-sim by this path
+    let scenario_file = scenario_file(&dir, &args.scenario, &cwd);
     if !(args.ready_timeout.is_finite() && args.ready_timeout > 0.0) {
         bail!("--ready-timeout must be a positive number of seconds");
     }
@@ -156,15 +167,20 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         std::fs::create_dir_all(parent)
             .with_context(|| format!("creating {}", parent.display()))?;
     }
+    // the recorder writes beside --out and the log takes its name when the
+    // drive ran: a drive whose services fail to start never replaces a log
+    // that was there
+    let recording = partial_path(&out);
     let plan = DrivePlan {
         config_dir: view
             .as_ref()
             .map_or_else(|| config_dir.clone(), |v| v.dir.clone()),
         scenario: args.scenario.clone(),
+        scenario_file,
         duration_s: scenario.duration,
         controller: controller.into(),
         arte: args.arte == OnOff::On,
-        out: out.clone(),
+        out: recording.clone(),
         seed: args.seed,
         instance: drive::new_instance(),
         ready_timeout: Duration::from_secs_f64(args.ready_timeout),
@@ -227,9 +243,31 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             last
         );
     }
+    // the log takes --out's name, unless the drive failed and --out held a
+    // log already: then that stays and this attempt's is kept beside it
+    let kept_old = outcome.failure.is_some() && out.exists();
+    let log_path = if kept_old || !recording.exists() {
+        recording.clone()
+    } else {
+        std::fs::rename(&recording, &out).with_context(|| {
+            format!(
+                "moving the drive's log {} to {}",
+                recording.display(),
+                out.display()
+            )
+        })?;
+        out.clone()
+    };
+    if kept_old && recording.exists() {
+        eprintln!(
+            "drive: the drive failed, so {} (there before it) is left as it was; this attempt's log is {}",
+            out.display(),
+            recording.display()
+        );
+    }
     // the summary, from the log (also after a failure: what was recorded)
     let mut control_lost = None;
-    match crate::drive::load_log(&out, Default::default()) {
+    match crate::drive::load_log(&log_path, Default::default()) {
         Ok(log) => {
             let (vehicle, from, warnings) = drive::vehicle_for(&log, &config_dir);
             for w in warnings {
@@ -256,8 +294,51 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         bail!(
             "drive failed: tcs-loop's control during the scenario: {} (log kept: {})",
             c.line(),
-            out.display()
+            log_path.display()
         );
     }
     Ok(())
+}
+
+/// Where the recorder writes a drive's log until the drive has run:
+/// `--out` with `.partial` added (`out/drive.mcap` → `out/drive.mcap.partial`).
+fn partial_path(out: &std::path::Path) -> PathBuf {
+    let mut name = out.file_name().unwrap_or_default().to_os_string();
+    name.push(".partial");
+    out.with_file_name(name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_drive_records_beside_its_out() {
+        assert_eq!(
+            partial_path(std::path::Path::new("/d/out/drive.mcap")),
+            PathBuf::from("/d/out/drive.mcap.partial")
+        );
+    }
+
+    /// A scenario given as a path is attached to the log (its file,
+    /// absolute); a name under the configuration directory is not (the
+    /// recorder attaches the directory's scenarios).
+    #[test]
+    fn a_scenario_path_is_the_drive_s_own_file() {
+        let d = tempfile::tempdir().unwrap();
+        let cfg = d.path().join("config");
+        std::fs::create_dir_all(cfg.join("scenarios")).unwrap();
+        std::fs::write(cfg.join("scenarios/paper.toml"), "").unwrap();
+        let dir = ConfigDir::new(&cfg);
+        let cwd = std::path::Path::new("/drives/trial");
+        assert_eq!(scenario_file(&dir, "paper", cwd), None);
+        assert_eq!(
+            scenario_file(&dir, "scen/suv.toml", cwd),
+            Some(PathBuf::from("/drives/trial/scen/suv.toml"))
+        );
+        assert_eq!(
+            scenario_file(&dir, "/abs/suv.toml", cwd),
+            Some(PathBuf::from("/abs/suv.toml"))
+        );
+    }
 }

@@ -247,6 +247,23 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     if !(args.hold_s.is_finite() && (0.0..=60.0).contains(&args.hold_s)) {
         bail!("--hold-s must be within 0..=60 s (got {})", args.hold_s);
     }
+    // the ranges a scenario allows (0-360 km/h, a torque >= 0), in the
+    // flag's own unit, before any road sequence is drawn
+    if let Some((lo, hi)) = args.v0_kmh
+        && !(lo >= 0.0 && hi <= 360.0)
+    {
+        let given = if lo == hi {
+            format!("{lo}")
+        } else {
+            format!("{lo}:{hi}")
+        };
+        bail!("--v0-kmh {given}: a start speed must lie within 0..=360 km/h");
+    }
+    if let Some((lo, _)) = args.torque
+        && lo < 0.0
+    {
+        bail!("--torque {lo}: a driver demand must be >= 0 N m");
+    }
     let random = super::sim::random_spec(args.random.as_deref(), &args.scenario)?;
     let specs = specs(&args, &random)?;
     let config = std::path::absolute(&ctx.config_dir)

@@ -5,7 +5,7 @@
 //! first divergence, and the controller's figures old against new. See
 //! `replay/` for how the inputs are fed.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -529,6 +529,8 @@ pub fn replay(
     let t_setup = Instant::now();
     let (mut lp, period_ns) = tcs_loop_of(&cfg)?;
     let mut start_line = None;
+    let mut races_line = None;
+    let mut races_json = serde_json::Value::Null;
     let can = split_can(&log)?;
     setup_s += t_setup.elapsed().as_secs_f64();
     let t2 = Instant::now();
@@ -551,7 +553,11 @@ pub fn replay(
         let plant_of = |cfg: &ReplayConfig| {
             grip_plant_sim::run::load(&grip_plant_sim::Options {
                 config: ConfigArgs::in_dir(&cfg.dir),
-                scenario: Some(scenario.clone()),
+                scenario: Some(
+                    cfg.scenario_file
+                        .as_ref()
+                        .map_or_else(|| scenario.clone(), |f| f.display().to_string()),
+                ),
                 seed,
                 exit_at_end: true,
                 start_on: Some(grip_plant_sim::StartOn::Signal),
@@ -607,6 +613,7 @@ pub fn replay(
                 own_period,
                 Some(c),
                 true,
+                &BTreeSet::new(),
             )
             .agreed)
         });
@@ -615,6 +622,36 @@ pub fn replay(
         }
         let with = own.as_ref().map_or("", |(_, w)| *w);
         start_line = Some((start.seq(), format!("{}{with}", start.line(period_ns))));
+        // the commands that went out while the plant drained: placed by
+        // the drive's own closed loop from the plant's start (only where
+        // a command raced a drain)
+        let races = crate::replay::command_races(&log, |early| {
+            if own.is_none() {
+                own = Some(own_config(&log, what)?);
+            }
+            let Some((own, _)) = &own else {
+                anyhow::bail!("the drive's own configuration was not made")
+            };
+            let (mut lp, own_period) = tcs_loop_of(own)?;
+            let mut plant = plant_of(own)?;
+            Ok(crate::replay::closed_loop(
+                &mut lp,
+                &mut plant,
+                &log,
+                &log.roads,
+                own_period,
+                start.seq(),
+                true,
+                early,
+            ))
+        });
+        races_line = races.line();
+        races_json = serde_json::json!({
+            "racing": races.racing,
+            "early": races.early,
+            "runs": races.runs,
+            "not_placed": races.not_placed,
+        });
         let cl = crate::replay::closed_loop(
             &mut lp,
             &mut plant,
@@ -623,6 +660,7 @@ pub fn replay(
             period_ns,
             start.seq(),
             false,
+            &races.early,
         );
         roadm = crate::replay::taken_per_cycle(&log).matched;
         (cl.outs, cl.truth)
@@ -657,6 +695,9 @@ pub fn replay(
     if closed {
         let _ = writeln!(o, "  {CLOSED_LOOP}");
         if let Some((_, l)) = &start_line {
+            let _ = writeln!(o, "  {l}");
+        }
+        if let Some(l) = &races_line {
             let _ = writeln!(o, "  {l}");
         }
     } else {
@@ -901,6 +942,7 @@ pub fn replay(
         "mode": if closed { "closed loop" } else { "open loop" },
         "plant_metrics_replayed": closed,
         "plant_start": start_line.as_ref().map(|(seq, how)| serde_json::json!({"seq": seq, "how": how})),
+        "command_races": races_json,
         "configuration": cfg.source,
         "controller": cfg.controller,
         "arte": if cfg.arte { "on" } else { "off" },

@@ -239,7 +239,10 @@ pub fn summary_json(
             (
                 road.clone(),
                 json!({"judged": n, "correct": c,
-                       "accuracy": num(*c as f64 / (*n).max(1) as f64)}),
+                       "accuracy": num(*c as f64 / (*n).max(1) as f64),
+                       // a road without a sound of its own (its alias, or
+                       // noise only); null otherwise
+                       "sound_note": s.audio.as_ref().and_then(|au| au.road_note(road))}),
             )
         })
         .collect();
@@ -319,6 +322,10 @@ pub fn summary_json(
         "model": s.model.as_ref().map(|m| m.name.clone()),
         "model_sha256": s.model.as_ref().and_then(|m| m.sha256.clone()),
         "model_from": s.model.as_ref().map(|m| m.from.clone()),
+        // audio-acq's [audio] source (`synth`: the plant's roads; `wav`:
+        // a file, graded against the plant's roads all the same)
+        "audio_source": s.audio.as_ref().map(|a| a.source.clone()),
+        "audio_wav": s.audio.as_ref().and_then(|a| a.wav.clone()),
         "replay": s.replay.as_ref().map_or(Value::Null, |r| json!({
             "source": r.source,
             "mode": r.mode,

@@ -26,7 +26,7 @@
 //! it gives the drive's ground truth and cycle records bit for bit
 //! (`tools/grip/README.md`, "Closed loop").
 
-use std::collections::VecDeque;
+use std::collections::{BTreeSet, VecDeque};
 
 use grip_drive::DriveLog;
 use grip_io::can::MemBus;
@@ -58,6 +58,9 @@ pub struct ClosedLoop {
     /// before the first that differs (a cycle whose sample the recorder
     /// did not write, or past the log, counts for nothing).
     pub agreed: u64,
+    /// The sequence number of the first logged ground-truth sample the
+    /// plant did not give bit for bit (`None`: none differed).
+    pub diverged_at: Option<u64>,
 }
 
 /// The same ground truth, bit for bit (NaN equals NaN).
@@ -266,6 +269,138 @@ pub fn plant_start(
     }
 }
 
+/// The loop cycles whose command raced a plant cycle's drain: a command
+/// goes out after the cycle's "now" (its TorqueCommand's stamp) and
+/// before the end of its compute (the log copies and the record follow
+/// it), and plant-sim drains the bus just before its own "now" (its
+/// ground truth's stamp); where a logged plant "now" lies between the
+/// two, the stamps cannot say whether that plant cycle received the
+/// command or the next did. Each as `(loop cycle, plant cycle)`, in order.
+pub fn racing_commands(log: &DriveLog) -> Vec<(usize, u64)> {
+    let Ok(can) = split_can(log) else {
+        return Vec::new();
+    };
+    let truth = rising(&log.truth);
+    let mut out = Vec::new();
+    for (k, c) in log.cycles.iter().enumerate() {
+        let now = can.tx[k].stamp_ns;
+        let done = c.stamp_ns.wrapping_add_signed(c.wakeup_latency_ns) + c.compute_ns;
+        let i = truth.partition_point(|g| g.stamp_ns <= now);
+        if let Some(g) = truth.get(i)
+            && g.stamp_ns <= done
+        {
+            out.push((k, g.seq));
+        }
+    }
+    out
+}
+
+/// How the commands that raced a plant cycle's drain ([`racing_commands`])
+/// were placed ([`command_races`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CommandRaces {
+    /// The racing commands.
+    pub racing: usize,
+    /// Their loop cycles whose command the plant cycle it raced received
+    /// (the logged ground truth says so); the others' went to the next.
+    pub early: BTreeSet<usize>,
+    /// Closed loops run to place them.
+    pub runs: usize,
+    /// Why they could not be placed (the commands then all count as sent
+    /// at the end of their cycle's compute).
+    pub not_placed: Option<String>,
+}
+
+impl CommandRaces {
+    /// The report's line (`None`: no command raced a drain).
+    pub fn line(&self) -> Option<String> {
+        if self.racing == 0 {
+            return None;
+        }
+        let how = match &self.not_placed {
+            Some(why) => format!(
+                "each taken as received by the next plant cycle (the drive's own closed loop could not be run to place them: {why})"
+            ),
+            None => format!(
+                "{} taken as received by the plant cycle it raced, the others by the next, as the logged ground truth shows ({} closed loops of the drive's own configuration run to place them)",
+                self.early.len(),
+                self.runs
+            ),
+        };
+        Some(format!(
+            "commands that went out while plant-sim drained the bus (sent between the loop cycle's now and the end of its compute, the plant's now between the two): {}; {how}",
+            self.racing
+        ))
+    }
+}
+
+/// Places the commands that raced a plant cycle's drain
+/// ([`racing_commands`]): whether the plant cycle received it or the next
+/// is not in the stamps, but where the command changed the torque the
+/// logged ground truth shows it. `probe` runs the drive's own closed loop
+/// (with `probe` set, from the plant's start) with the given commands
+/// counted as sent at their cycle's "now" ([`closed_loop`]'s `early`);
+/// where the ground truth first differs from the log in a plant cycle that
+/// a racing command raced, that command is taken as received there if that
+/// reproduces more of the log, and so on. The placement found is the
+/// drive's timing, replayed as such with a what-if too (as the plant's
+/// start). `probe` failing ends the search with every command sent at the
+/// end of its compute, and says why.
+pub fn command_races(
+    log: &DriveLog,
+    mut probe: impl FnMut(&BTreeSet<usize>) -> anyhow::Result<ClosedLoop>,
+) -> CommandRaces {
+    let racing = racing_commands(log);
+    let mut out = CommandRaces {
+        racing: racing.len(),
+        ..CommandRaces::default()
+    };
+    if racing.is_empty() {
+        return out;
+    }
+    let mut run = |early: &BTreeSet<usize>, out: &mut CommandRaces| {
+        out.runs += 1;
+        probe(early).map(|c| (c.agreed, c.diverged_at))
+    };
+    let mut early = BTreeSet::new();
+    let mut best = match run(&early, &mut out) {
+        Ok(b) => b,
+        Err(e) => {
+            out.not_placed = Some(format!("{e:#}"));
+            return out;
+        }
+    };
+    let mut tried = BTreeSet::new();
+    while let Some(s) = best.1 {
+        let mut better = false;
+        for &(k, _) in racing.iter().filter(|&&(_, q)| q == s) {
+            if !tried.insert(k) {
+                continue;
+            }
+            early.insert(k);
+            match run(&early, &mut out) {
+                Ok(r) if r.0 > best.0 => {
+                    best = r;
+                    better = true;
+                    break;
+                }
+                Ok(_) => {
+                    early.remove(&k);
+                }
+                Err(e) => {
+                    out.not_placed = Some(format!("{e:#}"));
+                    return out;
+                }
+            }
+        }
+        if !better {
+            break;
+        }
+    }
+    out.early = early;
+    out
+}
+
 /// plant-sim's cycles as the log's ground truth shows them.
 struct PlantTimes {
     /// `(seq, stamp, periods skipped before it in all)` of every logged
@@ -356,7 +491,10 @@ struct LoopCycle<'a> {
 /// acoustics stay open loop). Runs until plant-sim ends the scenario, then
 /// the logged cycles left and the shutdown command; at most twice the
 /// logged cycles; with `probe`, only until the first ground-truth sample
-/// that differs from the logged one.
+/// that differs from the logged one. A command counts as sent at the end
+/// of its cycle's compute, except the commands of the loop cycles in
+/// `early` ([`command_races`]): at the cycle's "now" (its TorqueCommand's
+/// stamp), so a plant cycle whose "now" lies between the two receives it.
 pub fn closed_loop(
     lp: &mut TcsLoop,
     plant: &mut PlantSim,
@@ -365,6 +503,7 @@ pub fn closed_loop(
     period_ns: u64,
     start: Option<u64>,
     probe: bool,
+    early: &BTreeSet<usize>,
 ) -> ClosedLoop {
     let can = split_can(log).ok();
     let taken = taken_per_cycle(log);
@@ -404,6 +543,7 @@ pub fn closed_loop(
     // leading plant cycles that gave the logged truth, and whether one did not
     let agreed = std::cell::Cell::new(0u64);
     let diverged = std::cell::Cell::new(false);
+    let diverged_at = std::cell::Cell::new(None);
 
     let pclock = ScriptClock::default();
     let tclock = ScriptClock::default();
@@ -458,6 +598,7 @@ pub fn closed_loop(
                         agreed.set(agreed.get() + 1);
                     } else {
                         diverged.set(true);
+                        diverged_at.set(Some(g.seq));
                     }
                 }
                 _ => {}
@@ -548,8 +689,9 @@ pub fn closed_loop(
         tclock.push(c.done);
         let mut road = Road::of(taken.of(k), roads);
         lp.cycle(&c.tick, &tclock, &mut bus_t, &mut road, &mut outs);
+        let sent = if early.contains(&k) { c.now } else { c.done };
         for f in bus_t.take_sent() {
-            commands.push_back((c.done, f));
+            commands.push_back((sent, f));
         }
         k += 1;
     }
@@ -562,6 +704,7 @@ pub fn closed_loop(
         truth: truths.0,
         outs,
         agreed: agreed.get(),
+        diverged_at: diverged_at.get(),
     }
 }
 

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use grip_drive::DriveLog;
-use grip_drive::plan::VEHICLE_ATTACHMENT;
+use grip_drive::plan::{SCENARIO_ATTACHMENT, VEHICLE_ATTACHMENT};
 use grip_io::service::ServiceConfig;
 
 /// What the caller changes.
@@ -46,6 +46,10 @@ pub struct ReplayConfig {
     pub vehicle: Option<PathBuf>,
     /// arte's model override.
     pub model: Option<PathBuf>,
+    /// The drive's scenario as the log carries it (`drive/scenario.toml`
+    /// in `dir`: a drive given `--scenario PATH`); `None`: the scenario
+    /// `grip.run` names, under `dir/scenarios`.
+    pub scenario_file: Option<PathBuf>,
     /// The changes against the drive, one line each (empty: none).
     pub changes: Vec<String>,
     /// The `--set`s, as applied.
@@ -237,12 +241,34 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
             (None, None) => None,
         },
     };
-    let scenario = log.run.get("scenario").and_then(|s| {
-        let p = grip_config::ConfigDir::new(&dir).scenario_path(s);
-        p.strip_prefix(&dir)
-            .ok()
-            .map(|r| r.to_string_lossy().into_owned())
-    });
+    // a scenario the drive was given by path: the log's copy, whatever the
+    // file at that path holds now or wherever the replay runs
+    let mut scenario_file = None;
+    if let Some(data) = log.attachments.get(SCENARIO_ATTACHMENT) {
+        if let Some(h) = log.run.get(&format!("config.{SCENARIO_ATTACHMENT}"))
+            && *h != grip_digest::sha256_hex(data)
+        {
+            bail!(
+                "{}: attachment {SCENARIO_ATTACHMENT}: its SHA-256 is not the one grip.run records ({h}): the log is damaged",
+                log.path.display()
+            );
+        }
+        let p = dir.join(SCENARIO_ATTACHMENT);
+        if let Some(parent) = p.parent() {
+            std::fs::create_dir_all(parent)?;
+        }
+        std::fs::write(&p, data).with_context(|| format!("writing {}", p.display()))?;
+        scenario_file = Some(p);
+    }
+    let scenario = match &scenario_file {
+        Some(_) => Some(SCENARIO_ATTACHMENT.to_owned()),
+        None => log.run.get("scenario").and_then(|s| {
+            let p = grip_config::ConfigDir::new(&dir).scenario_path(s);
+            p.strip_prefix(&dir)
+                .ok()
+                .map(|r| r.to_string_lossy().into_owned())
+        }),
+    };
     let reads = Reads {
         closed: w.closed_loop,
         vehicle: vehicle_file,
@@ -368,6 +394,7 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
         arte,
         vehicle,
         model: w.model.clone(),
+        scenario_file,
         changes,
         applied,
         shown_paths,
@@ -1628,6 +1655,51 @@ mod tests {
             .to_string();
         assert!(e.contains("the replay's vehicle is mine.toml"), "{e}");
         assert_eq!(std::fs::read_to_string(&mine).unwrap(), text);
+    }
+
+    /// A drive given `--scenario PATH` carries that file as
+    /// `drive/scenario.toml`: the replay's plant runs the log's copy
+    /// (wherever the replay runs, whatever the path holds now), a closed-loop
+    /// `--set` may name it, and a copy whose hash is not `grip.run`'s is
+    /// refused as damage.
+    #[test]
+    fn a_scenario_given_by_path_is_replayed_from_the_log_s_copy() {
+        let mut log = reference();
+        let text = std::fs::read(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenarios/e2e.toml"),
+        )
+        .unwrap();
+        log.run.insert("scenario".into(), "gone/mine.toml".into());
+        log.run.insert(
+            format!("config.{SCENARIO_ATTACHMENT}"),
+            grip_digest::sha256_hex(&text),
+        );
+        log.attachments
+            .insert(SCENARIO_ATTACHMENT.into(), text.clone());
+        let closed = |set: &[&str]| WhatIf {
+            closed_loop: true,
+            set: set.iter().map(|s| (*s).to_owned()).collect(),
+            ..WhatIf::default()
+        };
+        let cfg = prepare(&log, &closed(&[])).unwrap();
+        let f = cfg.scenario_file.clone().unwrap();
+        assert!(f.starts_with(&cfg.dir), "{}", f.display());
+        assert_eq!(std::fs::read(&f).unwrap(), text);
+        let cfg = prepare(&log, &closed(&["drive/scenario.toml:duration=2"])).unwrap();
+        let used = std::fs::read_to_string(cfg.scenario_file.as_ref().unwrap()).unwrap();
+        assert!(used.contains("duration = 2"), "{used}");
+        // without the attachment: the scenario grip.run names, as before
+        assert_eq!(
+            prepare(&reference(), &closed(&[])).unwrap().scenario_file,
+            None
+        );
+        log.attachments
+            .insert(SCENARIO_ATTACHMENT.into(), b"duration = 9".to_vec());
+        let e = prepare(&log, &closed(&[])).unwrap_err().to_string();
+        assert!(
+            e.contains("drive/scenario.toml") && e.contains("damaged"),
+            "{e}"
+        );
     }
 
     /// `--set FILE:...` names a file of the replay's own configuration copy:
