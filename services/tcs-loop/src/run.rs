@@ -127,7 +127,20 @@ pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
     let can = load_can(&dir)?;
     // the wheels' radii convert a wheel speed the DBC gives in km/h or m/s
     let radii = grip_io::can::protocol::WheelRadii::of(&vehicle);
-    grip_io::service::install_protocol_with(&dir, &can, Some(radii))?;
+    let first = grip_io::can::protocol::installed().is_none();
+    let protocol = grip_io::service::install_protocol_with(&dir, &can, Some(radii))?;
+    // the speeds and torques the loop controls with, against this vehicle
+    // (said once per process, as the protocol's own line: a replay loads
+    // the configuration once per candidate start)
+    let dbc = can.dbc.as_deref().map_or_else(
+        || "the built-in protocol".to_owned(),
+        |f| dir.file(f).display().to_string(),
+    );
+    if first {
+        for w in protocol.envelope_warnings(&dbc, &vehicle) {
+            tracing::warn!("{w}");
+        }
+    }
     let roads = dir.roads()?;
     let road_table = dir.road_table(&roads)?;
     Ok(LoadedConfig {

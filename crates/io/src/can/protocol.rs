@@ -853,6 +853,115 @@ impl Protocol {
     }
 }
 
+/// The speed a wheel-speed or vehicle-speed signal must carry forward, m/s
+/// (150 km/h): [`Protocol::envelope_warnings`].
+pub const ENVELOPE_SPEED_MPS: f64 = 150.0 / 3.6;
+/// The speed at which a speed signal's step is judged, m/s (10 km/h, the
+/// launch speed of the shipped scenarios): one step over 1 % of it moves
+/// the measured slip in steps over 0.01.
+pub const ENVELOPE_STEP_AT_MPS: f64 = 10.0 / 3.6;
+
+impl Protocol {
+    /// What the signals grip controls with cannot carry for `vehicle`, one
+    /// warning each, naming the DBC (`dbc`, as `can.toml` gives it), the
+    /// message and signal, what it carries and what grip needs: the wheel
+    /// speeds (`WheelSpeeds.OmegaDriven` at `r`, `OmegaRef` at `r_ref`)
+    /// and `VehicleSpeed.Speed` up to [`ENVELOPE_SPEED_MPS`] and in steps of
+    /// at most 1 % of [`ENVELOPE_STEP_AT_MPS`]; the torques read
+    /// (`MotorStatus.TorqueActual`, `DriverDemand.TorqueDemand`) up to the
+    /// vehicle's `torque_max` and in steps of at most 1 % of it (the
+    /// command, `TorqueCommand.TorqueRequest`, under `torque_max` is refused
+    /// by tcs-loop's start-up). A bus whose signal saturates or is
+    /// coarse is read as it is (a trial's 8-bit OmegaDriven, ±1.27 rad/s,
+    /// gave 10 times the slip with the loop "in control"), so these are
+    /// said at start; none for the built-in protocol and the shipped DBC
+    /// with the shipped vehicles.
+    pub fn envelope_warnings(
+        &self,
+        dbc: &str,
+        vehicle: &grip_physics::VehicleParams,
+    ) -> Vec<String> {
+        let mut w = Vec::new();
+        let speed = |kind: MsgKind, i: usize, r: f64, what: &str, w: &mut Vec<String>| {
+            let m = self.spec(kind);
+            let sg = sig(m, i);
+            let (_, hi) = sg.phys_limits();
+            let step = sg.factor.abs() * r;
+            if hi * r < ENVELOPE_SPEED_MPS * (1.0 - 1e-9) {
+                w.push(format!(
+                    "{dbc}: {}.{} carries at most {} ({:.1} km/h of {what}): a faster one saturates there and grip reads it as that speed; grip needs up to {:.0} km/h",
+                    m.name,
+                    sg.name,
+                    fmt_phys(hi, sg.unit),
+                    hi * r * 3.6,
+                    ENVELOPE_SPEED_MPS * 3.6
+                ));
+            }
+            if step > 0.01 * ENVELOPE_STEP_AT_MPS {
+                w.push(format!(
+                    "{dbc}: {}.{} moves in steps of {} ({:.3} m/s of {what}, {:.1} % of 10 km/h): the slip grip measures from it moves in steps of {:.3} at 10 km/h, over the 0.01 its slip tests and road belief are tuned for",
+                    m.name,
+                    sg.name,
+                    fmt_phys(sg.factor.abs(), sg.unit),
+                    step,
+                    100.0 * step / ENVELOPE_STEP_AT_MPS,
+                    step / ENVELOPE_STEP_AT_MPS
+                ));
+            }
+        };
+        speed(
+            MsgKind::WheelSpeeds,
+            4,
+            vehicle.r,
+            "the driven wheel's rim at r",
+            &mut w,
+        );
+        speed(
+            MsgKind::WheelSpeeds,
+            5,
+            vehicle.ref_radius(),
+            "the reference wheel's rim at r_ref",
+            &mut w,
+        );
+        speed(MsgKind::VehicleSpeed, 3, 1.0, "the car", &mut w);
+        let t_max = vehicle.torque_max;
+        // (TorqueCommand.TorqueRequest under torque_max is refused by
+        // tcs-loop's start-up: it would cut grip's own commands)
+        for (kind, i) in [(MsgKind::MotorStatus, 6), (MsgKind::DriverDemand, 4)] {
+            let m = self.spec(kind);
+            let sg = sig(m, i);
+            let (_, hi) = sg.phys_limits();
+            if hi < t_max * (1.0 - 1e-9) {
+                w.push(format!(
+                    "{dbc}: {}.{} carries at most {}, under the vehicle's torque_max = {t_max} N m: a torque above it saturates there",
+                    m.name,
+                    sg.name,
+                    fmt_phys(hi, sg.unit)
+                ));
+            }
+            if sg.factor.abs() > 0.01 * t_max {
+                w.push(format!(
+                    "{dbc}: {}.{} moves in steps of {}, over 1 % of the vehicle's torque_max = {t_max} N m",
+                    m.name,
+                    sg.name,
+                    fmt_phys(sg.factor.abs(), sg.unit)
+                ));
+            }
+        }
+        w
+    }
+}
+
+/// A physical value with its unit, as a warning gives it.
+fn fmt_phys(x: f64, unit: &str) -> String {
+    let v = format!("{}", (x * 1e6).round() / 1e6);
+    if unit.is_empty() {
+        v
+    } else {
+        format!("{v} {unit}")
+    }
+}
+
 /// The message with this id in the [`active`] protocol, if any.
 pub fn spec_for_id(id: u32) -> Option<&'static MessageSpec> {
     active().spec_for_id(id)
