@@ -474,6 +474,8 @@ fn own_bus_drive(s: &Setup) -> anyhow::Result<Attempt> {
         .arg(&mcap)
         .arg("--candump")
         .arg(&candump)
+        // the test's own output folder: a rerun replaces its file
+        .arg("--force")
         .env("NO_COLOR", "1")
         .output()?;
     let text = String::from_utf8_lossy(&o.stdout);

@@ -92,19 +92,19 @@ pub enum ModelError {
     },
     /// Confidence calibration invalid.
     #[error("model field `calibration`: {0}")]
-    Calib(#[from] CalibError),
+    Calib(CalibError),
     /// Feature config invalid.
     #[error("model field `feature_config`: {0}")]
-    Features(#[from] FeatureError),
+    Features(FeatureError),
     /// MLP problem.
     #[error("MLP: {0}")]
-    Mlp(#[from] MlpError),
+    Mlp(MlpError),
     /// SVM problem.
     #[error("SVM: {0}")]
-    Svm(#[from] SvmError),
+    Svm(SvmError),
     /// Evaluation/split problem.
     #[error("{0}")]
-    Eval(#[from] crate::eval::EvalError),
+    Eval(crate::eval::EvalError),
     /// Feature vector of the wrong length given to a predictor.
     #[error("feature vector has {got} values, the model expects {expected}")]
     FeatureCount {
@@ -128,6 +128,27 @@ pub enum ModelError {
         index: usize,
     },
 }
+
+// The variants that wrap another crate error say its reason in their own
+// text (`MLP: 5 weights given, ...`), so the wrapped error is not also
+// their `source`: `{:#}` (anyhow) and error chains would print the reason
+// twice. Hence `From` by hand, not `#[from]` (which makes it the source).
+macro_rules! model_error_from {
+    ($($variant:ident($ty:ty)),* $(,)?) => {$(
+        impl From<$ty> for ModelError {
+            fn from(e: $ty) -> Self {
+                Self::$variant(e)
+            }
+        }
+    )*};
+}
+model_error_from!(
+    Calib(CalibError),
+    Features(FeatureError),
+    Mlp(MlpError),
+    Svm(SvmError),
+    Eval(crate::eval::EvalError),
+);
 
 /// Per-feature standardisation fitted on the training set.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

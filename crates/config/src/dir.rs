@@ -125,4 +125,17 @@ impl ConfigDir {
     ) -> Result<Scenario, ConfigError> {
         crate::load_scenario(self.scenario_path(name_or_path), roads)
     }
+
+    /// Load scenario `name_or_path` against an already loaded catalogue and
+    /// check it against where it is to run (the vehicle's motor limit, the
+    /// loop's cycle count: [`crate::check_scenario`]); the errors name the
+    /// scenario's file.
+    pub fn scenario_for(
+        &self,
+        name_or_path: &str,
+        roads: &RoadCatalogue,
+        on: crate::RunsOn,
+    ) -> Result<Scenario, ConfigError> {
+        crate::load_scenario_for(self.scenario_path(name_or_path), roads, on)
+    }
 }

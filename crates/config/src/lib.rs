@@ -5,7 +5,9 @@
 //! - [`load_vehicle`]: `config/vehicle.toml` -> ([`VehicleParams`], [`SensorParams`]);
 //!   [`parse_vehicle_file`] also names the `[vehicle]` fields left to their defaults
 //! - [`load_roads`]: `config/roads.toml` (+ CSV tables relative to it) -> [`RoadCatalogue`]
-//! - [`load_scenario`]: `config/scenarios/<name>.toml` -> [`Scenario`]
+//! - [`load_scenario`]: `config/scenarios/<name>.toml` -> [`Scenario`];
+//!   [`load_scenario_for`] also checks it against where it runs ([`RunsOn`]:
+//!   the vehicle's motor limit, the loop's cycle count)
 //! - [`ConfigDir`]: finds the standard files under one directory.
 //! - [`parse_toml`]: the helper every loader uses (also `controllers.rs`).
 //!
@@ -29,6 +31,6 @@ pub use dir::ConfigDir;
 pub use error::{ConfigError, line_of, parse_toml, read_file};
 pub use knowledge::{load_knowledge, load_road_table, parse_knowledge};
 pub use roads::{load_roads, parse_roads};
-pub use scenario::{load_scenario, parse_scenario};
+pub use scenario::{RunsOn, check_scenario, load_scenario, load_scenario_for, parse_scenario};
 pub use vehicle::{VehicleLoad, load_vehicle, parse_vehicle, parse_vehicle_file};
 pub use warn::{first_time, warn_once};

@@ -21,7 +21,7 @@
 
 use std::path::Path;
 
-use grip_physics::{Demand, RoadCatalogue, Scenario, Segment, SegmentMode};
+use grip_physics::{Demand, RoadCatalogue, Scenario, Segment, SegmentMode, VehicleParams};
 
 use crate::error::{ConfigError, parse_toml, read_file};
 
@@ -146,6 +146,49 @@ pub fn load_scenario(
     parse_scenario(path, &read_file(path)?, roads)
 }
 
+/// Where a scenario is to run: the vehicle that drives it (and its file,
+/// named in the reason of a demand above its motor limit) and the period of
+/// the loop that runs it (plant-sim's `rate_hz`, `grip sim`'s controller
+/// loop).
+#[derive(Debug, Clone, Copy)]
+pub struct RunsOn<'a> {
+    /// The vehicle.
+    pub vehicle: &'a VehicleParams,
+    /// The file it was read from.
+    pub vehicle_file: &'a Path,
+    /// The loop's period, s.
+    pub dt: f64,
+}
+
+/// Check `scenario` (read from `file`) against where it is to run
+/// ([`Scenario::check_for`]: every demand within the vehicle's
+/// `torque_max`, 1 ..= 1e9 loop cycles); gives the cycle count. The error
+/// names `file`, the field as written there (`demand.torque`, `duration`)
+/// and, for a demand, the vehicle file.
+pub fn check_scenario(file: &Path, scenario: &Scenario, on: RunsOn) -> Result<usize, ConfigError> {
+    scenario.check_for(on.vehicle, on.dt).map_err(|e| {
+        let mut e = ConfigError::invalid(file, "", e);
+        if e.field.starts_with("demand") {
+            e.reason
+                .push_str(&format!(" (vehicle file {})", on.vehicle_file.display()));
+        }
+        e
+    })
+}
+
+/// [`load_scenario`], then [`check_scenario`] against where it is to run:
+/// what every reader that runs a scenario loads it with.
+pub fn load_scenario_for(
+    path: impl AsRef<Path>,
+    roads: &RoadCatalogue,
+    on: RunsOn,
+) -> Result<Scenario, ConfigError> {
+    let path = path.as_ref();
+    let scenario = load_scenario(path, roads)?;
+    check_scenario(path, &scenario, on)?;
+    Ok(scenario)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -219,5 +262,38 @@ mod tests {
             .replace("torque = -300.0", "torque = 300.0")
             .replace("v0_kmh = 10.0", "v0_kmh = -1.0");
         assert_eq!(parse(&bad_v0).unwrap_err().field, "v0_kmh");
+    }
+
+    #[test]
+    fn checked_against_the_vehicle_and_the_loop() {
+        let vehicle = VehicleParams::default();
+        let on = RunsOn {
+            vehicle: &vehicle,
+            vehicle_file: Path::new("config/vehicle.toml"),
+            dt: 1e-3,
+        };
+        let file = Path::new("config/scenarios/t.toml");
+        let s = parse(&format!(
+            "{HEAD}[[segment]]\nroad = \"snow\"\nduration = 1.5\n"
+        ))
+        .unwrap();
+        assert_eq!(check_scenario(file, &s, on), Ok(1500));
+        let big = parse(&format!(
+            "{}[[segment]]\nroad = \"snow\"\nduration = 1.5\n",
+            HEAD.replace("torque = 300.0", "torque = 1e300")
+        ))
+        .unwrap();
+        assert_eq!(
+            check_scenario(file, &big, on).unwrap_err().to_string(),
+            "config/scenarios/t.toml: field `demand.torque`: 1e300 N m is above the motor limit, the vehicle's torque_max = 1000 N m (the plant would clamp the command there while the controllers and the command's metrics see the demand) (vehicle file config/vehicle.toml)"
+        );
+        let long = parse(&format!(
+            "duration = 1e300\n{HEAD}[[segment]]\nroad = \"snow\"\nduration = 1.5\n"
+        ))
+        .unwrap();
+        assert_eq!(
+            check_scenario(file, &long, on).unwrap_err().to_string(),
+            "config/scenarios/t.toml: field `duration`: 1e300 s gives 1e303 loop cycles at dt = 0.001 s (need 1 ..= 1e9)"
+        );
     }
 }

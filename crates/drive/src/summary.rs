@@ -917,14 +917,21 @@ pub fn frame_mid_ns(e: &RoadEstimate) -> u64 {
     e.frame_t0_ns / 2 + e.frame_t1_ns / 2
 }
 
-/// Sequence gaps and resets of a sequence.
+/// The largest jump forward of a sequence number counted as lost
+/// messages: 2^32 (seven weeks of 1 kHz cycles). A larger one is no
+/// plausible loss but a damaged or foreign number (a cycle `seq` of
+/// u64::MAX), counted as a restart.
+pub const SEQ_GAP_MAX: u64 = 1 << 32;
+
+/// Sequence gaps and resets of a sequence: a jump back, or forward by
+/// more than [`SEQ_GAP_MAX`], is a reset (restart).
 pub fn seq_gaps(seqs: impl IntoIterator<Item = u64>) -> (u64, u64) {
     let mut last: Option<u64> = None;
-    let (mut gaps, mut resets) = (0, 0);
+    let (mut gaps, mut resets) = (0u64, 0);
     for s in seqs {
         if let Some(l) = last {
-            if s > l {
-                gaps += s - l - 1;
+            if s > l && s - l - 1 <= SEQ_GAP_MAX {
+                gaps = gaps.saturating_add(s - l - 1);
             } else {
                 resets += 1;
             }
@@ -932,6 +939,29 @@ pub fn seq_gaps(seqs: impl IntoIterator<Item = u64>) -> (u64, u64) {
         last = Some(s);
     }
     (gaps, resets)
+}
+
+/// Bounds of a plausible ground-truth sample: |V| in m/s, |ω| in rad/s,
+/// |T| in N m, |x| in m (no road car goes 1000 m/s; a wheel at 10^4
+/// rad/s is far beyond any tyre), and |λ| ≤ 2, which the plant's slip
+/// (ωr − V) / max(|ωr|, |V|, v_eps) cannot exceed.
+const TRUTH_PLAUSIBLE: [(&str, &str, f64); 5] = [
+    ("v", "m/s", 1000.0),
+    ("omega", "rad/s", 1e4),
+    ("lambda", "", 2.0),
+    ("torque", "N m", 1e5),
+    ("x", "m", 1e8),
+];
+
+/// The first value of `g` that no plant makes: not finite, or beyond
+/// [`TRUTH_PLAUSIBLE`]; (field, value, unit, bound).
+fn implausible_truth(g: &GroundTruth) -> Option<(&'static str, f64, &'static str, f64)> {
+    let values = [g.v, g.omega, g.lambda, g.torque, g.x];
+    TRUTH_PLAUSIBLE
+        .iter()
+        .zip(values)
+        .find(|((_, _, max), v)| !v.is_finite() || v.abs() > *max)
+        .map(|(&(name, unit, max), v)| (name, v, unit, max))
 }
 
 /// The scenario's duration, s: `grip.run` `scenario_duration_s`, else the
@@ -957,23 +987,18 @@ pub fn scenario_duration(log: &DriveLog) -> Option<f64> {
 /// own [`crate::plan::SCENARIO_ATTACHMENT`] (`grip drive --scenario PATH`)
 /// when the log carries it or `grip.run` records its hash; else for a
 /// scenario named under the configuration directory
-/// `scenarios/<grip.run scenario>.toml`; else (a path, from a drive before
-/// the file was attached) the attached `scenarios/*.toml` the path ends
-/// with. `None`: the log does not say.
+/// `scenarios/<grip.run scenario>.toml`. `None`: the log does not say (a
+/// path, from a drive before the file was attached: an attached
+/// `scenarios/*.toml` with the same tail may be another file, so none is
+/// taken for it).
 pub fn scenario_attachment(log: &DriveLog) -> Option<String> {
     let own = crate::plan::SCENARIO_ATTACHMENT;
     if log.attachments.contains_key(own) || log.run.contains_key(&format!("config.{own}")) {
         return Some(own.to_owned());
     }
     let name = log.run.get("scenario")?;
-    if !name.contains(['/', '\\']) && !name.ends_with(".toml") {
-        return Some(format!("scenarios/{name}.toml"));
-    }
-    log.attachments
-        .keys()
-        .filter(|a| a.starts_with("scenarios/") && (name.ends_with(&format!("/{a}")) || name == *a))
-        .max_by_key(|a| a.len())
-        .cloned()
+    (!name.contains(['/', '\\']) && !name.ends_with(".toml"))
+        .then(|| format!("scenarios/{name}.toml"))
 }
 
 /// The attached scenario file ([`scenario_attachment`]), parsed (`None`
@@ -1315,6 +1340,27 @@ pub fn summarize(
     }
 
     s.timing = timing(&log.cycles);
+
+    // ground truth no plant makes (a damaged file): said, as other damage
+    let bad: Vec<(&GroundTruth, _)> = log
+        .truth
+        .iter()
+        .filter_map(|g| implausible_truth(g).map(|b| (g, b)))
+        .collect();
+    if let Some((g, (name, v, unit, max))) = bad.first() {
+        let t = log
+            .truth
+            .first()
+            .map_or(0.0, |f| secs_between(f.stamp_ns, g.stamp_ns));
+        let w = format!(
+            "{} ground-truth sample(s) hold values no plant makes (the first, seq {} at {t:.3} s from the first sample: {name} = {v:e}{}{unit}, beyond ±{max:e}): the log is damaged; the metrics and the ARTE figures judged against the ground truth are not to be trusted",
+            bad.len(),
+            g.seq,
+            if unit.is_empty() { "" } else { " " },
+        );
+        s.incomplete.push(w.clone());
+        s.warnings.push(w);
+    }
 
     // the scenario window and its metrics
     let window = scenario_window(log, vehicle, &mut s);
@@ -2543,6 +2589,28 @@ mod tests {
     fn gaps_and_restarts() {
         assert_eq!(seq_gaps([0, 1, 2, 3]), (0, 0));
         assert_eq!(seq_gaps([0, 2, 5, 0, 1]), (1 + 2, 1));
+        // a damaged number: no 2^64 lost messages, a restart there and
+        // one back (before: a gap of u64::MAX - 3, and an overflow panic
+        // in a debug build at two of them)
+        assert_eq!(seq_gaps([0, 1, 2, u64::MAX, 4, 5]), (0, 2));
+        assert_eq!(seq_gaps([0, u64::MAX, 0, u64::MAX]), (0, 3));
+        assert_eq!(seq_gaps([0, SEQ_GAP_MAX + 1]), (SEQ_GAP_MAX, 0));
+        assert_eq!(seq_gaps([0, SEQ_GAP_MAX + 2]), (0, 1));
+    }
+
+    /// A ground-truth sample no plant makes is said as damage, naming it;
+    /// a normal one is not.
+    #[test]
+    fn implausible_ground_truth_is_flagged() {
+        let mut g = GroundTruth::zeroed();
+        g.v = 10.0;
+        g.lambda = -1.0;
+        assert_eq!(implausible_truth(&g), None);
+        g.v = -1e308;
+        assert_eq!(implausible_truth(&g), Some(("v", -1e308, "m/s", 1000.0)));
+        g.v = 1.0;
+        g.x = f64::NAN;
+        assert!(matches!(implausible_truth(&g), Some(("x", v, "m", _)) if v.is_nan()));
     }
 
     fn truth(seq: u64, t_ms: u64, x: f64, road: u32, name: &str) -> GroundTruth {
@@ -2901,13 +2969,14 @@ mod tests {
             Some("scenarios/paper.toml")
         );
         assert_eq!(scenario_duration(&log), Some(2.4));
-        // a path into the configuration directory, from an older drive
+        // a path, from an older drive that did not attach it: the attached
+        // scenarios/paper.toml may be another file with the same tail (a
+        // review's `--scenario trials/scenarios/paper.toml` elsewhere), so
+        // none is taken
         log.run
-            .insert("scenario".into(), "config/scenarios/paper.toml".into());
-        assert_eq!(
-            scenario_attachment(&log).as_deref(),
-            Some("scenarios/paper.toml")
-        );
+            .insert("scenario".into(), "trials/scenarios/paper.toml".into());
+        assert_eq!(scenario_attachment(&log), None);
+        assert_eq!(scenario_duration(&log), None);
     }
 
     /// ARTE's accuracy says where the audio came from: a road without a

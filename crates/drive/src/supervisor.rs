@@ -333,12 +333,12 @@ impl Proc {
                         // a configuration file's `warning: FILE: ...` (the
                         // loaders print it raw) is said once: the same file
                         // read by grip itself or by another service already
-                        // said it
+                        // said it (with `echo_all`, every line as it comes)
                         let warning = line.starts_with("warning:");
                         let loud = line.contains(" WARN ")
                             || line.contains(" ERROR ")
                             || line.starts_with("error");
-                        if warning {
+                        if warning && !all {
                             if grip_config::first_time(&line) {
                                 eprintln!("  [{name}] {line}");
                             }

@@ -12,6 +12,21 @@
 //! demand are out of scope for a traction controller and are rejected.
 
 use crate::validate::{self, InvalidField};
+use crate::vehicle::VehicleParams;
+
+/// The most loop cycles one run of a scenario may take (and the fewest: 1),
+/// at the period of the loop that runs it ([`Scenario::check_for`]).
+pub const MAX_CYCLES: f64 = 1e9;
+
+/// `x` as a reason shows it: plainly, or in exponent form when plain would
+/// be long (`1e300`, not three hundred digits).
+fn shown(x: f64) -> String {
+    if x.is_finite() && x.abs() >= 1e15 {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
 
 /// How segment spans are measured (one mode per scenario).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize)]
@@ -214,6 +229,39 @@ impl Demand {
         }
     }
 
+    /// Every torque of the profile within the motor's limit `torque_max`
+    /// (N m): the plant clamps the command there, so a larger demand would
+    /// drive the motor at its limit while the controllers and the
+    /// command's metrics see the demand. The field is named as in the
+    /// scenario file's `[demand]` (`torque`, `from`, `to`, `torques[i]`).
+    pub fn check_limit(&self, torque_max: f64) -> Result<(), InvalidField> {
+        let named = |field: &str, value: f64| {
+            if value.is_nan() || value.abs() > torque_max {
+                Err(InvalidField::new(
+                    field,
+                    format!(
+                        "{} N m is above the motor limit, the vehicle's torque_max = {} N m (the plant would clamp the command there while the controllers and the command's metrics see the demand)",
+                        shown(value),
+                        shown(torque_max)
+                    ),
+                ))
+            } else {
+                Ok(())
+            }
+        };
+        match self {
+            Self::Constant { torque } | Self::StopAndGo { torque, .. } => named("torque", *torque),
+            Self::Ramp { from, to, .. } => {
+                named("from", *from)?;
+                named("to", *to)
+            }
+            Self::Steps { torques, .. } => torques
+                .iter()
+                .enumerate()
+                .try_for_each(|(i, &q)| named(&format!("torques[{i}]"), q)),
+        }
+    }
+
     /// Largest demand the profile ever asks, N m.
     pub fn max(&self) -> f64 {
         match self {
@@ -308,6 +356,32 @@ impl Scenario {
             demand,
             ends,
         })
+    }
+
+    /// The scenario against the vehicle that drives it and the loop that
+    /// runs it at period `dt` (s): every demand within the vehicle's
+    /// `torque_max` ([`Demand::check_limit`], fields `demand.*`), and a run
+    /// of `round(duration / dt)` cycles within 1 ..= [`MAX_CYCLES`] (field
+    /// `duration`). Gives that cycle count. Every reader of a scenario
+    /// checks it here: `grip sim`'s setup, plant-sim's start-up (and so
+    /// `grip drive` and `grip generate`), through `grip_config`'s
+    /// `ConfigDir::scenario_for`.
+    pub fn check_for(&self, vehicle: &VehicleParams, dt: f64) -> Result<usize, InvalidField> {
+        self.demand
+            .check_limit(vehicle.torque_max)
+            .map_err(|e| e.prefixed("demand"))?;
+        let cycles = (self.duration / dt).round();
+        if !(1.0..=MAX_CYCLES).contains(&cycles) {
+            return Err(InvalidField::new(
+                "duration",
+                format!(
+                    "{} s gives {} loop cycles at dt = {dt} s (need 1 ..= {MAX_CYCLES:e})",
+                    shown(self.duration),
+                    shown(cycles)
+                ),
+            ));
+        }
+        Ok(cycles as usize)
     }
 
     /// Index (into `segments`) of the segment at time `t` (s) and travelled
@@ -508,5 +582,65 @@ mod tests {
             grade_pct: 10.0,
         };
         assert!((s.grade_rad() - 0.0996687).abs() < 1e-6);
+    }
+
+    #[test]
+    fn checked_against_the_vehicle_and_the_loop() {
+        let vehicle = VehicleParams::default();
+        let limit = vehicle.torque_max;
+        let s = scenario(SegmentMode::Time);
+        assert_eq!(s.check_for(&vehicle, 1e-3), Ok(3000));
+        let with = |demand, duration| Scenario {
+            demand,
+            duration,
+            ..s.clone()
+        };
+        let e = with(Demand::Constant { torque: 1e300 }, 3.0)
+            .check_for(&vehicle, 1e-3)
+            .unwrap_err();
+        assert_eq!(e.field, "demand.torque");
+        assert!(
+            e.reason.starts_with("1e300 N m is above the motor limit")
+                && e.reason.contains(&format!("torque_max = {limit} N m")),
+            "{e}"
+        );
+        let ramp = Demand::Ramp {
+            from: 0.0,
+            to: limit + 1.0,
+            start: 0.0,
+            duration: 1.0,
+        };
+        assert_eq!(
+            with(ramp, 3.0).check_for(&vehicle, 1e-3).unwrap_err().field,
+            "demand.to"
+        );
+        let steps = Demand::Steps {
+            times: vec![0.0, 1.0],
+            torques: vec![10.0, 2.0 * limit],
+        };
+        let e = with(steps, 3.0).check_for(&vehicle, 1e-3).unwrap_err();
+        assert_eq!(e.field, "demand.torques[1]");
+        assert_eq!(
+            with(Demand::Constant { torque: limit }, 3.0).check_for(&vehicle, 1e-3),
+            Ok(3000),
+            "at the limit"
+        );
+        let e = with(Demand::Constant { torque: 1.0 }, 1e300)
+            .check_for(&vehicle, 1e-3)
+            .unwrap_err();
+        assert_eq!(e.field, "duration");
+        assert_eq!(
+            e.reason,
+            "1e300 s gives 1e303 loop cycles at dt = 0.001 s (need 1 ..= 1e9)"
+        );
+        let e = with(Demand::Constant { torque: 1.0 }, 1e-4)
+            .check_for(&vehicle, 1e-3)
+            .unwrap_err();
+        assert!(e.reason.contains("gives 0 loop cycles"), "{e}");
+        assert_eq!(
+            with(Demand::Constant { torque: 1.0 }, 1e6).check_for(&vehicle, 1e-3),
+            Ok(1_000_000_000),
+            "the bound itself"
+        );
     }
 }

@@ -107,7 +107,8 @@ impl Default for AcousticConfig {
 /// The sound map of an `audio-acq.toml` (its text): `[synth.aliases]`,
 /// ROAD = SOUND, each a [`SoundAs::Road`] (audio-acq plays ROAD with the
 /// synthesiser road SOUND; a road neither synthesisable nor listed is
-/// silent, as here). No `[synth.aliases]`: an empty map. Fails when the
+/// silent, as here); an alias of a road the synthesiser has is left out,
+/// as audio-acq ignores it. No `[synth.aliases]`: an empty map. Fails when the
 /// text is not TOML or an alias is not a string; an unknown SOUND is
 /// refused by [`AcousticArte::new`] (and by audio-acq's start-up).
 pub fn sound_as_of_audio_acq(text: &str) -> Result<BTreeMap<String, SoundAs>, SimError> {
@@ -124,6 +125,10 @@ pub fn sound_as_of_audio_acq(text: &str) -> Result<BTreeMap<String, SoundAs>, Si
     };
     aliases
         .iter()
+        // audio-acq plays a road the synthesiser has by its own sound,
+        // whatever an alias says (its name table looks the synthesiser's
+        // names up first): so does the simulator
+        .filter(|(road, _)| grip_arte::synth::road_index(road).is_none())
         .map(|(road, sound)| match sound.as_str() {
             Some(s) => Ok((road.clone(), SoundAs::Road(s.to_owned()))),
             None => Err(SimError::invalid(
@@ -641,6 +646,14 @@ pub(crate) mod tests {
             Some(&SoundAs::Road("gravel".to_owned()))
         );
         assert_eq!(cfg.sound_as.len(), 3);
+        // an alias of a road the synthesiser has is ignored, as audio-acq
+        // ignores it (it plays snow as snow)
+        let with_snow = text.replace("wet_gravel = \"gravel\"\n", "snow = \"gravel\"\n");
+        assert_eq!(
+            sound_as_of_audio_acq(&with_snow).unwrap(),
+            before,
+            "{with_snow}"
+        );
         let wet_gravel = RoadCatalogue::new(vec![
             Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap(),
             Road::burckhardt("snow", 0.1946, 94.129, 0.0646).unwrap(),

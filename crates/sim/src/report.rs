@@ -206,6 +206,34 @@ pub fn summarize(results: &[RunResult]) -> Vec<VariantSummary> {
         .collect()
 }
 
+/// The runs whose plant state went non-finite (a `non_finite_cycles` of
+/// [`RunResult`] above 0: their figures are no figures), as the one line
+/// `grip sim` fails with (exit 1, after its report and files are written):
+/// how many, and each by variant and seed; `None` when every run stayed
+/// finite.
+pub fn non_finite_runs(results: &[RunResult]) -> Option<String> {
+    non_finite_line(
+        results.len(),
+        results
+            .iter()
+            .filter(|r| r.non_finite_cycles > 0)
+            .map(|r| (r.variant, r.seed, r.non_finite_cycles)),
+    )
+}
+
+fn non_finite_line(runs: usize, bad: impl Iterator<Item = (Variant, u64, u64)>) -> Option<String> {
+    let bad: Vec<String> = bad
+        .map(|(v, seed, n)| format!("{v} seed {seed} ({n} cycles)"))
+        .collect();
+    (!bad.is_empty()).then(|| {
+        format!(
+            "{} of {runs} runs had a non-finite plant state (their figures are not numbers; non_finite_cycles in summary.csv): {}",
+            bad.len(),
+            bad.join(", ")
+        )
+    })
+}
+
 /// Relative change of the mean, (with − without) / |without|, in percent
 /// (NaN when the baseline mean is 0 or missing).
 pub fn relative_change(with: Stat, without: Stat) -> f64 {
@@ -480,5 +508,18 @@ mod tests {
         let mtte = 100.0 * (PAPER_TABLE_V[5].1 - PAPER_TABLE_V[2].1) / PAPER_TABLE_V[2].1;
         assert!((src + 63.76).abs() < 0.01, "{src}");
         assert!((mtte + 59.15).abs() < 0.01, "{mtte}");
+    }
+
+    #[test]
+    fn non_finite_runs_are_named() {
+        assert_eq!(non_finite_line(6, std::iter::empty()), None);
+        let mfc: Variant = "mfc".parse().unwrap();
+        let mtte_arte: Variant = "mtte-arte".parse().unwrap();
+        assert_eq!(
+            non_finite_line(6, [(mfc, 1, 2399), (mtte_arte, 3, 12)].into_iter()).as_deref(),
+            Some(
+                "2 of 6 runs had a non-finite plant state (their figures are not numbers; non_finite_cycles in summary.csv): mfc seed 1 (2399 cycles), mtte-arte seed 3 (12 cycles)"
+            )
+        );
     }
 }

@@ -1,8 +1,6 @@
 //! [`SimSetup`]: everything a run needs, validated once.
 
-use grip_physics::{
-    Demand, RoadCatalogue, Scenario, SegmentMode, SensorParams, VehicleParams, plant,
-};
+use grip_physics::{RoadCatalogue, Scenario, SegmentMode, SensorParams, VehicleParams, plant};
 use grip_tcs::{ControllersConfig, KnowledgeConfig, RoadTable};
 
 use crate::SimError;
@@ -255,15 +253,11 @@ fn check_scenario(
             ),
         ));
     }
-    check_demand(vehicle, &scenario.demand)?;
-    let cycles_f = (scenario.duration / dt).round();
-    if !(1.0..=1e9).contains(&cycles_f) {
-        return Err(SimError::invalid(
-            "scenario.duration",
-            format!("gives {cycles_f} controller cycles at dt = {dt} s (need 1 ..= 1e9)"),
-        ));
-    }
-    Ok(cycles_f as usize)
+    // the demand within the motor's limit and the run's cycle count: the
+    // one check every reader of a scenario makes (plant-sim's start-up too)
+    scenario
+        .check_for(vehicle, dt)
+        .map_err(|e| SimError::from_field("scenario", e))
 }
 
 /// A plant sub-step bound `h` the plant honours at controller period `dt`:
@@ -285,36 +279,6 @@ fn check_substep(h: f64, dt: f64) -> Result<(), SimError> {
                 dt / cap as f64
             ),
         ));
-    }
-    Ok(())
-}
-
-/// The scenario's demand within the motor's limit: the plant clamps the
-/// command to `torque_max`, so a larger demand would drive the motor at
-/// its limit while the controllers and the command's metrics see the
-/// demand. The field is named as in the scenario file's `[demand]`.
-fn check_demand(vehicle: &VehicleParams, demand: &Demand) -> Result<(), SimError> {
-    let limit = vehicle.torque_max;
-    let fields: Vec<(String, f64)> = match demand {
-        Demand::Constant { torque } | Demand::StopAndGo { torque, .. } => {
-            vec![("torque".into(), *torque)]
-        }
-        Demand::Ramp { from, to, .. } => vec![("from".into(), *from), ("to".into(), *to)],
-        Demand::Steps { torques, .. } => torques
-            .iter()
-            .enumerate()
-            .map(|(i, &q)| (format!("torques[{i}]"), q))
-            .collect(),
-    };
-    for (field, value) in fields {
-        if value.is_nan() || value.abs() > limit {
-            return Err(SimError::invalid(
-                format!("scenario.demand.{field}"),
-                format!(
-                    "{value} N m is above the motor limit, the vehicle's torque_max = {limit} N m (the plant would clamp the command there while the controllers and the command's metrics see the demand)"
-                ),
-            ));
-        }
     }
     Ok(())
 }

@@ -112,9 +112,19 @@ pub fn load(opts: &Options) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), 
     }
     cfg.exit_at_end |= opts.exit_at_end;
     let roads = dir.roads()?;
-    let scenario = dir.scenario_with(&cfg.scenario, &roads)?;
     let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
     let (vehicle, sensors) = grip_config::load_vehicle(&vehicle_path)?;
+    // the scenario against this vehicle's motor limit and this loop's
+    // cycle count, as `grip sim` checks it (`Scenario::check_for`)
+    let scenario = dir.scenario_for(
+        &cfg.scenario,
+        &roads,
+        grip_config::RunsOn {
+            vehicle: &vehicle,
+            vehicle_file: &vehicle_path,
+            dt: 1.0 / cfg.rate_hz,
+        },
+    )?;
     let can = load_can(&dir)?;
     // the wheels' radii convert the wheel speeds it sends where the DBC
     // gives them in km/h or m/s (v = ω · r), as tcs-loop reads them

@@ -90,8 +90,9 @@ pub struct Line<'a> {
     pub label: &'a str,
     /// Colour.
     pub colour: plotters::style::RGBColor,
-    /// The samples; non-finite values are left out, the rest clamped to
-    /// the panel's y range; at most about 3000 are drawn.
+    /// The samples; a non-finite value breaks the line, the rest are
+    /// clamped to the panel's y range (the legend then says so); at most
+    /// about 3000 are drawn ([`clip_trace`], [`draw_trace`]).
     pub points: Vec<(f64, f64)>,
 }
 
@@ -193,17 +194,14 @@ pub fn road_panel_in(
         .draw()?;
     for line in lines {
         let c = line.colour;
-        let step = (line.points.len() / 3000).max(1);
-        chart
-            .draw_series(LineSeries::new(
-                line.points
-                    .iter()
-                    .step_by(step)
-                    .filter(|(t, y)| y.is_finite() && (t_lo..=t_hi).contains(t))
-                    .map(|&(t, y)| (t, y.clamp(y_lo, y_hi))),
-                c.stroke_width(2),
-            ))?
-            .label(line.label)
+        let trace = clip_trace(line.points.iter().copied(), (t_lo, t_hi), (y_lo, y_hi));
+        let label = if trace.clamped {
+            format!("{} {CLAMPED}", line.label)
+        } else {
+            line.label.to_owned()
+        };
+        draw_trace(&mut chart, &trace, c)?
+            .label(label)
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
     }
     chart
@@ -215,6 +213,89 @@ pub fn road_panel_in(
         .border_style(BLACK)
         .draw()?;
     Ok(())
+}
+
+/// What a legend adds to a trace that [`clip_trace`] clamped.
+pub const CLAMPED: &str = "(clamped to the axis)";
+
+/// At most about this many samples of a trace are drawn.
+const MAX_SAMPLES: usize = 3000;
+
+/// A time series fitted into a panel over `[t_lo, t_hi]` × `[y_lo, y_hi]`
+/// ([`clip_trace`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trace {
+    /// Pieces of the line: runs of consecutive finite samples inside the
+    /// time range (a non-finite value, e.g. no torque cap, breaks the
+    /// line), every value within the y range.
+    pub runs: Vec<Vec<(f64, f64)>>,
+    /// A finite value inside the time range lay outside the y range and
+    /// was clamped to it (the legend says so: [`CLAMPED`]).
+    pub clamped: bool,
+}
+
+/// `points` (t, y) fitted into `[t_lo, t_hi]` × `[y_lo, y_hi]`: every
+/// k-th sample (at most about 3000 drawn), samples outside the time range
+/// left out, non-finite values breaking the line, the rest clamped to the
+/// y range.
+pub fn clip_trace(
+    points: impl ExactSizeIterator<Item = (f64, f64)>,
+    (t_lo, t_hi): (f64, f64),
+    (y_lo, y_hi): (f64, f64),
+) -> Trace {
+    let step = (points.len() / MAX_SAMPLES).max(1);
+    let mut runs: Vec<Vec<(f64, f64)>> = Vec::new();
+    let mut run = Vec::new();
+    let mut clamped = false;
+    for (t, y) in points.step_by(step) {
+        if !(t.is_finite() && y.is_finite() && (t_lo..=t_hi).contains(&t)) {
+            if !run.is_empty() {
+                runs.push(std::mem::take(&mut run));
+            }
+            continue;
+        }
+        let yc = y.clamp(y_lo, y_hi);
+        clamped |= yc != y;
+        run.push((t, yc));
+    }
+    if !run.is_empty() {
+        runs.push(run);
+    }
+    Trace { runs, clamped }
+}
+
+/// Draws `trace` on `chart`, 2 px wide, as separate segments (a lone
+/// sample as a dot). One polyline would not stay in the panel: plotters
+/// turns a path wider than 1 px into a polygon whose inner corner at a
+/// sharp turn is not capped, so a command chattering between 0 and 300
+/// N m from one cycle to the next (a near reversal 1 px apart) drew
+/// spikes hundreds of pixels long, out of its panel into the ones above
+/// and below. A segment's polygon lies within 1 px of the segment, which
+/// lies in the y range. Returns the segments' series (for a legend).
+pub fn draw_trace<'c, 'a, 'b>(
+    chart: &'c mut TimeChart<'a, 'b>,
+    trace: &Trace,
+    colour: plotters::style::RGBColor,
+) -> Result<
+    &'c mut plotters::chart::SeriesAnno<'a, plotters::backend::BitMapBackend<'b>>,
+    Box<dyn std::error::Error>,
+> {
+    use plotters::prelude::*;
+    let style = colour.stroke_width(2);
+    chart.draw_series(
+        trace
+            .runs
+            .iter()
+            .filter(|r| r.len() == 1)
+            .map(|r| Circle::new(r[0], 1, colour.filled())),
+    )?;
+    Ok(chart.draw_series(
+        trace
+            .runs
+            .iter()
+            .flat_map(|r| r.windows(2))
+            .map(|w| PathElement::new(vec![w[0], w[1]], style)),
+    )?)
 }
 
 /// A strip over `[0, t_end]` s of the estimated road: `spans` filled with
@@ -259,6 +340,40 @@ pub fn estimate_strip(
 #[cfg(test)]
 mod tests {
     use plotters::prelude::*;
+
+    /// A trace is fitted into its panel: values beyond the y range clamped
+    /// (and flagged, for the key), samples outside the time range left out,
+    /// a non-finite value (no torque cap) breaking the line instead of
+    /// being bridged.
+    #[test]
+    fn a_trace_is_clamped_to_its_panel_and_broken_at_gaps() {
+        let pts = [
+            (-1.0, 5.0),
+            (0.0, 50.0),
+            (1.0, 400.0),
+            (2.0, f64::NAN),
+            (3.0, -20.0),
+            (4.0, 100.0),
+            (5.0, 7.0),
+        ];
+        let t = super::clip_trace(pts.into_iter(), (0.0, 4.0), (0.0, 300.0));
+        assert_eq!(
+            t.runs,
+            vec![
+                vec![(0.0, 50.0), (1.0, 300.0)],
+                vec![(3.0, 0.0), (4.0, 100.0)]
+            ]
+        );
+        assert!(t.clamped);
+        let t = super::clip_trace(pts.into_iter(), (3.5, 4.5), (0.0, 300.0));
+        assert_eq!(t.runs, vec![vec![(4.0, 100.0)]]);
+        assert!(!t.clamped, "values outside the time range do not count");
+        // at most about 3000 samples of a long trace
+        let long = (0..9000).map(|k| (f64::from(k), 1.0));
+        let t = super::clip_trace(long, (0.0, 9000.0), (0.0, 2.0));
+        assert_eq!(t.runs.len(), 1);
+        assert_eq!(t.runs[0].len(), 3000);
+    }
 
     #[test]
     fn embedded_font_renders_text() {

@@ -128,31 +128,102 @@ fn drive_help_gives_model() {
     assert!(line.contains("arte-svc.toml"), "{line}");
 }
 
-/// A drive whose services fail to start leaves the log that was at `--out`
-/// as it was (found in a trial: a bad controllers.toml replaced a 2.9 MB
-/// log with a 0.2 s one): the recorder writes to `--out` + `.partial`,
-/// which takes `--out`'s name only when the drive ran or nothing was there.
+/// A drive whose services fail leaves the log that was at `--out` as it
+/// was (found in a trial: a bad controllers.toml replaced a 2.9 MB log
+/// with a 0.2 s one): the recorder writes to `--out` + `.partial`, which
+/// takes `--out`'s name only when the drive ran or nothing was there; a
+/// `.partial` an earlier failure left is removed before the recorder
+/// starts (never taken for this drive's log); `--out` naming a directory
+/// is refused before any service starts. The stand-in recorder writes a
+/// copy of the reference drive to its `--out` and fails.
 #[test]
 fn a_failed_drive_leaves_the_log_that_was_at_out() {
+    let reference = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../tests/data/reference-drive.mcap");
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("drive.mcap");
+    let partial = d.path().join("drive.mcap.partial");
     std::fs::write(&out, b"the log of yesterday's drive").unwrap();
+    std::fs::write(&partial, b"a log an earlier failure left").unwrap();
     let f = Fakes::new();
-    let (ok, so, err) = f.drive(&common::config_dir(), &[os("--out"), out.as_os_str()]);
-    // the stand-in recorder exits 3: the drive fails at it
+    let (ok, so, err) = f.drive_recording(
+        &common::config_dir(),
+        &reference,
+        &[os("--out"), out.as_os_str()],
+    );
     assert!(!ok, "{so}{err}");
     assert_eq!(
         std::fs::read(&out).unwrap(),
         b"the log of yesterday's drive",
         "{err}"
     );
-    let recorder = f
-        .started()
-        .into_iter()
-        .find(|s| s.starts_with("recorder "))
-        .unwrap();
-    assert!(
-        recorder.contains(&format!("--out {}.partial", out.display())),
-        "{recorder}"
+    // this attempt's log beside it, the earlier .partial gone, both said
+    assert_eq!(
+        std::fs::read(&partial).unwrap(),
+        std::fs::read(&reference).unwrap()
     );
+    for says in [
+        format!(
+            "drive: removed {}, the log of an earlier drive that failed",
+            partial.display()
+        ),
+        format!(
+            "so {} (there before it) is left as it was; this attempt's log is {}",
+            out.display(),
+            partial.display()
+        ),
+    ] {
+        assert!(err.contains(&says), "{says:?} not in\n{err}");
+    }
+    // nothing at --out before: the log takes its name, even after a failure
+    std::fs::remove_file(&out).unwrap();
+    let (ok, so, err) = f.drive_recording(
+        &common::config_dir(),
+        &reference,
+        &[os("--out"), out.as_os_str()],
+    );
+    assert!(!ok, "{so}{err}");
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        std::fs::read(&reference).unwrap()
+    );
+    assert!(!partial.exists());
+    // a directory as --out: refused before anything starts
+    let (ok, _, err) = f.drive(&common::config_dir(), &[os("--out"), d.path().as_os_str()]);
+    assert!(!ok);
+    assert!(
+        err.contains("is a directory; give the log's file name"),
+        "{err}"
+    );
+}
+
+/// A scenario plant-sim would refuse (a demand above the vehicle's
+/// torque_max) is refused by `grip drive` before any service starts, with
+/// plant-sim's message (the check's one home: `grip_config::check_scenario`).
+#[test]
+fn a_scenario_beyond_the_vehicle_is_refused_before_any_service() {
+    let d = tempfile::tempdir().unwrap();
+    let cfg = d.path().join("config");
+    let status = std::process::Command::new("cp")
+        .args(["-r"])
+        .arg(common::config_dir())
+        .arg(&cfg)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let paper = cfg.join("scenarios/paper.toml");
+    let text = std::fs::read_to_string(&paper).unwrap();
+    assert!(text.contains("torque = 300.0"));
+    std::fs::write(&paper, text.replace("torque = 300.0", "torque = 1e300")).unwrap();
+    let f = Fakes::new();
+    let out = d.path().join("drive.mcap");
+    let (ok, _, err) = f.drive(&cfg, &[os("--out"), out.as_os_str()]);
+    assert!(!ok);
+    assert!(
+        err.contains(
+            "scenarios/paper.toml: field `demand.torque`: 1e300 N m is above the motor limit"
+        ),
+        "{err}"
+    );
+    assert!(f.started().is_empty(), "{:?}", f.started());
 }

@@ -266,16 +266,13 @@ fn sensor_noise_table(
             );
         }
     }
+    let warning = sensor_warning(v, sensors, vehicle_path, f, ctl_path, dt);
     println!(
         "  fusion.sigma_lambda = {} (within {NOISE_TOLERANCE}x at 10 km/h: {})",
         fmt_num(f.sigma_lambda),
-        if sensor_warning(v, sensors, vehicle_path, f, ctl_path, dt).is_some() {
-            "NO"
-        } else {
-            "yes"
-        }
+        if warning.is_some() { "NO" } else { "yes" }
     );
-    if let Some(w) = sensor_warning(v, sensors, vehicle_path, f, ctl_path, dt) {
+    if let Some(w) = warning {
         println!("  warning: {w}");
     }
 }
@@ -314,6 +311,15 @@ fn run_report(ctx: &Ctx, args: &Args) -> anyhow::Result<()> {
     let vehicle_path = args.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
     let (v, sensors) = grip_config::load_vehicle(&vehicle_path)?;
     let cat: RoadCatalogue = dir.roads()?;
+    // checked before anything is printed
+    let nominal = cat.get(&args.src_nominal_road).with_context(|| {
+        format!(
+            "--src-nominal-road `{}` is not a road of the catalogue {} ({})",
+            args.src_nominal_road,
+            dir.roads_path().display(),
+            cat.names()
+        )
+    })?;
     let ctl_path = dir.file("controllers.toml");
     let ctl = grip_config::load_controllers(&ctl_path)?;
     let k = args.k_motor;
@@ -368,13 +374,6 @@ fn run_report(ctx: &Ctx, args: &Args) -> anyhow::Result<()> {
         );
     }
 
-    let nominal = cat.get(&args.src_nominal_road).with_context(|| {
-        format!(
-            "--src-nominal-road `{}` is not in the catalogue ({})",
-            args.src_nominal_road,
-            cat.names()
-        )
-    })?;
     let lam0 = nominal.lambda_opt();
     println!(
         "\n== Transfer functions (operating point: {} at lambda_o = lambda_opt = {:.4}) ==",

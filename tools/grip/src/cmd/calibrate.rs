@@ -55,9 +55,13 @@ pub struct Args {
     /// `grip dataset synth --changes`); repeatable.
     #[arg(long, required = true)]
     pub data: Vec<PathBuf>,
-    /// Output model file (may be the input).
+    /// Output model file, in a folder that exists. An existing file (the
+    /// input model too: calibrating in place) only with `--force`.
     #[arg(long)]
     pub out: PathBuf,
+    /// Overwrite an existing `--out` file (e.g. the input model itself).
+    #[arg(long)]
+    pub force: bool,
     #[command(flatten)]
     pub fit: FitArgs,
     #[command(flatten)]
@@ -449,6 +453,15 @@ pub fn fit_calibration(
 }
 
 pub fn run(_ctx: &Ctx, a: Args) -> Result<()> {
+    // said before the fit, naming the input when it is the output
+    if !a.force && same_file(&a.model, &a.out) {
+        bail!(
+            "--out {}: the input model (--model {}); calibrating in place replaces its model file: pass --force to do so, or name another file",
+            a.out.display(),
+            a.model.display()
+        );
+    }
+    super::train::check_output_file("--out", &a.out, a.force)?;
     let bytes = std::fs::read(&a.model)
         .with_context(|| format!("reading model file {}", a.model.display()))?;
     let model =
@@ -483,6 +496,8 @@ pub fn run(_ctx: &Ctx, a: Args) -> Result<()> {
     let (cal, _) = fit_calibration(&model, &a.data, &a.fit, &command, a.channel.get())?;
     let model = model.with_calibration(Some(cal))?;
     let out = model.to_bytes()?;
+    // the check again (a file may have appeared during the fit)
+    super::train::check_output_file("--out", &a.out, a.force)?;
     std::fs::write(&a.out, &out)
         .with_context(|| format!("cannot write model {}", a.out.display()))?;
     println!(
@@ -493,6 +508,11 @@ pub fn run(_ctx: &Ctx, a: Args) -> Result<()> {
         &sha256_hex(&out)[..16]
     );
     Ok(())
+}
+
+/// Whether `a` and `b` name the same existing file.
+fn same_file(a: &Path, b: &Path) -> bool {
+    std::fs::canonicalize(a).is_ok_and(|a| std::fs::canonicalize(b).is_ok_and(|b| a == b))
 }
 
 #[cfg(test)]
@@ -522,6 +542,7 @@ mod tests {
                 calib_floor: 0.01,
             },
             channel: ChannelArg::default(),
+            force: false,
         }
     }
 

@@ -81,9 +81,15 @@ struct DelayArgs {
 
 #[derive(clap::Args)]
 struct SynthArgs {
-    /// Output folder (created; existing files with the same names are overwritten).
+    /// Output folder (created). A file it would write that is there
+    /// already (manifest.csv, a recording; segments.csv and the change
+    /// recordings in --changes-out) is refused, before anything is
+    /// rendered, unless `--force` is given.
     #[arg(long)]
     out: PathBuf,
+    /// Overwrite the files of an earlier dataset with the same names.
+    #[arg(long)]
+    force: bool,
     /// Base seed; every recording's seed is derived from it, its class and its index.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -631,10 +637,11 @@ fn synth(a: SynthArgs) -> Result<()> {
     // the class dataset (folders and manifest) only when it has recordings:
     // empty class folders and a manifest without rows are no dataset
     let classes = a.recordings_per_class > 0;
+    let cdir = a.changes_out.clone().unwrap_or_else(|| changes_dir(&a.out));
+    check_synth_outputs(&a, &roads, &cdir)?;
     if classes {
         std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     }
-    let cdir = a.changes_out.clone().unwrap_or_else(|| changes_dir(&a.out));
     let total = (roads.len() * a.recordings_per_class + a.changes) as u64;
     let pb = ProgressBar::new(total);
     pb.set_style(ProgressStyle::with_template(
@@ -757,6 +764,62 @@ fn synth(a: SynthArgs) -> Result<()> {
     }
     pb.finish_with_message("done");
     eprintln!("{}", synth_summary(&a, manifest.len(), roads.len(), &cdir));
+    Ok(())
+}
+
+/// The folders and files `grip dataset synth` would write: refused,
+/// naming them, when a folder is a file, or when files are there already
+/// and not `--force` (an earlier dataset's manifest replaced by a shorter
+/// one would leave recordings no manifest lists).
+fn check_synth_outputs(a: &SynthArgs, roads: &[usize], cdir: &Path) -> Result<()> {
+    let mut files = Vec::new();
+    let mut dirs = Vec::new();
+    if a.recordings_per_class > 0 {
+        dirs.push(("--out", a.out.clone()));
+        files.push(a.out.join("manifest.csv"));
+        for &r in roads {
+            let name = ROADS[r];
+            dirs.push(("--out", a.out.join(name)));
+            files.extend(
+                (0..a.recordings_per_class)
+                    .map(|i| a.out.join(format!("{name}/{name}_{i:04}.wav"))),
+            );
+        }
+    }
+    if a.changes > 0 {
+        let flag = if a.changes_out.is_some() {
+            "--changes-out"
+        } else {
+            "--changes (OUT-changes)"
+        };
+        dirs.push((flag, cdir.to_path_buf()));
+        files.push(cdir.join("segments.csv"));
+        files.extend((0..a.changes).map(|i| cdir.join(format!("change_{i:04}.wav"))));
+    }
+    for (flag, d) in &dirs {
+        if std::fs::symlink_metadata(d).is_ok() && !d.is_dir() {
+            bail!("{flag}: {} is a file, not a folder", d.display());
+        }
+    }
+    let there: Vec<&PathBuf> = files
+        .iter()
+        .filter(|f| std::fs::symlink_metadata(f).is_ok())
+        .collect();
+    if let Some(first) = there.first()
+        && !a.force
+    {
+        bail!(
+            "{} of the {} files this would write are there already (the first: {}); pass --force to overwrite them, or name another --out{}",
+            there.len(),
+            files.len(),
+            first.display(),
+            if a.changes > 0 {
+                " / --changes-out"
+            } else {
+                ""
+            }
+        );
+    }
     Ok(())
 }
 
@@ -1068,6 +1131,7 @@ mod tests {
             snr_scope: "segment".into(),
             roads: None,
             sample_rate: 44_100,
+            force: false,
         }
     }
 

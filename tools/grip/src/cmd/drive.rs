@@ -98,6 +98,25 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         }
         None => (None, dir.vehicle()?.0),
     };
+    // the scenario against the vehicle and plant-sim's period, as
+    // plant-sim's start-up checks it (a demand above torque_max, a
+    // duration of too many cycles): refused here, before any service starts
+    {
+        use grip_io::service::ServiceConfig;
+        let own = grip_io::service::ConfigArgs::in_dir(&config_dir)
+            .own_file::<grip_plant_sim::PlantSimConfig>();
+        let rate_hz = grip_plant_sim::PlantSimConfig::load(&own)?.rate_hz;
+        let vehicle_file = vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
+        grip_config::check_scenario(
+            &dir.scenario_path(&args.scenario),
+            &scenario,
+            grip_config::RunsOn {
+                vehicle: &vehicle_params,
+                vehicle_file: &vehicle_file,
+                dt: 1.0 / rate_hz,
+            },
+        )?;
+    }
     // arte's model against the audio's rate, before any service starts:
     // arte refuses every block at another rate, and the drive would run to
     // the end and record no road estimate
@@ -163,6 +182,13 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         Controller::Mtte => "mtte",
     };
     let out = cwd.join(&args.out);
+    if out.is_dir() {
+        bail!(
+            "--out {}: is a directory; give the log's file name (e.g. {})",
+            out.display(),
+            out.join("drive.mcap").display()
+        );
+    }
     if let Some(parent) = out.parent() {
         std::fs::create_dir_all(parent)
             .with_context(|| format!("creating {}", parent.display()))?;
@@ -171,6 +197,21 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     // drive ran: a drive whose services fail to start never replaces a log
     // that was there
     let recording = partial_path(&out);
+    // a .partial left by an earlier failed drive is not this drive's log:
+    // gone before the recorder starts, so that it can never be taken for it
+    // (dry runs start nothing and leave it)
+    if !args.dry_run && recording.exists() {
+        std::fs::remove_file(&recording).with_context(|| {
+            format!(
+                "removing {}, the log of an earlier drive that failed",
+                recording.display()
+            )
+        })?;
+        eprintln!(
+            "drive: removed {}, the log of an earlier drive that failed",
+            recording.display()
+        );
+    }
     let plan = DrivePlan {
         config_dir: view
             .as_ref()

@@ -37,9 +37,13 @@ pub struct Args {
     /// Print one CSV row per frame (t_start, t_end, features) to stdout.
     #[arg(long)]
     csv: bool,
-    /// Write the CSV to this file instead of stdout.
+    /// Write the CSV to this file instead of stdout (in a folder that
+    /// exists; an existing file only with `--force`).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Overwrite an existing `--out` file.
+    #[arg(long)]
+    force: bool,
 }
 
 fn config(a: &Args, rate: u32) -> Result<FeatureConfig> {
@@ -88,6 +92,9 @@ fn hop_samples(a: &Args, rate: u32) -> Result<usize> {
 }
 
 fn one_file(a: &Args, file: &std::path::Path) -> Result<()> {
+    if let Some(p) = &a.out {
+        super::train::check_output_file("--out", p, a.force)?;
+    }
     let audio = wav::read_mono(file)?;
     let cfg = config(a, audio.sample_rate)?;
     let hop = hop_samples(a, audio.sample_rate)?;

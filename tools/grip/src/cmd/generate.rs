@@ -269,6 +269,9 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     let config = std::path::absolute(&ctx.config_dir)
         .with_context(|| format!("resolving {}", ctx.config_dir.display()))?;
     require_one_rate(&config)?;
+    // every log's scenario as plant-sim will refuse it, naming the
+    // caller's files, before any output
+    check_scenarios(&ctx.config_dir, &specs)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let t0 = Instant::now();
@@ -304,18 +307,21 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     let wall = t0.elapsed().as_secs_f64();
     let results = results.into_inner().unwrap_or_default();
     let done: Vec<Generated> = results.into_iter().flatten().collect();
-    let span: f64 = done.iter().map(|g| g.span_s).sum();
+    let span: f64 = done.iter().map(|g| g.span_s).fold(0.0, |a, b| a + b);
     let cycles: u64 = done.iter().map(|g| g.cycles).sum();
-    println!(
-        "generated {} logs in {} ({} cycles, {:.1} s of scripted time) in {wall:.1} s wall with {} job(s): {:.2} logs/s, {:.0}x real time",
-        done.len(),
-        args.out.display(),
-        cycles,
-        span,
-        args.jobs.clamp(1, specs.len()),
-        done.len() as f64 / wall.max(1e-9),
-        span / wall.max(1e-9)
-    );
+    // the figures of the logs there are; none when every log failed
+    if !done.is_empty() {
+        println!(
+            "generated {} logs in {} ({} cycles, {:.1} s of scripted time) in {wall:.1} s wall with {} job(s): {:.2} logs/s, {:.0}x real time",
+            done.len(),
+            args.out.display(),
+            cycles,
+            span,
+            args.jobs.clamp(1, specs.len()),
+            done.len() as f64 / wall.max(1e-9),
+            span / wall.max(1e-9)
+        );
+    }
     if let Some(l) = not_classified(&done) {
         println!("{l}");
     }
@@ -414,11 +420,25 @@ fn write_table(path: &Path, head: &str, t: &toml::Table) -> anyhow::Result<()> {
         .with_context(|| format!("writing {}", path.display()))
 }
 
-/// Writes the log's scenario into `dir/scenarios`; returns its name.
-fn write_scenario(dir: &Path, s: &LogSpec) -> anyhow::Result<String> {
-    let cdir = grip_config::ConfigDir::new(dir);
+/// The scenario one log runs, as the TOML plant-sim reads: its name, the
+/// file's head comment, the table, and what to name in an error about it
+/// (the user's file, with the per-log flags that changed it, or `--scenario
+/// random (seed N)`). A scenario name is looked up in `user`, the caller's
+/// configuration directory, a path as given.
+struct LogScenario {
+    name: String,
+    head: String,
+    table: toml::Table,
+    named: PathBuf,
+}
+
+fn log_scenario(
+    user: &grip_config::ConfigDir,
+    s: &LogSpec,
+    roads: &grip_physics::RoadCatalogue,
+    vehicle: &grip_physics::VehicleParams,
+) -> anyhow::Result<LogScenario> {
     if s.scenario == super::sim::RANDOM {
-        let roads = cdir.roads()?;
         let spec = RandomSpec {
             v0_kmh: s.v0_kmh.unwrap_or(s.random.v0_kmh),
             torque: s.torque.unwrap_or(s.random.torque),
@@ -432,13 +452,9 @@ fn write_scenario(dir: &Path, s: &LogSpec) -> anyhow::Result<String> {
             spec
         };
         // ... and as far as this car can cover in the run (as `grip sim`)
-        let (vehicle, _) = match &s.vehicle {
-            Some(v) => grip_config::load_vehicle(v)?,
-            None => cdir.vehicle()?,
-        };
-        let spec = spec.sized_for(&vehicle, &roads);
+        let spec = spec.sized_for(vehicle, roads);
         let sc = spec
-            .scenario(s.seed, &roads)
+            .scenario(s.seed, roads)
             .map_err(|e| anyhow::anyhow!("--scenario random (seed {}): {e}", s.seed))?;
         let name = format!("random-s{}", s.seed);
         let mut t = toml::Table::new();
@@ -462,28 +478,27 @@ fn write_scenario(dir: &Path, s: &LogSpec) -> anyhow::Result<String> {
             })
             .collect();
         t.insert("segment".into(), segs.into());
-        write_table(
-            &cdir.scenarios_path().join(format!("{name}.toml")),
-            "# written by grip generate (grip_sim::random::RandomSpec, this seed)\n",
-            &t,
-        )?;
-        return Ok(name);
+        return Ok(LogScenario {
+            name,
+            head: "# written by grip generate (grip_sim::random::RandomSpec, this seed)\n".into(),
+            table: t,
+            named: PathBuf::from(format!("--scenario random (seed {})", s.seed)),
+        });
     }
-    let path = cdir.scenario_path(&s.scenario);
-    let path = if path.is_file() {
-        path
-    } else {
-        // a name: the copy in `dir`, or a file given relative to the caller
-        PathBuf::from(&s.scenario)
-    };
-    let mut t = read_table(&path)?;
+    // a name under the caller's configuration directory, or a file
+    let path = user.scenario_path(&s.scenario);
+    let text = grip_config::read_file(&path)?;
+    let mut t = text
+        .parse::<toml::Table>()
+        .with_context(|| format!("{}: not valid TOML", path.display()))?;
     let stem = path.file_stem().map_or_else(
         || "scenario".to_owned(),
         |n| n.to_string_lossy().into_owned(),
     );
-    let changed = s.v0_kmh.is_some() || s.torque.is_some();
+    let mut flags = String::new();
     if let Some(v) = s.v0_kmh {
         t.insert("v0_kmh".into(), v.into());
+        flags.push_str(&format!(" --v0-kmh {v}"));
     }
     if let Some(tq) = s.torque {
         let kind = t
@@ -501,23 +516,86 @@ fn write_scenario(dir: &Path, s: &LogSpec) -> anyhow::Result<String> {
         if let Some(d) = t.get_mut("demand").and_then(toml::Value::as_table_mut) {
             d.insert("torque".into(), tq.into());
         }
+        flags.push_str(&format!(" --torque {tq}"));
     }
-    let name = if changed {
-        format!("{stem}-s{}", s.seed)
-    } else {
+    let name = if flags.is_empty() {
         stem
+    } else {
+        format!("{stem}-s{}", s.seed)
     };
     t.insert("name".into(), name.clone().into());
-    write_table(
-        &cdir.scenarios_path().join(format!("{name}.toml")),
-        &format!(
+    let named = if flags.is_empty() {
+        path.clone()
+    } else {
+        PathBuf::from(format!("{} with{flags}", path.display()))
+    };
+    Ok(LogScenario {
+        name,
+        head: format!(
             "# written by grip generate from {} (start speed / demand drawn per log)\n",
             path.file_name()
                 .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
         ),
-        &t,
+        table: t,
+        named,
+    })
+}
+
+/// Before any log: the configuration plant-sim reads for every log, read
+/// from the caller's directory `user` (so an error names the user's files,
+/// not a log's temporary copy), and each log's scenario checked as
+/// plant-sim's start-up checks it (`ConfigDir::scenario_for`: the roads,
+/// the demand within the vehicle's motor limit, 1 ..= 1e9 cycles of
+/// plant-sim's loop), named by its file and the flags that changed it.
+fn check_scenarios(user: &Path, specs: &[LogSpec]) -> anyhow::Result<()> {
+    let cdir = grip_config::ConfigDir::new(user);
+    let roads = cdir.roads()?;
+    let own = ConfigArgs::in_dir(user).own_file::<grip_plant_sim::PlantSimConfig>();
+    let rate_hz = grip_plant_sim::PlantSimConfig::load(&own)?.rate_hz;
+    let mut vehicles: Vec<(PathBuf, grip_physics::VehicleParams)> = Vec::new();
+    for s in specs {
+        let vehicle_file = s.vehicle.clone().unwrap_or_else(|| cdir.vehicle_path());
+        let vehicle = match vehicles.iter().find(|(p, _)| *p == vehicle_file) {
+            Some((_, v)) => *v,
+            None => {
+                let (v, _) = grip_config::load_vehicle(&vehicle_file)?;
+                vehicles.push((vehicle_file.clone(), v));
+                v
+            }
+        };
+        let ls = log_scenario(&cdir, s, &roads, &vehicle)?;
+        let text = toml::to_string(&ls.table)
+            .with_context(|| format!("serialising {}", ls.named.display()))?;
+        let sc = grip_config::parse_scenario(&ls.named, &text, &roads)?;
+        grip_config::check_scenario(
+            &ls.named,
+            &sc,
+            grip_config::RunsOn {
+                vehicle: &vehicle,
+                vehicle_file: &vehicle_file,
+                dt: 1.0 / rate_hz,
+            },
+        )?;
+    }
+    Ok(())
+}
+
+/// Writes the log's scenario into `dir/scenarios` (a name looked up in
+/// `user`, the caller's configuration directory); returns its name.
+fn write_scenario(dir: &Path, user: &Path, s: &LogSpec) -> anyhow::Result<String> {
+    let cdir = grip_config::ConfigDir::new(dir);
+    let roads = cdir.roads()?;
+    let (vehicle, _) = match &s.vehicle {
+        Some(v) => grip_config::load_vehicle(v)?,
+        None => cdir.vehicle()?,
+    };
+    let ls = log_scenario(&grip_config::ConfigDir::new(user), s, &roads, &vehicle)?;
+    write_table(
+        &cdir.scenarios_path().join(format!("{}.toml", ls.name)),
+        &ls.head,
+        &ls.table,
     )?;
-    Ok(name)
+    Ok(ls.name)
 }
 
 /// Sets `[synth] seed` and, with `snr_db`, `[synth] noise` in `audio-acq.toml`.
@@ -645,12 +723,25 @@ impl Rec {
     }
 }
 
-/// Generates one log (see the module docs).
+/// Generates one log (see the module docs). An error that names a file of
+/// the log's temporary copy of the configuration names the caller's file
+/// (`config`) instead.
 pub fn generate(config: &Path, s: &LogSpec) -> anyhow::Result<Generated> {
     let tmp = tempfile::tempdir().context("creating a temporary configuration directory")?;
-    let dir = tmp.path();
+    generate_in(config, tmp.path(), s).map_err(|e| {
+        anyhow::anyhow!(
+            "{}",
+            format!("{e:#}").replace(
+                &tmp.path().display().to_string(),
+                &config.display().to_string()
+            )
+        )
+    })
+}
+
+fn generate_in(config: &Path, dir: &Path, s: &LogSpec) -> anyhow::Result<Generated> {
     copy_config(config, dir)?;
-    let scenario = write_scenario(dir, s)?;
+    let scenario = write_scenario(dir, config, s)?;
     write_audio_config(dir, s)?;
     let cargs = ConfigArgs::in_dir(dir);
     let vehicle = match &s.vehicle {
@@ -800,6 +891,7 @@ pub fn generate(config: &Path, s: &LogSpec) -> anyhow::Result<Generated> {
     let span = |n: u64| (u128::from(n) * 1_000_000_000 / u128::from(rate.max(1))) as u64;
     let mut g = Generated::default();
     let mut finished = false;
+    let mut non_finite = None;
     for k in 0..max_cycles {
         let now = clock.now_ns();
         // audio blocks due by now, each through arte
@@ -834,6 +926,15 @@ pub fn generate(config: &Path, s: &LogSpec) -> anyhow::Result<Generated> {
         for t in &truths.new {
             rec.put(topics::TRUTH, t, Some(t.seq))?;
         }
+        // a plant state that is no number: the log would be no drive
+        if let Some(t) = truths
+            .new
+            .iter()
+            .find(|t| !(t.v.is_finite() && t.omega.is_finite() && t.x.is_finite()))
+        {
+            non_finite = Some((plant.scenario_time(), t.v, t.omega, t.x));
+            break;
+        }
         if o == grip_plant_sim::Outcome::Finished {
             finished = true;
             break;
@@ -857,6 +958,14 @@ pub fn generate(config: &Path, s: &LogSpec) -> anyhow::Result<Generated> {
             g.cycles += 1;
         }
         clock.advance_ns(period_ns);
+    }
+    if let Some((t, v, omega, x)) = non_finite {
+        // not left behind as a log a fleet would read
+        drop(rec);
+        let _ = std::fs::remove_file(&s.file);
+        bail!(
+            "the plant state went non-finite {t:.3} s into scenario {scenario} (v = {v} m/s, omega = {omega} rad/s, x = {x} m): no log written"
+        );
     }
     if !finished {
         bail!(

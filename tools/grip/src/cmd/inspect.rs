@@ -47,6 +47,57 @@ pub struct Args {
     /// boot, and the command says so).
     #[arg(long, conflicts_with = "json")]
     candump: Option<PathBuf>,
+    /// Overwrite what `--csv`, `--plot` and `--candump` would replace (an
+    /// existing file is refused without it, before the log is read).
+    #[arg(long)]
+    force: bool,
+}
+
+/// The files `--csv DIR` of one log writes (`export::write_csv`).
+const CSV_FILES: [&str; 4] = ["cycles.csv", "estimates.csv", "truth.csv", "can.csv"];
+/// The files `--plot DIR` writes (`plot::write_plots`).
+const PLOT_FILES: [&str; 2] = ["drive.png", "timing.png"];
+
+/// `flag DIR` (created) of files named `files`: refused, naming them, when
+/// DIR is no directory, or when any of them is there already and not
+/// `force`.
+fn check_output_dir(
+    flag: &str,
+    dir: &std::path::Path,
+    files: &[&str],
+    force: bool,
+) -> anyhow::Result<()> {
+    if std::fs::symlink_metadata(dir).is_ok() && !dir.is_dir() {
+        anyhow::bail!(
+            "{flag} {}: is a file, not a directory; {flag} names a directory for {}",
+            dir.display(),
+            files.join(", ")
+        );
+    }
+    let there: Vec<&str> = files
+        .iter()
+        .copied()
+        .filter(|f| std::fs::symlink_metadata(dir.join(f)).is_ok())
+        .collect();
+    if !force && !there.is_empty() {
+        anyhow::bail!(
+            "{flag} {}: {} already there; pass --force to overwrite, or name another directory",
+            dir.display(),
+            there.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// The error of a log that cannot be read at all: its reason once
+/// (`LogError`'s source repeats it).
+fn load_error(e: drive::LogError) -> anyhow::Error {
+    match &e.source {
+        grip_io::mcaplog::McapLogError::Io { source, .. } => {
+            anyhow::anyhow!("reading {}: {source}", e.path.display())
+        }
+        _ => anyhow::anyhow!("{}", e.full()),
+    }
 }
 
 /// The summary of the log at `path`, with the vehicle the drive ran with
@@ -56,7 +107,7 @@ fn summary_of(
     ctx: &Ctx,
     path: &std::path::Path,
 ) -> anyhow::Result<(DriveLog, f64, summary::Summary)> {
-    let log = crate::drive::load_log(path, Default::default())?;
+    let log = crate::drive::load_log(path, Default::default()).map_err(load_error)?;
     let (vehicle, from, warnings) = drive::vehicle_for(&log, &ctx.config_dir);
     for w in warnings {
         eprintln!("{w}");
@@ -91,6 +142,9 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     if let [dir] = args.logs.as_slice()
         && dir.is_dir()
     {
+        if let Some(f) = &args.csv {
+            super::train::check_output_file("--csv", f, args.force)?;
+        }
         return crate::drive::many::inspect_dir(ctx, dir, args.csv.as_deref(), args.strict);
     }
     if let [a, b] = args.logs.as_slice() {
@@ -105,6 +159,16 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         let (_, _, sb) = summary_of(ctx, b)?;
         println!("{}", summary::compare(&sa, &sb));
         return Ok(());
+    }
+    // the outputs, before the log is read
+    if let Some(f) = &args.candump {
+        super::train::check_output_file("--candump", f, args.force)?;
+    }
+    if let Some(d) = &args.csv {
+        check_output_dir("--csv", d, &CSV_FILES, args.force)?;
+    }
+    if let Some(d) = &args.plot {
+        check_output_dir("--plot", d, &PLOT_FILES, args.force)?;
     }
     let (log, r, s) = summary_of(ctx, &args.logs[0])?;
     print!("{}", report(&log, &s));

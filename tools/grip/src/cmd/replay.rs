@@ -41,9 +41,14 @@ pub struct Args {
     /// directory of them.
     log: PathBuf,
     /// Write the replayed drive here (the same topics; ground truth and
-    /// audio copied); with a directory of logs, a directory for them.
+    /// audio copied), a file in a folder that exists; with a directory of
+    /// logs, a directory for them (created). An existing file is not
+    /// overwritten unless `--force` is given (refused before any replay).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Overwrite existing `--out` files.
+    #[arg(long)]
+    force: bool,
     /// With a directory of logs: replays run in parallel.
     #[arg(long, default_value_t = 1)]
     jobs: usize,
@@ -127,6 +132,13 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     if args.log.is_dir() {
         return replay_dir(&args, &what);
     }
+    // an existing --out is refused before the replay (the log itself is
+    // refused by `replay`, with or without --force)
+    if let Some(o) = &args.out
+        && !same_path(&args.log, o)
+    {
+        super::train::check_output_file("--out", o, args.force)?;
+    }
     let r = match replay(&args.log, &what, args.out.as_deref(), args.closed_loop) {
         Ok(r) => r,
         Err(e) => {
@@ -162,6 +174,29 @@ fn replay_dir(args: &Args, what: &WhatIf) -> anyhow::Result<()> {
                 "--out {} is the directory being replayed ({}): the replayed logs would overwrite the logs themselves; choose another directory",
                 o.display(),
                 args.log.display()
+            );
+        }
+        if o.exists() && !o.is_dir() {
+            bail!(
+                "--out {}: is a file, not a directory; with a directory of logs, --out names a directory for the replayed logs",
+                o.display()
+            );
+        }
+        // the logs a replay would replace, refused before any replay
+        let there: Vec<PathBuf> = logs
+            .iter()
+            .filter_map(|p| p.file_name().map(|n| o.join(n)))
+            .filter(|p| std::fs::symlink_metadata(p).is_ok())
+            .collect();
+        if let Some(first) = there.first()
+            && !args.force
+        {
+            bail!(
+                "--out {}: {} of the {} replayed logs would replace a file already there (the first: {}); pass --force to overwrite them, or name another directory",
+                o.display(),
+                there.len(),
+                logs.len(),
+                first.display()
             );
         }
         std::fs::create_dir_all(o).with_context(|| format!("creating {}", o.display()))?;
@@ -583,6 +618,24 @@ pub fn replay(
         // the count and the time (nothing is drawn when stderr is not a
         // terminal); made on the first probe, gone with the search
         let mut bar: Option<indicatif::ProgressBar> = None;
+        // the drive's own closed loop from plant cycle `start` with the
+        // commands `early` placed in the plant cycle they raced, stopped at
+        // the first truth sample that differs: what both searches run (the
+        // drive's own configuration made at the first call, only when
+        // there is a search)
+        let mut probe = |start: Option<u64>, early: &BTreeSet<usize>| {
+            if own.is_none() {
+                own = Some(own_config(&log, what)?);
+            }
+            let Some((own, _)) = &own else {
+                anyhow::bail!("the drive's own configuration was not made")
+            };
+            let (mut lp, own_period) = tcs_loop_of(own)?;
+            let mut plant = plant_of(own)?;
+            Ok(crate::replay::closed_loop(
+                &mut lp, &mut plant, &log, &log.roads, own_period, start, true, early,
+            ))
+        };
         let start = crate::replay::plant_start(&log, demand_after, |c| {
             let b = bar.get_or_insert_with(|| {
                 let b = indicatif::ProgressBar::new_spinner();
@@ -597,54 +650,17 @@ pub fn replay(
             });
             b.set_message(format!("cycle {c}"));
             b.inc(1);
-            if own.is_none() {
-                own = Some(own_config(&log, what)?);
-            }
-            let Some((own, _)) = &own else {
-                anyhow::bail!("the drive's own configuration was not made")
-            };
-            let (mut lp, own_period) = tcs_loop_of(own)?;
-            let mut plant = plant_of(own)?;
-            Ok(crate::replay::closed_loop(
-                &mut lp,
-                &mut plant,
-                &log,
-                &log.roads,
-                own_period,
-                Some(c),
-                true,
-                &BTreeSet::new(),
-            )
-            .agreed)
+            Ok(probe(Some(c), &BTreeSet::new())?.agreed)
         });
         if let Some(b) = bar.take() {
             b.finish_and_clear();
         }
-        let with = own.as_ref().map_or("", |(_, w)| *w);
-        start_line = Some((start.seq(), format!("{}{with}", start.line(period_ns))));
         // the commands that went out while the plant drained: placed by
         // the drive's own closed loop from the plant's start (only where
         // a command raced a drain)
-        let races = crate::replay::command_races(&log, |early| {
-            if own.is_none() {
-                own = Some(own_config(&log, what)?);
-            }
-            let Some((own, _)) = &own else {
-                anyhow::bail!("the drive's own configuration was not made")
-            };
-            let (mut lp, own_period) = tcs_loop_of(own)?;
-            let mut plant = plant_of(own)?;
-            Ok(crate::replay::closed_loop(
-                &mut lp,
-                &mut plant,
-                &log,
-                &log.roads,
-                own_period,
-                start.seq(),
-                true,
-                early,
-            ))
-        });
+        let races = crate::replay::command_races(&log, |early| probe(start.seq(), early));
+        let with = own.as_ref().map_or("", |(_, w)| *w);
+        start_line = Some((start.seq(), format!("{}{with}", start.line(period_ns))));
         races_line = races.line();
         races_json = serde_json::json!({
             "racing": races.racing,

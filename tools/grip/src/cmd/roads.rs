@@ -12,9 +12,13 @@ use super::Ctx;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Draw all mu-lambda curves (λ from 0 to 1) to this PNG file.
+    /// Draw all mu-lambda curves (λ from 0 to 1) to this PNG file (in a
+    /// folder that exists; an existing file only with `--force`).
     #[arg(long, value_name = "FILE.png")]
     pub plot: Option<PathBuf>,
+    /// Overwrite an existing `--plot` file.
+    #[arg(long)]
+    pub force: bool,
     /// Roads file to read instead of `<config-dir>/roads.toml`.
     #[arg(long, value_name = "FILE")]
     pub roads: Option<PathBuf>,
@@ -23,6 +27,9 @@ pub struct Args {
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     let dir = ConfigDir::new(&ctx.config_dir);
     let path = args.roads.unwrap_or_else(|| dir.roads_path());
+    if let Some(png) = &args.plot {
+        super::train::check_output_file("--plot", png, args.force)?;
+    }
     let roads = grip_config::load_roads(&path)?;
     print!("{}", table(&roads));
     if let Some(png) = args.plot {
@@ -214,6 +221,7 @@ mod tests {
             Args {
                 plot: None,
                 roads: None,
+                force: false,
             },
         )
         .unwrap_err();

@@ -703,6 +703,11 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         }
         eprintln!("wrote {}", dir.display());
     }
+    // a run whose plant state went non-finite has no figures: the report
+    // and files are written (to look at), and the command fails naming it
+    if let Some(line) = report::non_finite_runs(&results) {
+        anyhow::bail!(line);
+    }
     Ok(())
 }
 

@@ -7,7 +7,9 @@
 //! the report and the confusion matrix (rows predicted, columns actual, as
 //! the paper's Tables II/III), fit on all data, write the model file
 //! (`--out`, required; an existing file only with `--force`, refused before
-//! any work otherwise), and with `--test DIR` score held-out recordings.
+//! any work otherwise, as are a directory and a folder that does not exist:
+//! [`check_output_file`]; `--report` alike), and with `--test DIR` score
+//! held-out recordings.
 //!
 //! SVM: C and γ are chosen by grid search on the same CV folds (macro-F1;
 //! `--svm-c`, `--svm-gamma`, γ given as multiples of 1/dim since the
@@ -57,11 +59,11 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Output model file (required: a model is never written to a place
-    /// you did not name). An existing file is not overwritten unless
-    /// `--force` is given.
+    /// you did not name), in a folder that exists. An existing file is not
+    /// overwritten unless `--force` is given.
     #[arg(long)]
     pub out: PathBuf,
-    /// Overwrite an existing `--out` file.
+    /// Overwrite an existing `--out` (and `--report`) file.
     #[arg(long)]
     pub force: bool,
     /// Held-out dataset folder(s) to evaluate the final model on (repeatable).
@@ -97,7 +99,8 @@ pub struct Args {
     /// Training date stored in the model, YYYY-MM-DD.
     #[arg(long)]
     pub date: Option<String>,
-    /// Also write the report (Markdown, with confusion matrices) here.
+    /// Also write the report (Markdown, with confusion matrices) here (a
+    /// file in a folder that exists; an existing one only with `--force`).
     #[arg(long)]
     pub report: Option<PathBuf>,
     /// Also report held-out results with class probabilities averaged over
@@ -922,14 +925,69 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     Ok((model, report))
 }
 
-/// An existing `--out` is refused without `--force` (said before the
-/// training, not after it).
-fn check_out(args: &Args) -> Result<()> {
-    if !args.force && std::fs::symlink_metadata(&args.out).is_ok() {
+/// An output file named by `flag` (`--out`, `--report`, `--candump`, ...),
+/// checked before any work: refused, naming the file and the reason, when
+/// it is a directory, when the folder it would go in does not exist (or is
+/// no folder: nothing is created on the way), and, unless `force`, when
+/// something is there already. Every subcommand's output file goes
+/// through it.
+pub(crate) fn check_output_file(flag: &str, path: &Path, force: bool) -> Result<()> {
+    if path.as_os_str().is_empty() {
+        bail!("{flag}: the path is empty; name a file");
+    }
+    if path.is_dir() {
         bail!(
-            "--out {}: the file already exists; pass --force to overwrite it, or name another file",
-            args.out.display()
+            "{flag} {}: is a directory, not a file; name a file (e.g. {})",
+            path.display(),
+            path.join("NAME").display()
         );
+    }
+    let folder = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    match std::fs::metadata(folder) {
+        Ok(m) if m.is_dir() => {}
+        Ok(_) => bail!(
+            "{flag} {}: {} is not a folder",
+            path.display(),
+            folder.display()
+        ),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => bail!(
+            "{flag} {}: the folder {} does not exist; create it first, or name a file in an existing folder",
+            path.display(),
+            folder.display()
+        ),
+        Err(e) => bail!(
+            "{flag} {}: the folder {}: {e}",
+            path.display(),
+            folder.display()
+        ),
+    }
+    if !force && std::fs::symlink_metadata(path).is_ok() {
+        bail!(
+            "{flag} {}: the file already exists; pass --force to overwrite it, or name another file",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
+/// `--out` and `--report` (said before the training, not after it; a
+/// report at the model's own path would replace the model).
+fn check_out(args: &Args) -> Result<()> {
+    check_output_file("--out", &args.out, args.force)?;
+    if let Some(r) = &args.report {
+        if r == &args.out
+            || std::fs::canonicalize(r)
+                .is_ok_and(|r| std::fs::canonicalize(&args.out).is_ok_and(|o| o == r))
+        {
+            bail!(
+                "--report {}: the same file as --out: the report would replace the model; name another file",
+                r.display()
+            );
+        }
+        check_output_file("--report", r, args.force)?;
     }
     Ok(())
 }
@@ -939,13 +997,10 @@ pub fn run(ctx: &Ctx, args: Args) -> Result<()> {
     let out = args.out.clone();
     let (model, report) = train(&ctx.config_dir, &args)?;
     let bytes = model.to_bytes()?;
-    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("cannot create folder {}", dir.display()))?;
-    }
-    // the check again (the file may have appeared during the training)
+    // the check again (a file may have appeared, or the folder gone,
+    // during the training)
     let replaced = std::fs::symlink_metadata(&out).is_ok();
-    check_out(&args)?;
+    check_output_file("--out", &out, args.force)?;
     std::fs::write(&out, &bytes)
         .with_context(|| format!("cannot write model {}", out.display()))?;
     let full = std::fs::canonicalize(&out).unwrap_or_else(|_| out.clone());
@@ -966,6 +1021,7 @@ pub fn run(ctx: &Ctx, args: Args) -> Result<()> {
         &sha256_hex(&bytes)[..16]
     );
     if let Some(r) = &args.report {
+        check_output_file("--report", r, args.force)?;
         std::fs::write(r, &report)
             .with_context(|| format!("cannot write report {}", r.display()))?;
         println!("wrote report {}", r.display());

@@ -1,7 +1,13 @@
 //! `grip inspect --plot DIR`: `drive.png` (speeds, slip and torque over the
-//! bands of the road under the driven wheel, then three strips: the road at
-//! the microphone, ARTE's estimate and the road under the wheel) and
-//! `timing.png` (wake-up latency histogram of the control loop).
+//! bands of the road under the driven wheel, the torque panel with the
+//! torque cap the loop's road belief put in force, then four strips: the
+//! road at the microphone, ARTE's estimate, the loop's road belief (what
+//! the controller acted on) and the road under the wheel) and `timing.png`
+//! (wake-up latency histogram of the control loop).
+//!
+//! Every trace stays in its panel: [`crate::plot::clip_trace`] clamps it to
+//! the panel's y range (the key says so when it did) and
+//! [`crate::plot::draw_trace`] draws it segment by segment.
 //!
 //! Time runs from the scenario start (marked) when the log shows it, else
 //! from the first message; the x range is that of the data the log holds
@@ -16,22 +22,30 @@ use anyhow::anyhow;
 use plotters::prelude::*;
 
 use super::export::TimeBase;
-use crate::plot::{Area, Band, PlotResult as Res, draw_bands, init_fonts, road_colour, runs};
+use crate::plot::{
+    Area, Band, CLAMPED, PlotResult as Res, clip_trace, draw_bands, draw_trace, init_fonts,
+    road_colour, runs,
+};
 use grip_drive::DriveLog;
 use grip_drive::summary::Percentiles;
 
 const W: u32 = 1600;
 const TITLE_H: u32 = 80;
 const PANEL_H: u32 = 330;
-const STRIPS_H: u32 = 180;
+const STRIPS_H: u32 = 230;
 /// Width of the key column at the right of every panel (outside the data).
 const LEGEND_W: u32 = 210;
 /// Width of the y labels (and of the strips' row names).
 const LABEL_W: u32 = 100;
 
-const ROW_MIC: f64 = 2.0;
-const ROW_ARTE: f64 = 1.0;
+const ROW_MIC: f64 = 3.0;
+const ROW_ARTE: f64 = 2.0;
+const ROW_BELIEF: f64 = 1.0;
 const ROW_WHEEL: f64 = 0.0;
+const ROWS: f64 = 4.0;
+
+/// The torque cap's colour in the torque panel.
+const CAP_COLOUR: RGBColor = RGBColor(190, 0, 190);
 
 /// The drive's series, times on [`TimeBase::axis`].
 struct Series {
@@ -61,6 +75,10 @@ struct Series {
     meas_lambda: Vec<f64>,
     /// ARTE: (frame start, publication, class name or "").
     est: Vec<(f64, f64, String)>,
+    /// The loop's road belief ([`belief_runs`]).
+    belief: Vec<(f64, f64, String)>,
+    /// The torque cap in force per cycle record, N m (NaN: none).
+    cap: Vec<f64>,
     /// Every road name in the figure, sorted (the colour palette's order).
     names: Vec<String>,
 }
@@ -90,6 +108,40 @@ fn x_span(log: &DriveLog, tb: &TimeBase) -> (f64, f64) {
     };
     let (lo, hi) = (tb.axis(lo), tb.axis(hi));
     (lo, hi.max(lo + 1e-3))
+}
+
+/// The loop's road belief (`belief_road` of tcs-loop's cycle records, the
+/// road its controller acted on, named by the road catalogue attached to
+/// the log, else `road #i`): (from, to, name or "" for no belief), one run
+/// per stretch of cycles with the same belief, each up to the next run's
+/// first cycle. Empty when no cycle holds a belief (ARTE off, or a log
+/// whose records do not carry it).
+fn belief_runs(log: &DriveLog, tb: &TimeBase) -> Vec<(f64, f64, String)> {
+    if log
+        .cycles
+        .iter()
+        .all(|c| c.belief_road == grip_msgs::NO_CLASS)
+    {
+        return Vec::new();
+    }
+    let catalogue = super::export::catalogue_names(log).unwrap_or_default();
+    let names: Vec<String> = log
+        .cycles
+        .iter()
+        .map(|c| match c.belief_road {
+            grip_msgs::NO_CLASS => String::new(),
+            i => usize::try_from(i)
+                .ok()
+                .and_then(|i| catalogue.get(i))
+                .cloned()
+                .unwrap_or_else(|| format!("road #{i}")),
+        })
+        .collect();
+    let t = |k: usize| tb.axis(log.cycles[k].stamp_ns);
+    runs(&names)
+        .into_iter()
+        .map(|(a, b, name)| (t(a), t(b.min(names.len() - 1)), name))
+        .collect()
 }
 
 fn series(log: &DriveLog, r: f64, v_eps: f64) -> Series {
@@ -124,10 +176,12 @@ fn series(log: &DriveLog, r: f64, v_eps: f64) -> Series {
         .collect();
     let wheel: Vec<String> = log.truth.iter().map(|g| name(g.road_name())).collect();
     let mic: Vec<String> = log.truth.iter().map(|g| name(g.mic_road_name())).collect();
+    let belief = belief_runs(log, &tb);
     let mut names: Vec<String> = wheel
         .iter()
         .chain(&mic)
         .chain(est.iter().map(|e| &e.2))
+        .chain(belief.iter().map(|b| &b.2))
         .filter(|n| !n.is_empty())
         .cloned()
         .collect();
@@ -153,6 +207,8 @@ fn series(log: &DriveLog, r: f64, v_eps: f64) -> Series {
         clt: slips.iter().map(|p| p.0).collect(),
         meas_lambda: slips.iter().map(|p| p.1).collect(),
         est,
+        belief,
+        cap: log.cycles.iter().map(|c| c.torque_cap).collect(),
         names,
     }
 }
@@ -196,13 +252,13 @@ fn range(xs: impl Iterator<Item = f64>) -> (f64, f64) {
 }
 
 /// A key entry at the right of a panel.
-enum Key<'a> {
-    Line(&'a str, RGBColor),
-    Text(&'a str),
+enum Key {
+    Line(String, RGBColor),
+    Text(String),
 }
 
 /// The key column `area` (outside the data): one entry per row.
-fn key(area: &Area<'_>, top: i32, entries: &[Key<'_>]) -> Res {
+fn key(area: &Area<'_>, top: i32, entries: &[Key]) -> Res {
     let font = ("sans-serif", 15).into_font().color(&BLACK);
     for (i, e) in entries.iter().enumerate() {
         let y = top + 22 * i as i32;
@@ -222,8 +278,10 @@ fn key(area: &Area<'_>, top: i32, entries: &[Key<'_>]) -> Res {
 
 /// A panel of `s`: the bands of the road under the driven wheel drawn pale
 /// behind (named if `label_roads`), the scenario start marked, `lines`
-/// (label, times, values, colour) on top, their key at the right, and
-/// `note` written across the panel (e.g. that the data is missing).
+/// (label, times, values, colour) on top, clamped to the y range, their
+/// key at the right (a line clamped to the axis said so, one with samples
+/// but no finite value named as absent), and `note` written across the
+/// panel (e.g. that the data is missing).
 fn panel(
     area: &Area<'_>,
     s: &Series,
@@ -269,16 +327,25 @@ fn panel(
         .label_style(("sans-serif", 15))
         .axis_desc_style(("sans-serif", 15))
         .draw()?;
-    for &(_, ts, ys, c) in lines {
-        let step = (ts.len() / 3000).max(1);
-        chart.draw_series(LineSeries::new(
-            ts.iter()
-                .zip(ys)
-                .step_by(step)
-                .filter(|&(t, y)| y.is_finite() && (t_lo..=t_hi).contains(t))
-                .map(|(&t, &y)| (t, y.clamp(y_lo, y_hi))),
-            c.stroke_width(2),
-        ))?;
+    let mut entries: Vec<Key> = Vec::new();
+    for &(label, ts, ys, c) in lines {
+        if ts.is_empty() {
+            continue;
+        }
+        let trace = clip_trace(
+            ts.iter().copied().zip(ys.iter().copied()),
+            (t_lo, t_hi),
+            (y_lo, y_hi),
+        );
+        draw_trace(&mut chart, &trace, c)?;
+        if trace.runs.is_empty() {
+            entries.push(Key::Text(format!("{label}: none")));
+        } else {
+            entries.push(Key::Line(label.to_owned(), c));
+            if trace.clamped {
+                entries.push(Key::Text(format!("   {CLAMPED}")));
+            }
+        }
     }
     if let Some(note) = note {
         chart.draw_series(std::iter::once(Text::new(
@@ -287,36 +354,31 @@ fn panel(
             ("sans-serif", 22).into_font().color(&BLACK),
         )))?;
     }
-    let mut entries: Vec<Key<'_>> = lines
-        .iter()
-        .filter(|l| !l.1.is_empty())
-        .map(|&(label, _, _, c)| Key::Line(label, c))
-        .collect();
     if label_roads && s.has_truth() {
-        entries.extend([
-            Key::Text(""),
-            Key::Text("background: the road"),
-            Key::Text("under the driven wheel"),
-        ]);
+        entries.extend(
+            ["", "background: the road", "under the driven wheel"].map(|t| Key::Text(t.into())),
+        );
     }
     key(&side, 40, &entries)
 }
 
-/// The three road strips: the road at the microphone (what ARTE hears),
-/// ARTE's estimate (from its frame's start to its publication) and the road
-/// under the driven wheel, with the colour key at the right.
+/// The four road strips: the road at the microphone (what ARTE hears),
+/// ARTE's estimate (from its frame's start to its publication), the loop's
+/// road belief (what the controller acted on: [`belief_runs`]; a note when
+/// the cycle records hold none) and the road under the driven wheel, with
+/// the colour key at the right.
 fn strips(area: &Area<'_>, s: &Series) -> Res {
     let (plot, side) = area.split_horizontally(W - LEGEND_W);
     let (t_lo, t_hi) = s.span;
     let mut chart = ChartBuilder::on(&plot)
         .margin(8)
         .caption(
-            "roads: at the microphone (what ARTE hears and is judged against), ARTE's estimate (from its audio frame's start to its publication; white: no class), under the driven wheel",
+            "roads: at the microphone (what ARTE hears, judged against), ARTE's estimate (audio frame's start to publication), the loop's belief (what tcs-loop's controller acted on), under the wheel; white: none",
             ("sans-serif", 15),
         )
         .x_label_area_size(34)
         .y_label_area_size(LABEL_W)
-        .build_cartesian_2d(t_lo..t_hi, 0.0..3.0)?;
+        .build_cartesian_2d(t_lo..t_hi, 0.0..ROWS)?;
     let row = |row: f64, t0: f64, t1: f64, fill: ShapeStyle| {
         Rectangle::new(
             [(t0.max(t_lo), row + 0.12), (t1.min(t_hi), row + 0.88)],
@@ -331,19 +393,28 @@ fn strips(area: &Area<'_>, s: &Series) -> Res {
                 .map(|b| row(r, b.t0, b.t1, b.colour.mix(0.85).filled())),
         )?;
     }
-    chart.draw_series(
-        s.est
-            .iter()
-            .filter(|(t0, t1, _)| *t1 > t_lo && *t0 < t_hi)
-            .map(|(t0, t1, name)| {
-                let fill = if name.is_empty() {
-                    WHITE.filled()
-                } else {
-                    s.colour(name).mix(0.85).filled()
-                };
-                row(ROW_ARTE, *t0, *t1, fill)
-            }),
-    )?;
+    for (r, spans) in [(ROW_ARTE, &s.est), (ROW_BELIEF, &s.belief)] {
+        chart.draw_series(
+            spans
+                .iter()
+                .filter(|(t0, t1, _)| *t1 > t_lo && *t0 < t_hi)
+                .map(|(t0, t1, name)| {
+                    let fill = if name.is_empty() {
+                        WHITE.filled()
+                    } else {
+                        s.colour(name).mix(0.85).filled()
+                    };
+                    row(r, *t0, *t1, fill)
+                }),
+        )?;
+    }
+    if s.belief.is_empty() {
+        chart.draw_series(std::iter::once(Text::new(
+            "no road belief in the cycle records (ARTE off, or a log whose records do not carry it)",
+            (t_lo + 0.01 * (t_hi - t_lo), ROW_BELIEF + 0.72),
+            ("sans-serif", 15).into_font().color(&BLACK),
+        )))?;
+    }
     if !s.has_truth() {
         for r in [ROW_MIC, ROW_WHEEL] {
             chart.draw_series(std::iter::once(Text::new(
@@ -353,7 +424,7 @@ fn strips(area: &Area<'_>, s: &Series) -> Res {
             )))?;
         }
     }
-    for r in [ROW_MIC, ROW_ARTE, ROW_WHEEL] {
+    for r in [ROW_MIC, ROW_ARTE, ROW_BELIEF, ROW_WHEEL] {
         chart.draw_series(std::iter::once(Rectangle::new(
             [(t_lo, r + 0.12), (t_hi, r + 0.88)],
             BLACK.stroke_width(1),
@@ -361,7 +432,7 @@ fn strips(area: &Area<'_>, s: &Series) -> Res {
     }
     if s.tb.scenario_ns.is_some() && (t_lo..=t_hi).contains(&0.0) {
         chart.draw_series(LineSeries::new(
-            [(0.0, 0.0), (0.0, 3.0)],
+            [(0.0, 0.0), (0.0, ROWS)],
             BLACK.mix(0.7).stroke_width(1),
         ))?;
     }
@@ -379,6 +450,7 @@ fn strips(area: &Area<'_>, s: &Series) -> Res {
     for (r, label) in [
         (ROW_MIC, "microphone"),
         (ROW_ARTE, "ARTE"),
+        (ROW_BELIEF, "loop belief"),
         (ROW_WHEEL, "wheel"),
     ] {
         let (_, py) = chart.backend_coord(&(t_lo, r + 0.5));
@@ -386,10 +458,10 @@ fn strips(area: &Area<'_>, s: &Series) -> Res {
     }
     // colour key
     let mut names: Vec<&str> = s.names.iter().map(String::as_str).collect();
-    if s.est.iter().any(|e| e.2.is_empty()) {
+    if s.est.iter().chain(&s.belief).any(|e| e.2.is_empty()) {
         names.push("");
     }
-    let rows_per_col = 6;
+    let rows_per_col = 8;
     for (i, name) in names.iter().enumerate() {
         let x = 10 + 100 * (i / rows_per_col) as i32;
         let y = 36 + 22 * (i % rows_per_col) as i32;
@@ -404,7 +476,7 @@ fn strips(area: &Area<'_>, s: &Series) -> Res {
             BLACK.stroke_width(1),
         ))?;
         side.draw_text(
-            if name.is_empty() { "no class" } else { name },
+            if name.is_empty() { "none" } else { name },
             &font,
             (x + 22, y),
         )?;
@@ -596,7 +668,7 @@ fn draw_drive(root: &Area<'_>, log: &DriveLog, r: f64, v_eps: f64) -> Res {
     panel(
         &p3,
         &s,
-        "torque (N m): demand T_d and command T* from tcs-loop, motor torque T",
+        "torque (N m): demand T_d, command T* and the torque cap its road belief put in force, from tcs-loop; motor torque T",
         range(
             s.demand
                 .iter()
@@ -607,6 +679,7 @@ fn draw_drive(root: &Area<'_>, log: &DriveLog, r: f64, v_eps: f64) -> Res {
         ),
         false,
         &[
+            ("cap (belief)", &s.ct, &s.cap, CAP_COLOUR),
             ("T_d", &s.ct, &s.demand, RGBColor(0, 0, 0)),
             ("T*", &s.ct, &s.cmd, RGBColor(230, 130, 0)),
             (t_label, t_times, t_values, RGBColor(0, 0, 200)),
@@ -765,6 +838,132 @@ mod tests {
                 "columns {x0}..{x1}: {n} pixels of the measured slip"
             );
         }
+    }
+
+    /// A command chattering between 0 and 300 N m from one cycle to the
+    /// next (t 0.05-0.1 s, as a user's drive did) stays in the torque
+    /// panel: plotters' 2 px polyline drew its sharp turns as spikes up
+    /// into the slip panel and down below 0 N m into the road strips.
+    #[test]
+    fn a_chattering_command_stays_in_its_panel() {
+        let mut log = test_log::drive();
+        for c in &mut log.cycles {
+            let t = c.stamp_ns as f64 * 1e-9 - START as f64 * 1e-9;
+            c.torque_cmd = if (0.05..0.1).contains(&t) && c.seq % 2 == 0 {
+                0.0
+            } else {
+                300.0
+            };
+        }
+        let buf = render(&log);
+        let orange = RGBColor(230, 130, 0);
+        let top = TITLE_H + 2 * PANEL_H;
+        assert!(count(&buf, orange, top..top + PANEL_H, 0..W) > 1000);
+        // nothing above the torque panel (the slip panel), nothing below
+        // it (the strips)
+        let above = count(&buf, orange, 0..top, 0..W);
+        let below = count(&buf, orange, top + PANEL_H..drive_height(), 0..W);
+        assert_eq!((above, below), (0, 0), "pixels of T* out of its panel");
+        // nor below 0 N m: the lowest orange row is the row of 0 N m (the
+        // chattering's bottom), where the held command (0 N m before the
+        // start) runs too
+        let rows: Vec<u32> = (top..top + PANEL_H)
+            .filter(|&y| count(&buf, orange, y..y + 1, LABEL_W..W - LEGEND_W) > 0)
+            .collect();
+        let lowest = *rows.last().unwrap();
+        let mut held = test_log::drive();
+        for c in &mut held.cycles {
+            c.torque_cmd = if c.stamp_ns < START { 0.0 } else { 300.0 };
+        }
+        let held_rows: Vec<u32> = {
+            let b = render(&held);
+            (top..top + PANEL_H)
+                .filter(|&y| count(&b, orange, y..y + 1, LABEL_W..W - LEGEND_W) > 0)
+                .collect()
+        };
+        assert!(
+            lowest <= *held_rows.last().unwrap(),
+            "T* drawn down to row {lowest}, 0 N m is at {held_rows:?}"
+        );
+    }
+
+    /// The loop's road belief (the cycle records' `belief_road`, named by
+    /// the attached catalogue) is a run per stretch of cycles: none before
+    /// the first estimate, then the estimates' roads, asphalt, snow, the one
+    /// wrong asphalt and asphalt again; none at all without beliefs.
+    #[test]
+    fn the_loops_belief_runs_follow_the_cycle_records() {
+        let log = test_log::drive();
+        let tb = TimeBase::of(&log);
+        let runs = belief_runs(&log, &tb);
+        let names: Vec<&str> = runs.iter().map(|r| r.2.as_str()).collect();
+        assert_eq!(names, ["", "asphalt", "snow", "asphalt", "snow", "asphalt"]);
+        // the first estimate at T0 + 120 ms; the runs tile the records
+        assert!((runs[1].0 - tb.axis(T0 + 120 * MS)).abs() < 1e-9);
+        for w in runs.windows(2) {
+            assert_eq!(w[0].1, w[1].0);
+        }
+        assert_eq!(
+            runs.last().unwrap().1,
+            tb.axis(log.cycles.last().unwrap().stamp_ns)
+        );
+        // the wrong estimate's belief, from its publication
+        assert!((runs[3].0 - tb.axis(test_log::WRONG_AT)).abs() < 1e-9);
+        // without the catalogue: by index
+        let mut bare = test_log::drive();
+        bare.attachments.clear();
+        assert_eq!(belief_runs(&bare, &tb)[2].2, "road #2");
+        // ARTE off: no belief
+        let mut off = test_log::drive();
+        for c in &mut off.cycles {
+            c.belief_road = grip_msgs::NO_CLASS;
+        }
+        assert!(belief_runs(&off, &tb).is_empty());
+    }
+
+    /// drive.png draws the loop's belief in the road strips (and the torque
+    /// cap in force in the torque panel): the same drive with beliefs and
+    /// caps differs from it without them in both, where the figure drew
+    /// neither before.
+    #[test]
+    fn the_belief_and_the_cap_are_drawn() {
+        let mut with = test_log::drive();
+        for c in &mut with.cycles {
+            // the snow belief's cap inside the axis, asphalt's beyond it
+            c.torque_cap = match c.belief_road {
+                2 => 120.0,
+                0 => 900.0,
+                _ => f64::NAN,
+            };
+        }
+        let mut without = test_log::drive();
+        for c in &mut without.cycles {
+            c.belief_road = grip_msgs::NO_CLASS;
+            c.torque_cap = f64::NAN;
+        }
+        let (a, b) = (render(&with), render(&without));
+        let top = TITLE_H + 3 * PANEL_H;
+        let differ = |rows: std::ops::Range<u32>, xs: std::ops::Range<u32>| {
+            rows.flat_map(|y| xs.clone().map(move |x| ((y * W + x) * 3) as usize))
+                .filter(|&i| a[i..i + 3] != b[i..i + 3])
+                .count()
+        };
+        let strips = differ(top..drive_height(), LABEL_W..W - LEGEND_W);
+        assert!(strips > 20_000, "{strips} pixels of the belief's strip");
+        // the cap: in the torque panel's data, and its key
+        let panel = TITLE_H + 2 * PANEL_H;
+        let n = count(
+            &a,
+            CAP_COLOUR,
+            panel..panel + PANEL_H,
+            LABEL_W..W - LEGEND_W,
+        );
+        assert!(n > 500, "{n} pixels of the cap");
+        assert_eq!(
+            count(&b, CAP_COLOUR, panel..panel + PANEL_H, 0..W),
+            0,
+            "no cap in the records: none drawn"
+        );
     }
 
     /// With ground truth, the x axis counts from the scenario start (the

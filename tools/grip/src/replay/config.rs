@@ -758,15 +758,71 @@ fn type_name(v: &toml::Value) -> &'static str {
     }
 }
 
+/// `raw` as a TOML value (`None`: TOML does not read it: a bare word, or a
+/// number out of range).
+fn toml_value(raw: &str) -> Option<toml::Value> {
+    toml::from_str::<toml::Table>(&format!("v = {raw}"))
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+}
+
+/// Why `raw`, written as a number, is none a parameter can take: a float
+/// that is not finite (`inf`, `nan`, or out of f64's range, `1e999`, which
+/// TOML does not read at all), or an integer beyond i64's range; `None`
+/// for anything else (`parsed`: [`toml_value`] of `raw`).
+fn not_a_number(raw: &str, parsed: Option<&toml::Value>) -> Option<String> {
+    match parsed {
+        Some(toml::Value::Float(f)) if !f.is_finite() => {
+            return Some(format!("{raw} is not a finite number"));
+        }
+        Some(_) => return None,
+        None => {}
+    }
+    // written as a number: a sign, then a digit
+    let digits = raw.trim_start_matches(['+', '-']);
+    if !digits.starts_with(|c: char| c.is_ascii_digit()) {
+        return None;
+    }
+    let plain: String = raw.chars().filter(|&c| c != '_').collect();
+    let integer = !plain.contains(['.', 'e', 'E']);
+    let digits_only = plain
+        .trim_start_matches(['+', '-'])
+        .chars()
+        .all(|c| c.is_ascii_digit());
+    if integer
+        && digits_only
+        && !plain
+            .parse::<i128>()
+            .is_ok_and(|i| i64::try_from(i).is_ok())
+    {
+        return Some(format!(
+            "{raw} is out of the range of an integer ({} to {}); a float is written with a point or an exponent ({:e})",
+            i64::MIN,
+            i64::MAX,
+            plain.parse::<f64>().unwrap_or(f64::NAN)
+        ));
+    }
+    match plain.parse::<f64>() {
+        Ok(f) if !f.is_finite() => Some(format!(
+            "{raw} is out of f64's range (at most {:e} in magnitude): not a finite number",
+            f64::MAX
+        )),
+        _ => None,
+    }
+}
+
 /// `raw` as a value of `old`'s TOML type: a string key takes a bare word
 /// (`controller=src`) or a quoted string; a float takes an integer
 /// (`k_mfc=150` is 150.0); any other difference is refused, naming both
 /// types.
 fn typed(old: &toml::Value, raw: &str) -> Result<toml::Value, String> {
     let raw = raw.trim();
-    let parsed = toml::from_str::<toml::Table>(&format!("v = {raw}"))
-        .ok()
-        .and_then(|mut t| t.remove("v"));
+    let parsed = toml_value(raw);
+    if let Some(why) = not_a_number(raw, parsed.as_ref())
+        && !old.is_str()
+    {
+        return Err(why);
+    }
     match (old, parsed) {
         (toml::Value::String(_), Some(v @ toml::Value::String(_))) => Ok(v),
         (toml::Value::String(_), _) => Ok(toml::Value::String(raw.to_owned())),
@@ -828,10 +884,11 @@ fn left_out(
             .with_context(|| format!("--set {spec}: {shown}'s {s} is {kind}, not a table"))?;
     }
     let raw = raw.trim();
-    let new = toml::from_str::<toml::Table>(&format!("v = {raw}"))
-        .ok()
-        .and_then(|mut v| v.remove("v"))
-        .unwrap_or_else(|| toml::Value::String(raw.to_owned()));
+    let parsed = toml_value(raw);
+    if let Some(why) = not_a_number(raw, parsed.as_ref()) {
+        bail!("--set {spec}: {why}");
+    }
+    let new = parsed.unwrap_or_else(|| toml::Value::String(raw.to_owned()));
     if new.is_table() {
         // as for a key the file has (`typed`): one key, one --set
         bail!(
@@ -1569,6 +1626,27 @@ mod tests {
             e.contains("1 is an integer, but the key is a boolean"),
             "{e}"
         );
+        // numbers TOML does not read, or no parameter takes, said so (not
+        // "a bare word"); a string key keeps them as text
+        let e = f("1.0", "1e999").unwrap_err();
+        assert!(
+            e.contains("1e999 is out of f64's range") && e.contains("not a finite number"),
+            "{e}"
+        );
+        assert!(
+            f("1.0", "-inf")
+                .unwrap_err()
+                .contains("-inf is not a finite number")
+        );
+        assert!(
+            f("1.0", "nan")
+                .unwrap_err()
+                .contains("nan is not a finite number")
+        );
+        let e = f("2", "99999999999999999999").unwrap_err();
+        assert!(e.contains("out of the range of an integer"), "{e}");
+        assert!(f("2", "007").unwrap_err().contains("bare word"));
+        assert_eq!(f("\"a\"", "1e999"), Ok(toml::Value::String("1e999".into())));
         let e = f("1.0", "fast").unwrap_err();
         assert!(
             e.contains("fast is a string (a bare word), but the key is a float"),

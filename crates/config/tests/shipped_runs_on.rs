@@ -1,0 +1,62 @@
+//! Every shipped scenario runs on every shipped vehicle: the check every
+//! reader of a scenario makes (`ConfigDir::scenario_for`: the demand within
+//! the vehicle's `torque_max`, 1 ..= 1e9 cycles) passes at the controller
+//! loop's period (`controllers.toml [loop] rate_hz`, `grip sim`) and at
+//! plant-sim's (`plant-sim.toml` `rate_hz`, `grip drive` and `grip
+//! generate`).
+
+use std::path::{Path, PathBuf};
+
+use grip_config::{ConfigDir, RunsOn};
+
+fn config() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../config")
+}
+
+fn vehicle_files() -> Vec<PathBuf> {
+    let mut v = vec![config().join("vehicle.toml")];
+    let mut more: Vec<PathBuf> = std::fs::read_dir(config().join("vehicles"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    more.sort();
+    assert!(!more.is_empty(), "config/vehicles has no vehicle");
+    v.extend(more);
+    v
+}
+
+fn plant_sim_rate(dir: &Path) -> f64 {
+    let text = std::fs::read_to_string(dir.join("plant-sim.toml")).unwrap();
+    let t: toml::Table = text.parse().unwrap();
+    t["rate_hz"].as_float().unwrap()
+}
+
+#[test]
+fn every_shipped_scenario_runs_on_every_shipped_vehicle() {
+    let d = ConfigDir::new(config());
+    let roads = d.roads().unwrap();
+    let controllers = grip_config::load_controllers(d.file("controllers.toml")).unwrap();
+    let dts = [controllers.loop_.dt(), 1.0 / plant_sim_rate(d.path())];
+    let names = d.scenario_names();
+    assert!(names.len() >= 3, "{names:?}");
+    for v in vehicle_files() {
+        let (vehicle, _) = grip_config::load_vehicle(&v).unwrap();
+        for &dt in &dts {
+            for n in &names {
+                let on = RunsOn {
+                    vehicle: &vehicle,
+                    vehicle_file: &v,
+                    dt,
+                };
+                let s = d
+                    .scenario_for(n, &roads, on)
+                    .unwrap_or_else(|e| panic!("{n} on {}: {e}", v.display()));
+                assert_eq!(
+                    grip_config::check_scenario(&d.scenario_path(n), &s, on),
+                    Ok((s.duration / dt).round() as usize)
+                );
+            }
+        }
+    }
+}
