@@ -205,7 +205,7 @@ fn train_checks_its_output_paths_before_any_work() {
             && !err.contains("no-data"),
         "{err}"
     );
-    let report = mine(&d.path().join("report.md"));
+    let report = mine(&d.path().join("my-report.txt"));
     let (ok, _, err) = train(&[
         os("--out"),
         model.as_os_str(),
