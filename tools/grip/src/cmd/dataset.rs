@@ -219,8 +219,9 @@ struct OneRoadRow {
 /// model's classes); a road not in it is an error naming the file, the
 /// record and the field. A one-road dataset (`manifest.csv`, no
 /// `segments.csv`, as `grip dataset synth` without `--changes` writes) is
-/// read as one segment per recording, its whole `duration_s` (which must
-/// be the file's length within one frame; each file listed once): the
+/// read as one segment per recording, its whole length (`duration_s`, which
+/// must be the file's length within one frame, or, left out, the length
+/// its WAV header gives; each file listed once): the
 /// stream's decisions on it are then its accuracy on roads that do not
 /// change. Column names are matched in any case (`crate::dataset::column_key`).
 ///
@@ -373,7 +374,7 @@ fn checked_row(
 }
 
 /// A one-road dataset as change recordings of one segment each, from 0 to
-/// its `duration_s`. A file listed twice is an error naming both lines; a
+/// its `duration_s` (left out: the WAV's own length). A file listed twice is an error naming both lines; a
 /// `duration_s` that differs from the WAV's own length (its header) by
 /// more than one frame (`frame_s`) is an error naming the file, the line
 /// and both durations.
@@ -415,22 +416,28 @@ fn read_one_road(
     Ok(out)
 }
 
-/// The `duration_s` of a one-road manifest row whose file is `path`,
-/// checked: a duration > 0 within one frame (`frame_s`) of the file's own
-/// length. `at` names the manifest and line.
+/// The `duration_s` of a one-road manifest row whose file is `path`: the
+/// WAV's own length (its header) when the row leaves it out; when given,
+/// checked: a duration > 0 within one frame (`frame_s`) of that length.
+/// `at` names the manifest and line.
 fn one_road_duration(
     at: &dyn Fn() -> String,
     row: &OneRoadRow,
     path: &Path,
     frame_s: f64,
 ) -> Result<f64> {
-    let Some(d) = row.duration_s.filter(|d| d.is_finite() && *d > 0.0) else {
+    let len = wav_duration_s(path).with_context(at)?;
+    let Some(d) = row.duration_s else {
+        // the manifest's column is optional: the recording is one segment
+        // of its whole length
+        return Ok(len);
+    };
+    if !(d.is_finite() && d > 0.0) {
         bail!(
-            "{}: field `duration_s`: needs a duration in seconds > 0 to read the recording as one segment",
+            "{}: field `duration_s`: needs a duration in seconds > 0 to read the recording as one segment (got {d}; or leave it out: the WAV's own length)",
             at()
         );
-    };
-    let len = wav_duration_s(path).with_context(at)?;
+    }
     if (d - len).abs() > frame_s.max(0.0) + 1e-9 {
         bail!(
             "{}: file {}: duration_s {d} s, but the recording is {len} s long (more than one {frame_s} s frame apart): correct duration_s",
@@ -1291,10 +1298,20 @@ mod tests {
         assert_eq!(c.len(), 1);
         assert_eq!(c[0].path, dir.path().join("snow/snow_0000.wav"));
         assert_eq!(c[0].segments, vec![(0.0, 4.0, 1, Some(12.5))]);
-        // without a duration it cannot be one segment: the error says where
+        // without a duration (or without the column: a user's own
+        // recordings) the WAV's own length, from its header
+        for text in [
+            "file,road,speed_kmh,seed,noise,snr_db,duration_s\nsnow/snow_0000.wav,snow,12.5,7,rain+car,10.0,\n",
+            "file,road,speed_kmh\nsnow/snow_0000.wav,snow,12.5\n",
+        ] {
+            std::fs::write(&manifest, text).unwrap();
+            let c = read_changes(dir.path(), &classes, 0.1).unwrap();
+            assert_eq!(c[0].segments, vec![(0.0, 4.0, 1, Some(12.5))], "{text}");
+        }
+        // a duration that is none: the error says where
         std::fs::write(
             &manifest,
-            "file,road,speed_kmh,seed,noise,snr_db,duration_s\nsnow/snow_0000.wav,snow,12.5,7,rain+car,10.0,\n",
+            "file,road,speed_kmh,seed,noise,snr_db,duration_s\nsnow/snow_0000.wav,snow,12.5,7,rain+car,10.0,0\n",
         )
         .unwrap();
         let e = format!("{:#}", read_changes(dir.path(), &classes, 0.1).unwrap_err());
