@@ -2613,6 +2613,19 @@ mod tests {
         assert!(matches!(implausible_truth(&g), Some(("x", v, "m", _)) if v.is_nan()));
     }
 
+    /// A road estimate `name` whose 20 ms frame ends at `t1_ms`, published
+    /// 1 ns later.
+    fn estimate_at(seq: u64, t1_ms: u64, name: &str) -> RoadEstimate {
+        let mut e = RoadEstimate::zeroed();
+        e.seq = seq;
+        e.frame_t0_ns = (t1_ms - 20) * 1_000_000;
+        e.frame_t1_ns = t1_ms * 1_000_000;
+        e.stamp_ns = t1_ms * 1_000_000 + 1;
+        e.class_index = 0;
+        e.class_name = grip_msgs::name_to_bytes(name);
+        e
+    }
+
     fn truth(seq: u64, t_ms: u64, x: f64, road: u32, name: &str) -> GroundTruth {
         let mut g = GroundTruth::zeroed();
         g.seq = seq;
@@ -2825,23 +2838,13 @@ mod tests {
             let (r, n) = if k < 110 { (0, "asphalt") } else { (1, "snow") };
             t.push(truth(k, k, x, r, n));
         }
-        let est = |seq: u64, t1_ms: u64, name: &str| {
-            let mut e = RoadEstimate::zeroed();
-            e.seq = seq;
-            e.frame_t0_ns = (t1_ms - 20) * 1_000_000;
-            e.frame_t1_ns = t1_ms * 1_000_000;
-            e.stamp_ns = t1_ms * 1_000_000 + 1;
-            e.class_index = 0;
-            e.class_name = grip_msgs::name_to_bytes(name);
-            e
-        };
         let log = DriveLog {
             truth: t,
             roads: vec![
-                est(0, 50, "asphalt"),
-                est(1, 100, "snow"),    // wrong (truth asphalt at 90 ms)
-                est(2, 140, "asphalt"), // wrong (truth snow at 130 ms)
-                est(3, 160, "snow"),
+                estimate_at(0, 50, "asphalt"),
+                estimate_at(1, 100, "snow"), // wrong (truth asphalt at 90 ms)
+                estimate_at(2, 140, "asphalt"), // wrong (truth snow at 130 ms)
+                estimate_at(3, 160, "snow"),
             ],
             ..DriveLog::default()
         };
@@ -2996,19 +2999,9 @@ mod tests {
             };
             t.push(truth(k, k, x, r, n));
         }
-        let est = |seq: u64, t1_ms: u64, name: &str| {
-            let mut e = RoadEstimate::zeroed();
-            e.seq = seq;
-            e.frame_t0_ns = (t1_ms - 20) * 1_000_000;
-            e.frame_t1_ns = t1_ms * 1_000_000;
-            e.stamp_ns = t1_ms * 1_000_000 + 1;
-            e.class_index = 0;
-            e.class_name = grip_msgs::name_to_bytes(name);
-            e
-        };
         let mut log = DriveLog {
             truth: t,
-            roads: vec![est(0, 50, "asphalt"), est(1, 160, "gravel")],
+            roads: vec![estimate_at(0, 50, "asphalt"), estimate_at(1, 160, "gravel")],
             ..DriveLog::default()
         };
         let acq = |source: &str, aliases: &str| {

@@ -5,24 +5,12 @@
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use grip_testkit::svc::{NotifySocket, Service, strip_rt};
+use grip_testkit::svc::{NotifySocket, Service};
+
+mod common;
+use common::copy_config;
 
 const BIN: &str = env!("CARGO_BIN_EXE_plant-sim");
-
-/// The shipped configuration plant-sim reads, without the real-time set-up.
-fn copy_config() -> tempfile::TempDir {
-    let t = grip_testkit::svc::copy_config(&[
-        "vehicle.toml",
-        "can.toml",
-        "inverter.dbc",
-        "roads.toml",
-        "roads",
-        "scenarios/paper.toml",
-        "plant-sim.toml",
-    ]);
-    strip_rt(&t.path().join("plant-sim.toml"));
-    t
-}
 
 fn run(args: &[&str]) -> (i32, String) {
     let instance = format!("ps-cli-{}", std::process::id());

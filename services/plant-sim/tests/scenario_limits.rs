@@ -10,23 +10,10 @@ use std::io::Read;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use grip_testkit::svc::strip_rt;
+mod common;
+use common::copy_config;
 
 const BIN: &str = env!("CARGO_BIN_EXE_plant-sim");
-
-fn copy_config() -> tempfile::TempDir {
-    let t = grip_testkit::svc::copy_config(&[
-        "vehicle.toml",
-        "can.toml",
-        "inverter.dbc",
-        "roads.toml",
-        "roads",
-        "scenarios/paper.toml",
-        "plant-sim.toml",
-    ]);
-    strip_rt(&t.path().join("plant-sim.toml"));
-    t
-}
 
 /// `paper.toml` with `from` replaced by `to`; plant-sim's exit code and stderr.
 fn run_paper_with(from: &str, to: &str, extra: &[&str]) -> (i32, String) {

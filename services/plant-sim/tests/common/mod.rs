@@ -1,7 +1,7 @@
 //! Test doubles: the in-process CAN bus (`grip_io::can::MemBus`), a truth
 //! recorder, and the shipped configuration.
 
-#![allow(dead_code)]
+#![allow(dead_code, unused_imports)]
 
 use std::path::PathBuf;
 
@@ -59,4 +59,20 @@ pub fn sim_with_vehicle(
     let scenario = dir.scenario_with(&cfg.scenario, &roads).unwrap();
     let (vehicle, sensors) = grip_config::load_vehicle(dir.file(vehicle)).unwrap();
     PlantSim::new(cfg, scenario, roads, &vehicle, &sensors)
+}
+
+/// The shipped configuration plant-sim reads, copied, without the
+/// real-time set-up (for tests that run the binary).
+pub fn copy_config() -> tempfile::TempDir {
+    let t = grip_testkit::svc::copy_config(&[
+        "vehicle.toml",
+        "can.toml",
+        "inverter.dbc",
+        "roads.toml",
+        "roads",
+        "scenarios/paper.toml",
+        "plant-sim.toml",
+    ]);
+    grip_testkit::svc::strip_rt(&t.path().join("plant-sim.toml"));
+    t
 }
