@@ -3,7 +3,8 @@
 //! the driving resistance.
 //!
 //! ```text
-//! tau_m dT/dt  = T* - T                       T* clamped to ±torque_max
+//! tau_m dT/dt  = T* - T                       T* clamped to ±T_lim(ω)
+//! T_lim(ω)     = torque_max, or min(torque_max, power_max/|ω|) with a power limit
 //! J_w dω/dt    = T - r F_x
 //! (M/n) dV/dt  = F_x - F_dr(V)/n
 //! dx/dt        = V
@@ -89,6 +90,7 @@ pub struct Plant {
     lambda: f64,
     mu: f64,
     fx: f64,
+    derating: bool,
 }
 
 /// Per-call constants of the right-hand side.
@@ -119,6 +121,7 @@ impl Plant {
             lambda: 0.0,
             mu: 0.0,
             fx: 0.0,
+            derating: false,
         };
         p.lambda = p.slip_of(state.omega, state.v);
         Ok(p)
@@ -179,6 +182,13 @@ impl Plant {
         self.fx
     }
 
+    /// Whether the last step's command was cut below its value by the power
+    /// limit ([`VehicleParams::power_max`]; never without one): what an
+    /// inverter reports as derating (plant-sim's `MotorStatus.Derating`).
+    pub fn derating(&self) -> bool {
+        self.derating
+    }
+
     /// Slip for a given (ω, V).
     #[inline]
     pub fn slip_of(&self, omega: f64, v: f64) -> f64 {
@@ -187,7 +197,9 @@ impl Plant {
     }
 
     /// Advance by `dt` seconds (normally the controller period) with motor
-    /// command `torque_cmd` (N m, clamped to ±torque_max; NaN is treated as 0)
+    /// command `torque_cmd` (N m, clamped to ±[`VehicleParams::torque_limit`]
+    /// at the wheel speed the call starts from: ±torque_max, less above the
+    /// base speed of a drive with a power limit; NaN is treated as 0)
     /// on `road` at grade `grade_rad` (rad, positive uphill; non-finite is
     /// treated as 0, clamped to ±π/2). `dt` that is not finite and > 0 leaves
     /// the plant unchanged. Allocation-free.
@@ -196,11 +208,13 @@ impl Plant {
             return;
         }
         let p = self.params;
+        let limit = p.torque_limit(self.state.omega);
         let cmd = if torque_cmd.is_nan() {
             0.0
         } else {
-            torque_cmd.clamp(-p.torque_max, p.torque_max)
+            torque_cmd.clamp(-limit, limit)
         };
+        self.derating = limit < p.torque_max && torque_cmd.abs() > limit;
         let theta = if grade_rad.is_finite() {
             grade_rad.clamp(-std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_2)
         } else {
@@ -435,6 +449,62 @@ mod tests {
         assert!((plant.state().torque - p.torque_max).abs() < 1e-3);
     }
 
+    /// With a power limit the drive gives torque_max to its base speed and
+    /// power_max / ω above it (says so as derating); without one it never
+    /// derates.
+    #[test]
+    fn a_power_limit_cuts_the_torque_above_the_base_speed() {
+        let power = 30_000.0;
+        let p = VehicleParams {
+            power_max: Some(power),
+            ..VehicleParams::default()
+        };
+        assert_eq!(p.torque_limit(10.0), p.torque_max);
+        assert_eq!(p.torque_limit(-60.0), power / 60.0);
+        assert_eq!(p.torque_limit(f64::NAN), p.torque_max);
+        // 300 N m: base speed 100 rad/s = 28 m/s on r = 0.28 m
+        let mut limited = Plant::new(p, PlantState::rolling(20.0, p.r)).unwrap();
+        let free_p = VehicleParams::default();
+        let mut free = Plant::new(free_p, PlantState::rolling(20.0, p.r)).unwrap();
+        let mut derated_at = None;
+        for k in 0..20_000 {
+            limited.step(1e-3, 300.0, &asphalt(), 0.0);
+            free.step(1e-3, 300.0, &asphalt(), 0.0);
+            if derated_at.is_none() && limited.derating() {
+                derated_at = Some(k);
+                let omega = limited.state().omega;
+                assert!(
+                    omega * 300.0 > power * 0.999,
+                    "derating at ω = {omega} rad/s, below the base speed {}",
+                    power / 300.0
+                );
+            }
+            assert!(!free.derating());
+            let s = limited.state();
+            // the motor's torque follows the falling limit through its lag
+            assert!(
+                s.torque <= p.torque_limit(s.omega) * 1.02 + 1e-9,
+                "T {} above the limit {} at ω {}",
+                s.torque,
+                p.torque_limit(s.omega),
+                s.omega
+            );
+        }
+        assert!(derated_at.is_some(), "never reached the base speed");
+        let (l, f) = (limited.state(), free.state());
+        assert!(
+            l.v < f.v - 5.0,
+            "the power limit should cost top speed: {} vs {} m/s",
+            l.v,
+            f.v
+        );
+        // settled above the base speed: the wheel's power is the limit
+        assert!(
+            (l.torque * l.omega - power).abs() < 0.01 * power,
+            "P = {} W",
+            l.torque * l.omega
+        );
+    }
     #[test]
     fn standstill_stays_put_and_resistance_never_reverses() {
         let p = VehicleParams::default();

@@ -46,6 +46,16 @@ pub struct VehicleParams {
     /// motor torque limit × i ÷ n_driven (a motor per wheel: its own limit
     /// × its ratio).
     pub torque_max: f64,
+    /// Power limit of ONE driven wheel's drive, W: above the base speed
+    /// ω_b = power_max / torque_max the torque the drive can give falls as
+    /// power_max / |ω| (an electric drive: constant torque to its base
+    /// speed, constant power above it, by field weakening). grip's powers
+    /// are per driven wheel like its torques: one motor driving `n_driven`
+    /// wheels gives each power_max = motor power ÷ n_driven. `None` (the
+    /// field left out; `config/vehicle.toml`, the paper's Table IV has no
+    /// power limit) = no limit but `torque_max`. See
+    /// [`VehicleParams::torque_limit`].
+    pub power_max: Option<f64>,
     /// Share of the vehicle's weight carried by the driven wheels together,
     /// (0, 1]: the driven wheel's normal force is N = share · M g / n. 1
     /// (default: every wheel driven, n = 4, the paper's set-up) gives
@@ -76,6 +86,7 @@ impl Default for VehicleParams {
             c_d_a: 0.7,
             v_eps: 0.1,
             torque_max: 1000.0,
+            power_max: None,
             driven_load_share: 1.0,
             mic_lead_m: 0.0,
         }
@@ -104,6 +115,16 @@ impl VehicleParams {
     /// tyre's `r` when the file leaves it out.
     pub fn ref_radius(&self) -> f64 {
         self.r_ref.unwrap_or(self.r)
+    }
+    /// The torque the drive can give at wheel speed `omega` (rad/s), N m:
+    /// `torque_max`, or power_max / |ω| above the base speed power_max /
+    /// torque_max when the file sets [`VehicleParams::power_max`]. A
+    /// non-finite ω gives `torque_max`.
+    pub fn torque_limit(&self, omega: f64) -> f64 {
+        match self.power_max {
+            Some(power) if omega.abs() * self.torque_max > power => power / omega.abs(),
+            _ => self.torque_max,
+        }
     }
     /// Normal force on the driven wheel, N = share · M g / n
     /// ([`VehicleParams::driven_load_share`]; M g / n by default).
@@ -154,6 +175,7 @@ impl VehicleParams {
     /// | c_d_a | [0, 15] m² |
     /// | v_eps | (0, 1] m/s |
     /// | torque_max | (0, 100 000] N m (one driven wheel) |
+    /// | power_max | [1 000, 10 000 000] W (one driven wheel) |
     /// | driven_load_share | (0, 1] |
     /// | mic_lead_m | [0, 20] m |
     ///
@@ -267,6 +289,16 @@ impl VehicleParams {
             "ONE driven wheel's torque limit, motor torque x gear ratio / n_driven for one motor driving n_driven wheels: a car 500-5000 N m, a heavy truck up to about 40 000 N m",
             &[],
         )?;
+        if let Some(power) = self.power_max {
+            plausible(
+                "power_max",
+                power,
+                Range::closed(1e3, 1e7),
+                "W",
+                "ONE driven wheel's share of the drive's power, in watts: motor power / n_driven for one motor driving n_driven wheels; a car's motor has 50-400 kW in all, a heavy truck's up to about 700 kW",
+                &[(1e3, "kW"), (745.7, "hp")],
+            )?;
+        }
         plausible(
             "driven_load_share",
             self.driven_load_share,
@@ -399,12 +431,30 @@ mod tests {
         assert!((0.19 * p.normal_force() * p.r - 182.7).abs() < 0.5);
         assert_eq!(p.r_ref, None);
         assert_eq!(p.ref_radius(), p.r);
+        assert_eq!(p.power_max, None);
+        assert_eq!(p.torque_limit(1e6), p.torque_max);
+    }
+
+    /// A power given in kilowatts (`power_max = 75`) is refused with the
+    /// reading in watts.
+    #[test]
+    fn a_power_in_kilowatts_is_named() {
+        let p = VehicleParams {
+            power_max: Some(75.0),
+            ..VehicleParams::default()
+        };
+        let e = p.validate().unwrap_err();
+        assert_eq!(e.field, "power_max");
+        assert!(e.reason.contains("75 kW is 75000 W"), "{}", e.reason);
     }
 
     #[test]
     fn bad_values_fail_with_the_field_named() {
         type Mutation = fn(&mut VehicleParams);
-        let cases: [(&str, Mutation); 12] = [
+        let cases: [(&str, Mutation); 15] = [
+            ("power_max", |p| p.power_max = Some(0.0)),
+            ("power_max", |p| p.power_max = Some(f64::INFINITY)),
+            ("power_max", |p| p.power_max = Some(-75_000.0)),
             ("driven_load_share", |p| p.driven_load_share = 0.0),
             ("driven_load_share", |p| p.driven_load_share = f64::NAN),
             ("mic_lead_m", |p| p.mic_lead_m = -1.0),
@@ -565,7 +615,7 @@ mod tests {
     }
 
     /// Every field of the struct is in `defaultable_fields` except the
-    /// optional `r_ref` (the destructuring breaks at compile time when a
+    /// optional `r_ref` and `power_max` (the destructuring breaks at compile time when a
     /// field is added), with its own value.
     #[test]
     fn defaultable_fields_name_every_field() {
@@ -579,6 +629,7 @@ mod tests {
             j_w,
             r,
             r_ref: _,
+            power_max: _,
             m_wheel,
             tau_m,
             c_rr,

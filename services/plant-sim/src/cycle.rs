@@ -523,7 +523,8 @@ impl PlantSim {
         let ms = MotorStatus {
             ready: true,
             fault: timed_out,
-            derating: false,
+            // the vehicle file's power limit cut the command (never without one)
+            derating: self.plant.derating(),
             cmd_timeout: timed_out,
             torque_actual: reading.torque,
             motor_speed: reading.omega,

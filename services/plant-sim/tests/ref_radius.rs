@@ -7,24 +7,17 @@ mod common;
 
 use std::path::Path;
 
-use common::{LastTruth, MemBus, config_dir};
+use common::{LastTruth, MemBus, paper_now_with};
 use grip_io::can::protocol::{ProtocolMessage, WheelSpeeds};
 use grip_io::clock::{Clock, ManualClock};
-use grip_physics::{SensorParams, VehicleParams};
-use grip_plant_sim::{PlantSim, PlantSimConfig, PlantTick, StartOn};
+use grip_physics::VehicleParams;
+use grip_plant_sim::PlantTick;
 
 const MS: u64 = 1_000_000;
 
 /// (OmegaRef sent, true V) over 200 ms of the paper scenario, no torque.
 fn omega_ref_and_v(vehicle: &VehicleParams) -> Vec<(f64, f64)> {
-    let cfg = PlantSimConfig {
-        start_on: StartOn::Immediate,
-        ..PlantSimConfig::with_scenario("paper")
-    };
-    let dir = config_dir();
-    let roads = dir.roads().unwrap();
-    let scenario = dir.scenario_with(&cfg.scenario, &roads).unwrap();
-    let mut sim = PlantSim::new(&cfg, scenario, roads, vehicle, &SensorParams::ideal()).unwrap();
+    let mut sim = paper_now_with(vehicle);
     let clock = ManualClock::new(5_000 * MS);
     let mut bus = MemBus::new();
     let mut truth = LastTruth::default();

@@ -48,6 +48,26 @@ pub fn sim(cfg: &PlantSimConfig) -> PlantSim {
     PlantSim::new(cfg, scenario, roads, &vehicle, &sensors).unwrap()
 }
 
+/// A simulator of the shipped paper scenario, started at once, with
+/// `vehicle` and ideal sensors.
+pub fn paper_now_with(vehicle: &grip_physics::VehicleParams) -> PlantSim {
+    let cfg = PlantSimConfig {
+        start_on: grip_plant_sim::StartOn::Immediate,
+        ..PlantSimConfig::with_scenario("paper")
+    };
+    let dir = config_dir();
+    let roads = dir.roads().unwrap();
+    let scenario = dir.scenario_with(&cfg.scenario, &roads).unwrap();
+    PlantSim::new(
+        &cfg,
+        scenario,
+        roads,
+        vehicle,
+        &grip_physics::SensorParams::ideal(),
+    )
+    .unwrap()
+}
+
 /// A simulator of the shipped `scenario` with the vehicle of `vehicle`
 /// (a path relative to the shipped configuration directory).
 pub fn sim_with_vehicle(
