@@ -1514,18 +1514,18 @@ impl RoadAudioPlayer {
         let cdir = grip_config::ConfigDir::new(config);
         let roads = cdir.roads()?;
         let scn = cdir.scenario_with(scenario, &roads)?;
-        // the same road-name aliases audio-acq's synth source uses
-        let acq_text = fs::read_to_string(config.join("audio-acq.toml"))?;
-        let acq: toml::Value = toml::from_str(&acq_text).context("audio-acq.toml")?;
+        // the same road-name aliases audio-acq's synth source uses (its
+        // rule: grip_arte::synth::SynthAliases::resolve)
+        let acq_file = config.join("audio-acq.toml");
+        let acq_text = fs::read_to_string(&acq_file)?;
+        let aliases = toml::from_str::<grip_arte::synth::AudioAcqAliases>(&acq_text)
+            .context("audio-acq.toml")?
+            .aliases()
+            .resolve(&acq_file)?
+            .sounds;
         let alias = |name: &str| -> usize {
             grip_arte::synth::road_index(name)
-                .or_else(|| {
-                    acq.get("synth")?
-                        .get("aliases")?
-                        .get(name)?
-                        .as_str()
-                        .and_then(grip_arte::synth::road_index)
-                })
+                .or_else(|| grip_arte::synth::road_index(aliases.get(name)?))
                 .unwrap_or(usize::MAX)
         };
         let seg_roads: Vec<(usize, String)> = scn

@@ -17,6 +17,11 @@
 //! streaming estimator then reports the raw smoothed posterior (identity),
 //! and callers can say so. Any other version is refused, naming it.
 //!
+//! Optional fields of `meta` (`training_files`, `speeds`: the vehicle
+//! speeds of the training recordings, [`crate::speeds`]) are written only
+//! when present and read as absent from files written before them, in
+//! either version: such a file loads, and writes back byte-identical.
+//!
 //! The checksum covers the payload bytes exactly as stored. Floats are
 //! written by `serde_json` in shortest round-trip form and parsed with its
 //! `float_roundtrip` feature, so `to_bytes → from_bytes → to_bytes` is
@@ -45,6 +50,7 @@ use crate::eval::{Confusion, Metrics, Samples, holdout_groups, stratified_group_
 use crate::features::{FeatureConfig, FeatureError, FeatureSet, N_PAPER20};
 use crate::mlp::{LmConfig, LmReport, Mlp, MlpError, MlpScratch, stratified_subsample, train_lm};
 use crate::select::{paper7_config, select_paper7};
+use crate::speeds::{SpeedRange, TrainingSpeeds};
 use crate::svm::{Kernel, Svm, SvmConfig, SvmError, SvmReport, SvmScratch};
 
 /// File magic, first token of the header line.
@@ -284,6 +290,15 @@ pub struct TrainingMeta {
     /// are unchanged).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub training_files: Vec<String>,
+    /// The vehicle speeds of the training recordings, km/h: the slowest
+    /// and fastest `speed_kmh` of the training manifest among the
+    /// recordings that gave frames (`grip train`; None when a recording
+    /// has no speed). Models written before this field existed have none
+    /// (and it is then not written, so their bytes are unchanged);
+    /// [`Model::training_speeds`] then reads `grip train`'s note on them,
+    /// if there is one ([`crate::speeds`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speeds: Option<SpeedRange>,
 }
 
 /// A trained road-type classifier, everything needed to go from a frame's
@@ -345,6 +360,20 @@ impl Model {
     pub fn dim(&self) -> usize {
         self.standardiser.mean.len()
     }
+    /// The vehicle speeds the model was trained at: `meta.speeds`, else
+    /// `grip train`'s note on them in `meta.notes` (a model written before
+    /// `meta.speeds`), else not recorded ([`crate::speeds`]).
+    pub fn training_speeds(&self) -> TrainingSpeeds {
+        if let Some(r) = self.meta.speeds {
+            return TrainingSpeeds::Recorded(r);
+        }
+        self.meta
+            .notes
+            .iter()
+            .find_map(|n| SpeedRange::from_note(n))
+            .map_or(TrainingSpeeds::NotRecorded, TrainingSpeeds::FromNote)
+    }
+
     /// The streaming estimator's confidence calibration; `None` for a model
     /// without one (a version 1 file): the stream's confidence is then the
     /// raw smoothed posterior.
@@ -405,6 +434,17 @@ impl Model {
                     found: v.to_string(),
                 });
             }
+        }
+        if let Some(r) = &self.meta.speeds
+            && !r.is_valid()
+        {
+            return mm(
+                "meta.speeds",
+                format!(
+                    "min_kmh {} and max_kmh {} are not speeds with 0 <= min <= max",
+                    r.min_kmh, r.max_kmh
+                ),
+            );
         }
         if self.classes.len() < 2 {
             return mm(

@@ -52,6 +52,9 @@ pub fn road_index(name: &str) -> Option<usize> {
     ROADS.iter().position(|r| *r == name)
 }
 
+mod aliases;
+pub use aliases::{AliasError, AliasValue, AudioAcqAliases, ResolvedAliases, SynthAliases};
+
 /// Reference speed of the level laws: 30 km/h.
 pub const V_REF_MPS: f64 = 30.0 / 3.6;
 /// Speed of sound (m/s) for the Doppler shift of passing cars.

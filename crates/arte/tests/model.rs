@@ -682,3 +682,85 @@ fn calibration_and_version_must_agree() {
         "{e}"
     );
 }
+
+/// `meta.speeds`, the training recordings' vehicle speeds: written and read
+/// back exactly; a file without it (every model written before it existed)
+/// loads, says "training speeds not recorded" (or reads `grip train`'s
+/// note on them) and writes back byte-identical; a range that is not one
+/// is refused naming the field.
+#[test]
+fn training_speeds_round_trip_and_old_files_load() {
+    use grip_arte::speeds::{SpeedRange, TrainingSpeeds};
+    let old = models().remove(0);
+    assert_eq!(old.meta.speeds, None);
+    let old_bytes = old.to_bytes().unwrap();
+    assert!(
+        !String::from_utf8_lossy(&old_bytes).contains("\"speeds\""),
+        "no field written when there is none"
+    );
+    let back = Model::from_bytes(&old_bytes).unwrap();
+    assert_eq!(back.training_speeds(), TrainingSpeeds::NotRecorded);
+    assert_eq!(
+        back.training_speeds().describe(),
+        "training speeds not recorded"
+    );
+    assert_eq!(back.to_bytes().unwrap(), old_bytes);
+
+    // with the range: exact round trip, and the field in the payload
+    let mut m = old.clone();
+    m.meta.speeds = SpeedRange::new(4.017, 29.843);
+    let bytes = m.to_bytes().unwrap();
+    let back = Model::from_bytes(&bytes).unwrap();
+    assert_eq!(back, m);
+    assert_eq!(back.to_bytes().unwrap(), bytes);
+    assert_eq!(
+        payload_json(&m)["meta"]["speeds"],
+        serde_json::json!({"min_kmh": 4.017, "max_kmh": 29.843})
+    );
+    let r = back.training_speeds();
+    assert_eq!(
+        r,
+        TrainingSpeeds::Recorded(SpeedRange::new(4.017, 29.843).unwrap())
+    );
+    assert_eq!(r.describe(), "4.0-29.8 km/h");
+    // the same with a calibration (format v2)
+    let cal = m
+        .clone()
+        .with_calibration(Some(calibrations().remove(0)))
+        .unwrap();
+    let back = Model::from_bytes(&cal.to_bytes().unwrap()).unwrap();
+    assert_eq!(back.meta.speeds, m.meta.speeds);
+
+    // an old file whose notes carry `grip train`'s line on the speeds
+    let mut noted = old.clone();
+    noted.meta.notes = vec![
+        "training speeds: 4.0-29.8 km/h".into(),
+        "svm: C = 10".into(),
+    ];
+    let back = Model::from_bytes(&noted.to_bytes().unwrap()).unwrap();
+    assert_eq!(back.meta.speeds, None);
+    assert_eq!(
+        back.training_speeds(),
+        TrainingSpeeds::FromNote(SpeedRange::new(4.0, 29.8).unwrap())
+    );
+    assert_eq!(
+        back.training_speeds().describe(),
+        "4.0-29.8 km/h (from the model's training notes)"
+    );
+    // the field wins over the note
+    noted.meta.speeds = SpeedRange::new(5.0, 20.0);
+    assert_eq!(noted.training_speeds().range(), SpeedRange::new(5.0, 20.0));
+
+    for bad in [
+        serde_json::json!({"min_kmh": 30.0, "max_kmh": 4.0}),
+        serde_json::json!({"min_kmh": -1.0, "max_kmh": 4.0}),
+    ] {
+        let e = load_edited(&old, |j| j["meta"]["speeds"] = bad.clone()).unwrap_err();
+        assert!(e.to_string().contains("meta.speeds"), "{e}");
+    }
+    let e = load_edited(&old, |j| {
+        j["meta"]["speeds"] = serde_json::json!({"min_kmh": 4.0});
+    })
+    .unwrap_err();
+    assert!(matches!(e, ModelError::Json(_)), "{e}");
+}

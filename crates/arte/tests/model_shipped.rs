@@ -101,3 +101,23 @@ fn default_model_is_calibrated_and_its_classifier_unchanged() {
     let (p, _) = load("paper.model");
     assert_eq!((p.format_version(), p.calibration()), (1, None));
 }
+
+/// The shipped models were written before `meta.speeds` existed: they
+/// load without it (their bytes, and so their SHA-256 that the reference
+/// drive and the hash above pin, are unchanged), and their training speeds
+/// come from `grip train`'s note in their metadata, "training speeds:
+/// 4.0-29.8 km/h" (the manifest's slowest and fastest recording of the
+/// log-uniform 4-30 km/h training set).
+#[test]
+fn shipped_models_give_their_training_speeds_from_their_notes() {
+    use grip_arte::speeds::{SpeedRange, TrainingSpeeds};
+    for name in ["default.model", "paper.model"] {
+        let (m, _) = load(name);
+        assert_eq!(m.meta.speeds, None, "{name}");
+        assert_eq!(
+            m.training_speeds(),
+            TrainingSpeeds::FromNote(SpeedRange::new(4.0, 29.8).unwrap()),
+            "{name}"
+        );
+    }
+}

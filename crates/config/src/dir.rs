@@ -12,6 +12,69 @@ use grip_physics::{RoadCatalogue, Scenario, SensorParams, VehicleParams};
 
 use crate::error::ConfigError;
 
+/// The scenarios' folder of a configuration directory.
+const SCENARIOS: &str = "scenarios";
+
+/// What a scenario argument names: a scenario of the configuration
+/// directory by name, or a file by path. The one rule for `--scenario` of
+/// `grip drive`, `grip sim` and `grip generate`, plant-sim's `scenario`
+/// ([`ConfigDir::scenario_path`]), and a drive log's `grip.run` `scenario`
+/// (the drive summary, `grip replay`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ScenarioArg<'a> {
+    /// A name under `<dir>/scenarios`: the file `<dir>/scenarios/<name>.toml`.
+    Name(&'a str),
+    /// A file, as given (a relative one is relative to the current directory).
+    Path(&'a Path),
+}
+
+impl<'a> ScenarioArg<'a> {
+    /// What `name_or_path` names here and now, as a command line takes it:
+    /// a path when it names an existing file, else by its spelling
+    /// ([`ScenarioArg::by_spelling`]).
+    pub fn given(name_or_path: &'a str) -> Self {
+        let p = Path::new(name_or_path);
+        if p.is_file() {
+            Self::Path(p)
+        } else {
+            Self::by_spelling(name_or_path)
+        }
+    }
+
+    /// What `name_or_path` names by its spelling alone: a path when it
+    /// contains a path separator or ends in `.toml`, else a name. How a
+    /// drive log's `grip.run` `scenario` is read, away from the drive's
+    /// files (a drive given an existing file attaches it as
+    /// `drive/scenario.toml`, which the readers of the log take first).
+    pub fn by_spelling(name_or_path: &'a str) -> Self {
+        if name_or_path.chars().any(std::path::is_separator) || name_or_path.ends_with(".toml") {
+            Self::Path(Path::new(name_or_path))
+        } else {
+            Self::Name(name_or_path)
+        }
+    }
+
+    /// The name, for a name under `<dir>/scenarios`.
+    pub fn name(self) -> Option<&'a str> {
+        match self {
+            Self::Name(n) => Some(n),
+            Self::Path(_) => None,
+        }
+    }
+
+    /// The file of a name, relative to the configuration directory:
+    /// `scenarios/<name>.toml` (also the name the recorder attaches it
+    /// under); `None` for a path.
+    pub fn in_config_dir(self) -> Option<String> {
+        self.name().map(Self::file_of_name)
+    }
+
+    /// `scenarios/<name>.toml`.
+    fn file_of_name(name: &str) -> String {
+        format!("{SCENARIOS}/{name}.toml")
+    }
+}
+
 /// A configuration directory (default `config/`).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ConfigDir {
@@ -46,21 +109,16 @@ impl ConfigDir {
 
     /// `<dir>/scenarios`.
     pub fn scenarios_path(&self) -> PathBuf {
-        self.file("scenarios")
+        self.file(SCENARIOS)
     }
 
-    /// Where scenario `name_or_path` lives: a path as given when it names an
-    /// existing file or contains a path separator or ends in `.toml`;
-    /// otherwise `<dir>/scenarios/<name>.toml`.
+    /// Where scenario `name_or_path` lives ([`ScenarioArg::given`]): a path
+    /// as given when it names an existing file or contains a path separator
+    /// or ends in `.toml`; otherwise `<dir>/scenarios/<name>.toml`.
     pub fn scenario_path(&self, name_or_path: &str) -> PathBuf {
-        let p = Path::new(name_or_path);
-        if p.is_file()
-            || name_or_path.contains(std::path::MAIN_SEPARATOR)
-            || name_or_path.ends_with(".toml")
-        {
-            p.to_owned()
-        } else {
-            self.scenarios_path().join(format!("{name_or_path}.toml"))
+        match ScenarioArg::given(name_or_path) {
+            ScenarioArg::Path(p) => p.to_owned(),
+            ScenarioArg::Name(n) => self.file(&ScenarioArg::file_of_name(n)),
         }
     }
 
@@ -137,5 +195,41 @@ impl ConfigDir {
         on: crate::RunsOn,
     ) -> Result<Scenario, ConfigError> {
         crate::load_scenario_for(self.scenario_path(name_or_path), roads, on)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One rule: a name, or a path by its spelling (or, given on a command
+    /// line, because the file exists); `scenario_path` follows it.
+    #[test]
+    fn a_scenario_argument_is_a_name_or_a_path() {
+        assert_eq!(ScenarioArg::given("paper"), ScenarioArg::Name("paper"));
+        assert_eq!(
+            ScenarioArg::given("scen/suv.toml"),
+            ScenarioArg::Path(Path::new("scen/suv.toml"))
+        );
+        assert_eq!(
+            ScenarioArg::by_spelling("suv.toml"),
+            ScenarioArg::Path(Path::new("suv.toml"))
+        );
+        assert_eq!(
+            ScenarioArg::by_spelling("/abs/suv"),
+            ScenarioArg::Path(Path::new("/abs/suv"))
+        );
+        assert_eq!(
+            ScenarioArg::by_spelling("paper").in_config_dir().as_deref(),
+            Some("scenarios/paper.toml")
+        );
+        assert_eq!(ScenarioArg::by_spelling("a/b.toml").in_config_dir(), None);
+        let dir = ConfigDir::new("cfg");
+        assert_eq!(
+            dir.scenario_path("paper"),
+            Path::new("cfg/scenarios/paper.toml")
+        );
+        assert_eq!(dir.scenario_path("x/y.toml"), Path::new("x/y.toml"));
+        assert_eq!(dir.scenario_path("y.toml"), Path::new("y.toml"));
     }
 }

@@ -12,22 +12,38 @@ use std::path::{Path, PathBuf};
 use grip_io::mcaplog::{LogMessage, McapLog, McapLogError, MetadataMap, ReadReport};
 use grip_msgs::{AudioBlock, BusFrame, CanFrame, CycleRecord, GroundTruth, RoadEstimate, topics};
 
-/// A log that cannot be read at all (missing, unreadable, not MCAP); the
-/// reason is its [`source`](std::error::Error::source) (`{:#}` of an
-/// `anyhow::Error` prints both, [`LogError::full`] too).
-#[derive(Debug, thiserror::Error)]
-#[error("reading {path}")]
+/// A log that cannot be read at all (missing, unreadable, not MCAP):
+/// "reading PATH: reason", the path and the reason said once. The reason
+/// is in the message and not returned as the
+/// [`source`](std::error::Error::source) (`{:#}` of an `anyhow::Error`
+/// would print it twice).
+#[derive(Debug)]
 pub struct LogError {
     /// The file.
     pub path: PathBuf,
     /// Why.
-    pub source: McapLogError,
+    pub error: McapLogError,
 }
 
+impl std::fmt::Display for LogError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let path = self.path.display().to_string();
+        let why = self.error.to_string();
+        // the reader's errors name their file first: once is enough
+        let why = why
+            .strip_prefix(path.as_str())
+            .and_then(|w| w.strip_prefix(": "))
+            .unwrap_or(&why);
+        write!(f, "reading {path}: {why}")
+    }
+}
+
+impl std::error::Error for LogError {}
+
 impl LogError {
-    /// "reading PATH: reason".
+    /// "reading PATH: reason" (its message).
     pub fn full(&self) -> String {
-        format!("{self}: {}", self.source)
+        self.to_string()
     }
 }
 
@@ -114,9 +130,9 @@ impl DriveLog {
 
     /// [`DriveLog::load`], keeping what `opts` asks for.
     pub fn load_with(path: &Path, opts: LoadOptions) -> Result<Self, LogError> {
-        let err = |source| LogError {
+        let err = |error| LogError {
             path: path.to_path_buf(),
-            source,
+            error,
         };
         let log = McapLog::open(path).map_err(err)?;
         Self::from_mcap(&log, path, opts)
@@ -125,9 +141,9 @@ impl DriveLog {
     /// The drive log of an opened `log` (named `path` in errors), keeping
     /// what `opts` asks for (the fuzz target reads logs from memory).
     pub fn from_mcap(log: &McapLog, path: &Path, opts: LoadOptions) -> Result<Self, LogError> {
-        let err = |source| LogError {
+        let err = |error| LogError {
             path: path.to_path_buf(),
-            source,
+            error,
         };
         let mut me = DriveLog {
             path: path.to_path_buf(),
@@ -329,13 +345,23 @@ mod tests {
         let p = dir.path().join("x.mcap");
         std::fs::write(&p, "hello, not a log").unwrap();
         let e = DriveLog::load(&p).unwrap_err().full();
-        assert!(
-            e.contains("x.mcap") && e.contains("not an MCAP file"),
-            "{e}"
+        assert_eq!(
+            e,
+            format!(
+                "reading {}: not an MCAP file (magic bytes missing)",
+                p.display()
+            )
         );
-        let e = DriveLog::load(&dir.path().join("missing.mcap"))
-            .unwrap_err()
-            .full();
-        assert!(e.contains("missing.mcap"), "{e}");
+        // the path and the reason once, and no source to say them again
+        let missing = dir.path().join("missing.mcap");
+        let e = DriveLog::load(&missing).unwrap_err();
+        assert!(std::error::Error::source(&e).is_none());
+        assert_eq!(
+            e.full(),
+            format!(
+                "reading {}: No such file or directory (os error 2)",
+                missing.display()
+            )
+        );
     }
 }

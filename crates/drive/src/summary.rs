@@ -32,7 +32,8 @@
 //!   the whole log, labelled so), per-road recall, detection delay at each
 //!   change of the road at the microphone (from the first truth sample, so
 //!   a front-mic car's pre-roll counts), how often the controller used the
-//!   estimate;
+//!   estimate, and how much of the scenario ran below or above the speeds
+//!   the model was trained at ([`speeds`]: a note; extrapolation there);
 //! - what the loop itself measured ([`measured()`], for every log, with
 //!   ground truth or without): slip from the measured ω and V, spin
 //!   events, acceleration from V, command against demand, per believed
@@ -50,6 +51,7 @@ use crate::roads::LogRoads;
 
 pub mod inverter;
 pub mod measured;
+pub mod speeds;
 pub use inverter::{Inverter, inverter};
 pub use measured::{Measured, measured};
 
@@ -518,6 +520,9 @@ pub struct Summary {
     /// derating, command-timeout and not-ready episodes, FaultCodes, the
     /// loop's safe state during faults ([`inverter()`]).
     pub inverter: Inverter,
+    /// The drive's speeds against the speeds arte's model was trained at
+    /// ([`speeds::drive_speeds`]; None: the log names no model).
+    pub training_speeds: Option<speeds::DriveSpeeds>,
 }
 
 /// The model arte ran, as the log says it ([`model_of`]).
@@ -555,8 +560,9 @@ pub struct AudioSource {
     pub source: String,
     /// `[wav] path` (with `source = "wav"`).
     pub wav: Option<String>,
-    /// `[synth.aliases]`: roads the synthesiser has no sound for, played
-    /// as the synthesiser road named.
+    /// `[synth.aliases]` as audio-acq resolved it
+    /// (`grip_arte::synth::SynthAliases::resolve`): roads the synthesiser
+    /// has no sound for, played as the synthesiser road named.
     pub aliases: BTreeMap<String, String>,
 }
 
@@ -576,7 +582,7 @@ impl AudioSource {
             return None;
         }
         Some(match self.aliases.get(road) {
-            Some(to) if grip_arte::synth::road_index(to).is_some() => format!(
+            Some(to) => format!(
                 "no sound of its own: played as {to} (audio-acq.toml [synth.aliases] {road} = \"{to}\")"
             ),
             _ => "no sound of its own: vehicle and microphone noise only (no [synth.aliases] entry in audio-acq.toml)".to_owned(),
@@ -609,22 +615,25 @@ impl AudioSource {
 /// `grip drive` runs audio-acq with no `--source`). None without one, or
 /// when it does not parse.
 pub fn audio_of(log: &DriveLog) -> Option<AudioSource> {
-    let v: toml::Table = toml::from_str(log.attachment_text("audio-acq.toml")?).ok()?;
+    let text = log.attachment_text("audio-acq.toml")?;
+    let v: toml::Table = toml::from_str(text).ok()?;
     let source = v.get("audio")?.get("source")?.as_str()?.to_owned();
     let wav = v
         .get("wav")
         .and_then(|w| w.get("path"))
         .and_then(|p| p.as_str())
         .map(str::to_owned);
-    let aliases = v
-        .get("synth")
-        .and_then(|s| s.get("aliases"))
-        .and_then(|a| a.as_table())
-        .map(|t| {
-            t.iter()
-                .filter_map(|(k, v)| Some((k.clone(), v.as_str()?.to_owned())))
-                .collect()
+    // the one rule audio-acq started by (`SynthAliases::resolve`); a table
+    // it would have refused gives no aliases (the summary never fails on
+    // an attachment)
+    let aliases = toml::from_str::<grip_arte::synth::AudioAcqAliases>(text)
+        .ok()
+        .and_then(|a| {
+            a.aliases()
+                .resolve(std::path::Path::new("audio-acq.toml"))
+                .ok()
         })
+        .map(|r| r.sounds)
         .unwrap_or_default();
     Some(AudioSource {
         source,
@@ -987,7 +996,8 @@ pub fn scenario_duration(log: &DriveLog) -> Option<f64> {
 /// own [`crate::plan::SCENARIO_ATTACHMENT`] (`grip drive --scenario PATH`)
 /// when the log carries it or `grip.run` records its hash; else for a
 /// scenario named under the configuration directory
-/// `scenarios/<grip.run scenario>.toml`. `None`: the log does not say (a
+/// `scenarios/<grip.run scenario>.toml` (a name or a path:
+/// `grip_config::dir::ScenarioArg::by_spelling`). `None`: the log does not say (a
 /// path, from a drive before the file was attached: an attached
 /// `scenarios/*.toml` with the same tail may be another file, so none is
 /// taken for it).
@@ -996,9 +1006,7 @@ pub fn scenario_attachment(log: &DriveLog) -> Option<String> {
     if log.attachments.contains_key(own) || log.run.contains_key(&format!("config.{own}")) {
         return Some(own.to_owned());
     }
-    let name = log.run.get("scenario")?;
-    (!name.contains(['/', '\\']) && !name.ends_with(".toml"))
-        .then(|| format!("scenarios/{name}.toml"))
+    grip_config::dir::ScenarioArg::by_spelling(log.run.get("scenario")?).in_config_dir()
 }
 
 /// The attached scenario file ([`scenario_attachment`]), parsed (`None`
@@ -1510,6 +1518,7 @@ pub fn summarize(
         s.control = Some(h);
     }
     s.measured = measured(log, vehicle, s.window_ns, roads);
+    s.training_speeds = speeds::drive_speeds(log, s.window_ns);
     if window.is_none() && s.measured.window == measured::MeasuredWindow::Demand {
         // no scenario window (a car's log): how often the controller used
         // the estimate over the measured section's window, labelled so
@@ -1832,8 +1841,8 @@ fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> 
     s.window_status = match s.scenario_duration_s {
         None => {
             s.warnings.push(format!(
-                "the scenario's duration is unknown (no grip.run scenario_duration_s, no attached scenarios/{}.toml): the scenario window runs to the end of the ground truth ({span_s:.3} s)",
-                log.run.get("scenario").map_or("?", String::as_str)
+                "the scenario's duration is unknown (no grip.run scenario_duration_s, no attached {}): the scenario window runs to the end of the ground truth ({span_s:.3} s)",
+                scenario_attachment(log).unwrap_or_else(|| "scenario file".to_owned())
             ));
             if let Some(g) = gap_words {
                 s.incomplete.push(g.clone());
@@ -2168,6 +2177,13 @@ impl Summary {
             && let Some(l) = self.audio.as_ref().and_then(AudioSource::line)
         {
             let _ = writeln!(o, "  {l}");
+        }
+        if a.estimates > 0
+            && let Some(sp) = &self.training_speeds
+        {
+            for l in sp.lines() {
+                let _ = writeln!(o, "  {l}");
+            }
         }
         if a.judged > 0 {
             let _ = writeln!(
@@ -2980,6 +2996,37 @@ mod tests {
             .insert("scenario".into(), "trials/scenarios/paper.toml".into());
         assert_eq!(scenario_attachment(&log), None);
         assert_eq!(scenario_duration(&log), None);
+    }
+
+    /// The attached `[synth.aliases]` as audio-acq resolved it (the one rule
+    /// of grip-arte): an alias of a synthesiser road left out; a table
+    /// audio-acq would have refused gives no aliases, never a failure (was:
+    /// values that were not strings dropped, the rest kept as written).
+    #[test]
+    fn audio_of_resolves_the_aliases_and_never_fails() {
+        let with = |aliases: &str| {
+            let mut log = DriveLog::default();
+            log.attachments.insert(
+                "audio-acq.toml".into(),
+                format!("[audio]\nsource = \"synth\"\n{aliases}").into_bytes(),
+            );
+            audio_of(&log).unwrap().aliases
+        };
+        let ok = BTreeMap::from([("wet_gravel".to_owned(), "gravel".to_owned())]);
+        assert_eq!(
+            with("[synth.aliases]\nwet_gravel = \"gravel\"\nsnow = \"stone\"\n"),
+            ok
+        );
+        for bad in [
+            "[synth.aliases]\nwet_gravel = \"gravel\"\nice = 3\n",
+            "[synth.aliases]\nwet_gravel = \"gravel\"\nice = \"tarmac\"\n",
+            "[synth.aliases]\nwet_gravel = { a = 1 }\n",
+            "[synth]\naliases = 3\n",
+            "synth = \"x\"\n",
+            "",
+        ] {
+            assert!(with(bad).is_empty(), "{bad}");
+        }
     }
 
     /// ARTE's accuracy says where the audio came from: a road without a

@@ -31,12 +31,13 @@ pub const TAIL_LINES: usize = 40;
 #[derive(Debug, thiserror::Error)]
 pub enum SuperviseError {
     /// A file-system or socket operation failed.
-    #[error("{what}: {source}")]
+    #[error("{what}: {error}")]
     Io {
         /// What was being done (names the path or service).
         what: String,
-        /// The error.
-        source: std::io::Error,
+        /// The error (said in the message, not returned as the source: a
+        /// chain printed in full, as grip prints it, would say it twice).
+        error: std::io::Error,
     },
     /// The service ended before it reported `READY=1`.
     #[error(
@@ -102,6 +103,125 @@ pub fn strip_ansi(s: &str) -> String {
         }
     }
     out
+}
+
+/// The file in a view of a configuration directory (`grip drive --model`'s,
+/// whose entries are links to the user's directory and a copy of the
+/// user's model) that says which of the user's files the view's paths
+/// stand for; see [`ViewPaths`].
+pub const VIEW_PATHS_FILE: &str = ".grip-view-paths";
+
+/// What the paths of a view of a configuration directory stand for: a
+/// service started with `--config-dir VIEW` names the view's files in its
+/// lines (`warning: VIEW/vehicle.toml: ...`), which the supervisor says in
+/// the user's paths (`warning: CONFIG/vehicle.toml: ...`): the line the
+/// user's own file gives, and which `grip drive` itself, having read the
+/// file, may have said already (then it is said once). Empty (nothing
+/// mapped) for a directory that is no view.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ViewPaths {
+    /// (the view's path, the user's), the longest view path first.
+    pairs: Vec<(String, String)>,
+}
+
+impl ViewPaths {
+    /// The view's paths `pairs` (a path in the view, the user's file or
+    /// directory it stands for; a directory stands for what is in it).
+    pub fn new(pairs: &[(PathBuf, PathBuf)]) -> Self {
+        let mut pairs: Vec<(String, String)> = pairs
+            .iter()
+            .map(|(v, u)| (v.display().to_string(), u.display().to_string()))
+            .filter(|(v, _)| !v.is_empty())
+            .collect();
+        pairs.sort_by_key(|(v, _)| std::cmp::Reverse(v.len()));
+        Self { pairs }
+    }
+
+    /// Writes `dir`'s [`VIEW_PATHS_FILE`] (`dir` being a view).
+    pub fn write(&self, dir: &Path) -> std::io::Result<()> {
+        let mut t = toml::Table::new();
+        t.insert(
+            "path".into(),
+            toml::Value::Array(
+                self.pairs
+                    .iter()
+                    .map(|(v, u)| {
+                        let mut e = toml::Table::new();
+                        e.insert("view".into(), toml::Value::String(v.clone()));
+                        e.insert("user".into(), toml::Value::String(u.clone()));
+                        toml::Value::Table(e)
+                    })
+                    .collect(),
+            ),
+        );
+        let text = format!(
+            "# grip drive: a temporary view of a configuration directory; the user's files its paths stand for\n{}",
+            toml::to_string(&t).map_err(std::io::Error::other)?
+        );
+        std::fs::write(dir.join(VIEW_PATHS_FILE), text)
+    }
+
+    /// `dir`'s [`VIEW_PATHS_FILE`]; empty when it has none (no view) or
+    /// it cannot be read (the lines then keep the view's paths).
+    pub fn read(dir: &Path) -> Self {
+        let Ok(text) = std::fs::read_to_string(dir.join(VIEW_PATHS_FILE)) else {
+            return Self::default();
+        };
+        let Ok(t) = text.parse::<toml::Table>() else {
+            return Self::default();
+        };
+        let pairs: Vec<(PathBuf, PathBuf)> = t
+            .get("path")
+            .and_then(toml::Value::as_array)
+            .map(|a| {
+                a.iter()
+                    .filter_map(|e| {
+                        let (v, u) = (e.get("view")?.as_str()?, e.get("user")?.as_str()?);
+                        Some((PathBuf::from(v), PathBuf::from(u)))
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        Self::new(&pairs)
+    }
+
+    /// Those of the `--config-dir DIR` in `args` (a service's arguments).
+    pub fn of_args(args: &[String]) -> Self {
+        args.iter()
+            .position(|a| a == "--config-dir")
+            .and_then(|i| args.get(i + 1))
+            .map_or_else(Self::default, |d| Self::read(Path::new(d)))
+    }
+
+    /// `line` with every view path in it replaced by the user's (a view
+    /// path counts where the name it ends in ends: `VIEW/roads` is not
+    /// the start of `VIEW/roads.toml`'s name, nor of `VIEW/roads2`).
+    pub fn map(&self, line: &str) -> String {
+        if self.pairs.is_empty() {
+            return line.to_owned();
+        }
+        let name_goes_on = |rest: &str| {
+            rest.chars()
+                .next()
+                .is_some_and(|c| c.is_alphanumeric() || matches!(c, '.' | '_' | '-'))
+        };
+        let mut out = String::with_capacity(line.len());
+        let mut rest = line;
+        'scan: while let Some(c) = rest.chars().next() {
+            for (v, u) in &self.pairs {
+                if let Some(after) = rest.strip_prefix(v.as_str())
+                    && !name_goes_on(after)
+                {
+                    out.push_str(u);
+                    rest = after;
+                    continue 'scan;
+                }
+            }
+            out.push(c);
+            rest = &rest[c.len_utf8()..];
+        }
+        out
+    }
 }
 
 /// How a child ended: `exit code N` or `killed by signal N`.
@@ -269,7 +389,7 @@ impl Proc {
     /// Starts `spec` in iceoryx2 instance `instance` (`GRIP_INSTANCE`),
     /// with its notify socket `<sock_dir>/<name>.notify`.
     pub fn spawn(spec: &ProcSpec, instance: &str, sock_dir: &Path) -> Result<Self, SuperviseError> {
-        let io = |what: String| move |source| SuperviseError::Io { what, source };
+        let io = |what: String| move |error| SuperviseError::Io { what, error };
         let sock = sock_dir.join(format!("{}.notify", spec.name));
         let _ = std::fs::remove_file(&sock);
         let notify = UnixDatagram::bind(&sock)
@@ -322,13 +442,15 @@ impl Proc {
             .spawn()
             .map_err(io(format!("starting {}: {cmdline}{placed}", spec.name)))?;
         let lines = Arc::new(Mutex::new(VecDeque::new()));
+        // a view's paths (`grip drive --model`) said as the user's files
+        let paths = ViewPaths::of_args(&spec.args);
         let reader = child.stderr.take().map(|err| {
             let lines = Arc::clone(&lines);
             let name = spec.name.clone();
             std::thread::spawn(move || {
                 for line in BufReader::new(err).lines() {
                     let Ok(line) = line else { break };
-                    let line = strip_ansi(&line);
+                    let line = paths.map(&strip_ansi(&line));
                     if let Some(all) = echo {
                         // a configuration file's `warning: FILE: ...` (the
                         // loaders print it raw) is said once: the same file
@@ -568,9 +690,9 @@ impl Supervisor {
     /// fresh folder `<tmp>/grip-<instance>`.
     pub fn new(instance: &str) -> Result<Self, SuperviseError> {
         let sock_dir = std::env::temp_dir().join(format!("grip-{instance}"));
-        std::fs::create_dir_all(&sock_dir).map_err(|source| SuperviseError::Io {
+        std::fs::create_dir_all(&sock_dir).map_err(|error| SuperviseError::Io {
             what: format!("creating {}", sock_dir.display()),
-            source,
+            error,
         })?;
         Ok(Self {
             instance: instance.to_owned(),
@@ -757,6 +879,90 @@ mod tests {
             status(std::process::id(), "Cpus_allowed_list:")
         );
         assert_eq!(nice(plain), nice(std::process::id()));
+    }
+
+    /// A view's paths are the user's: each view path where its name ends
+    /// (the longest first), nothing else; a directory that is no view
+    /// maps nothing.
+    #[test]
+    fn a_view_s_paths_map_to_the_user_s() {
+        let v = ViewPaths::new(&[
+            ("/tmp/v".into(), "/srv/u/cfg".into()),
+            ("/tmp/v/models/m.model".into(), "/srv/u/m.model".into()),
+        ]);
+        for (line, want) in [
+            (
+                "warning: /tmp/v/vehicle.toml: [vehicle] does not set r_ref",
+                "warning: /srv/u/cfg/vehicle.toml: [vehicle] does not set r_ref",
+            ),
+            (
+                "model /tmp/v/models/m.model, roads /tmp/v/roads.toml; /tmp/v",
+                "model /srv/u/m.model, roads /srv/u/cfg/roads.toml; /srv/u/cfg",
+            ),
+            // another directory whose name starts like the view's
+            (
+                "/tmp/v2/vehicle.toml /tmp/v.old",
+                "/tmp/v2/vehicle.toml /tmp/v.old",
+            ),
+            // a model whose name starts like the copied one's
+            ("/tmp/v/models/m.model2 é", "/srv/u/cfg/models/m.model2 é"),
+        ] {
+            assert_eq!(v.map(line), want);
+        }
+        let d = tempfile::tempdir().unwrap();
+        assert_eq!(ViewPaths::read(d.path()), ViewPaths::default());
+        assert_eq!(ViewPaths::default().map("/tmp/v/x"), "/tmp/v/x");
+        v.write(d.path()).unwrap();
+        assert_eq!(ViewPaths::read(d.path()), v);
+        let args = ["--config-dir".to_owned(), d.path().display().to_string()];
+        assert_eq!(ViewPaths::of_args(&args), v);
+        assert_eq!(ViewPaths::of_args(&args[..1]), ViewPaths::default());
+    }
+
+    /// A service started on a view (`--config-dir VIEW`) has its lines
+    /// kept and echoed in the user's paths: its configuration warning is
+    /// the one `grip drive` says of the user's file (and then not echoed
+    /// again). It was echoed naming the view's temporary copy: the user saw
+    /// the same warning twice, with two paths.
+    #[test]
+    fn a_service_on_a_view_is_heard_in_the_user_s_paths() {
+        let view = tempfile::tempdir().unwrap();
+        let user = Path::new("/srv/u/cfg");
+        ViewPaths::new(&[(view.path().to_path_buf(), user.to_path_buf())])
+            .write(view.path())
+            .unwrap();
+        let warning = |dir: &Path| {
+            format!(
+                "warning: {}: [vehicle] does not set mic_lead_m (a line no other test says)",
+                dir.join("vehicle.toml").display()
+            )
+        };
+        // said by grip itself first, of the user's file
+        assert!(grip_config::first_time(&warning(user)));
+        let mut s = Supervisor::new(&format!("test-sup4-{}", std::process::id())).unwrap();
+        let spec = ProcSpec::new(
+            "viewer",
+            Path::new("/bin/sh"),
+            &[
+                "-c".to_owned(),
+                r#"echo "warning: $1/vehicle.toml: [vehicle] does not set mic_lead_m (a line no other test says)" >&2; exit 3"#.to_owned(),
+                "--config-dir".to_owned(),
+                view.path().display().to_string(),
+            ],
+        );
+        let e = s
+            .start(&spec, Duration::from_secs(10))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(&warning(user)), "{e}");
+        assert!(
+            !e.lines()
+                .any(|l| !l.contains("command:") && l.contains(&view.path().display().to_string())),
+            "{e}"
+        );
+        // the echo compared the user's line: already said, not said again
+        assert!(!grip_config::first_time(&warning(user)));
+        assert!(grip_config::first_time(&warning(view.path())));
     }
 
     /// A process that ignores SIGTERM is killed and reported; dropping the

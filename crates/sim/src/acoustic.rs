@@ -83,6 +83,10 @@ pub struct AcousticConfig {
     /// Sound of catalogue roads the synthesiser has no model of, by road
     /// name. A road neither synthesisable by name nor listed here is silent.
     pub sound_as: BTreeMap<String, SoundAs>,
+    /// The `[synth.aliases]` entries `sound_as` left out, one line each to
+    /// print (an alias of a road the synthesiser has a sound for, ignored
+    /// as audio-acq ignores it); empty for the shipped file.
+    pub alias_notes: Vec<String>,
 }
 
 /// The shipped `config/audio-acq.toml`: [`AcousticConfig::default`]'s
@@ -100,43 +104,43 @@ impl Default for AcousticConfig {
             stream: StreamConfig::default(),
             // the file ships with the crate's workspace; a test parses it
             sound_as: sound_as_of_audio_acq(SHIPPED_AUDIO_ACQ).unwrap_or_default(),
+            alias_notes: Vec::new(),
         }
     }
 }
 
-/// The sound map of an `audio-acq.toml` (its text): `[synth.aliases]`,
-/// ROAD = SOUND, each a [`SoundAs::Road`] (audio-acq plays ROAD with the
-/// synthesiser road SOUND; a road neither synthesisable nor listed is
-/// silent, as here); an alias of a road the synthesiser has is left out,
-/// as audio-acq ignores it. No `[synth.aliases]`: an empty map. Fails when the
-/// text is not TOML or an alias is not a string; an unknown SOUND is
-/// refused by [`AcousticArte::new`] (and by audio-acq's start-up).
+/// The sound map of an `audio-acq.toml` (its text): `[synth.aliases]`
+/// under the one rule audio-acq follows too
+/// (`grip_arte::synth::SynthAliases::resolve`), each ROAD = SOUND a
+/// [`SoundAs::Road`] (audio-acq plays ROAD with the synthesiser road SOUND;
+/// a road neither synthesisable nor listed is silent, as here); an alias of
+/// a road the synthesiser has is left out, as audio-acq ignores it. No
+/// `[synth.aliases]`: an empty map. Fails, as audio-acq's start-up does,
+/// when the text is not TOML, or an alias is not a string or names a sound
+/// the synthesiser does not have (the error's field:
+/// `audio-acq.toml: synth.aliases.ROAD`).
 pub fn sound_as_of_audio_acq(text: &str) -> Result<BTreeMap<String, SoundAs>, SimError> {
-    let v: toml::Table =
-        toml::from_str(text).map_err(|e| SimError::invalid("audio-acq.toml", e.to_string()))?;
-    let Some(aliases) = v.get("synth").and_then(|s| s.get("aliases")) else {
-        return Ok(BTreeMap::new());
-    };
-    let Some(aliases) = aliases.as_table() else {
-        return Err(SimError::invalid(
-            "synth.aliases",
-            "is not a table of ROAD = \"SOUND\"",
-        ));
-    };
-    aliases
-        .iter()
-        // audio-acq plays a road the synthesiser has by its own sound,
-        // whatever an alias says (its name table looks the synthesiser's
-        // names up first): so does the simulator
-        .filter(|(road, _)| grip_arte::synth::road_index(road).is_none())
-        .map(|(road, sound)| match sound.as_str() {
-            Some(s) => Ok((road.clone(), SoundAs::Road(s.to_owned()))),
-            None => Err(SimError::invalid(
-                format!("synth.aliases.{road}"),
-                format!("{sound} is not a synthesiser road's name (a string)"),
-            )),
-        })
-        .collect()
+    sound_as_of(Path::new("audio-acq.toml"), text).map(|(sounds, _)| sounds)
+}
+
+/// [`sound_as_of_audio_acq`] of `file`'s text, with the notes on ignored
+/// aliases; errors name `file`.
+fn sound_as_of(
+    file: &Path,
+    text: &str,
+) -> Result<(BTreeMap<String, SoundAs>, Vec<String>), SimError> {
+    let doc: synth::AudioAcqAliases = toml::from_str(text)
+        .map_err(|e| SimError::invalid(file.display().to_string(), e.to_string()))?;
+    let r = doc
+        .aliases()
+        .resolve(file)
+        .map_err(|e| SimError::invalid(format!("{}: {}", e.file.display(), e.field), e.reason))?;
+    let sounds = r
+        .sounds
+        .into_iter()
+        .map(|(road, sound)| (road, SoundAs::Road(sound)))
+        .collect();
+    Ok((sounds, r.notes))
 }
 
 impl AcousticConfig {
@@ -155,8 +159,8 @@ impl AcousticConfig {
     /// `dir`: its `audio-acq.toml`'s `[synth.aliases]`
     /// ([`sound_as_of_audio_acq`]), the map `grip drive`'s audio-acq plays
     /// the plant's roads with; a directory without `audio-acq.toml` keeps
-    /// [`AcousticConfig::default`]'s (the shipped file's). Errors name the
-    /// file.
+    /// [`AcousticConfig::default`]'s (the shipped file's). Aliases left out
+    /// are noted in `alias_notes`. Errors name the file.
     pub fn with_config_dir(mut self, dir: &Path) -> Result<Self, SimError> {
         let path = dir.join("audio-acq.toml");
         let text = match std::fs::read_to_string(&path) {
@@ -169,10 +173,7 @@ impl AcousticConfig {
                 ));
             }
         };
-        self.sound_as =
-            sound_as_of_audio_acq(&text).map_err(|SimError::Invalid { field, reason }| {
-                SimError::invalid(format!("{}: {field}", path.display()), reason)
-            })?;
+        (self.sound_as, self.alias_notes) = sound_as_of(&path, &text)?;
         Ok(self)
     }
 
@@ -654,6 +655,33 @@ pub(crate) mod tests {
             before,
             "{with_snow}"
         );
+        let snow_dir = tempfile::tempdir().unwrap();
+        std::fs::write(snow_dir.path().join("audio-acq.toml"), &with_snow).unwrap();
+        let snowy = AcousticConfig::default()
+            .with_config_dir(snow_dir.path())
+            .unwrap();
+        assert_eq!(snowy.sound_as, before);
+        assert_eq!(snowy.alias_notes.len(), 1, "{:?}", snowy.alias_notes);
+        assert!(
+            snowy.alias_notes[0].contains("field `synth.aliases.snow` = \"gravel\" is ignored"),
+            "{:?}",
+            snowy.alias_notes
+        );
+        // an unknown sound is refused as audio-acq refuses it, naming the
+        // field, also for a road the synthesiser has (was: ignored here),
+        // and so is a value that is not a string
+        for (road, bad) in [
+            ("wet_gravel", "\"tarmac\""),
+            ("snow", "\"tarmac\""),
+            ("snow", "3"),
+        ] {
+            let bad = text.replace("wet_gravel = \"gravel\"\n", &format!("{road} = {bad}\n"));
+            let e = sound_as_of_audio_acq(&bad).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("audio-acq.toml: synth.aliases.{road}`")),
+                "{e}"
+            );
+        }
         let wet_gravel = RoadCatalogue::new(vec![
             Road::burckhardt("asphalt", 1.2801, 23.99, 0.52).unwrap(),
             Road::burckhardt("snow", 0.1946, 94.129, 0.0646).unwrap(),

@@ -22,6 +22,8 @@
 //! - [`batch::run_batch`]: many (variant, seed) runs on worker threads,
 //!   deterministic whatever the thread count.
 //! - [`report`]: statistics over seeds, the Table-V style table, CSV output.
+//! - [`speeds`]: `grip sim --arte acoustic`'s note on the speeds the model
+//!   was trained at (the time the acoustic chain heard outside them).
 //!
 //! See `README.md` in this crate for the design and the results.
 #![warn(missing_docs)]
@@ -34,6 +36,7 @@ pub mod random;
 pub mod report;
 pub mod setup;
 pub mod sim;
+pub mod speeds;
 pub mod trace;
 pub mod variant;
 

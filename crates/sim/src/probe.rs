@@ -9,6 +9,12 @@ use grip_arte::stream::detection_delays;
 
 use crate::estimator::{Estimate, RoadEstimator};
 
+/// Width of the speed bins of [`InLoopStats::heard_speed_s`], km/h.
+pub const SPEED_BIN_KMH: f64 = 0.1;
+
+/// Speed bins: 0 to 400 km/h (anything faster counts in the last).
+pub const SPEED_BINS: usize = 4000;
+
 /// What an estimator did in one run, as seen from the loop.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct InLoopStats {
@@ -34,6 +40,13 @@ pub struct InLoopStats {
     /// Time the estimator heard each catalogue road, s (catalogue index;
     /// the pre-roll included).
     pub heard_s: Vec<f64>,
+    /// Time the estimator heard at each vehicle speed |v|, s: (bin, time)
+    /// for every bin with time, bins ascending; bin k holds speeds in
+    /// [k, k + 1) · [`SPEED_BIN_KMH`] (the last one also every faster
+    /// speed), the pre-roll included. What `grip sim --arte acoustic`
+    /// checks against the model's training speeds
+    /// ([`crate::speeds::training_speeds_note`]).
+    pub heard_speed_s: Vec<(usize, f64)>,
 }
 
 /// Records an estimator's decisions and the true road changes of a run
@@ -56,6 +69,8 @@ pub struct InLoopProbe {
     confusion: Vec<u64>,
     /// Per catalogue road, s.
     heard_s: Vec<f64>,
+    /// Per speed bin, s ([`SPEED_BINS`] once reset; empty before).
+    heard_speed: Vec<f64>,
     n_roads: usize,
     /// Room the buffers get at the first reset, cycles.
     room: usize,
@@ -101,15 +116,17 @@ impl InLoopProbe {
             end: 0.0,
             confusion: vec![0; n_roads * n_roads],
             heard_s: vec![0.0; n_roads],
+            heard_speed: Vec::new(),
             n_roads,
             room: cycles,
         }
     }
 
     /// Bytes a probe with room for `cycles` cycles holds once reset (its
-    /// decision and change buffers).
+    /// decision and change buffers, and its speed bins).
     pub fn bytes_for(cycles: usize) -> u64 {
         2 * cycles as u64 * std::mem::size_of::<(f64, usize)>() as u64
+            + (SPEED_BINS * std::mem::size_of::<f64>()) as u64
     }
 
     /// The statistics of the run since the last reset, or `None` when the
@@ -131,6 +148,13 @@ impl InLoopProbe {
                 .map(<[u64]>::to_vec)
                 .collect(),
             heard_s: self.heard_s.clone(),
+            heard_speed_s: self
+                .heard_speed
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| **s > 0.0)
+                .map(|(b, s)| (b, *s))
+                .collect(),
         })
     }
 }
@@ -144,6 +168,11 @@ impl RoadEstimator for InLoopProbe {
         self.decisions.reserve_exact(self.room);
         self.changes.reserve_exact(self.room);
         self.heard_s.fill(0.0);
+        if self.heard_speed.is_empty() {
+            self.heard_speed = vec![0.0; SPEED_BINS];
+        } else {
+            self.heard_speed.fill(0.0);
+        }
         self.n_decisions = 0;
         self.correct = 0;
         self.single_road = 0;
@@ -174,6 +203,14 @@ impl RoadEstimator for InLoopProbe {
         self.last_road = Some(true_road_index);
         self.end = t + dt;
         if let Some(h) = self.heard_s.get_mut(true_road_index) {
+            *h += dt;
+        }
+        let kmh = speed_mps.abs() * 3.6;
+        if kmh.is_finite()
+            && let Some(h) = self
+                .heard_speed
+                .get_mut(((kmh / SPEED_BIN_KMH) as usize).min(SPEED_BINS - 1))
+        {
             *h += dt;
         }
         let e = self.inner.update(t, dt, true_road_index, speed_mps)?;
@@ -239,6 +276,16 @@ mod tests {
         let s = p.take_stats().unwrap();
         assert_eq!(s.confusion, vec![vec![0; 3], vec![0, 3, 0], vec![0; 3]]);
         assert!(s.first_delays.is_empty());
+        // the time heard per speed bin: `drive` runs at 4 + t m/s, 14.4 to
+        // 15.48 km/h over its 0.3 s
+        let heard: f64 = s.heard_speed_s.iter().map(|(_, t)| t).sum();
+        assert!((heard - 0.3).abs() < 1e-9, "{:?}", s.heard_speed_s);
+        let bins: Vec<usize> = s.heard_speed_s.iter().map(|&(b, _)| b).collect();
+        assert!(
+            (143..=144).contains(&bins[0]) && bins[bins.len() - 1] == 154,
+            "{bins:?}"
+        );
+        assert!(bins.windows(2).all(|w| w[0] < w[1]), "{bins:?}");
     }
 
     #[test]

@@ -208,5 +208,6 @@ fn the_probe_records_what_the_estimator_heard() {
     assert_eq!(
         InLoopProbe::bytes_for(1000),
         2 * 1000 * std::mem::size_of::<(f64, usize)>() as u64
+            + (grip_sim::probe::SPEED_BINS * std::mem::size_of::<f64>()) as u64
     );
 }

@@ -20,12 +20,14 @@ pub enum ArteError {
         reason: String,
     },
     /// The model file is not a valid model.
-    #[error("model file {}: {source}", path.display())]
+    #[error("model file {}: {error}", path.display())]
     Model {
         /// The file.
         path: PathBuf,
-        /// The model crate's error.
-        source: ModelError,
+        /// The model crate's error (said in the message, not returned as
+        /// the source: a chain printed in full, as `grip replay` prints
+        /// it, would say it twice).
+        error: ModelError,
     },
     /// A model class has no road in the catalogue, or too many classes.
     #[error("model file {}: {reason}", path.display())]
@@ -47,9 +49,10 @@ pub enum ArteError {
         /// The differing field(s), both settings and the remedy.
         reason: String,
     },
-    /// The streaming estimator refused model or settings.
+    /// The streaming estimator refused model or settings (said in the
+    /// message, not returned as the source).
     #[error("streaming estimator: {0}")]
-    Stream(#[from] StreamError),
+    Stream(StreamError),
     /// iceoryx2.
     #[error(transparent)]
     Ipc(#[from] grip_io::ipc::IpcError),
@@ -59,4 +62,10 @@ pub enum ArteError {
     /// Other start-up failure.
     #[error("{0}")]
     Other(String),
+}
+
+impl From<StreamError> for ArteError {
+    fn from(e: StreamError) -> Self {
+        Self::Stream(e)
+    }
 }

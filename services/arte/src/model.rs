@@ -16,9 +16,9 @@ pub fn load_model(path: &Path) -> Result<Model, ArteError> {
         path: path.to_owned(),
         reason: e.to_string(),
     })?;
-    Model::from_bytes(&bytes).map_err(|source| ArteError::Model {
+    Model::from_bytes(&bytes).map_err(|error| ArteError::Model {
         path: path.to_owned(),
-        source,
+        error,
     })
 }
 

@@ -70,6 +70,10 @@ pub struct Prepared<K: Clock = MonotonicClock> {
     /// start-up, refuses with it; [`prepare_with_clock`] (a replay's
     /// what-if, a generated drive) logs it as a warning and runs.
     pub calibration_mismatch: Option<ArteError>,
+    /// The vehicle speeds the model was trained at (`meta.speeds`, or its
+    /// training note; logged at start-up: estimates at other speeds are
+    /// extrapolation, which the drive summary reports).
+    pub training_speeds: grip_arte::speeds::TrainingSpeeds,
 }
 
 fn resolve(dir: &Path, p: &Path) -> PathBuf {
@@ -187,6 +191,7 @@ fn load<K: Clock>(opts: &Options, clock: K) -> Result<Prepared<K>, ArteError> {
     let calibration_mismatch = calibration_mismatch(&config_file, &cfg.stream, &model_path, &model);
     Ok(Prepared {
         calibration_mismatch,
+        training_speeds: model.training_speeds(),
         config_file,
         model_path,
         classes: model.classes().to_vec(),
@@ -204,6 +209,7 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
         model_path,
         mut lp,
         classes,
+        training_speeds,
         ..
     } = prepare(opts)?;
     let rate = lp.sample_rate();
@@ -211,6 +217,7 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
         config = %config_file.display(),
         model = %model_path.display(),
         classes = %classes.join(", "),
+        training_speeds = %training_speeds.describe(),
         rate,
         hop_s = cfg.stream.hop_s,
         speed_normalised = lp.speed_normalised(),

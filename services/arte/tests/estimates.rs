@@ -240,7 +240,17 @@ fn model_and_class_errors_name_the_file_and_class() {
     // not a model
     let p = dir.path().join("text.model");
     std::fs::write(&p, b"hello\nworld").unwrap();
-    let e = load_model(&p).unwrap_err().to_string();
+    let e = load_model(&p).unwrap_err();
+    // the reason said in the message and not also returned as the source
+    // (`grip replay` prints the chain: it said the reason twice)
+    let mut said = e.to_string();
+    let mut cause = std::error::Error::source(&e);
+    while let Some(c) = cause {
+        said = format!("{said}: {c}");
+        cause = c.source();
+    }
+    assert_eq!(said.matches("not a grip ARTE model").count(), 1, "{said}");
+    let e = e.to_string();
     assert!(
         e.contains("text.model") && e.contains("not a grip ARTE model"),
         "{e}"
@@ -598,5 +608,25 @@ fn silence_clipping_and_overruns_give_no_road() {
     println!(
         "after the faults: {right}/{} estimates asphalt",
         after.len()
+    );
+}
+
+/// Start-up knows (and `run` logs, in "arte starting") the speeds the
+/// model was trained at: for the shipped model, from its training note.
+#[test]
+fn start_up_knows_the_models_training_speeds() {
+    use grip_arte_svc::{Options, prepare};
+    let p = prepare(&Options {
+        config: grip_io::service::ConfigArgs {
+            config_dir: config_dir(),
+            config: None,
+        },
+        model: None,
+        run_for: None,
+    })
+    .unwrap();
+    assert_eq!(
+        p.training_speeds.describe(),
+        "4.0-29.8 km/h (from the model's training notes)"
     );
 }

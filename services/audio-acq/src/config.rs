@@ -5,6 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use grip_arte::synth::{ResolvedAliases, SynthAliases};
 use grip_config::ConfigError;
 use grip_io::rt::RtConfig;
 use grip_io::service::{ServiceConfig, validate_rt};
@@ -170,7 +171,10 @@ pub struct SynthSection {
     pub noise: Option<SynthNoise>,
     /// Catalogue road names the synthesiser does not know, mapped to one it
     /// does (`grip_arte::synth::ROADS`). A road neither known nor aliased
-    /// gives vehicle and microphone sound only (no tyre-road sound).
+    /// gives vehicle and microphone sound only (no tyre-road sound). The
+    /// rule is `grip_arte::synth::SynthAliases::resolve`
+    /// ([`SynthSection::resolved_aliases`]): an unknown sound is refused, an
+    /// alias of a road the synthesiser knows is ignored (a warning at start-up).
     #[serde(default = "default_aliases")]
     pub aliases: BTreeMap<String, String>,
 }
@@ -186,6 +190,17 @@ fn default_truth_lost() -> TruthLost {
 }
 fn default_aliases() -> BTreeMap<String, String> {
     BTreeMap::new()
+}
+
+impl SynthSection {
+    /// `aliases` under the one rule of `grip_arte::synth::SynthAliases::resolve`
+    /// (an unknown sound refused; an alias of a road the synthesiser has a
+    /// sound for ignored, with a note to print). Errors name `file`.
+    pub fn resolved_aliases(&self, file: &Path) -> Result<ResolvedAliases, ConfigError> {
+        SynthAliases::from(&self.aliases)
+            .resolve(file)
+            .map_err(|e| ConfigError::new(e.file, e.field, e.reason))
+    }
 }
 
 impl Default for SynthSection {
@@ -312,17 +327,7 @@ impl ServiceConfig for AcqConfig {
                 format!("{} dB is outside -30..=80", n.snr_db),
             );
         }
-        for (from, to) in &s.aliases {
-            if grip_arte::synth::road_index(to).is_none() {
-                return bad(
-                    &format!("synth.aliases.{from}"),
-                    format!(
-                        "`{to}` is not a road the synthesiser knows ({})",
-                        grip_arte::synth::ROADS.join(", ")
-                    ),
-                );
-            }
-        }
+        s.resolved_aliases(file)?;
         validate_rt(&self.rt, file)
     }
 }
@@ -392,6 +397,40 @@ fifo_priority = 60
         )
         .unwrap_err();
         assert_eq!(e.field, "alsa.buffer_frames");
+    }
+
+    /// `[synth.aliases]` follows the one rule of grip-arte: an alias of a
+    /// road the synthesiser has is ignored with a note, an unknown sound
+    /// is refused (for such a road too), a value that is not a string is
+    /// refused naming the field.
+    #[test]
+    fn aliases_follow_the_one_rule() {
+        let f = Path::new("a.toml");
+        let with = |aliases: &str| {
+            AcqConfig::parse(f, &GOOD.replace("{ asphalt_mf = \"asphalt\" }", aliases))
+        };
+        let c = with("{ asphalt_mf = \"asphalt\", snow = \"gravel\" }").unwrap();
+        let r = c.synth.resolved_aliases(f).unwrap();
+        assert_eq!(
+            r.sounds,
+            BTreeMap::from([("asphalt_mf".to_owned(), "asphalt".to_owned())])
+        );
+        assert_eq!(r.notes.len(), 1);
+        assert!(
+            r.notes[0].starts_with("a.toml: field `synth.aliases.snow` = \"gravel\" is ignored"),
+            "{:?}",
+            r.notes
+        );
+        let e = with("{ snow = \"tarmac\" }").unwrap_err();
+        assert_eq!(e.field, "synth.aliases.snow");
+        assert!(
+            e.to_string().starts_with(
+                "a.toml: field `synth.aliases.snow`: `tarmac` is not a road the synthesiser knows"
+            ),
+            "{e}"
+        );
+        let e = with("{ wet_gravel = 3 }").unwrap_err();
+        assert_eq!(e.field, "synth.aliases.wet_gravel", "{e}");
     }
 
     /// The good configuration with `extra` added to its `[alsa]` section.

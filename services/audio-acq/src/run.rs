@@ -104,6 +104,9 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, AcqError
         block,
         "audio-acq starting"
     );
+    for note in cfg.synth.resolved_aliases(&file)?.notes {
+        tracing::warn!("{note}");
+    }
     let node = IpcNode::create(topics::node::AUDIO_ACQ)?;
     let publisher = node.publisher::<AudioBlock>(topics::AUDIO)?;
     let status = Arc::new(AcqStatus::default());

@@ -22,6 +22,9 @@ use crate::parts::Parts;
 use crate::retention::Retention;
 use crate::stats::{RecvStats, StatsTap, TopicStats};
 
+/// The error and its causes in one line (the one home is grip-io's).
+pub use grip_io::mcaplog::error_chain;
+
 /// One message on its way to the file.
 #[derive(Debug, Clone)]
 pub enum Msg {
@@ -422,24 +425,6 @@ pub fn spawn_receiver(
             });
             stats
         })
-}
-
-/// `e` and every error under it (`source()`), joined with ": ". The mcap
-/// crate's I/O error says only "I/O error from writing, or reading a
-/// compression stream"; the cause a reader needs ("No space left on device
-/// (os error 28)") is its source.
-pub fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut s = e.to_string();
-    let mut cur = e.source();
-    while let Some(c) = cur {
-        let t = c.to_string();
-        if !s.ends_with(&t) {
-            s.push_str(": ");
-            s.push_str(&t);
-        }
-        cur = c.source();
-    }
-    s
 }
 
 /// A warning's gate: open the first time, then at most once a second.

@@ -16,7 +16,9 @@
 //! - `--meta KEY=VALUE`: extra `grip.run` metadata (`grip drive` passes the
 //!   scenario, controller, ARTE switch and seed).
 //! - `--attach NAME=FILE`: one more file to hash and attach under NAME
-//!   (`grip drive` attaches its `--vehicle` file as `drive/vehicle.toml`).
+//!   (`grip drive` attaches its `--vehicle` file as `drive/vehicle.toml`);
+//!   a FILE that cannot be read is a fatal error at start, before anything
+//!   is recorded.
 //! - `GRIP_INSTANCE` (environment) selects an isolated iceoryx2 namespace.
 //!
 //! Readiness: `READY=1` once the subscribers and the file are open and the

@@ -607,9 +607,9 @@ impl Parts {
         }
         self.done.push(old.clone());
         let now = Instant::now();
-        let next = (self.next_path)().map_err(|source| McapLogError::Io {
+        let next = (self.next_path)().map_err(|error| McapLogError::Io {
             path: old.clone(),
-            source,
+            error,
         });
         let opened = next.and_then(|path| {
             self.open_part(&path, now)

@@ -62,6 +62,19 @@ pub enum RunError {
         /// Error.
         source: std::io::Error,
     },
+    /// An `--attach` file that cannot be read: refused at start, before
+    /// any file is created or recorded (the log would lack what its caller
+    /// asked it to carry).
+    #[error("--attach {name}={}: cannot read: {error}; nothing recorded", path.display())]
+    Attach {
+        /// The attachment's name in the log.
+        name: String,
+        /// The file.
+        path: PathBuf,
+        /// Why (the service prints this error's Display alone, so it is
+        /// said here and not also returned as its source).
+        error: std::io::Error,
+    },
     /// A thread could not be started.
     #[error("cannot start the receive thread: {0}")]
     Thread(std::io::Error),
@@ -83,6 +96,24 @@ fn join_receiver(h: std::thread::JoinHandle<RecvStats>) -> Result<RecvStats, Run
             .unwrap_or_else(|| "no message".to_owned());
         RunError::ReceiveThread(why)
     })
+}
+
+/// Every `--attach` file (name in the log, path) can be opened and read:
+/// the first that cannot is [`RunError::Attach`] (a missing file, a
+/// directory, no permission), naming it, its path and the OS's reason.
+fn check_attachments(attach: &[(String, PathBuf)]) -> Result<(), RunError> {
+    use std::io::Read;
+    for (name, path) in attach {
+        std::fs::File::open(path)
+            // a directory opens, and its first read fails
+            .and_then(|mut f| f.read(&mut [0u8; 1]))
+            .map_err(|error| RunError::Attach {
+                name: name.clone(),
+                path: path.clone(),
+                error,
+            })?;
+    }
+    Ok(())
 }
 
 /// A file to attach: its name in the log, path, and whether it is a model.
@@ -202,6 +233,9 @@ pub fn new_file(dir: &Path, stem: &str) -> std::io::Result<PathBuf> {
 /// records; on stop drains what is queued, writes the `grip.recorder`
 /// summary metadata and finishes the file.
 pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> {
+    // the files the caller asked the log to carry, before anything is
+    // created, deleted (retention) or recorded
+    check_attachments(&opts.attach)?;
     let own = opts.config.own_file::<RecorderConfig>();
     let cfg = RecorderConfig::load(&own)?;
     // the bus's protocol, so that the CAN log's alive counters are read
@@ -434,7 +468,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
     if failed {
         return Err(RunError::Mcap(McapLogError::Io {
             path,
-            source: std::io::Error::other("a write failed during the recording (see above)"),
+            error: std::io::Error::other("a write failed during the recording (see above)"),
         }));
     }
     if let Some(e) = rx_failed {

@@ -193,3 +193,65 @@ fn records_everything_counts_gaps_and_finishes_on_sigterm() {
         std::fs::read(config_dir().join("inverter.dbc")).unwrap()
     );
 }
+
+/// An `--attach` file that cannot be read (missing, a directory) is one
+/// error at start naming the attachment, the path and the OS's reason,
+/// exit 1, and no log is created: it warned and recorded a log without it.
+#[test]
+fn an_unreadable_attachment_is_refused_before_recording() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("rec.mcap");
+    let missing = dir.path().join("nonexistent/vehicle.toml");
+    for (file, reason) in [
+        (missing.as_path(), "No such file or directory (os error 2)"),
+        (dir.path(), "Is a directory (os error 21)"),
+    ] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_recorder"))
+            .arg("--config-dir")
+            .arg(config_dir())
+            .arg("--out")
+            .arg(&out)
+            .arg("--attach")
+            .arg(format!("drive/vehicle.toml={}", file.display()))
+            .env(
+                grip_io::ipc::INSTANCE_ENV,
+                format!("recattach{}", std::process::id()),
+            )
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let t0 = Instant::now();
+        let status = loop {
+            if let Some(s) = child.try_wait().unwrap() {
+                break s;
+            }
+            if t0.elapsed() > Duration::from_secs(30) {
+                let _ = child.kill();
+                let _ = child.wait();
+                panic!("recorder recorded without --attach {}", file.display());
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        let mut err = String::new();
+        use std::io::Read;
+        child
+            .stderr
+            .take()
+            .unwrap()
+            .read_to_string(&mut err)
+            .unwrap();
+        assert_eq!(status.code(), Some(1), "{err}");
+        let want = format!(
+            "error: --attach drive/vehicle.toml={}: cannot read: {reason}; nothing recorded",
+            file.display()
+        );
+        assert_eq!(
+            err.lines()
+                .filter(|l| l.contains("error"))
+                .collect::<Vec<_>>(),
+            [want.as_str()],
+            "{err}"
+        );
+        assert!(!out.exists(), "a log was created");
+    }
+}

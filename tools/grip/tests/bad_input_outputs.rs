@@ -397,6 +397,61 @@ fn errors_say_their_reason_once_and_before_any_output() {
     assert!(so.is_empty(), "printed before the error:\n{so}");
 }
 
+/// `grip replay` says a bad `--model`'s reason once (arte's start-up error
+/// said it, and returned it as its source, which `{:#}` printed again) and
+/// a missing or foreign log's reason and path once (the reader's I/O error
+/// said the OS's reason and returned it as its source; "reading PATH: PATH:
+/// No such file or directory (os error 2): No such file or directory (os
+/// error 2)").
+#[test]
+fn replay_says_a_model_s_and_a_log_s_reason_once() {
+    let d = tempfile::tempdir().unwrap();
+    let garbage = d.path().join("garbage.model");
+    std::fs::write(&garbage, "garbage\n").unwrap();
+    let bad = d.path().join("bad.model");
+    model_with_5_weights(&bad);
+    for (model, reason) in [
+        (&garbage, "not a grip ARTE model: header must start with"),
+        (&bad, "5 weights given"),
+    ] {
+        let (ok, _, err) = grip(&[
+            os("replay"),
+            reference().as_os_str(),
+            os("--model"),
+            model.as_os_str(),
+        ]);
+        assert!(!ok);
+        assert_eq!(err.matches(reason).count(), 1, "{err}");
+        assert_eq!(
+            err.matches(&*model.display().to_string()).count(),
+            1,
+            "{err}"
+        );
+    }
+    let missing = d.path().join("missing.mcap");
+    let foreign = d.path().join("foreign.mcap");
+    std::fs::write(&foreign, "not a log").unwrap();
+    for (log, reason) in [
+        (&missing, "No such file or directory (os error 2)"),
+        (&foreign, "not an MCAP file"),
+    ] {
+        for cmd in ["replay", "inspect"] {
+            let (ok, so, err) = grip(&[os(cmd), log.as_os_str()]);
+            assert!(!ok && so.is_empty(), "{cmd}: {so}");
+            assert_eq!(
+                err.trim_end(),
+                format!("error: reading {}: {reason}", log.display())
+                    + if log == &foreign {
+                        " (magic bytes missing)"
+                    } else {
+                        ""
+                    },
+                "{cmd}"
+            );
+        }
+    }
+}
+
 /// A 3 s drive whose cycle 1500 carries seq u64::MAX and whose ground
 /// truth at 2 s says V = -1e308 m/s (damaged numbers).
 fn write_damaged(path: &Path) {

@@ -117,6 +117,70 @@ fn drive_refuses_a_missing_or_unreadable_model_before_any_service() {
     }
 }
 
+/// `dir` copied to `to` (files and folders).
+fn copy_dir(dir: &std::path::Path, to: &std::path::Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        let q = to.join(p.file_name().unwrap());
+        if p.is_dir() {
+            copy_dir(&p, &q);
+        } else {
+            std::fs::copy(&p, &q).unwrap();
+        }
+    }
+}
+
+/// A vehicle file that leaves out a field warns once, naming the user's
+/// file, also with `--model`: the services then read the configuration
+/// through a temporary view, and the recorder's warning (the real
+/// recorder here) named the view's copy, so the user saw the warning
+/// twice, with two paths.
+#[test]
+fn a_vehicle_warning_is_said_once_naming_the_user_s_file_with_model() {
+    let d = tempfile::tempdir().unwrap();
+    let cfg = d.path().join("cfg");
+    copy_dir(&common::config_dir(), &cfg);
+    let vehicle = cfg.join("vehicle.toml");
+    let text = std::fs::read_to_string(&vehicle).unwrap();
+    let without: Vec<&str> = text
+        .lines()
+        .filter(|l| !l.starts_with("mic_lead_m"))
+        .collect();
+    assert!(without.len() < text.lines().count());
+    std::fs::write(&vehicle, without.join("\n")).unwrap();
+    let out = d.path().join("drive.mcap");
+    let f = Fakes::new();
+    f.real("recorder");
+    let (ok, so, err) = f.drive(
+        &cfg,
+        &[
+            os("--model"),
+            cfg.join("models/default.model").as_os_str(),
+            os("--out"),
+            out.as_os_str(),
+        ],
+    );
+    // the stand-in plant-sim exits 3: the drive fails at it, after the
+    // recorder (started on the view) was ready
+    assert!(!ok, "{so}{err}");
+    let started = f.started();
+    assert!(
+        started.len() == 1 && started[0].starts_with("plant-sim "),
+        "{started:?}\n{err}"
+    );
+    assert!(err.contains("drive: recorder  ready after"), "{err}");
+    let said: Vec<&str> = err
+        .lines()
+        .filter(|l| l.contains("does not set mic_lead_m"))
+        .collect();
+    assert_eq!(said.len(), 1, "{err}");
+    assert!(
+        said[0].starts_with(&format!("warning: {}: ", vehicle.display())),
+        "{err}"
+    );
+}
+
 #[test]
 fn drive_help_gives_model() {
     let (ok, so, err) = common::output(&[os("drive"), os("--help")]);

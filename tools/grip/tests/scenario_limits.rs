@@ -322,6 +322,48 @@ fn a_non_finite_plant_state_fails_sim_naming_the_runs() {
     assert!(out.join("summary.csv").is_file());
 }
 
+/// The sweep fails the same way (it exited 0 with a table of NaN), naming
+/// each point and its runs, after writing its report and files. No
+/// `--sweep` value alone gets a run there (the vehicle's and the
+/// controllers' validation and the controllers' guards keep every run
+/// finite), so the configuration's road does it, at every point.
+#[test]
+fn a_non_finite_plant_state_fails_the_sweep_naming_the_points() {
+    let (t, c) = non_finite_config();
+    let out = t.path().join("sweep");
+    let s = grip(
+        &c,
+        &[
+            "sim",
+            "--seeds",
+            "1",
+            "--variants",
+            "mfc,mfc-arte",
+            "--sweep",
+            "preview.cap_share=0.9",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(s.code, Some(1), "{}{}", s.stdout, s.stderr);
+    assert!(
+        s.stderr
+            .contains("error: --sweep: runs at 2 of 2 points had a non-finite plant state")
+            && s.stderr
+                .contains("#0 `as configured`: 2 of 2 runs: mfc seed 1 (")
+            && s.stderr
+                .contains("; #1 `preview.cap_share = 0.9`: 2 of 2 runs: mfc seed 1 (")
+            && s.stderr.contains("mfc-arte seed 1 ("),
+        "{}",
+        s.stderr
+    );
+    // the report and files are there to look at
+    assert!(s.stdout.contains("(2 unhealthy runs)"), "{}", s.stdout);
+    for f in ["sweep.csv", "sweep.txt", "sweep.png"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+}
+
 #[test]
 fn a_non_finite_plant_state_fails_generate_naming_the_log() {
     let (t, c) = non_finite_config();

@@ -167,12 +167,13 @@ pub enum CanError {
         iface: String,
     },
     /// Other I/O error of the socket.
-    #[error("CAN interface {iface:?}: {source}")]
+    #[error("CAN interface {iface:?}: {error}")]
     Io {
         /// Interface name.
         iface: String,
-        /// The error.
-        source: std::io::Error,
+        /// The error (said in the message, not returned as the source:
+        /// a chain printed in full would say it twice).
+        error: std::io::Error,
     },
     /// Socket send/receive error on the hot path (no allocation).
     #[error("CAN {op} failed: {kind:?}")]

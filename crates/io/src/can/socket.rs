@@ -143,7 +143,7 @@ impl SocketCanBus {
         }
         let io = |e| CanError::Io {
             iface: iface.into(),
-            source: e,
+            error: e,
         };
         let iface_c = std::ffi::CString::new(iface).map_err(|_| CanError::NoInterface {
             iface: iface.into(),
@@ -187,7 +187,7 @@ impl SocketCanBus {
     pub fn open_monitor(iface: &str, bus_id: u8, exclude: &[u32]) -> Result<Self, CanError> {
         let io = |e| CanError::Io {
             iface: iface.into(),
-            source: e,
+            error: e,
         };
         let mut b = Self::open(iface, bus_id, RxFilter::All)?;
         b.exclude = heapless::Vec::from_slice(exclude).map_err(|_| {

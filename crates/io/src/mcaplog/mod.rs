@@ -36,24 +36,28 @@ use grip_msgs::{AudioBlock, BusFrame, CanFrame, CycleRecord, GroundTruth, RoadEs
 pub use json::{JsonError, McapRecord};
 use mcap::records::{MessageHeader, Record, op};
 
-/// MCAP errors.
+/// MCAP errors. Each says its reason in its message and returns no
+/// [`source`](std::error::Error::source): a service prints the message
+/// alone, and a caller that prints the chain (`{:#}` of an `anyhow::Error`)
+/// would otherwise say the reason twice.
 #[derive(Debug, thiserror::Error)]
 pub enum McapLogError {
     /// File system error.
-    #[error("{path}: {source}")]
+    #[error("{path}: {error}")]
     Io {
         /// File.
         path: PathBuf,
         /// Error.
-        source: std::io::Error,
+        error: std::io::Error,
     },
-    /// mcap crate error.
-    #[error("{path}: MCAP error: {source}")]
+    /// mcap crate error (with its causes: the crate's I/O error names none
+    /// in its own message).
+    #[error("{path}: MCAP error: {}", error_chain(error))]
     Mcap {
         /// File.
         path: PathBuf,
         /// Error.
-        source: mcap::McapError,
+        error: mcap::McapError,
     },
     /// The file does not start with the MCAP magic bytes.
     #[error("{path}: not an MCAP file (magic bytes missing)")]
@@ -71,6 +75,26 @@ pub enum McapLogError {
         /// Requested schema.
         requested: &'static str,
     },
+}
+
+/// `e` and every error under it (`source()`), joined with ": ", a cause
+/// whose message already ends the text left out. The mcap crate's I/O
+/// error says only "I/O error from writing, or reading a compression
+/// stream"; the cause a reader needs ("No space left on device (os error
+/// 28)") is its source. The one home: [`McapLogError::Mcap`]'s message and
+/// the recorder's log lines.
+pub fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut cur = e.source();
+    while let Some(c) = cur {
+        let t = c.to_string();
+        if !s.ends_with(&t) {
+            s.push_str(": ");
+            s.push_str(&t);
+        }
+        cur = c.source();
+    }
+    s
 }
 
 /// Chunk compression.
@@ -196,9 +220,9 @@ impl McapWriter {
         realtime_ns: u128,
     ) -> Result<Self, McapLogError> {
         let path = path.as_ref().to_path_buf();
-        let io = |source| McapLogError::Io {
+        let io = |error| McapLogError::Io {
             path: path.clone(),
-            source,
+            error,
         };
         let file = File::create(&path).map_err(io)?;
         let sync = file.try_clone().map_err(io)?;
@@ -215,9 +239,9 @@ impl McapWriter {
         };
         let w = wo
             .create(LogFile(BufWriter::with_capacity(256 * 1024, file)))
-            .map_err(|source| McapLogError::Mcap {
+            .map_err(|error| McapLogError::Mcap {
                 path: path.clone(),
-                source,
+                error,
             })?;
         let mut me = Self {
             w: Some(w),
@@ -242,10 +266,10 @@ impl McapWriter {
         Ok(me)
     }
 
-    fn mcap_err(&self, source: mcap::McapError) -> McapLogError {
+    fn mcap_err(&self, error: mcap::McapError) -> McapLogError {
         McapLogError::Mcap {
             path: self.path.clone(),
-            source,
+            error,
         }
     }
 
@@ -392,9 +416,9 @@ impl McapWriter {
 
     /// Attaches a file under its file name; returns its sha256 (hex).
     pub fn attach_file(&mut self, path: &Path, media_type: &str) -> Result<String, McapLogError> {
-        let data = std::fs::read(path).map_err(|source| McapLogError::Io {
+        let data = std::fs::read(path).map_err(|error| McapLogError::Io {
             path: path.to_path_buf(),
-            source,
+            error,
         })?;
         let name = path
             .file_name()
@@ -408,9 +432,9 @@ impl McapWriter {
     pub fn flush(&mut self) -> Result<(), McapLogError> {
         let start = Instant::now();
         self.writer().flush().map_err(|e| self.mcap_err(e))?;
-        self.sync.sync_data().map_err(|source| McapLogError::Io {
+        self.sync.sync_data().map_err(|error| McapLogError::Io {
             path: self.path.clone(),
-            source,
+            error,
         })?;
         self.last_flush = Instant::now();
         self.flush_took = self.last_flush - start;
@@ -441,9 +465,9 @@ impl McapWriter {
         self.sync
             .metadata()
             .map(|m| m.len())
-            .map_err(|source| McapLogError::Io {
+            .map_err(|error| McapLogError::Io {
                 path: self.path.clone(),
-                source,
+                error,
             })
     }
 
@@ -462,14 +486,14 @@ impl McapWriter {
         if let Some(mut w) = self.w.take() {
             w.finish().map_err(|e| self.mcap_err(e))?;
             let mut f = w.into_inner();
-            f.flush().map_err(|source| McapLogError::Io {
+            f.flush().map_err(|error| McapLogError::Io {
                 path: self.path.clone(),
-                source,
+                error,
             })?;
         }
-        self.sync.sync_all().map_err(|source| McapLogError::Io {
+        self.sync.sync_all().map_err(|error| McapLogError::Io {
             path: self.path.clone(),
-            source,
+            error,
         })
     }
 }
@@ -700,9 +724,9 @@ impl McapLog {
     /// ([`ReadReport::stopped`]). [`ReadReport::truncated`] says both.
     pub fn open(path: impl AsRef<Path>) -> Result<Self, McapLogError> {
         let path = path.as_ref().to_path_buf();
-        let data = std::fs::read(&path).map_err(|source| McapLogError::Io {
+        let data = std::fs::read(&path).map_err(|error| McapLogError::Io {
             path: path.clone(),
-            source,
+            error,
         })?;
         Ok(Self::from_bytes(data, path))
     }

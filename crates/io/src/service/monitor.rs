@@ -45,10 +45,11 @@ pub trait Monitor: Send + 'static {
 pub const REPORT_INTERVAL: Duration = Duration::from_secs(1);
 
 /// The helper thread could not be started (a start-up error of the
-/// service).
+/// service). The OS's reason is said in the message, not also returned as
+/// the source (a chain printed in full would say it twice).
 #[derive(Debug, thiserror::Error)]
 #[error("cannot start the helper thread: {0}")]
-pub struct HelperError(#[source] pub std::io::Error);
+pub struct HelperError(pub std::io::Error);
 
 /// Spawns the helper thread `name` running `monitor` until `done` is set.
 pub fn spawn(

@@ -64,11 +64,14 @@ pub struct Args {
     verbose: bool,
 }
 
-/// The scenario's file when `--scenario` names one by path (absolute,
-/// relative to `cwd`); `None` for a name under `<config-dir>/scenarios`.
-fn scenario_file(dir: &ConfigDir, scenario: &str, cwd: &std::path::Path) -> Option<PathBuf> {
-    let p = dir.scenario_path(scenario);
-    (p != dir.scenarios_path().join(format!("{scenario}.toml"))).then(|| cwd.join(p))
+/// The scenario's file when `--scenario` names one by path
+/// (`grip_config::dir::ScenarioArg::given`; absolute, relative to `cwd`);
+/// `None` for a name under `<config-dir>/scenarios`.
+fn scenario_file(scenario: &str, cwd: &std::path::Path) -> Option<PathBuf> {
+    match grip_config::dir::ScenarioArg::given(scenario) {
+        grip_config::dir::ScenarioArg::Path(p) => Some(cwd.join(p)),
+        grip_config::dir::ScenarioArg::Name(_) => None,
+    }
 }
 
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
@@ -85,7 +88,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     // a scenario given as a path (not a name under <config-dir>/scenarios,
     // which the recorder attaches with the directory): its file, attached
     // to the log as drive/scenario.toml and read by plant-sim by this path
-    let scenario_file = scenario_file(&dir, &args.scenario, &cwd);
+    let scenario_file = scenario_file(&args.scenario, &cwd);
     if !(args.ready_timeout.is_finite() && args.ready_timeout > 0.0) {
         bail!("--ready-timeout must be a positive number of seconds");
     }
@@ -366,19 +369,14 @@ mod tests {
     /// recorder attaches the directory's scenarios).
     #[test]
     fn a_scenario_path_is_the_drive_s_own_file() {
-        let d = tempfile::tempdir().unwrap();
-        let cfg = d.path().join("config");
-        std::fs::create_dir_all(cfg.join("scenarios")).unwrap();
-        std::fs::write(cfg.join("scenarios/paper.toml"), "").unwrap();
-        let dir = ConfigDir::new(&cfg);
         let cwd = std::path::Path::new("/drives/trial");
-        assert_eq!(scenario_file(&dir, "paper", cwd), None);
+        assert_eq!(scenario_file("paper", cwd), None);
         assert_eq!(
-            scenario_file(&dir, "scen/suv.toml", cwd),
+            scenario_file("scen/suv.toml", cwd),
             Some(PathBuf::from("/drives/trial/scen/suv.toml"))
         );
         assert_eq!(
-            scenario_file(&dir, "/abs/suv.toml", cwd),
+            scenario_file("/abs/suv.toml", cwd),
             Some(PathBuf::from("/abs/suv.toml"))
         );
     }

@@ -89,17 +89,6 @@ fn check_output_dir(
     Ok(())
 }
 
-/// The error of a log that cannot be read at all: its reason once
-/// (`LogError`'s source repeats it).
-fn load_error(e: drive::LogError) -> anyhow::Error {
-    match &e.source {
-        grip_io::mcaplog::McapLogError::Io { source, .. } => {
-            anyhow::anyhow!("reading {}: {source}", e.path.display())
-        }
-        _ => anyhow::anyhow!("{}", e.full()),
-    }
-}
-
 /// The summary of the log at `path`, with the vehicle the drive ran with
 /// and its road catalogue (for the preview report: the log's attached
 /// `roads.toml`, else the configuration directory's with a warning).
@@ -107,7 +96,7 @@ fn summary_of(
     ctx: &Ctx,
     path: &std::path::Path,
 ) -> anyhow::Result<(DriveLog, f64, summary::Summary)> {
-    let log = crate::drive::load_log(path, Default::default()).map_err(load_error)?;
+    let log = crate::drive::load_log(path, Default::default())?;
     let (vehicle, from, warnings) = drive::vehicle_for(&log, &ctx.config_dir);
     for w in warnings {
         eprintln!("{w}");

@@ -644,6 +644,10 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     {
         out.push_str(&format!("Note: {note}\n"));
     }
+    out.push_str(&grip_sim::speeds::report_note(
+        acoustic.as_ref().map(|a| &a.model),
+        &results,
+    ));
     out.push('\n');
     out.push_str(&format_table(&summaries));
     out.push('\n');
@@ -1156,6 +1160,11 @@ fn load_acoustic(ctx: &Ctx, args: &Args, setup: &SimSetup) -> anyhow::Result<Aco
     let mut config = AcousticConfig::default()
         .with_config_dir(&ctx.config_dir)
         .map_err(|e| anyhow::anyhow!("{e}"))?;
+    // an alias audio-acq ignores (a road the synthesiser has): said as
+    // audio-acq says it at start-up
+    for note in &config.alias_notes {
+        grip_config::warn_once(&format!("warning: {note}"));
+    }
     match args.snr_db.unwrap_or(DEFAULT_SNR) {
         Snr::Off => {}
         Snr::Db(snr) => config = config.with_noise_snr(snr),

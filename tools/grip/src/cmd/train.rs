@@ -29,6 +29,7 @@ use grip_arte::mlp::{LmConfig, OutputKind};
 use grip_arte::model::{
     ClassifierSpec, EvalSummary, FitReport, Model, cross_validate_with, fit, grid_search_svm,
 };
+use grip_arte::speeds::SpeedRange;
 use grip_arte::svm::{Kernel, SvmConfig};
 use grip_digest::sha256_hex;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -304,6 +305,31 @@ pub fn extract_dataset(
         files,
     };
     Ok((s, id, excluded))
+}
+
+/// The slowest and fastest vehicle speed (the manifest's `speed_kmh`) of
+/// the recordings of `ds` that gave frames to `data` (a recording whose
+/// every frame was excluded did not train the model); Err says why there
+/// is none (a recording without a speed, named with
+/// [`Dataset::why_no_speed`]).
+fn training_speed_range(ds: &Dataset, data: &Samples) -> std::result::Result<SpeedRange, String> {
+    let used: std::collections::BTreeSet<usize> = data.group.iter().copied().collect();
+    let trained: Vec<_> = ds
+        .entries
+        .iter()
+        .filter(|e| used.contains(&e.recording))
+        .collect();
+    let missing: Vec<_> = trained.iter().filter(|e| e.speed_kmh.is_none()).collect();
+    if let Some(first) = missing.first() {
+        return Err(format!(
+            "{} of {} training recordings have no vehicle speed (the first: {})",
+            missing.len(),
+            trained.len(),
+            ds.why_no_speed(first)
+        ));
+    }
+    SpeedRange::of(trained.iter().filter_map(|e| e.speed_kmh))
+        .ok_or_else(|| "the manifest's speeds give no range".to_owned())
 }
 
 /// What identifies a training set in the model: the dataset hash
@@ -713,13 +739,20 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
         println!("{n}");
         notes.push(n);
     }
-    let speeds: Vec<f64> = ds.entries.iter().filter_map(|e| e.speed_kmh).collect();
-    if speeds.len() == ds.entries.len() {
-        let lo = speeds.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = speeds.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let n = format!("training speeds: {lo:.1}-{hi:.1} km/h");
-        println!("{n}");
-        notes.push(n);
+    // the vehicle speeds of the recordings that gave frames (the
+    // manifest's `speed_kmh`), stored in the model (`meta.speeds`): the
+    // drive summary and `grip sim` say when a drive runs outside them
+    let training_speeds = training_speed_range(&ds, &data);
+    match &training_speeds {
+        Ok(r) => {
+            let n = r.note();
+            println!("{n} (written to the model)");
+            notes.push(n);
+        }
+        Err(why) => println!(
+            "{}: {why}; the drive summary and grip sim cannot say when a drive runs outside them",
+            grip_arte::speeds::NOT_RECORDED
+        ),
     }
     if let Some(n) = &model_cfg.speed_norm {
         let n = format!(
@@ -890,6 +923,7 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     model.meta.command = args.command_line();
     model.meta.notes = notes;
     model.meta.cv = cv;
+    model.meta.speeds = training_speeds.ok();
     for dir in &args.test {
         let (conf, smooth, excluded) =
             evaluate_folder(&model, dir, args.hop, only, args.window, args.channel.get())?;
@@ -1335,6 +1369,55 @@ mod tests {
                 && got.contains(&format!("manifest {m} line 2, field `speed_kmh`: blank")),
             "{got}"
         );
+    }
+
+    /// The model records its training speeds (`meta.speeds`) from the
+    /// manifest's `speed_kmh` of every training recording, and notes them;
+    /// without a manifest it records none, and says so.
+    #[test]
+    fn the_model_records_the_training_speeds_of_the_manifest() {
+        let d = tempfile::tempdir().unwrap();
+        let data = d.path().join("data");
+        make_dataset(&data);
+        let mut argv = no_cv(&data);
+        argv.extend_from_slice(&["--hop", "0.05", "--classifier", "mlp"]);
+        let args = Cli::parse_from(&argv).args;
+        let (m, _) = train(d.path(), &args).unwrap();
+        assert_eq!(m.meta.speeds, None);
+        assert_eq!(
+            m.training_speeds(),
+            grip_arte::speeds::TrainingSpeeds::NotRecorded
+        );
+        let mut csv = String::from("file,road,speed_kmh\n");
+        for road in ["asphalt", "gravel", "snow"] {
+            for k in 0..5 {
+                csv.push_str(&format!("{road}/r{k}.wav,{road},{}\n", 10 + 4 * k));
+            }
+        }
+        std::fs::write(data.join("manifest.csv"), csv).unwrap();
+        let (m, report) = train(d.path(), &args).unwrap();
+        assert_eq!(m.meta.speeds, SpeedRange::new(10.0, 26.0));
+        assert!(
+            m.meta
+                .notes
+                .contains(&"training speeds: 10.0-26.0 km/h".to_owned()),
+            "{:?}",
+            m.meta.notes
+        );
+        assert!(
+            report.contains("training speeds: 10.0-26.0 km/h"),
+            "{report}"
+        );
+        let back = Model::from_bytes(&m.to_bytes().unwrap()).unwrap();
+        assert_eq!(back.meta.speeds, m.meta.speeds);
+        // a recording without a speed: none recorded
+        std::fs::write(
+            data.join("manifest.csv"),
+            "file,road,speed_kmh\nasphalt/r0.wav,asphalt,12\n",
+        )
+        .unwrap();
+        let (m, _) = train(d.path(), &args).unwrap();
+        assert_eq!(m.meta.speeds, None);
     }
 
     /// A hop past 10 s is refused by name (1e20 s wrapped the frame's end

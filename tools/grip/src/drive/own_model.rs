@@ -5,11 +5,15 @@
 //! the one line changed) and `models/` (links to the directory's models
 //! plus a copy of FILE). The recorder attaches the view's files as any
 //! configuration's, so the log carries the model it ran and its hash, and
-//! `grip replay` of the log runs that model.
+//! `grip replay` of the log runs that model. The view's
+//! `.grip-view-paths` (`grip_drive::supervisor::ViewPaths`) names the
+//! user's files its paths stand for: a service's `warning: VIEW/vehicle.toml:
+//! ...` reaches the user as the warning of their own file, and once.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
+use grip_drive::supervisor::{VIEW_PATHS_FILE, ViewPaths};
 
 /// The view; removed when dropped.
 #[derive(Debug)]
@@ -102,6 +106,15 @@ pub fn view(dir: &Path, model: &Path) -> anyhow::Result<ModelView> {
     );
     std::fs::write(to.join("arte-svc.toml"), text)
         .with_context(|| format!("writing {}", to.join("arte-svc.toml").display()))?;
+    // the user's files the view's paths stand for: the copy of the model
+    // for --model's file, every other path for the same one in `dir`
+    // (arte-svc.toml for the user's, which it is but for `model`)
+    ViewPaths::new(&[
+        (models.join(&name), model.to_path_buf()),
+        (to.clone(), dir.to_path_buf()),
+    ])
+    .write(&to)
+    .with_context(|| format!("writing {}", to.join(VIEW_PATHS_FILE).display()))?;
     Ok(ModelView {
         _tmp: tmp,
         dir: to,
@@ -166,6 +179,17 @@ mod tests {
         );
         assert!(v.dir.join("scenarios/paper.toml").is_file());
         assert_eq!(std::fs::read(cfg.join("arte-svc.toml")).unwrap(), before);
+        // the view's paths said as the user's files
+        let paths = ViewPaths::read(&v.dir);
+        let said = |p: &Path| paths.map(&p.display().to_string());
+        assert_eq!(
+            said(&v.dir.join("vehicle.toml")),
+            cfg.join("vehicle.toml").display().to_string()
+        );
+        assert_eq!(
+            said(&v.dir.join("models/mine.model")),
+            mine.display().to_string()
+        );
         let dir = v.dir.clone();
         drop(v);
         assert!(!dir.exists());

@@ -262,12 +262,12 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
     }
     let scenario = match &scenario_file {
         Some(_) => Some(SCENARIO_ATTACHMENT.to_owned()),
-        None => log.run.get("scenario").and_then(|s| {
-            let p = grip_config::ConfigDir::new(&dir).scenario_path(s);
-            p.strip_prefix(&dir)
-                .ok()
-                .map(|r| r.to_string_lossy().into_owned())
-        }),
+        // a name: its file in the log's configuration directory (by its
+        // spelling, as the summary reads grip.run's scenario)
+        None => log
+            .run
+            .get("scenario")
+            .and_then(|s| grip_config::dir::ScenarioArg::by_spelling(s).in_config_dir()),
     };
     let reads = Reads {
         closed: w.closed_loop,

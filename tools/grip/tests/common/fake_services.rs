@@ -125,3 +125,19 @@ impl Fakes {
         self.run_drive(config, args, Some(log))
     }
 }
+
+impl Fakes {
+    /// Service `name` the real binary (beside `grip`: `cargo build
+    /// --workspace` first), the others stand-ins.
+    pub fn real(&self, name: &str) {
+        let real = Path::new(env!("CARGO_BIN_EXE_grip")).with_file_name(name);
+        assert!(
+            real.is_file(),
+            "{}: build the workspace first",
+            real.display()
+        );
+        let p = self.bin.path().join(name);
+        std::fs::remove_file(&p).unwrap();
+        std::os::unix::fs::symlink(&real, &p).unwrap();
+    }
+}

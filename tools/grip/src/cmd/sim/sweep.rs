@@ -404,6 +404,9 @@ pub fn run(
     let mut rows = Vec::with_capacity(setups.len());
     // Points at which runs went past the end of their roads.
     let mut past_end = Vec::new();
+    // Points at which runs went non-finite: the sweep fails naming them,
+    // after its report and files are written (as `grip sim` does).
+    let mut non_finite = Vec::new();
     for Point {
         label,
         values,
@@ -436,6 +439,9 @@ pub fn run(
                 );
             });
             past_end.push((label.clone(), beyond));
+        }
+        if let Some(runs) = non_finite_runs(&results) {
+            non_finite.push(format!("#{} `{label}`: {runs}", rows.len()));
         }
         rows.push(Row {
             label: label.clone(),
@@ -476,7 +482,51 @@ pub fn run(
             .map_err(|e| anyhow::anyhow!("drawing {}: {e}", png.display()))?;
         eprintln!("wrote {}", dir.display());
     }
+    // a run whose plant state went non-finite has no figures: the report
+    // and files are written (to look at), and the sweep fails naming the
+    // points and their runs
+    if let Some(line) = non_finite_points(&non_finite, setups.len()) {
+        anyhow::bail!(line);
+    }
     Ok(())
+}
+
+/// The runs of one point whose plant state went non-finite, each by
+/// variant and seed with its count of such cycles ("mfc seed 1 (2399
+/// cycles), src seed 1 (12 cycles)" of "2 of 4 runs"); `None` when every
+/// run stayed finite.
+fn non_finite_runs(results: &[grip_sim::RunResult]) -> Option<String> {
+    let bad: Vec<String> = results
+        .iter()
+        .filter(|r| r.non_finite_cycles > 0)
+        .map(|r| {
+            format!(
+                "{} seed {} ({} cycles)",
+                r.variant, r.seed, r.non_finite_cycles
+            )
+        })
+        .collect();
+    (!bad.is_empty()).then(|| {
+        format!(
+            "{} of {} runs: {}",
+            bad.len(),
+            results.len(),
+            bad.join(", ")
+        )
+    })
+}
+
+/// The one line the sweep fails with when runs at some of its `points`
+/// points went non-finite (`bad`: each such point's number, label and runs,
+/// from [`non_finite_runs`]); `None` when none did.
+fn non_finite_points(bad: &[String], points: usize) -> Option<String> {
+    (!bad.is_empty()).then(|| {
+        format!(
+            "--sweep: runs at {} of {points} points had a non-finite plant state (their ratios are not numbers; unhealthy_runs in sweep.csv): {}",
+            bad.len(),
+            bad.join("; ")
+        )
+    })
 }
 
 /// The shared `[preview]` trade values swept that a controller's own
