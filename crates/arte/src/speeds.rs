@@ -206,10 +206,22 @@ impl SpeedCheck {
         let mut out = Vec::new();
         for (side, o) in [("below", &self.below), ("above", &self.above)] {
             let Some(o) = o else { continue };
-            let speeds = if format!("{:.1}", o.min_kmh) == format!("{:.1}", o.max_kmh) {
-                format!("{:.1} km/h", o.min_kmh)
+            let one = |v: f64| format!("{v:.1}");
+            // the edge next to the training speeds, rounded, can read as
+            // theirs (29.81 above 29.795: "29.8-41.3 ... above 4.0-29.8")
+            let (near, edge) = if side == "above" {
+                (o.min_kmh, self.range.max_kmh)
             } else {
-                format!("{:.1}-{:.1} km/h", o.min_kmh, o.max_kmh)
+                (o.max_kmh, self.range.min_kmh)
+            };
+            let speeds = if one(o.min_kmh) == one(o.max_kmh) {
+                format!("{} km/h", one(o.min_kmh))
+            } else if one(near) == one(edge) && side == "above" {
+                format!("up to {} km/h", one(o.max_kmh))
+            } else if one(near) == one(edge) {
+                format!("down to {} km/h", one(o.min_kmh))
+            } else {
+                format!("{}-{} km/h", one(o.min_kmh), one(o.max_kmh))
             };
             out.push(format!(
                 "{} of {what} ({:.1} of {:.1} s{}{detail}) at {speeds}, {side} the model's training speeds ({}): its estimates there are extrapolation",
@@ -298,6 +310,15 @@ mod tests {
                 "25 % of the run (1.0 of 4.0 s) at 60.0 km/h, above the model's training speeds (4.0-30.0 km/h): its estimates there are extrapolation"
             ]
         );
+        // just past an edge, rounded to it: not written as if inside
+        let mut edges = SpeedCheck::new(r);
+        edges.add(30.01, 1.0);
+        edges.add(41.3, 1.0);
+        edges.add(3.98, 1.0);
+        edges.add(2.5, 1.0);
+        let n = edges.notes("the run", "");
+        assert!(n[0].contains("at down to 2.5 km/h, below"), "{}", n[0]);
+        assert!(n[1].contains("at up to 41.3 km/h, above"), "{}", n[1]);
         let mut inside = SpeedCheck::new(r);
         inside.add(10.0, 5.0);
         assert!(!inside.outside());

@@ -540,6 +540,23 @@ pub struct ModelInfo {
 }
 
 impl ModelInfo {
+    /// The model file's bytes as `log` carries it: the attachment of its
+    /// name, else the attachment whose SHA-256 is its (a replay's model, the
+    /// copy a `grip drive --model` drive ran); None: not attached.
+    pub fn bytes<'a>(&self, log: &'a DriveLog) -> Option<&'a [u8]> {
+        log.attachments
+            .get(&self.name)
+            .or_else(|| {
+                let h = self.sha256.as_deref()?;
+                log.attachments
+                    .values()
+                    .find(|d| grip_digest::sha256_hex(d).eq_ignore_ascii_case(h))
+            })
+            .map(Vec::as_slice)
+    }
+}
+
+impl ModelInfo {
     /// `models/NAME (sha256 0123456789ab, FROM)`.
     pub fn line(&self) -> String {
         format!(

@@ -137,7 +137,9 @@ impl ViewPaths {
         Self { pairs }
     }
 
-    /// Writes `dir`'s [`VIEW_PATHS_FILE`] (`dir` being a view).
+    /// Writes `dir`'s [`VIEW_PATHS_FILE`] (`dir` being a view): a new
+    /// file, any entry of that name removed first, so that the write never
+    /// follows a link (to a user's file of that name, say).
     pub fn write(&self, dir: &Path) -> std::io::Result<()> {
         let mut t = toml::Table::new();
         t.insert(
@@ -158,7 +160,17 @@ impl ViewPaths {
             "# grip drive: a temporary view of a configuration directory; the user's files its paths stand for\n{}",
             toml::to_string(&t).map_err(std::io::Error::other)?
         );
-        std::fs::write(dir.join(VIEW_PATHS_FILE), text)
+        let path = dir.join(VIEW_PATHS_FILE);
+        match std::fs::remove_file(&path) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(e),
+            _ => {}
+        }
+        // create_new fails on any entry there, a dangling link included
+        let mut f = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&path)?;
+        std::io::Write::write_all(&mut f, text.as_bytes())
     }
 
     /// `dir`'s [`VIEW_PATHS_FILE`]; empty when it has none (no view) or

@@ -212,24 +212,36 @@ pub fn summarize(results: &[RunResult]) -> Vec<VariantSummary> {
 /// how many, and each by variant and seed; `None` when every run stayed
 /// finite.
 pub fn non_finite_runs(results: &[RunResult]) -> Option<String> {
-    non_finite_line(
-        results.len(),
-        results
-            .iter()
-            .filter(|r| r.non_finite_cycles > 0)
-            .map(|r| (r.variant, r.seed, r.non_finite_cycles)),
-    )
+    non_finite_line(results.len(), non_finite_of(results))
 }
 
-fn non_finite_line(runs: usize, bad: impl Iterator<Item = (Variant, u64, u64)>) -> Option<String> {
+/// The runs whose plant state went non-finite, as (how many, their listing
+/// by variant and seed with each one's count of such cycles: "mfc seed 1
+/// (2399 cycles), src seed 1 (12 cycles)"); `None` when every run stayed
+/// finite. The listing of [`non_finite_runs`] and of `grip sim --sweep`'s
+/// points.
+pub fn non_finite_listing(results: &[RunResult]) -> Option<(usize, String)> {
+    listing(non_finite_of(results))
+}
+
+fn non_finite_of(results: &[RunResult]) -> impl Iterator<Item = (Variant, u64, u64)> + '_ {
+    results
+        .iter()
+        .filter(|r| r.non_finite_cycles > 0)
+        .map(|r| (r.variant, r.seed, r.non_finite_cycles))
+}
+
+fn listing(bad: impl Iterator<Item = (Variant, u64, u64)>) -> Option<(usize, String)> {
     let bad: Vec<String> = bad
         .map(|(v, seed, n)| format!("{v} seed {seed} ({n} cycles)"))
         .collect();
-    (!bad.is_empty()).then(|| {
+    (!bad.is_empty()).then(|| (bad.len(), bad.join(", ")))
+}
+
+fn non_finite_line(runs: usize, bad: impl Iterator<Item = (Variant, u64, u64)>) -> Option<String> {
+    listing(bad).map(|(n, list)| {
         format!(
-            "{} of {runs} runs had a non-finite plant state (their figures are not numbers; non_finite_cycles in summary.csv): {}",
-            bad.len(),
-            bad.join(", ")
+            "{n} of {runs} runs had a non-finite plant state (their figures are not numbers; non_finite_cycles in summary.csv): {list}"
         )
     })
 }

@@ -17,14 +17,16 @@
 //! depend on plant-sim being alive), and `truth_lost` is reported.
 
 use std::collections::BTreeMap;
+use std::path::Path;
 
 use grip_arte::synth::{NoiseConfig, ROADS, RoadAudioSynth, SynthConfig};
 use grip_io::clock::Clock;
+use grip_io::service::ServiceConfig;
 use grip_msgs::{GroundTruth, NAME_LEN, name_to_bytes};
 
-use crate::AcqError;
 use crate::config::{SynthSection, TruthLost};
 use crate::source::{Pacer, Read, Source, SourceStats, f32_to_i16};
+use crate::{AcqConfig, AcqError};
 
 /// A failed read of the truth topic (counted, not fatal).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -84,14 +86,16 @@ impl<C: Clock, T: TruthInput> std::fmt::Debug for SynthSource<C, T> {
     }
 }
 
-/// The name → synth road table: the synthesiser's own names, then aliases.
-fn name_table(aliases: &BTreeMap<String, String>) -> Vec<([u8; NAME_LEN], usize)> {
+/// The name → synth road table: the synthesiser's own names, then the
+/// aliases as resolved by `grip_arte::synth::SynthAliases::resolve`
+/// (`sounds`: roads the synthesiser has no sound for → one it has).
+fn name_table(sounds: &BTreeMap<String, String>) -> Vec<([u8; NAME_LEN], usize)> {
     let mut t: Vec<([u8; NAME_LEN], usize)> = ROADS
         .iter()
         .enumerate()
         .map(|(i, r)| (name_to_bytes(r), i))
         .collect();
-    for (from, to) in aliases {
+    for (from, to) in sounds {
         if let Some(i) = grip_arte::synth::road_index(to) {
             t.push((name_to_bytes(from), i));
         }
@@ -101,6 +105,9 @@ fn name_table(aliases: &BTreeMap<String, String>) -> Vec<([u8; NAME_LEN], usize)
 
 impl<C: Clock, T: TruthInput> SynthSource<C, T> {
     /// Builds the synthesiser (all buffers for blocks up to `max_block`).
+    /// `cfg.aliases` go through [`SynthSection::resolved_aliases`]; a table
+    /// it refuses (which [`crate::AcqConfig`]'s validation refused first)
+    /// is [`AcqError::Config`] naming `audio-acq.toml`.
     pub fn new(
         cfg: &SynthSection,
         rate: u32,
@@ -119,12 +126,15 @@ impl<C: Clock, T: TruthInput> SynthSource<C, T> {
         };
         let synth =
             RoadAudioSynth::new(&scfg, cfg.seed).map_err(|e| AcqError::Synth(e.to_string()))?;
+        let sounds = cfg
+            .resolved_aliases(Path::new(<AcqConfig as ServiceConfig>::FILE_NAME))?
+            .sounds;
         Ok(Self {
             synth,
             truth,
             pacer: Pacer::new(clock, rate, max_lag_ns),
             buf: vec![0.0; max_block],
-            names: name_table(&cfg.aliases),
+            names: name_table(&sounds),
             rate,
             timeout_ns: (cfg.truth_timeout_s * 1e9) as u64,
             on_lost: cfg.on_truth_lost,

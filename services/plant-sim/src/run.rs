@@ -43,12 +43,13 @@ pub enum RunError {
     #[error(transparent)]
     Config(#[from] ConfigError),
     /// A model rejected a parameter.
-    #[error("{file}: {source}")]
+    #[error("{file}: {error}")]
     Model {
         /// The file the parameter came from.
         file: PathBuf,
-        /// The error.
-        source: PlantSimError,
+        /// The error (said in the message, not returned as the source:
+        /// a chain printed in full would say it twice).
+        error: PlantSimError,
     },
     /// iceoryx2.
     #[error(transparent)]
@@ -151,10 +152,10 @@ pub fn load(opts: &Options) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), 
         &own_path,
         Path::new("/sys/class/net"),
     )?;
-    let sim = PlantSim::new(&cfg, scenario, roads, &vehicle, &sensors).map_err(|source| {
+    let sim = PlantSim::new(&cfg, scenario, roads, &vehicle, &sensors).map_err(|error| {
         RunError::Model {
             file: vehicle_path,
-            source,
+            error,
         }
     })?;
     Ok((cfg, sim, can))

@@ -55,12 +55,13 @@ pub enum RunError {
     #[error(transparent)]
     Mcap(#[from] McapLogError),
     /// The output directory.
-    #[error("{path}: cannot create the log directory or a new log file in it: {source}")]
+    #[error("{path}: cannot create the log directory or a new log file in it: {error}")]
     OutDir {
         /// Directory.
         path: PathBuf,
-        /// Error.
-        source: std::io::Error,
+        /// The error (said in the message, not returned as the source:
+        /// a chain printed in full would say it twice).
+        error: std::io::Error,
     },
     /// An `--attach` file that cannot be read: refused at start, before
     /// any file is created or recorded (the log would lack what its caller
@@ -281,9 +282,9 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         Some(p) => p.clone(),
         None => std::fs::create_dir_all(&cfg.out_dir)
             .and_then(|()| default_out(&cfg.out_dir))
-            .map_err(|source| RunError::OutDir {
+            .map_err(|error| RunError::OutDir {
                 path: cfg.out_dir.clone(),
-                source,
+                error,
             })?,
     };
     // retention of out_dir, when the recorder named its file there itself

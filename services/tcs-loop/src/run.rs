@@ -43,12 +43,13 @@ pub enum RunError {
     #[error(transparent)]
     Config(#[from] ConfigError),
     /// The controller rejected its parameters.
-    #[error("{file}: {source}")]
+    #[error("{file}: {error}")]
     Loop {
         /// controllers.toml
         file: PathBuf,
-        /// The error.
-        source: LoopError,
+        /// The error (said in the message, not returned as the source:
+        /// a chain printed in full would say it twice).
+        error: LoopError,
     },
     /// iceoryx2.
     #[error(transparent)]
@@ -284,9 +285,9 @@ pub fn build(cfg: &LoadedConfig) -> Result<TcsLoop, RunError> {
         &cfg.vehicle,
         &cfg.own.safety,
     )
-    .map_err(|source| RunError::Loop {
+    .map_err(|error| RunError::Loop {
         file: cfg.controllers_path.clone(),
-        source,
+        error,
     })?
     .with_road_aware(
         &cfg.roads,
@@ -294,9 +295,9 @@ pub fn build(cfg: &LoadedConfig) -> Result<TcsLoop, RunError> {
         &cfg.controllers,
         &cfg.vehicle,
     )
-    .map_err(|source| RunError::Loop {
+    .map_err(|error| RunError::Loop {
         file: cfg.controllers_path.clone(),
-        source,
+        error,
     })?;
     Ok(lp)
 }

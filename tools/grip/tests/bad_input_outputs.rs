@@ -452,6 +452,46 @@ fn replay_says_a_model_s_and_a_log_s_reason_once() {
     }
 }
 
+/// A vehicle whose microphone leads the wheel with a scenario in time
+/// segments: `grip generate` refuses it naming the file, field and reason
+/// once (plant-sim's start-up error said its model's error in its message
+/// and returned it as its source too, so the printed chain said it twice).
+#[test]
+fn generate_says_plant_sim_s_reason_once() {
+    let d = tempfile::tempdir().unwrap();
+    let cfg = d.path().join("cfg");
+    common::copy_dir(&common::config_dir(), &cfg);
+    let vehicle = cfg.join("vehicles/front-mic.toml");
+    let out = d.path().join("out");
+    let (ok, _, err) = common::output_in(
+        &cfg,
+        &[
+            os("generate"),
+            os("--out"),
+            out.as_os_str(),
+            os("--count"),
+            os("1"),
+            os("--scenario"),
+            os("e2e"),
+            os("--vehicle"),
+            vehicle.as_os_str(),
+        ],
+    );
+    assert!(!ok, "{err}");
+    let reason = "scenario `e2e` is in time segments";
+    assert_eq!(err.matches(reason).count(), 1, "{err}");
+    assert_eq!(
+        err.matches("field `vehicle.mic_lead_m`").count(),
+        1,
+        "{err}"
+    );
+    assert_eq!(
+        err.matches(&*vehicle.display().to_string()).count(),
+        1,
+        "{err}"
+    );
+}
+
 /// A 3 s drive whose cycle 1500 carries seq u64::MAX and whose ground
 /// truth at 2 s says V = -1e308 m/s (damaged numbers).
 fn write_damaged(path: &Path) {

@@ -117,20 +117,6 @@ fn drive_refuses_a_missing_or_unreadable_model_before_any_service() {
     }
 }
 
-/// `dir` copied to `to` (files and folders).
-fn copy_dir(dir: &std::path::Path, to: &std::path::Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(dir).unwrap() {
-        let p = e.unwrap().path();
-        let q = to.join(p.file_name().unwrap());
-        if p.is_dir() {
-            copy_dir(&p, &q);
-        } else {
-            std::fs::copy(&p, &q).unwrap();
-        }
-    }
-}
-
 /// A vehicle file that leaves out a field warns once, naming the user's
 /// file, also with `--model`: the services then read the configuration
 /// through a temporary view, and the recorder's warning (the real
@@ -140,7 +126,7 @@ fn copy_dir(dir: &std::path::Path, to: &std::path::Path) {
 fn a_vehicle_warning_is_said_once_naming_the_user_s_file_with_model() {
     let d = tempfile::tempdir().unwrap();
     let cfg = d.path().join("cfg");
-    copy_dir(&common::config_dir(), &cfg);
+    common::copy_dir(&common::config_dir(), &cfg);
     let vehicle = cfg.join("vehicle.toml");
     let text = std::fs::read_to_string(&vehicle).unwrap();
     let without: Vec<&str> = text

@@ -379,7 +379,7 @@ fn the_random_recipe_is_taken_as_grip_sim_takes_it() {
 fn a_calibration_fitted_for_other_stream_settings_is_refused() {
     let d = tempfile::tempdir().unwrap();
     let cfg = d.path().join("config");
-    copy_dir(&common::config_dir(), &cfg);
+    common::copy_dir(&common::config_dir(), &cfg);
     let f = cfg.join("arte-svc.toml");
     let text = std::fs::read_to_string(&f).unwrap();
     assert!(text.contains("hop_s = 0.025"), "the shipped hop changed");
@@ -399,25 +399,12 @@ fn a_calibration_fitted_for_other_stream_settings_is_refused() {
     );
 }
 
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let e = e.unwrap();
-        let dst = to.join(e.file_name());
-        if e.file_type().unwrap().is_dir() {
-            copy_dir(&e.path(), &dst);
-        } else {
-            std::fs::copy(e.path(), &dst).unwrap();
-        }
-    }
-}
-
 /// A configuration directory whose `can.toml` names `tests/data/own-bus.dbc`
 /// (other ids, names, byte order, units: a car's own bus), or, with
 /// `edit`, that DBC changed by it.
 fn own_bus_config(root: &Path, edit: impl Fn(String) -> String) -> std::path::PathBuf {
     let cfg = root.join("config");
-    copy_dir(&common::config_dir(), &cfg);
+    common::copy_dir(&common::config_dir(), &cfg);
     let dbc =
         std::fs::read_to_string(common::config_dir().join("../tests/data/own-bus.dbc")).unwrap();
     std::fs::write(cfg.join("own-bus.dbc"), edit(dbc)).unwrap();

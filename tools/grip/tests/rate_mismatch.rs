@@ -85,19 +85,6 @@ fn dataset(dir: &Path, rate: u32, classes: &[&str]) {
     }
 }
 
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let p = e.unwrap().path();
-        let q = to.join(p.file_name().unwrap());
-        if p.is_dir() {
-            copy_dir(&p, &q);
-        } else {
-            std::fs::copy(&p, &q).unwrap();
-        }
-    }
-}
-
 #[test]
 fn replay_with_a_model_at_another_rate_is_refused_naming_both_rates() {
     let d = tempfile::tempdir().unwrap();
@@ -163,7 +150,7 @@ fn replay_with_a_model_at_another_rate_is_refused_naming_both_rates() {
 fn generate_with_audio_at_another_rate_than_the_model_is_refused() {
     let d = tempfile::tempdir().unwrap();
     let cfg = d.path().join("config");
-    copy_dir(&common::config_dir(), &cfg);
+    common::copy_dir(&common::config_dir(), &cfg);
     let acq = cfg.join("audio-acq.toml");
     let text = std::fs::read_to_string(&acq).unwrap();
     assert!(text.contains("sample_rate = 44100"), "{text}");
@@ -271,7 +258,7 @@ fn paper_model_at(path: &Path, rate: u32) {
 fn drive_with_audio_at_another_rate_than_the_model_is_refused_before_any_service() {
     let d = tempfile::tempdir().unwrap();
     let cfg = d.path().join("config");
-    copy_dir(&common::config_dir(), &cfg);
+    common::copy_dir(&common::config_dir(), &cfg);
     let acq = cfg.join("audio-acq.toml");
     let text = std::fs::read_to_string(&acq).unwrap();
     std::fs::write(
@@ -376,7 +363,7 @@ fn a_class_that_is_no_road_of_the_catalogue_is_refused_up_front() {
 
     // a configuration whose catalogue has a road `cobble`: the model trains
     let cfg = d.path().join("config");
-    copy_dir(&common::config_dir(), &cfg);
+    common::copy_dir(&common::config_dir(), &cfg);
     let roads = cfg.join("roads.toml");
     let mut text = std::fs::read_to_string(&roads).unwrap();
     text.push_str(

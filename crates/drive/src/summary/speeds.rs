@@ -84,33 +84,14 @@ impl DriveSpeeds {
     }
 }
 
-/// The model file arte ran, as the log carries it: (name, bytes; None:
-/// not attached). None when the log names no model.
-fn model_file(log: &DriveLog) -> Option<(String, Option<&[u8]>)> {
-    if let Some(m) = log.metadata.get("grip.replay")
-        && let Some(name) = m.get("model").filter(|n| !n.is_empty())
-    {
-        let by_name = log.attachments.get(name.as_str());
-        let by_hash = || {
-            let h = m.get("model_sha256")?;
-            log.attachments
-                .values()
-                .find(|d| grip_digest::sha256_hex(d).eq_ignore_ascii_case(h))
-        };
-        return Some((name.clone(), by_name.or_else(by_hash).map(Vec::as_slice)));
-    }
-    let v: toml::Table = toml::from_str(log.attachment_text("arte-svc.toml")?).ok()?;
-    let name = v.get("model")?.as_str()?.to_owned();
-    let bytes = log.attachments.get(&name).map(Vec::as_slice);
-    Some((name, bytes))
-}
-
 /// The drive's speeds against the training speeds of the model the log
 /// carries (see the module); `window_ns` is the summary's scenario window.
 /// None when the log names no model.
 pub fn drive_speeds(log: &DriveLog, window_ns: Option<(u64, u64)>) -> Option<DriveSpeeds> {
-    let (name, bytes) = model_file(log)?;
-    let model = match bytes.map(Model::from_bytes) {
+    // the model the summary's header names ([`super::model_of`]), its bytes
+    let info = super::model_of(log)?;
+    let name = info.name.clone();
+    let model = match info.bytes(log).map(Model::from_bytes) {
         None => ModelSpeeds::NotAttached(name),
         Some(Err(e)) => ModelSpeeds::Unreadable(name, e.to_string()),
         Some(Ok(m)) => ModelSpeeds::Model(m.training_speeds()),

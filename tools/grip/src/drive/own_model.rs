@@ -77,7 +77,9 @@ pub fn view(dir: &Path, model: &Path) -> anyhow::Result<ModelView> {
     for e in entries {
         let e = e.with_context(|| format!("reading {}", dir.display()))?;
         let file = e.file_name();
-        if file == "arte-svc.toml" || file == "models" {
+        // the view's own VIEW_PATHS_FILE is written below: a user's file
+        // of that name is neither linked nor written through
+        if file == "arte-svc.toml" || file == "models" || file == VIEW_PATHS_FILE {
             continue;
         }
         symlink(e.path(), to.join(&file))
@@ -193,5 +195,45 @@ mod tests {
         let dir = v.dir.clone();
         drop(v);
         assert!(!dir.exists());
+    }
+
+    /// A `.grip-view-paths` in the user's directory (left there by
+    /// anything) is neither linked into the view nor written through: the
+    /// user's file keeps its text, the view's file is the view's own.
+    #[test]
+    fn a_user_s_view_paths_file_is_left_untouched() {
+        let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
+        let d = tempfile::tempdir().unwrap();
+        let user = d.path().join("cfg");
+        std::fs::create_dir(&user).unwrap();
+        std::fs::copy(cfg.join("arte-svc.toml"), user.join("arte-svc.toml")).unwrap();
+        std::fs::copy(cfg.join("vehicle.toml"), user.join("vehicle.toml")).unwrap();
+        let theirs = user.join(VIEW_PATHS_FILE);
+        std::fs::write(&theirs, "# user's own file\n").unwrap();
+        let mine = d.path().join("mine.model");
+        std::fs::copy(cfg.join("models/default.model"), &mine).unwrap();
+        let v = view(&user, &mine).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&theirs).unwrap(),
+            "# user's own file\n"
+        );
+        let own = v.dir.join(VIEW_PATHS_FILE);
+        assert!(!own.symlink_metadata().unwrap().is_symlink());
+        let paths = ViewPaths::read(&v.dir);
+        assert_eq!(
+            paths.map(&v.dir.join("vehicle.toml").display().to_string()),
+            user.join("vehicle.toml").display().to_string()
+        );
+        // a link of that name in a view is replaced, not written through
+        std::fs::remove_file(&own).unwrap();
+        std::os::unix::fs::symlink(&theirs, &own).unwrap();
+        ViewPaths::new(&[(v.dir.clone(), user.clone())])
+            .write(&v.dir)
+            .unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&theirs).unwrap(),
+            "# user's own file\n"
+        );
+        assert!(!own.symlink_metadata().unwrap().is_symlink());
     }
 }

@@ -496,24 +496,8 @@ pub fn run(
 /// cycles), src seed 1 (12 cycles)" of "2 of 4 runs"); `None` when every
 /// run stayed finite.
 fn non_finite_runs(results: &[grip_sim::RunResult]) -> Option<String> {
-    let bad: Vec<String> = results
-        .iter()
-        .filter(|r| r.non_finite_cycles > 0)
-        .map(|r| {
-            format!(
-                "{} seed {} ({} cycles)",
-                r.variant, r.seed, r.non_finite_cycles
-            )
-        })
-        .collect();
-    (!bad.is_empty()).then(|| {
-        format!(
-            "{} of {} runs: {}",
-            bad.len(),
-            results.len(),
-            bad.join(", ")
-        )
-    })
+    grip_sim::report::non_finite_listing(results)
+        .map(|(n, list)| format!("{n} of {} runs: {list}", results.len()))
 }
 
 /// The one line the sweep fails with when runs at some of its `points`
