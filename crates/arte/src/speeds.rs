@@ -217,9 +217,9 @@ impl SpeedCheck {
             let speeds = if one(o.min_kmh) == one(o.max_kmh) {
                 format!("{} km/h", one(o.min_kmh))
             } else if one(near) == one(edge) && side == "above" {
-                format!("up to {} km/h", one(o.max_kmh))
+                format!("speeds up to {} km/h", one(o.max_kmh))
             } else if one(near) == one(edge) {
-                format!("down to {} km/h", one(o.min_kmh))
+                format!("speeds down to {} km/h", one(o.min_kmh))
             } else {
                 format!("{}-{} km/h", one(o.min_kmh), one(o.max_kmh))
             };
@@ -317,8 +317,16 @@ mod tests {
         edges.add(3.98, 1.0);
         edges.add(2.5, 1.0);
         let n = edges.notes("the run", "");
-        assert!(n[0].contains("at down to 2.5 km/h, below"), "{}", n[0]);
-        assert!(n[1].contains("at up to 41.3 km/h, above"), "{}", n[1]);
+        assert!(
+            n[0].contains("at speeds down to 2.5 km/h, below"),
+            "{}",
+            n[0]
+        );
+        assert!(
+            n[1].contains("at speeds up to 41.3 km/h, above"),
+            "{}",
+            n[1]
+        );
         let mut inside = SpeedCheck::new(r);
         inside.add(10.0, 5.0);
         assert!(!inside.outside());

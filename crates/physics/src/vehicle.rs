@@ -295,9 +295,22 @@ impl VehicleParams {
                 power,
                 Range::closed(1e3, 1e7),
                 "W",
-                "ONE driven wheel's share of the drive's power, in watts: motor power / n_driven for one motor driving n_driven wheels; a car's motor has 50-400 kW in all, a heavy truck's up to about 700 kW",
+                "ONE driven wheel's share of the drive's power, in watts: motor power / n_driven for one motor driving n_driven wheels; a car's motor has 50-400 kW in all, a heavy truck's up to about 700 kW; leave the field out for no power limit",
                 &[(1e3, "kW"), (745.7, "hp")],
-            )?;
+            )
+            .map_err(|mut e| {
+                // a motor's total in kW, given for the whole car: name the
+                // per-wheel value too
+                let per_wheel = power * 1e3 / self.n_driven;
+                if self.n_driven > 1.0 && Range::closed(1e3, 1e7).contains(per_wheel) {
+                    e.reason.push_str(&format!(
+                        "; a motor of {power} kW over the n_driven = {} driven wheels is {} W per wheel",
+                        self.n_driven,
+                        round_sig(per_wheel)
+                    ));
+                }
+                e
+            })?;
         }
         plausible(
             "driven_load_share",
@@ -446,6 +459,20 @@ mod tests {
         let e = p.validate().unwrap_err();
         assert_eq!(e.field, "power_max");
         assert!(e.reason.contains("75 kW is 75000 W"), "{}", e.reason);
+        // one motor over two driven wheels: the per-wheel value is named
+        let two = VehicleParams {
+            power_max: Some(110.0),
+            n_driven: 2.0,
+            ..VehicleParams::default()
+        };
+        let e = two.validate().unwrap_err();
+        assert!(
+            e.reason.contains(
+                "a motor of 110 kW over the n_driven = 2 driven wheels is 55000 W per wheel"
+            ),
+            "{}",
+            e.reason
+        );
     }
 
     #[test]
