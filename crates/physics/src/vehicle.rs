@@ -290,10 +290,11 @@ impl VehicleParams {
             &[],
         )?;
         if let Some(power) = self.power_max {
+            let watts = Range::closed(1e3, 1e7);
             plausible(
                 "power_max",
                 power,
-                Range::closed(1e3, 1e7),
+                watts,
                 "W",
                 "ONE driven wheel's share of the drive's power, in watts: motor power / n_driven for one motor driving n_driven wheels; a car's motor has 50-400 kW in all, a heavy truck's up to about 700 kW; leave the field out for no power limit",
                 &[(1e3, "kW"), (745.7, "hp")],
@@ -302,7 +303,7 @@ impl VehicleParams {
                 // a motor's total in kW, given for the whole car: name the
                 // per-wheel value too
                 let per_wheel = power * 1e3 / self.n_driven;
-                if self.n_driven > 1.0 && Range::closed(1e3, 1e7).contains(per_wheel) {
+                if self.n_driven > 1.0 && watts.contains(per_wheel) {
                     e.reason.push_str(&format!(
                         "; a motor of {power} kW over the n_driven = {} driven wheels is {} W per wheel",
                         self.n_driven,
