@@ -22,6 +22,8 @@
 //! - [`batch::run_batch`]: many (variant, seed) runs on worker threads,
 //!   deterministic whatever the thread count.
 //! - [`report`]: statistics over seeds, the Table-V style table, CSV output.
+//! - [`ideal`]: the quasi-static ideal controller with a perfect preview,
+//!   the bound `grip sim --ideal` reports beside the simulated ones.
 //! - [`speeds`]: `grip sim --arte acoustic`'s note on the speeds the model
 //!   was trained at (the time the acoustic chain heard outside them).
 //!
@@ -31,6 +33,7 @@
 pub mod acoustic;
 pub mod batch;
 pub mod estimator;
+pub mod ideal;
 pub mod probe;
 pub mod random;
 pub mod report;

@@ -404,7 +404,7 @@ pub fn format_paper_comparison(summaries: &[VariantSummary]) -> String {
     render(&heads, &rows)
 }
 
-fn render(heads: &[String], rows: &[Vec<String>]) -> String {
+pub(crate) fn render(heads: &[String], rows: &[Vec<String>]) -> String {
     let ncol = heads.len();
     let mut w: Vec<usize> = heads.iter().map(|h| h.chars().count()).collect();
     for r in rows {

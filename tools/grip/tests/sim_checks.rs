@@ -87,10 +87,11 @@ fn out_is_checked_first_and_an_earlier_runs_files_are_removed() {
                 "2",
                 "--all-traces",
             ])
-            .args(["--variants", "mfc,mfc-arte", "--out"])
+            .args(["--variants", "mfc,mfc-arte", "--ideal", "1,0.8", "--out"])
             .arg(&dir),
     );
     assert!(dir.join("scenarios.csv").exists() && dir.join("trace_mfc_seed2.csv").exists());
+    assert!(dir.join("ideal.csv").exists());
     let o = grip()
         .args([
             "sim",
@@ -107,7 +108,7 @@ fn out_is_checked_first_and_an_earlier_runs_files_are_removed() {
         .unwrap();
     assert!(o.status.success(), "{o:?}");
     let err = stderr(&o);
-    assert!(err.contains("removed 10 files"), "{err}");
+    assert!(err.contains("removed 11 files"), "{err}");
     assert_eq!(
         files(&dir),
         [

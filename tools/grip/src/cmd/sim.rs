@@ -140,6 +140,47 @@ pub struct Args {
     /// that meet it listed.
     #[arg(long, value_name = "SLIP,ACCEL", value_parser = parse_target, requires = "sweep")]
     sweep_target: Option<(f64, f64)>,
+    /// Beside the simulated variants, the ideal controller holding each
+    /// road at these shares of its peak force, e.g. 1,0.9,0.8,0.7 (and
+    /// `slope=K`: where the road's curve has flattened to dμ/dλ = K): every
+    /// road known exactly and at once, no tyre transients, the motor's lag
+    /// kept (crates/sim/README.md, "How close to the ideal"); its slip and
+    /// acceleration on the same seeds' scenarios and their ratios to each
+    /// baseline (with --out: ideal.csv).
+    #[arg(long, value_name = "S1,S2,...", value_parser = parse_holds, conflicts_with = "sweep")]
+    ideal: Option<Holds>,
+}
+
+/// `--ideal S1,S2,...`: shares of a road's peak force, each in (0, 1], or
+/// `slope=K`, K > 0.
+#[derive(Debug, Clone)]
+pub struct Holds(Vec<grip_sim::ideal::Hold>);
+
+fn parse_holds(s: &str) -> Result<Holds, String> {
+    use grip_sim::ideal::Hold;
+    let v = s
+        .split(',')
+        .map(str::trim)
+        .map(|t| match t.strip_prefix("slope=") {
+            Some(k) => k
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite() && *x > 0.0)
+                .map(Hold::Slope)
+                .ok_or_else(|| format!("`{t}`: the slope dμ/dλ must be a number > 0 (e.g. slope=5)")),
+            None => t
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite() && *x > 0.0 && *x <= 1.0)
+                .map(Hold::Share)
+                .ok_or_else(|| {
+                    format!(
+                        "`{t}` is not a share of a road's peak force in (0, 1] (e.g. 1,0.9,0.8) nor slope=K"
+                    )
+                }),
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    Ok(Holds(v))
 }
 
 /// `--sweep-target SLIP,ACCEL`: two positive ratios.
@@ -652,6 +693,13 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     out.push_str(&format_table(&summaries));
     out.push('\n');
     out.push_str(&format_relative(&summaries));
+    let ideal = args
+        .ideal
+        .as_ref()
+        .map(|Holds(holds)| grip_sim::ideal::ideal_points(holds, &seeds, setup_of));
+    if let Some(points) = &ideal {
+        out.push_str(&grip_sim::ideal::format_ideal(points, &summaries));
+    }
     out.push_str("\nOurs (means) beside the paper's Table V (its scenario is not published; ours is documented above):\n");
     out.push_str(&format_paper_comparison(&summaries));
     let unhealthy: usize = summaries.iter().map(|s| s.unhealthy_runs).sum();
@@ -685,6 +733,11 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         write_inloop_csv(dir, &results, &inloop)?;
         if !per_seed.is_empty() {
             write_scenarios_csv(dir, per_seed)?;
+        }
+        if let Some(points) = &ideal {
+            let path = dir.join("ideal.csv");
+            std::fs::write(&path, grip_sim::ideal::ideal_csv(points))
+                .with_context(|| format!("writing {}", path.display()))?;
         }
         if let Some(road) = &args.entry_plot {
             let setup_first = setup_of(seeds[0]);
@@ -1047,7 +1100,7 @@ const LISTED_SEGMENTS: usize = 40;
 /// The files grip sim writes into `--out` (and nothing else): what
 /// [`prepare_out`] removes of an earlier run.
 fn is_own_output(name: &str) -> bool {
-    const FIXED: [&str; 9] = [
+    const FIXED: [&str; 10] = [
         "summary.csv",
         "table.txt",
         "arte_inloop.csv",
@@ -1057,6 +1110,7 @@ fn is_own_output(name: &str) -> bool {
         "sweep.csv",
         "sweep.txt",
         "sweep.png",
+        "ideal.csv",
     ];
     if FIXED.contains(&name) {
         return true;
