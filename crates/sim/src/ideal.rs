@@ -33,6 +33,7 @@
 use crate::SimSetup;
 use crate::report::{VariantSummary, render};
 use grip_physics::{Road, Scenario, SegmentMode, VehicleParams};
+use grip_tcs::road_aware::slip_at_share;
 
 /// One ideal run's figures, defined as `grip_tcs::metrics` defines them
 /// for a simulated run.
@@ -47,25 +48,18 @@ pub struct IdealResult {
 }
 
 /// The stable-branch slip that carries friction coefficient `mu` on `road`
-/// (0 for `mu <= 0`; `road.lambda_opt()` at or above the peak). Bisection:
-/// μ rises monotonically from 0 to the peak on every catalogue curve.
+/// (about 0 for `mu <= 0`; `road.lambda_opt()` at or above the peak):
+/// [`grip_tcs::road_aware::slip_at_share`], the controllers' own inverse.
 pub fn least_slip(road: &Road, mu: f64) -> f64 {
     if mu <= 0.0 {
         return 0.0;
     }
-    let (mut lo, mut hi) = (0.0, road.lambda_opt());
-    if road.mu(hi) <= mu {
-        return hi;
-    }
-    for _ in 0..60 {
-        let mid = 0.5 * (lo + hi);
-        if road.mu(mid) < mu {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    hi
+    slip_at_share(
+        |l| road.mu(l),
+        road.lambda_opt(),
+        road.mu_peak(),
+        mu / road.mu_peak(),
+    )
 }
 
 /// Where the ideal holds each road.

@@ -883,13 +883,10 @@ pub fn odometer_speed(v: Option<f64>, omega: f64, r: f64, standstill: f64) -> f6
 }
 
 /// The slip in (0, λ_opt] where `mu` reaches `share · mu_peak` (bisection;
-/// λ_opt when the share is 1 or the curve is odd).
-pub(crate) fn slip_at_share(
-    mu: impl Fn(f64) -> f64,
-    lambda_opt: f64,
-    mu_peak: f64,
-    share: f64,
-) -> f64 {
+/// λ_opt when the share is 1 or the curve is odd): the least slip that
+/// carries that friction, on the curve's stable branch. The controllers'
+/// target and release slips and `grip_sim::ideal` use it.
+pub fn slip_at_share(mu: impl Fn(f64) -> f64, lambda_opt: f64, mu_peak: f64, share: f64) -> f64 {
     if !(lambda_opt > 0.0 && mu_peak > 0.0 && share < 1.0) {
         return lambda_opt;
     }
