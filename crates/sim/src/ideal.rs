@@ -45,6 +45,12 @@ pub struct IdealResult {
     pub mean_accel: f64,
     /// Distance travelled, m.
     pub distance: f64,
+    /// The least total variation per second of a command that reaches each
+    /// road's level (the demand, or the road's hold when that is lower) and
+    /// moves only between them, monotonically: Σ |Δ level| / T, N m/s. Any
+    /// controller that holds the roads so moves its command at least this
+    /// much (the ideal's own least-time drops move it more).
+    pub least_cmd_tv_per_s: f64,
 }
 
 /// The stable-branch slip that carries friction coefficient `mu` on `road`
@@ -135,6 +141,7 @@ pub fn ideal_run(
     let tau = p.tau_m;
     let (mut v, mut x, mut torque) = (scenario.v0, 0.0_f64, 0.0_f64);
     let (mut sum_lambda, mut v_first, mut v_last) = (0.0, scenario.v0, scenario.v0);
+    let (mut level_tv, mut last_level) = (0.0, f64::NAN);
     for k in 0..cycles {
         let t = k as f64 * dt;
         if k == 0 {
@@ -155,11 +162,16 @@ pub fn ideal_run(
         let torque_for = |f: f64| f * (r + k1) - k1 * f_res;
         let cap_force = |rd: &Road| hold.mu_cap(rd) * n_force;
         let limit = p.torque_limit(v / r);
-        let mut cmd = scenario
+        let level = scenario
             .demand_at(t)
             .min(limit)
             .min(torque_for(cap_force(road)))
             .max(0.0);
+        if last_level.is_finite() {
+            level_tv += (level - last_level).abs();
+        }
+        last_level = level;
+        let mut cmd = level;
         for j in i + 1..(i + 1 + LOOK_AHEAD).min(scenario.segments.len()) {
             let ahead = &roads[scenario.segments[j].road];
             let target = torque_for(cap_force(ahead));
@@ -204,6 +216,7 @@ pub fn ideal_run(
             f64::NAN
         },
         distance: x,
+        least_cmd_tv_per_s: level_tv / (cycles as f64 * dt),
     }
 }
 
@@ -217,6 +230,8 @@ pub struct IdealPoint {
     pub slip_deviation: f64,
     /// Mean over the seeds of the mean acceleration.
     pub mean_accel: f64,
+    /// Mean over the seeds of [`IdealResult::least_cmd_tv_per_s`].
+    pub least_cmd_tv_per_s: f64,
     /// (seed, figures) per seed, in the order given.
     pub per_seed: Vec<(u64, IdealResult)>,
 }
@@ -251,6 +266,11 @@ pub fn ideal_points<'a>(
                 hold,
                 slip_deviation: per_seed.iter().map(|(_, r)| r.slip_deviation).sum::<f64>() / n,
                 mean_accel: per_seed.iter().map(|(_, r)| r.mean_accel).sum::<f64>() / n,
+                least_cmd_tv_per_s: per_seed
+                    .iter()
+                    .map(|(_, r)| r.least_cmd_tv_per_s)
+                    .sum::<f64>()
+                    / n,
                 per_seed,
             }
         })
@@ -264,11 +284,16 @@ pub fn ideal_points<'a>(
 pub fn format_ideal(points: &[IdealPoint], summaries: &[VariantSummary]) -> String {
     let mean = |s: &VariantSummary, key: &str| s.stat(key).map_or(f64::NAN, |st| st.mean);
     let bases: Vec<&VariantSummary> = summaries.iter().filter(|s| !s.variant.arte).collect();
-    let mut heads: Vec<String> = vec!["".into(), "slip dev.".into(), "mean accel".into()];
+    let mut heads: Vec<String> = vec![
+        "".into(),
+        "slip dev.".into(),
+        "mean accel".into(),
+        "cmd TV".into(),
+    ];
     heads.extend(
         bases
             .iter()
-            .map(|b| format!("slip / accel vs {}", b.variant.label())),
+            .map(|b| format!("slip / accel / cmd TV vs {}", b.variant.label())),
     );
     let ratio = |a: f64, b: f64| {
         let r = a / b;
@@ -284,12 +309,14 @@ pub fn format_ideal(points: &[IdealPoint], summaries: &[VariantSummary]) -> Stri
             format!("ideal, {}", p.hold),
             format!("{:.4}", p.slip_deviation),
             format!("{:.4}", p.mean_accel),
+            format!("{:.0}", p.least_cmd_tv_per_s),
         ];
         for b in &bases {
             row.push(format!(
-                "{} / {}",
+                "{} / {} / {}",
                 ratio(p.slip_deviation, mean(b, "slip_deviation")),
-                ratio(p.mean_accel, mean(b, "mean_accel"))
+                ratio(p.mean_accel, mean(b, "mean_accel")),
+                ratio(p.least_cmd_tv_per_s, mean(b, "cmd_tv_per_s"))
             ));
         }
         rows.push(row);
@@ -299,13 +326,15 @@ pub fn format_ideal(points: &[IdealPoint], summaries: &[VariantSummary]) -> Stri
             format!("{} (simulated)", s.variant.label()),
             format!("{:.4}", mean(s, "slip_deviation")),
             format!("{:.4}", mean(s, "mean_accel")),
+            format!("{:.0}", mean(s, "cmd_tv_per_s")),
         ];
         for b in &bases {
             row.push(if b.variant == s.variant.baseline() {
                 format!(
-                    "{} / {}",
+                    "{} / {} / {}",
                     ratio(mean(s, "slip_deviation"), mean(b, "slip_deviation")),
-                    ratio(mean(s, "mean_accel"), mean(b, "mean_accel"))
+                    ratio(mean(s, "mean_accel"), mean(b, "mean_accel")),
+                    ratio(mean(s, "cmd_tv_per_s"), mean(b, "cmd_tv_per_s"))
                 )
             } else {
                 String::new()
@@ -319,15 +348,17 @@ pub fn format_ideal(points: &[IdealPoint], summaries: &[VariantSummary]) -> Stri
          (no tyre transients), drops to a road that carries less timed through the motor's lag; the lag, the wheel's\n\
          inertia, the torque and power limits and the driving resistance as the plant has them. Means over the same\n\
          seeds' scenarios. What it leaves out only adds slip and costs traction: a controller that holds every road at\n\
-         one share, with any road estimate, lies on the far side of its curve (more slip at the same acceleration):\n{}",
+         one share, with any road estimate, lies on the far side of its curve (more slip at the same acceleration).\n\
+         Its cmd TV (N m/s) is the least a command needs that reaches each road's level and moves only between them:\n{}",
         render(&heads, &rows)
     )
 }
 
-/// `ideal.csv`: `hold,value,seed,slip_deviation,mean_accel,distance`
+/// `ideal.csv`: `hold,value,seed,slip_deviation,mean_accel,distance,least_cmd_tv_per_s`
 /// (`hold` is `share` or `slope`).
 pub fn ideal_csv(points: &[IdealPoint]) -> String {
-    let mut out = String::from("hold,value,seed,slip_deviation,mean_accel,distance\n");
+    let mut out =
+        String::from("hold,value,seed,slip_deviation,mean_accel,distance,least_cmd_tv_per_s\n");
     for p in points {
         let (kind, value) = match p.hold {
             Hold::Share(v) => ("share", v),
@@ -335,8 +366,8 @@ pub fn ideal_csv(points: &[IdealPoint]) -> String {
         };
         for (seed, r) in &p.per_seed {
             out.push_str(&format!(
-                "{kind},{value},{seed},{},{},{}\n",
-                r.slip_deviation, r.mean_accel, r.distance
+                "{kind},{value},{seed},{},{},{},{}\n",
+                r.slip_deviation, r.mean_accel, r.distance, r.least_cmd_tv_per_s
             ));
         }
     }
@@ -465,5 +496,35 @@ mod tests {
             // a slope under the peak's (c3 < 0 there): the peak
             assert!((Hold::Slope(1e-9).mu_cap(road) - road.mu_peak()).abs() < 1e-9);
         }
+    }
+
+    #[test]
+    fn the_least_command_variation_is_one_step_down_and_up_per_low_road() {
+        // asphalt, snow, asphalt at 300 N m: the command must reach snow's
+        // level and come back. That level is snow's peak force through the
+        // wheel (μ_peak N r plus J_w a / r at that force, less the rolling
+        // resistance's share of it: 186 N m on the default car), and the
+        // drag moves it by a fraction of 1 N m
+        let roads = RoadCatalogue::burckhardt(&["asphalt", "snow"]).unwrap();
+        let sc = scenario(
+            &roads,
+            &[("asphalt", 2.0), ("snow", 2.0), ("asphalt", 30.0)],
+            300.0,
+        );
+        let v = vehicle();
+        let r = ideal_run(&v, roads.roads(), &sc, 1e-3, 2400, Hold::Share(1.0));
+        let snow = roads.get("snow").unwrap();
+        let k1 = v.j_w / (v.mass_share() * v.r);
+        let f_roll = v.c_rr * v.mass * grip_physics::G / v.n_driven;
+        let level = snow.mu_peak() * v.normal_force() * (v.r + k1) - k1 * f_roll;
+        let moved = r.least_cmd_tv_per_s * 2.4;
+        assert!(
+            (moved - 2.0 * (300.0 - level)).abs() < 2.0,
+            "{moved} N m, level {level}"
+        );
+        // on asphalt alone nothing binds: no step at all
+        let flat = scenario(&roads, &[("asphalt", 40.0)], 300.0);
+        let r = ideal_run(&v, roads.roads(), &flat, 1e-3, 2400, Hold::Share(1.0));
+        assert!(r.least_cmd_tv_per_s * 2.4 < 1.0, "{r:?}");
     }
 }

@@ -41,7 +41,7 @@ fn the_ideal_is_reported_per_share_and_seed_and_the_controllers_lie_beyond_it() 
     let mut lines = csv.lines();
     assert_eq!(
         lines.next().unwrap(),
-        "hold,value,seed,slip_deviation,mean_accel,distance"
+        "hold,value,seed,slip_deviation,mean_accel,distance,least_cmd_tv_per_s"
     );
     let rows: Vec<(f64, u64, f64, f64)> = lines
         .map(|l| {
