@@ -5,7 +5,7 @@
 //! microphone (the preview queue, the road belief and the torque cap); the
 //! MFC with its noise low-pass and the metrics with the command's figures;
 //! and the front-arch ARTE variants on a hill start that rolls back (the
-//! reverse detection clearing the preview queue).
+//! reverse detection clearing the preview queue). Also `grip_sim::ideal::ideal_run`.
 
 mod common;
 
@@ -83,4 +83,28 @@ fn the_cycle_allocates_nothing() {
     let v: Vec<u8> = Vec::with_capacity(10);
     assert!(allocs() > before);
     drop(v);
+}
+
+#[test]
+fn the_ideal_controller_allocates_nothing() {
+    // grip_sim::ideal::ideal_run on the reference scenario, both holds:
+    // its loop over the cycles has no buffer to grow.
+    let (setup, _) = common::reference();
+    for hold in [
+        grip_sim::ideal::Hold::Share(0.8),
+        grip_sim::ideal::Hold::Slope(5.0),
+    ] {
+        let before = allocs();
+        let r = grip_sim::ideal::ideal_run(
+            setup.vehicle(),
+            setup.roads().roads(),
+            setup.scenario(),
+            setup.dt(),
+            setup.cycles(),
+            hold,
+        );
+        let during = allocs() - before;
+        assert!(r.mean_accel > 0.0, "{hold}: {r:?}");
+        assert_eq!(during, 0, "{hold}: {during} allocations");
+    }
 }
