@@ -22,8 +22,9 @@
 //! - [`batch::run_batch`]: many (variant, seed) runs on worker threads,
 //!   deterministic whatever the thread count.
 //! - [`report`]: statistics over seeds, the Table-V style table, CSV output.
-//! - [`ideal`]: the quasi-static ideal controller with a perfect preview,
-//!   the bound `grip sim --ideal` reports beside the simulated ones.
+//! - [`ideal`]: the ideal controller (a perfect preview, no slip
+//!   dynamics, the motor's lag kept), the reference `grip sim --ideal`
+//!   reports beside the simulated ones.
 //! - [`speeds`]: `grip sim --arte acoustic`'s note on the speeds the model
 //!   was trained at (the time the acoustic chain heard outside them).
 //!

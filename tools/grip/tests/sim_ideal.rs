@@ -56,6 +56,20 @@ fn the_ideal_is_reported_per_share_and_seed_and_the_controllers_lie_beyond_it() 
         })
         .collect();
     assert_eq!(rows.len(), 7 * 3, "{csv}");
+    // each share on seeds 1, 2, 3, each seed on its own roads: the three
+    // seeds' figures differ
+    for share in [1.0, 0.7] {
+        let seeds: Vec<&(f64, u64, f64, f64)> = rows.iter().filter(|r| r.0 == share).collect();
+        assert_eq!(
+            seeds.iter().map(|r| r.1).collect::<Vec<_>>(),
+            [1, 2, 3],
+            "{csv}"
+        );
+        assert!(
+            seeds[0].3 != seeds[1].3 && seeds[1].3 != seeds[2].3 && seeds[0].3 != seeds[2].3,
+            "{csv}"
+        );
+    }
     let mean = |share: f64, col: fn(&(f64, u64, f64, f64)) -> f64| {
         let v: Vec<f64> = rows.iter().filter(|r| r.0 == share).map(col).collect();
         v.iter().sum::<f64>() / v.len() as f64
@@ -105,10 +119,8 @@ fn a_share_outside_zero_to_one_is_refused_naming_it() {
     for bad in ["1.5", "0", "x", "0.9,-1", "slope=0", "slope=x"] {
         let (ok, _, err) = output(&["sim".as_ref(), "--ideal".as_ref(), bad.as_ref()]);
         assert!(!ok, "--ideal {bad} accepted");
-        assert!(
-            err.contains(bad.rsplit(',').next().unwrap()),
-            "{bad}: {err}"
-        );
+        let named = format!("`{}`", bad.rsplit(',').next().unwrap());
+        assert!(err.contains(&named), "{bad}: {err}");
         assert!(
             err.contains("(0, 1]") || err.contains("> 0"),
             "{bad}: {err}"
