@@ -143,7 +143,7 @@ pub struct Args {
     /// Beside the simulated variants, the ideal controller holding each
     /// road at these shares of its peak force, e.g. 1,0.9,0.8,0.7 (and
     /// `slope=K`: where the road's curve has flattened to dμ/dλ = K): every
-    /// road known exactly and at once, no tyre transients, the motor's lag
+    /// road known exactly and at once, no slip dynamics, the motor's lag
     /// kept (crates/sim/README.md, "How close to the ideal"); its slip and
     /// acceleration on the same seeds' scenarios and their ratios to each
     /// baseline (with --out: ideal.csv).
