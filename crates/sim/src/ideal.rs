@@ -163,7 +163,7 @@ pub fn ideal_run(
     // a = (F - F_res) / (M/n), on that segment's grade
     let env = |j: usize, v: f64| {
         let (sin_t, cos_t) = scenario.segments[j].grade_rad().sin_cos();
-        let n_force = p.driven_load_share * p.mass * g * cos_t / p.n_driven;
+        let n_force = p.normal_force() * cos_t;
         let f_res = (p.c_rr * p.mass * g * cos_t * v / v.abs().max(1e-2)
             + 0.5 * p.rho * p.c_d_a * v * v.abs()
             + p.mass * g * sin_t)
