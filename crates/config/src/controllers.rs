@@ -32,7 +32,7 @@ pub fn load_controllers(path: impl AsRef<Path>) -> Result<ControllersConfig, Con
 /// the rule from before the key existed (so that older drive logs' attached
 /// files still load and replay as recorded), not the shipped value: (section,
 /// key, the value a file without it takes, the shipped value).
-fn old_rule_keys(c: &ControllersConfig) -> [(&'static str, &'static str, String); 9] {
+fn old_rule_keys(c: &ControllersConfig) -> [(&'static str, &'static str, String); 10] {
     let opt = |v: Option<f64>| v.map_or("none".to_owned(), |v| v.to_string());
     [
         ("src", "v_launch", c.src.v_launch.to_string()),
@@ -43,6 +43,7 @@ fn old_rule_keys(c: &ControllersConfig) -> [(&'static str, &'static str, String)
             c.preview.approach_floor.to_string(),
         ),
         ("preview", "approach_dip", opt(c.preview.approach_dip)),
+        ("preview", "approach_hold", opt(c.preview.approach_hold)),
         (
             "preview",
             "recover_landing",

@@ -119,6 +119,21 @@ pub struct PreviewParams {
     /// older drive logs still replay).
     #[serde(default)]
     pub approach_dip: Option<f64>,
+    /// How far above its target the motor may read while a previewed
+    /// drop's command, once come down to the target, stays there (1-2, a
+    /// factor of the target): under way the drop's command does not rise
+    /// again before it is the target, and from then on it stays the target
+    /// while the motor reads at most this times it. The constant command is
+    /// recomputed every cycle from the measured torque, whose noise it
+    /// amplifies by `1 / (1 − e^(−t/τ_m))` near arrival; with the 2 % band
+    /// alone a motor settling at 1.02 × the target flipped the command
+    /// between the target and the floor (183 → 128 → 183 N m). A motor
+    /// further above (the command at the target for another reason) is
+    /// brought down by the floor's command again. Absent from a file: no
+    /// hold (the drop before this field existed, so that older drive logs
+    /// still replay).
+    #[serde(default)]
+    pub approach_hold: Option<f64>,
     /// When a spinning wheel's cut ends, [0, 2]: the cut to `recover_share`
     /// ends once the wheel's excess angular momentum over the road's peak
     /// slip, `J_w ω (λ − λ_opt) / (1 − λ_opt)`, is no more than this share
@@ -247,6 +262,7 @@ impl Default for PreviewParams {
             release_s: 0.02,
             approach_floor: 0.7,
             approach_dip: Some(0.5),
+            approach_hold: Some(1.1),
             recover_landing: 0.5,
             spin_dv_min: 0.15,
             reverse_m: default_reverse_m(),
@@ -277,6 +293,9 @@ impl PreviewParams {
         in_range("approach_floor", self.approach_floor, 0.0, 0.99)?;
         if let Some(d) = self.approach_dip {
             in_range("approach_dip", d, 1e-3, 100.0)?;
+        }
+        if let Some(h) = self.approach_hold {
+            in_range("approach_hold", h, 1.0, 2.0)?;
         }
         in_range("recover_landing", self.recover_landing, 0.0, 2.0)?;
         in_range("spin_dv_min", self.spin_dv_min, 0.0, 10.0)?;
@@ -596,7 +615,12 @@ impl RoadAware {
     /// `tau_m ln((T − F) / (target − F))` plus the margin, T the higher of
     /// the motor's torque and the demand); then the constant command that
     /// reaches `target` at arrival, and `target` itself from arrival on.
-    fn approach(&self, torque: f64, demand: f64, target: f64, t_arrive: f64) -> f64 {
+    /// The drop's command does not rise again until it is the target
+    /// (`prev_cap`, the last cycle's cap, between the floor and the
+    /// target), and once it has come down to `target` it stays there while
+    /// the motor reads at most `approach_hold` times it: the measured
+    /// torque's noise must move neither (absent: neither rule).
+    fn approach(&self, torque: f64, demand: f64, target: f64, t_arrive: f64, prev_cap: f64) -> f64 {
         if self.tau_m <= 0.0 {
             return if t_arrive <= self.p.lag_margin_s {
                 target
@@ -622,8 +646,18 @@ impl RoadAware {
         }
         // Within 2 % of the target the motor is there: the measured torque's
         // noise must not turn into a zero command (near arrival the constant
-        // command amplifies it by 1 / (1 - e^(-t/τ_m))).
-        if torque <= 1.02 * target || torque.is_nan() {
+        // command amplifies it by 1 / (1 - e^(-t/τ_m))). Once there, the
+        // command stays at the target: with the band alone, a motor settling
+        // at 1.02 x the target with 1 N m of noise on its reading flipped
+        // the command between the target and the floor every few cycles
+        // (183 -> 128 -> 183 N m, 110 N m of variation a flip).
+        if torque <= 1.02 * target
+            || torque.is_nan()
+            || self
+                .p
+                .approach_hold
+                .is_some_and(|h| prev_cap == target && torque <= h * target)
+        {
             return target;
         }
         let t = (t_arrive - self.p.lag_margin_s).max(0.0);
@@ -631,7 +665,18 @@ impl RoadAware {
         if a >= 1.0 {
             return floor;
         }
-        ((target - torque * a) / (1.0 - a)).clamp(floor.min(target), target)
+        let c = ((target - torque * a) / (1.0 - a)).clamp(floor.min(target), target);
+        // Under way (the last cycle's cap between the floor and the target)
+        // the command does not rise again before the motor is there: the
+        // constant command is recomputed every cycle from the measured
+        // torque, whose noise it amplifies by 1 / (1 - e^(-t/τ_m)) near
+        // arrival (1.5 N m of noise moved it by up to 7 N m a cycle). The
+        // motor then comes to the target a few milliseconds early.
+        if self.p.approach_hold.is_some() && prev_cap >= floor.min(target) && prev_cap < target {
+            c.min(prev_cap)
+        } else {
+            c
+        }
     }
 
     /// One cycle of a "with ARTE" controller at time `m.t` and odometer `x`
@@ -849,7 +894,8 @@ impl RoadAware {
                     && e.hits >= self.p.min_hits
                 {
                     let target = self.torque(self.p.cap_share, e_info.mu_peak);
-                    cap = cap.min(self.approach(m.torque, m.demand, target, t_arrive));
+                    cap =
+                        cap.min(self.approach(m.torque, m.demand, target, t_arrive, self.last_cap));
                 }
             }
         }
@@ -1020,9 +1066,12 @@ mod tests {
         let mut torque = demand;
         let mut cmds = Vec::new();
         let mut first = usize::MAX;
+        let mut prev = f64::INFINITY;
         for k in 0..500 {
             let t_arrive = 0.5 - k as f64 * dt;
-            let cmd = a.approach(torque, demand, target, t_arrive).min(demand);
+            let cmd = a.approach(torque, demand, target, t_arrive, prev);
+            prev = cmd;
+            let cmd = cmd.min(demand);
             if cmd < demand && first == usize::MAX {
                 first = k;
             }
@@ -1067,6 +1116,61 @@ mod tests {
             "down to half the cap and up: {}",
             tv(&cmds, 300.0)
         );
+    }
+
+    #[test]
+    fn a_drop_that_reached_its_target_stays_there_under_a_noisy_torque_reading() {
+        // The shipped shape (floor 0.7, dip 0.5), the motor read with
+        // +-1.5 N m of noise (the shipped sigma is 1 N m): once the command
+        // has come down to the target it stays there, and under way it does
+        // not rise again, so the command goes 300 -> the floor -> the target
+        // and no further. Without the hold (`approach_hold` absent, the rule
+        // before it) the noise moves it.
+        let target = 183.0;
+        let noisy_drop = |a: &RoadAware| {
+            let (dt, tau) = (1e-3, a.tau_m);
+            let (mut torque, mut prev) = (300.0, f64::INFINITY);
+            let mut cmds: Vec<f64> = Vec::new();
+            for k in 0..500 {
+                let noise = if k % 2 == 0 { 1.5 } else { -1.5 };
+                let cmd = a.approach(torque + noise, 300.0, target, 0.5 - k as f64 * dt, prev);
+                prev = cmd;
+                cmds.push(cmd.min(300.0));
+                torque += (cmds[k] - torque) * (1.0 - (-dt / tau).exp());
+            }
+            (cmds, torque)
+        };
+        let a = aware(2.77);
+        assert_eq!(a.p.approach_hold, Some(1.1), "the shipped hold");
+        let (cmds, at) = noisy_drop(&a);
+        let floor = 0.7 * target;
+        assert!(
+            cmds.iter().any(|&c| (c - floor).abs() < 1e-6),
+            "the floor's command was used"
+        );
+        let reached = cmds
+            .iter()
+            .position(|&c| c == target)
+            .expect("reaches the target");
+        assert!(
+            cmds[reached..].iter().all(|&c| c == target),
+            "stays at the target: {:?}",
+            &cmds[reached..]
+        );
+        let one_dip = (300.0 - floor) + (target - floor);
+        let tv_hold = tv(&cmds, 300.0);
+        assert!(tv_hold <= one_dip + 1e-6, "one dip only: tv {tv_hold}");
+        assert!((at - target).abs() < 0.03 * target, "arrives at {at}");
+        let mut old = aware(2.77);
+        old.p.approach_hold = None;
+        let (cmds, at) = noisy_drop(&old);
+        let tv_old = tv(&cmds, 300.0);
+        assert!(tv_old > one_dip + 50.0, "the noise moves it: tv {tv_old}");
+        assert!((at - target).abs() < 0.03 * target, "arrives at {at}");
+        // A motor far above the target is brought down again, whatever the
+        // last cycle's cap was.
+        let c = a.approach(1.2 * target, 300.0, target, 0.05, target);
+        assert!(c < target, "{c}");
     }
 
     #[test]
