@@ -296,8 +296,8 @@ impl PreviewParams {
             in_range("approach_dip", d, 1e-3, 100.0)?;
         }
         if let Some(h) = self.approach_hold {
-            // under the 2 % band the hold would never begin
-            in_range("approach_hold", h, 1.02, 2.0)?;
+            // under the band the hold would never begin
+            in_range("approach_hold", h, APPROACH_BAND, 2.0)?;
         }
         in_range("recover_landing", self.recover_landing, 0.0, 2.0)?;
         in_range("spin_dv_min", self.spin_dv_min, 0.0, 10.0)?;
@@ -482,6 +482,10 @@ pub struct RoadAware {
 /// 0.98 slip for seconds, since its slip could not rise by the band again.
 const LANDING_TAUS: f64 = 3.0;
 
+/// A previewed drop's motor within this factor of its target counts as
+/// there ([`RoadAware::approach`]); `approach_hold` is at least this.
+const APPROACH_BAND: f64 = 1.02;
+
 /// A spinning wheel and its cut (`RoadAware::spins`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Spin {
@@ -648,12 +652,9 @@ impl RoadAware {
         }
         // Within 2 % of the target the motor is there: the measured torque's
         // noise must not turn into a zero command (near arrival the constant
-        // command amplifies it by 1 / (1 - e^(-t/τ_m))). Once there, the
-        // command stays at the target: with the band alone, a motor settling
-        // at 1.02 x the target with 1 N m of noise on its reading flipped
-        // the command between the target and the floor once or twice an entry
-        // (183 -> 128 -> 183 N m, 110 N m of variation a flip).
-        if torque <= 1.02 * target
+        // command amplifies it by 1 / (1 - e^(-t/τ_m))). Once there, it
+        // stays there (`approach_hold`, whose docs say why).
+        if torque <= APPROACH_BAND * target
             || torque.is_nan()
             || self
                 .p
@@ -669,11 +670,8 @@ impl RoadAware {
         }
         let c = ((target - torque * a) / (1.0 - a)).clamp(floor.min(target), target);
         // Under way (the last cycle's cap between the floor and the target)
-        // the command does not rise again before the motor is there: the
-        // constant command is recomputed every cycle from the measured
-        // torque, whose noise it amplifies by 1 / (1 - e^(-t/τ_m)) near
-        // arrival (1.5 N m of noise moved it by up to 7 N m a cycle). The
-        // motor then comes to the target a few milliseconds early.
+        // the command does not rise again before the motor is there
+        // (`approach_hold`); the motor then comes a few milliseconds early.
         if self.p.approach_hold.is_some() && prev_cap >= floor.min(target) && prev_cap < target {
             c.min(prev_cap)
         } else {
@@ -1064,6 +1062,12 @@ mod tests {
 
     /// [`drop_to`] from a demand of `demand` N m.
     fn drop_from(a: &RoadAware, demand: f64, target: f64) -> (Vec<f64>, f64, usize) {
+        drop_noisy(a, demand, target, 0.0)
+    }
+
+    /// [`drop_from`] with the motor read `noise` N m high on even cycles and
+    /// as much low on odd ones.
+    fn drop_noisy(a: &RoadAware, demand: f64, target: f64, noise: f64) -> (Vec<f64>, f64, usize) {
         let (dt, tau) = (1e-3, a.tau_m);
         let mut torque = demand;
         let mut cmds = Vec::new();
@@ -1071,7 +1075,8 @@ mod tests {
         let mut prev = f64::INFINITY;
         for k in 0..500 {
             let t_arrive = 0.5 - k as f64 * dt;
-            let cmd = a.approach(torque, demand, target, t_arrive, prev);
+            let read = torque + if k % 2 == 0 { noise } else { -noise };
+            let cmd = a.approach(read, demand, target, t_arrive, prev);
             prev = cmd;
             let cmd = cmd.min(demand);
             if cmd < demand && first == usize::MAX {
@@ -1129,22 +1134,9 @@ mod tests {
         // and no further. Without the hold (`approach_hold` absent, the rule
         // before it) the noise moves it.
         let target = 183.0;
-        let noisy_drop = |a: &RoadAware| {
-            let (dt, tau) = (1e-3, a.tau_m);
-            let (mut torque, mut prev) = (300.0, f64::INFINITY);
-            let mut cmds: Vec<f64> = Vec::new();
-            for k in 0..500 {
-                let noise = if k % 2 == 0 { 1.5 } else { -1.5 };
-                let cmd = a.approach(torque + noise, 300.0, target, 0.5 - k as f64 * dt, prev);
-                prev = cmd;
-                cmds.push(cmd.min(300.0));
-                torque += (cmds[k] - torque) * (1.0 - (-dt / tau).exp());
-            }
-            (cmds, torque)
-        };
         let a = aware(2.77);
         assert_eq!(a.p.approach_hold, Some(1.1), "the shipped hold");
-        let (cmds, at) = noisy_drop(&a);
+        let (cmds, at, _) = drop_noisy(&a, 300.0, target, 1.5);
         let floor = 0.7 * target;
         assert!(
             cmds.iter().any(|&c| (c - floor).abs() < 1e-6),
@@ -1165,7 +1157,7 @@ mod tests {
         assert!((at - target).abs() < 0.03 * target, "arrives at {at}");
         let mut old = aware(2.77);
         old.p.approach_hold = None;
-        let (cmds, at) = noisy_drop(&old);
+        let (cmds, at, _) = drop_noisy(&old, 300.0, target, 1.5);
         let tv_old = tv(&cmds, 300.0);
         assert!(tv_old > one_dip + 50.0, "the noise moves it: tv {tv_old}");
         assert!((at - target).abs() < 0.03 * target, "arrives at {at}");
