@@ -131,6 +131,41 @@ impl VehicleParams {
     pub fn normal_force(&self) -> f64 {
         self.driven_load_share * self.mass * crate::G / self.n_driven
     }
+    /// The vehicle in one line, as reports name it beside their figures:
+    /// mass and driven wheels with the driven wheel's normal force, tyre
+    /// radius, motor lag, the drive's torque limit and power limit (with
+    /// the speed it starts to derate at, or that there is none), and where
+    /// the microphone hears the road.
+    pub fn describe(&self) -> String {
+        let power = match self.power_max {
+            Some(p) => {
+                let base = p / self.torque_max;
+                format!(
+                    "power_max {} kW per driven wheel (derates above {:.0} rad/s, {:.0} km/h)",
+                    p / 1e3,
+                    base,
+                    base * self.r * 3.6
+                )
+            }
+            None => "no power limit (power_max not set)".to_owned(),
+        };
+        let mic = if self.mic_lead_m > 0.0 {
+            format!("microphone {} m ahead of the driven wheel", self.mic_lead_m)
+        } else {
+            "microphone at the driven wheel (lead 0)".to_owned()
+        };
+        format!(
+            "M {} kg, {} driven wheel{} with {}% of the weight on them (N {:.1} N each), r {} m, tau_m {} s, torque_max {} N m per driven wheel, {power}, {mic}",
+            self.mass,
+            self.n_driven,
+            if self.n_driven == 1.0 { "" } else { "s" },
+            self.driven_load_share * 100.0,
+            self.normal_force(),
+            self.r,
+            self.tau_m,
+            self.torque_max,
+        )
+    }
     /// Inertia of the vehicle share reflected to the wheel, J_w + (M/n) r^2 (paper eq. 2).
     pub fn j_model(&self) -> f64 {
         self.j_w + self.mass_share() * self.r * self.r
@@ -447,6 +482,40 @@ mod tests {
         assert_eq!(p.ref_radius(), p.r);
         assert_eq!(p.power_max, None);
         assert_eq!(p.torque_limit(1e6), p.torque_max);
+    }
+
+    /// The one-line description says whether the drive has a power limit
+    /// (and where it starts to derate) and where the microphone is.
+    #[test]
+    fn the_description_names_the_power_limit_and_the_microphone() {
+        let paper = VehicleParams::default().describe();
+        assert!(
+            paper.contains("4 driven wheels with 100% of the weight"),
+            "{paper}"
+        );
+        assert!(paper.contains("no power limit"), "{paper}");
+        assert!(paper.contains("at the driven wheel (lead 0)"), "{paper}");
+        let ev = VehicleParams {
+            n_driven: 2.0,
+            driven_load_share: 0.5,
+            power_max: Some(75_000.0),
+            mic_lead_m: 2.77,
+            ..VehicleParams::default()
+        }
+        .describe();
+        // 75 kW / 1000 N m = 75 rad/s, x 0.28 m = 21 m/s = 75.6 km/h
+        assert!(
+            ev.contains("power_max 75 kW per driven wheel (derates above 75 rad/s, 76 km/h)"),
+            "{ev}"
+        );
+        assert!(
+            ev.contains("2 driven wheels with 50% of the weight on them (N 3433.5 N each)"),
+            "{ev}"
+        );
+        assert!(
+            ev.contains("microphone 2.77 m ahead of the driven wheel"),
+            "{ev}"
+        );
     }
 
     /// A power given in kilowatts (`power_max = 75`) is refused with the

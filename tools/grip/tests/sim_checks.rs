@@ -92,6 +92,30 @@ fn out_is_checked_first_and_an_earlier_runs_files_are_removed() {
     );
     assert!(dir.join("scenarios.csv").exists() && dir.join("trace_mfc_seed2.csv").exists());
     assert!(dir.join("ideal.csv").exists());
+    // run.toml: what the figures came from (the random recipe, the
+    // vehicle, every configuration file's hash), and the report names
+    // the vehicle
+    let run: toml::Table =
+        toml::from_str(&std::fs::read_to_string(dir.join("run.toml")).unwrap()).unwrap();
+    assert!(
+        run["scenario"].as_str().unwrap().starts_with("random: "),
+        "{run:?}"
+    );
+    assert_eq!(run["seeds"].as_str(), Some("1-2"));
+    assert!(
+        run["vehicle"].as_str().unwrap().ends_with("vehicle.toml"),
+        "{run:?}"
+    );
+    let sha = run["sha256"].as_table().unwrap();
+    assert!(
+        sha.keys().any(|k| k.ends_with("controllers.toml")),
+        "{sha:?}"
+    );
+    let table = std::fs::read_to_string(dir.join("table.txt")).unwrap();
+    assert!(
+        table.contains("no power limit (power_max not set), microphone at the driven wheel"),
+        "{table}"
+    );
     let o = grip()
         .args([
             "sim",
@@ -108,7 +132,7 @@ fn out_is_checked_first_and_an_earlier_runs_files_are_removed() {
         .unwrap();
     assert!(o.status.success(), "{o:?}");
     let err = stderr(&o);
-    assert!(err.contains("removed 11 files"), "{err}");
+    assert!(err.contains("removed 12 files"), "{err}");
     assert_eq!(
         files(&dir),
         [
@@ -116,6 +140,7 @@ fn out_is_checked_first_and_an_earlier_runs_files_are_removed() {
             "fig10_without_arte.png",
             "fig11_with_arte.png",
             "notes.txt",
+            "run.toml",
             "summary.csv",
             "table.txt",
             "trace_mfc-arte_seed1.csv",
@@ -134,6 +159,7 @@ fn out_is_checked_first_and_an_earlier_runs_files_are_removed() {
         files(&dir),
         [
             "notes.txt",
+            "run.toml",
             "sweep.csv",
             "sweep.png",
             "sweep.txt",

@@ -5,6 +5,7 @@
 //! runs the batch with a progress bar, prints and writes.
 
 mod plot;
+mod record;
 mod sweep;
 
 use std::fs::File;
@@ -581,8 +582,33 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         None => format!("{source:?}").to_lowercase(),
     };
 
+    let record = record::RunRecord {
+        command: std::env::args_os()
+            .map(|a| a.to_string_lossy().into_owned())
+            .collect(),
+        config_dir: ctx.config_dir.clone(),
+        vehicle: (vehicle.clone(), setup.vehicle().describe()),
+        scenario: if per_seed.is_empty() {
+            loaded.scenario_path.display().to_string()
+        } else {
+            format!("{RANDOM}: {}", loaded.spec.describe())
+        },
+        arte_source: source_text.clone(),
+        seeds: seed_ranges(&seeds),
+        named_files: [
+            Some(&vehicle),
+            Some(&loaded.scenario_path),
+            args.arte_config.as_ref(),
+            args.model.as_ref(),
+        ]
+        .into_iter()
+        .flatten()
+        .cloned()
+        .collect(),
+    };
     if !args.sweep.is_empty() {
         let req = sweep::Request {
+            record: &record,
             axes: &args.sweep,
             variants: &variants,
             seeds: &seeds,
@@ -610,7 +636,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         return sweep::run(&ctx.config_dir, &loaded, &req, &make);
     }
     if let Some(dir) = &args.out {
-        prepare_out(dir)?;
+        prepare_out(dir, &record)?;
     }
     let sc = setup.scenario();
     eprintln!(
@@ -676,6 +702,17 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         seeds[0],
         seeds[seeds.len() - 1],
         source_text
+    ));
+    out.push_str(&format!(
+        "Vehicle {}: {}; configuration {}{}.\n",
+        vehicle.display(),
+        setup.vehicle().describe(),
+        ctx.config_dir.display(),
+        if args.out.is_some() {
+            " (run.toml in --out: the build, the command and every file's SHA-256)"
+        } else {
+            ""
+        }
     ));
     if let Some(note) = &beyond.note {
         out.push_str(&format!("Note: {note}\n"));
@@ -1100,8 +1137,9 @@ const LISTED_SEGMENTS: usize = 40;
 /// The files grip sim writes into `--out` (and nothing else): what
 /// [`prepare_out`] removes of an earlier run.
 fn is_own_output(name: &str) -> bool {
-    const FIXED: [&str; 10] = [
+    const FIXED: [&str; 11] = [
         "summary.csv",
+        record::FILE,
         "table.txt",
         "arte_inloop.csv",
         "scenarios.csv",
@@ -1138,9 +1176,10 @@ fn is_own_output(name: &str) -> bool {
 /// Make `--out DIR` ready before any run: created if need be (refused if
 /// it is a file or cannot be written), and the files an earlier grip sim
 /// run wrote there removed (only those names, [`is_own_output`]), so that
-/// what is there afterwards is this run's. Says on stderr how many it
+/// what is there afterwards is this run's, beginning with `run.toml`
+/// (`record`: what the figures come from). Says on stderr how many it
 /// removed.
-pub(crate) fn prepare_out(dir: &Path) -> anyhow::Result<()> {
+pub(crate) fn prepare_out(dir: &Path, record: &record::RunRecord) -> anyhow::Result<()> {
     if dir.exists() && !dir.is_dir() {
         anyhow::bail!("--out {}: exists and is not a directory", dir.display());
     }
@@ -1184,7 +1223,7 @@ pub(crate) fn prepare_out(dir: &Path) -> anyhow::Result<()> {
             if removed == 1 { "" } else { "s" }
         );
     }
-    Ok(())
+    record.write(dir)
 }
 
 /// The acoustic source: model, chain settings, and a one-line description.

@@ -247,6 +247,8 @@ struct Row {
 
 /// What the sweep needs of `grip sim`'s arguments.
 pub struct Request<'a> {
+    /// What the run is (`run.toml` in `out`).
+    pub record: &'a super::record::RunRecord,
     /// The axes.
     pub axes: &'a [Axis],
     /// The variants (at least one controller with and without ARTE).
@@ -381,7 +383,7 @@ pub fn run(
     }
 
     if let Some(dir) = req.out {
-        super::prepare_out(dir)?;
+        super::prepare_out(dir, req.record)?;
     }
     let mut jobs = Job::grid(req.variants, req.seeds, false);
     for j in &mut jobs {
