@@ -105,7 +105,7 @@ pub struct Args {
     random: Option<String>,
     /// Rain and car noise mixed into the synthetic audio at this SNR, dB:
     /// one value or LO:HI per log (default: audio-acq.toml's setting).
-    #[arg(long, value_parser = parse_range)]
+    #[arg(long, value_parser = parse_snr_range)]
     snr_db: Option<(f64, f64)>,
     /// Seconds the services run before plant-sim is told to start (the
     /// start-up of a live drive: audio and estimates flow, the car waits).
@@ -133,6 +133,22 @@ fn parse_range(s: &str) -> Result<(f64, f64), String> {
     };
     if a > b {
         return Err(format!("{s}: LO must not exceed HI"));
+    }
+    Ok((a, b))
+}
+
+/// `--snr-db`: [`parse_range`] within the SNRs audio-acq accepts
+/// ([`super::snr::SNR_LIMITS_DB`], as `grip sim --snr-db`), checked before
+/// any log is started.
+fn parse_snr_range(s: &str) -> Result<(f64, f64), String> {
+    let (a, b) = parse_range(s)?;
+    let l = super::snr::SNR_LIMITS_DB;
+    if !(l.contains(&a) && l.contains(&b)) {
+        return Err(format!(
+            "{s}: outside {}..={} dB (the SNRs audio-acq accepts)",
+            l.start(),
+            l.end()
+        ));
     }
     Ok((a, b))
 }
@@ -1000,6 +1016,34 @@ fn generate_in(config: &Path, dir: &Path, s: &LogSpec) -> anyhow::Result<Generat
 mod tests {
     use super::*;
     use crate::replay::BlockCounts;
+
+    /// `--snr-db` outside what audio-acq accepts is refused when the
+    /// arguments are read, naming the option's value (it was refused per
+    /// log, under the name of the configuration's audio-acq.toml).
+    #[test]
+    fn an_snr_audio_acq_refuses_is_refused_with_the_arguments() {
+        assert_eq!(parse_snr_range("10").unwrap(), (10.0, 10.0));
+        assert_eq!(parse_snr_range("0:20").unwrap(), (0.0, 20.0));
+        for bad in ["500", "0:81", "-31:0"] {
+            let e = parse_snr_range(bad).unwrap_err();
+            assert!(
+                e.starts_with(bad) && e.contains("outside -30..=80 dB"),
+                "{e}"
+            );
+        }
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            _args: Args,
+        }
+        let cli =
+            <Cli as clap::Parser>::try_parse_from(["generate", "--out", "x", "--snr-db", "500"]);
+        let e = cli.err().expect("--snr-db 500 refused").to_string();
+        assert!(
+            e.contains("--snr-db") && e.contains("outside -30..=80 dB"),
+            "{e}"
+        );
+    }
 
     /// The logs' refused blocks are summed as `grip replay` counts them:
     /// blocks at or after a capture overrun and stale ones included (they

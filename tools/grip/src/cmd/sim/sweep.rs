@@ -50,6 +50,27 @@ impl Axis {
     }
 }
 
+/// Each key swept once: a key given in two `--sweep`s would have the
+/// later value overwrite the earlier at every point while the point's
+/// label named both.
+pub fn check_axes(axes: &[Axis]) -> anyhow::Result<()> {
+    for (i, a) in axes.iter().enumerate() {
+        if axes[..i].iter().any(|b| b.name() == a.name()) {
+            anyhow::bail!(
+                "--sweep {}: given twice; give all its values in one --sweep ({}={})",
+                a.name(),
+                a.name(),
+                axes.iter()
+                    .filter(|b| b.name() == a.name())
+                    .flat_map(|b| b.texts.iter().map(String::as_str))
+                    .collect::<Vec<_>>()
+                    .join(",")
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Axes with the index of their value at one point.
 type Set<'a> = Vec<(&'a Axis, usize)>;
 
@@ -180,7 +201,10 @@ fn swept_text(
     let table = apply(&base, &name, set).map_err(anyhow::Error::msg)?;
     let out = toml::to_string(&table).context("--sweep: writing the values back")?;
     Ok((
-        PathBuf::from(format!("{} with the --sweep values", path.display())),
+        PathBuf::from(format!(
+            "{} as rewritten with the --sweep values (line numbers are of that text, not of the file)",
+            path.display()
+        )),
         out,
     ))
 }
@@ -293,6 +317,7 @@ pub fn run(
             "--sweep compares each ARTE variant with its baseline: --variants must hold at least one controller with and without ARTE (e.g. src,src-arte; default all)"
         );
     }
+    check_axes(req.axes)?;
     let points = grid(req.axes);
     if points.len() > MAX_POINTS {
         anyhow::bail!(
@@ -826,6 +851,28 @@ mod tests {
         assert_eq!(g[1], [0, 1]);
         assert_eq!(g[5], [1, 2]);
         assert_eq!(grid(&[]), vec![Vec::<usize>::new()]);
+    }
+
+    #[test]
+    fn a_key_swept_twice_is_refused_naming_it() {
+        let axes = [
+            parse_axis("vehicle.mass=1000").unwrap(),
+            parse_axis("preview.cap_share=0.8").unwrap(),
+            parse_axis("vehicle.mass=1200,1600").unwrap(),
+        ];
+        let e = check_axes(&axes).unwrap_err().to_string();
+        assert!(
+            e.contains("--sweep vehicle.mass: given twice")
+                && e.contains("vehicle.mass=1000,1200,1600"),
+            "{e}"
+        );
+        check_axes(&axes[..2]).unwrap();
+        // a per-controller key is another key
+        check_axes(&[
+            parse_axis("preview.cap_share=0.8").unwrap(),
+            parse_axis("preview.src.cap_share=0.8").unwrap(),
+        ])
+        .unwrap();
     }
 
     #[test]
