@@ -122,6 +122,35 @@ fn keep_the_logs_bus(log: &DriveLog, dir: &Path, changes: &mut Vec<String>) -> a
     Ok(())
 }
 
+/// The replay's word on keys its controllers file (in `dir`, the
+/// temporary copy the services read) leaves out and which therefore take
+/// the rule from before they existed (a log recorded before them): said
+/// about `file` (the log's attachment, or `--config-dir`'s file), with
+/// the `--set` that replays with the shipped value, instead of the
+/// services' warning about the temporary copy, which is gone after the
+/// replay (that line is marked as said). None when nothing is left out,
+/// or the file does not load (the services report that).
+fn old_rules_note(dir: &Path, file: &str) -> Option<String> {
+    let path = dir.join("controllers.toml");
+    let text = std::fs::read_to_string(&path).ok()?;
+    let config = grip_config::parse_controllers(&path, &text).ok()?;
+    let generic = grip_config::controllers::old_rule_warning(&path, &text, &config)?;
+    grip_config::first_time(&generic);
+    let left = grip_config::controllers::old_rule_keys_left_out(&text, &config);
+    let list = |f: &dyn Fn(&(String, String, String)) -> String| {
+        left.iter().map(f).collect::<Vec<_>>().join(", ")
+    };
+    Some(format!(
+        "note: {file} leaves out {}: replayed with the rule from before {} existed ({}), as the drive ran; \
+         to replay with the shipped value{}: {}",
+        list(&|(k, _, _)| k.clone()),
+        if left.len() == 1 { "it" } else { "each" },
+        list(&|(k, t, _)| format!("{k} = {t}")),
+        if left.len() == 1 { "" } else { "s" },
+        list(&|(k, _, s)| format!("--set {k}={s}")),
+    ))
+}
+
 /// Writes the log's configuration (or `--config-dir`'s) to a temporary
 /// directory, checks it against the hashes in `grip.run`, and applies the
 /// what-if options.
@@ -386,6 +415,13 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
     }
     changes.extend(applied.iter().map(|a| a.line.clone()));
     check_model_rate(log, w, &dir, &changes)?;
+    let file = match &w.config_dir {
+        Some(d) => d.join("controllers.toml").display().to_string(),
+        None => format!("{}'s controllers.toml", log.path.display()),
+    };
+    if let Some(note) = old_rules_note(&dir, &file) {
+        eprintln!("{note}");
+    }
     Ok(ReplayConfig {
         dir,
         _tmp: tmp,
@@ -1256,6 +1292,45 @@ impl ReplayConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A controllers file that leaves out a key with an older rule is
+    /// named as the log's (not the temporary copy's) with the `--set` that
+    /// replays with the shipped value, and the services' line about the
+    /// copy is not said again; the shipped file gets no note.
+    #[test]
+    fn a_key_the_logs_controllers_leave_out_is_named_with_its_set() {
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/controllers.toml");
+        let text = std::fs::read_to_string(&shipped).unwrap();
+        let d = tempfile::tempdir().unwrap();
+        std::fs::write(d.path().join("controllers.toml"), &text).unwrap();
+        assert_eq!(
+            old_rules_note(d.path(), "drive.mcap's controllers.toml"),
+            None
+        );
+        let without: String = text
+            .lines()
+            .filter(|l| !l.trim_start().starts_with("approach_hold"))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        assert_ne!(without, text, "the shipped file sets approach_hold");
+        let path = d.path().join("controllers.toml");
+        std::fs::write(&path, &without).unwrap();
+        let note = old_rules_note(d.path(), "drive.mcap's controllers.toml").unwrap();
+        assert!(
+            note.starts_with(
+                "note: drive.mcap's controllers.toml leaves out preview.approach_hold:"
+            ),
+            "{note}"
+        );
+        assert!(note.contains("--set preview.approach_hold=1.1"), "{note}");
+        assert!(!note.contains(&d.path().display().to_string()), "{note}");
+        let c = grip_config::parse_controllers(&path, &without).unwrap();
+        let generic = grip_config::controllers::old_rule_warning(&path, &without, &c).unwrap();
+        assert!(
+            !grip_config::first_time(&generic),
+            "the copy's warning is marked as said"
+        );
+    }
 
     /// An element chosen by name is that element even where unnamed ones
     /// stand before it (the index was taken among the named ones).
