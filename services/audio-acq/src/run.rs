@@ -65,6 +65,9 @@ pub fn effective_config(opts: &Options) -> Result<(PathBuf, AcqConfig), AcqError
         }
     }
     if let Some(p) = &opts.wav {
+        // a path typed on the command line is the shell's: relative to the
+        // working directory (a relative `[wav] path` is the file's, below)
+        let p = &std::path::absolute(p).unwrap_or_else(|_| p.clone());
         match &mut cfg.wav {
             Some(w) => w.path = p.clone(),
             None => {
@@ -83,8 +86,13 @@ pub fn effective_config(opts: &Options) -> Result<(PathBuf, AcqConfig), AcqError
     Ok((file, cfg))
 }
 
+/// A `[wav] path` of the configuration file: relative to the
+/// configuration directory `dir`, as the file says (it was tried in the
+/// working directory first, so a file of the same name there was taken
+/// instead); `--wav` is made absolute against the working directory
+/// before ([`effective_config`]).
 fn resolve(dir: &Path, p: &Path) -> PathBuf {
-    if p.is_absolute() || p.exists() {
+    if p.is_absolute() {
         p.to_owned()
     } else {
         dir.join(p)
@@ -262,4 +270,41 @@ fn serve<S: Source>(
         "audio-acq stopped"
     );
     res.map(|()| summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `--wav` is the shell's path (relative to the working directory);
+    /// a relative `[wav] path` is the file's (relative to the
+    /// configuration directory), even when the working directory has a
+    /// file of that name.
+    #[test]
+    fn a_wav_path_is_relative_to_where_it_was_written() {
+        let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
+        let opts = Options {
+            config: ConfigArgs::in_dir(&config),
+            wav: Some(PathBuf::from("take/one.wav")),
+            ..Options::default()
+        };
+        let (_, cfg) = effective_config(&opts).unwrap();
+        let p = resolve(&config, &cfg.wav.unwrap().path);
+        assert_eq!(p, std::env::current_dir().unwrap().join("take/one.wav"));
+        // the shipped [wav] path, relative: the configuration directory's
+        let (_, cfg) = effective_config(&Options {
+            config: ConfigArgs::in_dir(&config),
+            ..Options::default()
+        })
+        .unwrap();
+        let shipped = cfg.wav.unwrap().path;
+        assert!(shipped.is_relative());
+        assert_eq!(resolve(&config, &shipped), config.join(&shipped));
+        // a file of that name in the working directory does not change it
+        // (Cargo.toml exists in the working directory of the tests)
+        assert_eq!(
+            resolve(&config, Path::new("Cargo.toml")),
+            config.join("Cargo.toml")
+        );
+    }
 }
