@@ -44,7 +44,9 @@ pub struct Args {
     /// file in candump's log format, `(epoch.micros) IFACE ID#DATA`, which
     /// can-utils' `canplayer`, python-can and SavvyCAN read. The times are
     /// wall time from the log's `grip.clock` record (else seconds since
-    /// boot, and the command says so).
+    /// boot, and the command says so). The bus log holds the frames that
+    /// are not grip's own unless recorder.toml says `bus = "all"`; grip's
+    /// own are in `grip/can/log` (`--csv`: can.csv).
     #[arg(long, conflicts_with = "json")]
     candump: Option<PathBuf>,
     /// Overwrite what `--csv`, `--plot` and `--candump` would replace (an
@@ -206,7 +208,25 @@ fn write_candump(log: &DriveLog, file: &std::path::Path) -> anyhow::Result<()> {
         file.display(),
         log.bus.len()
     );
+    if let Some(note) = empty_bus_note(log) {
+        println!("{note}");
+    }
     Ok(())
+}
+
+/// Why a bus log without frames can be right: by default the recorder
+/// keeps only frames that are not grip's own, and on a bus with nothing
+/// else on it (a simulated drive's) that is none; grip's own frames are
+/// in the loop's CAN log. None when the bus log has frames.
+fn empty_bus_note(log: &DriveLog) -> Option<String> {
+    if !log.bus.is_empty() {
+        return None;
+    }
+    Some(format!(
+        "note: the bus log holds no frame: the recorder keeps only frames that are not grip's own unless recorder.toml says bus = \"all\" (default \"foreign\"), and nothing else was on this bus; grip's own {} frames are in channel {}, with the loop's stamps (`grip inspect LOG --csv DIR` writes them to can.csv)",
+        log.can.len(),
+        grip_msgs::topics::CAN_LOG
+    ))
 }
 
 /// The report of one log, as `grip inspect LOG` prints it and `grip drive`
@@ -299,6 +319,24 @@ pub fn road_timeline(log: &DriveLog) -> String {
 #[cfg(test)]
 mod tests {
     use crate::drive::export::test_log;
+
+    /// An empty bus log says where grip's own frames are; one with frames
+    /// says nothing more.
+    #[test]
+    fn an_empty_bus_log_points_to_grips_own_frames() {
+        let mut log = super::DriveLog {
+            can: vec![grip_msgs::CanFrame::new(0x123, &[1]); 7],
+            ..super::DriveLog::default()
+        };
+        let note = super::empty_bus_note(&log).unwrap();
+        assert!(
+            note.contains("grip's own 7 frames are in channel grip/can/log")
+                && note.contains("bus = \"all\""),
+            "{note}"
+        );
+        log.bus.push(grip_msgs::BusFrame::default());
+        assert_eq!(super::empty_bus_note(&log), None);
+    }
 
     /// The row of time `t` ("0.3 s") of a road timeline.
     fn row<'a>(timeline: &'a str, t: &str) -> &'a str {
