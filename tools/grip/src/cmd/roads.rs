@@ -28,6 +28,15 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     let dir = ConfigDir::new(&ctx.config_dir);
     let path = args.roads.unwrap_or_else(|| dir.roads_path());
     if let Some(png) = &args.plot {
+        if !png
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+        {
+            anyhow::bail!(
+                "--plot {}: the figure is a PNG image; give a file name ending in .png",
+                png.display()
+            );
+        }
         super::train::check_output_file("--plot", png, args.force)?;
     }
     let roads = grip_config::load_roads(&path)?;
@@ -202,6 +211,30 @@ mod tests {
         plot(&cat(), &png).unwrap();
         let bytes = std::fs::read(&png).unwrap();
         assert_eq!(&bytes[1..4], b"PNG");
+    }
+
+    /// A `--plot` name that is not a PNG's is refused before the table,
+    /// naming the option (plotters' own error came after the table).
+    #[test]
+    fn a_plot_name_not_png_is_refused_first() {
+        let dir = tempfile::tempdir().unwrap();
+        let ctx = Ctx {
+            config_dir_given: false,
+            config_dir: std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config"),
+        };
+        let txt = dir.path().join("x.txt");
+        let e = run(
+            &ctx,
+            Args {
+                plot: Some(txt.clone()),
+                roads: None,
+                force: false,
+            },
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("--plot") && e.contains("ending in .png"), "{e}");
+        assert!(!txt.exists());
     }
 
     #[test]
