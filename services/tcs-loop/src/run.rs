@@ -200,6 +200,10 @@ pub fn check_bus_timing_in(
     let (lo, hi) = req.phys_limits();
     let half_step = 0.5 * req.factor.abs() * (1.0 + 1e-9);
     if t_max > hi + half_step || lo > 0.0 || hi < 0.0 {
+        // the limits as a reader writes them: 127 x 0.1 prints 12.7, not
+        // 12.700000000000001
+        let tidy = |x: f64| format!("{x:.9}").parse::<f64>().unwrap_or(x);
+        let (lo, hi) = (tidy(lo), tidy(hi));
         let names = |grip: &str| cfg.can.dbc_names.get(grip).cloned();
         let in_dbc = match (names("TorqueCommand"), names("TorqueCommand.TorqueRequest")) {
             (None, None) => String::new(),
@@ -215,8 +219,8 @@ pub fn check_bus_timing_in(
             "no DBC range ([0|0])".to_owned()
         };
         let (f_lo, f_hi) = (
-            req.to_phys(req.field_raw_min()),
-            req.to_phys(req.field_raw_max()),
+            tidy(req.to_phys(req.field_raw_min())),
+            tidy(req.to_phys(req.field_raw_max())),
         );
         let detail = format!("{range}, a {}-bit field of {f_lo} to {f_hi} N m", req.len);
         if lo > 0.0 || hi < 0.0 {
@@ -540,6 +544,13 @@ mod tests {
         check_bus_timing_in(&cfg, Protocol::builtin()).unwrap();
         // and [0|0], no range: the bit field alone
         check_bus_timing_in(&cfg, &with_request("16|16@1- (0.1,0) [0|0]")).unwrap();
+        // an 8-bit field at 0.1 N m: its limits as written, 127 x 0.1 =
+        // 12.7 (was 12.700000000000001)
+        let e = check_bus_timing_in(&cfg, &with_request("16|8@1- (0.1,0) [0|0]")).unwrap_err();
+        assert!(
+            e.reason.contains("(-12.8 to 12.7 N m)") && e.reason.contains("at most 12.7,"),
+            "{e}"
+        );
     }
 
     /// A range that leaves zero torque out is refused: the safe state's
