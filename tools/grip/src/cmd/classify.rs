@@ -185,13 +185,54 @@ pub fn run(ctx: &Ctx, args: Args) -> Result<()> {
             .join(", "),
         path.display()
     )?;
+    if let Some(note) = speed_note(
+        &model,
+        args.speed,
+        audio.samples.len() as f64 / f64::from(audio.sample_rate),
+    ) {
+        writeln!(o, "note: {note}")?;
+    }
     Ok(())
+}
+
+/// `--speed` against the model's training speeds, as `grip inspect`,
+/// `grip drive` and `grip sim --arte acoustic` note it: None without
+/// `--speed`, for a model that does not record its training speeds, or
+/// at a speed inside them.
+fn speed_note(model: &Model, speed_kmh: Option<f64>, duration_s: f64) -> Option<String> {
+    let range = model.training_speeds().range()?;
+    let mut c = grip_arte::speeds::SpeedCheck::new(range);
+    c.add(speed_kmh?, duration_s.max(f64::MIN_POSITIVE));
+    let notes = c.notes("the recording", "at --speed");
+    (!notes.is_empty()).then(|| notes.join("; "))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use grip_arte::synth::{Segment, SynthConfig, render};
+
+    /// A `--speed` outside the shipped model's training speeds gets the
+    /// note the other commands give; one inside, or none, gets none.
+    #[test]
+    fn a_speed_outside_the_training_speeds_is_noted() {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/models/default.model");
+        let m = load_model(&p).unwrap();
+        let r = m
+            .training_speeds()
+            .range()
+            .expect("the shipped model records its speeds");
+        let note = speed_note(&m, Some(r.max_kmh + 50.0), 2.0).unwrap();
+        assert!(
+            note.contains("above the model's training speeds") && note.contains("extrapolation"),
+            "{note}"
+        );
+        assert_eq!(
+            speed_note(&m, Some(0.5 * (r.min_kmh + r.max_kmh)), 2.0),
+            None
+        );
+        assert_eq!(speed_note(&m, None, 2.0), None);
+    }
 
     /// The shipped paper model and `x` seconds of road sound at its rate.
     fn model_and_road(x: f64) -> (Model, Vec<f32>) {
