@@ -7,7 +7,11 @@
 //! segments_by = "time"       # "time": each segment has `duration` (s);
 //!                            # "distance": each has `length` (m)
 //! duration = 3.0             # run length, s; optional in time mode (default:
-//!                            # sum of the segment durations), required by distance
+//!                            # sum of the segment durations), required by distance;
+//!                            # a time segment or a demand change that begins
+//!                            # at or after it is never driven: warned of
+//!                            # (`scenario_warnings`); a demand that asks for
+//!                            # torque only there is refused
 //!
 //! [demand]                   # driver torque demand, N m (>= 0)
 //! kind = "constant"          # constant {torque} | ramp {from, to, start, duration}
@@ -137,13 +141,46 @@ pub fn parse_scenario(
     })
 }
 
-/// Load a scenario file, resolving road names against `roads`.
+/// Load a scenario file, resolving road names against `roads`; warns
+/// (once per process) of what lies at or after its end
+/// ([`scenario_warnings`]).
 pub fn load_scenario(
     path: impl AsRef<Path>,
     roads: &RoadCatalogue,
 ) -> Result<Scenario, ConfigError> {
     let path = path.as_ref();
-    parse_scenario(path, &read_file(path)?, roads)
+    let scenario = parse_scenario(path, &read_file(path)?, roads)?;
+    warn_past_the_end(path, &scenario);
+    Ok(scenario)
+}
+
+/// The warnings of `scenario` (read from `file`) about what it has at or
+/// after its end, which its run never gets to
+/// ([`Scenario::past_the_end`]): a time segment that begins at or after
+/// `duration`, a change of the demand (a ramp's `start`, a stop-and-go's
+/// first release `on`, a step's `times[i]`) at or after it. One line each,
+/// `warning: FILE: field `F`: REASON`. A last segment that merely extends
+/// past the end is normal and not warned of.
+pub fn scenario_warnings(file: &Path, scenario: &Scenario) -> Vec<String> {
+    scenario
+        .past_the_end()
+        .into_iter()
+        .map(|n| format!("warning: {}: {n}", file.display()))
+        .collect()
+}
+
+/// [`scenario_warnings`] on stderr, each once per process whatever the
+/// path and scenario name it comes with: a command that checks the user's
+/// file and then loads a renamed copy of it per log (`grip generate`,
+/// each log's plant-sim) says it once, of the user's file.
+fn warn_past_the_end(file: &Path, scenario: &Scenario) {
+    for (note, line) in scenario
+        .past_the_end()
+        .into_iter()
+        .zip(scenario_warnings(file, scenario))
+    {
+        crate::warn_once_as(&format!("scenario past its end: {note}"), &line);
+    }
 }
 
 /// Where a scenario is to run: the vehicle that drives it (and its file,
@@ -162,18 +199,23 @@ pub struct RunsOn<'a> {
 
 /// Check `scenario` (read from `file`) against where it is to run
 /// ([`Scenario::check_for`]: every demand within the vehicle's
-/// `torque_max`, 1 ..= 1e9 loop cycles); gives the cycle count. The error
+/// `torque_max`, 1 ..= 1e9 loop cycles, torque asked for before the last
+/// cycle); gives the cycle count, and warns (once per process) of what
+/// lies at or after the scenario's end ([`scenario_warnings`]). The error
 /// names `file`, the field as written there (`demand.torque`, `duration`)
-/// and, for a demand, the vehicle file.
+/// and, for a demand above the motor limit, the vehicle file.
 pub fn check_scenario(file: &Path, scenario: &Scenario, on: RunsOn) -> Result<usize, ConfigError> {
-    scenario.check_for(on.vehicle, on.dt).map_err(|e| {
+    let cycles = scenario.check_for(on.vehicle, on.dt).map_err(|e| {
+        let limit = e.reason.contains("motor limit");
         let mut e = ConfigError::invalid(file, "", e);
-        if e.field.starts_with("demand") {
+        if limit {
             e.reason
                 .push_str(&format!(" (vehicle file {})", on.vehicle_file.display()));
         }
         e
-    })
+    })?;
+    warn_past_the_end(file, scenario);
+    Ok(cycles)
 }
 
 /// [`load_scenario`], then [`check_scenario`] against where it is to run:
@@ -294,6 +336,67 @@ mod tests {
         assert_eq!(
             check_scenario(file, &long, on).unwrap_err().to_string(),
             "config/scenarios/t.toml: field `duration`: 1e300 s gives 1e303 loop cycles at dt = 0.001 s (need 1 ..= 1e9)"
+        );
+    }
+
+    /// The user's trial: an ice segment that begins exactly at the end of
+    /// a 1 s run, said of the file, the segment (index and road) and the
+    /// duration.
+    #[test]
+    fn a_time_segment_after_the_end_is_warned_of() {
+        let s = parse(&format!(
+            "duration = 1.0\n{HEAD}[[segment]]\nroad = \"asphalt\"\nduration = 0.5\n[[segment]]\nroad = \"snow\"\nduration = 0.5\n[[segment]]\nroad = \"snow\"\nduration = 2.0\n"
+        ))
+        .unwrap();
+        assert_eq!(
+            scenario_warnings(Path::new("s1.toml"), &s),
+            [
+                "warning: s1.toml: field `segment[2]`: road `snow` begins at 1 s, at or after the end of the run (duration = 1 s): it is never driven"
+            ]
+        );
+        // "snow to the end": a last segment past the end is normal
+        let s = parse(&format!(
+            "duration = 1.0\n{HEAD}[[segment]]\nroad = \"asphalt\"\nduration = 0.5\n[[segment]]\nroad = \"snow\"\nduration = 2.0\n"
+        ))
+        .unwrap();
+        assert!(scenario_warnings(Path::new("s1.toml"), &s).is_empty());
+    }
+
+    #[test]
+    fn a_demand_change_after_the_end_is_warned_of() {
+        let ramp = "name = \"x\"\nv0_kmh = 0\nsegments_by = \"time\"\n[demand]\nkind = \"ramp\"\nfrom = 100\nto = 300\nstart = 5\nduration = 1\n[[segment]]\nroad = \"asphalt\"\nduration = 1\n";
+        let s = parse(ramp).unwrap();
+        let w = scenario_warnings(Path::new("x.toml"), &s);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(
+            w[0].starts_with("warning: x.toml: field `demand.start`: the ramp from 100 to 300 N m")
+                && w[0].contains("(duration = 1 s)"),
+            "{w:?}"
+        );
+    }
+
+    /// The user's trial (c): a ramp from 0 N m that starts after the end
+    /// would run 0 N m throughout: refused, naming the file, the field and
+    /// why.
+    #[test]
+    fn a_demand_that_begins_after_the_end_is_refused() {
+        let text = "name=\"x\"\nv0_kmh=0\nsegments_by=\"time\"\n[demand]\nkind=\"ramp\"\nfrom=0\nto=300\nstart=5\nduration=1\n[[segment]]\nroad=\"asphalt\"\nduration=1\n";
+        let s = parse(text).unwrap();
+        assert!(
+            scenario_warnings(Path::new("x.toml"), &s).is_empty(),
+            "the error says it"
+        );
+        let vehicle = VehicleParams::default();
+        let on = RunsOn {
+            vehicle: &vehicle,
+            vehicle_file: Path::new("config/vehicle.toml"),
+            dt: 1e-3,
+        };
+        assert_eq!(
+            check_scenario(Path::new("c.toml"), &s, on)
+                .unwrap_err()
+                .to_string(),
+            "c.toml: field `demand.start`: the driver first asks for torque at 5 s, at or after the end of the run (duration = 1 s, last loop cycle at 0.999 s): the run would demand 0 N m throughout; start the demand earlier or lengthen `duration`"
         );
     }
 }

@@ -27,6 +27,25 @@ pub fn warn_once(line: &str) {
     }
 }
 
+/// `line` on stderr unless this process has already said a line of the
+/// same `key`: for a warning whose file is named by a path that varies
+/// within one command (`grip generate` loads each log's scenario from a
+/// copy of its own, after checking the user's file) while what it says
+/// does not.
+pub fn warn_once_as(key: &str, line: &str) {
+    if first_time_as(key, line) {
+        eprintln!("{line}");
+    }
+}
+
+/// Whether this process has said neither a line of `key` nor `line` (and
+/// both now count as said).
+fn first_time_as(key: &str, line: &str) -> bool {
+    // keys kept apart from lines
+    let key = first_time(&format!("\u{0}{key}"));
+    first_time(line) && key
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -37,5 +56,18 @@ mod tests {
         assert!(first_time(l));
         assert!(!first_time(l));
         assert!(first_time("warning: x.toml: another line"));
+    }
+
+    #[test]
+    fn a_key_is_said_once_whatever_the_line() {
+        let key = "a key no other test uses";
+        assert!(first_time_as(key, "warning: /tmp/a/x.toml: k"));
+        assert!(!first_time_as(key, "warning: /tmp/b/x.toml: k"));
+        assert!(!first_time("warning: /tmp/a/x.toml: k"));
+        assert!(!first_time_as(
+            "another key no other test uses",
+            "warning: /tmp/a/x.toml: k"
+        ));
+        assert!(first_time(key), "keys apart from lines");
     }
 }

@@ -60,3 +60,17 @@ fn every_shipped_scenario_runs_on_every_shipped_vehicle() {
         }
     }
 }
+
+/// No shipped scenario has anything at or after its end (a time segment
+/// that begins there, a change of the demand there): loading one for a
+/// run warns of nothing.
+#[test]
+fn no_shipped_scenario_has_anything_past_its_end() {
+    let d = ConfigDir::new(config());
+    let roads = d.roads().unwrap();
+    for n in d.scenario_names() {
+        let s = d.scenario_with(&n, &roads).unwrap();
+        let w = grip_config::scenario::scenario_warnings(&d.scenario_path(&n), &s);
+        assert!(w.is_empty(), "{n}: {w:?}");
+    }
+}

@@ -117,6 +117,97 @@ impl Demand {
             .find(|&t| self.at(t) > 0.0)
     }
 
+    /// When the driver first asks for torque: the earliest instant from
+    /// which the demand is above 0 (its infimum: a ramp from 0 N m is above
+    /// 0 just after its `start`), with the field of the scenario file's
+    /// `[demand]` that sets it (`torque`, `from`, `start`, `rise`,
+    /// `times[i]`). `None` for a demand of 0 N m throughout.
+    pub fn onset(&self) -> Option<(f64, String)> {
+        match self {
+            Self::Constant { torque } => (*torque > 0.0).then(|| (0.0, "torque".to_owned())),
+            Self::Ramp {
+                from, to, start, ..
+            } => {
+                if *from > 0.0 {
+                    Some((0.0, "from".to_owned()))
+                } else if *to > 0.0 {
+                    Some((*start, "start".to_owned()))
+                } else {
+                    None
+                }
+            }
+            Self::StopAndGo { torque, rise, .. } => (*torque > 0.0)
+                .then(|| (0.0, if *rise > 0.0 { "rise" } else { "torque" }.to_owned())),
+            Self::Steps { times, torques } => times
+                .iter()
+                .zip(torques)
+                .position(|(_, &q)| q > 0.0)
+                .map(|i| (times[i], format!("times[{i}]"))),
+        }
+    }
+
+    /// The changes of the profile that begin at or after `end` (s), so that
+    /// a run of that length never sees them: a ramp whose `start` is there
+    /// (when `from` and `to` differ), a stop-and-go whose first release
+    /// (`on`) is there (when `off` > 0), a step whose switch time
+    /// (`times[i]`, i > 0) is there (when its torque differs from the one
+    /// before). Each is the field (as in `[demand]`) and why. A constant
+    /// demand has none.
+    pub fn changes_from(&self, end: f64) -> Vec<InvalidField> {
+        let at_or_after = |t: f64| t >= end;
+        match self {
+            Self::Constant { .. } => Vec::new(),
+            Self::Ramp {
+                from,
+                to,
+                start,
+                duration,
+            } => {
+                if from != to && at_or_after(*start) {
+                    vec![InvalidField::new(
+                        "start",
+                        format!(
+                            "the ramp from {} to {} N m (over {duration} s) begins at {start} s, at or after the end of the run (duration = {end} s): the demand stays {} N m throughout",
+                            shown(*from),
+                            shown(*to),
+                            shown(*from)
+                        ),
+                    )]
+                } else {
+                    Vec::new()
+                }
+            }
+            Self::StopAndGo {
+                torque, on, off, ..
+            } => {
+                if *off > 0.0 && at_or_after(*on) {
+                    vec![InvalidField::new(
+                        "on",
+                        format!(
+                            "the first release (0 N m for off = {off} s) comes at on = {on} s, at or after the end of the run (duration = {end} s): the driver never lets go of the {} N m",
+                            shown(*torque)
+                        ),
+                    )]
+                } else {
+                    Vec::new()
+                }
+            }
+            Self::Steps { times, torques } => (1..times.len().min(torques.len()))
+                .filter(|&i| at_or_after(times[i]) && torques[i] != torques[i - 1])
+                .map(|i| {
+                    InvalidField::new(
+                        format!("times[{i}]"),
+                        format!(
+                            "the step to {} N m at {} s is at or after the end of the run (duration = {end} s): it never happens",
+                            shown(torques[i]),
+                            times[i]
+                        ),
+                    )
+                })
+                .collect(),
+        }
+    }
+
     /// Range checks: torques finite and >= 0, times and durations finite and >= 0.
     pub fn validate(&self) -> Result<(), InvalidField> {
         match self {
@@ -362,7 +453,11 @@ impl Scenario {
     /// runs it at period `dt` (s): every demand within the vehicle's
     /// `torque_max` ([`Demand::check_limit`], fields `demand.*`), and a run
     /// of `round(duration / dt)` cycles within 1 ..= [`MAX_CYCLES`] (field
-    /// `duration`). Gives that cycle count. Every reader of a scenario
+    /// `duration`), and torque asked for before the run's last cycle (a
+    /// demand that asks for none until then, field `demand.start` or
+    /// `demand.times[i]`, would run 0 N m throughout; a demand of 0 N m
+    /// throughout is a coast and allowed). Gives that cycle count. Every
+    /// reader of a scenario
     /// checks it here: `grip sim`'s setup, plant-sim's start-up (and so
     /// `grip drive` and `grip generate`), through `grip_config`'s
     /// `ConfigDir::scenario_for`.
@@ -381,7 +476,67 @@ impl Scenario {
                 ),
             ));
         }
+        // a demand that asks for torque only after the run's last cycle:
+        // a run of zeros is never what was meant (a demand of 0 N m
+        // throughout is a coast, asked for as such, and allowed)
+        let last = (cycles - 1.0) * dt;
+        if let Some((onset, field)) = self.demand.onset()
+            && onset >= last
+            && self.demand.at(last) == 0.0
+        {
+            return Err(InvalidField::new(
+                format!("demand.{field}"),
+                format!(
+                    "the driver first asks for torque at {} s, at or after the end of the run (duration = {} s, last loop cycle at {} s): the run would demand 0 N m throughout; start the demand earlier or lengthen `duration`",
+                    shown(onset),
+                    shown(self.duration),
+                    shown(last)
+                ),
+            ));
+        }
         Ok(cycles as usize)
+    }
+
+    /// What the scenario has at or after its end, which a run of
+    /// `duration` never gets to: in time segments, each segment that begins
+    /// at or after `duration` (field `segment[i]`; a last segment that
+    /// merely extends past the end, "snow to the end", is normal and not
+    /// listed), and each change of the demand that begins at or after it
+    /// ([`Demand::changes_from`], fields `demand.*`; none when the demand
+    /// asks for no torque before the end, which [`Scenario::check_for`]
+    /// refuses). Not errors: a reader warns of them. Distance segments are
+    /// reached or not by how far the car goes, known only after a run.
+    pub fn past_the_end(&self) -> Vec<InvalidField> {
+        let end = self.duration;
+        let mut notes = Vec::new();
+        if self.segments_by == SegmentMode::Time {
+            // a start a rounding error short of the end is at the end
+            let eps = 1e-9 * end.abs().max(1.0);
+            for (i, s) in self.segments.iter().enumerate().skip(1) {
+                let start = self.segment_start(i);
+                if start >= end - eps {
+                    notes.push(InvalidField::new(
+                        format!("segment[{i}]"),
+                        format!(
+                            "road `{}` begins at {} s, at or after the end of the run (duration = {} s): it is never driven",
+                            s.road_name,
+                            shown(start),
+                            shown(end)
+                        ),
+                    ));
+                }
+            }
+        }
+        let asks = self.demand.onset().is_some_and(|(t, _)| t < end);
+        if asks {
+            notes.extend(
+                self.demand
+                    .changes_from(end)
+                    .into_iter()
+                    .map(|n| n.prefixed("demand")),
+            );
+        }
+        notes
     }
 
     /// Index (into `segments`) of the segment at time `t` (s) and travelled
@@ -642,5 +797,170 @@ mod tests {
             Ok(1_000_000_000),
             "the bound itself"
         );
+    }
+}
+
+#[cfg(test)]
+mod past_the_end {
+    use super::*;
+
+    fn seg(name: &str, span: f64) -> Segment {
+        Segment {
+            road_name: name.to_owned(),
+            road: 0,
+            span,
+            grade_pct: 0.0,
+        }
+    }
+
+    fn scenario(mode: SegmentMode, duration: f64, spans: &[f64], demand: Demand) -> Scenario {
+        let names = ["asphalt", "snow", "ice", "gravel"];
+        let segments = spans
+            .iter()
+            .enumerate()
+            .map(|(i, &s)| seg(names[i % names.len()], s))
+            .collect();
+        Scenario::new("t", "", duration, 0.0, mode, segments, demand, 1).unwrap()
+    }
+
+    const TORQUE: Demand = Demand::Constant { torque: 250.0 };
+
+    fn fields(s: &Scenario) -> Vec<String> {
+        s.past_the_end().into_iter().map(|n| n.field).collect()
+    }
+
+    #[test]
+    fn a_time_segment_that_begins_at_or_after_the_end_is_named() {
+        let s = scenario(SegmentMode::Time, 1.0, &[0.5, 0.5, 2.0], TORQUE);
+        let notes = s.past_the_end();
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert_eq!(notes[0].field, "segment[2]");
+        assert_eq!(
+            notes[0].reason,
+            "road `ice` begins at 1 s, at or after the end of the run (duration = 1 s): it is never driven"
+        );
+        let s = scenario(SegmentMode::Time, 1.0, &[0.5, 1.0, 2.0, 1.0], TORQUE);
+        assert_eq!(fields(&s), ["segment[2]", "segment[3]"]);
+        // a rounding error short of the end is at the end
+        let s = scenario(SegmentMode::Time, 0.3, &[0.1, 0.2, 1.0], TORQUE);
+        assert_eq!(fields(&s), ["segment[2]"]);
+    }
+
+    #[test]
+    fn a_last_segment_past_the_end_and_distance_segments_are_normal() {
+        // "snow to the end": the last segment extends past the end
+        let s = scenario(SegmentMode::Time, 1.0, &[0.5, 2.0], TORQUE);
+        assert!(s.past_the_end().is_empty());
+        // the segments sum to the duration exactly
+        let s = scenario(SegmentMode::Time, 1.5, &[0.5, 1.0], TORQUE);
+        assert!(s.past_the_end().is_empty());
+        // a run shorter than the first segment
+        let s = scenario(SegmentMode::Time, 0.2, &[0.5], TORQUE);
+        assert!(s.past_the_end().is_empty());
+        // distance: known only after a run
+        let s = scenario(SegmentMode::Distance, 1.0, &[2.0, 50.0, 100.0], TORQUE);
+        assert!(s.past_the_end().is_empty());
+    }
+
+    #[test]
+    fn every_demand_kind_s_late_change_is_named() {
+        let at = |demand| fields(&scenario(SegmentMode::Time, 1.0, &[1.0], demand));
+        let ramp = |from, start| Demand::Ramp {
+            from,
+            to: 300.0,
+            start,
+            duration: 1.0,
+        };
+        assert_eq!(at(ramp(100.0, 1.0)), ["demand.start"]);
+        assert_eq!(at(ramp(100.0, 5.0)), ["demand.start"]);
+        assert!(at(ramp(100.0, 0.9)).is_empty());
+        // from 0: no torque before the end at all, check_for's error
+        assert!(at(ramp(0.0, 5.0)).is_empty());
+        let flat = Demand::Ramp {
+            from: 300.0,
+            to: 300.0,
+            start: 5.0,
+            duration: 1.0,
+        };
+        assert!(at(flat).is_empty(), "no change");
+        let sg = |on, off| Demand::StopAndGo {
+            torque: 300.0,
+            on,
+            off,
+            rise: 0.0,
+        };
+        assert_eq!(at(sg(1.0, 1.0)), ["demand.on"]);
+        assert!(at(sg(0.5, 1.0)).is_empty());
+        assert!(at(sg(2.0, 0.0)).is_empty(), "never released anyway");
+        let steps = |times: Vec<f64>, torques: Vec<f64>| Demand::Steps { times, torques };
+        assert_eq!(
+            at(steps(
+                vec![0.0, 0.5, 1.0, 2.0],
+                vec![100.0, 200.0, 300.0, 0.0]
+            )),
+            ["demand.times[2]", "demand.times[3]"]
+        );
+        assert!(at(steps(vec![0.0, 2.0], vec![100.0, 100.0])).is_empty());
+        assert!(at(TORQUE).is_empty());
+        let r = scenario(SegmentMode::Time, 1.0, &[1.0], ramp(100.0, 5.0)).past_the_end();
+        assert_eq!(
+            r[0].reason,
+            "the ramp from 100 to 300 N m (over 1 s) begins at 5 s, at or after the end of the run (duration = 1 s): the demand stays 100 N m throughout"
+        );
+    }
+
+    #[test]
+    fn a_demand_that_asks_for_torque_only_after_the_end_is_refused() {
+        let vehicle = VehicleParams::default();
+        let run =
+            |demand| scenario(SegmentMode::Time, 1.0, &[1.0], demand).check_for(&vehicle, 1e-3);
+        let ramp = |start| Demand::Ramp {
+            from: 0.0,
+            to: 300.0,
+            start,
+            duration: 1.0,
+        };
+        let e = run(ramp(5.0)).unwrap_err();
+        assert_eq!(e.field, "demand.start");
+        assert_eq!(
+            e.reason,
+            "the driver first asks for torque at 5 s, at or after the end of the run (duration = 1 s, last loop cycle at 0.999 s): the run would demand 0 N m throughout; start the demand earlier or lengthen `duration`"
+        );
+        // a ramp starting at the last cycle is still 0 there
+        assert_eq!(run(ramp(0.999)).unwrap_err().field, "demand.start");
+        assert_eq!(run(ramp(0.998)), Ok(1000));
+        let steps = Demand::Steps {
+            times: vec![0.0, 1.0],
+            torques: vec![0.0, 300.0],
+        };
+        assert_eq!(run(steps).unwrap_err().field, "demand.times[1]");
+        let steps = Demand::Steps {
+            times: vec![0.0, 0.5],
+            torques: vec![0.0, 300.0],
+        };
+        assert_eq!(run(steps), Ok(1000));
+        // 0 N m throughout is a coast, asked for as such
+        assert_eq!(run(Demand::Constant { torque: 0.0 }), Ok(1000));
+        let stopgo = Demand::StopAndGo {
+            torque: 300.0,
+            on: 0.5,
+            off: 0.5,
+            rise: 0.2,
+        };
+        assert_eq!(run(stopgo), Ok(1000));
+    }
+
+    #[test]
+    fn onsets() {
+        assert_eq!(
+            Demand::Constant { torque: 1.0 }.onset(),
+            Some((0.0, "torque".to_owned()))
+        );
+        assert_eq!(Demand::Constant { torque: 0.0 }.onset(), None);
+        let steps = Demand::Steps {
+            times: vec![0.0, 1.0, 2.0],
+            torques: vec![0.0, 0.0, 5.0],
+        };
+        assert_eq!(steps.onset(), Some((2.0, "times[2]".to_owned())));
     }
 }

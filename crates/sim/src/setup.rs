@@ -136,6 +136,23 @@ impl SimSetup {
         (past > tolerance).then_some(past)
     }
 
+    /// The distance segments a run whose wheel got no farther than
+    /// `farthest_x` (m, [`crate::RunResult::farthest_x`]) never reached:
+    /// the indices (into the scenario's `segments`) of those that begin
+    /// beyond it, in order. Empty for time segments (which of those a run
+    /// drives is known before it: the scenario's loaders warn of those
+    /// that begin at or after its end, `Scenario::past_the_end`), and for
+    /// a `farthest_x` that is not a number.
+    pub fn unreached(&self, farthest_x: f64) -> Vec<usize> {
+        let sc = &self.scenario;
+        if sc.segments_by != SegmentMode::Distance || farthest_x.is_nan() {
+            return Vec::new();
+        }
+        (1..sc.segments.len())
+            .filter(|&i| sc.segment_start(i) > farthest_x)
+            .collect()
+    }
+
     /// The same setup with other sensor parameters (validated).
     pub fn with_sensors(mut self, sensors: SensorParams) -> Result<Self, SimError> {
         sensors

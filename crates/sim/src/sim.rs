@@ -78,6 +78,10 @@ pub struct RunResult {
     pub arte: ArteStats,
     /// Final true plant state.
     pub final_state: PlantState,
+    /// The farthest the wheel got, m: the largest plant position `x` a
+    /// cycle ran at (a car that rolls back ends short of it), by which
+    /// [`SimSetup::unreached`] tells the distance segments never reached.
+    pub farthest_x: f64,
     /// Cycles in which the plant state was not finite (should be 0).
     pub non_finite_cycles: u64,
     /// The time series, when recorded.
@@ -107,6 +111,7 @@ pub struct Sim<'a> {
     trace: Option<Trace>,
     arte: ArteStats,
     non_finite: u64,
+    farthest_x: f64,
     k: usize,
 }
 
@@ -184,6 +189,7 @@ impl<'a> Sim<'a> {
                 ..ArteStats::default()
             },
             non_finite: 0,
+            farthest_x: f64::NEG_INFINITY,
             k: 0,
         })
     }
@@ -210,6 +216,7 @@ impl<'a> Sim<'a> {
         let s = *self.plant.state();
         let scenario = setup.scenario();
         let seg = scenario.segment_at(t, s.x);
+        self.farthest_x = self.farthest_x.max(s.x);
         let road_idx = scenario.segments[seg].road;
         let road = &setup.roads()[road_idx];
         let grade = scenario.segments[seg].grade_rad();
@@ -310,6 +317,7 @@ impl<'a> Sim<'a> {
             metrics: self.metrics.finish(),
             arte: self.arte,
             final_state: *self.plant.state(),
+            farthest_x: self.farthest_x,
             non_finite_cycles: self.non_finite,
             trace: self.trace,
             inloop,

@@ -91,6 +91,7 @@ mod tests {
             metrics: Default::default(),
             arte: Default::default(),
             final_state: Default::default(),
+            farthest_x: 0.0,
             non_finite_cycles: 0,
             trace: None,
             inloop: Some(InLoopStats {

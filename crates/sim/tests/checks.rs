@@ -211,3 +211,61 @@ fn the_probe_records_what_the_estimator_heard() {
             + (grip_sim::probe::SPEED_BINS * std::mem::size_of::<f64>()) as u64
     );
 }
+
+/// The user's trial (b): distance mode, 1 s from 20 km/h over asphalt 2 m,
+/// snow 50 m, ice 100 m. The car gets past the asphalt (about 6 m) and
+/// never to the ice: the run says how far it got, the setup names the
+/// segment it never reached.
+#[test]
+fn the_distance_segments_a_run_never_reached_are_named() {
+    let (base, est) = common::reference();
+    let roads = base.roads();
+    let seg = |name: &str, span: f64| grip_physics::Segment {
+        road_name: name.to_owned(),
+        road: roads.index_of(name).unwrap(),
+        span,
+        grade_pct: 0.0,
+    };
+    let sc = Scenario::new(
+        "mine",
+        "",
+        1.0,
+        20.0 / 3.6,
+        grip_physics::SegmentMode::Distance,
+        vec![seg("asphalt", 2.0), seg("snow", 50.0), seg("ice", 100.0)],
+        Demand::Constant { torque: 250.0 },
+        roads.len(),
+    )
+    .unwrap();
+    assert!(sc.past_the_end().is_empty(), "known only after a run");
+    let setup = base.with_scenario(sc).unwrap();
+    let mut e = est.clone();
+    let r = grip_sim::run(&setup, Variant::ALL[0], 1, &mut e).unwrap();
+    assert!(
+        r.farthest_x > 2.0 && r.farthest_x < 52.0,
+        "{}",
+        r.farthest_x
+    );
+    assert!(r.farthest_x <= r.final_state.x, "a car that drives on");
+    assert_eq!(setup.unreached(r.farthest_x), [2]);
+    assert_eq!(setup.unreached(1.0), [1, 2]);
+    assert_eq!(setup.unreached(52.0), Vec::<usize>::new(), "at its start");
+    assert_eq!(setup.unreached(f64::NAN), Vec::<usize>::new());
+    // time segments: warned of before the run, not here
+    let mut timed = setup.scenario().clone();
+    timed.segments_by = grip_physics::SegmentMode::Time;
+    let timed = base.with_scenario(timed).unwrap();
+    assert_eq!(timed.unreached(0.0), Vec::<usize>::new());
+}
+
+/// `--scenario random`'s sequences have nothing past their end (distance
+/// segments, a constant demand): loading one warns of nothing.
+#[test]
+fn random_scenarios_have_nothing_past_their_end() {
+    let (base, _) = common::reference();
+    let spec = RandomSpec::default().sized_for(base.vehicle(), base.roads());
+    for seed in 0..50 {
+        let sc = spec.scenario(seed, base.roads()).unwrap();
+        assert!(sc.past_the_end().is_empty(), "seed {seed}");
+    }
+}

@@ -38,6 +38,13 @@ fn setup_for(file: &str) -> SimSetup {
 fn roll_back(setup: &SimSetup, kind: ControllerKind, arte: bool) -> (f64, f64, f64) {
     let mut est = PerfectArte::new(0.1);
     let r = grip_sim::run(setup, Variant::new(kind, arte), 1, &mut est).unwrap();
+    // the farthest the wheel got is where it started, not where it ended
+    assert!(
+        r.farthest_x == 0.0 && r.final_state.x < -1.0,
+        "{kind}: farthest {} m, final {} m",
+        r.farthest_x,
+        r.final_state.x
+    );
     let tr = r.trace.unwrap();
     let dt = setup.dt();
     let (mut x, mut lowest) = (0.0, 0.0f64);

@@ -4,7 +4,9 @@
 //! to hold, a plant sub-step the plant would not take, acoustic options
 //! without the acoustic source, an `--entry-plot` with nothing to draw; a
 //! longer random run that stays on its roads, a run past the end of its
-//! roads, and the confusion source's pass-through roads in the report.
+//! roads, what lies after a scenario's end (a time segment, a demand's
+//! change, distance segments never reached) and the confusion source's
+//! pass-through roads in the report.
 
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -365,4 +367,148 @@ fn the_report_says_which_roads_the_confusion_source_passes_through() {
     // The reference scenario has no such road.
     let text = run_ok(grip().args(["sim", "--seeds", "1", "--variants", "mtte-arte"]));
     assert!(!text.contains("pass through"), "{text}");
+}
+
+/// A scenario of `body` (after a `name`, `v0_kmh` and a constant 250 N m
+/// demand unless `body` has its own `[demand]`) in `dir` as `file`.
+fn scenario_file(dir: &Path, file: &str, body: &str) -> PathBuf {
+    let demand = if body.contains("[demand]") {
+        ""
+    } else {
+        "[demand]\nkind = \"constant\"\ntorque = 250.0\n"
+    };
+    let p = dir.join(file);
+    std::fs::write(
+        &p,
+        format!("name = \"mine\"\nv0_kmh = 20.0\n{body}{demand}"),
+    )
+    .unwrap();
+    p
+}
+
+const LATE_WORDS: [&str; 4] = [
+    "never driven",
+    "never reached",
+    "at or after the end",
+    "ended before reaching",
+];
+
+/// A user's trial: what lies after a scenario's end is said, once per
+/// command (not per seed), naming the file, the segment and the duration;
+/// a demand that would come only after the end is refused; a last segment
+/// that merely goes on past the end ("snow to the end") is normal.
+#[test]
+fn what_lies_after_a_scenario_s_end_is_said() {
+    let tmp = tempfile::tempdir().unwrap();
+    let time = "segments_by = \"time\"\nduration = 1.0\n[[segment]]\nroad = \"asphalt\"\nduration = 0.5\n[[segment]]\nroad = \"snow\"\nduration = 0.5\n";
+    let s1 = scenario_file(
+        tmp.path(),
+        "s1.toml",
+        &format!("{time}[[segment]]\nroad = \"ice\"\nduration = 2.0\n"),
+    );
+    let o = sim(&[
+        "--seeds",
+        "2",
+        "--variants",
+        "mtte",
+        "--scenario",
+        s1.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{o:?}");
+    let err = stderr(&o);
+    let line = format!(
+        "warning: {}: field `segment[2]`: road `ice` begins at 1 s, at or after the end of the run (duration = 1 s): it is never driven",
+        s1.display()
+    );
+    assert_eq!(err.matches(&line).count(), 1, "{err}");
+
+    // snow to the end: the last segment goes on past the end
+    let s4 = scenario_file(
+        tmp.path(),
+        "s4.toml",
+        &time.replace(
+            "duration = 0.5\n[[segment]]\nroad = \"snow\"\nduration = 0.5",
+            "duration = 0.5\n[[segment]]\nroad = \"snow\"\nduration = 5.0",
+        ),
+    );
+    let o = sim(&[
+        "--seeds",
+        "1",
+        "--variants",
+        "mtte",
+        "--scenario",
+        s4.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{o:?}");
+    let err = stderr(&o);
+    assert!(LATE_WORDS.iter().all(|w| !err.contains(w)), "{err}");
+
+    // distance segments: known after the run
+    let s2 = scenario_file(
+        tmp.path(),
+        "s2.toml",
+        "segments_by = \"distance\"\nduration = 1.0\n[[segment]]\nroad = \"asphalt\"\nlength = 2.0\n[[segment]]\nroad = \"snow\"\nlength = 50.0\n[[segment]]\nroad = \"ice\"\nlength = 100.0\n",
+    );
+    let o = sim(&[
+        "--seeds",
+        "2",
+        "--variants",
+        "mtte",
+        "--scenario",
+        s2.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{o:?}");
+    let err = stderr(&o);
+    assert!(
+        err.contains(&format!(
+            "warning: MTTE, seeds 1-2: never reached segment[2] (ice, from 52.00 m) of scenario `mine` ({}): the runs got only",
+        s2.display()
+        )),
+        "{err}"
+    );
+    let report = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        report.contains("Note: 2 of 2 runs ended before reaching all of scenario `mine`'s roads"),
+        "{report}"
+    );
+
+    // a demand that begins after the end: a run of zeros, refused
+    let s3 = scenario_file(
+        tmp.path(),
+        "s3.toml",
+        "segments_by = \"time\"\n[demand]\nkind = \"ramp\"\nfrom = 0\nto = 300\nstart = 5\nduration = 1\n[[segment]]\nroad = \"asphalt\"\nduration = 1\n",
+    );
+    let err = refused(&sim(&[
+        "--seeds",
+        "1",
+        "--variants",
+        "mtte",
+        "--scenario",
+        s3.to_str().unwrap(),
+    ]));
+    assert!(
+        err.contains(&format!("{}: field `scenario.demand.start`: the driver first asks for torque at 5 s, at or after the end of the run (duration = 1 s", s3.display())),
+        "{err}"
+    );
+}
+
+/// The shipped scenarios and `--scenario random` have nothing after their
+/// end: no warning, no note.
+#[test]
+fn the_shipped_scenarios_and_random_ones_have_nothing_after_their_end() {
+    let mut names: Vec<String> = std::fs::read_dir(config_dir().join("scenarios"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert!(names.len() >= 3, "{names:?}");
+    names.push("random".to_owned());
+    for n in &names {
+        let o = sim(&["--seeds", "2", "--variants", "mtte", "--scenario", n]);
+        assert!(o.status.success(), "{n}: {o:?}");
+        let all = format!("{}{}", stderr(&o), String::from_utf8_lossy(&o.stdout));
+        assert!(LATE_WORDS.iter().all(|w| !all.contains(w)), "{n}: {all}");
+    }
 }

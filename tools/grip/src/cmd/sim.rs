@@ -261,7 +261,7 @@ pub fn load(
     let spec = &spec.clone().sized_for(&vehicle, &roads);
     // A demand above the motor's limit is the vehicle file's business too.
     let with_vehicle = |e: &grip_sim::SimError| {
-        if e.field().starts_with("scenario.demand") {
+        if e.field().starts_with("scenario.demand") && e.to_string().contains("motor limit") {
             format!(" (vehicle file {})", vehicle_path.display())
         } else {
             String::new()
@@ -670,6 +670,16 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     for line in &beyond.lines {
         eprintln!("warning: {line}");
     }
+    // a random sequence is longer than any run by design: its roads never
+    // reached are not news
+    let unreached = if per_seed.is_empty() {
+        unreached_roads(&results, &setup_of, &loaded.scenario_path)
+    } else {
+        Unreached::default()
+    };
+    for line in &unreached.lines {
+        eprintln!("warning: {line}");
+    }
 
     let summaries = summarize(&results);
     let mut out = String::new();
@@ -715,6 +725,9 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         }
     ));
     if let Some(note) = &beyond.note {
+        out.push_str(&format!("Note: {note}\n"));
+    }
+    if let Some(note) = &unreached.note {
         out.push_str(&format!("Note: {note}\n"));
     }
     if source == ArteSource::Confusion
@@ -1042,6 +1055,107 @@ fn beyond_roads<'s>(results: &[RunResult], setup_of: &dyn Fn(u64) -> &'s SimSetu
         runs,
         worst,
         unit,
+    }
+}
+
+/// The runs that never reached some of their scenario's distance segments
+/// (the run ended first): one warning line per variant and a note for the
+/// report. (Time segments that begin at or after the end are warned of
+/// when the scenario is loaded.)
+#[derive(Default)]
+struct Unreached {
+    lines: Vec<String>,
+    note: Option<String>,
+}
+
+fn unreached_roads<'s>(
+    results: &[RunResult],
+    setup_of: &dyn Fn(u64) -> &'s SimSetup,
+    file: &Path,
+) -> Unreached {
+    let mut variants: Vec<Variant> = Vec::new();
+    for r in results {
+        if !variants.contains(&r.variant) {
+            variants.push(r.variant);
+        }
+    }
+    let mut lines = Vec::new();
+    let mut parts = Vec::new();
+    let mut runs = 0;
+    let mut farthest: f64 = 0.0;
+    let mut name = String::new();
+    for v in variants {
+        // (seed, farthest x, segments never reached, setup)
+        let short: Vec<(u64, f64, Vec<usize>, &SimSetup)> = results
+            .iter()
+            .filter(|r| r.variant == v)
+            .filter_map(|r| {
+                let s = setup_of(r.seed);
+                let never = s.unreached(r.farthest_x);
+                (!never.is_empty()).then_some((r.seed, r.farthest_x, never, s))
+            })
+            .collect();
+        let Some(first) = short.first() else {
+            continue;
+        };
+        runs += short.len();
+        let sc = first.3.scenario();
+        name.clone_from(&sc.name);
+        let mut never: Vec<usize> = short.iter().flat_map(|p| p.2.iter().copied()).collect();
+        never.sort_unstable();
+        never.dedup();
+        let named: Vec<String> = never
+            .iter()
+            .filter_map(|&i| {
+                sc.segments.get(i).map(|g| {
+                    format!(
+                        "segment[{i}] ({}, from {:.2} m)",
+                        g.road_name,
+                        sc.segment_start(i)
+                    )
+                })
+            })
+            .collect();
+        let (lo, hi) = short
+            .iter()
+            .map(|p| p.1)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                (a.min(x), b.max(x))
+            });
+        farthest = farthest.max(hi);
+        let seeds: Vec<u64> = short.iter().map(|p| p.0).collect();
+        let got = if (hi - lo).abs() < 0.005 {
+            format!("{hi:.2} m")
+        } else {
+            format!("{lo:.2}..{hi:.2} m")
+        };
+        let who = format!(
+            "{}, seed{} {}",
+            v.label(),
+            if seeds.len() == 1 { "" } else { "s" },
+            seed_ranges(&seeds)
+        );
+        parts.push(format!("{who}: {} (got {got})", named.join(", ")));
+        lines.push(format!(
+            "{who}: never reached {} of scenario `{}` ({}): the run{} got only {got} in its {} s",
+            named.join(", "),
+            sc.name,
+            file.display(),
+            if seeds.len() == 1 { "" } else { "s" },
+            sc.duration,
+        ));
+    }
+    if runs == 0 {
+        return Unreached::default();
+    }
+    let note = format!(
+        "{runs} of {} runs ended before reaching all of scenario `{name}`'s roads, so their results do not cover the roads they never reached (the farthest got {farthest:.2} m): {}.",
+        results.len(),
+        parts.join("; ")
+    );
+    Unreached {
+        lines,
+        note: Some(note),
     }
 }
 
