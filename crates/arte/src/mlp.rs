@@ -528,6 +528,26 @@ pub struct LmReport {
     pub rows_used: usize,
 }
 
+impl LmReport {
+    /// Whether the returned weights are the initial (random) ones: with
+    /// validation data, no epoch lowered the validation error (best epoch
+    /// 0, so epoch 0's weights were restored); without, no step lowered
+    /// the training error (or no epoch ran). Not when the initial weights
+    /// already met the goal.
+    pub fn kept_initial_weights(&self) -> bool {
+        if self.stop == StopReason::Goal && self.epochs == 0 {
+            return false;
+        }
+        if !self.val_mse.is_empty() {
+            return self.best_epoch == 0;
+        }
+        match (self.train_mse.first(), self.train_mse.last()) {
+            (Some(first), Some(last)) => last >= first,
+            _ => true,
+        }
+    }
+}
+
 /// Checks a flat sample set; returns the sample count.
 pub(crate) fn check_samples(
     x: &[f64],

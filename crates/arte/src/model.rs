@@ -768,6 +768,31 @@ pub fn fit(
     spec: &ClassifierSpec,
     train: &Samples,
 ) -> Result<(Model, FitReport), ModelError> {
+    fit_with_split(classes, feature_config, spec, train).map(|(m, r, _)| (m, r))
+}
+
+/// Which frames a fit trained on and which it held out for validation
+/// (row indices of the samples given to [`fit_with_split`], whole
+/// recordings on each side).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct FitSplit {
+    /// Frames of the training recordings (the MLP's `max_rows` and the
+    /// SVM's `max_per_class` subsample from these).
+    pub train: Vec<usize>,
+    /// Frames of the recordings held out for the MLP's early stopping
+    /// (empty for the SVM, with `val_fraction` 0, or when every class has
+    /// a single recording).
+    pub val: Vec<usize>,
+}
+
+/// [`fit`], also returning the split of `train` into training and
+/// validation frames (for [`FitCheck`]).
+pub fn fit_with_split(
+    classes: &[String],
+    feature_config: &FeatureConfig,
+    spec: &ClassifierSpec,
+    train: &Samples,
+) -> Result<(Model, FitReport, FitSplit), ModelError> {
     feature_config.validate()?;
     // Paper7 from Paper20 rows: prune on this training set (so that in
     // cross-validation the selection never sees the test fold).
@@ -801,7 +826,7 @@ pub fn fit(
     let k = classes.len();
     let st = Standardiser::fit(train);
     let z = st.transform(train);
-    let (classifier, report) = match spec {
+    let (classifier, report, split) = match spec {
         ClassifierSpec::Mlp { lm, val_fraction } => {
             let (tr, va) = if *val_fraction > 0.0 {
                 holdout_groups(&z.y, &z.group, k, *val_fraction, lm.seed)?
@@ -816,7 +841,8 @@ pub fn fit(
                 Some((v.x.as_slice(), v.y.as_slice()))
             };
             let (net, rep) = train_lm(lm, k, z.dim, &t.x, &t.y, val)?;
-            (Classifier::Mlp(net), FitReport::Mlp(rep))
+            let split = FitSplit { train: tr, val: va };
+            (Classifier::Mlp(net), FitReport::Mlp(rep), split)
         }
         ClassifierSpec::Svm { cfg, max_per_class } => {
             let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(
@@ -826,7 +852,11 @@ pub fn fit(
             let rows = stratified_subsample(&z.y, k, cap, &mut rng);
             let t = z.subset(&rows);
             let (svm, rep) = Svm::train(cfg, k, z.dim, &t.x, &t.y)?;
-            (Classifier::Svm(svm), FitReport::Svm(rep))
+            let split = FitSplit {
+                train: (0..z.len()).collect(),
+                val: Vec::new(),
+            };
+            (Classifier::Svm(svm), FitReport::Svm(rep), split)
         }
     };
     let meta = TrainingMeta {
@@ -841,7 +871,184 @@ pub fn fit(
         classifier,
         meta,
     )?;
-    Ok((model, report))
+    Ok((model, report, split))
+}
+
+/// What a fitted model does on the frames of its own fit: the figures of
+/// the model that is written (cross-validation scores other models, fitted
+/// without the test recordings), and whether the fit is worth writing
+/// ([`FitCheck::problems`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitCheck {
+    /// The model on its training frames ([`FitSplit::train`]).
+    pub train: Confusion,
+    /// Recordings among the training frames.
+    pub train_recordings: usize,
+    /// The model on its validation frames; `None` when none were held out.
+    pub val: Option<Confusion>,
+    /// Recordings among the validation frames.
+    pub val_recordings: usize,
+    /// The most common class of the training frames (ties: the lower
+    /// index) and its frame count: always answering it is right that
+    /// often.
+    pub majority: (usize, u64),
+    /// An iterative trainer that returned its initial weights (LM: the
+    /// report's epochs, stop and whether validation data drove it).
+    pub kept_initial: Option<KeptInitial>,
+}
+
+/// An LM fit that returned its initial weights ([`LmReport::kept_initial_weights`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct KeptInitial {
+    /// Epochs run.
+    pub epochs: usize,
+    /// Why it stopped.
+    pub stop: crate::mlp::StopReason,
+    /// Whether validation data drove early stopping (best epoch 0), or
+    /// no step lowered the training error.
+    pub validated: bool,
+}
+
+/// Why a fitted model is not worth writing ([`FitCheck::problems`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum PoorFit {
+    /// The trainer never improved on its random initial weights: the model
+    /// is the untrained initial network.
+    KeptInitialWeights(KeptInitial),
+    /// On its own training frames the model is right no more often than
+    /// always answering the most common class.
+    NoBetterThanMajority {
+        /// Training frames classified right.
+        correct: u64,
+        /// Training frames.
+        frames: u64,
+        /// The most common class.
+        class: String,
+        /// Its training frames.
+        majority: u64,
+    },
+}
+
+impl core::fmt::Display for PoorFit {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let pct = |a: u64, b: u64| 100.0 * a as f64 / b.max(1) as f64;
+        match self {
+            Self::KeptInitialWeights(k) if k.validated => write!(
+                f,
+                "the final fit never improved on its random initial weights: no Levenberg-Marquardt epoch lowered the validation error (best epoch 0 of {}, stopped at {}), so the model is the untrained initial network",
+                k.epochs, k.stop
+            ),
+            Self::KeptInitialWeights(k) if k.epochs == 0 => write!(
+                f,
+                "the final fit ran no Levenberg-Marquardt epoch (the epoch limit is 0), so the model is the untrained initial network"
+            ),
+            Self::KeptInitialWeights(k) => write!(
+                f,
+                "the final fit never improved on its random initial weights: no Levenberg-Marquardt step lowered the training error in {} epoch(s) (stopped at {}), so the model is the untrained initial network",
+                k.epochs, k.stop
+            ),
+            Self::NoBetterThanMajority {
+                correct,
+                frames,
+                class,
+                majority,
+            } => write!(
+                f,
+                "on its own training frames the model is right {correct} of {frames} times ({:.1} %), no better than always answering `{class}`, the most common class ({majority} of {frames}, {:.1} %)",
+                pct(*correct, *frames),
+                pct(*majority, *frames)
+            ),
+        }
+    }
+}
+
+impl FitCheck {
+    /// Scores `model` (fitted by [`fit_with_split`] on `data`, which gave
+    /// `report` and `split`) on its training and validation frames. An
+    /// index of `split` outside `data`, or no training frame, is an error.
+    pub fn new(
+        model: &Model,
+        report: &FitReport,
+        data: &Samples,
+        split: &FitSplit,
+    ) -> Result<Self, ModelError> {
+        let n = data.len();
+        if let Some(&i) = split.train.iter().chain(&split.val).find(|&&i| i >= n) {
+            return Err(ModelError::Mismatch {
+                field: "split",
+                reason: format!("frame {i} of a split of {n} frames"),
+            });
+        }
+        if split.train.is_empty() {
+            return Err(ModelError::Mismatch {
+                field: "split",
+                reason: "no training frame".into(),
+            });
+        }
+        let tr = data.subset(&split.train);
+        let train = model.evaluate(&tr)?;
+        let (val, val_recordings) = if split.val.is_empty() {
+            (None, 0)
+        } else {
+            let va = data.subset(&split.val);
+            (Some(model.evaluate(&va)?), va.n_groups())
+        };
+        let mut counts = vec![0u64; model.classes().len()];
+        for &c in &tr.y {
+            if let Some(n) = counts.get_mut(c) {
+                *n += 1;
+            }
+        }
+        let mut majority = (0, 0);
+        for (c, &k) in counts.iter().enumerate() {
+            if k > majority.1 {
+                majority = (c, k);
+            }
+        }
+        let kept_initial = match report {
+            FitReport::Mlp(r) if r.kept_initial_weights() => Some(KeptInitial {
+                epochs: r.epochs,
+                stop: r.stop,
+                validated: !r.val_mse.is_empty(),
+            }),
+            _ => None,
+        };
+        Ok(Self {
+            train,
+            train_recordings: tr.n_groups(),
+            val,
+            val_recordings,
+            majority,
+            kept_initial,
+        })
+    }
+
+    /// Training frames the model classifies right.
+    pub fn train_correct(&self) -> u64 {
+        (0..self.train.classes().len())
+            .map(|c| self.train.get(c, c))
+            .sum()
+    }
+
+    /// Why the model is not worth writing; empty when it is: the trainer
+    /// kept its initial weights, or on its training frames the model is
+    /// right no more often than always answering the most common class.
+    pub fn problems(&self) -> Vec<PoorFit> {
+        let mut out = Vec::new();
+        if let Some(k) = self.kept_initial {
+            out.push(PoorFit::KeptInitialWeights(k));
+        }
+        let correct = self.train_correct();
+        if correct <= self.majority.1 {
+            out.push(PoorFit::NoBetterThanMajority {
+                correct,
+                frames: self.train.total(),
+                class: self.train.classes()[self.majority.0].clone(),
+                majority: self.majority.1,
+            });
+        }
+        out
+    }
 }
 
 /// k-fold cross-validation split by recording: fits on each training side,

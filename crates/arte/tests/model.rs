@@ -2,10 +2,12 @@
 
 use grip_arte::calib::{Calibration, StreamCalibration};
 use grip_arte::eval::Samples;
+use grip_arte::eval::holdout_groups;
 use grip_arte::features::{FeatureConfig, FeatureSet};
 use grip_arte::mlp::LmConfig;
 use grip_arte::model::{
-    ClassifierSpec, Model, ModelError, cross_validate, cross_validate_with, fit,
+    ClassifierSpec, FitCheck, FitReport, Model, ModelError, PoorFit, cross_validate,
+    cross_validate_with, fit, fit_with_split,
 };
 use grip_arte::stream::{StreamConfig, StreamEstimator};
 use grip_arte::svm::{Kernel, SvmConfig};
@@ -763,4 +765,177 @@ fn training_speeds_round_trip_and_old_files_load() {
     })
     .unwrap_err();
     assert!(matches!(e, ModelError::Json(_)), "{e}");
+}
+
+/// 4 classes x 2 recordings x 20 frames, the user trial's shape (`grip
+/// train` on 2 recordings per class): the recording `spec`'s validation
+/// split holds out of each class sounds like the next class, so whatever
+/// the training side teaches raises the validation error.
+fn contradicting_validation(spec: &ClassifierSpec) -> Samples {
+    let ClassifierSpec::Mlp { lm, val_fraction } = spec else {
+        unreachable!("an MLP spec")
+    };
+    let groups: Vec<usize> = (0..8).collect();
+    let labels: Vec<usize> = groups.iter().map(|g| g / 2).collect();
+    let (_, held) = holdout_groups(&labels, &groups, 4, *val_fraction, lm.seed).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let nd = Normal::new(0.0, 1.0).unwrap();
+    let mut s = Samples::new(7);
+    for g in 0..8 {
+        let c = g / 2;
+        let sounds_like = if held.contains(&g) { (c + 1) % 4 } else { c };
+        for _ in 0..20 {
+            let row: Vec<f64> = (0..7)
+                .map(|d| if d == sounds_like { 3.0 } else { 0.0 } + 0.3 * nd.sample(&mut rng))
+                .collect();
+            s.push(&row, c, g);
+        }
+    }
+    s
+}
+
+/// The user trial's case (2 recordings per class; `best epoch 0`, the
+/// written model the random initial network): the final fit is scored on
+/// its own frames and said to be poor, naming why.
+#[test]
+fn a_fit_that_never_left_its_initial_weights_is_a_poor_fit() {
+    let spec = ClassifierSpec::Mlp {
+        lm: LmConfig {
+            epochs: 100,
+            ..Default::default()
+        },
+        val_fraction: 0.15,
+    };
+    let data = contradicting_validation(&spec);
+    let (m, rep, split) = fit_with_split(&classes(), &paper7(), &spec, &data).unwrap();
+    let FitReport::Mlp(lm) = &rep else {
+        unreachable!()
+    };
+    assert_eq!(lm.best_epoch, 0, "{lm:?}");
+    assert!(lm.kept_initial_weights());
+    // one recording of each class held out, the other trains
+    assert_eq!((split.train.len(), split.val.len()), (80, 80));
+    let check = FitCheck::new(&m, &rep, &data, &split).unwrap();
+    assert_eq!((check.train_recordings, check.val_recordings), (4, 4));
+    assert_eq!(check.train.total(), 80);
+    assert_eq!(check.val.as_ref().unwrap().total(), 80);
+    let problems = check.problems();
+    let k = check.kept_initial.unwrap();
+    assert!(k.validated && k.epochs > 0, "{k:?}");
+    assert!(
+        matches!(problems.first(), Some(PoorFit::KeptInitialWeights(_))),
+        "{problems:?}"
+    );
+    let said = problems[0].to_string();
+    assert!(
+        said.contains("never improved on its random initial weights")
+            && said.contains("best epoch 0")
+            && said.contains("untrained initial network"),
+        "{said}"
+    );
+    // no epoch at all is the same: the initial network
+    let none = ClassifierSpec::Mlp {
+        lm: LmConfig {
+            epochs: 0,
+            ..Default::default()
+        },
+        val_fraction: 0.0,
+    };
+    let (m, rep, split) = fit_with_split(&classes(), &paper7(), &none, &data).unwrap();
+    let check = FitCheck::new(&m, &rep, &data, &split).unwrap();
+    assert!(check.val.is_none() && check.train.total() == 160);
+    let said = check.problems()[0].to_string();
+    assert!(said.contains("ran no Levenberg-Marquardt epoch"), "{said}");
+}
+
+/// Features that carry nothing (every frame the same): the model cannot
+/// beat always answering the most common class on its own training
+/// frames, and says so (the MLP does improve its training error here, by
+/// learning the class shares: no kept initial weights).
+#[test]
+fn a_model_no_better_than_the_most_common_class_is_a_poor_fit() {
+    let mut s = Samples::new(7);
+    // asphalt 3 recordings, the others 1: asphalt is 50 % of the frames
+    for (g, c) in [0, 0, 0, 1, 2, 3].into_iter().enumerate() {
+        for _ in 0..10 {
+            s.push(&[1.0; 7], c, g);
+        }
+    }
+    let mlp = ClassifierSpec::Mlp {
+        lm: LmConfig::default(),
+        val_fraction: 0.0,
+    };
+    for spec in [mlp, svm_spec()] {
+        let (m, rep, split) = fit_with_split(&classes(), &paper7(), &spec, &s).unwrap();
+        let check = FitCheck::new(&m, &rep, &s, &split).unwrap();
+        assert_eq!(check.majority, (0, 30));
+        assert!(check.kept_initial.is_none(), "{rep:?}");
+        let problems = check.problems();
+        assert_eq!(problems.len(), 1, "{problems:?}");
+        let PoorFit::NoBetterThanMajority {
+            correct,
+            frames,
+            class,
+            majority,
+        } = &problems[0]
+        else {
+            panic!("{problems:?}")
+        };
+        assert!(*correct <= 30 && *frames == 60 && class == "asphalt" && *majority == 30);
+        let said = problems[0].to_string();
+        assert!(
+            said.contains("no better than always answering `asphalt`")
+                && said.contains("(30 of 60, 50.0 %)"),
+            "{said}"
+        );
+    }
+}
+
+/// A normal fit: no problem, and its own figures are those of the written
+/// model on its training and validation recordings (disjoint, together
+/// every frame).
+#[test]
+fn a_normal_fit_scores_its_own_frames_and_is_no_poor_fit() {
+    let data = dataset(6, 1);
+    for spec in [mlp_spec(), svm_spec()] {
+        let (m, rep, split) = fit_with_split(&classes(), &paper7(), &spec, &data).unwrap();
+        assert_eq!(
+            (m.clone(), rep.clone()),
+            fit(&classes(), &paper7(), &spec, &data).unwrap()
+        );
+        let check = FitCheck::new(&m, &rep, &data, &split).unwrap();
+        assert!(check.problems().is_empty(), "{:?}", check.problems());
+        assert!(check.kept_initial.is_none());
+        let acc = check.train.metrics().accuracy;
+        assert!(acc > 0.9, "training accuracy {acc}");
+        assert_eq!(
+            check.train.metrics().accuracy,
+            m.evaluate(&data.subset(&split.train))
+                .unwrap()
+                .metrics()
+                .accuracy
+        );
+        match &check.val {
+            Some(v) => {
+                assert!(matches!(spec, ClassifierSpec::Mlp { .. }));
+                assert!(v.metrics().accuracy > 0.8, "{}", v.metrics());
+                assert_eq!(check.train_recordings + check.val_recordings, 24);
+                let mut all: Vec<usize> = split.train.iter().chain(&split.val).copied().collect();
+                all.sort_unstable();
+                assert_eq!(all, (0..data.len()).collect::<Vec<_>>());
+            }
+            None => {
+                assert!(matches!(spec, ClassifierSpec::Svm { .. }));
+                assert_eq!(check.train.total() as usize, data.len());
+            }
+        }
+    }
+    // a split that does not fit the data is an error, not a panic
+    let (m, rep, _) = fit_with_split(&classes(), &paper7(), &svm_spec(), &data).unwrap();
+    let bad = grip_arte::model::FitSplit {
+        train: vec![data.len()],
+        val: Vec::new(),
+    };
+    let e = FitCheck::new(&m, &rep, &data, &bad).unwrap_err();
+    assert!(e.to_string().contains("split"), "{e}");
 }

@@ -98,6 +98,13 @@ fn train_needs_out_and_keeps_an_existing_model_without_force() {
     let (ok, out, err) = train(d.path(), "data", "m.model", &[]);
     assert!(ok, "train: {out}{err}");
     assert!(out.contains("wrote model m.model"), "{out}");
+    // the written model's own figures, apart from the cross-validation
+    assert!(
+        out.contains("the written model on the final fit's own frames")
+            && out.contains("training frames (6 recordings): n = ")
+            && out.contains("validation frames: none (the SVM fit holds no recordings out)"),
+        "{out}"
+    );
     let first = std::fs::read(d.path().join("m.model")).unwrap();
     // an existing one: refused before the training, naming file and option
     std::fs::write(d.path().join("m.model"), b"mine").unwrap();

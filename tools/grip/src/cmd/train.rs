@@ -5,7 +5,13 @@
 //! extract features, run stratified k-fold cross-validation split by
 //! recording (for `paper7`, the paper's pruning runs inside each fold), print
 //! the report and the confusion matrix (rows predicted, columns actual, as
-//! the paper's Tables II/III), fit on all data, write the model file
+//! the paper's Tables II/III), fit on all data, print the fitted model's
+//! own accuracy on the final fit's training and validation frames
+//! ([`FitCheck`]; what the written file does, unlike the cross-validation),
+//! refuse a fit not worth writing ([`PoorFit`]: the MLP never left its
+//! random initial weights, or the model is no better than always answering
+//! the most common class on its own training frames; `--allow-poor-fit`
+//! writes it anyway), write the model file
 //! (`--out`, required; an existing file only with `--force`, refused before
 //! any work otherwise, as are a directory and a folder that does not exist:
 //! [`check_output_file`]; `--report` alike), and with `--test DIR` score
@@ -27,7 +33,8 @@ use grip_arte::eval::{Confusion, Samples};
 use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet, SpeedNorm};
 use grip_arte::mlp::{LmConfig, OutputKind};
 use grip_arte::model::{
-    ClassifierSpec, EvalSummary, FitReport, Model, cross_validate_with, fit, grid_search_svm,
+    ClassifierSpec, EvalSummary, FitCheck, FitReport, Model, PoorFit, cross_validate_with,
+    fit_with_split, grid_search_svm,
 };
 use grip_arte::speeds::SpeedRange;
 use grip_arte::svm::{Kernel, SvmConfig};
@@ -67,6 +74,13 @@ pub struct Args {
     /// Overwrite an existing `--out` (and `--report`) file.
     #[arg(long)]
     pub force: bool,
+    /// Write the model even when the final fit is useless: the MLP never
+    /// improved on its random initial weights (best epoch 0), or on its
+    /// own training frames the model is no better than always answering
+    /// the most common class. Without it such a fit is an error and
+    /// nothing is written.
+    #[arg(long)]
+    pub allow_poor_fit: bool,
     /// Held-out dataset folder(s) to evaluate the final model on (repeatable).
     #[arg(long)]
     pub test: Vec<PathBuf>,
@@ -181,6 +195,9 @@ impl Args {
             s.push_str(" --fixed-bands");
         }
         s.push_str(&self.channel.command_line());
+        if self.allow_poor_fit {
+            s.push_str(" --allow-poor-fit");
+        }
         let _ = write!(s, " --profile {}", self.profile);
         if !self.calib_data.is_empty() {
             for d in &self.calib_data {
@@ -867,9 +884,9 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
         "{prefix} {spinner} {elapsed}",
         format!("fitting the model on all {} frames", data.len()),
     );
-    let fitted = fit(&classes, &model_cfg, &spec, &data);
+    let fitted = fit_with_split(&classes, &model_cfg, &spec, &data);
     pb.finish_and_clear();
-    let (mut model, fit_report) = fitted?;
+    let (mut model, fit_report, split) = fitted?;
     match &fit_report {
         FitReport::Mlp(r) => {
             let n = format!(
@@ -909,6 +926,32 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
         notes.push(n);
     }
     println!("classifier: {}", model.classifier().describe());
+    // what the file written does, on the final fit's own frames (the
+    // cross-validation above scored other models); a useless fit is
+    // refused before anything is written
+    let check = FitCheck::new(&model, &fit_report, &data, &split)
+        .context("the final model on its own frames")?;
+    let (lines, note) = own_frames(&check, args);
+    for l in &lines {
+        println!("{l}");
+    }
+    let _ = writeln!(report, "\n{}\n", lines.join("\n"));
+    notes.push(note);
+    let problems = check.problems();
+    if !problems.is_empty() {
+        let what = problems
+            .iter()
+            .map(ToString::to_string)
+            .collect::<Vec<_>>()
+            .join("; and ");
+        if !args.allow_poor_fit {
+            bail!("{}", poor_fit_error(args, &ds, &check, &problems, &what));
+        }
+        let n = format!("written with --allow-poor-fit although {what}");
+        eprintln!("warning: {n}");
+        let _ = writeln!(report, "\n**warning**: {n}\n");
+        notes.push(n);
+    }
     let _ = writeln!(
         report,
         "\nclassifier: {}; {}\n",
@@ -957,6 +1000,123 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
         model = model.with_calibration(Some(cal))?;
     }
     Ok((model, report))
+}
+
+/// The lines `grip train` prints about the final model on its own frames
+/// (training and validation, with what always answering the most common
+/// class scores), and the note stored in the model.
+fn own_frames(check: &FitCheck, args: &Args) -> (Vec<String>, String) {
+    let classes = check.train.classes();
+    let tm = check.train.metrics();
+    let share = 100.0 * check.majority.1 as f64 / check.train.total().max(1) as f64;
+    let mut lines = vec![
+        format!(
+            "the written model on the final fit's own frames (not the cross-validation{}):",
+            if args.folds >= 2 {
+                " above, which scores models fitted without the test recordings"
+            } else {
+                ""
+            }
+        ),
+        format!(
+            "  training frames ({} recordings): {tm} (always answering the most common class, `{}`: {share:.2} %)",
+            check.train_recordings, classes[check.majority.0]
+        ),
+    ];
+    let mut note = format!(
+        "written model on its own frames: training accuracy {:.2} % (n = {})",
+        100.0 * tm.accuracy,
+        tm.n
+    );
+    match &check.val {
+        Some(v) => {
+            let vm = v.metrics();
+            lines.push(format!(
+                "  validation frames ({} recordings held out for early stopping): {vm}",
+                check.val_recordings
+            ));
+            let _ = write!(
+                note,
+                ", validation accuracy {:.2} % (n = {})",
+                100.0 * vm.accuracy,
+                vm.n
+            );
+        }
+        None => lines.push(format!(
+            "  validation frames: none ({})",
+            if args.classifier != "mlp" {
+                "the SVM fit holds no recordings out"
+            } else if args.val_fraction > 0.0 {
+                "every class has a single recording, none held out"
+            } else {
+                "--val-fraction 0"
+            }
+        )),
+    }
+    (lines, note)
+}
+
+/// The error for a final fit not worth writing (`what`: its
+/// [`PoorFit`]s): what happened, the data it had, and the ways out (the
+/// options that change the written model; `--folds` does not).
+fn poor_fit_error(
+    args: &Args,
+    ds: &Dataset,
+    check: &FitCheck,
+    problems: &[PoorFit],
+    what: &str,
+) -> String {
+    let per_class = ds.recordings_per_class();
+    let (lo, hi) = (
+        per_class.iter().copied().min().unwrap_or(0),
+        per_class.iter().copied().max().unwrap_or(0),
+    );
+    let recs = if lo == hi {
+        format!("{lo}")
+    } else {
+        format!("{lo}-{hi}")
+    };
+    let frames = check.train.total() + check.val.as_ref().map_or(0, |v| v.total());
+    let mut ways = vec![
+        "more recordings per class (`grip dataset synth --recordings-per-class`)".to_owned(),
+        "longer recordings (`--duration`)".to_owned(),
+    ];
+    let kept = problems
+        .iter()
+        .any(|p| matches!(p, PoorFit::KeptInitialWeights(_)));
+    if args.classifier == "mlp" {
+        if kept && check.val.is_some() {
+            ways.push(format!(
+                "--val-fraction 0 (no early stopping: every recording trains, up to --epochs; the validation held out {} of the {} recordings)",
+                check.val_recordings,
+                check.val_recordings + check.train_recordings
+            ));
+        }
+        if args.epochs == 0 {
+            ways.push("--epochs above 0".to_owned());
+        } else {
+            ways.push(format!(
+                "another --seed (initial weights, {} now) or --hidden, --epochs ({} now)",
+                args.seed, args.epochs
+            ));
+        }
+        ways.push("--classifier svm".to_owned());
+    } else {
+        ways.push("other --svm-c / --svm-gamma, or --features rich".to_owned());
+    }
+    let data = if args.classifier == "mlp" && args.epochs == 0 {
+        String::new()
+    } else {
+        format!(
+            " The data has {recs} recording(s) per class, {frames} frames: likely too few, or too alike, for this fit."
+        )
+    };
+    format!(
+        "--data {}: {what}. Not writing --out {}.{data} Ways out: {}; --folds changes only the cross-validation, not the written model. --allow-poor-fit writes the model anyway",
+        ds.root.display(),
+        args.out.display(),
+        ways.join(", ")
+    )
 }
 
 /// An output file named by `flag` (`--out`, `--report`, `--candump`, ...),
@@ -1531,6 +1691,157 @@ mod tests {
                 && e.contains("gravel/pair.wav"),
             "{e}"
         );
+    }
+
+    /// `grip dataset synth ARGS` in-process.
+    fn dataset_synth(argv: &[&str]) {
+        #[derive(Parser)]
+        struct DatasetCli {
+            #[command(flatten)]
+            args: super::super::dataset::Args,
+        }
+        let ctx = Ctx {
+            config_dir: PathBuf::from("config"),
+            config_dir_given: false,
+        };
+        let argv = [&["t", "synth"][..], argv].concat();
+        super::super::dataset::run(&ctx, DatasetCli::parse_from(argv).args).unwrap();
+    }
+
+    /// The user trial: `grip dataset synth --recordings-per-class 2
+    /// --duration 2 --roads asphalt,snow,gravel,stone`, then `grip train
+    /// --epochs 100`: the final fit's validation error never fell (`best
+    /// epoch 0`) and the random initial network was written (it called
+    /// every asphalt frame snow), while the cross-validation printed
+    /// 70.6 %. Now an error naming what happened and the ways out, and
+    /// nothing written (model or report); `--allow-poor-fit` writes it,
+    /// noted in the model. And recordings that are all the same sound: no
+    /// model can beat always answering the most common class, refused too.
+    #[test]
+    fn a_fit_that_never_left_its_initial_weights_is_refused_and_nothing_written() {
+        let d = tempfile::tempdir().unwrap();
+        let data = d.path().join("ds");
+        let roads = "asphalt,snow,gravel,stone";
+        let tiny = [
+            "--recordings-per-class",
+            "2",
+            "--duration",
+            "2",
+            "--roads",
+            roads,
+        ];
+        dataset_synth(&[&["--out", data.to_str().unwrap()][..], &tiny].concat());
+        let out = d.path().join("m2.model");
+        let report = d.path().join("m2-report.txt");
+        let ctx = Ctx {
+            config_dir: d.path().to_path_buf(),
+            config_dir_given: true,
+        };
+        let mut argv = no_cv(&data);
+        argv.extend_from_slice(&["--epochs", "100", "--out", out.to_str().unwrap()]);
+        argv.extend_from_slice(&["--report", report.to_str().unwrap()]);
+        let e = match run(&ctx, Cli::parse_from(&argv).args) {
+            Err(e) => format!("{e:#}"),
+            Ok(()) => panic!(
+                "the user trial's data trained (synthesis, features or LM changed since): choose a --seed of `grip dataset synth` whose final fit keeps its initial weights; grip-arte's tests/model.rs tests the rule itself"
+            ),
+        };
+        for want in [
+            "never improved on its random initial weights",
+            "best epoch 0",
+            "untrained initial network",
+            &format!("Not writing --out {}", out.display()),
+            "2 recording(s) per class",
+            "--recordings-per-class",
+            "--duration",
+            "--val-fraction 0",
+            "--folds changes only the cross-validation",
+            "--allow-poor-fit",
+        ] {
+            assert!(e.contains(want), "{want:?} not in: {e}");
+        }
+        assert!(e.contains(&data.display().to_string()), "{e}");
+        assert!(!out.exists() && !report.exists(), "something was written");
+        // written on request, and the model says so
+        argv.push("--allow-poor-fit");
+        run(&ctx, Cli::parse_from(&argv).args).unwrap();
+        let m = Model::from_bytes(&std::fs::read(&out).unwrap()).unwrap();
+        assert!(
+            m.meta.notes.iter().any(|n| n.starts_with(
+                "written with --allow-poor-fit although the final fit never improved"
+            )),
+            "{:?}",
+            m.meta.notes
+        );
+        assert!(m.meta.command.contains("--allow-poor-fit"));
+        // every recording the same sound: nothing to learn, whatever the
+        // numbers of synthesis and training
+        let same = d.path().join("same");
+        for road in roads.split(',') {
+            std::fs::create_dir_all(same.join(road)).unwrap();
+            for k in 0..2 {
+                let to = same.join(road).join(format!("{road}_{k}.wav"));
+                std::fs::copy(data.join("gravel/gravel_0000.wav"), to).unwrap();
+            }
+        }
+        let out = d.path().join("same.model");
+        let mut argv = no_cv(&same);
+        argv.extend_from_slice(&["--out", out.to_str().unwrap()]);
+        let e = format!("{:#}", run(&ctx, Cli::parse_from(&argv).args).unwrap_err());
+        assert!(
+            e.contains("no better than always answering `asphalt`, the most common class")
+                && e.contains("--allow-poor-fit"),
+            "{e}"
+        );
+        assert!(!out.exists());
+    }
+
+    /// A normal training writes the model, and the figures of the written
+    /// model on its own training and validation frames (printed; the
+    /// report has the same lines, the model a note).
+    #[test]
+    fn a_normal_training_writes_the_model_and_its_own_accuracy() {
+        let d = tempfile::tempdir().unwrap();
+        let data = d.path().join("data");
+        make_dataset(&data);
+        let out = d.path().join("m.model");
+        let report = d.path().join("m-report.txt");
+        let ctx = Ctx {
+            config_dir: d.path().to_path_buf(),
+            config_dir_given: true,
+        };
+        let mut argv = no_cv(&data);
+        argv.extend_from_slice(&["--out", out.to_str().unwrap()]);
+        argv.extend_from_slice(&["--report", report.to_str().unwrap()]);
+        run(&ctx, Cli::parse_from(&argv).args).unwrap();
+        let m = Model::from_bytes(&std::fs::read(&out).unwrap()).unwrap();
+        let note = m
+            .meta
+            .notes
+            .iter()
+            .find(|n| n.starts_with("written model on its own frames: training accuracy"))
+            .unwrap_or_else(|| panic!("{:?}", m.meta.notes));
+        assert!(note.contains(", validation accuracy"), "{note}");
+        let r = std::fs::read_to_string(&report).unwrap();
+        assert!(
+            r.contains(
+                "the written model on the final fit's own frames (not the cross-validation)"
+            ) && r.contains("training frames (12 recordings): n = 120, accuracy")
+                && r.contains(
+                    "validation frames (3 recordings held out for early stopping): n = 30"
+                )
+                && r.contains("(always answering the most common class, `asphalt`: 33.33 %)"),
+            "{r}"
+        );
+        // the figures are the written model's own
+        let ds = Dataset::scan(&data).unwrap();
+        let mut cfg = FeatureConfig::new(16_000, FeatureSet::Paper20);
+        cfg.frame_s = 0.1;
+        let map: Vec<usize> = (0..3).collect();
+        let (all, _, _) =
+            extract_dataset(&ds, &cfg, 0.1, &map, grip_io::wav::Channel::Average).unwrap();
+        let acc = m.evaluate(&all).unwrap().metrics().accuracy;
+        assert!(acc > 0.8, "accuracy {acc}");
     }
 
     #[test]
