@@ -350,11 +350,14 @@ fn a_class_that_is_no_road_of_the_catalogue_is_refused_up_front() {
     for want in [
         "class `cobble` is not a road in the catalogue",
         "roads.toml",
-        "arte would refuse this model",
+        "arte would refuse a model of these classes",
         "--classes",
+        &format!("--data {}: class `cobble`", data.display()),
     ] {
         assert!(err.contains(want), "{want}:\n{err}");
     }
+    // the folder is at fault, not the model file (which is not written)
+    assert!(!err.contains("model file"), "{err}");
     assert!(
         !so.contains("cross-validation"),
         "features were extracted:\n{so}"

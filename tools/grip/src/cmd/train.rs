@@ -654,9 +654,17 @@ fn arte_would_take(config_dir: &Path, out: &Path, ds: &Dataset) -> Result<()> {
         }
     };
     grip_arte_svc::road_table(&ds.classes, &roads, &rule, out, &cfg.roads_path()).map_err(|e| {
+        // the class folders are at fault, not the model file (not yet
+        // written): named by the folder
+        let what = match e {
+            grip_arte_svc::ArteError::Classes { reason, .. } => reason,
+            e => e.to_string(),
+        };
         anyhow::anyhow!(
-            "{e}: arte would refuse this model (the class folders of {}); add the road to roads.toml first, or choose the classes with --classes",
-            ds.root.display()
+            "--data {}: {what}: arte would refuse a model of these classes (the class folders of {}; --out {} not written); add the road to roads.toml first, or choose the classes with --classes",
+            ds.root.display(),
+            ds.root.display(),
+            out.display()
         )
     })?;
     Ok(())
