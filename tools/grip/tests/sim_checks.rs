@@ -118,6 +118,8 @@ fn out_is_checked_first_and_an_earlier_runs_files_are_removed() {
         table.contains("no power limit (power_max not set), microphone at the driven wheel"),
         "{table}"
     );
+    // the paper's Table V is beside the reference scenario only
+    assert!(!table.contains("Table V"), "{table}");
     let o = grip()
         .args([
             "sim",
@@ -135,6 +137,8 @@ fn out_is_checked_first_and_an_earlier_runs_files_are_removed() {
     assert!(o.status.success(), "{o:?}");
     let err = stderr(&o);
     assert!(err.contains("removed 12 files"), "{err}");
+    let table = std::fs::read_to_string(dir.join("table.txt")).unwrap();
+    assert!(table.contains("beside the paper's Table V"), "{table}");
     assert_eq!(
         files(&dir),
         [
