@@ -63,7 +63,24 @@ impl ConfigError {
 
     /// The file could not be read.
     pub fn io(file: &Path, e: &std::io::Error) -> Self {
-        Self::new(file, "", format!("cannot read: {e}"))
+        // a file missing because its whole directory is: say so (a
+        // mistyped --config-dir, or a command run where there is no
+        // ./config), not only that the file is
+        let dir_missing = (e.kind() == std::io::ErrorKind::NotFound)
+            .then(|| file.parent())
+            .flatten()
+            .filter(|d| !d.as_os_str().is_empty() && !d.exists());
+        match dir_missing {
+            Some(d) => Self::new(
+                file,
+                "",
+                format!(
+                    "cannot read: {e}: the directory {} does not exist (the configuration directory is chosen with --config-dir; default ./config)",
+                    d.display()
+                ),
+            ),
+            None => Self::new(file, "", format!("cannot read: {e}")),
+        }
     }
 }
 
@@ -178,5 +195,26 @@ mod tests {
         );
         let e = ConfigError::new("a.toml", "", "cannot read: gone");
         assert_eq!(e.to_string(), "a.toml: cannot read: gone");
+        // a file whose directory is missing says so; one missing from a
+        // directory that exists does not
+        let d = tempfile::tempdir().unwrap();
+        let gone = d.path().join("nope").join("vehicle.toml");
+        let e = read_file(&gone).unwrap_err().to_string();
+        assert!(
+            e.contains("cannot read: ")
+                && e.contains(&format!(
+                    "the directory {} does not exist",
+                    d.path().join("nope").display()
+                ))
+                && e.contains("--config-dir"),
+            "{e}"
+        );
+        let e = read_file(&d.path().join("vehicle.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            !e.contains("does not exist") && !e.contains("--config-dir"),
+            "{e}"
+        );
     }
 }
