@@ -391,6 +391,18 @@ fn errors_say_their_reason_once_and_before_any_output() {
     assert_eq!(err.matches("No such file or directory").count(), 1, "{err}");
     assert!(err.contains(&missing.display().to_string()), "{err}");
 
+    // two paths, one a directory: named, with what A B takes (it said
+    // "reading DIR: Is a directory (os error 21)")
+    let (ok, so, err) = grip(&[os("inspect"), reference().as_os_str(), d.path().as_os_str()]);
+    assert!(!ok && so.is_empty());
+    assert!(
+        err.contains(&format!(
+            "{} is a directory: `grip inspect A B` compares two logs",
+            d.path().display()
+        )),
+        "{err}"
+    );
+
     // grip analyze: the road checked before the analysis is printed
     let (ok, so, err) = grip(&[os("analyze"), os("--src-nominal-road"), os("lava")]);
     assert!(!ok && err.contains("--src-nominal-road `lava`"), "{err}");

@@ -139,6 +139,13 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         return crate::drive::many::inspect_dir(ctx, dir, args.csv.as_deref(), args.strict);
     }
     if let [a, b] = args.logs.as_slice() {
+        // A B compares two logs; a directory here would be read as one
+        if let Some(d) = [a, b].into_iter().find(|p| p.is_dir()) {
+            anyhow::bail!(
+                "{} is a directory: `grip inspect A B` compares two logs; a directory of logs is inspected alone (`grip inspect DIR`), or with --json together with other logs and directories",
+                d.display()
+            );
+        }
         if args.csv.is_some() || args.plot.is_some() || args.candump.is_some() {
             anyhow::bail!(
                 "--csv, --plot and --candump take one log (got two: {} and {})",
