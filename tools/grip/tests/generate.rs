@@ -285,6 +285,22 @@ fn start_speed_and_demand_are_drawn_per_log_and_a_seed_repeats() {
     let text = |l: &DriveLog| format!("{:?}{:?}{:?}{:?}", l.cycles, l.roads, l.truth, l.can);
     assert!(!la.cycles.is_empty());
     assert!(text(&la) == text(&lb), "the same seed gave different logs");
+    // again into the same --out: refused before any log, naming it,
+    // unless --force (it replaced the log silently)
+    let before = std::fs::metadata(&f).unwrap().modified().unwrap();
+    let err = refused(a.path(), &args);
+    assert!(
+        err.contains(
+            "1 of the 1 logs it would write exists (gen-00000-s3.mcap); --force replaces them"
+        ),
+        "{err}"
+    );
+    assert_eq!(std::fs::metadata(&f).unwrap().modified().unwrap(), before);
+    let mut forced = args.to_vec();
+    forced.push("--force");
+    generate(a.path(), &forced);
+    let again = DriveLog::load(&f).unwrap();
+    assert!(text(&again) == text(&la), "--force wrote another drive");
 }
 
 #[test]

@@ -65,6 +65,10 @@ pub struct Args {
     /// Directory for the logs (created); files gen-NNNNN-sSEED.mcap.
     #[arg(long)]
     out: PathBuf,
+    /// Replace logs of those names that are already in --out (without it
+    /// they are refused before any log is generated).
+    #[arg(long)]
+    force: bool,
     /// How many logs.
     #[arg(long, default_value_t = 10)]
     count: usize,
@@ -135,6 +139,29 @@ fn parse_range(s: &str) -> Result<(f64, f64), String> {
         return Err(format!("{s}: LO must not exceed HI"));
     }
     Ok((a, b))
+}
+
+/// The logs `specs` would write that are already there, refused without
+/// `force` (as `grip train`, `grip dataset synth` and `grip inspect
+/// --csv/--plot` refuse to overwrite), naming them.
+fn refuse_existing(out: &Path, specs: &[LogSpec], force: bool) -> anyhow::Result<()> {
+    let there: Vec<String> = specs
+        .iter()
+        .filter(|s| s.file.exists())
+        .filter_map(|s| s.file.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .collect();
+    if force || there.is_empty() {
+        return Ok(());
+    }
+    let shown = there.iter().take(3).cloned().collect::<Vec<_>>().join(", ");
+    bail!(
+        "--out {}: {} of the {} logs it would write exist{} ({shown}{}); --force replaces them, or choose another --out",
+        out.display(),
+        there.len(),
+        specs.len(),
+        if there.len() == 1 { "s" } else { "" },
+        if there.len() > 3 { ", ..." } else { "" }
+    )
 }
 
 /// `--snr-db`: [`parse_range`] within the SNRs audio-acq accepts
@@ -288,6 +315,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     // every log's scenario as plant-sim will refuse it, naming the
     // caller's files, before any output
     check_scenarios(&ctx.config_dir, &specs)?;
+    refuse_existing(&args.out, &specs, args.force)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let t0 = Instant::now();
