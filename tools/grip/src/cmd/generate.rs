@@ -115,8 +115,8 @@ pub struct Args {
     /// start-up of a live drive: audio and estimates flow, the car waits).
     #[arg(long, default_value_t = 0.5)]
     hold_s: f64,
-    /// Logs generated in parallel (threads).
-    #[arg(long, default_value_t = 1)]
+    /// Logs generated in parallel (threads), at least 1.
+    #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     jobs: usize,
 }
 

@@ -49,8 +49,8 @@ pub struct Args {
     /// Overwrite existing `--out` files.
     #[arg(long)]
     force: bool,
-    /// With a directory of logs: replays run in parallel.
-    #[arg(long, default_value_t = 1)]
+    /// With a directory of logs: replays run in parallel (at least 1).
+    #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     jobs: usize,
     /// What if: tcs-loop runs this controller.
     #[arg(long, value_enum)]

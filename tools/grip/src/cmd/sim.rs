@@ -120,8 +120,8 @@ pub struct Args {
     /// Write the time series of every seed (default: the first seed only).
     #[arg(long)]
     all_traces: bool,
-    /// Worker threads (default: the number of CPUs).
-    #[arg(long)]
+    /// Worker threads, at least 1 (default: the number of CPUs).
+    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     threads: Option<usize>,
     /// Plant integration sub-step bound, s (default: the physics crate's 1e-4).
     #[arg(long)]
