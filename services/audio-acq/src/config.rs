@@ -46,6 +46,41 @@ pub struct AudioSection {
     pub sample_rate: u32,
     /// Samples per block (1..=`grip_msgs::AUDIO_MAX_SAMPLES`).
     pub block_samples: usize,
+    /// A bench or rig, where a source other than the microphone is meant:
+    /// only then does audio-acq run as a systemd unit on `synth` or `wav`
+    /// ([`check_source_under_systemd`]). Default `false`.
+    #[serde(default)]
+    pub bench: bool,
+}
+
+/// Under systemd (the car's deployment) only the microphone is a source,
+/// unless `[audio] bench = true`: a car left on the shipped `synth` source
+/// would publish silence (no plant-sim, no ground truth) with every unit
+/// `active (running)` and ARTE dead, as `can.toml`'s `transport = "auto"`
+/// is refused under systemd rather than fall back to a simulated bus.
+/// `source` is the effective one (after `--source`); the error names
+/// `file`'s `audio.source`.
+pub fn check_source_under_systemd(
+    file: &std::path::Path,
+    audio: &AudioSection,
+    under_systemd: bool,
+) -> Result<(), grip_config::ConfigError> {
+    if !under_systemd || audio.bench || audio.source == SourceKind::Alsa {
+        return Ok(());
+    }
+    Err(grip_config::ConfigError::new(
+        file,
+        "audio.source",
+        format!(
+            "\"{}\" under systemd: {}; a unit on the car listens to the microphone (source = \"alsa\"). On a bench or rig where this source is meant, set [audio] bench = true",
+            audio.source.name(),
+            match audio.source {
+                SourceKind::Synth =>
+                    "synthetic audio follows plant-sim's ground truth, which a car does not have (it would publish silence)",
+                _ => "a recording is not the road under the car",
+            }
+        ),
+    ))
 }
 
 /// `[alsa]`.
@@ -335,6 +370,34 @@ impl ServiceConfig for AcqConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Under systemd only the microphone, unless `[audio] bench`; outside
+    /// systemd (grip drive, a shell) any source.
+    #[test]
+    fn a_source_other_than_the_microphone_under_systemd_needs_bench() {
+        let f = std::path::Path::new("audio-acq.toml");
+        let mut a = AudioSection {
+            source: SourceKind::Synth,
+            sample_rate: 44_100,
+            block_samples: 1024,
+            bench: false,
+        };
+        check_source_under_systemd(f, &a, false).unwrap();
+        let e = check_source_under_systemd(f, &a, true).unwrap_err();
+        assert_eq!(e.field, "audio.source");
+        assert!(
+            e.to_string().contains("\"synth\" under systemd")
+                && e.to_string().contains("set [audio] bench = true"),
+            "{e}"
+        );
+        a.source = SourceKind::Wav;
+        assert!(check_source_under_systemd(f, &a, true).is_err());
+        a.bench = true;
+        check_source_under_systemd(f, &a, true).unwrap();
+        a.bench = false;
+        a.source = SourceKind::Alsa;
+        check_source_under_systemd(f, &a, true).unwrap();
+    }
 
     const GOOD: &str = r#"
 [audio]

@@ -103,6 +103,11 @@ fn resolve(dir: &Path, p: &Path) -> PathBuf {
 /// ends. Start-up errors are returned before `READY=1`.
 pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, AcqError> {
     let (file, cfg) = effective_config(opts)?;
+    crate::config::check_source_under_systemd(
+        &file,
+        &cfg.audio,
+        std::env::var_os("INVOCATION_ID").is_some(),
+    )?;
     let rate = cfg.audio.sample_rate;
     let block = cfg.audio.block_samples;
     tracing::info!(
