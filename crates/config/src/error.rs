@@ -75,14 +75,22 @@ impl ConfigError {
                 file,
                 "",
                 format!(
-                    "cannot read: {e}: the directory {} does not exist (the configuration directory is chosen with --config-dir; default ./config)",
-                    d.display()
+                    "cannot read: {e}: the directory {} does not exist (the configuration directory is chosen with --config-dir; default ./config{})",
+                    d.display(),
+                    if Path::new(INSTALLED).is_dir() {
+                        format!("; the installed package's is {INSTALLED}")
+                    } else {
+                        String::new()
+                    }
                 ),
             ),
             None => Self::new(file, "", format!("cannot read: {e}")),
         }
     }
 }
+
+/// Where the Debian package installs the configuration (`tools/package`).
+const INSTALLED: &str = "/etc/grip";
 
 /// Read `file` to a string, mapping I/O errors to [`ConfigError`].
 pub fn read_file(file: &Path) -> Result<String, ConfigError> {

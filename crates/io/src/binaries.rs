@@ -4,7 +4,11 @@
 //!
 //! `$GRIP_BIN_DIR` if set and not empty; otherwise the folder of the running
 //! executable, `target/<profile>/` for `grip` itself, and for a test binary
-//! (in `target/<profile>/deps/`) the `target/<profile>/` above it.
+//! (in `target/<profile>/deps/`) the `target/<profile>/` above it; and for
+//! the installed package's `/usr/bin/grip`, whose services are in
+//! `/usr/lib/grip/bin` (`tools/package`), that folder: `PREFIX/lib/grip/bin`
+//! beside an executable in `PREFIX/bin` when the services are there and not
+//! beside it.
 
 use std::path::{Path, PathBuf};
 
@@ -41,9 +45,24 @@ pub fn bin_dir() -> Result<BinDir, BinDirError> {
     }
     let exe = std::env::current_exe().map_err(BinDirError::CurrentExe)?;
     Ok(BinDir {
-        path: beside_exe(&exe)?,
+        path: packaged_or(beside_exe(&exe)?),
         from_env: false,
     })
+}
+
+/// A service binary, to tell where the services are.
+const A_SERVICE: &str = "tcs-loop";
+
+/// `beside` (the executable's folder), or for `PREFIX/bin` without the
+/// services the package's `PREFIX/lib/grip/bin` when they are there.
+fn packaged_or(beside: PathBuf) -> PathBuf {
+    if beside.join(A_SERVICE).exists() || beside.file_name().is_none_or(|n| n != "bin") {
+        return beside;
+    }
+    match beside.parent().map(|p| p.join("lib/grip/bin")) {
+        Some(lib) if lib.join(A_SERVICE).exists() => lib,
+        _ => beside,
+    }
 }
 
 /// The folder of `exe`, or its parent when that folder is `deps` (a test
@@ -64,6 +83,26 @@ fn beside_exe(exe: &Path) -> Result<PathBuf, BinDirError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The package's layout: /usr/bin/grip finds its services in
+    /// /usr/lib/grip/bin; services beside the executable win, and a
+    /// folder not named bin is kept.
+    #[test]
+    fn the_packages_grip_finds_its_services_in_lib_grip_bin() {
+        let d = tempfile::tempdir().unwrap();
+        let bin = d.path().join("usr/bin");
+        let lib = d.path().join("usr/lib/grip/bin");
+        std::fs::create_dir_all(&bin).unwrap();
+        std::fs::create_dir_all(&lib).unwrap();
+        assert_eq!(packaged_or(bin.clone()), bin, "no services anywhere");
+        std::fs::write(lib.join(A_SERVICE), "").unwrap();
+        assert_eq!(packaged_or(bin.clone()), lib);
+        std::fs::write(bin.join(A_SERVICE), "").unwrap();
+        assert_eq!(packaged_or(bin.clone()), bin, "beside the executable first");
+        let release = d.path().join("target/release");
+        std::fs::create_dir_all(&release).unwrap();
+        assert_eq!(packaged_or(release.clone()), release);
+    }
 
     #[test]
     fn binaries_and_test_binaries_map_to_the_profile_folder() {
