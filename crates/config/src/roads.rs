@@ -263,15 +263,74 @@ pub fn parse_roads(file: &Path, text: &str) -> Result<RoadCatalogue, ConfigError
     RoadCatalogue::new(roads).map_err(|e| ConfigError::invalid(file, "", e))
 }
 
-/// Load `config/roads.toml` (or any file of that shape).
+/// Load `config/roads.toml` (or any file of that shape); a road whose
+/// peak friction no tyre on a road reaches is said on stderr, once
+/// ([`implausible_peaks`]).
 pub fn load_roads(path: impl AsRef<Path>) -> Result<RoadCatalogue, ConfigError> {
     let path = path.as_ref();
-    parse_roads(path, &read_file(path)?)
+    let roads = parse_roads(path, &read_file(path)?)?;
+    // said once per road and peak whatever the path (grip generate reads
+    // each log's copy of the user's file after the file itself)
+    for (w, r) in implausible_peaks(path, &roads)
+        .iter()
+        .zip(roads.iter().filter(|r| r.mu_peak() > MU_PEAK_PLAUSIBLE))
+    {
+        crate::warn::warn_once_as(&format!("roads.mu_peak {} {}", r.name(), r.mu_peak()), w);
+    }
+    Ok(roads)
+}
+
+/// The highest peak friction coefficient a tyre on a road plausibly
+/// reaches (dry asphalt about 1.2, racing slicks up to about 1.8).
+pub const MU_PEAK_PLAUSIBLE: f64 = 2.0;
+
+/// One warning per road of `roads` (from `file`) whose μ_peak is above
+/// [`MU_PEAK_PLAUSIBLE`]: most likely a coefficient in the wrong unit or
+/// a typo (Burckhardt `c1 = 50` for 0.50 gives μ_peak 50), which lifts
+/// the road's torque cap as far. Kept a warning, not an error: a study
+/// may mean it.
+pub fn implausible_peaks(file: &Path, roads: &RoadCatalogue) -> Vec<String> {
+    roads
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.mu_peak() > MU_PEAK_PLAUSIBLE)
+        .map(|(i, r)| {
+            format!(
+                "warning: {}: road[{i}] ({}): mu_peak {} is above any tyre on a road (dry asphalt about 1.2, racing slicks up to about 1.8): a coefficient in the wrong unit or a typo? Every road-aware cap and target of this road follows it",
+                file.display(),
+                r.name(),
+                if r.mu_peak() < 1e4 {
+                    format!("{:.3}", r.mu_peak())
+                } else {
+                    format!("{:.3e}", r.mu_peak())
+                }
+            )
+        })
+        .collect()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A peak no tyre reaches (snow's c1 typed 50) is named; the shipped
+    /// catalogue has none.
+    #[test]
+    fn an_implausible_peak_is_named() {
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/roads.toml");
+        let roads = load_roads(&shipped).unwrap();
+        assert!(implausible_peaks(&shipped, &roads).is_empty());
+        let text = std::fs::read_to_string(&shipped).unwrap();
+        assert!(text.contains("c1 = 0.1946"), "snow's c1");
+        let typo = text.replacen("c1 = 0.1946", "c1 = 50", 1);
+        let roads = parse_roads(&shipped, &typo).unwrap();
+        let w = implausible_peaks(&shipped, &roads);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(
+            w[0].contains("(snow): mu_peak 49.99") && w[0].contains("roads.toml"),
+            "{w:?}"
+        );
+    }
 
     const GOOD: &str = r#"
 [[road]]
