@@ -391,6 +391,28 @@ fn errors_say_their_reason_once_and_before_any_output() {
     assert_eq!(err.matches("No such file or directory").count(), 1, "{err}");
     assert!(err.contains(&missing.display().to_string()), "{err}");
 
+    // options that do nothing where they are given are refused (they were
+    // ignored, exit 0)
+    for (args, want) in [
+        (
+            vec![reference().into_os_string(), "--strict".into()],
+            "--strict takes a directory of logs",
+        ),
+        (
+            vec![
+                d.path().as_os_str().to_owned(),
+                "--plot".into(),
+                d.path().join("p").into_os_string(),
+            ],
+            "--plot and --candump take one log",
+        ),
+    ] {
+        let mut a: Vec<&OsStr> = vec![os("inspect")];
+        a.extend(args.iter().map(|x| x.as_os_str()));
+        let (ok, _, err) = grip(&a);
+        assert!(!ok && err.contains(want), "{args:?}: {err}");
+    }
+
     // two paths, one a directory: named, with what A B takes (it said
     // "reading DIR: Is a directory (os error 21)")
     let (ok, so, err) = grip(&[os("inspect"), reference().as_os_str(), d.path().as_os_str()]);

@@ -133,10 +133,21 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     if let [dir] = args.logs.as_slice()
         && dir.is_dir()
     {
+        if args.plot.is_some() || args.candump.is_some() {
+            anyhow::bail!(
+                "{} is a directory of logs: --plot and --candump take one log (a directory gives its per-drive table; --csv writes it)",
+                dir.display()
+            );
+        }
         if let Some(f) = &args.csv {
             super::train::check_output_file("--csv", f, args.force)?;
         }
         return crate::drive::many::inspect_dir(ctx, dir, args.csv.as_deref(), args.strict);
+    }
+    if args.strict {
+        anyhow::bail!(
+            "--strict takes a directory of logs (or --json), where it fails the command on any bad log; it does nothing for one log or two"
+        );
     }
     if let [a, b] = args.logs.as_slice() {
         // A B compares two logs; a directory here would be read as one
@@ -153,6 +164,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
                 b.display()
             );
         }
+
         let (_, _, sa) = summary_of(ctx, a)?;
         let (_, _, sb) = summary_of(ctx, b)?;
         println!("{}", summary::compare(&sa, &sb));
