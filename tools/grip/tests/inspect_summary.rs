@@ -194,6 +194,19 @@ fn a_replay_log_is_recognised_and_compares_with_its_drive() {
     );
     assert!(!out.contains("the recorder did not finish"), "{out}");
     assert!(!out.contains("WARNING"), "{out}");
+    // replayed again it would run the source drive's configuration, not
+    // the what-if it ran: refused, naming the source (it reported a
+    // divergence)
+    let (ok, out, err) = common::output(&["replay".as_ref(), rep.as_os_str()]);
+    assert!(!ok, "{out}{err}");
+    assert!(
+        err.contains("the output of `grip replay`")
+            && err.contains(&format!(
+                "replay the source drive {}",
+                reference().display()
+            )),
+        "{err}"
+    );
 
     let (ok, out, err) =
         common::output(&["inspect".as_ref(), reference().as_os_str(), rep.as_os_str()]);

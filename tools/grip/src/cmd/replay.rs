@@ -533,6 +533,32 @@ pub fn replay(
     if log.cycles.is_empty() {
         bail!("{}: no cycle records: nothing to replay", path.display());
     }
+    // a replay's output carries the source drive's configuration
+    // (grip.run) beside the what-if it ran (grip.replay): replayed, it
+    // would run the source's settings and report their difference as a
+    // divergence
+    if let Some(r) = grip_drive::summary::replay_of(&log) {
+        let ran = [
+            r.controller.as_deref().map(|c| format!("controller {c}")),
+            r.arte.as_deref().map(|a| format!("ARTE {a}")),
+            (!r.changes.is_empty()).then(|| format!("changes: {}", r.changes)),
+        ]
+        .into_iter()
+        .flatten()
+        .collect::<Vec<_>>()
+        .join("; ");
+        bail!(
+            "{}: the output of `grip replay`, a {}{}: a replay runs a log's recorded configuration, which here is the source drive's, not the what-if it ran; replay the source drive {} with the same options instead",
+            path.display(),
+            r.headline(),
+            if ran.is_empty() {
+                String::new()
+            } else {
+                format!(" ({ran})")
+            },
+            r.source
+        );
+    }
     let t_load = t0.elapsed().as_secs_f64();
     let cfg: ReplayConfig = crate::replay::config::prepare(&log, what)?;
     let config = ConfigArgs::in_dir(&cfg.dir);
