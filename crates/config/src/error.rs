@@ -75,7 +75,7 @@ impl ConfigError {
                 file,
                 "",
                 format!(
-                    "cannot read: {e}: the directory {} does not exist (the configuration directory is chosen with --config-dir; default ./config{})",
+                    "cannot read: {e}: the directory {} does not exist (if it is meant as the configuration directory: that is chosen with --config-dir, default ./config{})",
                     d.display(),
                     if Path::new(INSTALLED).is_dir() {
                         format!("; the installed package's is {INSTALLED}")

@@ -416,6 +416,11 @@ impl Proc {
             .env("NO_COLOR", "1")
             .env_remove("WATCHDOG_USEC")
             .env_remove("WATCHDOG_PID")
+            // not a systemd unit, even when grip drive runs inside one (a
+            // CI runner's service, systemd-run): the services' unit-only
+            // rules (can.toml's auto transport, audio-acq's microphone)
+            // read this
+            .env_remove("INVOCATION_ID")
             .envs(spec.env.iter().map(|(k, v)| (k, v)))
             .stdin(Stdio::null())
             .process_group(0);

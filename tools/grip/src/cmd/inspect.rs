@@ -144,7 +144,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         }
         return crate::drive::many::inspect_dir(ctx, dir, args.csv.as_deref(), args.strict);
     }
-    if args.strict {
+    if args.strict && args.logs.iter().all(|p| p.exists()) {
         anyhow::bail!(
             "--strict takes a directory of logs (or --json), where it fails the command on any bad log; it does nothing for one log or two"
         );

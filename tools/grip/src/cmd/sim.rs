@@ -753,7 +753,12 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     // Table V is the paper's reference run: beside ours on our statement
     // of it (config/scenarios/paper.toml) only, not beside a scenario of
     // the user's or a random one, whose figures it says nothing about
-    if per_seed.is_empty() && sc.name == "paper" {
+    let canon = |p: &Path| std::fs::canonicalize(p).ok();
+    let reference = ConfigDir::new(&ctx.config_dir).scenario_path("paper");
+    if per_seed.is_empty()
+        && canon(&loaded.scenario_path).is_some()
+        && canon(&loaded.scenario_path) == canon(&reference)
+    {
         out.push_str("\nOurs (means) beside the paper's Table V (its scenario is not published; ours is documented above):\n");
         out.push_str(&format_paper_comparison(&summaries));
     }

@@ -27,7 +27,7 @@ pub struct RunRecord {
     pub scenario: String,
     /// The ARTE source as the report names it.
     pub arte_source: String,
-    /// The seeds, as ranges (`1..=20`).
+    /// The seeds, as ranges (`1-20`).
     pub seeds: String,
     /// Files named on the command line (vehicle, scenario, ARTE
     /// configuration, model): hashed too when outside the configuration
@@ -39,22 +39,25 @@ impl RunRecord {
     /// The record's text: TOML with a comment saying what it is. Files
     /// that cannot be read are listed with the reason instead of a hash.
     pub fn to_toml(&self) -> String {
-        let mut files: BTreeMap<String, String> = BTreeMap::new();
-        let mut hash = |path: &Path| {
-            let v = match std::fs::read(path) {
-                Ok(b) => grip_digest::sha256_hex(&b),
-                Err(e) => format!("unreadable: {e}"),
-            };
-            files.insert(path.display().to_string(), v);
+        let hash = |path: &Path| match std::fs::read(path) {
+            Ok(b) => grip_digest::sha256_hex(&b),
+            Err(e) => format!("unreadable: {e}"),
         };
-        for f in grip_recorder::config_files(&self.config_dir) {
-            hash(&f.path);
-        }
-        for p in &self.named_files {
-            if p.is_file() && !p.starts_with(&self.config_dir) {
-                hash(p);
-            }
-        }
+        // keyed by the name in the directory, as a drive log records
+        // them, so that `config`, `./config` or an absolute path give the
+        // same keys
+        let files: BTreeMap<String, String> = grip_recorder::config_files(&self.config_dir)
+            .into_iter()
+            .map(|f| (f.name, hash(&f.path)))
+            .collect();
+        let canon = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_owned());
+        let dir = canon(&self.config_dir);
+        let outside: BTreeMap<String, String> = self
+            .named_files
+            .iter()
+            .filter(|p| p.is_file() && !canon(p).starts_with(&dir))
+            .map(|p| (p.display().to_string(), hash(p)))
+            .collect();
         let mut t = toml::Table::new();
         let s = |v: &str| toml::Value::String(v.to_owned());
         t.insert("grip_version".into(), s(env!("CARGO_PKG_VERSION")));
@@ -72,15 +75,19 @@ impl RunRecord {
         t.insert("scenario".into(), s(&self.scenario));
         t.insert("arte_source".into(), s(&self.arte_source));
         t.insert("seeds".into(), s(&self.seeds));
-        t.insert(
-            "sha256".into(),
-            toml::Value::Table(files.into_iter().map(|(k, v)| (k, s(&v))).collect()),
-        );
+        let table = |m: BTreeMap<String, String>| {
+            toml::Value::Table(m.into_iter().map(|(k, v)| (k, s(&v))).collect())
+        };
+        t.insert("sha256".into(), table(files));
+        if !outside.is_empty() {
+            t.insert("sha256_outside_config_dir".into(), table(outside));
+        }
         format!(
             "# What the figures in this directory came from: written by `grip sim --out`.\n\
              # grip sim is deterministic: the same build (git_revision), command and files\n\
-             # (sha256: the configuration directory's files, as a drive's MCAP log records\n\
-             # them, and the files named on the command line from outside it) give the same figures.\n{}",
+             # (sha256: the configuration directory's files by their names in it, as a drive's\n\
+             # MCAP log records them; sha256_outside_config_dir: the files named on the command\n\
+             # line from outside it) give the same figures.\n{}",
             toml::to_string(&t).unwrap_or_else(|e| format!("# not written: {e}\n"))
         )
     }
@@ -130,19 +137,23 @@ mod tests {
         assert_eq!(t["command"].as_array().unwrap().len(), 3);
         assert_eq!(t["git_revision"].as_str(), Some(grip_recorder::GIT_REV));
         let sha = t["sha256"].as_table().unwrap();
-        assert_eq!(sha.len(), 4, "{sha:?}");
-        let key = cfg.join("controllers.toml").display().to_string();
-        let before = sha[&key].as_str().unwrap().to_owned();
+        assert_eq!(sha.len(), 3, "{sha:?}");
+        let key = "controllers.toml";
+        let before = sha[key].as_str().unwrap().to_owned();
         assert_eq!(before.len(), 64);
-        assert!(sha.contains_key(&own.display().to_string()));
+        let outside = t["sha256_outside_config_dir"].as_table().unwrap();
+        assert_eq!(outside.len(), 1, "{outside:?}");
+        assert!(outside.contains_key(&own.display().to_string()));
+        // the same directory named another way: the same keys
+        let other = toml::from_str::<toml::Table>(&rec(&cfg.join(".")).to_toml()).unwrap();
+        assert_eq!(other["sha256"], t["sha256"]);
         // one byte more in controllers.toml: another hash, the others kept
         let mut text = std::fs::read_to_string(cfg.join("controllers.toml")).unwrap();
         text.push('\n');
         std::fs::write(cfg.join("controllers.toml"), text).unwrap();
         let t2: toml::Table = toml::from_str(&rec(&cfg).to_toml()).unwrap();
         let sha2 = t2["sha256"].as_table().unwrap();
-        assert_ne!(sha2[&key].as_str().unwrap(), before);
-        let vkey = cfg.join("vehicle.toml").display().to_string();
-        assert_eq!(sha2[&vkey], sha[&vkey]);
+        assert_ne!(sha2[key].as_str().unwrap(), before);
+        assert_eq!(sha2["vehicle.toml"], sha["vehicle.toml"]);
     }
 }
