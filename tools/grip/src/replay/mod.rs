@@ -627,7 +627,8 @@ pub fn taken_per_cycle(log: &DriveLog) -> Taken {
 /// Writes a log with the same topics: the replayed cycles, CAN log and
 /// road estimates, `truth` (the logged or the re-simulated) and the logged
 /// audio; `grip.run` and the
-/// attachments copied, `replay` as the `grip.replay` metadata record.
+/// attachments copied, `replay` as the `grip.replay` metadata record (none
+/// when it is empty).
 pub fn write_log(
     path: &Path,
     log: &DriveLog,
@@ -644,7 +645,12 @@ pub fn write_log(
             w.write_metadata(name, map)?;
         }
     }
-    w.write_metadata("grip.replay", replay)?;
+    // an empty record would mark a rewritten log (a test's fixture) as a
+    // replay's output, which `grip replay` refuses; a replay always has
+    // its source and mode
+    if !replay.is_empty() {
+        w.write_metadata("grip.replay", replay)?;
+    }
     for (name, data) in &log.attachments {
         w.attach_bytes(name, "application/octet-stream", data)?;
     }
