@@ -271,11 +271,11 @@ pub fn load_roads(path: impl AsRef<Path>) -> Result<RoadCatalogue, ConfigError> 
     let roads = parse_roads(path, &read_file(path)?)?;
     // said once per road and peak whatever the path (grip generate reads
     // each log's copy of the user's file after the file itself)
-    for (w, r) in implausible_peaks(path, &roads)
-        .iter()
-        .zip(roads.iter().filter(|r| r.mu_peak() > MU_PEAK_PLAUSIBLE))
-    {
-        crate::warn::warn_once_as(&format!("roads.mu_peak {} {}", r.name(), r.mu_peak()), w);
+    for (i, r) in implausible(&roads) {
+        crate::warn::warn_once_as(
+            &format!("roads.mu_peak {} {}", r.name(), r.mu_peak()),
+            &implausible_line(path, i, r),
+        );
     }
     Ok(roads)
 }
@@ -290,23 +290,31 @@ pub const MU_PEAK_PLAUSIBLE: f64 = 2.0;
 /// the road's torque cap as far. Kept a warning, not an error: a study
 /// may mean it.
 pub fn implausible_peaks(file: &Path, roads: &RoadCatalogue) -> Vec<String> {
+    implausible(roads)
+        .map(|(i, r)| implausible_line(file, i, r))
+        .collect()
+}
+
+/// The roads of `roads` (with their index) above [`MU_PEAK_PLAUSIBLE`].
+fn implausible(roads: &RoadCatalogue) -> impl Iterator<Item = (usize, &grip_physics::Road)> {
     roads
         .iter()
         .enumerate()
         .filter(|(_, r)| r.mu_peak() > MU_PEAK_PLAUSIBLE)
-        .map(|(i, r)| {
-            format!(
-                "warning: {}: road[{i}] ({}): mu_peak {} is above any tyre on a road (dry asphalt about 1.2, racing slicks up to about 1.8): a coefficient in the wrong unit or a typo? Every road-aware cap and target of this road follows it",
-                file.display(),
-                r.name(),
-                if r.mu_peak() < 1e4 {
-                    format!("{:.3}", r.mu_peak())
-                } else {
-                    format!("{:.3e}", r.mu_peak())
-                }
-            )
-        })
-        .collect()
+}
+
+/// The warning for road `i` (`r`) of `file`.
+fn implausible_line(file: &Path, i: usize, r: &grip_physics::Road) -> String {
+    format!(
+        "warning: {}: road[{i}] ({}): mu_peak {} is above any tyre on a road (dry asphalt about 1.2, racing slicks up to about 1.8): a coefficient in the wrong unit or a typo? Every road-aware cap and target of this road follows it",
+        file.display(),
+        r.name(),
+        if r.mu_peak() < 1e4 {
+            format!("{:.3}", r.mu_peak())
+        } else {
+            format!("{:.3e}", r.mu_peak())
+        }
+    )
 }
 
 #[cfg(test)]
