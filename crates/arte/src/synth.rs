@@ -114,6 +114,10 @@ pub enum SynthError {
     },
 }
 
+/// The limits of a noise level `snr_db`, dB: the one range the synthesiser,
+/// audio-acq's `[synth.noise]` and the `--snr-db` of `grip` accept.
+pub const SNR_LIMITS_DB: std::ops::RangeInclusive<f64> = -30.0..=80.0;
+
 impl SynthConfig {
     /// Checks ranges (NaN fails).
     pub fn validate(&self) -> Result<(), SynthError> {
@@ -124,11 +128,16 @@ impl SynthConfig {
             });
         }
         if let Some(n) = &self.noise
-            && !(n.snr_db >= -30.0 && n.snr_db <= 80.0)
+            && !SNR_LIMITS_DB.contains(&n.snr_db)
         {
             return Err(SynthError::InvalidConfig {
                 field: "noise.snr_db",
-                reason: format!("{} dB is outside -30..=80", n.snr_db),
+                reason: format!(
+                    "{} dB is outside {}..={}",
+                    n.snr_db,
+                    SNR_LIMITS_DB.start(),
+                    SNR_LIMITS_DB.end()
+                ),
             });
         }
         Ok(())

@@ -206,7 +206,7 @@ pub struct RunsOn<'a> {
 /// and, for a demand above the motor limit, the vehicle file.
 pub fn check_scenario(file: &Path, scenario: &Scenario, on: RunsOn) -> Result<usize, ConfigError> {
     let cycles = scenario.check_for(on.vehicle, on.dt).map_err(|e| {
-        let limit = e.reason.contains("motor limit");
+        let limit = e.reason.contains(grip_physics::Demand::ABOVE_MOTOR_LIMIT);
         let mut e = ConfigError::invalid(file, "", e);
         if limit {
             e.reason

@@ -320,6 +320,11 @@ impl Demand {
         }
     }
 
+    /// The words of [`Demand::check_limit`]'s reason, by which a reader of
+    /// the error (which carries no kind) tells the motor's limit from the
+    /// demand's other faults, to name the vehicle file beside the scenario.
+    pub const ABOVE_MOTOR_LIMIT: &'static str = "is above the motor limit";
+
     /// Every torque of the profile within the motor's limit `torque_max`
     /// (N m): the plant clamps the command there, so a larger demand would
     /// drive the motor at its limit while the controllers and the
@@ -331,8 +336,9 @@ impl Demand {
                 Err(InvalidField::new(
                     field,
                     format!(
-                        "{} N m is above the motor limit, the vehicle's torque_max = {} N m (the plant would clamp the command there while the controllers and the command's metrics see the demand)",
+                        "{} N m {}, the vehicle's torque_max = {} N m (the plant would clamp the command there while the controllers and the command's metrics see the demand)",
                         shown(value),
+                        Self::ABOVE_MOTOR_LIMIT,
                         shown(torque_max)
                     ),
                 ))

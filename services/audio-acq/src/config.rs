@@ -355,11 +355,17 @@ impl ServiceConfig for AcqConfig {
             );
         }
         if let Some(n) = &s.noise
-            && !(-30.0..=80.0).contains(&n.snr_db)
+            && !grip_arte::synth::SNR_LIMITS_DB.contains(&n.snr_db)
         {
+            let limits = grip_arte::synth::SNR_LIMITS_DB;
             return bad(
                 "synth.noise.snr_db",
-                format!("{} dB is outside -30..=80", n.snr_db),
+                format!(
+                    "{} dB is outside {}..={}",
+                    n.snr_db,
+                    limits.start(),
+                    limits.end()
+                ),
             );
         }
         s.resolved_aliases(file)?;

@@ -18,6 +18,22 @@ fn sim(args: &[&str]) -> Output {
     grip().arg("sim").args(args).output().unwrap()
 }
 
+/// `grip sim` of MTTE alone on `seeds` seeds of `scenario` (a name or a file).
+fn mtte_on(seeds: u32, scenario: impl AsRef<std::ffi::OsStr>) -> Output {
+    grip()
+        .args([
+            "sim",
+            "--seeds",
+            &seeds.to_string(),
+            "--variants",
+            "mtte",
+            "--scenario",
+        ])
+        .arg(scenario)
+        .output()
+        .unwrap()
+}
+
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -410,14 +426,7 @@ fn what_lies_after_a_scenario_s_end_is_said() {
         "s1.toml",
         &format!("{time}[[segment]]\nroad = \"ice\"\nduration = 2.0\n"),
     );
-    let o = sim(&[
-        "--seeds",
-        "2",
-        "--variants",
-        "mtte",
-        "--scenario",
-        s1.to_str().unwrap(),
-    ]);
+    let o = mtte_on(2, &s1);
     assert!(o.status.success(), "{o:?}");
     let err = stderr(&o);
     let line = format!(
@@ -435,14 +444,7 @@ fn what_lies_after_a_scenario_s_end_is_said() {
             "duration = 0.5\n[[segment]]\nroad = \"snow\"\nduration = 5.0",
         ),
     );
-    let o = sim(&[
-        "--seeds",
-        "1",
-        "--variants",
-        "mtte",
-        "--scenario",
-        s4.to_str().unwrap(),
-    ]);
+    let o = mtte_on(1, &s4);
     assert!(o.status.success(), "{o:?}");
     let err = stderr(&o);
     assert!(LATE_WORDS.iter().all(|w| !err.contains(w)), "{err}");
@@ -453,14 +455,7 @@ fn what_lies_after_a_scenario_s_end_is_said() {
         "s2.toml",
         "segments_by = \"distance\"\nduration = 1.0\n[[segment]]\nroad = \"asphalt\"\nlength = 2.0\n[[segment]]\nroad = \"snow\"\nlength = 50.0\n[[segment]]\nroad = \"ice\"\nlength = 100.0\n",
     );
-    let o = sim(&[
-        "--seeds",
-        "2",
-        "--variants",
-        "mtte",
-        "--scenario",
-        s2.to_str().unwrap(),
-    ]);
+    let o = mtte_on(2, &s2);
     assert!(o.status.success(), "{o:?}");
     let err = stderr(&o);
     assert!(
@@ -482,14 +477,7 @@ fn what_lies_after_a_scenario_s_end_is_said() {
         "s3.toml",
         "segments_by = \"time\"\n[demand]\nkind = \"ramp\"\nfrom = 0\nto = 300\nstart = 5\nduration = 1\n[[segment]]\nroad = \"asphalt\"\nduration = 1\n",
     );
-    let err = refused(&sim(&[
-        "--seeds",
-        "1",
-        "--variants",
-        "mtte",
-        "--scenario",
-        s3.to_str().unwrap(),
-    ]));
+    let err = refused(&mtte_on(1, &s3));
     assert!(
         err.contains(&format!("{}: field `scenario.demand.start`: the driver first asks for torque at 5 s, at or after the end of the run (duration = 1 s", s3.display())),
         "{err}"
@@ -510,7 +498,7 @@ fn the_shipped_scenarios_and_random_ones_have_nothing_after_their_end() {
     assert!(names.len() >= 3, "{names:?}");
     names.push("random".to_owned());
     for n in &names {
-        let o = sim(&["--seeds", "2", "--variants", "mtte", "--scenario", n]);
+        let o = mtte_on(2, n);
         assert!(o.status.success(), "{n}: {o:?}");
         let all = format!("{}{}", stderr(&o), String::from_utf8_lossy(&o.stdout));
         assert!(LATE_WORDS.iter().all(|w| !all.contains(w)), "{n}: {all}");

@@ -116,7 +116,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0.5)]
     hold_s: f64,
     /// Logs generated in parallel (threads), at least 1.
-    #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    #[arg(long, default_value_t = 1, value_parser = super::at_least_one())]
     jobs: usize,
 }
 

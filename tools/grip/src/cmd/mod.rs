@@ -23,3 +23,9 @@ pub struct Ctx {
     /// then uses it instead of the log's configuration).
     pub config_dir_given: bool,
 }
+
+/// The value parser of a count of workers (`--threads`, `--jobs`): a
+/// whole number of at least 1, refused by clap otherwise (0 used to run 1).
+pub fn at_least_one() -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::<usize>::new().range(1..)
+}

@@ -50,7 +50,7 @@ pub struct Args {
     #[arg(long)]
     force: bool,
     /// With a directory of logs: replays run in parallel (at least 1).
-    #[arg(long, default_value_t = 1, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    #[arg(long, default_value_t = 1, value_parser = super::at_least_one())]
     jobs: usize,
     /// What if: tcs-loop runs this controller.
     #[arg(long, value_enum)]

@@ -121,7 +121,7 @@ pub struct Args {
     #[arg(long)]
     all_traces: bool,
     /// Worker threads, at least 1 (default: the number of CPUs).
-    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    #[arg(long, value_parser = super::at_least_one())]
     threads: Option<usize>,
     /// Plant integration sub-step bound, s (default: the physics crate's 1e-4).
     #[arg(long)]
@@ -261,7 +261,10 @@ pub fn load(
     let spec = &spec.clone().sized_for(&vehicle, &roads);
     // A demand above the motor's limit is the vehicle file's business too.
     let with_vehicle = |e: &grip_sim::SimError| {
-        if e.field().starts_with("scenario.demand") && e.to_string().contains("motor limit") {
+        if e.field().starts_with("scenario.demand")
+            && e.to_string()
+                .contains(grip_physics::Demand::ABOVE_MOTOR_LIMIT)
+        {
             format!(" (vehicle file {})", vehicle_path.display())
         } else {
             String::new()
@@ -997,15 +1000,22 @@ struct Beyond {
     unit: &'static str,
 }
 
-fn beyond_roads<'s>(results: &[RunResult], setup_of: &dyn Fn(u64) -> &'s SimSetup) -> Beyond {
+/// The variants of `results` that `keep` accepts, each once, in the order
+/// of their first run.
+fn variants_in_order(results: &[RunResult], keep: impl Fn(&Variant) -> bool) -> Vec<Variant> {
     let mut variants: Vec<Variant> = Vec::new();
-    let mut runs = 0;
-    let mut lines = Vec::new();
     for r in results {
-        if !variants.contains(&r.variant) {
+        if keep(&r.variant) && !variants.contains(&r.variant) {
             variants.push(r.variant);
         }
     }
+    variants
+}
+
+fn beyond_roads<'s>(results: &[RunResult], setup_of: &dyn Fn(u64) -> &'s SimSetup) -> Beyond {
+    let variants = variants_in_order(results, |_| true);
+    let mut runs = 0;
+    let mut lines = Vec::new();
     let mut worst: f64 = 0.0;
     let mut unit = "m";
     for v in variants {
@@ -1083,12 +1093,7 @@ fn unreached_roads<'s>(
     setup_of: &dyn Fn(u64) -> &'s SimSetup,
     file: &Path,
 ) -> Unreached {
-    let mut variants: Vec<Variant> = Vec::new();
-    for r in results {
-        if !variants.contains(&r.variant) {
-            variants.push(r.variant);
-        }
-    }
+    let variants = variants_in_order(results, |_| true);
     let mut lines = Vec::new();
     let mut parts = Vec::new();
     let mut runs = 0;
@@ -1529,12 +1534,7 @@ fn format_inloop(
     results: &[RunResult],
     stats: &[Option<InLoopStats>],
 ) -> String {
-    let mut variants: Vec<Variant> = Vec::new();
-    for r in results {
-        if r.variant.arte && !variants.contains(&r.variant) {
-            variants.push(r.variant);
-        }
-    }
+    let variants = variants_in_order(results, |v| v.arte);
     if variants.is_empty() {
         return String::new();
     }

@@ -18,8 +18,8 @@ pub enum Snr {
     Range(f64, f64),
 }
 
-/// The limits of every level, dB.
-pub const SNR_LIMITS_DB: std::ops::RangeInclusive<f64> = -30.0..=80.0;
+/// The limits of every level, dB (the synthesiser's own).
+pub use grip_arte::synth::SNR_LIMITS_DB;
 
 /// Parses `--snr-db` (clap value parser; clap adds the option's name to
 /// the error).
