@@ -295,6 +295,12 @@ pub struct ArteEval {
     /// Cycles in the scenario window out of safe state (without one: in
     /// the driver-demand window).
     pub active_cycles: u64,
+    /// Of `active_cycles`, those whose command road knowledge's torque cap
+    /// held below the driver's demand ([`cap_binding`]): where ARTE's
+    /// knowledge acted on the torque, whether or not the cycle's
+    /// `used_arte` (the newest estimate passing the loop's age and
+    /// confidence gate) was set.
+    pub capped_cycles: u64,
     /// `used_cycles` and `active_cycles` count the driver-demand window of
     /// [`Measured`] (the log has no scenario window: a car's log).
     pub used_in_demand_window: bool,
@@ -455,6 +461,9 @@ pub struct Summary {
     /// the first cycle in the window with the driver's demand
     /// (`cmd_from_s`).
     pub metrics: Option<Metrics>,
+    /// The largest true |λ| over the scenario window and when, s from the
+    /// scenario start (None: no window).
+    pub max_slip: Option<(f64, f64)>,
     /// Where the command's figures of `metrics` start, s from the scenario
     /// start: the first cycle record in the window whose demand is above
     /// [`measured::DEMAND_MIN_NM`] (None: no such cycle, no command
@@ -498,6 +507,9 @@ pub struct Summary {
     /// What the torque did before each change of the road under the driven
     /// wheel to one that carries less (None: no road catalogue).
     pub preview: Option<Vec<PreviewEvent>>,
+    /// What the torque did after each change of the road under the driven
+    /// wheel to one that carries more (None: no road catalogue).
+    pub releases: Option<Vec<ReleaseEvent>>,
     /// The model arte ran ([`model_of`]; None: the log does not say).
     pub model: Option<ModelInfo>,
     /// Where arte's audio came from ([`audio_of`]: the attached
@@ -801,6 +813,17 @@ pub struct PreviewEvent {
 /// (the CAN signal's resolution is 0.1 N m).
 const LIMIT_TOL_NM: f64 = 0.2;
 
+/// Whether road knowledge's torque cap bound the command of cycle `c`:
+/// a finite `torque_cap` below the driver's demand, and the command at or
+/// below it (within the CAN signal's resolution). An ARTE-off drive logs
+/// no cap, so never.
+pub fn cap_binding(c: &CycleRecord) -> bool {
+    c.torque_cap.is_finite()
+        && c.demand.is_finite()
+        && c.torque_cap < c.demand - LIMIT_TOL_NM
+        && c.torque_cmd <= c.torque_cap + LIMIT_TOL_NM
+}
+
 /// The catalogue's road of a truth sample's road under the wheel, by name
 /// (by index only when the sample carries no name).
 fn road_of<'a>(
@@ -894,6 +917,158 @@ fn preview_events(
         });
     }
     (out, missing)
+}
+
+/// The driven wheel reaching a road that carries more than the one it
+/// left (`grip inspect`'s "release" lines): how long the command stayed
+/// at or below what the previous road transmits after the wheel arrived,
+/// i.e. what a cap held for the old road cost on the new one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReleaseEvent {
+    /// When the wheel reached the new road, s from the scenario start.
+    pub t: f64,
+    /// Where (the plant's x), m.
+    pub x: f64,
+    /// The road it left.
+    pub from: String,
+    /// The new road.
+    pub to: String,
+    /// What the road it left transmits, μ_peak · N · r, N m.
+    pub old_limit: f64,
+    /// The driver's demand in the cycle in force at arrival, N m.
+    pub demand_at_arrival: f64,
+    /// The command in force at arrival, N m.
+    pub cmd_at_arrival: f64,
+    /// What happened to the command after arrival.
+    pub after: Release,
+    /// ∫ (demand − command)⁺ dt over the 0.2 s after arrival, N m s: the
+    /// torque withheld on the new road.
+    pub withheld_nms: f64,
+}
+
+/// How the command left the previous road's limit ([`ReleaseEvent`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Release {
+    /// The demand was within the previous road's limit: nothing to release.
+    NotNeeded,
+    /// The command was already above the previous road's limit when the
+    /// wheel arrived.
+    AlreadyAbove,
+    /// It rose above the limit this long (s) and far (m) after the wheel
+    /// arrived.
+    After(f64, f64),
+    /// It stayed at or below the limit until this long (s) after arrival,
+    /// when the next road change or the window's end came.
+    Held(f64),
+}
+
+/// Release events over the truth samples `truth[i0..=i1]` (see
+/// [`ReleaseEvent`]; roads the catalogue lacks are left out, as
+/// [`preview_events`] reports them).
+fn release_events(
+    log: &DriveLog,
+    i0: usize,
+    i1: usize,
+    roads: &RoadCatalogue,
+    vehicle: &VehicleParams,
+) -> Vec<ReleaseEvent> {
+    let nr = vehicle.normal_force() * vehicle.r;
+    let start_ns = log.truth[i0].stamp_ns;
+    let end_ns = log.truth[i1].stamp_ns;
+    let mut changes: Vec<usize> = (i0 + 1..=i1)
+        .filter(|&k| {
+            let (a, b) = (&log.truth[k - 1], &log.truth[k]);
+            a.road_index != b.road_index || a.road_name != b.road_name
+        })
+        .collect();
+    changes.push(usize::MAX);
+    let mut out = Vec::new();
+    for w in changes.windows(2) {
+        let (k, next) = (w[0], w[1]);
+        let (a, b) = (&log.truth[k - 1], &log.truth[k]);
+        let (Ok(ra), Ok(rb)) = (road_of(roads, a), road_of(roads, b)) else {
+            continue;
+        };
+        if rb.mu_peak() <= ra.mu_peak() {
+            continue;
+        }
+        let old_limit = ra.mu_peak() * nr;
+        let tc = b.stamp_ns;
+        let until = log.truth.get(next).map_or(end_ns, |g| g.stamp_ns);
+        let upto = log.cycles.partition_point(|c| c.stamp_ns <= tc);
+        let Some(at) = upto.checked_sub(1).map(|i| &log.cycles[i]) else {
+            continue;
+        };
+        let above = |c: &CycleRecord| c.torque_cmd > old_limit + LIMIT_TOL_NM;
+        let after = if at.demand.is_nan() || at.demand <= old_limit + LIMIT_TOL_NM {
+            Release::NotNeeded
+        } else if above(at) {
+            Release::AlreadyAbove
+        } else {
+            match log.cycles[upto..]
+                .iter()
+                .take_while(|c| c.stamp_ns < until)
+                .find(|c| above(c))
+            {
+                Some(c) => {
+                    let x_then = truth_at(&log.truth, c.stamp_ns).map_or(b.x, |g| g.x);
+                    Release::After(secs_between(tc, c.stamp_ns), x_then - b.x)
+                }
+                None => Release::Held(secs_between(tc, until)),
+            }
+        };
+        // the command in force from arrival over the next 0.2 s
+        let t_end = tc.saturating_add(200_000_000);
+        let mut withheld = 0.0;
+        let mut prev = (tc, at);
+        for c in log.cycles[upto..].iter().take_while(|c| c.stamp_ns < t_end) {
+            withheld +=
+                (prev.1.demand - prev.1.torque_cmd).max(0.0) * secs_between(prev.0, c.stamp_ns);
+            prev = (c.stamp_ns, c);
+        }
+        withheld += (prev.1.demand - prev.1.torque_cmd).max(0.0) * secs_between(prev.0, t_end);
+        out.push(ReleaseEvent {
+            t: secs_between(start_ns, tc),
+            x: b.x,
+            from: ra.name().to_owned(),
+            to: rb.name().to_owned(),
+            old_limit,
+            demand_at_arrival: at.demand,
+            cmd_at_arrival: at.torque_cmd,
+            after,
+            withheld_nms: withheld,
+        });
+    }
+    out
+}
+
+impl ReleaseEvent {
+    /// One line of the report.
+    pub fn line(&self) -> String {
+        let head = format!(
+            "{} -> {} at {:.3} s (x {:.2} m), {}'s limit {:.1} N m, demand {:.1} N m:",
+            self.from, self.to, self.t, self.x, self.from, self.old_limit, self.demand_at_arrival
+        );
+        let what = match self.after {
+            Release::NotNeeded => "the demand was within it: nothing to release".to_owned(),
+            Release::AlreadyAbove => format!(
+                "command already above it when the wheel arrived ({:.1} N m)",
+                self.cmd_at_arrival
+            ),
+            Release::After(s, m) => format!(
+                "command rose above it {s:.3} s / {m:.2} m after the wheel arrived (at arrival {:.1} N m)",
+                self.cmd_at_arrival
+            ),
+            Release::Held(s) => format!(
+                "command held at or below it for all {s:.3} s the wheel was on {} in the window",
+                self.to
+            ),
+        };
+        format!(
+            "{head} {what}; withheld in the next 0.2 s ∫(T_d − T*)⁺dt {:.1} N m s",
+            self.withheld_nms
+        )
+    }
 }
 
 impl PreviewEvent {
@@ -1468,6 +1643,7 @@ pub fn summarize(
                 if c.safe_state == 0 {
                     a.active_cycles += 1;
                     a.used_cycles += u64::from(c.used_arte != 0);
+                    a.capped_cycles += u64::from(cap_binding(c));
                 } else {
                     safe_in += 1;
                 }
@@ -1484,6 +1660,7 @@ pub fn summarize(
                 ));
             }
             s.preview = Some(events);
+            s.releases = Some(release_events(log, w.i0, w.last_in, r, vehicle));
         }
         if let (Some(a0), Some(a1)) = (first_in, last_in_c) {
             s.can.faults_in_window = Some(fault_delta(&a0.faults, &a1.faults));
@@ -1541,6 +1718,7 @@ pub fn summarize(
         // the estimate over the measured section's window, labelled so
         s.arte.used_cycles = s.measured.used_arte_cycles;
         s.arte.active_cycles = s.measured.active_cycles;
+        s.arte.capped_cycles = s.measured.capped_cycles;
         s.arte.used_in_demand_window = true;
     }
     s
@@ -1764,6 +1942,8 @@ fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> 
         .scenario_duration_s
         .map_or(u64::MAX, |d| start_ns.saturating_add((d * 1e9) as u64));
     let mut acc = MetricsAccumulator::new(vehicle);
+    // the largest true |λ| and when (the first of equals)
+    let mut max_slip = (f64::NEG_INFINITY, f64::NAN);
     let mut last_in = i0;
     // The command in force at each truth sample: the latest cycle record
     // stamped at or before it, from the first cycle in the window at which
@@ -1807,6 +1987,9 @@ fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> 
                 n.stamp_ns.min(g.stamp_ns.saturating_add(max_hold))
             });
         let next = next.min(end_ns);
+        if g.lambda.abs() > max_slip.0 {
+            max_slip = (g.lambda.abs(), secs_between(start_ns, g.stamp_ns));
+        }
         acc.push(&Sample {
             dt: next.saturating_sub(g.stamp_ns) as f64 * 1e-9,
             lambda: g.lambda,
@@ -1818,6 +2001,7 @@ fn scenario_window(log: &DriveLog, vehicle: &VehicleParams, s: &mut Summary) -> 
         last_in = k;
     }
     s.metrics = Some(acc.finish());
+    s.max_slip = max_slip.1.is_finite().then_some(max_slip);
     s.cmd_from_s = cmd_from.map(|t| secs_between(start_ns, t));
     let last_ns = log.truth[last_in].stamp_ns;
     let w_end = end_ns.min(last_ns.saturating_add(TRUTH_PERIOD_NS));
@@ -2095,6 +2279,9 @@ impl Summary {
                 "  slip deviation (1/T)∫|λ|dt      {}",
                 n(m.slip_deviation, 4)
             );
+            if let Some((l, t)) = self.max_slip {
+                let _ = writeln!(o, "  max slip |λ|                    {l:.4} at {t:.3} s");
+            }
             let _ = writeln!(
                 o,
                 "  max torque                      {} N m",
@@ -2144,6 +2331,13 @@ impl Summary {
                 m.duration, m.samples, m.rejected
             );
             let _ = writeln!(o, "  vehicle: {}", self.vehicle);
+            let vp = &self.vehicle_params;
+            let _ = writeln!(
+                o,
+                "  torques, ∫Tω dt and ΔKE are one driven wheel's (torque at the wheel, after the gear; ΔKE of its share M / n_driven = {:.0} kg): the car's are {} times these",
+                vp.mass_share(),
+                vp.n_driven
+            );
         } else {
             let _ = writeln!(
                 o,
@@ -2249,10 +2443,10 @@ impl Summary {
             let _ = writeln!(o, "  change at {:.3} s {} -> {}: {d}", c.t, c.from, c.to);
         }
         if a.active_cycles > 0 {
+            let pc = |n: u64| 100.0 * n as f64 / a.active_cycles as f64;
             let _ = writeln!(
                 o,
-                "  controller used the estimate in {:.1} % of the active {} ({}/{})",
-                100.0 * a.used_cycles as f64 / a.active_cycles as f64,
+                "  of the active {} ({}):",
                 if a.used_in_demand_window {
                     format!(
                         "cycles of the time the driver demanded more than {} N m (no scenario window; the measured section's window)",
@@ -2261,8 +2455,19 @@ impl Summary {
                 } else {
                     "scenario cycles".to_owned()
                 },
-                a.used_cycles,
                 a.active_cycles
+            );
+            let _ = writeln!(
+                o,
+                "    the newest estimate passed the loop's age and confidence gate in {:.1} % ({}; the cycle record's used_arte)",
+                pc(a.used_cycles),
+                a.used_cycles
+            );
+            let _ = writeln!(
+                o,
+                "    road knowledge's torque cap held the command below the driver's demand in {:.1} % ({}; the cap acts through the road belief, gate or not)",
+                pc(a.capped_cycles),
+                a.capped_cycles
             );
         }
         if let Some(p) = &self.preview {
@@ -2277,6 +2482,15 @@ impl Summary {
                 let _ = writeln!(o, "  no such road change in the scenario window");
             }
             for e in p {
+                let _ = writeln!(o, "  {}", e.line());
+            }
+        }
+        if let Some(r) = self.releases.as_ref().filter(|r| !r.is_empty()) {
+            let _ = writeln!(
+                o,
+                "release (the driven wheel reaching a road that carries more; limit = the road it left's μ_peak · N · r)"
+            );
+            for e in r {
                 let _ = writeln!(o, "  {}", e.line());
             }
         }
@@ -2602,6 +2816,15 @@ vehicle B: {} (sha256 {})",
                 let _ = writeln!(o, "  {}", e.line());
             }
         }
+        if let Some(r) = s.releases.as_ref().filter(|r| !r.is_empty()) {
+            let _ = writeln!(
+                o,
+                "release {tag} (the driven wheel reaching a road that carries more; limit = the road it left's μ_peak · N · r):"
+            );
+            for e in r {
+                let _ = writeln!(o, "  {}", e.line());
+            }
+        }
     }
     o
 }
@@ -2774,6 +2997,81 @@ mod tests {
         assert!(c.contains("NOT at or below"), "{c}");
         // snow -> asphalt carries more: no event; no catalogue: no report
         assert!(summarize(&make(true), &v, "test", None).preview.is_none());
+    }
+
+    /// The wheel leaves snow for asphalt at k = 110 (0.101 s from the start):
+    /// a command held at snow's limit until k = 150 is released 40 ms
+    /// (0.12 m) after arrival and withheld (300 − limit) · 0.040 N m s in
+    /// the next 0.2 s; a command that never came down was already above;
+    /// a demand within snow's limit needed no release; one held to the
+    /// window's end is said so. JSON-free: the figures and the lines.
+    #[test]
+    fn release_reports_how_long_the_old_road_s_limit_held_on_a_grippier_road() {
+        let roads = RoadCatalogue::burckhardt(&["asphalt", "snow"]).unwrap();
+        let v = VehicleParams::default();
+        let limit = roads[1].mu_peak() * v.normal_force() * v.r;
+        let make = |held_until: u64, demand: f64| {
+            snow_entry_log(|k, g, rec| {
+                // snow first, then asphalt
+                let (r, n) = if k < 110 { (1, "snow") } else { (0, "asphalt") };
+                g.road_index = r;
+                g.road_name = grip_msgs::name_to_bytes(n);
+                g.mic_road_index = r;
+                g.mic_road_name = g.road_name;
+                rec.demand = demand;
+                rec.torque_cmd = if k < held_until {
+                    demand.min(limit)
+                } else {
+                    demand
+                };
+            })
+        };
+        let s = summarize(&make(150, 300.0), &v, "test", Some(&roads));
+        assert!(s.preview.as_ref().unwrap().is_empty());
+        let r = s.releases.as_ref().unwrap();
+        assert_eq!(r.len(), 1, "{r:?}");
+        let e = &r[0];
+        assert_eq!((e.from.as_str(), e.to.as_str()), ("snow", "asphalt"));
+        assert!((e.old_limit - limit).abs() < 1e-9);
+        // from the scenario's start, the last held sample (k = 9)
+        assert!((e.t - 0.101).abs() < 1e-9, "{e:?}");
+        let Release::After(dt, dx) = e.after else {
+            panic!("{e:?}")
+        };
+        assert!((dt - 0.040).abs() < 1e-9, "{dt}");
+        assert!((dx - 0.120).abs() < 1e-9, "{dx}");
+        assert!(
+            (e.withheld_nms - (300.0 - limit) * 0.040).abs() < 1e-9,
+            "{e:?}"
+        );
+        let text = s.render();
+        assert!(
+            text.contains("command rose above it 0.040 s / 0.12 m after the wheel arrived"),
+            "{text}"
+        );
+        // never capped: already above at arrival, nothing withheld
+        let a = summarize(&make(0, 300.0), &v, "test", Some(&roads));
+        let e = &a.releases.as_ref().unwrap()[0];
+        assert_eq!(e.after, Release::AlreadyAbove);
+        assert_eq!(e.withheld_nms, 0.0);
+        // the demand within snow's limit: nothing to release
+        let n = summarize(&make(300, limit - 5.0), &v, "test", Some(&roads));
+        assert_eq!(n.releases.as_ref().unwrap()[0].after, Release::NotNeeded);
+        // held to the window's end (the last truth sample, k = 299)
+        let h = summarize(&make(300, 300.0), &v, "test", Some(&roads));
+        let Release::Held(held) = h.releases.as_ref().unwrap()[0].after else {
+            panic!("{:?}", h.releases)
+        };
+        assert!((held - 0.189).abs() < 1e-9, "{held}");
+        // side by side
+        let c = compare(&s, &a);
+        assert!(c.contains("release A") && c.contains("release B"), "{c}");
+        // a road that carries less is the preview's, not a release
+        assert!(
+            summarize(&make(300, 300.0), &v, "test", None)
+                .releases
+                .is_none()
+        );
     }
 
     /// A user's log with messages out of time order (a truth sample and a

@@ -3,8 +3,9 @@
 //! driver's demand and ignore the cycles' timing jitter, holes in the
 //! ground truth are held at most five plant periods, the acceleration from
 //! V is not set by two noisy samples, a wheel spinning in reverse is a
-//! spin, and a log without ground truth still says how often the
-//! controller used the estimate.
+//! spin, and a log without ground truth still says how often the newest
+//! estimate passed the loop's gate and how often road knowledge's cap
+//! bound the command.
 
 use grip_drive::{DriveLog, summarize};
 use grip_msgs::{CycleRecord, GroundTruth, name_to_bytes};
@@ -187,7 +188,8 @@ fn the_acceleration_from_v_is_not_set_by_two_noisy_samples() {
 /// A wheel spinning in reverse (reversing at 5 m/s, r ω −7 m/s: λ_m
 /// −0.29 for 80 ms) is a spin event, and its road's largest |λ_m| shows
 /// it; the cycles of the driver-demand window, with no ground truth, say
-/// how often the controller used the estimate.
+/// how often the newest estimate passed the loop's gate and how often
+/// road knowledge's cap held the command below the demand.
 #[test]
 fn a_reverse_spin_counts_and_a_car_log_says_how_often_arte_was_used() {
     let v = VehicleParams::default();
@@ -203,6 +205,16 @@ fn a_reverse_spin_counts_and_a_car_log_says_how_often_arte_was_used() {
             c.torque_cmd = c.demand;
             c.belief_road = 0;
             c.used_arte = u8::from(k % 4 != 0);
+            c.torque_cap = f64::NAN;
+            // road knowledge's cap below the demand, gate passed or not:
+            // binding in 100 cycles (the command at it); in 50 more the
+            // command is above it (a cap lifted by the wheel), not binding
+            if (500..650).contains(&k) {
+                c.torque_cap = 150.0;
+                if k < 600 {
+                    c.torque_cmd = 150.05;
+                }
+            }
             c
         })
         .collect();
@@ -220,10 +232,21 @@ fn a_reverse_spin_counts_and_a_car_log_says_how_often_arte_was_used() {
     assert!((m.per_belief[0].max_slip - lam).abs() < 1e-9);
     // 900 cycles demanded, 3 in 4 using the estimate
     assert_eq!((s.arte.active_cycles, s.arte.used_cycles), (900, 675));
+    assert_eq!(s.arte.capped_cycles, 100);
     assert!(s.arte.used_in_demand_window);
     let r = s.render();
     assert!(
-        r.contains("controller used the estimate in 75.0 % of the active cycles of the time the driver demanded more than 10 N m (no scenario window"),
+        r.contains("of the active cycles of the time the driver demanded more than 10 N m (no scenario window; the measured section's window) (900):"),
+        "{r}"
+    );
+    assert!(
+        r.contains("the newest estimate passed the loop's age and confidence gate in 75.0 % (675;"),
+        "{r}"
+    );
+    assert!(
+        r.contains(
+            "road knowledge's torque cap held the command below the driver's demand in 11.1 % (100;"
+        ),
         "{r}"
     );
     assert!(r.contains("peak |λ_m| 0.286"), "{r}");

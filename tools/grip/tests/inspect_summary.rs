@@ -77,6 +77,64 @@ fn inspect_uses_the_logs_own_road_catalogue() {
     assert_eq!(j["roads_from"], "roads.toml attached to the log", "{j}");
 }
 
+/// `--json` carries what the text's preview and release lines say (a
+/// trial found the preview in the text only), the largest slip with its
+/// time, how often road knowledge's cap bound the command beside how often
+/// the estimate passed the loop's gate, and the number of driven wheels
+/// the torques are per. Figures of the stored reference drive (e2e: the
+/// wheel meets snow unpreviewed at 0.5 s, leaves it for gravel at 1.0 s).
+#[test]
+fn inspect_json_has_the_preview_the_releases_and_the_largest_slip() {
+    let j = json_of(&reference());
+    let p = j["preview"].as_array().unwrap();
+    assert_eq!(p.len(), 1, "{j}");
+    assert_eq!(
+        (p[0]["from"].as_str(), p[0]["to"].as_str()),
+        (Some("asphalt"), Some("snow"))
+    );
+    assert!(p[0]["ahead_s"].is_null(), "no preview at lead 0: {}", p[0]);
+    let r = j["releases"].as_array().unwrap();
+    assert_eq!(r.len(), 1, "{j}");
+    assert_eq!(
+        (r[0]["from"].as_str(), r[0]["to"].as_str()),
+        (Some("snow"), Some("gravel"))
+    );
+    assert_eq!(r[0]["release"], "after");
+    let after = r[0]["release_s"].as_f64().unwrap();
+    assert!((0.0..0.2).contains(&after), "{}", r[0]);
+    // the text says the same to its three decimals
+    let (ok, out, err) = common::output(&["inspect".as_ref(), reference().as_os_str()]);
+    assert!(ok, "{out}{err}");
+    assert!(
+        out.contains(&format!("command rose above it {after:.3} s")),
+        "{out}"
+    );
+    let (slip, at) = (
+        j["max_slip"].as_f64().unwrap(),
+        j["max_slip_s"].as_f64().unwrap(),
+    );
+    assert!(
+        out.contains(&format!(
+            "max slip |λ|                    {slip:.4} at {at:.3} s"
+        )),
+        "{out}"
+    );
+    assert!((0.5..0.7).contains(&at), "the snow entry: {at}");
+    assert!(p[0]["max_slip_after"].as_f64().unwrap() <= slip);
+    let (capped, used, active) = (
+        j["arte_capped_cycles"].as_u64().unwrap(),
+        j["arte_used_cycles"].as_u64().unwrap(),
+        j["arte_active_cycles"].as_u64().unwrap(),
+    );
+    assert!(
+        capped > 0 && capped < active && used <= active,
+        "{capped} {used} {active}"
+    );
+    assert_eq!(j["n_driven"], 4.0, "the paper's quarter car");
+    let m = j["measured"]["max_abs_slip_s"].as_f64().unwrap();
+    assert!((0.5..0.7).contains(&m), "{m}");
+}
+
 /// `--json`: the scenario window and how much of it the log covers; the
 /// loop's figures during the scenario beside the whole log's; ARTE judged
 /// in the scenario (the headline) and over the whole log while there is

@@ -31,8 +31,9 @@
 //!   base the ground truth's `mean_accel`'s. Also the
 //!   command against the demand; the torque withheld ∫ (T_d − T*) dt and
 //!   its time-weighted mean (what `grip replay` reports); the motor's
-//!   reported torque; how often the controller used the estimate (cycles
-//!   out of the safe state).
+//!   reported torque; of the cycles out of the safe state, how often the
+//!   newest estimate passed the loop's gate (`used_arte`) and how often
+//!   road knowledge's torque cap held the command below the demand.
 //! - **The command's smoothness**: `grip_tcs::MetricsAccumulator`'s
 //!   `cmd_tv_per_s`, `cmd_hf_rms`, `cmd_hf_share` on the cycles' commands
 //!   from the first cycle of each stretch with the driver's demand above
@@ -207,6 +208,8 @@ pub struct Measured {
     pub p95_abs_slip: f64,
     /// Largest |λ_m|.
     pub max_abs_slip: f64,
+    /// When it was, s from `origin_ns` (NaN: no slip cycle).
+    pub max_abs_slip_s: f64,
     /// Share of the slip time with |λ_m| above each of [`SLIP_LEVELS`].
     pub share_above: [f64; 2],
     /// Every spin event, in time order.
@@ -234,8 +237,12 @@ pub struct Measured {
     pub mean_withheld: f64,
     /// Cycles of the window out of the safe state.
     pub active_cycles: u64,
-    /// Of those, cycles in which the controller used ARTE's estimate.
+    /// Of those, cycles whose newest road estimate passed the loop's age
+    /// and confidence gate (the cycle record's `used_arte`).
     pub used_arte_cycles: u64,
+    /// Of those, cycles whose command road knowledge's torque cap held
+    /// below the driver's demand ([`super::cap_binding`]).
+    pub capped_cycles: u64,
     /// Where the command's smoothness figures start, s from `origin_ns`:
     /// the window's first cycle with the driver's demand above
     /// [`DEMAND_MIN_NM`] (None: none).
@@ -343,6 +350,7 @@ pub fn measured(
     let mut m = Measured {
         r: vehicle.r,
         v_eps: vehicle.v_eps,
+        max_abs_slip_s: f64::NAN,
         ..Measured::default()
     };
     let nan = f64::NAN;
@@ -417,6 +425,8 @@ pub fn measured(
     let (r, v_eps) = (vehicle.r, vehicle.v_eps);
     let mut abs_slip = Acc::default();
     let mut abs_all: Vec<f64> = Vec::new();
+    // the largest |λ_m| and when (the first of equals)
+    let mut max_at = (f64::NEG_INFINITY, f64::NAN);
     let mut above = [0.0f64; 2];
     let (mut cmd, mut demand, mut torque) = (Acc::default(), Acc::default(), Acc::default());
     let mut cut = Acc::default();
@@ -461,6 +471,7 @@ pub fn measured(
             if c.safe_state == 0 {
                 m.active_cycles += 1;
                 m.used_arte_cycles += u64::from(c.used_arte != 0);
+                m.capped_cycles += u64::from(super::cap_binding(c));
             }
             had_demand |= c.demand.is_finite() && c.demand > DEMAND_MIN_NM;
             if had_demand && m.cmd_from_s.is_none() {
@@ -503,6 +514,9 @@ pub fn measured(
             m.slip_s += dt;
             abs_slip.add(l.abs(), dt);
             abs_all.push(l.abs());
+            if l.abs() > max_at.0 {
+                max_at = (l.abs(), rel(c.stamp_ns));
+            }
             for (k, lvl) in SLIP_LEVELS.iter().enumerate() {
                 if l.abs() > *lvl {
                     above[k] += dt;
@@ -563,6 +577,7 @@ pub fn measured(
         let at = ((0.95 * n as f64).ceil() as usize).clamp(1, n) - 1;
         m.p95_abs_slip = abs_all[at];
         m.max_abs_slip = abs_all[n - 1];
+        m.max_abs_slip_s = max_at.1;
     }
     if m.slip_s > 0.0 {
         m.share_above = [above[0] / m.slip_s, above[1] / m.slip_s];
@@ -717,10 +732,11 @@ impl Measured {
         if self.slip_cycles > 0 {
             let _ = writeln!(
                 o,
-                "  measured slip |λ_m|: mean {}  p95 {}  max {}; above {}: {} % of that time, above {}: {} %",
+                "  measured slip |λ_m|: mean {}  p95 {}  max {} at {} s; above {}: {} % of that time, above {}: {} %",
                 f(self.mean_abs_slip, 4),
                 f(self.p95_abs_slip, 4),
                 f(self.max_abs_slip, 4),
+                f(self.max_abs_slip_s, 3),
                 SLIP_LEVELS[0],
                 f(100.0 * self.share_above[0], 1),
                 SLIP_LEVELS[1],

@@ -191,6 +191,7 @@ fn measured_json(m: &summary::Measured) -> Value {
         "mean_abs_slip": num(m.mean_abs_slip),
         "p95_abs_slip": num(m.p95_abs_slip),
         "max_abs_slip": num(m.max_abs_slip),
+        "max_abs_slip_s": num(m.max_abs_slip_s),
         "share_above_0_1": num(m.share_above[0]),
         "share_above_0_2": num(m.share_above[1]),
         "spin_lambda": ms::SPIN_LAMBDA,
@@ -214,6 +215,54 @@ fn measured_json(m: &summary::Measured) -> Value {
         "cmd_from_s": m.cmd_from_s.map(num),
         "mean_withheld_nm": num(m.mean_withheld),
         "per_belief": per_belief,
+    })
+}
+
+/// A `preview` entry: the driven wheel reaching a road that carries less
+/// ([`summary::PreviewEvent`]; times s from the scenario start, N m, m).
+fn preview_json(e: &summary::PreviewEvent) -> Value {
+    json!({
+        "t_s": num(e.t),
+        "x_m": num(e.x),
+        "from": e.from,
+        "to": e.to,
+        "limit_nm": num(e.limit),
+        // how long and how far before arrival the command was at or
+        // below the limit; null: it was not at arrival
+        "ahead_s": e.ahead.map(|a| num(a.0)),
+        "ahead_m": e.ahead.map(|a| num(a.1)),
+        "ahead_since_start": e.ahead_since_start,
+        "cmd_at_arrival_nm": num(e.cmd_at_arrival),
+        "torque_at_arrival_nm": num(e.torque_at_arrival),
+        "max_slip_after": num(e.max_slip_after),
+    })
+}
+
+/// A `releases` entry: the driven wheel reaching a road that carries more
+/// ([`summary::ReleaseEvent`]).
+fn release_json(e: &summary::ReleaseEvent) -> Value {
+    use summary::Release;
+    let (after, s, m) = match e.after {
+        Release::NotNeeded => ("not_needed", None, None),
+        Release::AlreadyAbove => ("already_above", None, None),
+        Release::After(s, m) => ("after", Some(s), Some(m)),
+        Release::Held(s) => ("held", Some(s), None),
+    };
+    json!({
+        "t_s": num(e.t),
+        "x_m": num(e.x),
+        "from": e.from,
+        "to": e.to,
+        "old_limit_nm": num(e.old_limit),
+        "demand_at_arrival_nm": num(e.demand_at_arrival),
+        "cmd_at_arrival_nm": num(e.cmd_at_arrival),
+        // not_needed | already_above | after (release_s, release_m after
+        // arrival) | held (release_s: held this long, to the next change
+        // or the window's end)
+        "release": after,
+        "release_s": s.map(num),
+        "release_m": m.map(num),
+        "withheld_nms_0_2s": num(e.withheld_nms),
     })
 }
 
@@ -339,6 +388,15 @@ pub fn summary_json(
         "speed_kmh_start": s.speed_kmh.map_or(Value::Null, |v| num(v.0)),
         "speed_kmh_end": s.speed_kmh.map_or(Value::Null, |v| num(v.1)),
         "metrics": metrics,
+        // the largest true |λ| in the scenario window and when, s from the
+        // scenario start
+        "max_slip": s.max_slip.map(|m| num(m.0)),
+        "max_slip_s": s.max_slip.map(|m| num(m.1)),
+        // torques and energies are one driven wheel's; the car's are
+        // n_driven times them
+        "n_driven": num(s.vehicle_params.n_driven),
+        "preview": s.preview.as_ref().map(|p| p.iter().map(preview_json).collect::<Vec<_>>()),
+        "releases": s.releases.as_ref().map(|r| r.iter().map(release_json).collect::<Vec<_>>()),
         "cmd_from_s": cmd_from_s,
         "measured": measured_json(&s.measured),
         "arte_estimates": a.estimates,
@@ -350,6 +408,9 @@ pub fn summary_json(
         "arte_accuracy_whole_log": num(a.accuracy_whole_log()),
         "arte_used_cycles": a.used_cycles,
         "arte_active_cycles": a.active_cycles,
+        // of those, cycles whose command road knowledge's torque cap held
+        // below the driver's demand (gate passed or not)
+        "arte_capped_cycles": a.capped_cycles,
         // the window of those two: the scenario's, else (a log without
         // ground truth) the measured section's demand window
         "arte_used_window": if a.used_in_demand_window { "demand" } else { "scenario" },
