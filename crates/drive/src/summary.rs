@@ -250,6 +250,11 @@ pub struct RoadChange {
     /// Delay until ARTE first published the new road, s (None: not before
     /// the next change or the end).
     pub delay: Option<f64>,
+    /// Delay until ARTE first published the new road with a confidence the
+    /// loop's gate passes (`[arte] min_confidence` of the attached
+    /// `controllers.toml`, [`ArteEval::min_confidence`]), s (None: not
+    /// before the next change or the end).
+    pub gated_delay: Option<f64>,
 }
 
 /// Width of the speed bands of [`ArteEval::per_speed_band`], km/h.
@@ -304,6 +309,10 @@ pub struct ArteEval {
     /// `used_cycles` and `active_cycles` count the driver-demand window of
     /// [`Measured`] (the log has no scenario window: a car's log).
     pub used_in_demand_window: bool,
+    /// The loop's confidence gate the delays' `gated_delay` uses, and
+    /// whether the log's `controllers.toml` gave it (else the default
+    /// 0.6).
+    pub min_confidence: (f64, bool),
 }
 
 impl ArteEval {
@@ -779,6 +788,18 @@ pub fn model_of(log: &DriveLog) -> Option<ModelInfo> {
         });
     }
     Some(ModelInfo { name, sha256, from })
+}
+
+/// The loop's confidence gate, `[arte] min_confidence` of the log's
+/// `controllers.toml` (true), else its default 0.6 (false).
+fn min_confidence_of(log: &DriveLog) -> (f64, bool) {
+    log.attachment_text("controllers.toml")
+        .and_then(|t| t.parse::<toml::Table>().ok())
+        .and_then(|t| t.get("arte")?.get("min_confidence")?.as_float())
+        .filter(|c| (0.0..=1.0).contains(c))
+        .map_or((grip_tcs::ArteUse::default().min_confidence, false), |c| {
+            (c, true)
+        })
 }
 
 /// The wheel reaching a road that carries less (`grip inspect`'s
@@ -1616,19 +1637,26 @@ pub fn summarize(
                 ));
             }
         }
+        a.min_confidence = min_confidence_of(log);
+        let gate = a.min_confidence.0;
         for (k, (tc, from, to)) in change_at.iter().enumerate() {
             let until = change_at.get(k + 1).map_or(u64::MAX, |c| c.0);
-            let delay = log
-                .roads
-                .iter()
-                .filter(|e| e.stamp_ns >= *tc && e.stamp_ns < until)
-                .find(|e| name_of_est(e).as_deref() == Some(to.as_str()))
+            let naming = || {
+                log.roads
+                    .iter()
+                    .filter(|e| e.stamp_ns >= *tc && e.stamp_ns < until)
+                    .filter(|e| name_of_est(e).as_deref() == Some(to.as_str()))
+            };
+            let delay = naming().next().map(|e| secs_between(*tc, e.stamp_ns));
+            let gated_delay = naming()
+                .find(|e| e.confidence >= gate)
                 .map(|e| secs_between(*tc, e.stamp_ns));
             a.changes.push(RoadChange {
                 t: secs_between(w.start_ns, *tc),
                 from: from.clone(),
                 to: to.clone(),
                 delay,
+                gated_delay,
             });
         }
 
@@ -2434,12 +2462,29 @@ impl Summary {
                 a.log_judged
             );
         }
+        if !a.changes.is_empty() {
+            let (gate, given) = a.min_confidence;
+            let _ = writeln!(
+                o,
+                "  road changes at the microphone, and the first estimate naming the new road (then the first at confidence >= {gate}, the loop's gate{}):",
+                if given {
+                    ", from the log's controllers.toml"
+                } else {
+                    ": the log carries no controllers.toml [arte] min_confidence, its default"
+                }
+            );
+        }
         for c in &a.changes {
-            let d = c
-                .delay
-                .map_or("not detected before the next change".to_owned(), |d| {
-                    format!("detected after {:.3} s", d)
-                });
+            let d = match (c.delay, c.gated_delay) {
+                (None, _) => "not detected before the next change".to_owned(),
+                (Some(d), Some(g)) if g == d => format!("detected after {d:.3} s"),
+                (Some(d), Some(g)) => {
+                    format!("detected after {d:.3} s, past the gate after {g:.3} s")
+                }
+                (Some(d), None) => {
+                    format!("detected after {d:.3} s, never past the gate before the next change")
+                }
+            };
             let _ = writeln!(o, "  change at {:.3} s {} -> {}: {d}", c.t, c.from, c.to);
         }
         if a.active_cycles > 0 {
@@ -3176,14 +3221,36 @@ mod tests {
                 estimate_at(1, 100, "snow"), // wrong (truth asphalt at 90 ms)
                 estimate_at(2, 140, "asphalt"), // wrong (truth snow at 130 ms)
                 estimate_at(3, 160, "snow"),
+                estimate_at(4, 180, "snow"),
             ],
             ..DriveLog::default()
         };
+        // the first snow under the loop's gate (0.6 by default), the next over
+        let mut log = log;
+        log.roads[3].confidence = 0.55;
+        log.roads[4].confidence = 0.9;
         let s = summarize(&log, &VehicleParams::default(), "defaults", None);
-        assert_eq!((s.arte.judged, s.arte.correct), (4, 2));
+        assert_eq!((s.arte.judged, s.arte.correct), (5, 3));
         assert_eq!(s.arte.changes.len(), 1);
         let d = s.arte.changes[0].delay.unwrap();
         assert!((d - 0.050).abs() < 1e-6, "{d}");
+        let g = s.arte.changes[0].gated_delay.unwrap();
+        assert!((g - 0.070).abs() < 1e-6, "{g}");
+        assert_eq!(s.arte.min_confidence, (0.6, false));
+        let text = s.render();
+        assert!(
+            text.contains("detected after 0.050 s, past the gate after 0.070 s"),
+            "{text}"
+        );
+        assert!(text.contains("its default"), "{text}");
+        // none over the gate: said so
+        log.roads[4].confidence = 0.3;
+        let s2 = summarize(&log, &VehicleParams::default(), "defaults", None);
+        assert_eq!(s2.arte.changes[0].gated_delay, None);
+        assert!(
+            s2.render()
+                .contains("never past the gate before the next change")
+        );
         let m = s.metrics.unwrap();
         assert_eq!(m.samples, 201, "window starts at the last held sample");
         // no cycle records: no command figures (none, not 0)

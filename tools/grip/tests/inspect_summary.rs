@@ -131,6 +131,16 @@ fn inspect_json_has_the_preview_the_releases_and_the_largest_slip() {
         "{capped} {used} {active}"
     );
     assert_eq!(j["n_driven"], 4.0, "the paper's quarter car");
+    // each road change's first estimate and its first past the loop's gate
+    assert_eq!(j["arte_min_confidence"], 0.6);
+    assert_eq!(j["arte_min_confidence_from_log"], true);
+    for c in j["road_changes"].as_array().unwrap() {
+        let (d, g) = (
+            c["delay_s"].as_f64().unwrap(),
+            c["gated_delay_s"].as_f64().unwrap(),
+        );
+        assert!(g >= d, "{c}");
+    }
     let m = j["measured"]["max_abs_slip_s"].as_f64().unwrap();
     assert!((0.5..0.7).contains(&m), "{m}");
 }

@@ -317,7 +317,10 @@ pub fn summary_json(
         .iter()
         .map(|c| {
             json!({"t_s": num(c.t), "from": c.from, "to": c.to,
-                        "delay_s": c.delay.map_or(Value::Null, num)})
+                        "delay_s": c.delay.map_or(Value::Null, num),
+                        // the first estimate of the new road the loop's
+                        // confidence gate passes (`arte_min_confidence`)
+                        "gated_delay_s": c.gated_delay.map_or(Value::Null, num)})
         })
         .collect();
     let delays: Vec<f64> = a.changes.iter().filter_map(|c| c.delay).collect();
@@ -419,6 +422,9 @@ pub fn summary_json(
         "speed_band_kmh": summary::SPEED_BAND_KMH,
         "speed_bands": bands,
         "road_changes": changes,
+        "arte_min_confidence": num(a.min_confidence.0),
+        // whether the log's controllers.toml gave it (else the default)
+        "arte_min_confidence_from_log": a.min_confidence.1,
         "changes_detected": delays.len(),
         "changes_missed": a.changes.len() - delays.len(),
         "mean_delay_s": mean_delay,
