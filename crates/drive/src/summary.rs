@@ -303,8 +303,8 @@ pub struct ArteEval {
     /// Of `active_cycles`, those whose command road knowledge's torque cap
     /// held below the driver's demand ([`cap_binding`]): where ARTE's
     /// knowledge acted on the torque, whether or not the cycle's
-    /// `used_arte` (the newest estimate passing the loop's age and
-    /// confidence gate) was set.
+    /// `used_arte` (the road belief usable: a decision within
+    /// `max_age_s`, its probability at or above `min_confidence`) was set.
     pub capped_cycles: u64,
     /// `used_cycles` and `active_cycles` count the driver-demand window of
     /// [`Measured`] (the log has no scenario window: a car's log).
@@ -2504,7 +2504,7 @@ impl Summary {
             );
             let _ = writeln!(
                 o,
-                "    the newest estimate passed the loop's age and confidence gate in {:.1} % ({}; the cycle record's used_arte)",
+                "    the road belief was usable in {:.1} % ({}; the cycle record's used_arte: a decision within [arte] max_age_s and the belief's probability at or above min_confidence)",
                 pc(a.used_cycles),
                 a.used_cycles
             );

@@ -3,9 +3,8 @@
 //! driver's demand and ignore the cycles' timing jitter, holes in the
 //! ground truth are held at most five plant periods, the acceleration from
 //! V is not set by two noisy samples, a wheel spinning in reverse is a
-//! spin, and a log without ground truth still says how often the newest
-//! estimate passed the loop's gate and how often road knowledge's cap
-//! bound the command.
+//! spin, and a log without ground truth still says how often the road
+//! belief was usable and how often road knowledge's cap bound the command.
 
 use grip_drive::{DriveLog, summarize};
 use grip_msgs::{CycleRecord, GroundTruth, name_to_bytes};
@@ -188,8 +187,8 @@ fn the_acceleration_from_v_is_not_set_by_two_noisy_samples() {
 /// A wheel spinning in reverse (reversing at 5 m/s, r ω −7 m/s: λ_m
 /// −0.29 for 80 ms) is a spin event, and its road's largest |λ_m| shows
 /// it; the cycles of the driver-demand window, with no ground truth, say
-/// how often the newest estimate passed the loop's gate and how often
-/// road knowledge's cap held the command below the demand.
+/// how often the road belief was usable and how often road knowledge's
+/// cap held the command below the demand.
 #[test]
 fn a_reverse_spin_counts_and_a_car_log_says_how_often_arte_was_used() {
     let v = VehicleParams::default();
@@ -240,7 +239,7 @@ fn a_reverse_spin_counts_and_a_car_log_says_how_often_arte_was_used() {
         "{r}"
     );
     assert!(
-        r.contains("the newest estimate passed the loop's age and confidence gate in 75.0 % (675;"),
+        r.contains("the road belief was usable in 75.0 % (675; the cycle record's used_arte"),
         "{r}"
     );
     assert!(

@@ -32,7 +32,7 @@
 //!   command against the demand; the torque withheld ∫ (T_d − T*) dt and
 //!   its time-weighted mean (what `grip replay` reports); the motor's
 //!   reported torque; of the cycles out of the safe state, how often the
-//!   newest estimate passed the loop's gate (`used_arte`) and how often
+//!   road belief was usable (`used_arte`) and how often
 //!   road knowledge's torque cap held the command below the demand.
 //! - **The command's smoothness**: `grip_tcs::MetricsAccumulator`'s
 //!   `cmd_tv_per_s`, `cmd_hf_rms`, `cmd_hf_share` on the cycles' commands
@@ -237,8 +237,9 @@ pub struct Measured {
     pub mean_withheld: f64,
     /// Cycles of the window out of the safe state.
     pub active_cycles: u64,
-    /// Of those, cycles whose newest road estimate passed the loop's age
-    /// and confidence gate (the cycle record's `used_arte`).
+    /// Of those, cycles whose road belief was usable (the cycle record's
+    /// `used_arte`: a decision within `max_age_s`, the belief's probability
+    /// at or above `min_confidence`).
     pub used_arte_cycles: u64,
     /// Of those, cycles whose command road knowledge's torque cap held
     /// below the driver's demand ([`super::cap_binding`]).

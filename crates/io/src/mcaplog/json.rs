@@ -253,14 +253,26 @@ fn t_arr(item: &str, max: usize, d: &str) -> Value {
 fn faults_schema() -> Value {
     schema(
         "E2eFaults",
-        "CAN receive fault counters since start",
+        "E2E receive fault counters of tcs-loop since its start, all received messages summed (u32, wrapping)",
         &[
-            ("crc", t_int("bad CRC")),
-            ("counter_repeated", t_int("repeated alive counter")),
-            ("counter_skipped", t_int("skipped alive counter")),
-            ("length", t_int("wrong DLC")),
-            ("unknown_id", t_int("unknown identifier")),
-            ("timeout", t_int("timeout episodes")),
+            ("crc", t_int("frames whose CRC did not match")),
+            (
+                "counter_repeated",
+                t_int("frames whose alive counter repeated the previous one"),
+            ),
+            (
+                "counter_skipped",
+                t_int("frames whose alive counter jumped (frames lost in between)"),
+            ),
+            ("length", t_int("frames with the wrong DLC")),
+            (
+                "unknown_id",
+                t_int("frames with an identifier the protocol does not know"),
+            ),
+            (
+                "timeout",
+                t_int("timeout episodes: a message stayed away longer than its timeout"),
+            ),
         ],
     )
 }
@@ -292,23 +304,35 @@ impl McapRecord for AudioBlock {
     fn json_schema() -> Value {
         schema(
             Self::SCHEMA_NAME,
-            "Block of mono 16-bit PCM from the tyre microphone",
+            "Block of mono 16-bit PCM from the tyre microphone (audio-acq), which sits the vehicle file's mic_lead_m ahead of the driven wheel",
             &[
-                ("seq", t_int("block sequence number")),
+                (
+                    "seq",
+                    t_int("block sequence number, +1 per block (a gap = blocks lost)"),
+                ),
                 (
                     "stamp_ns",
                     t_int("CLOCK_MONOTONIC time of the first sample, ns"),
                 ),
-                ("sample_rate", t_int("Hz")),
-                ("n_samples", t_int("valid samples")),
-                ("channel", t_int("capture channel")),
-                ("xruns", t_int("capture overruns since start")),
+                ("sample_rate", t_int("sample rate, Hz")),
+                (
+                    "n_samples",
+                    t_int("number of valid samples: the length of samples"),
+                ),
+                (
+                    "channel",
+                    t_int("capture channel the block came from, 0-based"),
+                ),
+                (
+                    "xruns",
+                    t_int("capture overruns counted since audio-acq started"),
+                ),
                 (
                     "samples",
                     t_arr(
                         "integer",
                         AUDIO_MAX_SAMPLES,
-                        "PCM samples (n_samples of them)",
+                        "signed 16-bit PCM, n_samples of them (full scale 32768)",
                     ),
                 ),
             ],
@@ -361,25 +385,75 @@ impl McapRecord for RoadEstimate {
     fn json_schema() -> Value {
         schema(
             Self::SCHEMA_NAME,
-            "Acoustic road-type estimate for one audio frame",
+            "Acoustic road-type estimate of arte for one audio frame. Class indices count in the model's class list (the classes of the model file attached under models/), not in roads.toml",
             &[
-                ("seq", t_int("decision sequence number")),
-                ("stamp_ns", t_int("publish time, ns")),
-                ("frame_t0_ns", t_int("audio frame start, ns")),
-                ("frame_t1_ns", t_int("audio frame end, ns")),
-                ("class_index", t_int("winning class (4294967295 = none)")),
-                ("n_classes", t_int("valid probabilities")),
-                ("class_name", t_str("winning class name")),
+                ("seq", t_int("decision sequence number, +1 per estimate")),
+                (
+                    "stamp_ns",
+                    t_int("CLOCK_MONOTONIC time arte published the estimate, ns"),
+                ),
+                (
+                    "frame_t0_ns",
+                    t_int("CLOCK_MONOTONIC time of the audio frame's start, ns"),
+                ),
+                (
+                    "frame_t1_ns",
+                    t_int("CLOCK_MONOTONIC time of the audio frame's end, ns"),
+                ),
+                (
+                    "class_index",
+                    t_int(
+                        "winning class, an index into the model's class list; 4294967295 = none (audio not classified: silence, clipping, overruns)",
+                    ),
+                ),
+                (
+                    "n_classes",
+                    t_int("number of the model's classes: valid entries of probabilities"),
+                ),
+                (
+                    "class_name",
+                    t_str(
+                        "name of the winning class (a roads.toml road name); empty with no class",
+                    ),
+                ),
                 (
                     "probabilities",
-                    t_arr("number", MAX_ROAD_CLASSES, "class probabilities"),
+                    t_arr(
+                        "number",
+                        MAX_ROAD_CLASSES,
+                        "smoothed class probabilities in the model's class order (entry i = class_index i); entries from n_classes on are 0, all are 0 with no class",
+                    ),
                 ),
-                ("confidence", t_num("confidence 0..1")),
-                ("lambda_opt", t_num("optimal slip of the road")),
-                ("mu_peak", t_num("peak friction of the road")),
-                ("alpha", t_num("MTTE relaxation factor")),
-                ("x_from", t_num("tcs-loop odometer at the frame start, m")),
-                ("x_to", t_num("tcs-loop odometer at the frame end, m")),
+                (
+                    "confidence",
+                    t_num("smoothed probability of the winning class, 0..1; 0 with no class"),
+                ),
+                (
+                    "lambda_opt",
+                    t_num(
+                        "optimal slip of the winning class's road curve in roads.toml; null with no class",
+                    ),
+                ),
+                (
+                    "mu_peak",
+                    t_num("peak friction coefficient of that road's curve; null with no class"),
+                ),
+                (
+                    "alpha",
+                    t_num(
+                        "MTTE relaxation factor of that road: arte-svc.toml [knowledge] alpha, else 1 - lambda_opt; null with no class",
+                    ),
+                ),
+                (
+                    "x_from",
+                    t_num(
+                        "tcs-loop's odometer (CycleRecord odometer, m) at frame_t0_ns, extrapolated by arte; the heard road lies mic_lead_m further on. null without a fresh cycle record with valid v",
+                    ),
+                ),
+                (
+                    "x_to",
+                    t_num("tcs-loop's odometer at frame_t1_ns, m; null as x_from"),
+                ),
             ],
         )
     }
@@ -443,28 +517,113 @@ impl McapRecord for CycleRecord {
     fn json_schema() -> Value {
         schema(
             Self::SCHEMA_NAME,
-            "One traction-control cycle",
+            "One tcs-loop control cycle. Torques are N m at ONE driven wheel, after the gear (the unit of the vehicle file's torque_max); null = NaN",
             &[
-                ("seq", t_int("cycle number")),
-                ("stamp_ns", t_int("cycle deadline, ns")),
-                ("wakeup_latency_ns", t_int("wake-up minus deadline, ns")),
-                ("compute_ns", t_int("wake-up to command sent, ns")),
-                ("deadline_misses", t_int("deadline misses since start")),
-                ("omega", t_num("measured wheel speed, rad/s")),
-                ("v", t_num("measured vehicle speed, m/s")),
-                ("torque", t_num("measured motor torque, N m")),
-                ("demand", t_num("driver demand, N m")),
-                ("torque_cmd", t_num("torque command, N m")),
-                ("internal", t_num("controller internal variable")),
-                ("mu_hat", t_num("friction estimate")),
-                ("odometer", t_num("integral of the measured speed, m")),
-                ("torque_cap", t_num("road knowledge's torque cap, N m")),
-                ("belief_prob", t_num("probability of the believed road")),
-                ("road_class", t_int("road class used (4294967295 = none)")),
-                ("belief_road", t_int("believed road (4294967295 = none)")),
-                ("used_arte", t_int("1 = ARTE knowledge used")),
-                ("safe_state", t_int("1 = safe state")),
-                ("v_valid", t_int("1 = v valid")),
+                (
+                    "seq",
+                    t_int("cycle number, from 0 at tcs-loop's start, +1 per cycle"),
+                ),
+                (
+                    "stamp_ns",
+                    t_int("CLOCK_MONOTONIC time of the cycle's deadline (its nominal start), ns"),
+                ),
+                (
+                    "wakeup_latency_ns",
+                    t_int("wake-up time minus deadline, ns"),
+                ),
+                (
+                    "compute_ns",
+                    t_int("wake-up to command sent and the cycle's CAN frames logged, ns"),
+                ),
+                (
+                    "deadline_misses",
+                    t_int("deadline misses counted since tcs-loop started"),
+                ),
+                (
+                    "omega",
+                    t_num(
+                        "measured driven-wheel speed (WheelSpeeds OmegaDriven), rad/s; 0 without a fresh valid frame",
+                    ),
+                ),
+                (
+                    "v",
+                    t_num(
+                        "measured vehicle speed, m/s: r_ref times OmegaRef when RefValid, else VehicleSpeed Speed; null when v_valid = 0",
+                    ),
+                ),
+                (
+                    "torque",
+                    t_num(
+                        "torque the inverter reports (MotorStatus TorqueActual), N m at one driven wheel; 0 before the first frame",
+                    ),
+                ),
+                (
+                    "demand",
+                    t_num(
+                        "driver demand T_d (DriverDemand TorqueDemand), N m at one driven wheel; 0 while BrakePressed and before the first frame",
+                    ),
+                ),
+                (
+                    "torque_cmd",
+                    t_num(
+                        "torque command T* sent this cycle (TorqueCommand TorqueRequest), N m at one driven wheel: 0 in the safe state, the demand when TcsEnable = 0, else the controller's command limited to torque_cap",
+                    ),
+                ),
+                (
+                    "internal",
+                    t_num(
+                        "controller signal, by controller: MFC model wheel speed omega_M (rad/s), SRC slip reference lambda* (no unit), MTTE torque limit T_max (N m, one driven wheel); null in the safe state",
+                    ),
+                ),
+                (
+                    "mu_hat",
+                    t_num(
+                        "friction in use (observed tyre force / wheel load) of SRC and MTTE, null for MFC and in the safe state; not the road's peak friction, and overstated by MTTE with ARTE while torque_cap binds",
+                    ),
+                ),
+                (
+                    "odometer",
+                    t_num(
+                        "tcs-loop's odometer at the cycle's start, m: forward travel from measured v (else r times omega) since tcs-loop started; its origin is not the ground truth's x = 0",
+                    ),
+                ),
+                (
+                    "torque_cap",
+                    t_num(
+                        "cap the road knowledge put on the command this cycle, N m at one driven wheel; null = no cap (ARTE off, safe state, no estimate within [arte] max_age_s, or none applies)",
+                    ),
+                ),
+                (
+                    "belief_prob",
+                    t_num(
+                        "probability of belief_road in the road belief; null with ARTE off and in the safe state",
+                    ),
+                ),
+                (
+                    "road_class",
+                    t_int(
+                        "class_index of the newest road estimate taken (model's class list; the road heard at the microphone, not the one under the wheel), set only when used_arte = 1; 4294967295 = none",
+                    ),
+                ),
+                (
+                    "belief_road",
+                    t_int(
+                        "road the loop believes is under the driven wheel, an index into roads.toml's road list (ARTE on); 4294967295 with ARTE off and in the safe state",
+                    ),
+                ),
+                (
+                    "used_arte",
+                    t_int(
+                        "1 = the controller used the believed road's knowledge: an estimate with a class within [arte] max_age_s and belief_prob at least [arte] min_confidence (controllers.toml); torque_cap acts without it",
+                    ),
+                ),
+                (
+                    "safe_state",
+                    t_int(
+                        "1 = safe state (inputs missing or stale, inverter fault, or recovering): command 0 N m with Enable cleared, controller not stepped",
+                    ),
+                ),
+                ("v_valid", t_int("1 = v holds a valid measurement")),
                 ("faults", faults_schema()),
                 (
                     "road_taken",
@@ -474,7 +633,9 @@ impl McapRecord for CycleRecord {
                 ),
                 (
                     "roads_taken",
-                    t_int("road estimates taken this cycle (absent in older logs)"),
+                    t_int(
+                        "road estimates taken this cycle from grip/arte/road, in order (absent in older logs; 0 in logs from before the count)",
+                    ),
                 ),
             ],
         )
@@ -552,15 +713,34 @@ impl McapRecord for CanFrame {
     fn json_schema() -> Value {
         schema(
             Self::SCHEMA_NAME,
-            "Classic CAN frame",
+            "Classic CAN frame tcs-loop received or sent (its CAN log). Decode data with the DBC that the attached can.toml names (attached too); torque signals are N m at one driven wheel",
             &[
-                ("stamp_ns", t_int("send/receive time, ns")),
-                ("id", t_int("identifier")),
-                ("dlc", t_int("data length code")),
-                ("direction", t_int("0 = received, 1 = sent")),
-                ("bus", t_int("bus number")),
-                ("flags", t_int("1 extended, 2 RTR, 4 error, 8 E2E rejected")),
-                ("data", t_arr("integer", 8, "8 data bytes")),
+                (
+                    "stamp_ns",
+                    t_int(
+                        "CLOCK_MONOTONIC ns: receive time of a received frame (the kernel's on SocketCAN), the cycle's time of a sent one",
+                    ),
+                ),
+                ("id", t_int("identifier (11 bit, or 29 bit with flag 1)")),
+                ("dlc", t_int("data length code 0..8")),
+                (
+                    "direction",
+                    t_int("0 = received by tcs-loop, 1 = sent by tcs-loop"),
+                ),
+                (
+                    "bus",
+                    t_int("bus number: can.toml bus_id on received frames, 0 on sent ones"),
+                ),
+                (
+                    "flags",
+                    t_int(
+                        "bits: 1 extended id, 2 remote frame, 4 error frame, 8 rejected by tcs-loop's E2E check",
+                    ),
+                ),
+                (
+                    "data",
+                    t_arr("integer", 8, "the 8 data bytes; bytes from dlc on are 0"),
+                ),
             ],
         )
     }
@@ -606,11 +786,22 @@ impl McapRecord for BusFrame {
                     "stamp_ns",
                     t_int("receive time, CLOCK_MONOTONIC ns (kernel's on SocketCAN)"),
                 ),
-                ("id", t_int("identifier (error class for an error frame)")),
-                ("dlc", t_int("data length code")),
-                ("bus", t_int("bus number")),
-                ("flags", t_int("1 extended, 2 RTR, 4 error")),
-                ("data", t_arr("integer", 8, "8 data bytes")),
+                (
+                    "id",
+                    t_int(
+                        "identifier (11 bit, or 29 bit with flag 1; the error class for an error frame)",
+                    ),
+                ),
+                ("dlc", t_int("data length code 0..8")),
+                ("bus", t_int("bus number (can.toml bus_id)")),
+                (
+                    "flags",
+                    t_int("bits: 1 extended id, 2 remote frame, 4 error frame"),
+                ),
+                (
+                    "data",
+                    t_arr("integer", 8, "the 8 data bytes; bytes from dlc on are 0"),
+                ),
             ],
         )
     }
@@ -649,25 +840,56 @@ impl McapRecord for GroundTruth {
     fn json_schema() -> Value {
         schema(
             Self::SCHEMA_NAME,
-            "True plant state from the simulator",
+            "True plant state from plant-sim (simulated drives only; the controller never sees it). Torque is N m at ONE driven wheel; road indices count in roads.toml's road list",
             &[
-                ("seq", t_int("plant step")),
-                ("stamp_ns", t_int("time, ns")),
+                (
+                    "seq",
+                    t_int("plant cycle number, from 0 at plant-sim's start, +1 per cycle"),
+                ),
+                (
+                    "stamp_ns",
+                    t_int("CLOCK_MONOTONIC time of the plant cycle, ns"),
+                ),
                 (
                     "road_index",
-                    t_int("true road under the driven wheel (4294967295 = none)"),
+                    t_int(
+                        "true road under the driven wheel, an index into roads.toml's road list (4294967295 = none)",
+                    ),
                 ),
                 (
                     "mic_road_index",
-                    t_int("true road at the microphone (4294967295 = none)"),
+                    t_int(
+                        "true road at the microphone, at x + mic_lead_m, same index (4294967295 = none)",
+                    ),
                 ),
-                ("road_name", t_str("true road name under the driven wheel")),
-                ("mic_road_name", t_str("true road name at the microphone")),
-                ("v", t_num("vehicle speed, m/s")),
-                ("omega", t_num("wheel speed, rad/s")),
-                ("lambda", t_num("slip")),
-                ("torque", t_num("motor torque, N m")),
-                ("x", t_num("distance, m")),
+                (
+                    "road_name",
+                    t_str("name of the true road under the driven wheel"),
+                ),
+                (
+                    "mic_road_name",
+                    t_str("name of the true road at the microphone"),
+                ),
+                ("v", t_num("true vehicle (chassis) speed V, m/s")),
+                ("omega", t_num("true driven-wheel angular speed, rad/s")),
+                (
+                    "lambda",
+                    t_num(
+                        "true slip (r omega - V) / max(abs(r omega), abs(V), v_eps), r and v_eps from the vehicle file: above 0 the wheel turns faster than the car (drive slip), below 0 slower",
+                    ),
+                ),
+                (
+                    "torque",
+                    t_num(
+                        "true motor torque after the motor lag, N m at one driven wheel (reported with sensor noise as MotorStatus TorqueActual)",
+                    ),
+                ),
+                (
+                    "x",
+                    t_num(
+                        "position along the scenario, m: 0 at the scenario start, negative in the pre-roll, frozen while plant-sim holds the car; not the origin of tcs-loop's odometer",
+                    ),
+                ),
             ],
         )
     }
@@ -707,5 +929,62 @@ impl McapRecord for GroundTruth {
     }
     fn stamp_ns(&self) -> u64 {
         self.stamp_ns
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What the README must hold of schema `s`, as (where, text): the
+    /// record's title and description, and a `| `field` | description |`
+    /// table row per field (nested objects too).
+    fn wanted(s: &Value, out: &mut Vec<(String, String)>) {
+        let title = s["title"].as_str().unwrap_or_default();
+        out.push((title.to_owned(), title.to_owned()));
+        let d = s["description"].as_str().unwrap_or_default();
+        out.push((title.to_owned(), d.to_owned()));
+        for (k, v) in s["properties"].as_object().into_iter().flatten() {
+            let d = v["description"].as_str().unwrap_or_default();
+            assert!(
+                !d.contains('|'),
+                "{title}.{k}: a pipe would split the README's table cell: {d}"
+            );
+            out.push((format!("{title}.{k}"), format!("| `{k}` | {d} |")));
+            if v.get("properties").is_some() {
+                wanted(v, out);
+            }
+        }
+    }
+
+    /// The crate README's "Reading a drive log without grip" gives every
+    /// record and field in the schema's own words, so that a reader of
+    /// either finds the same meaning: a description changed in one must be
+    /// changed in the other.
+    #[test]
+    fn the_readme_describes_every_field_as_the_schema_does() {
+        let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md"))
+            .expect("crates/io/README.md");
+        let mut want = Vec::new();
+        for s in [
+            AudioBlock::json_schema(),
+            RoadEstimate::json_schema(),
+            CycleRecord::json_schema(),
+            CanFrame::json_schema(),
+            BusFrame::json_schema(),
+            GroundTruth::json_schema(),
+        ] {
+            wanted(&s, &mut want);
+        }
+        let missing: Vec<String> = want
+            .iter()
+            .filter(|(_, text)| !readme.contains(text.as_str()))
+            .map(|(at, text)| format!("{at}: {text}"))
+            .collect();
+        assert!(
+            missing.is_empty(),
+            "crates/io/README.md lacks, word for word:\n{}",
+            missing.join("\n")
+        );
     }
 }
