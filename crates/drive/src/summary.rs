@@ -118,6 +118,11 @@ pub struct ControlHealth {
     /// loop's fault counters over that time, the CAN frames tcs-loop
     /// received in it); empty when it says nothing.
     pub reason: String,
+    /// The window ends before the scenario does (the log's ground truth
+    /// stops: a drive cut short, a service that died): (window, scenario)
+    /// lengths, s. The statement then is of the window's end, not the
+    /// scenario's, and says so.
+    pub cut_short: Option<(f64, f64)>,
 }
 
 impl ControlHealth {
@@ -182,7 +187,12 @@ impl ControlHealth {
             Some((since, d)) => format!(
                 "{state} for the last {d:.3} s of the scenario (from {since:.3} s; under the {CONTROL_LOST_MIN_S} s that fails a drive); {recovered}{why}"
             ),
-            None => format!("in control at the end of the scenario; {recovered}"),
+            None => match self.cut_short {
+                Some((w, d)) => format!(
+                    "in control at the end of the log's scenario window, {w:.3} s of the {d:.3} s scenario: the log ends there (a drive cut short, or a service that stopped), and what the loop did after it is not in the log; {recovered}"
+                ),
+                None => format!("in control at the end of the scenario; {recovered}"),
+            },
         }
     }
 }
@@ -791,8 +801,10 @@ pub fn model_of(log: &DriveLog) -> Option<ModelInfo> {
 }
 
 /// The loop's confidence gate, `[arte] min_confidence` of the log's
-/// `controllers.toml` (true), else its default 0.6 (false).
-fn min_confidence_of(log: &DriveLog) -> (f64, bool) {
+/// `controllers.toml` (true), else its default 0.6 (false): the one rule
+/// the summary's detection delays and `grip inspect --plot`'s ARTE strip
+/// use.
+pub fn min_confidence_of(log: &DriveLog) -> (f64, bool) {
     log.attachment_text("controllers.toml")
         .and_then(|t| t.parse::<toml::Table>().ok())
         .and_then(|t| t.get("arte")?.get("min_confidence")?.as_float())
@@ -1733,7 +1745,14 @@ pub fn summarize(
             .ok()
             .filter(|&p| p > 0)
             .unwrap_or(1_000_000);
-        let h = control_health(log, ws, we, period, &protocol);
+        let mut h = control_health(log, ws, we, period, &protocol);
+        if let WindowStatus::Partial {
+            covered_s,
+            duration_s,
+        } = s.window_status
+        {
+            h.cut_short = Some((covered_s, duration_s));
+        }
         if h.lost() {
             s.warnings.push(h.line());
         }

@@ -258,3 +258,30 @@ fn absurd_cycle_stamps_do_not_panic_the_summary() {
     assert_eq!(s.timing.cycles, 5);
     assert!(!s.render().is_empty());
 }
+
+/// A drive cut short (a service killed 1.2 s into the 3 s scenario: the
+/// ground truth and the loop's records stop there), the loop in control
+/// to its last record: said of the log's window, not of the scenario's
+/// end (a fail-safe trial read "in control at the end of the scenario"
+/// for a drive whose tcs-loop had been killed).
+#[test]
+fn a_drive_cut_short_is_not_said_in_control_at_the_scenario_s_end() {
+    let mut log = drive(|t| !(0..3050).contains(&t), |_| true);
+    log.truth.retain(|g| g.stamp_ns < 1_210 * MS);
+    log.cycles.retain(|c| c.stamp_ns < 1_210 * MS);
+    let (c, r, _) = control(&log);
+    assert!(!c.lost(), "{c:?}");
+    let (w, d) = c.cut_short.expect("a partial window");
+    assert!((d - DURATION_S).abs() < 1e-9 && w < 1.21, "{w} {d}");
+    let line = c.line();
+    assert!(
+        line.starts_with(&format!(
+            "in control at the end of the log's scenario window, {w:.3} s of the 3.000 s scenario: the log ends there"
+        )),
+        "{line}"
+    );
+    assert!(!r.contains("in control at the end of the scenario;"), "{r}");
+    // the whole drive: the scenario's end, as before
+    let (c, _, _) = control(&drive(|t| !(0..3050).contains(&t), |_| true));
+    assert_eq!(c.cut_short, None);
+}

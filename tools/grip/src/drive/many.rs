@@ -43,14 +43,22 @@ pub fn bar(n: usize, what: &str) -> indicatif::ProgressBar {
 
 /// The table's columns (the loop's, the E2E and the ARTE figures are those
 /// of the scenario window; `_whole_log` ones cover the whole log; the
+/// run's controller, ARTE switch and seed are the summary's run entries,
+/// as `grip inspect LOG` and `grip inspect A B` give them (`grip.run`, a
+/// replay's own controller and ARTE switch), the vehicle what
+/// [`grip_drive::vehicle_for`] found and the summary reports
+/// ([`grip_drive::summary::Summary::vehicle`], `vehicle_sha256`,
+/// `vehicle_params.mic_lead_m`), as `grip inspect --json` gives them; the
 /// `measured_` ones and `spin_events` are what the loop measured, over
 /// `measured_window`, [`grip_drive::summary::Measured`]; `control_lost` is
 /// [`grip_drive::summary::ControlHealth::lost`], empty without a window;
 /// the `inverter_` ones count the inverter's fault and derating episodes
 /// from its `MotorStatus` frames, [`grip_drive::summary::Inverter`], those
 /// overlapping the scenario window and over the whole log, empty without
-/// `MotorStatus` frames).
-pub const COLUMNS: [&str; 41] = [
+/// `MotorStatus` frames). The vehicle and the seed come after the whole
+/// log's figures, not beside the controller: the first nine columns and
+/// the last fourteen keep their places for readers that count them.
+pub const COLUMNS: [&str; 45] = [
     "file",
     "status",
     "reason",
@@ -78,6 +86,10 @@ pub const COLUMNS: [&str; 41] = [
     "wakeup_max_ns_in_scenario",
     "deadline_misses_whole_log",
     "arte_accuracy_whole_log",
+    "vehicle",
+    "vehicle_sha256",
+    "mic_lead_m",
+    "seed",
     "measured_window",
     "measured_mean_abs_slip",
     "measured_p95_abs_slip",
@@ -94,6 +106,20 @@ pub const COLUMNS: [&str; 41] = [
     "inverter_derating_whole_log",
 ];
 
+/// The index of column `name` of [`COLUMNS`] (a name of this file's own:
+/// panics on a typo, which every test that builds a row finds).
+fn at(name: &str) -> usize {
+    COLUMNS
+        .iter()
+        .position(|c| *c == name)
+        .unwrap_or_else(|| panic!("no column {name}"))
+}
+
+/// Field `name` of a row.
+fn field<'a>(r: &'a [String], name: &str) -> &'a str {
+    &r[at(name)]
+}
+
 fn num(x: f64) -> String {
     if x.is_finite() {
         format!("{x}")
@@ -102,105 +128,164 @@ fn num(x: f64) -> String {
     }
 }
 
-/// One row: `Ok` for a complete log, `Err` (status, reason) when it is bad.
-pub fn row(path: &Path, config_dir: &Path) -> (Vec<String>, bool) {
-    let file = path.file_name().map_or_else(
+/// The file name of `path`, for the table.
+fn file_name(path: &Path) -> String {
+    path.file_name().map_or_else(
         || path.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
-    );
-    let mut r = vec![String::new(); COLUMNS.len()];
-    r[0] = file;
-    let log = match DriveLog::load(path) {
-        Ok(l) => l,
+    )
+}
+
+/// One row: the row and whether the log is good (a bad one's status and
+/// reason say why).
+pub fn row(path: &Path, config_dir: &Path) -> (Vec<String>, bool) {
+    match DriveLog::load(path) {
+        Ok(log) => row_of(file_name(path), &log, config_dir),
         Err(e) => {
-            r[1] = "unreadable".into();
-            r[2] = e.full();
-            return (r, false);
+            let mut r = vec![String::new(); COLUMNS.len()];
+            r[at("file")] = file_name(path);
+            r[at("status")] = "unreadable".into();
+            r[at("reason")] = e.full();
+            (r, false)
         }
-    };
-    let (vehicle, from, _) = grip_drive::vehicle_for(&log, config_dir);
+    }
+}
+
+/// The row of a loaded log named `file`.
+fn row_of(file: String, log: &DriveLog, config_dir: &Path) -> (Vec<String>, bool) {
+    let mut r = vec![String::new(); COLUMNS.len()];
+    let mut set = |name: &str, v: String| r[at(name)] = v;
+    set("file", file);
+    let (vehicle, from, _) = grip_drive::vehicle_for(log, config_dir);
     let roads = log.road_catalogue(config_dir);
-    let s = summarize_with_roads(&log, &vehicle, &from, &roads);
+    let s = summarize_with_roads(log, &vehicle, &from, &roads);
     let mut good = true;
     if let Some(t) = &log.report.truncated {
-        r[1] = "incomplete".into();
-        r[2] = t.clone();
+        set("status", "incomplete".into());
+        set("reason", t.clone());
         good = false;
     } else if log.report.bad > 0 {
-        r[1] = "damaged".into();
-        r[2] = format!(
-            "{} messages did not decode (first: {})",
-            log.report.bad,
-            log.report.first_error.as_deref().unwrap_or("?")
+        set("status", "damaged".into());
+        set(
+            "reason",
+            format!(
+                "{} messages did not decode (first: {})",
+                log.report.bad,
+                log.report.first_error.as_deref().unwrap_or("?")
+            ),
         );
         good = false;
     } else {
-        r[1] = "ok".into();
+        set("status", "ok".into());
     }
-    r[3] = log.run.get("scenario").cloned().unwrap_or_default();
-    // a replay's own controller and ARTE switch (`grip.run` is its source's)
+    set(
+        "scenario",
+        log.run.get("scenario").cloned().unwrap_or_default(),
+    );
+    // the summary's run entries, as `grip inspect LOG` and `A B` show
+    // them: a replay's own controller and ARTE switch (`grip.run` is its
+    // source's)
     let run = |k: &str| {
         s.run
             .iter()
             .find(|(kk, _)| kk == k)
             .map_or_else(String::new, |(_, v)| v.clone())
     };
-    r[4] = run("controller");
-    r[5] = run("arte");
-    r[6] = s.timing.cycles.to_string();
+    set("controller", run("controller"));
+    set("arte", run("arte"));
+    set("seed", run("seed"));
+    // the vehicle the summary used, as `grip inspect LOG` and `--json`
+    // name it (`A B` compares them by SHA-256)
+    set("vehicle", s.vehicle.clone());
+    set(
+        "vehicle_sha256",
+        s.vehicle_sha256.clone().unwrap_or_default(),
+    );
+    set("mic_lead_m", num(s.vehicle_params.mic_lead_m));
+    set("cycles", s.timing.cycles.to_string());
     if let (Some(m), Some((a, b))) = (&s.metrics, s.window) {
-        r[7] = num(b - a);
-        r[8] = num(m.slip_deviation);
-        r[9] = num(m.max_torque);
-        r[10] = num(m.torque_effort);
-        r[11] = num(m.distance);
-        r[12] = num(m.energy);
+        set("scenario_s", num(b - a));
+        set("slip_deviation", num(m.slip_deviation));
+        set("max_torque_nm", num(m.max_torque));
+        set("torque_effort_nm", num(m.torque_effort));
+        set("distance_m", num(m.distance));
+        set("energy_j", num(m.energy));
     }
-    r[13] = s.arte.estimates.to_string();
-    r[14] = num(s.arte.accuracy());
+    set("arte_estimates", s.arte.estimates.to_string());
+    set("arte_accuracy", num(s.arte.accuracy()));
     let delays: Vec<f64> = s.arte.changes.iter().filter_map(|c| c.delay).collect();
-    r[15] = s.arte.changes.len().to_string();
-    r[16] = (s.arte.changes.len() - delays.len()).to_string();
+    set("road_changes", s.arte.changes.len().to_string());
+    set(
+        "changes_missed",
+        (s.arte.changes.len() - delays.len()).to_string(),
+    );
     if !delays.is_empty() {
-        r[17] = num(delays.iter().sum::<f64>() / delays.len() as f64);
-        r[18] = num(delays.iter().copied().fold(0.0, f64::max));
+        set(
+            "mean_delay_s",
+            num(delays.iter().sum::<f64>() / delays.len() as f64),
+        );
+        set(
+            "max_delay_s",
+            num(delays.iter().copied().fold(0.0, f64::max)),
+        );
     }
     let in_scn = s.timing.in_scenario.as_ref();
-    r[19] = in_scn.map_or(String::new(), |w| w.deadline_misses.to_string());
-    r[20] = s
-        .safe_cycles_in_window
-        .map_or(String::new(), |n| n.to_string());
-    r[21] = s
-        .can
-        .faults_in_window
-        .map_or(String::new(), |f| f.total().to_string());
-    r[22] = s.window_status.as_str().to_owned();
-    r[23] = in_scn.map_or(String::new(), |w| w.safe_entries.to_string());
-    r[24] = in_scn.map_or(String::new(), |w| w.wakeup.max.to_string());
-    r[25] = s.timing.deadline_misses.to_string();
-    r[26] = num(s.arte.accuracy_whole_log());
+    set(
+        "deadline_misses_in_scenario",
+        in_scn.map_or(String::new(), |w| w.deadline_misses.to_string()),
+    );
+    set(
+        "safe_cycles_in_scenario",
+        s.safe_cycles_in_window
+            .map_or(String::new(), |n| n.to_string()),
+    );
+    set(
+        "e2e_faults_in_scenario",
+        s.can
+            .faults_in_window
+            .map_or(String::new(), |f| f.total().to_string()),
+    );
+    set("scenario_window", s.window_status.as_str().to_owned());
+    set(
+        "safe_state_entries_in_scenario",
+        in_scn.map_or(String::new(), |w| w.safe_entries.to_string()),
+    );
+    set(
+        "wakeup_max_ns_in_scenario",
+        in_scn.map_or(String::new(), |w| w.wakeup.max.to_string()),
+    );
+    set(
+        "deadline_misses_whole_log",
+        s.timing.deadline_misses.to_string(),
+    );
+    set("arte_accuracy_whole_log", num(s.arte.accuracy_whole_log()));
     let m = &s.measured;
-    r[27] = m.window.as_str().to_owned();
+    set("measured_window", m.window.as_str().to_owned());
     if m.window != MeasuredWindow::NoCycles {
-        r[28] = num(m.mean_abs_slip);
-        r[29] = num(m.p95_abs_slip);
-        r[30] = num(m.max_abs_slip);
-        r[31] = num(m.share_above[1]);
-        r[32] = m.spins.len().to_string();
-        r[33] = num(m.mean_accel);
-        r[34] = num(m.delivered);
-        r[35] = num(m.withheld_nms);
+        set("measured_mean_abs_slip", num(m.mean_abs_slip));
+        set("measured_p95_abs_slip", num(m.p95_abs_slip));
+        set("measured_max_abs_slip", num(m.max_abs_slip));
+        set("measured_share_above_0_2", num(m.share_above[1]));
+        set("spin_events", m.spins.len().to_string());
+        set("measured_mean_accel_ms2", num(m.mean_accel));
+        set("measured_cmd_over_demand", num(m.delivered));
+        set("measured_withheld_nms", num(m.withheld_nms));
     }
-    r[36] = s
-        .control
-        .as_ref()
-        .map_or(String::new(), |c| c.lost().to_string());
+    set(
+        "control_lost",
+        s.control
+            .as_ref()
+            .map_or(String::new(), |c| c.lost().to_string()),
+    );
     let inv = &s.inverter;
     if inv.frames > 0 {
-        for (i, flag) in [(37, Flag::Fault), (39, Flag::Derating)] {
+        for (name, flag) in [("faults", Flag::Fault), ("derating", Flag::Derating)] {
             if let Some(f) = inv.flag(flag) {
-                r[i] = f.in_scenario.map_or(String::new(), |(n, _)| n.to_string());
-                r[i + 1] = f.count.to_string();
+                set(
+                    &format!("inverter_{name}_in_scenario"),
+                    f.in_scenario.map_or(String::new(), |(n, _)| n.to_string()),
+                );
+                set(&format!("inverter_{name}_whole_log"), f.count.to_string());
             }
         }
     }
@@ -235,83 +320,195 @@ fn control(field: &str) -> &str {
     }
 }
 
-/// An empty count is `-` in the text table.
-fn count(field: &str) -> &str {
-    if field.is_empty() { "-" } else { field }
+/// An empty field is `-` in the text table, and a field is one word
+/// (the table's readers split rows at white space).
+fn count(field: &str) -> String {
+    if field.is_empty() {
+        "-".to_owned()
+    } else {
+        field.split_whitespace().collect::<Vec<_>>().join("_")
+    }
 }
 
 /// An inverter count in the text table: the scenario's, else (no scenario
 /// window) the whole log's, else (no `MotorStatus` frames) `-`.
-fn inverter_count<'a>(in_scenario: &'a str, whole_log: &'a str) -> &'a str {
+fn inverter_count(in_scenario: &str, whole_log: &str) -> String {
     if in_scenario.is_empty() {
         count(whole_log)
     } else {
-        in_scenario
+        count(in_scenario)
     }
 }
 
+/// The vehicle in the text table: the file name of the vehicle file the
+/// summary used (the `vehicle` column, [`grip_drive::vehicle_for`]'s
+/// "PATH (where from)"; `defaults` for none), with `*` when the log does
+/// not carry it (no `vehicle_sha256`: the configuration directory's, a
+/// file read from disk, or the defaults); `-` for a log not read.
+fn vehicle_name(vehicle: &str, sha256: &str) -> String {
+    if vehicle.is_empty() {
+        return "-".to_owned();
+    }
+    let path = vehicle.rsplit_once(" (").map_or(vehicle, |(p, _)| p);
+    let name = count(path.rsplit(['/', '\\']).next().unwrap_or(path));
+    if sha256.is_empty() {
+        format!("{name}*")
+    } else {
+        name
+    }
+}
+
+/// A column of the printed table: its head, whether it is aligned left,
+/// and its cell of a row.
+type TextColumn = (&'static str, bool, fn(&[String]) -> String);
+
+/// The printed table's columns: the run (controller, ARTE, vehicle, seed)
+/// beside the file and its status, then the figures.
+const TEXT_COLUMNS: [TextColumn; 23] = [
+    ("file", true, |r| field(r, "file").to_owned()),
+    ("status", true, |r| count(field(r, "status"))),
+    ("ctrl", true, |r| count(field(r, "controller"))),
+    ("arte", true, |r| count(field(r, "arte"))),
+    ("vehicle", true, |r| {
+        vehicle_name(field(r, "vehicle"), field(r, "vehicle_sha256"))
+    }),
+    ("seed", false, |r| count(field(r, "seed"))),
+    ("cycles", false, |r| count(field(r, "cycles"))),
+    ("slip_dev", false, |r| {
+        rounded(field(r, "slip_deviation"), 1.0, 4)
+    }),
+    ("effort", false, |r| {
+        rounded(field(r, "torque_effort_nm"), 1.0, 1)
+    }),
+    ("dist_m", false, |r| rounded(field(r, "distance_m"), 1.0, 2)),
+    ("arte_acc_%", false, |r| {
+        rounded(field(r, "arte_accuracy"), 100.0, 1)
+    }),
+    ("delay_s", false, |r| {
+        rounded(field(r, "mean_delay_s"), 1.0, 3)
+    }),
+    ("missed", false, |r| match field(r, "road_changes") {
+        "" => "-".to_owned(),
+        all => format!("{}/{all}", field(r, "changes_missed")),
+    }),
+    ("deadline_misses", false, |r| {
+        count(field(r, "deadline_misses_in_scenario"))
+    }),
+    ("faults", false, |r| {
+        count(field(r, "e2e_faults_in_scenario"))
+    }),
+    ("inv_faults", false, |r| {
+        inverter_count(
+            field(r, "inverter_faults_in_scenario"),
+            field(r, "inverter_faults_whole_log"),
+        )
+    }),
+    ("inv_derate", false, |r| {
+        inverter_count(
+            field(r, "inverter_derating_in_scenario"),
+            field(r, "inverter_derating_whole_log"),
+        )
+    }),
+    ("m_slip", false, |r| {
+        rounded(field(r, "measured_mean_abs_slip"), 1.0, 3)
+    }),
+    ("m_max", false, |r| {
+        rounded(field(r, "measured_max_abs_slip"), 1.0, 3)
+    }),
+    ("spins", false, |r| count(field(r, "spin_events"))),
+    ("m_accel", false, |r| {
+        rounded(field(r, "measured_mean_accel_ms2"), 1.0, 2)
+    }),
+    ("control", false, |r| {
+        control(field(r, "control_lost")).to_owned()
+    }),
+    ("window", true, |r| field(r, "scenario_window").to_owned()),
+];
+
+/// The printed table's key, one entry each ([`wrap`]ped).
+const KEY: [&str; 5] = [
+    "ctrl, arte, seed: the controller, ARTE switch and seed the drive ran with, as grip inspect LOG and A B give them (grip.run; a replay's own controller and ARTE switch); vehicle: the vehicle file the summary used, * when the log does not carry it (the configuration directory's, read from disk, or the defaults); --csv adds where it came from, its SHA-256 and the microphone's lead",
+    "during the scenario window: the metrics (slip_dev, effort N m, dist_m), arte_acc_% (ARTE accuracy, %), delay_s (mean detection delay of the road changes detected), missed (road changes at the microphone not detected, of all), deadline_misses (the control loop's missed deadlines) and faults (E2E faults)",
+    "inv_faults and inv_derate: the inverter's fault and derating episodes from its MotorStatus frames, during the scenario window (over the whole log when the log has none; - without MotorStatus frames)",
+    "measured by the loop, NOT ground truth (over the scenario window, else the time the driver demanded torque): m_slip (mean |slip|), m_max (max |slip|), spins (spin events), m_accel (mean acceleration from V, m/s^2)",
+    "control: LOST when control was lost and not regained in the scenario window; window: how much of the scenario the log covers; a missing figure is -; --csv FILE: every column at full precision",
+];
+
+/// Width of the printed table's key.
+const KEY_WIDTH: usize = 100;
+
+/// `text` in lines of at most `width` characters (a longer word alone),
+/// the lines after the first indented by two spaces.
+fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines = vec![String::new()];
+    for word in text.split_whitespace() {
+        let line = lines.last_mut().expect("one line at least");
+        let len = line.chars().count();
+        if len > 2 && len + 1 + word.chars().count() > width {
+            lines.push(format!("  {word}"));
+        } else {
+            if !line.trim().is_empty() {
+                line.push(' ');
+            }
+            line.push_str(word);
+        }
+    }
+    lines
+}
+
 /// The printed table of `grip inspect DIR` (the CSV has every column at
-/// full precision): numbers rounded, ARTE accuracy in %, the road changes
-/// ARTE missed beside the mean detection delay, the deadline misses
-/// named as such, the inverter's fault and derating episodes, the key
-/// figures the loop measured and whether control was lost.
+/// full precision): each row's run (controller, ARTE, vehicle file,
+/// seed) beside its file, numbers rounded, ARTE accuracy in %, the road
+/// changes ARTE missed beside the mean detection delay, the deadline
+/// misses named as such, the inverter's fault and derating episodes, the
+/// key figures the loop measured and whether control was lost; each
+/// column as wide as its widest cell, the key wrapped to [`KEY_WIDTH`].
 pub fn table(rows: &[Vec<String>]) -> String {
+    let cells: Vec<Vec<String>> = rows
+        .iter()
+        .map(|r| TEXT_COLUMNS.iter().map(|(_, _, f)| f(r)).collect())
+        .collect();
+    let widths: Vec<usize> = TEXT_COLUMNS
+        .iter()
+        .enumerate()
+        .map(|(i, (head, _, _))| {
+            cells
+                .iter()
+                .map(|c| c[i].chars().count())
+                .chain([head.chars().count()])
+                .max()
+                .unwrap_or(0)
+        })
+        .collect();
+    let line = |cells: &mut dyn Iterator<Item = &str>| -> String {
+        let mut l = String::new();
+        for (i, c) in cells.enumerate() {
+            let (w, left) = (widths[i], TEXT_COLUMNS[i].1);
+            if i > 0 {
+                l.push(' ');
+            }
+            if left {
+                let _ = write!(l, "{c:<w$}");
+            } else {
+                let _ = write!(l, "{c:>w$}");
+            }
+        }
+        l.trim_end().to_owned()
+    };
     let mut text = String::new();
     let _ = writeln!(
         text,
-        "{:<28} {:<11} {:>8} {:>9} {:>8} {:>8} {:>10} {:>8} {:>7} {:>15} {:>6} {:>10} {:>10} {:>6} {:>6} {:>5} {:>7} {:>7}  window",
-        "file",
-        "status",
-        "cycles",
-        "slip_dev",
-        "effort",
-        "dist_m",
-        "arte_acc_%",
-        "delay_s",
-        "missed",
-        "deadline_misses",
-        "faults",
-        "inv_faults",
-        "inv_derate",
-        "m_slip",
-        "m_max",
-        "spins",
-        "m_accel",
-        "control"
+        "{}",
+        line(&mut TEXT_COLUMNS.iter().map(|(h, _, _)| *h))
     );
-    for r in rows {
-        let _ = writeln!(
-            text,
-            "{:<28} {:<11} {:>8} {:>9} {:>8} {:>8} {:>10} {:>8} {:>7} {:>15} {:>6} {:>10} {:>10} {:>6} {:>6} {:>5} {:>7} {:>7}  {}",
-            r[0],
-            r[1],
-            count(&r[6]),
-            rounded(&r[8], 1.0, 4),
-            rounded(&r[10], 1.0, 1),
-            rounded(&r[11], 1.0, 2),
-            rounded(&r[14], 100.0, 1),
-            rounded(&r[17], 1.0, 3),
-            if r[15].is_empty() {
-                "-".to_owned()
-            } else {
-                format!("{}/{}", r[16], r[15])
-            },
-            count(&r[19]),
-            count(&r[21]),
-            inverter_count(&r[37], &r[38]),
-            inverter_count(&r[39], &r[40]),
-            rounded(&r[28], 1.0, 3),
-            rounded(&r[30], 1.0, 3),
-            count(&r[32]),
-            rounded(&r[33], 1.0, 2),
-            control(&r[36]),
-            r[22]
-        );
+    for c in &cells {
+        let _ = writeln!(text, "{}", line(&mut c.iter().map(String::as_str)));
     }
-    let _ = writeln!(
-        text,
-        "(during the scenario window: the metrics (slip_dev, effort N m, dist_m), arte_acc_% (ARTE accuracy, %), delay_s (mean detection delay of the road changes detected), missed (road changes at the microphone not detected, of all), deadline_misses (the control loop's missed deadlines) and faults (E2E faults); inv_faults and inv_derate: the inverter's fault and derating episodes from its MotorStatus frames, during the scenario window (over the whole log when the log has none; - without MotorStatus frames); measured by the loop, NOT ground truth (over the scenario window, else the time the driver demanded torque): m_slip (mean |slip|), m_max (max |slip|), spins (spin events), m_accel (mean acceleration from V, m/s^2); control: LOST when control was lost and not regained in the scenario window; window: how much of the scenario the log covers; --csv FILE: every column at full precision)"
-    );
+    for entry in KEY {
+        for l in wrap(entry, KEY_WIDTH) {
+            let _ = writeln!(text, "{l}");
+        }
+    }
     text
 }
 
@@ -324,8 +521,9 @@ pub fn inspect_dir(ctx: &Ctx, dir: &Path, csv: Option<&Path>, strict: bool) -> a
     for p in &logs {
         let (r, good) = row(p, &ctx.config_dir);
         if !good {
-            pb.suspend(|| eprintln!("bad log {}: {}: {}", r[0], r[1], r[2]));
-            bad.push(r[0].clone());
+            let f = |c: &str| field(&r, c).to_owned();
+            pb.suspend(|| eprintln!("bad log {}: {}: {}", f("file"), f("status"), f("reason")));
+            bad.push(f("file"));
         }
         rows.push(r);
         pb.inc(1);
@@ -357,4 +555,176 @@ pub fn inspect_dir(ctx: &Ctx, dir: &Path, csv: Option<&Path>, strict: bool) -> a
         bail!("{} of {} logs are bad (--strict)", bad.len(), rows.len());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::drive::export::test_log;
+
+    fn config_dir() -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config")
+    }
+
+    /// The shipped front-mic vehicle file (its microphone 2.77 m ahead).
+    fn front_mic() -> Vec<u8> {
+        std::fs::read(config_dir().join("vehicles/front-mic.toml")).unwrap()
+    }
+
+    /// [`test_log::drive`] as `grip drive --vehicle .../front-mic.toml`
+    /// records it: the file attached as `drive/vehicle.toml`.
+    fn drive_with_vehicle() -> DriveLog {
+        let mut log = test_log::drive();
+        log.attachments
+            .insert(grip_drive::plan::VEHICLE_ATTACHMENT.into(), front_mic());
+        log
+    }
+
+    /// A row's and the printed table's run: the controller, the ARTE
+    /// switch and the seed the summary gives (a replay's own controller and
+    /// ARTE switch, not its source's copied `grip.run`), and the vehicle
+    /// file the summary used, with its SHA-256 and the microphone's lead;
+    /// the table had no such column, so an ARTE-on and an ARTE-off drive
+    /// differed only by file name.
+    #[test]
+    fn each_row_names_its_run() {
+        let on = drive_with_vehicle();
+        let (r, good) = row_of("on.mcap".into(), &on, &config_dir());
+        assert!(good);
+        let (v, from, _) = grip_drive::vehicle_for(&on, &config_dir());
+        let s = summarize_with_roads(&on, &v, &from, &on.road_catalogue(&config_dir()));
+        assert_eq!(field(&r, "controller"), "mtte");
+        assert_eq!(field(&r, "arte"), "on");
+        assert_eq!(field(&r, "seed"), "7");
+        assert_eq!(field(&r, "vehicle"), s.vehicle);
+        assert!(field(&r, "vehicle").starts_with("/somewhere/config/vehicles/front-mic.toml ("));
+        assert_eq!(
+            field(&r, "vehicle_sha256"),
+            grip_digest::sha256_hex(&front_mic())
+        );
+        assert_eq!(field(&r, "mic_lead_m"), "2.77");
+
+        // a replay of it with ARTE off and SRC: its own switch and controller
+        let mut off = drive_with_vehicle();
+        off.metadata.insert(
+            "grip.replay".into(),
+            [
+                ("source", "on.mcap"),
+                ("mode", "open loop"),
+                ("controller", "src"),
+                ("arte", "off"),
+            ]
+            .into_iter()
+            .map(|(k, v)| (k.into(), v.into()))
+            .collect(),
+        );
+        let (r_off, _) = row_of("off.mcap".into(), &off, &config_dir());
+        assert_eq!(
+            (field(&r_off, "controller"), field(&r_off, "arte")),
+            ("src", "off")
+        );
+        // a log that carries no vehicle: the configuration directory's
+        let mut bare = test_log::drive();
+        bare.run.remove("vehicle");
+        let (r_bare, _) = row_of("bare.mcap".into(), &bare, &config_dir());
+        assert_eq!(field(&r_bare, "vehicle_sha256"), "");
+        assert!(
+            field(&r_bare, "vehicle").ends_with("vehicle.toml (configuration directory)"),
+            "{}",
+            field(&r_bare, "vehicle")
+        );
+
+        let text = table(&[r, r_off, r_bare]);
+        let lines: Vec<Vec<&str>> = text
+            .lines()
+            .take(4)
+            .map(|l| l.split_whitespace().collect())
+            .collect();
+        assert_eq!(
+            lines[0][..7],
+            [
+                "file", "status", "ctrl", "arte", "vehicle", "seed", "cycles"
+            ],
+            "{text}"
+        );
+        assert_eq!(
+            lines[1][..6],
+            ["on.mcap", "ok", "mtte", "on", "front-mic.toml", "7"]
+        );
+        assert_eq!(
+            lines[2][..6],
+            ["off.mcap", "ok", "src", "off", "front-mic.toml", "7"]
+        );
+        assert_eq!(lines[3][4], "vehicle.toml*", "{text}");
+        // every row has a word per column
+        for l in &lines {
+            assert_eq!(l.len(), TEXT_COLUMNS.len(), "{text}");
+        }
+    }
+
+    /// The vehicle's name in the table, from each kind of
+    /// [`grip_drive::vehicle_for`] label.
+    #[test]
+    fn the_vehicles_name_from_where_it_came_from() {
+        let sha = "ab12";
+        for (from, sha, want) in [
+            (
+                "/x/my cars (old)/rear.toml (grip drive --vehicle; attached to the log as drive/vehicle.toml)",
+                sha,
+                "rear.toml",
+            ),
+            (
+                "vehicles/front-mic.toml (attached to the log)",
+                sha,
+                "front-mic.toml",
+            ),
+            ("vehicle.toml (attached to the log)", sha, "vehicle.toml"),
+            (
+                "/x/v2.toml (read from disk: not attached to the log)",
+                "",
+                "v2.toml*",
+            ),
+            (
+                "/etc/grip/vehicle.toml (configuration directory)",
+                "",
+                "vehicle.toml*",
+            ),
+            ("defaults", "", "defaults*"),
+            ("", "", "-"),
+            ("my car.toml (attached to the log)", sha, "my_car.toml"),
+        ] {
+            assert_eq!(vehicle_name(from, sha), want, "{from}");
+        }
+    }
+
+    /// The table's columns are each as wide as their widest cell, and its
+    /// key keeps to [`KEY_WIDTH`] (it was one line of 900 characters).
+    #[test]
+    fn the_table_is_as_wide_as_its_cells_and_its_key_wraps() {
+        let (r, _) = row_of("a.mcap".into(), &drive_with_vehicle(), &config_dir());
+        let text = table(std::slice::from_ref(&r));
+        let lines: Vec<&str> = text.lines().collect();
+        assert!(
+            lines[0].starts_with("file   status ctrl arte vehicle        seed "),
+            "{text}"
+        );
+        assert!(
+            lines[1].starts_with("a.mcap ok     mtte on   front-mic.toml    7 "),
+            "{text}"
+        );
+        for l in &lines[2..] {
+            assert!(l.chars().count() <= KEY_WIDTH, "{l}");
+        }
+        assert!(
+            lines[2..]
+                .iter()
+                .any(|l| l.starts_with("inv_faults and inv_derate: the inverter's fault")),
+            "{text}"
+        );
+        assert_eq!(
+            wrap("aaa bbb ccc", 7),
+            ["aaa bbb", "  ccc"],
+            "a word that does not fit opens an indented line"
+        );
+    }
 }

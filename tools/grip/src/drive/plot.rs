@@ -1,9 +1,11 @@
 //! `grip inspect --plot DIR`: `drive.png` (speeds, slip and torque over the
-//! bands of the road under the driven wheel, the torque panel with the
-//! torque cap the loop's road belief put in force, then four strips: the
-//! road at the microphone, ARTE's estimate, the loop's road belief (what
-//! the controller acted on) and the road under the wheel) and `timing.png`
-//! (wake-up latency histogram of the control loop).
+//! bands of the road under the driven wheel, the torque panel (torques at
+//! one driven wheel, after the gear, as all of grip's) with the torque cap
+//! the loop's road belief put in force, then four strips: the road at the
+//! microphone, ARTE's estimate (those below the loop's confidence gate
+//! pale and hatched), the loop's road belief (what the controller acted
+//! on) and the road under the wheel) and `timing.png` (wake-up latency
+//! histogram of the control loop over the whole log, as its title says).
 //!
 //! Every trace stays in its panel: [`crate::plot::clip_trace`] clamps it to
 //! the panel's y range (the key says so when it did) and
@@ -32,7 +34,9 @@ use grip_drive::summary::Percentiles;
 const W: u32 = 1600;
 const TITLE_H: u32 = 80;
 const PANEL_H: u32 = 330;
-const STRIPS_H: u32 = 230;
+/// Height of the strips (and of their key: the roads, 8 a column, then the
+/// gate's entry).
+const STRIPS_H: u32 = 290;
 /// Width of the key column at the right of every panel (outside the data).
 const LEGEND_W: u32 = 210;
 /// Width of the y labels (and of the strips' row names).
@@ -46,6 +50,86 @@ const ROWS: f64 = 4.0;
 
 /// The torque cap's colour in the torque panel.
 const CAP_COLOUR: RGBColor = RGBColor(190, 0, 190);
+
+/// The torque panel's caption and y axis: grip's torques are those of ONE
+/// driven wheel, after the gear (`vehicle.toml` `torque_max`: the motor's
+/// limit × gear ratio ÷ n_driven), not the motor's.
+const TORQUE_CAPTION: &str = "wheel torque, one driven wheel (N m; motor × gear ratio ÷ n_driven): tcs-loop's demand T_d, command T* and road-belief cap; T";
+const TORQUE_AXIS: &str = "wheel torque, one driven wheel (N m)";
+
+/// How strongly a road's colour fills a strip (and its key's swatch):
+/// mixed with white, opaque, so that ARTE's overlapping frames (each from
+/// its frame's start to its publication) show the key's colour, not a
+/// darker one where two translucent fills overlap.
+const STRIP_SHARE: f64 = 0.85;
+/// The same for ARTE's estimates below the loop's confidence gate (drawn
+/// hatched besides).
+const BELOW_GATE_SHARE: f64 = 0.3;
+/// Spacing of the hatching of estimates below the gate, pixels.
+const HATCH_PX: f64 = 7.0;
+
+/// `c` mixed with white: `share` of `c`, as an opaque colour.
+fn on_white(c: RGBColor, share: f64) -> RGBColor {
+    let m = |x: u8| (255.0 - share * (255.0 - f64::from(x))).round() as u8;
+    RGBColor(m(c.0), m(c.1), m(c.2))
+}
+
+/// The loop's confidence gate (`controllers.toml` `[arte] min_confidence`:
+/// the controller takes no estimate less confident), as the summary reads
+/// it (the log's `controllers.toml`, else the default), and where it came
+/// from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Gate {
+    min_confidence: f64,
+    from: GateFrom,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum GateFrom {
+    /// The log's `controllers.toml`.
+    Log,
+    /// The default: the log carries no `controllers.toml` giving it.
+    Default,
+    /// The log's `controllers.toml`, a replay's copy of its source's,
+    /// which the replay changed (`--set ...min_confidence`, or another
+    /// configuration directory): perhaps not the gate the replay ran.
+    ReplayChanged,
+}
+
+/// The loop's confidence gate of `log`: the summary's
+/// ([`grip_drive::summary::min_confidence_of`]), and whether a replay
+/// changed it.
+fn gate_of(log: &DriveLog) -> Gate {
+    let (min_confidence, given) = grip_drive::summary::min_confidence_of(log);
+    let changed = grip_drive::summary::replay_of(log).is_some_and(|r| {
+        r.changes.contains("min_confidence") || r.changes.contains("configuration directory")
+    });
+    Gate {
+        min_confidence,
+        from: match (given, changed) {
+            (false, _) => GateFrom::Default,
+            (true, true) => GateFrom::ReplayChanged,
+            (true, false) => GateFrom::Log,
+        },
+    }
+}
+
+impl Gate {
+    /// The key's lines beside the hatched swatch (the key column holds
+    /// about 25 characters).
+    fn key(&self) -> [String; 3] {
+        [
+            "ARTE, below the gate:".to_owned(),
+            format!("confidence < {}", self.min_confidence),
+            match self.from {
+                GateFrom::Log => "(log's controllers.toml)",
+                GateFrom::Default => "(default: not in the log)",
+                GateFrom::ReplayChanged => "(source's; replay changed)",
+            }
+            .to_owned(),
+        ]
+    }
+}
 
 /// The drive's series, times on [`TimeBase::axis`].
 struct Series {
@@ -75,6 +159,10 @@ struct Series {
     meas_lambda: Vec<f64>,
     /// ARTE: (frame start, publication, class name or "").
     est: Vec<(f64, f64, String)>,
+    /// Per estimate: its confidence below the loop's gate.
+    below_gate: Vec<bool>,
+    /// The loop's confidence gate.
+    gate: Gate,
     /// The loop's road belief ([`belief_runs`]).
     belief: Vec<(f64, f64, String)>,
     /// The torque cap in force per cycle record, N m (NaN: none).
@@ -174,6 +262,14 @@ fn series(log: &DriveLog, r: f64, v_eps: f64) -> Series {
             )
         })
         .collect();
+    let gate = gate_of(log);
+    // a confidence that is no number is below any gate (the loop ignores
+    // the estimate)
+    let below_gate: Vec<bool> = log
+        .roads
+        .iter()
+        .map(|e| !(e.confidence.is_finite() && e.confidence >= gate.min_confidence))
+        .collect();
     let wheel: Vec<String> = log.truth.iter().map(|g| name(g.road_name())).collect();
     let mic: Vec<String> = log.truth.iter().map(|g| name(g.mic_road_name())).collect();
     let belief = belief_runs(log, &tb);
@@ -207,6 +303,8 @@ fn series(log: &DriveLog, r: f64, v_eps: f64) -> Series {
         clt: slips.iter().map(|p| p.0).collect(),
         meas_lambda: slips.iter().map(|p| p.1).collect(),
         est,
+        below_gate,
+        gate,
         belief,
         cap: log.cycles.iter().map(|c| c.torque_cap).collect(),
         names,
@@ -221,6 +319,15 @@ impl Series {
     fn colour(&self, road: &str) -> RGBColor {
         let idx = self.names.iter().position(|n| n == road).unwrap_or(0);
         road_colour(road, idx)
+    }
+
+    /// A strip's (and the key's) opaque fill of `road` ("": none, white).
+    fn strip_fill(&self, road: &str) -> RGBColor {
+        if road.is_empty() {
+            WHITE
+        } else {
+            on_white(self.colour(road), STRIP_SHARE)
+        }
     }
 
     /// Bands of a per-truth-sample road sequence.
@@ -276,8 +383,10 @@ fn key(area: &Area<'_>, top: i32, entries: &[Key]) -> Res {
     Ok(())
 }
 
-/// A panel of `s`: the bands of the road under the driven wheel drawn pale
-/// behind (named if `label_roads`), the scenario start marked, `lines`
+/// A panel of `s` titled `caption`, its y axis described by `y_desc`
+/// (None: the caption says it): the bands of the road under the driven
+/// wheel drawn pale behind (named if `label_roads`), the scenario start
+/// marked, `lines`
 /// (label, times, values, colour) on top, clamped to the y range, their
 /// key at the right (a line clamped to the axis said so, one with samples
 /// but no finite value named as absent), and `note` written across the
@@ -285,7 +394,7 @@ fn key(area: &Area<'_>, top: i32, entries: &[Key]) -> Res {
 fn panel(
     area: &Area<'_>,
     s: &Series,
-    caption: &str,
+    (caption, y_desc): (&str, Option<&str>),
     (y_lo, y_hi): (f64, f64),
     label_roads: bool,
     lines: &[(&str, &[f64], &[f64], RGBColor)],
@@ -320,13 +429,15 @@ fn panel(
             )))?;
         }
     }
-    chart
-        .configure_mesh()
-        .disable_mesh()
+    let mut mesh = chart.configure_mesh();
+    mesh.disable_mesh()
         .x_desc(s.tb.axis_label())
         .label_style(("sans-serif", 15))
-        .axis_desc_style(("sans-serif", 15))
-        .draw()?;
+        .axis_desc_style(("sans-serif", 15));
+    if let Some(d) = y_desc {
+        mesh.y_desc(d);
+    }
+    mesh.draw()?;
     let mut entries: Vec<Key> = Vec::new();
     for &(label, ts, ys, c) in lines {
         if ts.is_empty() {
@@ -362,11 +473,44 @@ fn panel(
     key(&side, 40, &entries)
 }
 
+/// The hatching (`/`, [`HATCH_PX`] apart, 45° on screen) of the box
+/// `[t0, t1] × [y0, y1]` of a chart whose x axis starts at `t_lo`, with
+/// `px` pixels per unit of x and of y: segments in the chart's
+/// coordinates, anchored at the axis' start so that neighbouring boxes'
+/// lines continue.
+fn hatch(
+    (t0, t1): (f64, f64),
+    (y0, y1): (f64, f64),
+    t_lo: f64,
+    (px_x, px_y): (f64, f64),
+) -> Vec<[(f64, f64); 2]> {
+    let (a, b) = ((t0 - t_lo) * px_x, (t1 - t_lo) * px_x);
+    let h = (y1 - y0) * px_y;
+    let mut out = Vec::new();
+    if !(px_x > 0.0 && px_y > 0.0 && b > a && h > 0.0) {
+        return out;
+    }
+    // a line from (u, bottom) up to (u + h, top), pixels from the axis'
+    // start, cut to [a, b]
+    let mut u = ((a - h) / HATCH_PX).floor() * HATCH_PX;
+    while u < b {
+        let (s0, s1) = ((a - u).max(0.0), (b - u).min(h));
+        if s1 > s0 {
+            let p = |s: f64| (t_lo + (u + s) / px_x, y0 + s / px_y);
+            out.push([p(s0), p(s1)]);
+        }
+        u += HATCH_PX;
+    }
+    out
+}
+
 /// The four road strips: the road at the microphone (what ARTE hears),
-/// ARTE's estimate (from its frame's start to its publication), the loop's
-/// road belief (what the controller acted on: [`belief_runs`]; a note when
-/// the cycle records hold none) and the road under the driven wheel, with
-/// the colour key at the right.
+/// ARTE's estimate (from its frame's start to its publication, each over
+/// the one before; those whose confidence is below the loop's gate pale
+/// and hatched), the loop's road belief (what the controller acted on:
+/// [`belief_runs`]; a note when the cycle records hold none) and the road
+/// under the driven wheel, with the colour key at the right (the strips'
+/// own opaque colours) and the gate's entry under it.
 fn strips(area: &Area<'_>, s: &Series) -> Res {
     let (plot, side) = area.split_horizontally(W - LEGEND_W);
     let (t_lo, t_hi) = s.span;
@@ -379,6 +523,11 @@ fn strips(area: &Area<'_>, s: &Series) -> Res {
         .x_label_area_size(34)
         .y_label_area_size(LABEL_W)
         .build_cartesian_2d(t_lo..t_hi, 0.0..ROWS)?;
+    let (xr, yr) = chart.plotting_area().get_pixel_range();
+    let px = (
+        f64::from(xr.end - xr.start) / (t_hi - t_lo),
+        f64::from(yr.end - yr.start) / ROWS,
+    );
     let row = |row: f64, t0: f64, t1: f64, fill: ShapeStyle| {
         Rectangle::new(
             [(t0.max(t_lo), row + 0.12), (t1.min(t_hi), row + 0.88)],
@@ -390,22 +539,46 @@ fn strips(area: &Area<'_>, s: &Series) -> Res {
             s.bands(roads)
                 .into_iter()
                 .filter(|b| b.t1 > t_lo && b.t0 < t_hi)
-                .map(|b| row(r, b.t0, b.t1, b.colour.mix(0.85).filled())),
+                .map(|b| row(r, b.t0, b.t1, s.strip_fill(&b.label).filled())),
         )?;
     }
-    for (r, spans) in [(ROW_ARTE, &s.est), (ROW_BELIEF, &s.belief)] {
+    chart.draw_series(
+        s.belief
+            .iter()
+            .filter(|(t0, t1, _)| *t1 > t_lo && *t0 < t_hi)
+            .map(|(t0, t1, name)| row(ROW_BELIEF, *t0, *t1, s.strip_fill(name).filled())),
+    )?;
+    // ARTE's estimates in order, each drawn over the one before (opaque:
+    // the key's colours where frames overlap)
+    for ((t0, t1, name), &below) in s.est.iter().zip(&s.below_gate) {
+        if !(*t1 > t_lo && *t0 < t_hi) {
+            continue;
+        }
+        if name.is_empty() || !below {
+            chart.draw_series(std::iter::once(row(
+                ROW_ARTE,
+                *t0,
+                *t1,
+                s.strip_fill(name).filled(),
+            )))?;
+            continue;
+        }
+        let c = s.colour(name);
+        chart.draw_series(std::iter::once(row(
+            ROW_ARTE,
+            *t0,
+            *t1,
+            on_white(c, BELOW_GATE_SHARE).filled(),
+        )))?;
         chart.draw_series(
-            spans
-                .iter()
-                .filter(|(t0, t1, _)| *t1 > t_lo && *t0 < t_hi)
-                .map(|(t0, t1, name)| {
-                    let fill = if name.is_empty() {
-                        WHITE.filled()
-                    } else {
-                        s.colour(name).mix(0.85).filled()
-                    };
-                    row(r, *t0, *t1, fill)
-                }),
+            hatch(
+                (t0.max(t_lo), t1.min(t_hi)),
+                (ROW_ARTE + 0.12, ROW_ARTE + 0.88),
+                t_lo,
+                px,
+            )
+            .into_iter()
+            .map(|seg| PathElement::new(seg.to_vec(), c.stroke_width(1))),
         )?;
     }
     if s.belief.is_empty() {
@@ -456,30 +629,47 @@ fn strips(area: &Area<'_>, s: &Series) -> Res {
         let (_, py) = chart.backend_coord(&(t_lo, r + 0.5));
         area.draw_text(label, &font, (14, py - base.1 - 8))?;
     }
-    // colour key
+    // colour key: the strips' own fills
     let mut names: Vec<&str> = s.names.iter().map(String::as_str).collect();
     if s.est.iter().chain(&s.belief).any(|e| e.2.is_empty()) {
         names.push("");
     }
     let rows_per_col = 8;
-    for (i, name) in names.iter().enumerate() {
-        let x = 10 + 100 * (i / rows_per_col) as i32;
-        let y = 36 + 22 * (i % rows_per_col) as i32;
-        let fill = if name.is_empty() {
-            WHITE.filled()
-        } else {
-            s.colour(name).mix(0.85).filled()
-        };
-        side.draw(&Rectangle::new([(x, y), (x + 16, y + 16)], fill))?;
+    let swatch = |x: i32, y: i32, fill: RGBColor| -> Res {
+        side.draw(&Rectangle::new([(x, y), (x + 16, y + 16)], fill.filled()))?;
         side.draw(&Rectangle::new(
             [(x, y), (x + 16, y + 16)],
             BLACK.stroke_width(1),
         ))?;
+        Ok(())
+    };
+    for (i, name) in names.iter().enumerate() {
+        let x = 10 + 100 * (i / rows_per_col) as i32;
+        let y = 36 + 22 * (i % rows_per_col) as i32;
+        swatch(x, y, s.strip_fill(name))?;
         side.draw_text(
             if name.is_empty() { "none" } else { name },
             &font,
             (x + 22, y),
         )?;
+    }
+    // the gate's entry (for a log with estimates): a swatch as the strip
+    // draws an estimate below it
+    if s.est.is_empty() {
+        return Ok(());
+    }
+    let y = 36 + 22 * names.len().min(rows_per_col) as i32 + 6;
+    let grey = RGBColor(110, 110, 110);
+    swatch(10, y, on_white(grey, BELOW_GATE_SHARE))?;
+    for [(x0, y0), (x1, y1)] in hatch((10.0, 26.0), (0.0, 16.0), 0.0, (1.0, 1.0)) {
+        let p = |x: f64, h: f64| (x.round() as i32, y + 16 - h.round() as i32);
+        side.draw(&PathElement::new(
+            vec![p(x0, y0), p(x1, y1)],
+            grey.stroke_width(1),
+        ))?;
+    }
+    for (k, line) in s.gate.key().iter().enumerate() {
+        side.draw_text(line, &font, (32, y + 17 * k as i32))?;
     }
     Ok(())
 }
@@ -601,7 +791,7 @@ fn draw_drive(root: &Area<'_>, log: &DriveLog, r: f64, v_eps: f64) -> Res {
         panel(
             &p1,
             &s,
-            "speeds (m/s, ground truth)",
+            ("speeds (m/s, ground truth)", None),
             range(s.v.iter().chain(&s.r_omega).copied()),
             true,
             &[
@@ -614,7 +804,10 @@ fn draw_drive(root: &Area<'_>, log: &DriveLog, r: f64, v_eps: f64) -> Res {
         panel(
             &p1,
             &s,
-            "speeds (m/s, measured by tcs-loop: the log has no ground truth)",
+            (
+                "speeds (m/s, measured by tcs-loop: the log has no ground truth)",
+                None,
+            ),
             range(s.meas_v.iter().chain(&s.meas_r_omega).copied()),
             true,
             &[
@@ -628,7 +821,7 @@ fn draw_drive(root: &Area<'_>, log: &DriveLog, r: f64, v_eps: f64) -> Res {
         panel(
             &p2,
             &s,
-            "slip λ (ground truth)",
+            ("slip λ (ground truth)", None),
             range(s.lambda.iter().copied().chain([0.0])),
             false,
             &[("λ", &s.t, &s.lambda, RGBColor(200, 0, 0))],
@@ -643,7 +836,10 @@ fn draw_drive(root: &Area<'_>, log: &DriveLog, r: f64, v_eps: f64) -> Res {
         panel(
             &p2,
             &s,
-            "slip λ_m measured by tcs-loop ((r ω − V) / max(r ω, V, v_eps), V valid, max(r ω, V) ≥ 1 m/s, out of the safe state; the log has no ground truth)",
+            (
+                "slip λ_m measured by tcs-loop ((r ω − V) / max(r ω, V, v_eps), V valid, max(r ω, V) ≥ 1 m/s, out of the safe state; the log has no ground truth)",
+                None,
+            ),
             (lo, hi),
             false,
             &[
@@ -661,14 +857,18 @@ fn draw_drive(root: &Area<'_>, log: &DriveLog, r: f64, v_eps: f64) -> Res {
         )?;
     }
     let (t_label, t_times, t_values) = if truth {
-        ("T (plant)", &s.t, &s.torque)
+        ("T, wheel (plant)", &s.t, &s.torque)
     } else {
-        ("T (measured)", &s.ct, &s.meas_torque)
+        ("T, wheel (measured)", &s.ct, &s.meas_torque)
     };
+    let caption = format!(
+        "{TORQUE_CAPTION} {}",
+        if truth { "from the plant" } else { "measured" }
+    );
     panel(
         &p3,
         &s,
-        "torque (N m): demand T_d, command T* and the torque cap its road belief put in force, from tcs-loop; motor torque T",
+        (&caption, Some(TORQUE_AXIS)),
         range(
             s.demand
                 .iter()
@@ -702,6 +902,49 @@ fn drive_png(path: &Path, log: &DriveLog, r: f64, v_eps: f64) -> Res {
     Ok(())
 }
 
+/// The title of `timing.png`, three lines: the log and what the histogram
+/// covers (every cycle record: the whole log, start-up and stop included,
+/// and its span on the drive figure's time axis), its figures (`p` of the
+/// wake-up latencies, `over` of them above `top_us`), and that the
+/// summary's loop timing leads with the scenario window's figures.
+fn timing_title(log: &DriveLog, p: &Percentiles, over: u64, top_us: i64) -> [String; 3] {
+    let tb = TimeBase::of(log);
+    let file = log
+        .path
+        .file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let span = match lohi(log.cycles.iter().map(|c| c.stamp_ns)) {
+        Some((a, b)) => format!(
+            "every cycle record, t {:.2} to {:.2} s from {}",
+            tb.axis(a),
+            tb.axis(b),
+            if tb.scenario_ns.is_some() {
+                "the scenario start"
+            } else {
+                "the first message"
+            }
+        ),
+        None => "no cycle records".to_owned(),
+    };
+    [
+        format!(
+            "{file}: tcs-loop wake-up latency over the WHOLE LOG (start-up, hold and stop included)"
+        ),
+        format!(
+            "{span}: {} cycles, p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs, {over} above {top_us} µs",
+            p.n,
+            p.p50 as f64 / 1e3,
+            p.p99 as f64 / 1e3,
+            p.max as f64 / 1e3,
+        ),
+        "grip inspect's summary leads with the scenario window's figures (\"during the scenario\"), a part of these cycles"
+            .to_owned(),
+    ]
+}
+
+/// Height of timing.png's title.
+const TIMING_TITLE_H: u32 = 76;
+
 fn timing_png(path: &Path, log: &DriveLog) -> Res {
     let mut lat: Vec<i64> = log.cycles.iter().map(|c| c.wakeup_latency_ns).collect();
     let p = Percentiles::of(&mut lat);
@@ -720,23 +963,22 @@ fn timing_png(path: &Path, log: &DriveLog) -> Res {
         }
     }
     let ymax = counts.iter().copied().max().unwrap_or(1).max(1) as f64;
-    let root = BitMapBackend::new(path, (1200, 600)).into_drawing_area();
+    let root = BitMapBackend::new(path, (1200, 600 + TIMING_TITLE_H)).into_drawing_area();
     root.fill(&WHITE)?;
-    let caption = format!(
-        "{}: tcs-loop wake-up latency: {} cycles, p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs, {} above {} µs",
-        log.path
-            .file_name()
-            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
-        p.n,
-        p.p50 as f64 / 1e3,
-        p.p99 as f64 / 1e3,
-        p.max as f64 / 1e3,
-        over,
-        nb as i64 * bin_us
-    );
-    let mut chart = ChartBuilder::on(&root)
+    let (top, rest) = root.split_vertically(TIMING_TITLE_H);
+    for (k, (line, size)) in timing_title(log, &p, over, nb as i64 * bin_us)
+        .iter()
+        .zip([18, 15, 15])
+        .enumerate()
+    {
+        top.draw_text(
+            line,
+            &("sans-serif", size).into_font().color(&BLACK),
+            (16, 10 + 22 * k as i32),
+        )?;
+    }
+    let mut chart = ChartBuilder::on(&rest)
         .margin(12)
-        .caption(caption, ("sans-serif", 18))
         .x_label_area_size(40)
         .y_label_area_size(70)
         .build_cartesian_2d(
@@ -1045,5 +1287,210 @@ mod tests {
         let (a, b) = title_of(&log);
         assert_eq!(a, "front-mic-drive.mcap: no run metadata (grip.run)");
         assert_eq!(b, "recording date not in the log");
+    }
+
+    /// The shipped controllers.toml (its `[arte] min_confidence` 0.6).
+    fn shipped_controllers() -> Vec<u8> {
+        std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/controllers.toml"))
+            .unwrap()
+    }
+
+    /// Pixels of the strips (below the three panels, under their caption,
+    /// above their x axis' labels, left of the key) within 2 of colour `c`
+    /// in every channel.
+    fn near_in_strips(buf: &[u8], c: RGBColor) -> usize {
+        let top = TITLE_H + 3 * PANEL_H;
+        (top + 30..drive_height() - 40)
+            .flat_map(|y| (LABEL_W..W - LEGEND_W).map(move |x| ((y * W + x) * 3) as usize))
+            .filter(|&i| {
+                buf[i..i + 3]
+                    .iter()
+                    .zip([c.0, c.1, c.2])
+                    .all(|(a, b)| a.abs_diff(b) <= 2)
+            })
+            .count()
+    }
+
+    /// ARTE's frames overlap (each drawn from its frame's start to its
+    /// publication, 20 ms after the next frame's start here): the strip is
+    /// drawn in the key's opaque colours, where its translucent fills drew
+    /// the overlaps darker than the key's swatches (and the strips of the
+    /// microphone and the wheel).
+    #[test]
+    fn arte_keeps_the_keys_colours_where_its_frames_overlap() {
+        let buf = render(&test_log::drive());
+        for road in ["asphalt", "snow"] {
+            let c = road_colour(road, 0);
+            // one translucent 0.85 fill over another
+            let doubled = on_white(c, 1.0 - 0.15 * 0.15);
+            assert_eq!(near_in_strips(&buf, doubled), 0, "{road}: darker overlaps");
+            assert!(
+                near_in_strips(&buf, on_white(c, STRIP_SHARE)) > 5000,
+                "{road}"
+            );
+        }
+        // the key's swatch is the strips' colour
+        let snow = on_white(road_colour("snow", 0), STRIP_SHARE);
+        let key = (TITLE_H + 3 * PANEL_H..drive_height())
+            .flat_map(|y| (W - LEGEND_W..W).map(move |x| (x, y)))
+            .filter(|&(x, y)| {
+                let i = ((y * W + x) * 3) as usize;
+                buf[i..i + 3] == [snow.0, snow.1, snow.2]
+            })
+            .count();
+        assert!(key > 100, "{key} pixels of snow's swatch");
+    }
+
+    /// The loop's gate as the summary reads it: the log's controllers.toml,
+    /// else the default; a replay that changed it says so.
+    #[test]
+    fn the_gate_is_the_logs_controllers_toml() {
+        let mut log = test_log::drive();
+        assert_eq!(
+            gate_of(&log),
+            Gate {
+                min_confidence: grip_tcs::ArteUse::default().min_confidence,
+                from: GateFrom::Default
+            }
+        );
+        log.attachments
+            .insert("controllers.toml".into(), shipped_controllers());
+        assert_eq!(gate_of(&log).min_confidence, 0.6);
+        assert_eq!(gate_of(&log).from, GateFrom::Log);
+        let text = String::from_utf8(shipped_controllers()).unwrap();
+        let mine = text.replace("min_confidence = 0.6", "min_confidence = 0.85");
+        assert_ne!(mine, text, "the shipped file's gate line");
+        log.attachments
+            .insert("controllers.toml".into(), mine.into_bytes());
+        assert_eq!(gate_of(&log).min_confidence, 0.85);
+        assert_eq!(
+            gate_of(&log).key(),
+            [
+                "ARTE, below the gate:",
+                "confidence < 0.85",
+                "(log's controllers.toml)"
+            ]
+        );
+        log.metadata.insert(
+            "grip.replay".into(),
+            [
+                ("source", "a.mcap"),
+                (
+                    "changes",
+                    "controllers.toml: [arte] min_confidence 0.85 -> 0.5",
+                ),
+            ]
+            .into_iter()
+            .map(|(k, v)| (k.into(), v.into()))
+            .collect(),
+        );
+        assert_eq!(gate_of(&log).from, GateFrom::ReplayChanged);
+    }
+
+    /// Estimates whose confidence is below the loop's gate are drawn pale
+    /// and hatched (they were drawn as the confident ones): the same drive
+    /// with every snow estimate at 0.5 against the shipped gate 0.6 has
+    /// pale snow, and hatching in snow's colour, in the ARTE strip; at
+    /// 0.9 none.
+    #[test]
+    fn estimates_below_the_gate_are_pale_and_hatched() {
+        let with_conf = |conf: f64| {
+            let mut log = test_log::drive();
+            log.attachments
+                .insert("controllers.toml".into(), shipped_controllers());
+            for e in &mut log.roads {
+                if e.class_name() == Some("snow") {
+                    e.confidence = conf;
+                }
+            }
+            log
+        };
+        let snow = road_colour("snow", 0);
+        let pale = on_white(snow, BELOW_GATE_SHARE);
+        let (low, high) = (render(&with_conf(0.5)), render(&with_conf(0.9)));
+        assert!(near_in_strips(&low, pale) > 2000, "pale snow");
+        assert!(near_in_strips(&low, snow) > 100, "snow's hatching");
+        assert_eq!(near_in_strips(&high, pale), 0);
+        assert_eq!(near_in_strips(&high, snow), 0);
+        // a confidence that is no number is below any gate
+        let s = series(&with_conf(f64::NAN), test_log::R, 0.1);
+        assert!(s.below_gate.iter().any(|b| *b));
+    }
+
+    /// The hatching: 45° on screen, its lines [`HATCH_PX`] apart, inside
+    /// its box, continuing across neighbouring boxes.
+    #[test]
+    fn the_hatching_stays_in_its_box() {
+        // 10 px per unit of x, 20 per unit of y: a 40 × 20 px box
+        let segs = hatch((1.0, 5.0), (2.0, 3.0), 0.0, (10.0, 20.0));
+        assert!(segs.len() >= 8, "{segs:?}");
+        for [(x0, y0), (x1, y1)] in &segs {
+            for (x, y) in [(x0, y0), (x1, y1)] {
+                assert!((1.0 - 1e-9..=5.0 + 1e-9).contains(x), "{segs:?}");
+                assert!((2.0 - 1e-9..=3.0 + 1e-9).contains(y), "{segs:?}");
+            }
+            // 45° on screen: as many pixels up as across
+            assert!(((x1 - x0) * 10.0 - (y1 - y0) * 20.0).abs() < 1e-9);
+        }
+        // the box next to it continues the lines: the same line starts
+        let starts = |segs: &[[(f64, f64); 2]]| -> Vec<f64> {
+            segs.iter()
+                .map(|[(x, y), _]| ((x * 10.0 - (y - 2.0) * 20.0) / HATCH_PX).round())
+                .collect()
+        };
+        let next = hatch((5.0, 9.0), (2.0, 3.0), 0.0, (10.0, 20.0));
+        let (a, b) = (starts(&segs), starts(&next));
+        assert!(b.iter().any(|u| a.contains(u)), "{a:?} {b:?}");
+        assert!(hatch((1.0, 1.0), (2.0, 3.0), 0.0, (10.0, 20.0)).is_empty());
+    }
+
+    /// The torque panel says its torques are one driven wheel's, after the
+    /// gear (vehicle.toml's `torque_max`), on its y axis too; it said
+    /// "motor torque T".
+    #[test]
+    fn the_torque_panel_is_one_driven_wheels() {
+        assert!(TORQUE_CAPTION.starts_with("wheel torque, one driven wheel (N m"));
+        assert!(!TORQUE_CAPTION.contains("motor torque"));
+        assert_eq!(TORQUE_AXIS, "wheel torque, one driven wheel (N m)");
+        // the axis description: text at the left edge of the torque panel,
+        // none at the speed panel's (which has no description)
+        let buf = render(&test_log::drive());
+        let dark = |top: u32| {
+            (top + 40..top + PANEL_H - 40)
+                .flat_map(|y| (0..24).map(move |x| ((y * W + x) * 3) as usize))
+                .filter(|&i| buf[i..i + 3].iter().all(|&v| v < 100))
+                .count()
+        };
+        assert!(dark(TITLE_H + 2 * PANEL_H) > 100, "no y description");
+        assert_eq!(dark(TITLE_H), 0);
+    }
+
+    /// timing.png's title says it covers every cycle record (the whole log,
+    /// and its span on the drive figure's axis), not the scenario window the
+    /// summary leads with.
+    #[test]
+    fn the_timing_title_says_what_it_covers() {
+        let log = test_log::drive();
+        let mut lat: Vec<i64> = log.cycles.iter().map(|c| c.wakeup_latency_ns).collect();
+        let p = Percentiles::of(&mut lat);
+        let t = timing_title(&log, &p, 0, 200);
+        assert_eq!(
+            t[0],
+            "front-mic-drive.mcap: tcs-loop wake-up latency over the WHOLE LOG (start-up, hold and stop included)"
+        );
+        assert!(
+            t[1].starts_with(
+                "every cycle record, t -1.29 to 1.71 s from the scenario start: 3000 cycles, p50 0.0 µs"
+            ),
+            "{}",
+            t[1]
+        );
+        assert!(t[2].contains("scenario window"), "{}", t[2]);
+        let t = timing_title(&test_log::drive_without_truth(), &p, 0, 200);
+        assert!(
+            t[1].starts_with("every cycle record, t 0.00 to 3.00 s from the first message"),
+            "{}",
+            t[1]
+        );
     }
 }
