@@ -496,7 +496,9 @@ fn drive_names_the_service_that_did_not_come_up() {
     let stderr = String::from_utf8_lossy(&res.stderr);
     assert!(!res.status.success(), "the drive should fail:\n{stderr}");
     assert!(
-        stderr.contains("tcs-loop exited before it was ready (exit code 1)"),
+        stderr.contains(
+            "tcs-loop exited before it was ready (exit code 78: it refused its configuration)"
+        ),
         "{stderr}"
     );
     assert!(

@@ -32,6 +32,10 @@
 //!    6b. With arte's start hung (a drop-in `ExecStartPre=/bin/sleep`),
 //!    tcs-loop's commands are enabled while arte is still activating.
 //!
+//!    6c. arte started on a configuration file it refuses (a drop-in's
+//!    `ExecStart=`) exits 78 and its unit stays failed, not restarted
+//!    (`RestartPreventExitStatus=78`), the refused field in its journal.
+//!
 //! 7. `dpkg -r grip` exits 0 and takes the binaries and units away.
 //!
 //! Time bounds are function bounds (emulated machine): a watchdog kill and
@@ -810,6 +814,58 @@ fn grip_package_under_systemd() -> anyhow::Result<()> {
     }
     std::fs::remove_file(&hang)?;
     run("systemctl", &["daemon-reload"])?;
+
+    // --- 6c. a configuration the service refuses: the unit fails, no restart ----
+    // The service exits 78 (EX_CONFIG) on a file, field or value it
+    // refuses, and the units' RestartPreventExitStatus=78 leaves the unit
+    // failed with the error in its status, instead of a restart every
+    // second for ever (before 2026-12-07: exit 1, restarted without end,
+    // StartLimitIntervalSec=0). Other failures (exit 1) are still
+    // restarted: steps 4 and 5.
+    let au = unit("arte");
+    let bad_cfg = Path::new("/tmp/hil-bad-arte-svc.toml");
+    std::fs::write(
+        bad_cfg,
+        "# written by tests/pid1_systemd.rs: a field arte does not know\nbogus_key = 1\n",
+    )?;
+    std::fs::set_permissions(bad_cfg, std::os::unix::fs::PermissionsExt::from_mode(0o644))?;
+    let bad = hang_dir.join("hil-bad-config.conf");
+    std::fs::write(
+        &bad,
+        format!(
+            "# written by tests/pid1_systemd.rs: arte started on a file it refuses\n[Service]\nExecStart=\nExecStart=/usr/lib/grip/bin/arte --config-dir /etc/grip --config {}\n",
+            bad_cfg.display()
+        ),
+    )?;
+    run("systemctl", &["daemon-reload"])?;
+    let since = realtime_us();
+    // the start job fails (Type=notify: no READY=1): not an error here
+    let _ = Command::new("systemctl").args(["start", &au]).output();
+    wait_until(&format!("{au} failed"), Duration::from_secs(120), || {
+        Ok(prop(&au, "ActiveState")? == "failed")
+    })
+    .with_context(|| report(&au))?;
+    let [n0] = props(&au, ["NRestarts"])?;
+    // well past RestartSec=1s: a restart would have come by now
+    std::thread::sleep(Duration::from_secs(5));
+    let [state, status, n1] = props(&au, ["ActiveState", "ExecMainStatus", "NRestarts"])?;
+    ensure!(
+        state == "failed" && status == "78" && n0 == n1,
+        "{au} on a configuration it refuses: ActiveState {state}, ExecMainStatus {status}, NRestarts {n0} -> {n1} (want failed, 78, unchanged)\n{}",
+        report(&au)
+    );
+    let j = journal(&au, since)?;
+    ensure!(
+        j.contains("bogus_key"),
+        "{au}'s journal does not name the refused field:\n{j}"
+    );
+    println!(
+        "a configuration arte refuses: unit failed, exit status 78, no restart in 5 s (NRestarts {n1})"
+    );
+    std::fs::remove_file(&bad)?;
+    std::fs::remove_file(bad_cfg)?;
+    run("systemctl", &["daemon-reload"])?;
+    run("systemctl", &["reset-failed", &au])?;
 
     // --- 7. remove -------------------------------------------------------------------
     let t = Instant::now();

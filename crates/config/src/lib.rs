@@ -32,5 +32,7 @@ pub use error::{ConfigError, line_of, parse_toml, read_file};
 pub use knowledge::{load_knowledge, load_road_table, parse_knowledge};
 pub use roads::{load_roads, parse_roads};
 pub use scenario::{RunsOn, check_scenario, load_scenario, load_scenario_for, parse_scenario};
-pub use vehicle::{VehicleLoad, load_vehicle, parse_vehicle, parse_vehicle_file};
+pub use vehicle::{
+    VehicleLoad, load_vehicle, load_vehicle_complete, parse_vehicle, parse_vehicle_file,
+};
 pub use warn::{first_time, warn_once, warn_once_as};

@@ -222,6 +222,26 @@ mod tests {
     /// `grip drive` places every service as its unit does (CPUs, nice,
     /// I/O priority), and a unit sets nothing of this kind that
     /// [`Service::placement`] leaves out.
+    /// Every unit leaves a refused configuration failed (the services'
+    /// exit code for it, `EXIT_CONFIG`) and restarts on anything else.
+    #[test]
+    fn units_do_not_restart_on_a_refused_configuration() {
+        for (s, text) in units() {
+            assert_eq!(
+                unit_values(&text, "RestartPreventExitStatus"),
+                [grip_io::service::EXIT_CONFIG.to_string()],
+                "{}",
+                s.unit()
+            );
+            assert_eq!(
+                unit_values(&text, "Restart"),
+                ["on-failure"],
+                "{}",
+                s.unit()
+            );
+        }
+    }
+
     #[test]
     fn placement_equals_the_units() {
         for (s, text) in units() {

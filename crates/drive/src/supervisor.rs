@@ -236,9 +236,13 @@ impl ViewPaths {
     }
 }
 
-/// How a child ended: `exit code N` or `killed by signal N`.
+/// How a child ended: `exit code N` (78, [`grip_io::service::EXIT_CONFIG`],
+/// named as a refused configuration) or `killed by signal N`.
 pub fn describe_status(st: &ExitStatus) -> String {
     match (st.code(), st.signal()) {
+        (Some(c), _) if c == i32::from(grip_io::service::EXIT_CONFIG) => {
+            format!("exit code {c}: it refused its configuration")
+        }
         (Some(c), _) => format!("exit code {c}"),
         (None, Some(s)) => format!(
             "killed by signal {s}{}",

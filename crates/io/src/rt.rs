@@ -190,9 +190,38 @@ impl RtReport {
     }
     /// True if every requested step was applied.
     pub fn all_applied(&self) -> bool {
-        [&self.fifo, &self.mlock, &self.affinity, &self.dma_latency]
-            .iter()
-            .all(|s| matches!(s, RtStatus::Applied | RtStatus::Skipped))
+        self.not_applied().is_empty()
+    }
+
+    /// The requested steps that were not applied (not permitted or
+    /// failed), in [`RtReport::log`]'s order.
+    pub fn not_applied(&self) -> Vec<&'static str> {
+        [
+            ("SCHED_FIFO", &self.fifo),
+            ("mlockall", &self.mlock),
+            ("CPU affinity", &self.affinity),
+            ("cpu_dma_latency=0", &self.dma_latency),
+        ]
+        .into_iter()
+        .filter(|(_, s)| !matches!(s, RtStatus::Applied | RtStatus::Skipped))
+        .map(|(w, _)| w)
+        .collect()
+    }
+
+    /// What a service's systemd `STATUS=` line adds when a requested step
+    /// was not applied (`systemctl status` then shows it, not only the
+    /// journal's warning): `, REAL TIME NOT APPLIED: SCHED_FIFO, mlockall
+    /// (see the journal)`; empty when all were.
+    pub fn status_note(&self) -> String {
+        let missing = self.not_applied();
+        if missing.is_empty() {
+            String::new()
+        } else {
+            format!(
+                ", REAL TIME NOT APPLIED: {} (see the journal)",
+                missing.join(", ")
+            )
+        }
     }
 }
 
@@ -419,6 +448,28 @@ impl<C: Clock> PeriodicTimer<C> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The STATUS= note names the requested steps not applied, nothing
+    /// when each was applied or not requested.
+    #[test]
+    fn the_status_note_names_what_was_not_applied() {
+        let mut r = RtReport {
+            fifo: RtStatus::Applied,
+            mlock: RtStatus::Applied,
+            affinity: RtStatus::Skipped,
+            dma_latency: RtStatus::Applied,
+            dma_guard: None,
+        };
+        assert!(r.all_applied());
+        assert_eq!(r.status_note(), "");
+        r.fifo = RtStatus::NotPermitted("EPERM".into());
+        r.affinity = RtStatus::Failed("CPU 7".into());
+        assert!(!r.all_applied());
+        assert_eq!(
+            r.status_note(),
+            ", REAL TIME NOT APPLIED: SCHED_FIFO, CPU affinity (see the journal)"
+        );
+    }
     use crate::clock::{ManualClock, MonotonicClock};
 
     #[test]

@@ -283,9 +283,27 @@ impl Default for ArteUse {
 }
 
 impl ArteUse {
-    /// max_age_s >= 0, min_confidence in [0, 1].
+    /// The longest `max_age_s`, s: tcs-loop declares the road-estimate
+    /// stream dead after 1 s without an estimate (its monitor's warning),
+    /// and a dead stream's knowledge must not act on the torque. A
+    /// fail-safe trial (2026-12-07) set 1e6: knowledge of a stopped arte
+    /// stayed "used" while that warning said the controller had fallen back.
+    pub const MAX_AGE_LIMIT_S: f64 = 1.0;
+
+    /// max_age_s in [0, [`Self::MAX_AGE_LIMIT_S`]], min_confidence in [0, 1].
     pub fn validate(&self) -> Result<(), InvalidField> {
         non_negative("max_age_s", self.max_age_s)?;
+        if self.max_age_s > Self::MAX_AGE_LIMIT_S {
+            return Err(InvalidField::new(
+                "max_age_s",
+                format!(
+                    "{} s is longer than {} s: tcs-loop declares the road-estimate stream dead after {} s without an estimate, and the knowledge of a dead stream must not act on the torque",
+                    self.max_age_s,
+                    Self::MAX_AGE_LIMIT_S,
+                    Self::MAX_AGE_LIMIT_S
+                ),
+            ));
+        }
         in_range("min_confidence", self.min_confidence, 0.0, 1.0)?;
         Ok(())
     }
@@ -417,6 +435,13 @@ mod tests {
         let mut c = ControllersConfig::default();
         c.arte.min_confidence = -0.1;
         assert_eq!(c.validate().unwrap_err().field, "arte.min_confidence");
+        c.arte.min_confidence = 0.6;
+        c.arte.max_age_s = 1.5;
+        let e = c.validate().unwrap_err();
+        assert_eq!(e.field, "arte.max_age_s");
+        assert!(e.reason.contains("1.5 s is longer than 1 s"), "{e:?}");
+        c.arte.max_age_s = 1.0;
+        assert!(c.validate().is_ok());
         let mut c = ControllersConfig::default();
         c.loop_.rate_hz = 0.0;
         assert_eq!(c.validate().unwrap_err().field, "loop.rate_hz");

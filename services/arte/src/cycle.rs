@@ -19,7 +19,11 @@ pub struct ArteCounters {
     pub heartbeat: AtomicU64,
     /// Audio blocks received.
     pub blocks: AtomicU64,
-    /// Blocks missing by sequence number (lost in transport).
+    /// Blocks that never reached the loop: sequence numbers skipped between
+    /// two blocks it took (lost in transport, or overwritten in the
+    /// subscriber's queue while the loop was stopped or starved). Counted on
+    /// every path a block takes ([`ArteLoop::on_block`], a block refused for
+    /// its rate, one dropped as stale by [`ArteLoop::on_live_block`]).
     pub lost_blocks: AtomicU64,
     /// Estimator restarts (time discontinuity or publisher restart).
     pub resets: AtomicU64,
@@ -333,7 +337,8 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
     /// The live service's entry: block `b` taken from the topic at `now_ns`
     /// (the clock its stamps come from). Audio that ended more than
     /// `max_lag` ago is dropped and counted (`stale_blocks`,
-    /// `max_stale_lag_ns`): it is not classified, no estimate is made of it,
+    /// `max_stale_lag_ns`; the blocks skipped before it, as on every path,
+    /// in `lost_blocks`): it is not classified, no estimate is made of it,
     /// and the estimator starts a fresh frame at the next block in time, so
     /// a backlog (a starved CPU, a stopped and resumed process) never turns
     /// into estimates of old audio published as new. Otherwise
@@ -362,12 +367,33 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
         stats.stale_blocks.fetch_add(1, Ordering::Relaxed);
         stats.max_stale_lag_ns.fetch_max(lag, Ordering::Relaxed);
         // taken, not lost: the sequence, the time line and the overrun count
-        // go on from it (the next block starts a fresh frame anyway)
-        self.expected_seq = Some(b.seq.wrapping_add(1));
+        // go on from it (the next block starts a fresh frame anyway). The
+        // blocks skipped before it were lost (a queue that overflowed while
+        // the process was stopped): counted, as on every path.
+        self.follow_seq(b.seq, stats);
         self.next_stamp = Some(end);
         self.last_xruns = Some(b.xruns);
         self.fresh_frame();
         0
+    }
+
+    /// Takes sequence number `seq`: the numbers skipped since the block
+    /// expected are counted as lost (`lost_blocks`), and the next one is
+    /// expected after it. Whether `seq` went backwards (the publisher
+    /// restarted). Every block taken goes through here, whatever becomes of
+    /// it (classified, refused for its rate, dropped as stale), so that a
+    /// gap is counted whichever kind of block comes after it.
+    fn follow_seq(&mut self, seq: u64, stats: &ArteCounters) -> bool {
+        let mut backwards = false;
+        if let Some(exp) = self.expected_seq {
+            if seq > exp {
+                stats.lost_blocks.fetch_add(seq - exp, Ordering::Relaxed);
+            } else if seq < exp {
+                backwards = true;
+            }
+        }
+        self.expected_seq = Some(seq.wrapping_add(1));
+        backwards
     }
 
     /// The next block classified starts a fresh frame: nothing of the
@@ -408,22 +434,16 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
                 .bad_rate
                 .store(u64::from(b.sample_rate), Ordering::Relaxed);
             // received, not lost: later blocks are not counted as gaps (a
-            // long run of refused blocks restarts the estimator by time)
-            self.expected_seq = Some(b.seq.wrapping_add(1));
+            // long run of refused blocks restarts the estimator by time);
+            // the blocks skipped before it are
+            self.follow_seq(b.seq, stats);
             return 0;
         }
         let x = b.samples();
         let n = x.len();
         // Sequence: gaps are counted; a sequence going backwards means the
         // publisher restarted.
-        let mut discontinuity = false;
-        if let Some(exp) = self.expected_seq {
-            if b.seq > exp {
-                stats.lost_blocks.fetch_add(b.seq - exp, Ordering::Relaxed);
-            } else if b.seq < exp {
-                discontinuity = true;
-            }
-        }
+        let mut discontinuity = self.follow_seq(b.seq, stats);
         if let Some(ns) = self.next_stamp
             && b.stamp_ns.abs_diff(ns) > self.resync_ns
         {
@@ -432,7 +452,6 @@ impl<C: Classify, K: Clock> ArteLoop<C, K> {
         if discontinuity && self.pushed > 0 {
             self.restart(stats);
         }
-        self.expected_seq = Some(b.seq.wrapping_add(1));
         self.next_stamp = Some(b.stamp_ns.saturating_add(samples_ns(n as u64, self.fs)));
         // after a restart, which may reset the estimator's speed
         let speed = self.current_speed();

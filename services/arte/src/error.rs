@@ -64,6 +64,12 @@ pub enum ArteError {
     Other(String),
 }
 
+impl grip_io::service::ServiceError for ArteError {
+    fn is_config(&self) -> bool {
+        !matches!(self, Self::Ipc(_) | Self::Helper(_) | Self::Other(_))
+    }
+}
+
 impl From<StreamError> for ArteError {
     fn from(e: StreamError) -> Self {
         Self::Stream(e)

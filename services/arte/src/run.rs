@@ -23,7 +23,9 @@ pub struct Options {
     pub config: ConfigArgs,
     /// Model file override (as given: relative to the working directory).
     pub model: Option<PathBuf>,
-    /// Stop by itself after this many seconds.
+    /// Stop by itself after this many seconds (`--run-for` takes 0 to
+    /// 3.2e7, [`grip_io::service::args::seconds`]; a longer or infinite
+    /// run length never ends the run).
     pub run_for: Option<f64>,
 }
 
@@ -34,8 +36,18 @@ pub struct RunSummary {
     pub blocks: u64,
     /// Estimates published.
     pub estimates: u64,
-    /// Blocks lost (sequence gaps).
+    /// Blocks lost (sequence numbers skipped: never taken).
     pub lost_blocks: u64,
+    /// Blocks not classified: digital silence or near it (a cut cable, a
+    /// muted input).
+    pub silent_blocks: u64,
+    /// Blocks not classified: clipped.
+    pub clipped_blocks: u64,
+    /// Blocks not classified: a new capture overrun, or within the hold
+    /// after one.
+    pub xrun_blocks: u64,
+    /// Blocks refused for a sample rate other than the model's.
+    pub rate_mismatch: u64,
     /// Blocks given to the estimator with a fresh vehicle speed.
     pub blocks_with_speed: u64,
     /// Blocks given to the estimator without one (none, or stale).
@@ -44,6 +56,58 @@ pub struct RunSummary {
     pub cycle_records: u64,
     /// The speed the last block was given (m/s; `None`: none or stale).
     pub last_speed_mps: Option<f64>,
+}
+
+impl RunSummary {
+    /// The totals of `stats` (what [`run`] returns when it stops).
+    pub fn from_counters(stats: &ArteCounters) -> Self {
+        let n = |c: &std::sync::atomic::AtomicU64| c.load(Ordering::Relaxed);
+        Self {
+            blocks: n(&stats.blocks),
+            estimates: n(&stats.estimates),
+            lost_blocks: n(&stats.lost_blocks),
+            silent_blocks: n(&stats.silent_blocks),
+            clipped_blocks: n(&stats.clipped_blocks),
+            xrun_blocks: n(&stats.xrun_blocks),
+            rate_mismatch: n(&stats.rate_mismatch),
+            blocks_with_speed: n(&stats.blocks_with_speed),
+            blocks_without_speed: n(&stats.blocks_without_speed),
+            cycle_records: n(&stats.cycle_records),
+            last_speed_mps: stats.speed_in_use(),
+        }
+    }
+}
+
+/// The `arte stopped` line: `summary` (from `stats`), the estimates per
+/// class (`classes`, model order) and the other totals of `stats`. Names a
+/// microphone that gave only unusable audio (`silent_blocks`,
+/// `clipped_blocks`, `xrun_blocks`) or a rate the model refuses
+/// (`rate_mismatch`), so that a run without a road estimate says why.
+fn log_stopped(summary: &RunSummary, classes: &[String], stats: &ArteCounters) {
+    let per_class: Vec<String> = classes
+        .iter()
+        .zip(&stats.per_class)
+        .map(|(c, n)| format!("{c} {}", n.load(Ordering::Relaxed)))
+        .collect();
+    tracing::info!(
+        per_class = %per_class.join(", "),
+        blocks = summary.blocks,
+        estimates = summary.estimates,
+        lost_blocks = summary.lost_blocks,
+        silent_blocks = summary.silent_blocks,
+        clipped_blocks = summary.clipped_blocks,
+        xrun_blocks = summary.xrun_blocks,
+        rate_mismatch = summary.rate_mismatch,
+        stale_blocks = stats.stale_blocks.load(Ordering::Relaxed),
+        max_stale_lag_ms = stats.max_stale_lag_ns.load(Ordering::Relaxed) as f64 * 1e-6,
+        stale_estimates = stats.stale_estimates.load(Ordering::Relaxed),
+        resets = stats.resets.load(Ordering::Relaxed),
+        blocks_with_speed = summary.blocks_with_speed,
+        blocks_without_speed = summary.blocks_without_speed,
+        cycle_records = summary.cycle_records,
+        bad_speeds = stats.bad_speeds.load(Ordering::Relaxed),
+        "arte stopped"
+    );
 }
 
 /// Everything checked at start-up, before any port opens; the loop runs
@@ -242,9 +306,10 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
     rt.log();
     let clock = MonotonicClock;
     let poll_ns = (cfg.input.poll_interval_ms * 1e6) as u64;
+    // saturating: a run length beyond the clock's range never ends the run
     let deadline = opts
         .run_for
-        .map(|s| clock.now_ns() + (s.max(0.0) * 1e9) as u64);
+        .map(|s| grip_io::service::args::deadline_ns(clock.now_ns(), s));
     grip_io::systemd::notify_ready(&format!(
         "estimating: {} classes at {rate} Hz from {}",
         classes.len(),
@@ -293,35 +358,84 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
     done.store(true, Ordering::Relaxed);
     let _ = helper.join();
     drop(rt);
-    let summary = RunSummary {
-        blocks: stats.blocks.load(Ordering::Relaxed),
-        estimates: stats.estimates.load(Ordering::Relaxed),
-        lost_blocks: stats.lost_blocks.load(Ordering::Relaxed),
-        blocks_with_speed: stats.blocks_with_speed.load(Ordering::Relaxed),
-        blocks_without_speed: stats.blocks_without_speed.load(Ordering::Relaxed),
-        cycle_records: stats.cycle_records.load(Ordering::Relaxed),
-        last_speed_mps: stats.speed_in_use(),
-    };
-    let per_class: Vec<String> = classes
-        .iter()
-        .zip(&stats.per_class)
-        .map(|(c, n)| format!("{c} {}", n.load(Ordering::Relaxed)))
-        .collect();
-    tracing::info!(
-        per_class = %per_class.join(", "),
-        blocks = summary.blocks,
-        estimates = summary.estimates,
-        lost_blocks = summary.lost_blocks,
-        stale_blocks = stats.stale_blocks.load(Ordering::Relaxed),
-        max_stale_lag_ms = stats.max_stale_lag_ns.load(Ordering::Relaxed) as f64 * 1e-6,
-        stale_estimates = stats.stale_estimates.load(Ordering::Relaxed),
-        resets = stats.resets.load(Ordering::Relaxed),
-        rate_mismatch = stats.rate_mismatch.load(Ordering::Relaxed),
-        blocks_with_speed = summary.blocks_with_speed,
-        blocks_without_speed = summary.blocks_without_speed,
-        cycle_records = summary.cycle_records,
-        bad_speeds = stats.bad_speeds.load(Ordering::Relaxed),
-        "arte stopped"
-    );
+    let summary = RunSummary::from_counters(&stats);
+    log_stopped(&summary, &classes, &stats);
     Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::io::Write;
+    use std::sync::Mutex;
+
+    use super::*;
+
+    #[derive(Clone, Default)]
+    struct Logs(Arc<Mutex<Vec<u8>>>);
+    impl Write for Logs {
+        fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+            self.0.lock().unwrap().extend_from_slice(b);
+            Ok(b.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    /// A microphone that gave only silence (every block refused, no road
+    /// estimate), clipped and overrun blocks, and blocks at another rate:
+    /// each count is in the summary and named in `arte stopped`.
+    #[test]
+    fn the_stop_line_names_the_blocks_not_classified() {
+        let stats = ArteCounters::default();
+        for (c, n) in [
+            (&stats.blocks, 120),
+            (&stats.estimates, 103),
+            (&stats.lost_blocks, 4),
+            (&stats.silent_blocks, 97),
+            (&stats.clipped_blocks, 5),
+            (&stats.xrun_blocks, 3),
+            (&stats.rate_mismatch, 11),
+        ] {
+            c.store(n, Ordering::Relaxed);
+        }
+        let summary = RunSummary::from_counters(&stats);
+        assert_eq!(
+            (
+                summary.blocks,
+                summary.estimates,
+                summary.lost_blocks,
+                summary.silent_blocks,
+                summary.clipped_blocks,
+                summary.xrun_blocks,
+                summary.rate_mismatch
+            ),
+            (120, 103, 4, 97, 5, 3, 11)
+        );
+        let logs = Logs::default();
+        let w = logs.clone();
+        let sub = tracing_subscriber::fmt()
+            .with_writer(move || w.clone())
+            .with_ansi(false)
+            .finish();
+        let classes = vec!["asphalt".to_string(), "snow".to_string()];
+        tracing::subscriber::with_default(sub, || log_stopped(&summary, &classes, &stats));
+        let text = String::from_utf8(logs.0.lock().unwrap().clone()).unwrap();
+        let line = text
+            .lines()
+            .find(|l| l.contains("arte stopped"))
+            .unwrap_or_else(|| panic!("no stop line: {text}"));
+        for want in [
+            "blocks=120",
+            "estimates=103",
+            "lost_blocks=4",
+            "silent_blocks=97",
+            "clipped_blocks=5",
+            "xrun_blocks=3",
+            "rate_mismatch=11",
+            "per_class=asphalt 0, snow 0",
+        ] {
+            assert!(line.contains(want), "{want} missing: {line}");
+        }
+    }
 }

@@ -49,3 +49,15 @@ pub enum AcqError {
     #[error("synth source: {0}")]
     Synth(String),
 }
+
+impl grip_io::service::ServiceError for AcqError {
+    /// The configuration's: the file, the WAV file it names, the synthesiser's
+    /// settings and what the device refuses of them; not a device that does
+    /// not open (a USB microphone may come later) nor a capture error.
+    fn is_config(&self) -> bool {
+        matches!(
+            self,
+            Self::Config(_) | Self::Wav(_) | Self::Synth(_) | Self::AlsaParams { .. }
+        )
+    }
+}

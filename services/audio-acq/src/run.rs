@@ -34,7 +34,9 @@ pub struct Options {
     pub wav: Option<PathBuf>,
     /// WAV: play once (`Some(false)`) or looped (`Some(true)`).
     pub looped: Option<bool>,
-    /// Stop by itself after this many seconds.
+    /// Stop by itself after this many seconds (`--run-for` takes 0 to
+    /// 3.2e7, [`grip_io::service::args::seconds`]; a longer or infinite
+    /// run length never ends the run).
     pub run_for: Option<f64>,
 }
 
@@ -227,9 +229,10 @@ fn serve<S: Source>(
         channel,
         Arc::clone(&status),
     );
+    // saturating: a run length beyond the clock's range never ends the run
     let deadline = opts
         .run_for
-        .map(|s| monotonic_now_ns() + (s.max(0.0) * 1e9) as u64);
+        .map(|s| grip_io::service::args::deadline_ns(monotonic_now_ns(), s));
     tracing::info!(
         "source: {what}; publishing {} samples/block at {} Hz on {}",
         cfg.audio.block_samples,

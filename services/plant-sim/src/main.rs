@@ -29,7 +29,9 @@
 //! End: with `--exit-at-end`, after the scenario's duration the inverter
 //! holds 0 N m (demand 0) for `end_hold_ms` (default 100 ms) and the process
 //! exits 0. Without it, it coasts until SIGTERM/SIGINT (exit 0). Fatal
-//! start-up error: one `error: ...` line on stderr, exit code 1.
+//! start-up error: one `error: ...` line on stderr, exit code 78
+//! (`grip_io::service::EXIT_CONFIG`) for a refused configuration, 1
+//! otherwise (CAN, iceoryx2).
 
 use std::process::ExitCode;
 

@@ -76,6 +76,15 @@ pub enum RunError {
     },
 }
 
+impl grip_io::service::ServiceError for RunError {
+    fn is_config(&self) -> bool {
+        matches!(
+            self,
+            Self::Config(_) | Self::Model { .. } | Self::PhysicalBus { .. }
+        )
+    }
+}
+
 /// Refuses a CAN interface backed by a device (under the sysfs root
 /// `sys_class_net`) unless `allow`; the simulated transport is never refused.
 pub fn check_bus(
@@ -114,7 +123,7 @@ pub fn load(opts: &Options) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), 
     cfg.exit_at_end |= opts.exit_at_end;
     let roads = dir.roads()?;
     let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
-    let (vehicle, sensors) = grip_config::load_vehicle(&vehicle_path)?;
+    let (vehicle, sensors) = grip_config::load_vehicle_complete(&vehicle_path)?;
     // the scenario against this vehicle's motor limit and this loop's
     // cycle count, as `grip sim` checks it (`Scenario::check_for`)
     let scenario = dir.scenario_for(
@@ -224,10 +233,11 @@ pub fn run(
     let period_ns = (1e9 / cfg.rate_hz).round() as u64;
     let mut timer = PeriodicTimer::new(clock, period_ns);
     grip_io::systemd::notify_ready(&format!(
-        "holding scenario {} (start on {:?}), bus {:?}",
+        "holding scenario {} (start on {:?}), bus {:?}{}",
         sim.scenario().name,
         cfg.start_on,
-        bus.kind()
+        bus.kind(),
+        report.status_note()
     ));
     tracing::info!("plant-sim ready: vehicle held at its initial state, sensor frames flowing");
 

@@ -7,6 +7,10 @@ use std::time::{Duration, Instant};
 
 use grip_testkit::svc::{NotifySocket, Service};
 
+/// A refused configuration's exit code (`grip_io::service::EXIT_CONFIG`,
+/// 78: the units do not restart on it).
+use grip_io::service::EXIT_CONFIG;
+
 mod common;
 use common::copy_config;
 
@@ -29,7 +33,7 @@ fn bad_config_names_file_field_reason() {
     )
     .unwrap();
     let (code, err) = run(&["--config-dir", dir]);
-    assert_eq!(code, 1, "{err}");
+    assert_eq!(code, i32::from(EXIT_CONFIG), "{err}");
     let line = err.lines().find(|l| l.starts_with("error: ")).expect(&err);
     assert!(
         line.contains("plant-sim.toml: field `cmd_timeout_ms`"),
@@ -40,14 +44,14 @@ fn bad_config_names_file_field_reason() {
     std::fs::write(&p, &text).unwrap();
 
     let (code, err) = run(&["--config-dir", dir, "--scenario", "nowhere"]);
-    assert_eq!(code, 1);
+    assert_eq!(code, i32::from(EXIT_CONFIG));
     assert!(err.contains("scenarios/nowhere.toml: cannot read"), "{err}");
 
     let sc = t.path().join("scenarios/bad.toml");
     let paper = std::fs::read_to_string(t.path().join("scenarios/paper.toml")).unwrap();
     std::fs::write(&sc, paper.replace("road = \"gravel\"", "road = \"lava\"")).unwrap();
     let (code, err) = run(&["--config-dir", dir, "--scenario", sc.to_str().unwrap()]);
-    assert_eq!(code, 1);
+    assert_eq!(code, i32::from(EXIT_CONFIG));
     assert!(err.contains("bad.toml: field `segment[2].road`"), "{err}");
     assert!(err.contains("unknown road `lava`"), "{err}");
 

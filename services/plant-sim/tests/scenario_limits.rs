@@ -10,6 +10,10 @@ use std::io::Read;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+/// A refused configuration's exit code (`grip_io::service::EXIT_CONFIG`,
+/// 78: the units do not restart on it).
+use grip_io::service::EXIT_CONFIG;
+
 mod common;
 use common::copy_config;
 
@@ -77,7 +81,7 @@ fn error_line(err: &str) -> &str {
 #[test]
 fn a_demand_above_the_motor_limit_is_refused() {
     let (code, err) = run_paper_with("torque = 300.0", "torque = 1e300", &[]);
-    assert_eq!(code, 1, "{err}");
+    assert_eq!(code, i32::from(EXIT_CONFIG), "{err}");
     assert_eq!(
         error_line(&err),
         "error: CONFIG/scenarios/paper.toml: field `demand.torque`: 1e300 N m is above the motor limit, the vehicle's torque_max = 1000 N m (the plant would clamp the command there while the controllers and the command's metrics see the demand) (vehicle file CONFIG/vehicle.toml)"
@@ -105,7 +109,7 @@ fn a_demand_above_a_given_vehicle_s_limit_names_that_vehicle() {
         "torque = 300.0",
         &["--vehicle", v.to_str().unwrap()],
     );
-    assert_eq!(code, 1, "{err}");
+    assert_eq!(code, i32::from(EXIT_CONFIG), "{err}");
     let line = error_line(&err);
     for says in [
         "paper.toml: field `demand.torque`: 300 N m is above the motor limit",
@@ -119,7 +123,7 @@ fn a_demand_above_a_given_vehicle_s_limit_names_that_vehicle() {
 #[test]
 fn a_duration_beyond_the_cycle_bound_is_refused() {
     let (code, err) = run_paper_with("duration = 2.4", "duration = 1e300", &[]);
-    assert_eq!(code, 1, "{err}");
+    assert_eq!(code, i32::from(EXIT_CONFIG), "{err}");
     assert_eq!(
         error_line(&err),
         "error: CONFIG/scenarios/paper.toml: field `duration`: 1e300 s gives 1e303 loop cycles at dt = 0.001 s (need 1 ..= 1e9)"

@@ -24,7 +24,9 @@
 //! Readiness: `READY=1` once the subscribers and the file are open and the
 //! run metadata is written. Stop: SIGTERM/SIGINT → drains the subscribers and
 //! the queue, writes the `grip.recorder` summary, finishes the file, exit 0.
-//! Fatal error: one `error: ...` line on stderr, exit code 1.
+//! Fatal error: one `error: ...` line on stderr, exit code 78
+//! (`grip_io::service::EXIT_CONFIG`) for a refused configuration file, 1
+//! otherwise (the output directory, a write error, an `--attach` file).
 
 use std::path::PathBuf;
 use std::process::ExitCode;

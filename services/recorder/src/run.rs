@@ -86,6 +86,15 @@ pub enum RunError {
     ReceiveThread(String),
 }
 
+impl grip_io::service::ServiceError for RunError {
+    /// Only a configuration file: an output directory not there yet (a
+    /// file system mounted late) or an unreadable `--attach` file are left
+    /// to the unit's `Restart=` and to `grip drive`.
+    fn is_config(&self) -> bool {
+        matches!(self, Self::Config(_))
+    }
+}
+
 /// The receive thread's counters; its panic is an error, never counters of
 /// zero.
 fn join_receiver(h: std::thread::JoinHandle<RecvStats>) -> Result<RecvStats, RunError> {

@@ -62,6 +62,12 @@ pub enum RunError {
     Helper(#[from] HelperError),
 }
 
+impl grip_io::service::ServiceError for RunError {
+    fn is_config(&self) -> bool {
+        matches!(self, Self::Config(_) | Self::Loop { .. })
+    }
+}
+
 /// What a run did.
 #[derive(Debug, Clone)]
 pub struct RunSummary {
@@ -124,7 +130,7 @@ pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
     let controllers_path = dir.file("controllers.toml");
     let controllers = load_controllers(&controllers_path)?;
     let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
-    let (vehicle, sensors) = grip_config::load_vehicle(&vehicle_path)?;
+    let (vehicle, sensors) = grip_config::load_vehicle_complete(&vehicle_path)?;
     let can = load_can(&dir)?;
     // the wheels' radii convert a wheel speed the DBC gives in km/h or m/s
     let radii = grip_io::can::protocol::WheelRadii::of(&vehicle);
@@ -269,6 +275,19 @@ pub fn check_bus_timing_in(
                 ),
             ));
         }
+        // A fail-safe trial (2026-12-07): 5000 ms was taken, and with the
+        // plant's frames stopped for 1.5 s the loop went on commanding
+        // torque on a wheel speed the bus itself declared timed out.
+        if timeout_ms > f64::from(m.timeout_ms) {
+            return Err(ConfigError::new(
+                &cfg.own_path,
+                field,
+                format!(
+                    "{timeout_ms} ms is longer than {}'s receive timeout on the bus (GripTimeoutMs {} ms in {dbc}): the loop would go on commanding torque on a {} the bus declares timed out; set at most {}, or raise GripTimeoutMs in {dbc} if the ECU that sends it may really be that late",
+                    m.name, m.timeout_ms, m.name, m.timeout_ms
+                ),
+            ));
+        }
     }
     Ok(())
 }
@@ -395,10 +414,10 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
     let mut timer = PeriodicTimer::new(clock, period_ns);
     let end_ns = opts
         .run_for_s
-        .map(|s| clock.now_ns() + (s.max(0.0) * 1e9) as u64);
+        .map(|s| grip_io::service::args::deadline_ns(clock.now_ns(), s));
     let degraded: Vec<&str> = missing.iter().map(|(t, _)| t.as_str()).collect();
     grip_io::systemd::notify_ready(&format!(
-        "{} arte={} at {rate} Hz, bus {:?}{}",
+        "{} arte={} at {rate} Hz, bus {:?}{}{}",
         kind,
         if cfg.own.arte { "on" } else { "off" },
         bus.kind(),
@@ -406,7 +425,8 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
             String::new()
         } else {
             format!(", DEGRADED: without {}", degraded.join(", "))
-        }
+        },
+        report.status_note()
     ));
     tracing::info!("tcs-loop ready");
     let stale = grip_io::can::discard_pending(&mut bus, 1 << 16);

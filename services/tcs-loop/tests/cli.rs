@@ -1,11 +1,15 @@
 //! The `tcs-loop` binary: a bad configuration gives one `error:` line naming
-//! file, field and reason and exit code 1; a good one sends `READY=1` to
+//! file, field and reason and exit code 78 (a refused configuration); a good one sends `READY=1` to
 //! `NOTIFY_SOCKET` and exits 0 on SIGTERM.
 
 use std::process::Command;
 use std::time::Duration;
 
 use grip_testkit::svc::{NotifySocket, Service, copy_config, strip_rt};
+
+/// A refused configuration's exit code (`grip_io::service::EXIT_CONFIG`,
+/// 78: the units do not restart on it).
+use grip_io::service::EXIT_CONFIG;
 
 const BIN: &str = env!("CARGO_BIN_EXE_tcs-loop");
 
@@ -28,7 +32,7 @@ fn bad_own_config_names_file_field_reason() {
     )
     .unwrap();
     let (code, err) = run(&["--config-dir", t.path().to_str().unwrap()]);
-    assert_eq!(code, 1, "{err}");
+    assert_eq!(code, i32::from(EXIT_CONFIG), "{err}");
     let line = err.lines().find(|l| l.starts_with("error: ")).expect(&err);
     assert!(line.contains("tcs-loop.toml"), "{line}");
     assert!(line.contains("field `controller`"), "{line}");
@@ -37,12 +41,12 @@ fn bad_own_config_names_file_field_reason() {
 
     std::fs::write(&p, text.replace("recover_ms = 50.0", "recover_ms = -5.0")).unwrap();
     let (code, err) = run(&["--config-dir", t.path().to_str().unwrap()]);
-    assert_eq!(code, 1);
+    assert_eq!(code, i32::from(EXIT_CONFIG));
     assert!(err.contains("field `safety.recover_ms`"), "{err}");
 
     std::fs::write(&p, text.replace("[safety]", "[safety]\nsensor_timeout = 3")).unwrap();
     let (code, err) = run(&["--config-dir", t.path().to_str().unwrap()]);
-    assert_eq!(code, 1);
+    assert_eq!(code, i32::from(EXIT_CONFIG));
     assert!(err.contains("unknown field `sensor_timeout`"), "{err}");
     assert!(err.contains("line "), "{err}");
 }
@@ -58,6 +62,30 @@ fn a_bus_whose_timing_the_loop_cannot_keep_is_refused() {
     let t = copy_config(&CONFIG);
     let dbc = t.path().join("inverter.dbc");
     let text = std::fs::read_to_string(&dbc).unwrap();
+    // a [safety] timeout longer than the bus's own: the loop would command
+    // torque on inputs the DBC declares timed out (a fail-safe trial ran
+    // 1.5 s of a stopped plant on 5000 ms)
+    let own = t.path().join("tcs-loop.toml");
+    let own_text = std::fs::read_to_string(&own).unwrap();
+    for (from, to, want) in [
+        (
+            "sensor_timeout_ms = 10.0",
+            "sensor_timeout_ms = 5000.0",
+            "field `safety.sensor_timeout_ms`: 5000 ms is longer than WheelSpeeds's receive timeout on the bus (GripTimeoutMs 10 ms in inverter.dbc)",
+        ),
+        (
+            "demand_timeout_ms = 50.0",
+            "demand_timeout_ms = 51.0",
+            "field `safety.demand_timeout_ms`: 51 ms is longer than DriverDemand's receive timeout on the bus (GripTimeoutMs 50 ms in inverter.dbc)",
+        ),
+    ] {
+        assert!(own_text.contains(from), "{from}");
+        std::fs::write(&own, own_text.replace(from, to)).unwrap();
+        let (code, err) = run(&["--config-dir", t.path().to_str().unwrap()]);
+        assert_eq!(code, i32::from(EXIT_CONFIG), "{err}");
+        assert!(err.contains(want), "{err}");
+    }
+    std::fs::write(&own, &own_text).unwrap();
     for (from, to, want) in [
         (
             "BA_ \"GenMsgCycleTime\" BO_ 320 10;\n",
@@ -88,7 +116,7 @@ fn a_bus_whose_timing_the_loop_cannot_keep_is_refused() {
             );
         std::fs::write(&dbc, edited).unwrap();
         let (code, err) = run(&["--config-dir", t.path().to_str().unwrap()]);
-        assert_eq!(code, 1, "{err}");
+        assert_eq!(code, i32::from(EXIT_CONFIG), "{err}");
         assert!(err.contains(want), "{err}");
         assert!(!err.contains("panicked"), "{err}");
     }
@@ -101,14 +129,14 @@ fn bad_shared_config_names_file_field_reason() {
     let text = std::fs::read_to_string(&p).unwrap();
     std::fs::write(&p, text.replace("tau_hpf = 1.0", "tau_hpf = -1.0")).unwrap();
     let (code, err) = run(&["--config-dir", t.path().to_str().unwrap()]);
-    assert_eq!(code, 1, "{err}");
+    assert_eq!(code, i32::from(EXIT_CONFIG), "{err}");
     assert!(
         err.contains("controllers.toml: field `mfc.tau_hpf`"),
         "{err}"
     );
 
     let (code, err) = run(&["--config-dir", "/nonexistent/grip"]);
-    assert_eq!(code, 1);
+    assert_eq!(code, i32::from(EXIT_CONFIG));
     assert!(
         err.contains("/nonexistent/grip/tcs-loop.toml: cannot read"),
         "{err}"

@@ -4,9 +4,14 @@
 //! - [`Service::run`]: `tracing` to stderr (`RUST_LOG`, default `info`;
 //!   colours only on a terminal), SIGTERM/SIGINT set the stop flag (and,
 //!   with [`Service::with_start_signal`], SIGUSR1 sets a start flag), then
-//!   the service's body; exit code 0 on success, 1 after one
-//!   `error: ...` line on stderr (a handler that cannot be installed, or
-//!   the body's error naming file, field and reason).
+//!   the service's body; exit code 0 on success, after one `error: ...`
+//!   line on stderr (a handler that cannot be installed, or the body's
+//!   error naming file, field and reason) [`EXIT_CONFIG`] (78) when the
+//!   error is the configuration's ([`ServiceError::is_config`]: a
+//!   restart cannot mend it, and the units' `RestartPreventExitStatus=78`
+//!   leaves the unit failed instead of restarting it every second), 1
+//!   otherwise (a CAN interface or microphone not there yet, iceoryx2:
+//!   what a restart may find mended).
 //! - [`ConfigArgs`]: the `--config-dir DIR` / `--config FILE` pair of
 //!   every service's command line; [`ServiceConfig`]: the read → parse →
 //!   validate trio of the service's own TOML, whose errors name file,
@@ -15,6 +20,7 @@
 //! - [`monitor`]: the non-real-time helper thread (watchdog through
 //!   [`crate::systemd::Watchdog`], transition logging, counters that grew).
 
+pub mod args;
 pub mod monitor;
 
 use std::fmt::Display;
@@ -59,17 +65,21 @@ impl Service {
     }
 
     /// Sets up tracing and the signal handlers, then runs `body`. Returns
-    /// the process's exit code: 0 if `body` succeeded; 1 after printing
-    /// `error: {e}` if it failed or a handler could not be installed.
-    pub fn run<E: Display>(self, body: impl FnOnce(&Signals) -> Result<(), E>) -> ExitCode {
+    /// the process's exit code: 0 if `body` succeeded; after printing
+    /// `error: {e}`, [`EXIT_CONFIG`] if it failed on its configuration,
+    /// else 1 (also when a handler could not be installed).
+    pub fn run<E: ServiceError>(self, body: impl FnOnce(&Signals) -> Result<(), E>) -> ExitCode {
         init_tracing();
         let signals = match self.install() {
             Ok(s) => s,
-            Err(e) => return fail(e),
+            Err(e) => return fail(e, 1),
         };
         match body(&signals) {
             Ok(()) => ExitCode::SUCCESS,
-            Err(e) => fail(e),
+            Err(e) => {
+                let code = if e.is_config() { EXIT_CONFIG } else { 1 };
+                fail(e, code)
+            }
         }
     }
 
@@ -91,9 +101,26 @@ impl Service {
     }
 }
 
-fn fail(e: impl Display) -> ExitCode {
+fn fail(e: impl Display, code: u8) -> ExitCode {
     eprintln!("error: {e}");
-    ExitCode::from(1)
+    ExitCode::from(code)
+}
+
+/// The exit code of a service that refuses its configuration: sysexits'
+/// `EX_CONFIG`. The systemd units list it in `RestartPreventExitStatus=`:
+/// a file, field or value that is wrong stays wrong on the next start, so
+/// the unit is left failed (`systemctl status` shows the error) instead of
+/// restarting every second for ever.
+pub const EXIT_CONFIG: u8 = 78;
+
+/// A service's fatal error, as [`Service::run`] ends the process on it.
+pub trait ServiceError: Display {
+    /// Whether the error is the configuration's (a file, field, value or
+    /// model the service refuses, or one it cannot read), which a restart
+    /// cannot mend: exit [`EXIT_CONFIG`]. Everything else (a CAN interface
+    /// or a microphone not there yet, iceoryx2, a thread): exit 1, and the
+    /// unit's `Restart=` tries again.
+    fn is_config(&self) -> bool;
 }
 
 /// `tracing` for a service: human-readable lines on stderr (journald

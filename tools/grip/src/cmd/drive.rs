@@ -96,10 +96,13 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         Some(v) => {
             let v = cwd.join(v);
             // a bad file fails here, before any service starts
-            let (params, _) = grip_config::load_vehicle(&v)?;
+            let (params, _) = grip_config::load_vehicle_complete(&v)?;
             (Some(v), params)
         }
-        None => (None, dir.vehicle()?.0),
+        None => (
+            None,
+            grip_config::load_vehicle_complete(dir.vehicle_path())?.0,
+        ),
     };
     // the scenario against the vehicle and plant-sim's period, as
     // plant-sim's start-up checks it (a demand above torque_max, a
