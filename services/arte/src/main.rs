@@ -25,7 +25,7 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use grip_arte_svc::{Options, run};
-use grip_io::service::args::seconds;
+use grip_io::service::args::RunFor;
 use grip_io::service::{ConfigArgs, Service};
 
 /// grip ARTE service: road estimates on grip/arte/road from audio on grip/audio/block.
@@ -38,9 +38,8 @@ struct Args {
     /// Model file (default: the config's `model`, i.e. `<config-dir>/models/default.model`).
     #[arg(long)]
     model: Option<PathBuf>,
-    /// Stop after this many seconds (0 to 3.2e7).
-    #[arg(long, value_parser = seconds, allow_negative_numbers = true)]
-    run_for: Option<f64>,
+    #[command(flatten)]
+    run_for: RunFor,
 }
 
 fn main() -> ExitCode {
@@ -48,39 +47,7 @@ fn main() -> ExitCode {
     let opts = Options {
         config: args.config,
         model: args.model,
-        run_for: args.run_for,
+        run_for: args.run_for.seconds,
     };
     Service::new().run(|signals| run(&opts, signals.stop.clone()).map(drop))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// `--run-for` takes the services' one parser (tcs-loop's): `inf` or
-    /// `1e300` is a usage error here, not a deadline that wraps into the
-    /// past; `-1` reaches the parser in either spelling.
-    #[test]
-    fn run_for_is_the_shared_parser() {
-        let a = Args::try_parse_from(["arte", "--run-for", "2.5"]).unwrap();
-        assert_eq!(a.run_for, Some(2.5));
-        assert_eq!(Args::try_parse_from(["arte"]).unwrap().run_for, None);
-        for bad in ["inf", "NaN", "-1", "1e300", "soon"] {
-            for argv in [
-                vec!["arte".to_string(), format!("--run-for={bad}")],
-                vec!["arte".into(), "--run-for".into(), bad.into()],
-            ] {
-                let e = Args::try_parse_from(&argv).unwrap_err();
-                assert_eq!(
-                    e.kind(),
-                    clap::error::ErrorKind::ValueValidation,
-                    "{argv:?}: {e}"
-                );
-                let msg = e.to_string();
-                assert!(msg.contains("--run-for") && msg.contains(bad), "{msg}");
-            }
-        }
-        let e = Args::try_parse_from(["arte", "--run-for", "-1"]).unwrap_err();
-        assert!(e.to_string().contains("seconds from 0 to 3.2e7"), "{e}");
-    }
 }

@@ -27,7 +27,7 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use grip_audio_acq::{Options, SourceKind, run};
-use grip_io::service::args::seconds;
+use grip_io::service::args::RunFor;
 use grip_io::service::{ConfigArgs, Service};
 
 /// grip audio acquisition: blocks of mono PCM on topic grip/audio/block.
@@ -49,9 +49,8 @@ struct Args {
     /// Play the WAV file once, then exit 0 (default: as configured).
     #[arg(long)]
     once: bool,
-    /// Stop after this many seconds (0 to 3.2e7).
-    #[arg(long, value_parser = seconds, allow_negative_numbers = true)]
-    run_for: Option<f64>,
+    #[command(flatten)]
+    run_for: RunFor,
 }
 
 fn main() -> ExitCode {
@@ -62,39 +61,7 @@ fn main() -> ExitCode {
         device: args.device,
         wav: args.wav,
         looped: args.once.then_some(false),
-        run_for: args.run_for,
+        run_for: args.run_for.seconds,
     };
     Service::new().run(|signals| run(&opts, signals.stop.clone()).map(drop))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// `--run-for` takes the services' one parser (tcs-loop's): `inf` or
-    /// `1e300` is a usage error here, not a deadline that wraps into the
-    /// past; `-1` reaches the parser in either spelling.
-    #[test]
-    fn run_for_is_the_shared_parser() {
-        let a = Args::try_parse_from(["audio-acq", "--run-for", "2.5"]).unwrap();
-        assert_eq!(a.run_for, Some(2.5));
-        assert_eq!(Args::try_parse_from(["audio-acq"]).unwrap().run_for, None);
-        for bad in ["inf", "NaN", "-1", "1e300", "soon"] {
-            for argv in [
-                vec!["audio-acq".to_string(), format!("--run-for={bad}")],
-                vec!["audio-acq".into(), "--run-for".into(), bad.into()],
-            ] {
-                let e = Args::try_parse_from(&argv).unwrap_err();
-                assert_eq!(
-                    e.kind(),
-                    clap::error::ErrorKind::ValueValidation,
-                    "{argv:?}: {e}"
-                );
-                let msg = e.to_string();
-                assert!(msg.contains("--run-for") && msg.contains(bad), "{msg}");
-            }
-        }
-        let e = Args::try_parse_from(["audio-acq", "--run-for", "-1"]).unwrap_err();
-        assert!(e.to_string().contains("seconds from 0 to 3.2e7"), "{e}");
-    }
 }

@@ -9,6 +9,17 @@
 //!   saturating, so that no run length (a library caller's `inf` included)
 //!   can wrap the deadline into the past.
 
+/// `--run-for SECONDS`, flattened into a service's `clap` arguments
+/// (arte, audio-acq, tcs-loop): one option, one parser ([`seconds`]), one
+/// help text for all.
+#[derive(Debug, Clone, Copy, Default, PartialEq, clap::Args)]
+pub struct RunFor {
+    /// Stop by itself after this many seconds (0 to 3.2e7; default: run
+    /// until SIGTERM/SIGINT).
+    #[arg(long = "run-for", value_name = "SECONDS", value_parser = seconds, allow_negative_numbers = true)]
+    pub seconds: Option<f64>,
+}
+
 /// The longest `--run-for`, s: about a year (370 days).
 pub const MAX_RUN_FOR_S: f64 = 3.2e7;
 
@@ -50,6 +61,40 @@ pub fn deadline_ns(now_ns: u64, run_for_s: f64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct Svc {
+        #[command(flatten)]
+        run_for: RunFor,
+    }
+
+    /// `--run-for` as every service takes it: `inf` or `1e300` is a usage
+    /// error, not a deadline that wraps into the past; `-1` reaches the
+    /// parser in either spelling (not clap's "unexpected argument").
+    #[test]
+    fn run_for_is_one_option_with_one_parser() {
+        let a = Svc::try_parse_from(["svc", "--run-for", "2.5"]).unwrap();
+        assert_eq!(a.run_for.seconds, Some(2.5));
+        assert_eq!(Svc::try_parse_from(["svc"]).unwrap().run_for.seconds, None);
+        for bad in ["inf", "NaN", "-1", "1e300", "soon"] {
+            for argv in [
+                vec!["svc".to_string(), format!("--run-for={bad}")],
+                vec!["svc".into(), "--run-for".into(), bad.into()],
+            ] {
+                let e = Svc::try_parse_from(&argv).unwrap_err();
+                assert_eq!(
+                    e.kind(),
+                    clap::error::ErrorKind::ValueValidation,
+                    "{argv:?}: {e}"
+                );
+                let msg = e.to_string();
+                assert!(msg.contains("--run-for") && msg.contains(bad), "{msg}");
+            }
+        }
+        let e = Svc::try_parse_from(["svc", "--run-for", "-1"]).unwrap_err();
+        assert!(e.to_string().contains("seconds from 0 to 3.2e7"), "{e}");
+    }
 
     #[test]
     fn seconds_takes_a_finite_run_length_up_to_a_year() {
