@@ -241,15 +241,18 @@ pub struct CycleRecord {
     pub omega: f64,
     /// Measured vehicle speed V, m/s (meaningful when `v_valid` = 1).
     pub v: f64,
-    /// Measured motor torque T, N m.
+    /// Measured torque T at one driven wheel (the motor's after the gear,
+    /// per driven wheel, as every torque here), N m.
     pub torque: f64,
-    /// Driver demand T_d, N m.
+    /// Driver demand T_d, N m (one driven wheel).
     pub demand: f64,
-    /// Torque command T* sent to the inverter, N m.
+    /// Torque command T* sent to the inverter, N m (one driven wheel).
     pub torque_cmd: f64,
-    /// Controller internal variable (MFC: filtered error; SRC: λ*; MTTE: T_max).
+    /// Controller internal variable (MFC: the model's wheel speed ω_M,
+    /// rad/s; SRC: λ*; MTTE: T_max, N m).
     pub internal: f64,
-    /// Controller's friction estimate μ̂.
+    /// Controller's friction estimate μ̂ (SRC, MTTE; NaN for MFC). Not the
+    /// road's μ while road knowledge's cap binds MTTE's command.
     pub mu_hat: f64,
     /// Odometer: integral of the measured vehicle speed since start, m.
     pub odometer: f64,
@@ -257,11 +260,15 @@ pub struct CycleRecord {
     pub torque_cap: f64,
     /// Probability of the believed road (ARTE on), NaN without.
     pub belief_prob: f64,
-    /// Road class the controller used (`NO_CLASS` if none).
+    /// The newest road estimate's class index (the model's class list: the
+    /// road heard at the microphone), set when `used_arte` is 1;
+    /// `NO_CLASS` otherwise.
     pub road_class: u32,
     /// Catalogue index of the believed road (ARTE on), `NO_CLASS` without.
     pub belief_road: u32,
-    /// 1 if the controller used the ARTE road knowledge this cycle.
+    /// 1 if the road belief was usable this cycle (a decision within
+    /// `[arte] max_age_s`, the belief's probability at or above
+    /// `min_confidence`); road knowledge's torque cap acts without it.
     pub used_arte: u8,
     /// 1 if the loop was in its safe state (sensor timeout, fault).
     pub safe_state: u8,
@@ -486,7 +493,7 @@ pub struct GroundTruth {
     pub omega: f64,
     /// True slip λ.
     pub lambda: f64,
-    /// True motor torque T, N m.
+    /// True torque T at one driven wheel (after the motor's lag), N m.
     pub torque: f64,
     /// Distance travelled x, m.
     pub x: f64,
