@@ -219,9 +219,6 @@ mod tests {
         }
     }
 
-    /// `grip drive` places every service as its unit does (CPUs, nice,
-    /// I/O priority), and a unit sets nothing of this kind that
-    /// [`Service::placement`] leaves out.
     /// Every unit leaves a refused configuration failed (the services'
     /// exit code for it, `EXIT_CONFIG`) and restarts on anything else.
     #[test]
@@ -242,6 +239,9 @@ mod tests {
         }
     }
 
+    /// `grip drive` places every service as its unit does (CPUs, nice,
+    /// I/O priority), and a unit sets nothing of this kind that
+    /// [`Service::placement`] leaves out.
     #[test]
     fn placement_equals_the_units() {
         for (s, text) in units() {

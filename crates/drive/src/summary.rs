@@ -179,13 +179,21 @@ impl ControlHealth {
                 self.end_records.0
             )
         };
+        // a window cut short ends where the log does, not the scenario
+        let (end, of) = match self.cut_short {
+            Some((_, d)) => (
+                format!("the end of the log's window (of a {d:.3} s scenario)"),
+                "the log's window",
+            ),
+            None => ("the scenario's end".to_owned(), "the scenario"),
+        };
         match self.end_out {
             Some((since, d)) if self.lost() => format!(
-                "CONTROL LOST AND NOT REGAINED: {state} from {since:.3} s to the scenario's end at {:.3} s ({d:.3} s; {CONTROL_LOST_MIN_S} s or more at the end fails a drive); {recovered}{why}",
+                "CONTROL LOST AND NOT REGAINED: {state} from {since:.3} s to {end} at {:.3} s ({d:.3} s; {CONTROL_LOST_MIN_S} s or more at the end fails a drive); {recovered}{why}",
                 self.window_s
             ),
             Some((since, d)) => format!(
-                "{state} for the last {d:.3} s of the scenario (from {since:.3} s; under the {CONTROL_LOST_MIN_S} s that fails a drive); {recovered}{why}"
+                "{state} for the last {d:.3} s of {of} (from {since:.3} s; under the {CONTROL_LOST_MIN_S} s that fails a drive); {recovered}{why}"
             ),
             None => match self.cut_short {
                 Some((w, d)) => format!(
@@ -807,7 +815,11 @@ pub fn model_of(log: &DriveLog) -> Option<ModelInfo> {
 pub fn min_confidence_of(log: &DriveLog) -> (f64, bool) {
     log.attachment_text("controllers.toml")
         .and_then(|t| t.parse::<toml::Table>().ok())
-        .and_then(|t| t.get("arte")?.get("min_confidence")?.as_float())
+        .and_then(|t| {
+            let v = t.get("arte")?.get("min_confidence")?;
+            // `min_confidence = 1` is an integer in TOML; the loop takes it
+            v.as_float().or_else(|| v.as_integer().map(|i| i as f64))
+        })
         .filter(|c| (0.0..=1.0).contains(c))
         .map_or((grip_tcs::ArteUse::default().min_confidence, false), |c| {
             (c, true)
@@ -847,14 +859,15 @@ pub struct PreviewEvent {
 const LIMIT_TOL_NM: f64 = 0.2;
 
 /// Whether road knowledge's torque cap bound the command of cycle `c`:
-/// a finite `torque_cap` below the driver's demand, and the command at or
-/// below it (within the CAN signal's resolution). An ARTE-off drive logs
-/// no cap, so never.
+/// a finite `torque_cap` below the driver's demand, and the command at it
+/// (within the CAN signal's resolution; the command is min(controller,
+/// cap), so one well below the cap is the controller's own). An ARTE-off
+/// drive logs no cap, so never.
 pub fn cap_binding(c: &CycleRecord) -> bool {
     c.torque_cap.is_finite()
         && c.demand.is_finite()
         && c.torque_cap < c.demand - LIMIT_TOL_NM
-        && c.torque_cmd <= c.torque_cap + LIMIT_TOL_NM
+        && (c.torque_cmd - c.torque_cap).abs() <= LIMIT_TOL_NM
 }
 
 /// The catalogue's road of a truth sample's road under the wheel, by name
@@ -974,8 +987,9 @@ pub struct ReleaseEvent {
     pub cmd_at_arrival: f64,
     /// What happened to the command after arrival.
     pub after: Release,
-    /// ∫ (demand − command)⁺ dt over the 0.2 s after arrival, N m s: the
-    /// torque withheld on the new road.
+    /// ∫ (demand − command)⁺ dt over the 0.2 s after arrival (to the next
+    /// road change or the window's end if sooner), N m s: the torque
+    /// withheld on the new road.
     pub withheld_nms: f64,
 }
 
@@ -1000,14 +1014,13 @@ pub enum Release {
 /// [`preview_events`] reports them).
 fn release_events(
     log: &DriveLog,
-    i0: usize,
-    i1: usize,
+    (i0, i1): (usize, usize),
+    end_ns: u64,
     roads: &RoadCatalogue,
     vehicle: &VehicleParams,
 ) -> Vec<ReleaseEvent> {
     let nr = vehicle.normal_force() * vehicle.r;
     let start_ns = log.truth[i0].stamp_ns;
-    let end_ns = log.truth[i1].stamp_ns;
     let mut changes: Vec<usize> = (i0 + 1..=i1)
         .filter(|&k| {
             let (a, b) = (&log.truth[k - 1], &log.truth[k]);
@@ -1050,8 +1063,9 @@ fn release_events(
                 None => Release::Held(secs_between(tc, until)),
             }
         };
-        // the command in force from arrival over the next 0.2 s
-        let t_end = tc.saturating_add(200_000_000);
+        // the command in force from arrival over the next 0.2 s on this
+        // road (to the next change or the window's end if sooner)
+        let t_end = tc.saturating_add(200_000_000).min(until);
         let mut withheld = 0.0;
         let mut prev = (tc, at);
         for c in log.cycles[upto..].iter().take_while(|c| c.stamp_ns < t_end) {
@@ -1059,7 +1073,14 @@ fn release_events(
                 (prev.1.demand - prev.1.torque_cmd).max(0.0) * secs_between(prev.0, c.stamp_ns);
             prev = (c.stamp_ns, c);
         }
-        withheld += (prev.1.demand - prev.1.torque_cmd).max(0.0) * secs_between(prev.0, t_end);
+        // the last command holds to t_end, but not more than a cycle past
+        // the loop's last record (a log cut short)
+        let last = log
+            .cycles
+            .last()
+            .map_or(t_end, |c| c.stamp_ns.saturating_add(1_000_000));
+        withheld += (prev.1.demand - prev.1.torque_cmd).max(0.0)
+            * secs_between(prev.0, t_end.min(last).max(prev.0));
         out.push(ReleaseEvent {
             t: secs_between(start_ns, tc),
             x: b.x,
@@ -1098,8 +1119,8 @@ impl ReleaseEvent {
             ),
         };
         format!(
-            "{head} {what}; withheld in the next 0.2 s ∫(T_d − T*)⁺dt {:.1} N m s",
-            self.withheld_nms
+            "{head} {what}; withheld in the next 0.2 s on {} ∫(T_d − T*)⁺dt {:.1} N m s",
+            self.to, self.withheld_nms
         )
     }
 }
@@ -1603,6 +1624,8 @@ pub fn summarize(
     // scenario's (the headline)
     let mut a = ArteEval {
         estimates: log.roads.len() as u64,
+        // the log's gate, with a scenario window or without (a car's log)
+        min_confidence: min_confidence_of(log),
         ..ArteEval::default()
     };
     for e in &log.roads {
@@ -1649,7 +1672,6 @@ pub fn summarize(
                 ));
             }
         }
-        a.min_confidence = min_confidence_of(log);
         let gate = a.min_confidence.0;
         for (k, (tc, from, to)) in change_at.iter().enumerate() {
             let until = change_at.get(k + 1).map_or(u64::MAX, |c| c.0);
@@ -1700,7 +1722,7 @@ pub fn summarize(
                 ));
             }
             s.preview = Some(events);
-            s.releases = Some(release_events(log, w.i0, w.last_in, r, vehicle));
+            s.releases = Some(release_events(log, (w.i0, w.last_in), w.end_ns, r, vehicle));
         }
         if let (Some(a0), Some(a1)) = (first_in, last_in_c) {
             s.can.faults_in_window = Some(fault_delta(&a0.faults, &a1.faults));
@@ -3121,12 +3143,12 @@ mod tests {
         // the demand within snow's limit: nothing to release
         let n = summarize(&make(300, limit - 5.0), &v, "test", Some(&roads));
         assert_eq!(n.releases.as_ref().unwrap()[0].after, Release::NotNeeded);
-        // held to the window's end (the last truth sample, k = 299)
+        // held to the window's end (a truth period after the last sample, k = 299)
         let h = summarize(&make(300, 300.0), &v, "test", Some(&roads));
         let Release::Held(held) = h.releases.as_ref().unwrap()[0].after else {
             panic!("{:?}", h.releases)
         };
-        assert!((held - 0.189).abs() < 1e-9, "{held}");
+        assert!((held - 0.190).abs() < 1e-9, "{held}");
         // side by side
         let c = compare(&s, &a);
         assert!(c.contains("release A") && c.contains("release B"), "{c}");

@@ -207,22 +207,41 @@ fn a_reverse_spin_counts_and_a_car_log_says_how_often_arte_was_used() {
             c.torque_cap = f64::NAN;
             // road knowledge's cap below the demand, gate passed or not:
             // binding in 100 cycles (the command at it); in 50 more the
-            // command is above it (a cap lifted by the wheel), not binding
+            // command is above it (a cap lifted by the wheel), and in 50
+            // more well below it (the controller's own command): not
+            // binding
             if (500..650).contains(&k) {
                 c.torque_cap = 150.0;
                 if k < 600 {
                     c.torque_cmd = 150.05;
                 }
             }
+            if (650..700).contains(&k) {
+                c.torque_cap = 180.0;
+                c.torque_cmd = 120.0;
+            }
             c
         })
         .collect();
-    let log = DriveLog {
+    let mut log = DriveLog {
         cycles,
         ..DriveLog::default()
     };
     let roads = RoadCatalogue::burckhardt(&["asphalt", "snow"]).unwrap();
+    // the loop's gate, read from the log without a scenario window too,
+    // also as a TOML integer (the loop takes `min_confidence = 1`)
+    assert_eq!(
+        summarize(&log, &v, "test", Some(&roads))
+            .arte
+            .min_confidence,
+        (0.6, false)
+    );
+    log.attachments.insert(
+        "controllers.toml".into(),
+        b"[arte]\nmin_confidence = 1\n".to_vec(),
+    );
     let s = summarize(&log, &v, "test", Some(&roads));
+    assert_eq!(s.arte.min_confidence, (1.0, true));
     let m = &s.measured;
     assert_eq!(m.spins.len(), 1, "{:?}", m.spins);
     let lam = 2.0 / 7.0;

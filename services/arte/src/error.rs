@@ -66,7 +66,18 @@ pub enum ArteError {
 
 impl grip_io::service::ServiceError for ArteError {
     fn is_config(&self) -> bool {
-        !matches!(self, Self::Ipc(_) | Self::Helper(_) | Self::Other(_))
+        // listed, so that a variant added later is decided, not defaulted;
+        // `Other` is the model's classes against the road table
+        match self {
+            Self::Config(_)
+            | Self::ModelIo { .. }
+            | Self::Model { .. }
+            | Self::Classes { .. }
+            | Self::CalibrationMismatch { .. }
+            | Self::Stream(_)
+            | Self::Other(_) => true,
+            Self::Ipc(_) | Self::Helper(_) => false,
+        }
     }
 }
 

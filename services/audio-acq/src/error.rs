@@ -51,13 +51,11 @@ pub enum AcqError {
 }
 
 impl grip_io::service::ServiceError for AcqError {
-    /// The configuration's: the file, the WAV file it names, the synthesiser's
-    /// settings and what the device refuses of them; not a device that does
-    /// not open (a USB microphone may come later) nor a capture error.
+    /// The configuration's: the file, the WAV file it names, the
+    /// synthesiser's settings; not the ALSA device (one that does not open,
+    /// refuses its parameters or fails to capture: a USB microphone still
+    /// enumerating fails the same calls, and a restart may find it).
     fn is_config(&self) -> bool {
-        matches!(
-            self,
-            Self::Config(_) | Self::Wav(_) | Self::Synth(_) | Self::AlsaParams { .. }
-        )
+        matches!(self, Self::Config(_) | Self::Wav(_) | Self::Synth(_))
     }
 }

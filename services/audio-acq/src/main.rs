@@ -19,8 +19,9 @@
 //! played once: exit 0 after its last block. Start-up errors: one
 //! `error: ...` line; exit code 78 (`grip_io::service::EXIT_CONFIG`, not
 //! restarted by the unit) for a refused configuration (the file, a WAV file
-//! it names, settings the device refuses), 1 for a device that does not
-//! open or a capture error (restarted: a USB microphone may come later).
+//! it names), 1 for the ALSA device (it does not open, refuses its
+//! parameters or fails to capture: restarted, a USB microphone may come
+//! later).
 
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -108,6 +108,18 @@ pub fn check_bus(
 
 /// Everything a run reads, loaded and validated, overrides applied.
 pub fn load(opts: &Options) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), RunError> {
+    load_as(opts, false)
+}
+
+/// [`load`]; with `service` (the service itself, which drives a car or a
+/// rig) a vehicle file that leaves a `[vehicle]` field out is refused
+/// ([`grip_config::load_vehicle_complete`]) instead of taking the paper's
+/// default with a warning, as `grip replay` and `grip generate` need for
+/// logs whose attached vehicle files predate a field.
+fn load_as(
+    opts: &Options,
+    service: bool,
+) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), RunError> {
     let dir = ConfigDir::new(&opts.config.config_dir);
     let own_path = opts.config.own_file::<PlantSimConfig>();
     let mut cfg = PlantSimConfig::load(&own_path)?;
@@ -123,7 +135,11 @@ pub fn load(opts: &Options) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), 
     cfg.exit_at_end |= opts.exit_at_end;
     let roads = dir.roads()?;
     let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
-    let (vehicle, sensors) = grip_config::load_vehicle_complete(&vehicle_path)?;
+    let (vehicle, sensors) = if service {
+        grip_config::load_vehicle_complete(&vehicle_path)?
+    } else {
+        grip_config::load_vehicle(&vehicle_path)?
+    };
     // the scenario against this vehicle's motor limit and this loop's
     // cycle count, as `grip sim` checks it (`Scenario::check_for`)
     let scenario = dir.scenario_for(
@@ -203,7 +219,7 @@ pub fn run(
     stop: &Arc<AtomicBool>,
     start: &Arc<AtomicBool>,
 ) -> Result<(), RunError> {
-    let (cfg, mut sim, can) = load(opts)?;
+    let (cfg, mut sim, can) = load_as(opts, true)?;
     tracing::info!(
         scenario = %sim.scenario().name,
         duration_s = sim.scenario().duration,

@@ -1,5 +1,5 @@
 //! The `plant-sim` binary: bad configuration → one `error:` line (file,
-//! field, reason), exit 1; `READY=1` on `NOTIFY_SOCKET`; `--exit-at-end`
+//! field, reason), exit 78; `READY=1` on `NOTIFY_SOCKET`; `--exit-at-end`
 //! exits 0 at the scenario's end; SIGTERM exits 0.
 
 use std::process::Command;

@@ -3,8 +3,8 @@
 //! `ConfigDir::scenario_for`): a demand above the vehicle's `torque_max`
 //! (it drove the motor at its limit and exited 0), a duration of more than
 //! 1e9 loop cycles (it ran for ever with `--exit-at-end`). One `error:`
-//! line naming the scenario file, the field and the reason; exit 1 before
-//! any frame.
+//! line naming the scenario file, the field and the reason; exit 78 (a
+//! refused configuration) before any frame.
 
 use std::io::Read;
 use std::process::{Command, Stdio};

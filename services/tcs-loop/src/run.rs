@@ -118,6 +118,15 @@ pub struct LoadedConfig {
 
 /// Loads and validates every file the service needs, applying the overrides.
 pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
+    load_as(opts, false)
+}
+
+/// [`load`]; with `service` (the service itself, which drives a car or a
+/// rig) a vehicle file that leaves a `[vehicle]` field out is refused
+/// ([`grip_config::load_vehicle_complete`]) instead of taking the paper's
+/// default with a warning, as `grip replay` and `grip generate` need for
+/// logs whose attached vehicle files predate a field.
+fn load_as(opts: &Options, service: bool) -> Result<LoadedConfig, ConfigError> {
     let dir = ConfigDir::new(&opts.config.config_dir);
     let own_path = opts.config.own_file::<TcsLoopConfig>();
     let mut own = TcsLoopConfig::load(&own_path)?;
@@ -130,7 +139,11 @@ pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
     let controllers_path = dir.file("controllers.toml");
     let controllers = load_controllers(&controllers_path)?;
     let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
-    let (vehicle, sensors) = grip_config::load_vehicle_complete(&vehicle_path)?;
+    let (vehicle, sensors) = if service {
+        grip_config::load_vehicle_complete(&vehicle_path)?
+    } else {
+        grip_config::load_vehicle(&vehicle_path)?
+    };
     let can = load_can(&dir)?;
     // the wheels' radii convert a wheel speed the DBC gives in km/h or m/s
     let radii = grip_io::can::protocol::WheelRadii::of(&vehicle);
@@ -330,7 +343,7 @@ pub fn build(cfg: &LoadedConfig) -> Result<TcsLoop, RunError> {
 /// real-time set-up is done. Only start-up errors are returned; nothing
 /// after start is fatal.
 pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunError> {
-    let cfg = load(opts)?;
+    let cfg = load_as(opts, true)?;
     let mut lp = build(&cfg)?;
     let kind = lp.controller_kind();
     // MFC's and SRC's gains are the paper's car's: say where they do not

@@ -184,3 +184,32 @@ fn ready_then_clean_exit_on_sigterm() {
     // no sensor frames: it stayed in its safe state
     assert!(err.contains("safe_entries=0"), "{err}");
 }
+
+/// A vehicle file that leaves a `[vehicle]` field out: the service
+/// refuses it (it drives a car), naming the field, exit 78; `load`, which
+/// `grip replay` and `grip generate` re-run logs with (some attach vehicle
+/// files older than a field), still takes it with the paper's default
+/// (the first version of the refusal, in `load`, made logs from before
+/// 2026-12-01 unreplayable: found in review).
+#[test]
+fn the_service_refuses_a_partial_vehicle_file_and_load_takes_it() {
+    let t = copy_config(&CONFIG);
+    let v = t.path().join("vehicle.toml");
+    let text = std::fs::read_to_string(&v).unwrap();
+    let partial: String = text
+        .lines()
+        .filter(|l| !l.starts_with("mic_lead_m"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    assert!(partial.len() < text.len());
+    std::fs::write(&v, partial).unwrap();
+    let (code, err) = run(&["--config-dir", t.path().to_str().unwrap()]);
+    assert_eq!(code, i32::from(EXIT_CONFIG), "{err}");
+    assert!(err.contains("field `vehicle.mic_lead_m`: not set"), "{err}");
+    let opts = grip_tcs_loop::Options {
+        config: grip_io::service::ConfigArgs::in_dir(t.path()),
+        ..grip_tcs_loop::Options::default()
+    };
+    let cfg = grip_tcs_loop::load(&opts).expect("load stays lenient");
+    assert_eq!(cfg.vehicle.mic_lead_m, 0.0);
+}
