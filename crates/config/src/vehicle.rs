@@ -43,6 +43,17 @@ pub struct VehicleLoad {
 }
 
 impl VehicleLoad {
+    /// The defaulted fields' names, and `name = value` of each.
+    fn defaulted_lists(&self) -> (Vec<&'static str>, Vec<String>) {
+        (
+            self.defaulted.iter().map(|(n, _)| *n).collect(),
+            self.defaulted
+                .iter()
+                .map(|(n, v)| format!("{n} = {v}"))
+                .collect(),
+        )
+    }
+
     /// The warning for `file` when fields were defaulted, None otherwise:
     /// `warning: FILE: [vehicle] does not set n_driven, torque_max: they
     /// take the paper's quarter-car defaults (n_driven = 4, torque_max =
@@ -51,12 +62,7 @@ impl VehicleLoad {
         if self.defaulted.is_empty() {
             return None;
         }
-        let names: Vec<&str> = self.defaulted.iter().map(|(n, _)| *n).collect();
-        let values: Vec<String> = self
-            .defaulted
-            .iter()
-            .map(|(n, v)| format!("{n} = {v}"))
-            .collect();
+        let (names, values) = self.defaulted_lists();
         Some(format!(
             "warning: {}: [vehicle] does not set {}: {} the paper's quarter-car default{} ({}), which may not be your car's; set {} in the file (crates/physics/README.md, \"The vehicle file\")",
             file.display(),
@@ -136,12 +142,7 @@ pub fn load_vehicle_complete(
     let path = path.as_ref();
     let l = parse_vehicle_file(path, &read_file(path)?)?;
     if let Some(first) = l.defaulted.first() {
-        let names: Vec<&str> = l.defaulted.iter().map(|(n, _)| *n).collect();
-        let values: Vec<String> = l
-            .defaulted
-            .iter()
-            .map(|(n, v)| format!("{n} = {v}"))
-            .collect();
+        let (names, values) = l.defaulted_lists();
         return Err(ConfigError::new(
             path,
             format!("vehicle.{}", first.0),
