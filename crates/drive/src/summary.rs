@@ -884,6 +884,25 @@ fn road_of<'a>(
     }
 }
 
+/// The indices k in `i0 + 1..=i1` where the road under the driven wheel
+/// changes between truth samples k − 1 and k (index or name): the changes
+/// the preview and release lines are about.
+fn road_changes(log: &DriveLog, i0: usize, i1: usize) -> Vec<usize> {
+    (i0 + 1..=i1)
+        .filter(|&k| {
+            let (a, b) = (&log.truth[k - 1], &log.truth[k]);
+            a.road_index != b.road_index || a.road_name != b.road_name
+        })
+        .collect()
+}
+
+/// The cycle records stamped at or before `t_ns` (how many) and the last
+/// of them, whose command was in force at `t_ns`; None before the first.
+fn in_force_at(log: &DriveLog, t_ns: u64) -> Option<(usize, &CycleRecord)> {
+    let upto = log.cycles.partition_point(|c| c.stamp_ns <= t_ns);
+    upto.checked_sub(1).map(|i| (upto, &log.cycles[i]))
+}
+
 /// Preview events over the truth samples `truth[i0..=i1]` (see
 /// [`PreviewEvent`]), and the roads of the ground truth the catalogue
 /// lacks.
@@ -898,11 +917,8 @@ fn preview_events(
     let start_ns = log.truth[i0].stamp_ns;
     let mut out = Vec::new();
     let mut missing: Vec<String> = Vec::new();
-    for k in i0 + 1..=i1 {
+    for k in road_changes(log, i0, i1) {
         let (a, b) = (&log.truth[k - 1], &log.truth[k]);
-        if a.road_index == b.road_index && a.road_name == b.road_name {
-            continue;
-        }
         let (ra, rb) = match (road_of(roads, a), road_of(roads, b)) {
             (Ok(ra), Ok(rb)) => (ra, rb),
             (x, y) => {
@@ -920,8 +936,7 @@ fn preview_events(
         let limit = rb.mu_peak() * nr;
         let tc = b.stamp_ns;
         // the cycles up to arrival, newest first
-        let upto = log.cycles.partition_point(|c| c.stamp_ns <= tc);
-        let Some(at) = upto.checked_sub(1).map(|i| &log.cycles[i]) else {
+        let Some((upto, at)) = in_force_at(log, tc) else {
             continue;
         };
         let mut since: Option<u64> = None;
@@ -1021,12 +1036,7 @@ fn release_events(
 ) -> Vec<ReleaseEvent> {
     let nr = vehicle.normal_force() * vehicle.r;
     let start_ns = log.truth[i0].stamp_ns;
-    let mut changes: Vec<usize> = (i0 + 1..=i1)
-        .filter(|&k| {
-            let (a, b) = (&log.truth[k - 1], &log.truth[k]);
-            a.road_index != b.road_index || a.road_name != b.road_name
-        })
-        .collect();
+    let mut changes = road_changes(log, i0, i1);
     changes.push(usize::MAX);
     let mut out = Vec::new();
     for w in changes.windows(2) {
@@ -1041,8 +1051,7 @@ fn release_events(
         let old_limit = ra.mu_peak() * nr;
         let tc = b.stamp_ns;
         let until = log.truth.get(next).map_or(end_ns, |g| g.stamp_ns);
-        let upto = log.cycles.partition_point(|c| c.stamp_ns <= tc);
-        let Some(at) = upto.checked_sub(1).map(|i| &log.cycles[i]) else {
+        let Some((upto, at)) = in_force_at(log, tc) else {
             continue;
         };
         let above = |c: &CycleRecord| c.torque_cmd > old_limit + LIMIT_TOL_NM;
