@@ -33,6 +33,7 @@ pub use knowledge::{load_knowledge, load_road_table, parse_knowledge};
 pub use roads::{load_roads, parse_roads};
 pub use scenario::{RunsOn, check_scenario, load_scenario, load_scenario_for, parse_scenario};
 pub use vehicle::{
-    VehicleLoad, load_vehicle, load_vehicle_complete, parse_vehicle, parse_vehicle_file,
+    VehicleLoad, VehicleUse, load_vehicle, load_vehicle_complete, load_vehicle_for, parse_vehicle,
+    parse_vehicle_file,
 };
 pub use warn::{first_time, warn_once, warn_once_as};

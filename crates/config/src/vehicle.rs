@@ -129,6 +129,32 @@ pub fn load_vehicle(path: impl AsRef<Path>) -> Result<(VehicleParams, SensorPara
     Ok((l.vehicle, l.sensors))
 }
 
+/// Who loads a vehicle file, and so how strictly ([`load_vehicle_for`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VehicleUse {
+    /// What drives a car or a rig (tcs-loop, plant-sim as services, `grip
+    /// drive`): a `[vehicle]` field left out is an error
+    /// ([`load_vehicle_complete`]).
+    Drive,
+    /// An offline reader (`grip replay` and `grip generate` through the
+    /// services' library `load`, of logs whose attached vehicle files may
+    /// predate a field): a field left out takes its default with a warning
+    /// ([`load_vehicle`]).
+    Offline,
+}
+
+/// [`load_vehicle_complete`] for [`VehicleUse::Drive`], [`load_vehicle`]
+/// for [`VehicleUse::Offline`].
+pub fn load_vehicle_for(
+    path: impl AsRef<Path>,
+    use_: VehicleUse,
+) -> Result<(VehicleParams, SensorParams), ConfigError> {
+    match use_ {
+        VehicleUse::Drive => load_vehicle_complete(path),
+        VehicleUse::Offline => load_vehicle(path),
+    }
+}
+
 /// Load a vehicle file for what drives a car or a rig (tcs-loop,
 /// plant-sim, `grip drive`): as [`load_vehicle`], but a `[vehicle]` field
 /// the file leaves out is an error naming them all, not the paper's

@@ -33,16 +33,9 @@ pub(crate) fn non_negative(field: &str, v: f64) -> Result<(), InvalidField> {
     }
 }
 
-pub(crate) fn in_range(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), InvalidField> {
-    if v.is_finite() && v >= lo && v <= hi {
-        Ok(())
-    } else {
-        Err(InvalidField::new(
-            field,
-            format!("must be in [{lo}, {hi}] (got {v})"),
-        ))
-    }
-}
+/// The range rule of every configuration file (one home: the physics
+/// crate's, which the vehicle and road files use).
+pub(crate) use grip_physics::validate::in_range;
 
 /// MFC (Hori's model following control).
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]

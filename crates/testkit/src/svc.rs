@@ -45,6 +45,52 @@ pub fn strip_rt(path: &Path) {
     std::fs::write(path, &text[..cut]).expect("writing a service config");
 }
 
+/// Replaces the `[rt]` of the service configuration `path` (the section
+/// [`strip_rt`] cuts, the last of the file) with one that pins to CPU
+/// 1000 (the configuration allows CPUs up to 1023; no test machine has
+/// 1001): a real-time step that is requested and cannot be applied
+/// whoever runs the test (root or not), and nothing else asked.
+pub fn unapplicable_rt(path: &Path) {
+    strip_rt(path);
+    let mut text = std::fs::read_to_string(path).expect("reading a service config");
+    text.push_str("[rt]\ncpus = [1000]\n");
+    std::fs::write(path, text).expect("writing a service config");
+}
+
+/// Runs the service binary `bin` on a copy of the shipped `configs` whose
+/// own file `own` asks for a real-time step it cannot apply
+/// ([`unapplicable_rt`]), with `args` and `--run-for 1`, reading its
+/// `NOTIFY_SOCKET`: the first `STATUS=` line it sent (panicking, with its
+/// stderr, if none came), and that it then exited 0. The test of each
+/// service's `REAL TIME NOT APPLIED` status note.
+pub fn status_with_unapplicable_rt(
+    bin: &str,
+    configs: &[&str],
+    own: &str,
+    args: &[&str],
+) -> String {
+    let t = copy_config(configs);
+    unapplicable_rt(&t.path().join(own));
+    let notify = NotifySocket::bind(t.path());
+    let mut cmd = Command::new(bin);
+    cmd.arg("--config-dir")
+        .arg(t.path())
+        .args(args)
+        .args(["--run-for", "1"])
+        .env(
+            "GRIP_INSTANCE",
+            format!("rt_status_{}_{}", own.replace('.', "_"), std::process::id()),
+        )
+        .env("NOTIFY_SOCKET", notify.path())
+        .env_remove("INVOCATION_ID");
+    let mut svc = Service::spawn(cmd);
+    let status = notify.line_starting("STATUS=", Duration::from_secs(60));
+    let (exit, stderr) = svc.wait();
+    let status = status.unwrap_or_else(|| panic!("{bin}: no STATUS= line; stderr:\n{stderr}"));
+    assert!(exit.success(), "{bin}: {exit:?}: {stderr}");
+    status
+}
+
 /// Runs `bin` with `args` in the iceoryx2 instance `instance` to its end:
 /// (exit code, -1 if killed by a signal; stderr).
 pub fn run(bin: &str, instance: &str, args: &[&str]) -> (i32, String) {
@@ -99,6 +145,23 @@ impl NotifySocket {
             n += usize::from(self.recv_has(line));
         }
         n
+    }
+
+    /// Waits up to `timeout` for a datagram with a line starting with
+    /// `prefix` (e.g. `STATUS=`); that line.
+    pub fn line_starting(&self, prefix: &str, timeout: Duration) -> Option<String> {
+        let t0 = Instant::now();
+        let mut buf = [0u8; 512];
+        while t0.elapsed() < timeout {
+            if let Ok(n) = self.sock.recv(&mut buf)
+                && let Some(l) = String::from_utf8_lossy(&buf[..n])
+                    .lines()
+                    .find(|l| l.starts_with(prefix))
+            {
+                return Some(l.to_owned());
+            }
+        }
+        None
     }
 
     fn recv_has(&self, line: &str) -> bool {

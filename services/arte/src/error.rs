@@ -11,19 +11,23 @@ pub enum ArteError {
     /// Bad configuration file (or road catalogue).
     #[error(transparent)]
     Config(#[from] grip_config::ConfigError),
-    /// The model file cannot be read.
-    #[error("model file {}: cannot read: {reason}", path.display())]
+    /// The model file cannot be read (missing, a directory, no permission).
+    #[error("{}model file {}: cannot read: {reason}", from.prefix(), path.display())]
     ModelIo {
         /// The file.
         path: PathBuf,
+        /// What named it (`arte-svc.toml`'s `model`, or `--model`).
+        from: ModelSource,
         /// Why.
         reason: String,
     },
     /// The model file is not a valid model.
-    #[error("model file {}: {error}", path.display())]
+    #[error("{}model file {}: {error}", from.prefix(), path.display())]
     Model {
         /// The file.
         path: PathBuf,
+        /// What named it (`arte-svc.toml`'s `model`, or `--model`).
+        from: ModelSource,
         /// The model crate's error (said in the message, not returned as
         /// the source: a chain printed in full, as `grip replay` prints
         /// it, would say it twice).
@@ -62,6 +66,39 @@ pub enum ArteError {
     /// Other start-up failure.
     #[error("{0}")]
     Other(String),
+}
+
+/// What named the model file arte loads: a model error begins with it, so
+/// that it says which setting to change, in the style of
+/// [`grip_config::ConfigError`] (``FILE: field `model`: ...``).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum ModelSource {
+    /// The path was given to [`crate::load_model`] as it is (a library
+    /// caller that names the file in its own words): the error names the
+    /// file only.
+    #[default]
+    Direct,
+    /// A field of a configuration file: `arte-svc.toml`'s `model`.
+    Config {
+        /// The configuration file.
+        file: PathBuf,
+        /// The field's dotted key path (`model`).
+        field: &'static str,
+    },
+    /// A command-line option (`--model`).
+    Option(&'static str),
+}
+
+impl ModelSource {
+    /// What a model error begins with: ``FILE: field `model`: ``,
+    /// ``option `--model`: `` or nothing.
+    pub fn prefix(&self) -> String {
+        match self {
+            Self::Direct => String::new(),
+            Self::Config { file, field } => format!("{}: field `{field}`: ", file.display()),
+            Self::Option(name) => format!("option `{name}`: "),
+        }
+    }
 }
 
 impl grip_io::service::ServiceError for ArteError {

@@ -2,7 +2,8 @@
 //! estimates out (topic `grip/arte/road`).
 //!
 //! - [`config`]: the `arte-svc.toml` file ([`ArteServiceConfig`]).
-//! - [`model`]: [`load_model`], [`road_table`]: the model file and the road
+//! - [`model`]: [`load_model`] ([`load_model_from`]: naming the
+//!   configuration field or option that named the file), [`road_table`]: the model file and the road
 //!   catalogue entry (λ_opt, μ_peak, α from the road-knowledge rule) of each of its classes,
 //!   checked at start-up.
 //! - [`cycle`]: [`ArteLoop`], one call per audio block ([`ArteLoop::on_block`]):
@@ -43,6 +44,6 @@ pub use cycle::{
     ArteCounters, ArteLoop, AudioQuality, BadAudio, DEFAULT_MAX_LAG_S, DEFAULT_SPEED_TIMEOUT_S,
     EstimateSink, odometer_at,
 };
-pub use error::ArteError;
-pub use model::{ClassKnowledge, load_model, road_table};
+pub use error::{ArteError, ModelSource};
+pub use model::{ClassKnowledge, load_model, load_model_from, road_table};
 pub use run::{Options, prepare, prepare_with_clock, run};

@@ -16,8 +16,10 @@
 //!
 //! `READY=1` once model, road table and ports are ready. SIGTERM/SIGINT:
 //! exit 0. A missing/corrupt/mismatched model, a class without a road in
-//! the catalogue, a bad config: one `error: ...` line naming the file,
-//! exit code 78 (`grip_io::service::EXIT_CONFIG`: the unit is not
+//! the catalogue, a bad config: one `error: ...` line naming the file (a
+//! model that cannot be read or is not one: the model file, and the
+//! configuration file and field `model`, or the option `--model`, that
+//! named it), exit code 78 (`grip_io::service::EXIT_CONFIG`: the unit is not
 //! restarted on it); iceoryx2 or the helper thread failing: exit code 1.
 
 use std::path::PathBuf;

@@ -9,15 +9,33 @@ use grip_msgs::{MAX_ROAD_CLASSES, NAME_LEN};
 use grip_physics::RoadCatalogue;
 
 use crate::ArteError;
+use crate::error::ModelSource;
 
-/// Reads and validates a model file; errors carry the path.
+/// Reads and validates a model file; errors carry the path
+/// ([`ArteError::ModelIo`], [`ArteError::Model`]). [`load_model_from`]
+/// also names what named the file.
 pub fn load_model(path: &Path) -> Result<Model, ArteError> {
-    let bytes = std::fs::read(path).map_err(|e| ArteError::ModelIo {
-        path: path.to_owned(),
-        reason: e.to_string(),
-    })?;
+    load_model_from(path, ModelSource::Direct)
+}
+
+/// [`load_model`] of a path that `from` named (`arte-svc.toml`'s `model`,
+/// `--model`): an error begins with it, e.g. ``config/arte-svc.toml: field
+/// `model`: model file config/models/x.model: cannot read: No such file or
+/// directory (os error 2)``.
+pub fn load_model_from(path: &Path, from: ModelSource) -> Result<Model, ArteError> {
+    let bytes = match std::fs::read(path) {
+        Ok(b) => b,
+        Err(e) => {
+            return Err(ArteError::ModelIo {
+                path: path.to_owned(),
+                from,
+                reason: e.to_string(),
+            });
+        }
+    };
     Model::from_bytes(&bytes).map_err(|error| ArteError::Model {
         path: path.to_owned(),
+        from,
         error,
     })
 }

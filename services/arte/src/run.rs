@@ -13,7 +13,8 @@ use grip_msgs::{AudioBlock, CycleRecord, RoadEstimate, topics};
 use grip_io::service::{ConfigArgs, ServiceConfig};
 
 use crate::{
-    ArteCounters, ArteError, ArteLoop, ArteServiceConfig, load_model, monitor, road_table,
+    ArteCounters, ArteError, ArteLoop, ArteServiceConfig, ModelSource, load_model_from, monitor,
+    road_table,
 };
 
 /// Command-line choices.
@@ -233,11 +234,18 @@ pub fn prepare_with_clock<K: Clock>(opts: &Options, clock: K) -> Result<Prepared
 fn load<K: Clock>(opts: &Options, clock: K) -> Result<Prepared<K>, ArteError> {
     let config_file = opts.config.own_file::<ArteServiceConfig>();
     let cfg = ArteServiceConfig::load(&config_file)?;
-    let model_path = match &opts.model {
-        Some(p) => p.clone(),
-        None => resolve(&opts.config.config_dir, &cfg.model),
+    // a model that cannot be read or is not one names what named it
+    let (model_path, from) = match &opts.model {
+        Some(p) => (p.clone(), ModelSource::Option("--model")),
+        None => (
+            resolve(&opts.config.config_dir, &cfg.model),
+            ModelSource::Config {
+                file: config_file.clone(),
+                field: "model",
+            },
+        ),
     };
-    let model = load_model(&model_path)?;
+    let model = load_model_from(&model_path, from)?;
     let roads_file = opts.config.config_dir.join("roads.toml");
     let roads = grip_config::load_roads(&roads_file)?;
     let rule = grip_tcs::RoadTable::new(&roads, &cfg.knowledge)
@@ -311,9 +319,10 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, ArteErro
         .run_for
         .map(|s| grip_io::service::args::deadline_ns(clock.now_ns(), s));
     grip_io::systemd::notify_ready(&format!(
-        "estimating: {} classes at {rate} Hz from {}",
+        "estimating: {} classes at {rate} Hz from {}{}",
         classes.len(),
-        topics::AUDIO
+        topics::AUDIO,
+        rt.status_note()
     ));
     let mut beat = 0u64;
     loop {

@@ -239,7 +239,7 @@ fn serve<S: Source>(
         cfg.audio.sample_rate,
         topics::AUDIO
     );
-    grip_io::systemd::notify_ready(&format!("capturing: {what}"));
+    grip_io::systemd::notify_ready(&format!("capturing: {what}{}", rt.status_note()));
     let mut ended = false;
     let res = loop {
         if stop.load(Ordering::Relaxed) {

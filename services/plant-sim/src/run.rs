@@ -108,17 +108,18 @@ pub fn check_bus(
 
 /// Everything a run reads, loaded and validated, overrides applied.
 pub fn load(opts: &Options) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), RunError> {
-    load_as(opts, false)
+    load_as(opts, grip_config::VehicleUse::Offline)
 }
 
-/// [`load`]; with `service` (the service itself, which drives a car or a
-/// rig) a vehicle file that leaves a `[vehicle]` field out is refused
-/// ([`grip_config::load_vehicle_complete`]) instead of taking the paper's
-/// default with a warning, as `grip replay` and `grip generate` need for
-/// logs whose attached vehicle files predate a field.
+/// [`load`], its vehicle file loaded for `vehicle_use`: for the service
+/// itself, which drives a car or a rig ([`grip_config::VehicleUse::Drive`]),
+/// a file that leaves a `[vehicle]` field out is refused instead of taking
+/// the paper's default with a warning, as `grip replay` and `grip generate`
+/// need for logs whose attached vehicle files predate a field
+/// ([`grip_config::VehicleUse::Offline`]).
 fn load_as(
     opts: &Options,
-    service: bool,
+    vehicle_use: grip_config::VehicleUse,
 ) -> Result<(PlantSimConfig, PlantSim, CanBusConfig), RunError> {
     let dir = ConfigDir::new(&opts.config.config_dir);
     let own_path = opts.config.own_file::<PlantSimConfig>();
@@ -135,11 +136,7 @@ fn load_as(
     cfg.exit_at_end |= opts.exit_at_end;
     let roads = dir.roads()?;
     let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
-    let (vehicle, sensors) = if service {
-        grip_config::load_vehicle_complete(&vehicle_path)?
-    } else {
-        grip_config::load_vehicle(&vehicle_path)?
-    };
+    let (vehicle, sensors) = grip_config::load_vehicle_for(&vehicle_path, vehicle_use)?;
     // the scenario against this vehicle's motor limit and this loop's
     // cycle count, as `grip sim` checks it (`Scenario::check_for`)
     let scenario = dir.scenario_for(
@@ -219,7 +216,7 @@ pub fn run(
     stop: &Arc<AtomicBool>,
     start: &Arc<AtomicBool>,
 ) -> Result<(), RunError> {
-    let (cfg, mut sim, can) = load_as(opts, true)?;
+    let (cfg, mut sim, can) = load_as(opts, grip_config::VehicleUse::Drive)?;
     tracing::info!(
         scenario = %sim.scenario().name,
         duration_s = sim.scenario().duration,

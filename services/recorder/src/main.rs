@@ -26,7 +26,10 @@
 //! the queue, writes the `grip.recorder` summary, finishes the file, exit 0.
 //! Fatal error: one `error: ...` line on stderr, exit code 78
 //! (`grip_io::service::EXIT_CONFIG`) for a refused configuration file, 1
-//! otherwise (the output directory, a write error, an `--attach` file).
+//! otherwise (the output directory, a write error, an `--attach` file). An
+//! output that cannot be created names what named it: ``recorder.toml:
+//! field `out_dir`: DIR: cannot create ...`` or ``option `--out`: FILE:
+//! ...``.
 
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -54,15 +54,27 @@ pub enum RunError {
     /// The MCAP file.
     #[error(transparent)]
     Mcap(#[from] McapLogError),
-    /// The output directory.
-    #[error("{path}: cannot create the log directory or a new log file in it: {error}")]
+    /// The output directory (`out_dir` of the configuration file): the
+    /// message names the file and field, then the directory.
+    #[error(
+        "{}: field `out_dir`: {}: cannot create the log directory or a new log file in it: {error}",
+        config_file.display(),
+        path.display()
+    )]
     OutDir {
+        /// The configuration file that named it (`recorder.toml`).
+        config_file: PathBuf,
         /// Directory.
         path: PathBuf,
         /// The error (said in the message, not returned as the source:
         /// a chain printed in full would say it twice).
         error: std::io::Error,
     },
+    /// The file `--out` names cannot be created or its head written (its
+    /// directory missing, no permission): the message names the option,
+    /// then the file and the reason.
+    #[error("option `--out`: {0}")]
+    Out(McapLogError),
     /// An `--attach` file that cannot be read: refused at start, before
     /// any file is created or recorded (the log would lack what its caller
     /// asked it to carry).
@@ -292,6 +304,7 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
         None => std::fs::create_dir_all(&cfg.out_dir)
             .and_then(|()| default_out(&cfg.out_dir))
             .map_err(|error| RunError::OutDir {
+                config_file: own.clone(),
                 path: cfg.out_dir.clone(),
                 error,
             })?,
@@ -353,10 +366,13 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> 
     let (q, rx, depth, high) = queue(cfg.queue_capacity);
     let tap = Arc::new(StatsTap::default());
     let mut parts = Parts::open(&path, head, cfg.writer_options(), rotation, next_path)
-        .inspect_err(|_| {
-            // an empty file of ours, not a log
-            if opts.out.is_none() {
+        .map_err(|e| match opts.out {
+            // the file the option named
+            Some(_) => RunError::Out(e),
+            None => {
+                // an empty file of ours, not a log
                 let _ = std::fs::remove_file(&path);
+                RunError::Mcap(e)
             }
         })?
         .with_floor(&cfg.out_dir, cfg.min_free_mib << 20)

@@ -253,6 +253,10 @@ pub struct TcsLoop {
     recover_ns: u64,
     rx: ProtocolRx,
     tx: E2eSender<TorqueCommand>,
+    /// The bus number the commands are sent on (`can.toml`'s `bus_id`,
+    /// the bus stamps what it receives with the same): written into every
+    /// command the loop sends and logs ([`TcsLoop::with_bus_id`]).
+    bus_id: u8,
     t0_ns: Option<u64>,
     ws: Option<(WheelSpeeds, u64)>,
     ms: Option<(MotorStatus, u64)>,
@@ -317,6 +321,7 @@ impl TcsLoop {
             recover_ns: safety.recover_ns(),
             rx,
             tx: E2eSender::new(),
+            bus_id: 0,
             t0_ns: None,
             ws: None,
             ms: None,
@@ -338,6 +343,21 @@ impl TcsLoop {
                 ..SharedStatus::default()
             }),
         })
+    }
+
+    /// Sends (and logs) its commands as frames of bus `bus_id`
+    /// (`can.toml`'s `bus_id`, which [`crate::build`] gives it: the bus
+    /// the service opens stamps the frames it receives with the same), so
+    /// the CAN log's sent and received frames carry one bus number. Without
+    /// it: 0.
+    pub fn with_bus_id(mut self, bus_id: u8) -> Self {
+        self.bus_id = bus_id;
+        self
+    }
+
+    /// The bus number written into the commands ([`TcsLoop::with_bus_id`]).
+    pub fn bus_id(&self) -> u8 {
+        self.bus_id
     }
 
     /// With ARTE on, the "with ARTE" behaviour of `grip sim`: road
@@ -664,7 +684,7 @@ impl TcsLoop {
         };
 
         // 5. send the command
-        let frame = self.tx.encode(
+        let frame = self.command(
             &TorqueCommand {
                 torque_request: cmd,
                 enable,
@@ -725,7 +745,7 @@ impl TcsLoop {
         bus: &mut B,
         sink: &mut S,
     ) -> bool {
-        let frame = self.tx.encode(
+        let frame = self.command(
             &TorqueCommand {
                 torque_request: 0.0,
                 enable: false,
@@ -735,6 +755,13 @@ impl TcsLoop {
         let sent = self.send(bus, &frame);
         sink.can(&frame);
         sent
+    }
+
+    /// The next command frame (alive counter advanced), of this loop's bus.
+    fn command(&mut self, cmd: &TorqueCommand, now_ns: u64) -> CanFrame {
+        let mut frame = self.tx.encode(cmd, now_ns);
+        frame.bus = self.bus_id;
+        frame
     }
 
     /// Sends `frame`, counting it or the error; whether it went out.

@@ -118,15 +118,19 @@ pub struct LoadedConfig {
 
 /// Loads and validates every file the service needs, applying the overrides.
 pub fn load(opts: &Options) -> Result<LoadedConfig, ConfigError> {
-    load_as(opts, false)
+    load_as(opts, grip_config::VehicleUse::Offline)
 }
 
-/// [`load`]; with `service` (the service itself, which drives a car or a
-/// rig) a vehicle file that leaves a `[vehicle]` field out is refused
-/// ([`grip_config::load_vehicle_complete`]) instead of taking the paper's
-/// default with a warning, as `grip replay` and `grip generate` need for
-/// logs whose attached vehicle files predate a field.
-fn load_as(opts: &Options, service: bool) -> Result<LoadedConfig, ConfigError> {
+/// [`load`], its vehicle file loaded for `vehicle_use`: for the service
+/// itself, which drives a car or a rig ([`grip_config::VehicleUse::Drive`]),
+/// a file that leaves a `[vehicle]` field out is refused instead of taking
+/// the paper's default with a warning, as `grip replay` and `grip generate`
+/// need for logs whose attached vehicle files predate a field
+/// ([`grip_config::VehicleUse::Offline`]).
+fn load_as(
+    opts: &Options,
+    vehicle_use: grip_config::VehicleUse,
+) -> Result<LoadedConfig, ConfigError> {
     let dir = ConfigDir::new(&opts.config.config_dir);
     let own_path = opts.config.own_file::<TcsLoopConfig>();
     let mut own = TcsLoopConfig::load(&own_path)?;
@@ -139,11 +143,7 @@ fn load_as(opts: &Options, service: bool) -> Result<LoadedConfig, ConfigError> {
     let controllers_path = dir.file("controllers.toml");
     let controllers = load_controllers(&controllers_path)?;
     let vehicle_path = opts.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
-    let (vehicle, sensors) = if service {
-        grip_config::load_vehicle_complete(&vehicle_path)?
-    } else {
-        grip_config::load_vehicle(&vehicle_path)?
-    };
+    let (vehicle, sensors) = grip_config::load_vehicle_for(&vehicle_path, vehicle_use)?;
     let can = load_can(&dir)?;
     // the wheels' radii convert a wheel speed the DBC gives in km/h or m/s
     let radii = grip_io::can::protocol::WheelRadii::of(&vehicle);
@@ -306,7 +306,8 @@ pub fn check_bus_timing_in(
 }
 
 /// The loop the service runs for `cfg`: its controller, ARTE switch,
-/// safety timeouts and (ARTE on) road knowledge. `run` and `grip replay`
+/// safety timeouts, the bus number its commands carry (`can.toml`'s
+/// `bus_id`) and (ARTE on) road knowledge. `run` and `grip replay`
 /// build it here, so a replay runs the very loop the service ran.
 pub fn build(cfg: &LoadedConfig) -> Result<TcsLoop, RunError> {
     check_bus_timing(cfg)?;
@@ -325,6 +326,9 @@ pub fn build(cfg: &LoadedConfig) -> Result<TcsLoop, RunError> {
         file: cfg.controllers_path.clone(),
         error,
     })?
+    // the bus `run` opens (`open_bus(&cfg.can, ..)`) stamps what it
+    // receives with this number; the commands carry it too
+    .with_bus_id(cfg.can.bus_id)
     .with_road_aware(
         &cfg.roads,
         cfg.road_table.clone(),
@@ -343,7 +347,7 @@ pub fn build(cfg: &LoadedConfig) -> Result<TcsLoop, RunError> {
 /// real-time set-up is done. Only start-up errors are returned; nothing
 /// after start is fatal.
 pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunError> {
-    let cfg = load_as(opts, true)?;
+    let cfg = load_as(opts, grip_config::VehicleUse::Drive)?;
     let mut lp = build(&cfg)?;
     let kind = lp.controller_kind();
     // MFC's and SRC's gains are the paper's car's: say where they do not

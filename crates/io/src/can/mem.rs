@@ -40,6 +40,9 @@ pub struct MemBus {
     late: Option<(ManualClock, u64)>,
     /// What `try_recv` hands over; the rest of `rx` is dropped unseen.
     filter: RxFilter,
+    /// The bus number received frames are stamped with
+    /// ([`MemBus::with_bus_id`]); `None`: left as fed.
+    bus_id: Option<u8>,
 }
 
 impl Default for MemBus {
@@ -56,6 +59,7 @@ impl MemBus {
             tx: frame_queue(),
             late: None,
             filter: RxFilter::All,
+            bus_id: None,
         }
     }
 
@@ -64,6 +68,15 @@ impl MemBus {
     /// `try_recv` drops what does not pass).
     pub fn with_rx_filter(mut self, rx: RxFilter) -> Self {
         self.filter = rx;
+        self
+    }
+
+    /// Stamps the frames it receives with bus number `bus_id`, as a
+    /// SocketCAN or simulated bus opened with `can.toml`'s `bus_id` does
+    /// (`grip generate` and the closed-loop replay give it the loop's, so
+    /// their CAN log numbers received and sent frames alike).
+    pub fn with_bus_id(mut self, bus_id: u8) -> Self {
+        self.bus_id = Some(bus_id);
         self
     }
 
@@ -76,12 +89,14 @@ impl MemBus {
                 tx: b.clone(),
                 late: None,
                 filter: RxFilter::All,
+                bus_id: None,
             },
             Self {
                 rx: b,
                 tx: a,
                 late: None,
                 filter: RxFilter::All,
+                bus_id: None,
             },
         )
     }
@@ -133,6 +148,9 @@ impl CanBus for MemBus {
         }
         Ok(f.map(|mut f| {
             f.direction = can_dir::RX;
+            if let Some(b) = self.bus_id {
+                f.bus = b;
+            }
             f
         }))
     }
@@ -148,6 +166,21 @@ impl CanBus for MemBus {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// With a bus number, received frames carry it (as a SocketCAN or
+    /// simulated bus's do); without, they are left as fed.
+    #[test]
+    fn received_frames_carry_the_bus_number_given() {
+        let (a, b) = MemBus::pair();
+        let mut b = b.with_bus_id(3);
+        let mut a2 = a.clone();
+        a2.send(&CanFrame::default()).unwrap();
+        let f = b.try_recv().unwrap().unwrap();
+        assert_eq!((f.bus, f.direction), (3, can_dir::RX));
+        b.send(&CanFrame::default()).unwrap();
+        let mut a = a;
+        assert_eq!(a.try_recv().unwrap().unwrap().bus, 0, "no number: as fed");
+    }
 
     #[test]
     fn a_pair_carries_frames_both_ways_in_order_marked_received() {

@@ -1305,7 +1305,8 @@ impl InverterMsg {
 }
 
 /// Encodes `msg` with the given alive counter (mod 16) into a frame with a
-/// valid CRC. `stamp_ns` is written into the frame.
+/// valid CRC. `stamp_ns` is written into the frame; its `bus` is 0, for the
+/// sender to set to the bus it sends on (tcs-loop: `can.toml`'s `bus_id`).
 pub fn encode<M: ProtocolMessage>(msg: &M, counter: u8, stamp_ns: u64) -> CanFrame {
     encode_in(M::spec(), msg, counter, stamp_ns)
 }

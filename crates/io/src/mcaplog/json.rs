@@ -729,7 +729,9 @@ impl McapRecord for CanFrame {
                 ),
                 (
                     "bus",
-                    t_int("bus number: can.toml bus_id on received frames, 0 on sent ones"),
+                    t_int(
+                        "bus number: can.toml bus_id, on received and sent frames alike (logs of grip until 2026-12-07 have 0 on sent ones)",
+                    ),
                 ),
                 (
                     "flags",
