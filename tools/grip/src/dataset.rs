@@ -28,7 +28,9 @@
 //!
 //! Errors name the path and the reason: a class folder without WAV files, a
 //! dataset with fewer than two classes, no WAV files at all, an unreadable
-//! or malformed WAV, mixed sample rates.
+//! or malformed WAV, mixed sample rates; and, when the files are read for
+//! their features (`grip train`'s `extract_dataset`), the same audio in two
+//! files of two roads or two recordings.
 //!
 //! The dataset hash (stored in model files) is SHA-256 over, for every file
 //! in order (class, then path): `class \0 relative/path \0 sha256(file) \n`.

@@ -259,11 +259,26 @@ pub fn require_held_out(flag: &str, calib: &[PathBuf], used: &[(&str, PathBuf)])
 /// before it existed) passes; a folder that cannot be listed is left to
 /// the reader of the recordings.
 pub fn require_not_training_files(flag: &str, calib: &[PathBuf], model: &Model) -> Result<()> {
-    let known = &model.meta.training_files;
-    if known.is_empty() {
-        return Ok(());
+    if let Some((dir, f)) = first_known_file(calib, &model.meta.training_files) {
+        bail!(
+            "{flag} {}: {} is one of the model's training recordings (same content; the model stores its training files' SHA-256); the calibration must be fitted on held-out road-change recordings (other seeds: `grip dataset synth --changes N --seed S`), or the confidence it gives is optimistic",
+            dir.display(),
+            f.display()
+        );
     }
-    for dir in calib {
+    Ok(())
+}
+
+/// The first `.wav` under one of `dirs` (its folder and the file; files
+/// in name order, hidden ones skipped) whose content is one of `known`
+/// (sorted [`file_id`](super::train::file_id)s of training files); `None`
+/// when there is none or `known` is empty. A folder that cannot be listed
+/// or a file that cannot be read is left to the reader of the recordings.
+pub fn first_known_file(dirs: &[PathBuf], known: &[String]) -> Option<(PathBuf, PathBuf)> {
+    if known.is_empty() {
+        return None;
+    }
+    for dir in dirs {
         let mut files = Vec::new();
         if wavs_in(dir, &mut files).is_err() {
             continue;
@@ -275,15 +290,11 @@ pub fn require_not_training_files(flag: &str, calib: &[PathBuf], model: &Model) 
             };
             let id = super::train::file_id(&sha256_hex(&bytes));
             if known.binary_search(&id).is_ok() {
-                bail!(
-                    "{flag} {}: {} is one of the model's training recordings (same content; the model stores its training files' SHA-256); the calibration must be fitted on held-out road-change recordings (other seeds: `grip dataset synth --changes N --seed S`), or the confidence it gives is optimistic",
-                    dir.display(),
-                    f.display()
-                );
+                return Some((dir.clone(), f));
             }
         }
     }
-    Ok(())
+    None
 }
 
 /// Every `.wav` under `p` (itself, when it is one), hidden entries skipped.

@@ -27,7 +27,7 @@
 //! else today's UTC date; `--date` fixes it).
 
 use super::Ctx;
-use crate::dataset::{ChannelArg, Dataset, Excluded, FileJudge, read_wav};
+use crate::dataset::{self, ChannelArg, Dataset, Excluded, FileJudge, read_wav};
 use anyhow::{Context, Result, bail};
 use grip_arte::eval::{Confusion, Samples};
 use grip_arte::features::{FeatureConfig, FeatureExtractor, FeatureSet, SpeedNorm};
@@ -250,6 +250,7 @@ pub fn extract_dataset(
     hop_s: f64,
     class_map: &[usize],
     channel: grip_io::wav::Channel,
+    role: SetRole,
 ) -> Result<(Samples, DatasetIdentity, Excluded)> {
     let mut ex = FeatureExtractor::new(cfg).context("feature config")?;
     let hop = ((hop_s * f64::from(cfg.sample_rate)).round() as usize).max(1);
@@ -266,8 +267,16 @@ pub fn extract_dataset(
     );
     pb.set_prefix(format!("features {}", ds.root.display()));
     let mut excluded = Excluded::default();
-    for e in &ds.entries {
+    // every file's content, to find the same audio listed twice
+    let mut seen: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
+    for (i, e) in ds.entries.iter().enumerate() {
         let (audio, sha256) = read_wav(&e.path, channel)?;
+        if let Some(&j) = seen.get(&sha256) {
+            let note = same_audio(ds, &ds.entries[j], e, &sha256, role)?;
+            pb.suspend(|| eprintln!("warning: {note}"));
+        } else {
+            seen.insert(sha256.clone(), i);
+        }
         if audio.sample_rate != cfg.sample_rate {
             bail!(
                 "{}: sample rate {} Hz, but the features are configured for {} Hz (all files of a dataset must share one rate)",
@@ -322,6 +331,54 @@ pub fn extract_dataset(
         files,
     };
     Ok((s, id, excluded))
+}
+
+/// What a dataset is read for ([`extract_dataset`]): training (and its
+/// cross-validation), or a held-out evaluation (`--test`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SetRole {
+    /// `--data`: fitted and cross-validated on.
+    Training,
+    /// `--test`: evaluated only.
+    HeldOut,
+}
+
+/// `b` holds byte for byte the audio of `a` (an earlier file of `ds`):
+/// an error when the two are labelled different roads (one of the labels
+/// is wrong), and, in a training set, when they are different recordings
+/// (cross-validation would test on a clip it trained on, and report a
+/// better accuracy than the model has); else the warning to print (its
+/// frames weigh twice). The same file copied, or one source merged twice,
+/// does this.
+fn same_audio(
+    ds: &Dataset,
+    a: &dataset::Entry,
+    b: &dataset::Entry,
+    sha256: &str,
+    role: SetRole,
+) -> Result<String> {
+    let (pa, pb) = (a.path.display(), b.path.display());
+    let digest = &sha256[..16.min(sha256.len())];
+    if a.class != b.class {
+        bail!(
+            "{pb} is the same audio as {pa} (SHA-256 {digest}...), but one is labelled `{}` and the other `{}`: at most one label is right; remove the wrong copy",
+            ds.classes[b.class],
+            ds.classes[a.class]
+        );
+    }
+    if a.recording != b.recording && role == SetRole::Training {
+        bail!(
+            "{pb} is the same audio as {pa} (SHA-256 {digest}...) in another recording: cross-validation would test on a clip it trained on and report a better accuracy than the model has; remove one copy, or give both one `recording` in manifest.csv"
+        );
+    }
+    Ok(match role {
+        SetRole::Training => format!(
+            "{pb} is the same audio as {pa} (SHA-256 {digest}...), one recording: its frames count twice"
+        ),
+        SetRole::HeldOut => format!(
+            "{pb} is the same audio as {pa} (SHA-256 {digest}...): the held-out figures count its frames twice"
+        ),
+    })
 }
 
 /// The slowest and fastest vehicle speed (the manifest's `speed_kmh`) of
@@ -457,8 +514,14 @@ pub fn evaluate_folder(
         };
         map.push(i);
     }
-    let (samples, _, excluded) =
-        extract_dataset(&ds, model.feature_config(), hop_s, &map, channel)?;
+    let (samples, _, excluded) = extract_dataset(
+        &ds,
+        model.feature_config(),
+        hop_s,
+        &map,
+        channel,
+        SetRole::HeldOut,
+    )?;
     Ok((
         model.evaluate(&samples)?,
         model.evaluate_smoothed(&samples, window)?,
@@ -604,6 +667,24 @@ fn check_held_out(
         let hop = ((args.hop * f64::from(rate)).round() as usize).max(1);
         any_good_frame(&ds, frame_len, hop, args.channel.get())
             .with_context(|| format!("--test {}: held-out dataset", dir.display()))?;
+        // the same audio under two roads, before the fit (the evaluation
+        // after it would refuse it too)
+        let mut seen: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
+        for (i, e) in ds.entries.iter().enumerate() {
+            let bytes = std::fs::read(&e.path).with_context(|| {
+                format!("--test {}: cannot read {}", dir.display(), e.path.display())
+            })?;
+            let sha = sha256_hex(&bytes);
+            match seen.get(&sha) {
+                Some(&j) => {
+                    same_audio(&ds, &ds.entries[j], e, &sha, SetRole::HeldOut)
+                        .with_context(|| format!("--test {}: held-out dataset", dir.display()))?;
+                }
+                None => {
+                    seen.insert(sha, i);
+                }
+            }
+        }
     }
     for dir in &args.calib_data {
         let at = || format!("--calib-data {}", dir.display());
@@ -746,8 +827,24 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
         only,
     )?;
     let identity: Vec<usize> = (0..ds.classes.len()).collect();
-    let (data, dataset_id, excluded) =
-        extract_dataset(&ds, &extract_cfg, args.hop, &identity, args.channel.get())?;
+    let (data, dataset_id, excluded) = extract_dataset(
+        &ds,
+        &extract_cfg,
+        args.hop,
+        &identity,
+        args.channel.get(),
+        SetRole::Training,
+    )?;
+    // a held-out folder holding a training file (the training folder
+    // itself, a copy of one of its files) is no held-out set
+    if let Some((dir, f)) = super::calibrate::first_known_file(&args.test, &dataset_id.files) {
+        bail!(
+            "--test {}: {} is also in the training set {} (same content): the held-out accuracy would count audio the model was trained on; hold out other recordings",
+            dir.display(),
+            f.display(),
+            args.data.display()
+        );
+    }
     println!(
         "{} frames of {} features ({} at {} Hz, hop {} s)",
         data.len(),
@@ -1260,8 +1357,32 @@ mod tests {
         }
     }
 
+    /// The frames of [`make_dataset`]'s set at `dir` as a training set
+    /// (16 kHz, `paper20`, 0.1 s frames and hop, three classes).
+    fn extract_test_set(dir: &Path) -> Result<Samples> {
+        let ds = Dataset::scan(dir).unwrap();
+        let mut cfg = FeatureConfig::new(16_000, FeatureSet::Paper20);
+        cfg.frame_s = 0.1;
+        let map: Vec<usize> = (0..3).collect();
+        extract_dataset(
+            &ds,
+            &cfg,
+            0.1,
+            &map,
+            grip_io::wav::Channel::Average,
+            SetRole::Training,
+        )
+        .map(|(s, _, _)| s)
+    }
+
     /// 3 roads × 5 recordings × 1 s at 16 kHz.
     fn make_dataset(dir: &Path) {
+        make_dataset_seeded(dir, 0);
+    }
+
+    /// [`make_dataset`] with the synthesis seeds moved by `seed0` (other
+    /// audio of the same roads).
+    fn make_dataset_seeded(dir: &Path, seed0: u64) {
         let cfg = SynthConfig {
             sample_rate: 16_000,
             noise: None,
@@ -1273,7 +1394,7 @@ mod tests {
                 let speed = (10.0 + 4.0 * k as f64) / 3.6;
                 let x = render(
                     &cfg,
-                    100 * r as u64 + k,
+                    100 * r as u64 + k + seed0,
                     &[Segment {
                         road: r,
                         speed_mps: speed,
@@ -1687,7 +1808,8 @@ mod tests {
                     .collect(),
                 ..ds.clone()
             };
-            extract_dataset(&only, &cfg, 0.1, &map, c).map_err(|e| format!("{e:#}"))
+            extract_dataset(&only, &cfg, 0.1, &map, c, SetRole::Training)
+                .map_err(|e| format!("{e:#}"))
         };
         let (s, _, ex) = pair(grip_io::wav::Channel::One(0)).unwrap();
         assert_eq!((s.len(), ex.frames()), (10, 0));
@@ -1783,18 +1905,44 @@ mod tests {
         );
         assert!(m.meta.command.contains("--allow-poor-fit"));
         // every recording the same sound: nothing to learn, whatever the
-        // numbers of synthesis and training
+        // numbers of synthesis and training. Byte-identical copies are
+        // refused as such (the same audio under two roads); so each file
+        // is the sound less a few samples of its end (n-th file: n fewer),
+        // a different file with the same frames.
         let same = d.path().join("same");
+        let src = data.join("gravel/gravel_0000.wav");
+        let mut reader = hound::WavReader::open(&src).unwrap();
+        let spec = reader.spec();
+        let samples: Vec<i32> = reader.samples::<i32>().map(Result::unwrap).collect();
+        let mut n = 0;
         for road in roads.split(',') {
             std::fs::create_dir_all(same.join(road)).unwrap();
             for k in 0..2 {
                 let to = same.join(road).join(format!("{road}_{k}.wav"));
-                std::fs::copy(data.join("gravel/gravel_0000.wav"), to).unwrap();
+                if n == 0 {
+                    std::fs::copy(&src, &to).unwrap();
+                } else {
+                    let mut w = hound::WavWriter::create(&to, spec).unwrap();
+                    for &v in &samples[..samples.len() - n] {
+                        w.write_sample(v).unwrap();
+                    }
+                    w.finalize().unwrap();
+                }
+                n += 1;
             }
         }
         let out = d.path().join("same.model");
         let mut argv = no_cv(&same);
         argv.extend_from_slice(&["--out", out.to_str().unwrap()]);
+        // a byte-for-byte copy under another road is refused first
+        let copy = same.join("snow/copy.wav");
+        std::fs::copy(&src, &copy).unwrap();
+        let e = format!("{:#}", run(&ctx, Cli::parse_from(&argv).args).unwrap_err());
+        assert!(
+            e.contains("is the same audio as") && e.contains("at most one label is right"),
+            "{e}"
+        );
+        std::fs::remove_file(&copy).unwrap();
         let e = format!("{:#}", run(&ctx, Cli::parse_from(&argv).args).unwrap_err());
         assert!(
             e.contains("no better than always answering `asphalt`, the most common class")
@@ -1842,14 +1990,133 @@ mod tests {
             "{r}"
         );
         // the figures are the written model's own
-        let ds = Dataset::scan(&data).unwrap();
-        let mut cfg = FeatureConfig::new(16_000, FeatureSet::Paper20);
-        cfg.frame_s = 0.1;
-        let map: Vec<usize> = (0..3).collect();
-        let (all, _, _) =
-            extract_dataset(&ds, &cfg, 0.1, &map, grip_io::wav::Channel::Average).unwrap();
+        let all = extract_test_set(&data).unwrap();
         let acc = m.evaluate(&all).unwrap().metrics().accuracy;
         assert!(acc > 0.8, "accuracy {acc}");
+    }
+
+    /// The same audio twice: under two labels, or as two recordings
+    /// (cross-validation would test on what it trained on), is refused
+    /// naming both files; as one recording of one road it is a warning.
+    #[test]
+    fn the_same_audio_twice_is_refused_unless_one_recording() {
+        let d = tempfile::tempdir().unwrap();
+        let data = d.path().join("data");
+        make_dataset(&data);
+        let extract = || {
+            extract_test_set(&data)
+                .map(|_| ())
+                .map_err(|e| format!("{e:#}"))
+        };
+        extract().unwrap();
+        let orig = data.join("asphalt/r0.wav");
+        let copy = data.join("snow/r0-copy.wav");
+        std::fs::copy(&orig, &copy).unwrap();
+        let e = extract().unwrap_err();
+        assert!(
+            e.contains("snow/r0-copy.wav is the same audio as")
+                && e.contains("asphalt/r0.wav")
+                && e.contains("labelled `snow` and the other `asphalt`"),
+            "{e}"
+        );
+        std::fs::remove_file(&copy).unwrap();
+        let copy = data.join("asphalt/r0-copy.wav");
+        std::fs::copy(&orig, &copy).unwrap();
+        let e = extract().unwrap_err();
+        assert!(
+            e.contains("asphalt/r0.wav is the same audio as")
+                && e.contains("asphalt/r0-copy.wav")
+                && e.contains(
+                    "in another recording: cross-validation would test on a clip it trained on"
+                ),
+            "{e}"
+        );
+        // one recording: allowed (a warning)
+        std::fs::write(
+            data.join("manifest.csv"),
+            "file,recording\nasphalt/r0.wav,a\nasphalt/r0-copy.wav,a\n",
+        )
+        .unwrap();
+        extract().unwrap();
+    }
+
+    /// A `--test` folder holding a training file (the training folder
+    /// itself, or a copy of one file elsewhere) is refused before the fit,
+    /// naming the file: its "held-out" accuracy would not be.
+    #[test]
+    fn a_test_folder_holding_training_audio_is_refused() {
+        let d = tempfile::tempdir().unwrap();
+        let data = d.path().join("data");
+        make_dataset(&data);
+        let ctx = Ctx {
+            config_dir: d.path().to_path_buf(),
+            config_dir_given: true,
+        };
+        let out = d.path().join("m.model");
+        let other = d.path().join("other");
+        std::fs::create_dir_all(other.join("snow")).unwrap();
+        std::fs::create_dir_all(other.join("asphalt")).unwrap();
+        // a recording of its own, and a copy of a training file
+        let tone: Vec<f32> = (0..16_000).map(|k| 0.3 * (k as f32 * 0.07).sin()).collect();
+        grip_io::wav::write_mono_i16(&other.join("asphalt/new.wav"), 16_000, &tone).unwrap();
+        std::fs::copy(data.join("snow/r3.wav"), other.join("snow/mine.wav")).unwrap();
+        for (test, file) in [(&data, "asphalt/r0.wav"), (&other, "snow/mine.wav")] {
+            let mut argv = no_cv(&data);
+            argv.extend_from_slice(&["--out", out.to_str().unwrap()]);
+            argv.extend_from_slice(&["--test", test.to_str().unwrap()]);
+            let e = format!("{:#}", run(&ctx, Cli::parse_from(&argv).args).unwrap_err());
+            assert!(
+                e.contains(file)
+                    && e.contains("is also in the training set")
+                    && e.contains("held-out accuracy would count audio the model was trained on"),
+                "{e}"
+            );
+            assert!(!out.exists(), "nothing written");
+        }
+    }
+
+    /// Copies inside a held-out folder: under two roads refused before
+    /// the fit, naming both; within one road (two recordings: no
+    /// cross-validation runs on it) a warning, and the model is written.
+    #[test]
+    fn copies_inside_a_held_out_folder() {
+        let d = tempfile::tempdir().unwrap();
+        let data = d.path().join("data");
+        make_dataset(&data);
+        let held = d.path().join("held");
+        make_dataset_seeded(&held, 50);
+        let ctx = Ctx {
+            config_dir: d.path().to_path_buf(),
+            config_dir_given: true,
+        };
+        let out = d.path().join("m.model");
+        let argv = |out: &Path| {
+            let mut a = no_cv(&data);
+            a.extend_from_slice(&["--out", out.to_str().unwrap()]);
+            a.extend_from_slice(&["--test", held.to_str().unwrap()]);
+            a.iter().map(|s| s.to_string()).collect::<Vec<_>>()
+        };
+        let copy = held.join("snow/copy.wav");
+        std::fs::copy(held.join("asphalt/r0.wav"), &copy).unwrap();
+        let e = format!(
+            "{:#}",
+            run(&ctx, Cli::parse_from(argv(&out)).args).unwrap_err()
+        );
+        assert!(
+            e.contains("--test")
+                && e.contains("snow/copy.wav is the same audio as")
+                && e.contains("at most one label is right"),
+            "{e}"
+        );
+        assert!(!out.exists());
+        std::fs::remove_file(&copy).unwrap();
+        std::fs::copy(
+            held.join("asphalt/r0.wav"),
+            held.join("asphalt/r0-copy.wav"),
+        )
+        .unwrap();
+        run(&ctx, Cli::parse_from(argv(&out)).args).unwrap();
+        assert!(out.exists());
     }
 
     #[test]
