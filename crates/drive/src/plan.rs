@@ -71,8 +71,33 @@ pub fn drive_vehicle_label(log: &DriveLog) -> String {
     }
 }
 
+/// How [`vehicle_for`] names the vehicle a closed-loop replay ran
+/// ([`REPLAY_VEHICLE_ATTACHMENT`]): as its `grip.replay` record names it
+/// (`vehicle`: the `--vehicle` file as given, or the source's file; the
+/// `--set`s that changed it, `vehicle_set`).
+pub fn replay_vehicle_label(log: &DriveLog) -> String {
+    let record = log.metadata.get("grip.replay");
+    let get = |k: &str| {
+        record
+            .and_then(|m| m.get(k))
+            .filter(|v| !v.is_empty())
+            .map(String::as_str)
+    };
+    format!(
+        "{} (the vehicle the replay ran{}, not its source drive's; attached to the log as {REPLAY_VEHICLE_ATTACHMENT})",
+        get("vehicle").unwrap_or(REPLAY_VEHICLE_ATTACHMENT),
+        get("vehicle_set").map_or_else(String::new, |s| format!(" with {s}"))
+    )
+}
+
 /// The vehicle a drive ran with, for the metrics (kinetic energy: M/n and
-/// J_w) and the preview report (N · r): the drive's `--vehicle` file as the
+/// J_w) and the preview report (N · r): for a closed-loop replay that ran
+/// another vehicle than its source (`grip replay --closed-loop --vehicle`,
+/// or a `--set` on the vehicle: plant and loop both ran it), the file it
+/// attached ([`REPLAY_VEHICLE_ATTACHMENT`]; an open-loop replay's ground
+/// truth is its source's car's, so the source's vehicle stays, and the
+/// summary names the one the replay's loop ran); else the drive's
+/// `--vehicle` file as the
 /// recorder attached it ([`VEHICLE_ATTACHMENT`]); else, with `grip.run`
 /// `vehicle=PATH`, the attached copy of that profile (the recorder attaches
 /// `vehicles/*.toml`; matched by the end of PATH), else PATH read from disk;
@@ -120,6 +145,13 @@ pub fn vehicle_of_log(
             }
         }
     };
+    let closed_replay = log
+        .metadata
+        .get("grip.replay")
+        .is_some_and(|m| m.get("mode").is_some_and(|m| m == "closed loop"));
+    if closed_replay && let Some(v) = attached(REPLAY_VEHICLE_ATTACHMENT, warnings) {
+        return Some((v, replay_vehicle_label(log)));
+    }
     if let Some(v) = attached(VEHICLE_ATTACHMENT, warnings) {
         return Some((v, drive_vehicle_label(log)));
     }
@@ -186,6 +218,12 @@ pub struct DrivePlan {
 
 /// The name under which the recorder attaches a drive's `--vehicle` file.
 pub const VEHICLE_ATTACHMENT: &str = "drive/vehicle.toml";
+
+/// The name under which `grip replay --out` attaches the vehicle file its
+/// tcs-loop (and, in closed loop, its plant) ran, when that is not the
+/// source drive's (`--vehicle`, or a `--set` on the vehicle): the log's
+/// other attachments are the source's, copied.
+pub const REPLAY_VEHICLE_ATTACHMENT: &str = "replay/vehicle.toml";
 
 /// The name under which the recorder attaches a drive's `--scenario` file
 /// when it was given as a path ([`DrivePlan::scenario_file`]).
@@ -376,8 +414,16 @@ pub fn run_services(
         }
         // generous: the loop first leaves its safe state, then the scenario runs
         let limit = Duration::from_secs_f64(plan.duration_s + 60.0);
+        let mut stopped = StoppedWatch::default();
         loop {
             std::thread::sleep(Duration::from_millis(20));
+            for n in stopped.update(sup.stopped(), Instant::now()) {
+                progress(format!(
+                    "drive: {n} has been stopped for {:.0} s (process state T: SIGSTOP, Ctrl-Z or a debugger); the drive waits for it, at most {:.0} s from the scenario's start",
+                    STOPPED_NOTE_AFTER.as_secs_f64(),
+                    limit.as_secs_f64()
+                ));
+            }
             if interrupt.load(Ordering::Relaxed) {
                 failure = Some("interrupted (SIGINT/SIGTERM): services stopped early".into());
                 break;
@@ -401,10 +447,12 @@ pub fn run_services(
                 break;
             }
             if t_scn.elapsed() > limit {
+                let stopped = stopped.names();
                 failure = Some(format!(
-                    "plant-sim did not finish the {:.2} s scenario within {:.0} s (did tcs-loop leave its safe state?).\n  plant-sim stderr:\n{}",
+                    "plant-sim did not finish the {:.2} s scenario within {:.0} s ({}).\n  plant-sim stderr:\n{}",
                     plan.duration_s,
                     limit.as_secs_f64(),
+                    unfinished_cause(&stopped),
                     sup.get(plant).map(|p| p.tail_text(10)).unwrap_or_default()
                 ));
                 break;
@@ -459,6 +507,59 @@ pub fn run_services(
     })
 }
 
+/// How long a service must have been stopped (process state `T`) before
+/// the drive says so: the fault-injection tests stop arte and plant-sim for
+/// up to 2 s on purpose.
+const STOPPED_NOTE_AFTER: Duration = Duration::from_secs(5);
+
+/// The services seen stopped (process state `T`) during a drive, since
+/// when, and whether the drive has said so.
+#[derive(Debug, Default)]
+struct StoppedWatch {
+    seen: Vec<(String, Instant, bool)>,
+}
+
+impl StoppedWatch {
+    /// Takes the services stopped `now`; returns those stopped for
+    /// [`STOPPED_NOTE_AFTER`] and not yet said (each said once per stop:
+    /// a service continued and stopped again is said again).
+    fn update(&mut self, now_stopped: Vec<String>, now: Instant) -> Vec<String> {
+        self.seen.retain(|(n, _, _)| now_stopped.contains(n));
+        for n in now_stopped {
+            if !self.seen.iter().any(|(m, _, _)| *m == n) {
+                self.seen.push((n, now, false));
+            }
+        }
+        let mut say = Vec::new();
+        for (n, since, said) in &mut self.seen {
+            if !*said && now.duration_since(*since) >= STOPPED_NOTE_AFTER {
+                *said = true;
+                say.push(n.clone());
+            }
+        }
+        say
+    }
+
+    /// The services stopped at the last update.
+    fn names(&self) -> Vec<String> {
+        self.seen.iter().map(|(n, _, _)| n.clone()).collect()
+    }
+}
+
+/// Why plant-sim may not have finished its scenario: the services that
+/// were stopped (process state `T`) when the time ran out, else the usual
+/// cause, a tcs-loop still in its safe state.
+fn unfinished_cause(stopped: &[String]) -> String {
+    if stopped.is_empty() {
+        "did tcs-loop leave its safe state?".to_owned()
+    } else {
+        format!(
+            "stopped (process state T: SIGSTOP, Ctrl-Z or a debugger), so making no progress: {}",
+            stopped.join(", ")
+        )
+    }
+}
+
 const TAIL_FOR_REPORT: usize = 40;
 
 /// A unique `GRIP_INSTANCE` value for a drive.
@@ -473,6 +574,46 @@ pub fn new_instance() -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A service stopped for 5 s is said once; continued and stopped
+    /// again, said again after 5 s more; the names are those stopped now.
+    #[test]
+    fn a_stopped_service_is_said_once_per_stop() {
+        let t0 = Instant::now();
+        let at = |s: f64| t0 + Duration::from_secs_f64(s);
+        let v = |n: &[&str]| n.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let mut w = StoppedWatch::default();
+        assert!(w.update(v(&["plant-sim"]), at(0.0)).is_empty());
+        assert!(w.update(v(&["plant-sim", "arte"]), at(2.0)).is_empty());
+        assert_eq!(
+            w.update(v(&["plant-sim", "arte"]), at(5.0)),
+            v(&["plant-sim"])
+        );
+        assert!(w.update(v(&["plant-sim", "arte"]), at(6.0)).is_empty());
+        assert_eq!(w.update(v(&["plant-sim", "arte"]), at(7.0)), v(&["arte"]));
+        assert_eq!(w.names(), v(&["plant-sim", "arte"]));
+        // plant-sim continued, then stopped again
+        assert!(w.update(v(&["arte"]), at(8.0)).is_empty());
+        assert_eq!(w.names(), v(&["arte"]));
+        assert!(w.update(v(&["arte", "plant-sim"]), at(9.0)).is_empty());
+        assert_eq!(
+            w.update(v(&["arte", "plant-sim"]), at(14.0)),
+            v(&["plant-sim"])
+        );
+    }
+
+    /// A drive that ran out of time names the services that were stopped
+    /// instead of guessing at tcs-loop's safe state.
+    #[test]
+    fn an_unfinished_drive_names_its_stopped_services() {
+        assert_eq!(unfinished_cause(&[]), "did tcs-loop leave its safe state?");
+        let c = unfinished_cause(&["plant-sim".to_owned(), "arte".to_owned()]);
+        assert!(
+            c.contains("stopped (process state T") && c.ends_with(": plant-sim, arte"),
+            "{c}"
+        );
+        assert!(!c.contains("tcs-loop"), "{c}");
+    }
 
     /// The vehicle a drive ran with: its attached `--vehicle` copy, or the
     /// attached profile named by `grip.run` `vehicle=PATH`, not the attached

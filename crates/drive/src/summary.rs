@@ -328,9 +328,11 @@ pub struct ArteEval {
     /// [`Measured`] (the log has no scenario window: a car's log).
     pub used_in_demand_window: bool,
     /// The loop's confidence gate the delays' `gated_delay` uses, and
-    /// whether the log's `controllers.toml` gave it (else the default
-    /// 0.6).
+    /// whether the log gave it (its `controllers.toml`, or a replay's
+    /// record; else the default 0.6): [`gate_of`].
     pub min_confidence: (f64, bool),
+    /// Where that gate came from ([`gate_of`]).
+    pub gate_from: GateFrom,
 }
 
 impl ArteEval {
@@ -699,7 +701,7 @@ pub fn audio_of(log: &DriveLog) -> Option<AudioSource> {
 }
 
 /// A log written by `grip replay --out` (its `grip.replay` metadata).
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct ReplayInfo {
     /// The log that was replayed.
     pub source: String,
@@ -716,6 +718,21 @@ pub struct ReplayInfo {
     pub arte: Option<String>,
     /// Whether the source log's recorder finished it (None: not recorded).
     pub source_finished: Option<bool>,
+    /// The confidence gate the replay's tcs-loop ran, `[arte]
+    /// min_confidence` of its configuration (None: a replay log written
+    /// before the record carried it).
+    pub min_confidence: Option<f64>,
+    /// The vehicle file the replay's tcs-loop ran (and in closed loop its
+    /// plant), as given: `--vehicle`'s path, else the source's attachment
+    /// (`vehicle.toml`, `drive/vehicle.toml`), a `--set` on it applied
+    /// (None: not recorded).
+    pub vehicle: Option<String>,
+    /// The `--set`s that changed it (`--set vehicle.toml:vehicle.mass=1800`;
+    /// None: none, or not recorded).
+    pub vehicle_set: Option<String>,
+    /// That file's SHA-256; when it is not the source's, the log carries
+    /// it as [`crate::plan::REPLAY_VEHICLE_ATTACHMENT`].
+    pub vehicle_sha256: Option<String>,
 }
 
 impl ReplayInfo {
@@ -728,6 +745,67 @@ impl ReplayInfo {
     /// `replay of SOURCE (open loop)`.
     pub fn headline(&self) -> String {
         format!("replay of {} ({})", self.source, self.mode)
+    }
+
+    /// The replay's change lines (`grip.replay` `changes`, one each).
+    fn change_lines(&self) -> impl Iterator<Item = &str> {
+        self.changes.split("; ").filter(|c| !c.is_empty())
+    }
+
+    /// Whether the replay changed the loop's confidence gate, as far as its
+    /// change lines tell: a `--set` of `[arte] min_confidence`, or another
+    /// configuration directory. For a record without `min_confidence` (a
+    /// replay log from before it was recorded), whose log then carries
+    /// only the source's gate.
+    pub fn changed_gate(&self) -> bool {
+        self.change_lines().any(|c| {
+            c.starts_with("configuration directory ")
+                || (c.starts_with("controllers.toml:") && c.contains("min_confidence"))
+        })
+    }
+
+    /// Whether the replay changed the vehicle, as far as its change lines
+    /// tell: `--vehicle`, a `--set` on a vehicle file, or another
+    /// configuration directory. For a record without `vehicle` (a replay
+    /// log from before it was recorded).
+    pub fn changed_vehicle(&self) -> bool {
+        self.change_lines().any(|c| {
+            c.starts_with("vehicle ")
+                || c.starts_with("configuration directory ")
+                || c.split_once(": ").is_some_and(|(file, _)| {
+                    (file.contains("vehicle") && file.contains(".toml"))
+                        || file.contains("(--vehicle ")
+                })
+        })
+    }
+
+    /// What the summary says of the vehicle the replay ran, when it is not
+    /// the one the summary used (`used`: where that came from, `used_sha256`
+    /// its SHA-256): the replay's own (recorded; an open-loop replay's
+    /// ground truth is its source's car's, so the summary keeps the
+    /// source's vehicle), or, for a record from before the vehicle was
+    /// recorded whose changes touched it, that the log does not carry it.
+    /// None when the replay ran the vehicle the summary used.
+    pub fn vehicle_line(&self, used: &str, used_sha256: Option<&String>) -> Option<String> {
+        match (&self.vehicle, &self.vehicle_sha256) {
+            (Some(v), Some(h)) if used_sha256 != Some(h) => Some(format!(
+                "the replay's tcs-loop ran vehicle {v}{} (sha256 {}, attached to the log as {}), not {used}{}",
+                self.vehicle_set
+                    .as_ref()
+                    .map_or_else(String::new, |s| format!(" with {s}")),
+                short_sha(Some(h)),
+                crate::plan::REPLAY_VEHICLE_ATTACHMENT,
+                if self.open_loop() {
+                    ": in open loop the ground truth is the source drive's car's, so the metrics, the preview's limits and the measured slip are computed with the source's vehicle"
+                } else {
+                    ""
+                }
+            )),
+            (None, _) if self.changed_vehicle() => Some(format!(
+                "the replay's changes (above) touch the vehicle or the configuration directory it comes from, and this log, written before grip replay recorded the vehicle it ran, does not carry the one it ran: the vehicle used here, {used}, is the source drive's"
+            )),
+            _ => None,
+        }
     }
 }
 
@@ -743,6 +821,13 @@ pub fn replay_of(log: &DriveLog) -> Option<ReplayInfo> {
         controller: m.get("controller").cloned(),
         arte: m.get("arte").cloned(),
         source_finished: m.get("source_recorder_finished").map(|v| v != "false"),
+        min_confidence: m
+            .get("min_confidence")
+            .and_then(|v| v.parse::<f64>().ok())
+            .filter(|c| (0.0..=1.0).contains(c)),
+        vehicle: m.get("vehicle").cloned().filter(|v| !v.is_empty()),
+        vehicle_set: m.get("vehicle_set").cloned().filter(|v| !v.is_empty()),
+        vehicle_sha256: m.get("vehicle_sha256").cloned().filter(|v| !v.is_empty()),
     })
 }
 
@@ -808,22 +893,127 @@ pub fn model_of(log: &DriveLog) -> Option<ModelInfo> {
     Some(ModelInfo { name, sha256, from })
 }
 
-/// The loop's confidence gate, `[arte] min_confidence` of the log's
-/// `controllers.toml` (true), else its default 0.6 (false): the one rule
-/// the summary's detection delays and `grip inspect --plot`'s ARTE strip
-/// use.
+/// The loop's confidence gate, `[arte] min_confidence`: the controller
+/// takes no road knowledge less confident ([`gate_of`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gate {
+    /// The gate (the default 0.6 when the log does not give it).
+    pub min_confidence: f64,
+    /// Where it came from.
+    pub from: GateFrom,
+}
+
+/// Where the loop's confidence gate of a log came from ([`gate_of`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum GateFrom {
+    /// The log's `controllers.toml` (for a replay's log: its source's
+    /// copy, which the replay ran unchanged).
+    Log,
+    /// The default: the log carries no `controllers.toml`, or one without
+    /// `[arte] min_confidence`.
+    #[default]
+    Default,
+    /// The log's `controllers.toml`, a replay's copy of its source's,
+    /// which the replay changed (`--set ...min_confidence`, or another
+    /// configuration directory), in a replay log from before the record
+    /// carried the gate the replay ran: perhaps not that gate.
+    ReplayChanged,
+    /// The gate the replay's tcs-loop ran (its `grip.replay` record), not
+    /// the source's `controllers.toml` copied into the log.
+    Replay,
+    /// The log's `controllers.toml` does not read (no TOML), or its
+    /// `[arte] min_confidence` is no number in [0, 1]: the gate is
+    /// unknown, the default stands in.
+    Unknown,
+}
+
+impl GateFrom {
+    /// `log`, `default`, `replay_changed`, `replay`, `unknown` (`grip
+    /// inspect --json`'s `arte_min_confidence_from`).
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Self::Log => "log",
+            Self::Default => "default",
+            Self::ReplayChanged => "replay_changed",
+            Self::Replay => "replay",
+            Self::Unknown => "unknown",
+        }
+    }
+
+    /// Whether the log gives the gate (else the default stands in).
+    pub fn given(&self) -> bool {
+        matches!(self, Self::Log | Self::ReplayChanged | Self::Replay)
+    }
+}
+
+/// `[arte] min_confidence` of the log's `controllers.toml`, deserialized
+/// as the loop's field is (`grip_tcs::ArteUse::min_confidence`, an `f64`:
+/// an integer such as `1` reads too) and held to the loop's range [0, 1].
+/// Only that key is read, not the whole file nor the whole `[arte]` table
+/// as `grip_tcs::ControllersConfig` does (every section required, unknown
+/// fields refused, `max_age_s` required beside it): a log from before a
+/// section or key existed keeps its gate. `Ok(None)` without the file or
+/// the key; `Err` when the file is no TOML or the key no number in [0, 1].
+fn logged_gate(log: &DriveLog) -> Result<Option<f64>, ()> {
+    let Some(text) = log.attachment_text("controllers.toml") else {
+        return Ok(None);
+    };
+    let table = text.parse::<toml::Table>().map_err(|_| ())?;
+    let Some(value) = table.get("arte").and_then(|a| a.get("min_confidence")) else {
+        return Ok(None);
+    };
+    let c: f64 = value.clone().try_into().map_err(|_| ())?;
+    if (0.0..=1.0).contains(&c) {
+        Ok(Some(c))
+    } else {
+        Err(())
+    }
+}
+
+/// The loop's confidence gate of `log`: the one rule the summary's
+/// detection delays and `grip inspect --plot`'s ARTE strip use. For a log
+/// of `grip replay --out` the gate its tcs-loop ran (its `grip.replay`
+/// record; the log's `controllers.toml` is the source's, copied); for a
+/// replay log from before the record carried it, the source's, marked as
+/// changed when the replay's changes touched it; else `[arte]
+/// min_confidence` of the log's `controllers.toml`; else the default 0.6
+/// (no file or no key: [`GateFrom::Default`]; a file that does not read:
+/// [`GateFrom::Unknown`]). Never fails.
+pub fn gate_of(log: &DriveLog) -> Gate {
+    let default = grip_tcs::ArteUse::default().min_confidence;
+    let (min_confidence, from) = match logged_gate(log) {
+        Ok(Some(c)) => (c, GateFrom::Log),
+        Ok(None) => (default, GateFrom::Default),
+        Err(()) => (default, GateFrom::Unknown),
+    };
+    let logged = Gate {
+        min_confidence,
+        from,
+    };
+    let Some(r) = replay_of(log) else {
+        return logged;
+    };
+    match r.min_confidence {
+        // the replay ran the source's gate: the log's file says it
+        Some(c) if logged.from == GateFrom::Log && c == logged.min_confidence => logged,
+        Some(c) => Gate {
+            min_confidence: c,
+            from: GateFrom::Replay,
+        },
+        // (an old replay's log whose file gives no gate keeps saying so)
+        None if r.changed_gate() && logged.from == GateFrom::Log => Gate {
+            from: GateFrom::ReplayChanged,
+            ..logged
+        },
+        None => logged,
+    }
+}
+
+/// The loop's confidence gate ([`gate_of`]) and whether the log gives it
+/// (true), else its default 0.6 (false).
 pub fn min_confidence_of(log: &DriveLog) -> (f64, bool) {
-    log.attachment_text("controllers.toml")
-        .and_then(|t| t.parse::<toml::Table>().ok())
-        .and_then(|t| {
-            let v = t.get("arte")?.get("min_confidence")?;
-            // `min_confidence = 1` is an integer in TOML; the loop takes it
-            v.as_float().or_else(|| v.as_integer().map(|i| i as f64))
-        })
-        .filter(|c| (0.0..=1.0).contains(c))
-        .map_or((grip_tcs::ArteUse::default().min_confidence, false), |c| {
-            (c, true)
-        })
+    let g = gate_of(log);
+    (g.min_confidence, g.from.given())
 }
 
 /// The wheel reaching a road that carries less (`grip inspect`'s
@@ -1317,6 +1507,9 @@ fn vehicle_sha256(
     if crate::plan::drive_vehicle_label(log) == vehicle_from {
         return attachment_sha256(log, crate::plan::VEHICLE_ATTACHMENT, warnings);
     }
+    if crate::plan::replay_vehicle_label(log) == vehicle_from {
+        return attachment_sha256(log, crate::plan::REPLAY_VEHICLE_ATTACHMENT, warnings);
+    }
     let name = log
         .attachments
         .keys()
@@ -1635,6 +1828,7 @@ pub fn summarize(
         estimates: log.roads.len() as u64,
         // the log's gate, with a scenario window or without (a car's log)
         min_confidence: min_confidence_of(log),
+        gate_from: gate_of(log).from,
         ..ArteEval::default()
     };
     for e in &log.roads {
@@ -2230,6 +2424,9 @@ impl Summary {
                     &r.changes
                 }
             );
+            if let Some(l) = r.vehicle_line(&self.vehicle, self.vehicle_sha256.as_ref()) {
+                let _ = writeln!(o, "  {l}");
+            }
         }
         match &self.model {
             Some(m) => {
@@ -2513,14 +2710,20 @@ impl Summary {
             );
         }
         if !a.changes.is_empty() {
-            let (gate, given) = a.min_confidence;
+            let (gate, _) = a.min_confidence;
             let _ = writeln!(
                 o,
                 "  road changes at the microphone, and the first estimate naming the new road (then the first at confidence >= {gate}, the loop's gate{}):",
-                if given {
-                    ", from the log's controllers.toml"
-                } else {
-                    ": the log carries no controllers.toml [arte] min_confidence, its default"
+                match a.gate_from {
+                    GateFrom::Log => ", from the log's controllers.toml",
+                    GateFrom::Default =>
+                        ": the log carries no controllers.toml [arte] min_confidence, its default",
+                    GateFrom::Replay =>
+                        ", the one the replay's tcs-loop ran (its grip.replay record; the log's controllers.toml is the source drive's)",
+                    GateFrom::ReplayChanged =>
+                        ", from the log's controllers.toml, the source drive's: the replay changed the gate or its configuration (its changes above), and this log, written before grip replay recorded the gate it ran, does not say which it ran",
+                    GateFrom::Unknown =>
+                        ": the log's controllers.toml does not read as TOML or its [arte] min_confidence is no number in [0, 1], so the gate is unknown; its default",
                 }
             );
         }
@@ -2590,6 +2793,24 @@ impl Summary {
             }
         }
         o
+    }
+}
+
+/// The `A / B` cell of `grip inspect A B`: `0.150x`; `A is 0` where A's
+/// figure is 0 and B's is not (a ratio `0.000x` read as a measured factor,
+/// when A simply has none: no spin event, no energy), `B is 0` the other
+/// way (no ratio), `both 0`; `-` where either is missing.
+pub fn ratio_cell(a: f64, b: f64) -> String {
+    if !(a.is_finite() && b.is_finite()) {
+        "-".to_owned()
+    } else if a == 0.0 && b == 0.0 {
+        "both 0".to_owned()
+    } else if a == 0.0 {
+        "A is 0".to_owned()
+    } else if b == 0.0 {
+        "B is 0".to_owned()
+    } else {
+        format!("{:.3}x", a / b)
     }
 }
 
@@ -2827,11 +3048,7 @@ B: {}",
                 "{:.1}" => format!("{v:.1}"),
                 _ => format!("{v:.0}"),
             };
-            let ratio = if y != 0.0 && x.is_finite() && y.is_finite() {
-                format!("{:.3}x", x / y)
-            } else {
-                "-".to_owned()
-            };
+            let ratio = ratio_cell(x, y);
             let _ = writeln!(o, "{name:<34} {:>12} {:>12} {ratio:>8}", f(x), f(y));
         }
     } else {
@@ -3306,6 +3523,341 @@ mod tests {
         // no cycle records: no command figures (none, not 0)
         assert!(m.cmd_tv_per_s.is_nan());
         assert_eq!(s.cmd_from_s, None);
+    }
+
+    /// `record`'s entries as a metadata record.
+    fn record(entries: &[(&str, &str)]) -> BTreeMap<String, String> {
+        entries
+            .iter()
+            .map(|(k, v)| ((*k).into(), (*v).into()))
+            .collect()
+    }
+
+    /// The shipped `config/controllers.toml` with `[arte] min_confidence`
+    /// set to `value` (TOML, as written in the file).
+    fn controllers_with_gate(value: &str) -> Vec<u8> {
+        let shipped = std::fs::read_to_string(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/controllers.toml"),
+        )
+        .unwrap();
+        assert!(
+            shipped.contains("\nmin_confidence = 0.6\n"),
+            "the shipped file's gate line"
+        );
+        shipped
+            .replace("min_confidence = 0.6", &format!("min_confidence = {value}"))
+            .into_bytes()
+    }
+
+    /// The loop's gate read as the loop's `f64` field: an integer `1` is a
+    /// gate (alone in `[arte]` too: `summary_recomputed.rs`), and a file
+    /// that does not read (a gate that is no number or outside [0, 1], no
+    /// TOML) makes the gate unknown, said so, never an error (it read as
+    /// the default, "the log carries no ... min_confidence"); no file or no
+    /// key: the default, as before.
+    #[test]
+    fn the_gate_is_read_as_the_loops_field() {
+        let mut log = DriveLog::default();
+        let gate = |log: &DriveLog| {
+            let g = gate_of(log);
+            (g.min_confidence, g.from)
+        };
+        assert_eq!(gate(&log), (0.6, GateFrom::Default));
+        for (value, want) in [
+            ("0.85", (0.85, GateFrom::Log)),
+            ("1", (1.0, GateFrom::Log)),
+            ("0", (0.0, GateFrom::Log)),
+            ("1.5", (0.6, GateFrom::Unknown)),
+            ("\"high\"", (0.6, GateFrom::Unknown)),
+        ] {
+            log.attachments
+                .insert("controllers.toml".into(), controllers_with_gate(value));
+            assert_eq!(gate(&log), want, "min_confidence = {value}");
+            assert_eq!(min_confidence_of(&log), (want.0, want.1.given()));
+        }
+        log.attachments.insert(
+            "controllers.toml".into(),
+            b"[arte\nmin_confidence = 0.7".to_vec(),
+        );
+        assert_eq!(gate(&log), (0.6, GateFrom::Unknown), "no TOML");
+        log.attachments.insert(
+            "controllers.toml".into(),
+            b"[loop]\nrate_hz = 1000.0\n".to_vec(),
+        );
+        assert_eq!(gate(&log), (0.6, GateFrom::Default), "no [arte]");
+        // said in the report
+        let mut t = Vec::new();
+        for k in 0..210u64 {
+            let x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
+            let (r, n) = if k < 110 { (0, "asphalt") } else { (1, "snow") };
+            t.push(truth(k, k, x, r, n));
+        }
+        log.truth = t;
+        log.roads = vec![estimate_at(0, 50, "asphalt"), estimate_at(1, 160, "snow")];
+        log.attachments
+            .insert("controllers.toml".into(), controllers_with_gate("\"high\""));
+        let s = summarize(&log, &VehicleParams::default(), "defaults", None);
+        assert_eq!(s.arte.gate_from, GateFrom::Unknown);
+        let text = s.render();
+        assert!(
+            text.contains("the loop's gate: the log's controllers.toml does not read as TOML or its [arte] min_confidence is no number in [0, 1]"),
+            "{text}"
+        );
+        assert!(
+            text.contains("so the gate is unknown; its default"),
+            "{text}"
+        );
+    }
+
+    /// A log of `grip replay --out` that changed the gate: the summary
+    /// takes the gate the replay's tcs-loop ran (its `grip.replay` record),
+    /// not the source's `controllers.toml` copied into the log, which it
+    /// reported as "from the log's controllers.toml"; a replay log from
+    /// before the record carried it says that the replay changed it; a
+    /// replay that ran the source's gate reads as before.
+    #[test]
+    fn a_replays_gate_is_the_one_it_ran() {
+        let mut t = Vec::new();
+        for k in 0..210u64 {
+            let x = if k < 10 { 0.0 } else { (k - 9) as f64 * 0.003 };
+            let (r, n) = if k < 110 { (0, "asphalt") } else { (1, "snow") };
+            t.push(truth(k, k, x, r, n));
+        }
+        let mut log = DriveLog {
+            truth: t,
+            roads: vec![
+                estimate_at(0, 50, "asphalt"),
+                estimate_at(1, 140, "snow"),
+                estimate_at(2, 160, "snow"),
+            ],
+            ..DriveLog::default()
+        };
+        // the first snow estimate passes the replay's gate 0.5, not the
+        // source's 0.6
+        log.roads[1].confidence = 0.55;
+        log.attachments
+            .insert("controllers.toml".into(), controllers_with_gate("0.6"));
+        let changes = (
+            "changes",
+            "controllers.toml: [arte] min_confidence 0.6 -> 0.5",
+        );
+        log.metadata.insert(
+            "grip.replay".into(),
+            record(&[("source", "a.mcap"), changes, ("min_confidence", "0.5")]),
+        );
+        assert_eq!(
+            gate_of(&log),
+            Gate {
+                min_confidence: 0.5,
+                from: GateFrom::Replay
+            }
+        );
+        let s = summarize(&log, &VehicleParams::default(), "defaults", None);
+        assert_eq!(s.arte.min_confidence, (0.5, true));
+        let g = s.arte.changes[0].gated_delay.unwrap();
+        assert!((g - 0.030).abs() < 1e-6, "{g}: the estimate at 0.55");
+        let text = s.render();
+        assert!(
+            text.contains("then the first at confidence >= 0.5, the loop's gate, the one the replay's tcs-loop ran (its grip.replay record; the log's controllers.toml is the source drive's)"),
+            "{text}"
+        );
+        assert!(!text.contains("from the log's controllers.toml"), "{text}");
+        // a replay log from before the record carried the gate: the
+        // source's, and said to be changed
+        log.metadata.insert(
+            "grip.replay".into(),
+            record(&[("source", "a.mcap"), changes]),
+        );
+        assert_eq!(
+            gate_of(&log),
+            Gate {
+                min_confidence: 0.6,
+                from: GateFrom::ReplayChanged
+            }
+        );
+        let text = summarize(&log, &VehicleParams::default(), "defaults", None).render();
+        assert!(
+            text.contains("from the log's controllers.toml, the source drive's: the replay changed the gate or its configuration"),
+            "{text}"
+        );
+        // ... unless that file gives no gate: then still its default
+        let kept = log.attachments.remove("controllers.toml");
+        assert_eq!(gate_of(&log).from, GateFrom::Default);
+        if let Some(k) = kept {
+            log.attachments.insert("controllers.toml".into(), k);
+        }
+        for c in [
+            "configuration directory /x/config",
+            "controllers.toml: [arte] min_confidence 0.6 -> 0.5 (the same)",
+        ] {
+            let r = ReplayInfo {
+                changes: format!("controller mtte -> src; {c}"),
+                ..ReplayInfo::default()
+            };
+            assert!(r.changed_gate(), "{c}");
+        }
+        // another change: not the gate
+        for c in [
+            "controller mtte -> src",
+            "controllers.toml: [mfc] k_mfc 1 -> 2",
+        ] {
+            log.metadata.insert(
+                "grip.replay".into(),
+                record(&[("source", "a.mcap"), ("changes", c)]),
+            );
+            assert_eq!(gate_of(&log).from, GateFrom::Log, "{c}");
+        }
+        // the replay ran the source's gate: the log's file says it
+        log.metadata.insert(
+            "grip.replay".into(),
+            record(&[("source", "a.mcap"), ("min_confidence", "0.6")]),
+        );
+        assert_eq!(gate_of(&log).from, GateFrom::Log);
+    }
+
+    /// A replay that ran another vehicle (`--vehicle`, or a `--set` on the
+    /// vehicle): in closed loop (plant and loop both ran it) the summary
+    /// uses the file the replay attached; in open loop (the ground truth is
+    /// the source car's) it keeps the source's and names the one the
+    /// replay's loop ran; a replay log from before the vehicle was recorded
+    /// says that the replay changed it. It said the source's vehicle
+    /// without a word.
+    #[test]
+    fn a_replays_vehicle_is_the_one_it_ran() {
+        let cfg = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
+        let shipped = std::fs::read_to_string(cfg.join("vehicle.toml")).unwrap();
+        let heavy = shipped.replacen("mass = 1400.0", "mass = 1800.0", 1);
+        assert_ne!(heavy, shipped, "the shipped file's mass line");
+        let heavy_sha = grip_digest::sha256_hex(heavy.as_bytes());
+        let mut log = snow_entry_log(|_, g, _| g.torque = 150.0);
+        log.attachments
+            .insert("vehicle.toml".into(), shipped.clone().into_bytes());
+        log.attachments.insert(
+            crate::plan::REPLAY_VEHICLE_ATTACHMENT.into(),
+            heavy.into_bytes(),
+        );
+        let replay = |mode: &str| {
+            record(&[
+                ("source", "a.mcap"),
+                ("mode", mode),
+                ("changes", "vehicle.toml: [vehicle] mass 1400.0 -> 1800.0"),
+                ("min_confidence", "0.6"),
+                ("vehicle", "vehicle.toml"),
+                ("vehicle_set", "--set vehicle.toml:vehicle.mass=1800"),
+                ("vehicle_sha256", &heavy_sha),
+            ])
+        };
+        let summary = |log: &DriveLog| {
+            let (v, from, w) = crate::vehicle_for(log, &cfg);
+            assert!(w.is_empty(), "{w:?}");
+            (v, summarize(log, &v, &from, None))
+        };
+        // closed loop: the replay's vehicle
+        log.metadata
+            .insert("grip.replay".into(), replay("closed loop"));
+        let (v, s) = summary(&log);
+        assert_eq!(v.mass, 1800.0);
+        assert_eq!(
+            s.vehicle,
+            "vehicle.toml (the vehicle the replay ran with --set vehicle.toml:vehicle.mass=1800, not its source drive's; attached to the log as replay/vehicle.toml)"
+        );
+        assert_eq!(s.vehicle_sha256.as_deref(), Some(heavy_sha.as_str()));
+        let text = s.render();
+        assert!(
+            !text.contains("the replay's tcs-loop ran vehicle"),
+            "{text}"
+        );
+        assert!(
+            text.contains(&format!("  vehicle: {}", s.vehicle)),
+            "{text}"
+        );
+        // open loop: the source's, and the replay's named
+        log.metadata
+            .insert("grip.replay".into(), replay("open loop"));
+        let (v, s) = summary(&log);
+        assert_eq!(v.mass, 1400.0);
+        assert_eq!(s.vehicle, "vehicle.toml (attached to the log)");
+        let text = s.render();
+        assert!(
+            text.contains(&format!(
+                "  the replay's tcs-loop ran vehicle vehicle.toml with --set vehicle.toml:vehicle.mass=1800 (sha256 {}, attached to the log as replay/vehicle.toml), not vehicle.toml (attached to the log): in open loop the ground truth is the source drive's car's",
+                &heavy_sha[..12]
+            )),
+            "{text}"
+        );
+        // a replay log from before: the source's, said to be changed
+        log.attachments
+            .remove(crate::plan::REPLAY_VEHICLE_ATTACHMENT);
+        for c in [
+            "vehicle /cars/heavy.toml",
+            "vehicle.toml: [vehicle] mass 1400.0 -> 1800.0",
+            "heavy.toml (--vehicle /cars/heavy.toml): [vehicle] mass 1800.0 -> 1900.0",
+            "drive/vehicle.toml (the drive's --vehicle, from the log): [vehicle] r 0.28 -> 0.3",
+        ] {
+            log.metadata.insert(
+                "grip.replay".into(),
+                record(&[
+                    ("source", "a.mcap"),
+                    ("mode", "closed loop"),
+                    ("changes", c),
+                ]),
+            );
+            let (v, s) = summary(&log);
+            assert_eq!(v.mass, 1400.0, "{c}");
+            assert!(
+                s.render().contains("  the replay's changes (above) touch the vehicle or the configuration directory it comes from, and this log, written before grip replay recorded the vehicle it ran, does not carry the one it ran: the vehicle used here, vehicle.toml (attached to the log), is the source drive's"),
+                "{c}: {}",
+                s.render()
+            );
+        }
+        // a replay that ran the source's vehicle: nothing said
+        log.metadata.insert(
+            "grip.replay".into(),
+            record(&[
+                ("source", "a.mcap"),
+                ("changes", "controller mtte -> src"),
+                ("vehicle", "vehicle.toml"),
+                (
+                    "vehicle_sha256",
+                    &grip_digest::sha256_hex(shipped.as_bytes()),
+                ),
+            ]),
+        );
+        let (_, s) = summary(&log);
+        assert!(!s.render().contains("the replay's tcs-loop ran vehicle"));
+        assert!(
+            !s.render()
+                .contains("the replay's changes (above) touch the vehicle")
+        );
+    }
+
+    /// `grip inspect A B` where A's figure is 0 and B's is not: `A is 0`,
+    /// not a ratio `0.000x` read as a factor; `B is 0` and `both 0` the
+    /// same way; `-` only where a figure is missing.
+    #[test]
+    fn a_ratio_where_a_is_zero_says_so() {
+        assert_eq!(ratio_cell(0.0, 2.0), "A is 0");
+        assert_eq!(ratio_cell(-0.0, 2.0), "A is 0");
+        assert_eq!(ratio_cell(1.0, 2.0), "0.500x");
+        assert_eq!(ratio_cell(1.0, 0.0), "B is 0");
+        assert_eq!(ratio_cell(0.0, 0.0), "both 0");
+        assert_eq!(ratio_cell(f64::NAN, 2.0), "-");
+        let log = snow_entry_log(|_, g, _| g.torque = 150.0);
+        let b = summarize(&log, &VehicleParams::default(), "test", None);
+        let mut a = b.clone();
+        a.metrics.as_mut().expect("a scenario window").energy = 0.0;
+        let mut b = b;
+        b.measured.spins = vec![measured::SpinEvent::default(); 2];
+        let c = compare(&a, &b);
+        let line = |name: &str| {
+            c.lines()
+                .find(|l| l.starts_with(name))
+                .unwrap_or_else(|| panic!("{name}: {c}"))
+        };
+        assert!(line("energy ∫Tω dt").ends_with(" A is 0"), "{c}");
+        assert!(line("spin events").ends_with(" A is 0"), "{c}");
+        assert!(line("distance (m)").ends_with(" 1.000x"), "{c}");
+        assert!(!c.contains("0.000x"), "{c}");
     }
 
     #[test]

@@ -578,6 +578,18 @@ impl Proc {
         }
     }
 
+    /// Whether it is stopped (`T` in `/proc/<pid>/stat`: `SIGSTOP`, a
+    /// terminal's `SIGTSTP` or a debugger's stop, `t`): alive, but none of
+    /// its threads runs, so it neither exits nor makes progress. False once
+    /// reaped or when `/proc` cannot be read.
+    pub fn is_stopped(&self) -> bool {
+        self.status.is_none()
+            && std::fs::read_to_string(format!("/proc/{}/stat", self.pid()))
+                .ok()
+                .and_then(|s| proc_state(&s))
+                .is_some_and(|c| c == 'T' || c == 't')
+    }
+
     /// Reaps it if it ended.
     pub fn poll_exit(&mut self) -> Option<ExitStatus> {
         if self.status.is_none()
@@ -667,13 +679,17 @@ impl Proc {
         }
     }
 
-    /// SIGTERM, then SIGKILL after `grace`; returns the exit status and
-    /// whether SIGKILL was needed.
+    /// SIGTERM (and SIGCONT, so that a stopped process handles it), then
+    /// SIGKILL after `grace`; returns the exit status and whether SIGKILL
+    /// was needed.
     pub fn stop(&mut self, grace: Duration) -> (Option<ExitStatus>, bool) {
         if let Some(st) = self.poll_exit() {
             return (Some(st), false);
         }
         self.signal(libc::SIGTERM);
+        // as systemd does: a stopped process (SIGSTOP, a debugger) handles
+        // the SIGTERM only once continued
+        self.signal(libc::SIGCONT);
         if let Some(st) = self.wait_timeout(grace) {
             return (Some(st), false);
         }
@@ -683,6 +699,13 @@ impl Proc {
         self.join_reader();
         (st, true)
     }
+}
+
+/// The state letter of a `/proc/<pid>/stat` line (the field after the
+/// command name, which is in parentheses and may itself hold spaces and
+/// parentheses: the last `)` ends it).
+fn proc_state(stat: &str) -> Option<char> {
+    stat.rsplit_once(')')?.1.trim_start().chars().next()
 }
 
 impl Drop for Proc {
@@ -777,6 +800,16 @@ impl Supervisor {
         v
     }
 
+    /// The names of the services that are stopped now
+    /// ([`Proc::is_stopped`]), in start order.
+    pub fn stopped(&self) -> Vec<String> {
+        self.procs
+            .iter()
+            .filter(|p| p.is_stopped())
+            .map(|p| p.name.clone())
+            .collect()
+    }
+
     /// SIGTERM to `name`, waiting up to `grace`; killed after it is an
     /// error. Returns its exit status.
     pub fn stop(&mut self, name: &str, grace: Duration) -> Result<ExitStatus, SuperviseError> {
@@ -858,6 +891,43 @@ mod tests {
         let st = s.stop("silent", Duration::from_secs(5)).unwrap();
         assert_eq!(st.signal(), Some(libc::SIGTERM));
         assert!(s.get("nobody").is_err());
+    }
+
+    /// A stopped process is told from a running and an ended one, and
+    /// the state is read past a command name holding `)` and spaces.
+    #[test]
+    fn a_stopped_process_is_seen_as_stopped() {
+        assert_eq!(proc_state("42 (a) b (c)) T 1 42"), Some('T'));
+        assert_eq!(proc_state("42 (sleep) S 1 42"), Some('S'));
+        assert_eq!(proc_state("garbage"), None);
+        let mut s = Supervisor::new(&format!("test-sup5-{}", std::process::id())).unwrap();
+        s.spawn(&sh("sleeper", "exec sleep 30")).unwrap();
+        assert!(s.stopped().is_empty(), "{:?}", s.stopped());
+        s.get("sleeper").unwrap().signal(libc::SIGSTOP);
+        let t0 = Instant::now();
+        while s.stopped().is_empty() && t0.elapsed() < Duration::from_secs(5) {
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        assert_eq!(s.stopped(), vec!["sleeper".to_owned()]);
+        s.get("sleeper").unwrap().signal(libc::SIGCONT);
+        let t0 = Instant::now();
+        while !s.stopped().is_empty() && t0.elapsed() < Duration::from_secs(5) {
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        assert!(s.stopped().is_empty());
+        // stopped again, it still ends on the SIGTERM (continued), not killed
+        s.get("sleeper").unwrap().signal(libc::SIGSTOP);
+        let t0 = Instant::now();
+        while s.stopped().is_empty() && t0.elapsed() < Duration::from_secs(5) {
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        assert_eq!(s.stopped(), vec!["sleeper".to_owned()]);
+        let st = s.stop("sleeper", Duration::from_secs(5)).unwrap();
+        assert_eq!(st.signal(), Some(libc::SIGTERM));
+        assert!(
+            !s.get("sleeper").unwrap().is_stopped(),
+            "reaped: not stopped"
+        );
     }
 
     /// A placed process runs on its CPU, at its nice value and I/O

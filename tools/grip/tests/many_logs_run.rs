@@ -4,6 +4,8 @@
 //! same, are told apart by the printed table's `ctrl` and `arte` columns
 //! and by the CSV's `controller` and `arte`, not only by their file names;
 //! the CSV's run and vehicle columns hold what `grip inspect --json` gives.
+//! A log copied to a name with a space is one quoted cell of the printed
+//! table, whose other columns keep their places.
 
 mod common;
 
@@ -88,6 +90,12 @@ fn inspect_dir_tells_the_runs_apart() {
             assert_eq!(col(c), j[c].as_str().unwrap(), "{file} {c}");
         }
         assert_eq!(col("mic_lead_m"), "0", "{file}: config/vehicle.toml's");
+        // --json gives the microphone's lead too (it had none)
+        assert_eq!(
+            col("mic_lead_m").parse::<f64>().ok(),
+            j["mic_lead_m"].as_f64(),
+            "{file}: mic_lead_m"
+        );
         assert_eq!(col("vehicle"), "vehicle.toml (attached to the log)");
     }
     let col = |file: &str, c: &str| {
@@ -104,4 +112,41 @@ fn inspect_dir_tells_the_runs_apart() {
         col("on.mcap", "slip_deviation"),
         col("off.mcap", "slip_deviation")
     );
+}
+
+/// A file name with a space is one cell of the printed table, quoted (it
+/// was printed as it is, so a reader splitting the row at white space
+/// read the name as two cells and every column after it shifted by one),
+/// and the CSV keeps the name.
+#[test]
+fn inspect_dir_quotes_a_file_name_with_a_space() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::copy(reference(), d.path().join("my drive.mcap")).unwrap();
+    std::os::unix::fs::symlink(reference(), d.path().join("on.mcap")).unwrap();
+    let (ok, out, err, csv) = common::inspect_dir(d.path());
+    assert!(ok, "{out}{err}");
+    let lines: Vec<&str> = out.lines().collect();
+    let head = lines[0];
+    let row = |file: &str| {
+        *lines
+            .iter()
+            .find(|l| l.starts_with(file))
+            .unwrap_or_else(|| panic!("{file} not in\n{out}"))
+    };
+    let spaced = row("\"my drive.mcap\" ");
+    let plain = row("on.mcap ");
+    // the columns after the file's keep their places: the same cells as
+    // the same drive under a plain name, from the header's `status` on
+    let status = head.find("status").unwrap();
+    assert_eq!(spaced[status..], plain[status..], "{out}");
+    assert!(spaced[status..].starts_with("ok "), "{out}");
+    // a reader splitting at white space finds the header's columns after
+    // the file
+    let words = |l: &str| l[status..].split_whitespace().count();
+    assert_eq!(words(spaced), words(head), "{out}");
+    assert!(out.contains("2 logs, 0 bad"), "{out}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut rd = csv::Reader::from_reader(text.as_bytes());
+    let files: Vec<String> = rd.records().map(|r| r.unwrap()[0].to_owned()).collect();
+    assert_eq!(files, ["my drive.mcap", "on.mcap"]);
 }

@@ -140,6 +140,12 @@ pub struct SpinEvent {
     pub peak: f64,
     /// When that was, s from [`Measured::origin_ns`].
     pub peak_s: f64,
+    /// Cut short by the end of its stretch of the window (the scenario
+    /// window's end, the end of the driver's demand, or the log's last
+    /// cycle record): |λ_m| was still above [`SPIN_LAMBDA`] there (or had
+    /// dipped under it for less than [`SPIN_BRIDGE_S`]), so the event did
+    /// not end where `length_s` ends; it lasted at least that long.
+    pub cut: bool,
 }
 
 /// The window's cycles with one road belief.
@@ -440,19 +446,22 @@ pub fn measured(
         let mut acc = MetricsAccumulator::new(vehicle);
         // the spin event being followed: (start ns, end ns, peak, peak ns)
         let mut spin: Option<(u64, u64, f64, u64)> = None;
-        let close = |spin: &mut Option<(u64, u64, f64, u64)>, spins: &mut Vec<SpinEvent>| {
-            if let Some((s0, s1, peak, at)) = spin.take() {
-                let length_s = secs_between(s0, s1);
-                if length_s >= SPIN_MIN_S - 1e-9 {
-                    spins.push(SpinEvent {
-                        start_s: rel(s0),
-                        length_s,
-                        peak,
-                        peak_s: rel(at),
-                    });
+        // `cut`: closed by the stretch's end, not by a dip
+        let close =
+            |spin: &mut Option<(u64, u64, f64, u64)>, spins: &mut Vec<SpinEvent>, cut: bool| {
+                if let Some((s0, s1, peak, at)) = spin.take() {
+                    let length_s = secs_between(s0, s1);
+                    if length_s >= SPIN_MIN_S - 1e-9 {
+                        spins.push(SpinEvent {
+                            start_s: rel(s0),
+                            length_s,
+                            peak,
+                            peak_s: rel(at),
+                            cut,
+                        });
+                    }
                 }
-            }
-        };
+            };
         // the command's smoothness from the first cycle with the driver's
         // demand on (the cycles before carry the pre-start command)
         let mut had_demand = false;
@@ -546,7 +555,7 @@ pub fn measured(
                         }
                     }
                     _ => {
-                        close(&mut spin, &mut m.spins);
+                        close(&mut spin, &mut m.spins, false);
                         spin = Some((c.stamp_ns, end, la, c.stamp_ns));
                     }
                 }
@@ -554,10 +563,17 @@ pub fn measured(
                 .as_ref()
                 .is_some_and(|s| secs_between(s.1, c.stamp_ns) >= SPIN_BRIDGE_S - 1e-12)
             {
-                close(&mut spin, &mut m.spins);
+                close(&mut spin, &mut m.spins, false);
             }
         }
-        close(&mut spin, &mut m.spins);
+        // a spin still open where the stretch ends (above the threshold
+        // there, or in a dip shorter than the bridge) is cut by the
+        // window's end, not ended
+        let stretch_end = cycles[b - 1].stamp_ns + dt_ns(b - 1);
+        let cut_short = spin
+            .as_ref()
+            .is_some_and(|s| secs_between(s.1, stretch_end) < SPIN_BRIDGE_S - 1e-12);
+        close(&mut spin, &mut m.spins, cut_short);
         if let Some((dv, ds)) = end_means_dv(&vs) {
             m.dv += dv;
             m.accel_s += ds;
@@ -676,8 +692,18 @@ impl SpinEvent {
     /// One line of the report.
     pub fn line(&self) -> String {
         format!(
-            "at {:.3} s for {:.3} s, peak |λ_m| {:.3} at {:.3} s",
-            self.start_s, self.length_s, self.peak, self.peak_s
+            "at {:.3} s for {:.3} s, peak |λ_m| {:.3} at {:.3} s{}",
+            self.start_s,
+            self.length_s,
+            self.peak,
+            self.peak_s,
+            if self.cut {
+                format!(
+                    "; cut short by the window's end (the spin still going there: |λ_m| above {SPIN_LAMBDA}, or in a dip shorter than the bridge): it lasted at least this long"
+                )
+            } else {
+                String::new()
+            }
         )
     }
 }
@@ -744,12 +770,18 @@ impl Measured {
                 f(100.0 * self.share_above[1], 1)
             );
         }
+        let cut = self.spins.iter().filter(|e| e.cut).count();
         let _ = writeln!(
             o,
-            "  spin events (|λ_m| above {SPIN_LAMBDA} for {:.0} ms or more; dips under {:.0} ms bridged): {}",
+            "  spin events (|λ_m| above {SPIN_LAMBDA} for {:.0} ms or more; dips under {:.0} ms bridged): {}{}",
             SPIN_MIN_S * 1e3,
             SPIN_BRIDGE_S * 1e3,
-            self.spins.len()
+            self.spins.len(),
+            if cut > 0 {
+                format!(" ({cut} cut short by the window's end)")
+            } else {
+                String::new()
+            }
         );
         let mut by_peak: Vec<&SpinEvent> = self.spins.iter().collect();
         by_peak.sort_by(|a, b| b.peak.total_cmp(&a.peak));
@@ -869,11 +901,7 @@ pub fn compare_rows(a: &Measured, b: &Measured) -> String {
         ),
     ];
     for (name, x, y, p) in rows {
-        let ratio = if y != 0.0 && x.is_finite() && y.is_finite() {
-            format!("{:.3}x", x / y)
-        } else {
-            "-".to_owned()
-        };
+        let ratio = super::ratio_cell(x, y);
         let _ = writeln!(o, "{name:<34} {:>12} {:>12} {ratio:>8}", f(x, p), f(y, p));
     }
     o
@@ -966,6 +994,68 @@ mod tests {
             }
         });
         assert!(measured(&short, &v, None, None).spins.is_empty());
+    }
+
+    /// A spin still going at the window's end (a drive without ARTE
+    /// spinning on the snow it ends on) is flagged as cut there, in the
+    /// report and the event, not reported as if it had ended; one that
+    /// ended inside the window is not.
+    #[test]
+    fn a_spin_cut_by_the_windows_end_says_so() {
+        // 0.3 from cycle 100 to 140 (ended), and from cycle 900 to the
+        // scenario window's end at cycle 1000 (the log goes on spinning)
+        let l = log(1100, |k, c| {
+            if (100..140).contains(&k) || k >= 900 {
+                c.omega = omega_for(0.3, c.v);
+            }
+        });
+        let v = VehicleParams::default();
+        let (ws, we) = (1_000 * MS, 2_000 * MS);
+        let m = measured(&l, &v, Some((ws, we)), None);
+        assert_eq!(m.spins.len(), 2, "{:?}", m.spins);
+        let (ended, cut) = (m.spins[0], m.spins[1]);
+        assert!(!ended.cut, "{ended:?}");
+        assert!(cut.cut, "{cut:?}");
+        assert!((cut.start_s - 0.900).abs() < 1e-9, "{cut:?}");
+        assert!((cut.length_s - 0.100).abs() < 1e-9, "{cut:?}");
+        let r = m.render();
+        assert!(
+            r.contains("or more; dips under 5 ms bridged): 2 (1 cut short by the window's end)"),
+            "{r}"
+        );
+        assert!(
+            r.contains(
+                "at 0.900 s for 0.100 s, peak |λ_m| 0.300 at 0.900 s; cut short by the window's end (the spin still going there: |λ_m| above 0.2, or in a dip shorter than the bridge): it lasted at least this long"
+            ),
+            "{r}"
+        );
+        assert!(
+            r.contains("at 0.100 s for 0.040 s, peak |λ_m| 0.300 at 0.100 s\n"),
+            "{r}"
+        );
+        // the same spin in a dip shorter than the bridge at the window's
+        // end: still not ended there
+        let dip = log(1000, |k, c| {
+            if (900..997).contains(&k) {
+                c.omega = omega_for(0.3, c.v);
+            }
+        });
+        assert!(measured(&dip, &v, Some((ws, we)), None).spins[0].cut);
+        // over the whole log (the driver's demand to its last cycle) the
+        // first log's spin runs to the last record: cut there too
+        let m = measured(&l, &v, None, None);
+        assert!(
+            m.spins[1].cut && (m.spins[1].length_s - 0.200).abs() < 1e-9,
+            "{:?}",
+            m.spins
+        );
+        // ended 10 ms before the window's end: not cut
+        let ended = log(1000, |k, c| {
+            if (900..990).contains(&k) {
+                c.omega = omega_for(0.3, c.v);
+            }
+        });
+        assert!(!measured(&ended, &v, Some((ws, we)), None).spins[0].cut);
     }
 
     #[test]

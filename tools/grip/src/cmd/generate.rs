@@ -918,7 +918,9 @@ fn generate_in(config: &Path, dir: &Path, s: &LogSpec) -> anyhow::Result<Generat
     }
 
     // lock step
-    let (mut bus_p, mut bus_t) = MemBus::pair();
+    let (mut bus_p, bus_t) = MemBus::pair();
+    // received frames numbered as the loop numbers what it sends
+    let mut bus_t = bus_t.with_bus_id(lp.bus_id());
     let mut truths = Truths {
         new: Vec::new(),
         latest: truth,

@@ -21,9 +21,7 @@ use super::Ctx;
 use super::drive::{Controller, OnOff};
 use crate::replay::compare::{self, TopicDiff};
 use crate::replay::config::{ReplayConfig, WhatIf};
-use crate::replay::{
-    RoadMatch, ScriptClock, SpeedMatch, replay_arte, replay_tcs, split_can, write_log,
-};
+use crate::replay::{RoadMatch, ScriptClock, SpeedMatch, replay_arte, replay_tcs, split_can};
 
 /// The text every report carries.
 pub const OPEN_LOOP: &str = "open loop: the logged wheel speeds, vehicle speed and motor torque are replayed as recorded; they do not react to a replayed torque command";
@@ -283,6 +281,23 @@ fn tx(frames: &[CanFrame]) -> Vec<CanFrame> {
         .collect()
 }
 
+/// The replayed sent frames as the log would have them: a log from before
+/// 2026-12-07 wrote its sent frames on bus 0 whatever `can.toml`'s
+/// `bus_id`, which the replayed loop now writes; when every logged sent
+/// frame says 0 and a replayed one does not, the replayed ones are
+/// compared at 0 (true: so done).
+fn tx_as_logged(logged: &[CanFrame], replayed: &mut [CanFrame]) -> bool {
+    let old = !logged.is_empty()
+        && logged.iter().all(|f| f.bus == 0)
+        && replayed.iter().any(|f| f.bus != 0);
+    if old {
+        for f in replayed.iter_mut() {
+            f.bus = 0;
+        }
+    }
+    old
+}
+
 fn rx(frames: &[CanFrame]) -> Vec<CanFrame> {
     frames
         .iter()
@@ -461,6 +476,72 @@ fn tcs_config_of(cfg: &ReplayConfig) -> anyhow::Result<grip_tcs_loop::LoadedConf
     grip_tcs_loop::load(&opts)
         .context("tcs-loop's configuration")
         .map_err(|e| cfg.explain(e))
+}
+
+/// What the replay's tcs-loop ran with, into its `grip.replay` record
+/// `meta`: `min_confidence` (its `[arte]` gate) and `vehicle` (the file
+/// as given: `--vehicle`'s path, else the source's attachment, or
+/// `--config-dir`'s `vehicle.toml`) with its `vehicle_sha256`, a `--set`
+/// on it applied (and named in `vehicle_set`). Returns the vehicle file as an attachment
+/// ([`grip_drive::plan::REPLAY_VEHICLE_ATTACHMENT`]) when it is not the
+/// source's (the log's other attachments are the source's). Nothing when
+/// the configuration does not load (the replay has loaded it already).
+fn ran_with(
+    log: &DriveLog,
+    what: &WhatIf,
+    cfg: &ReplayConfig,
+    meta: &mut BTreeMap<String, String>,
+) -> Vec<(String, Vec<u8>)> {
+    let Ok(loaded) = tcs_config_of(cfg) else {
+        return Vec::new();
+    };
+    meta.insert(
+        "min_confidence".into(),
+        loaded.controllers.arte.min_confidence.to_string(),
+    );
+    let Ok(bytes) = std::fs::read(&loaded.vehicle_path) else {
+        return Vec::new();
+    };
+    let shown = match (&what.vehicle, loaded.vehicle_path.strip_prefix(&cfg.dir)) {
+        (Some(v), _) => v.display().to_string(),
+        (None, Ok(rel)) => match &what.config_dir {
+            Some(d) if rel == Path::new("vehicle.toml") => d.join(rel).display().to_string(),
+            _ => rel.display().to_string(),
+        },
+        (None, Err(_)) => loaded.vehicle_path.display().to_string(),
+    };
+    // a `--set` on it: the file as given is not what ran
+    let rel = loaded
+        .vehicle_path
+        .strip_prefix(&cfg.dir)
+        .map(|r| r.display().to_string());
+    let sets: Vec<&str> = cfg
+        .applied
+        .iter()
+        .filter(|a| rel.as_deref() == Ok(a.rel.as_str()))
+        .map(|a| a.spec.as_str())
+        .collect();
+    meta.insert("vehicle".into(), shown);
+    if !sets.is_empty() {
+        meta.insert(
+            "vehicle_set".into(),
+            format!("--set {}", sets.join(", --set ")),
+        );
+    }
+    meta.insert("vehicle_sha256".into(), grip_digest::sha256_hex(&bytes));
+    // the file the source drive's loop read (the replay's default)
+    let source = log
+        .attachments
+        .get(grip_drive::plan::VEHICLE_ATTACHMENT)
+        .or_else(|| log.attachments.get("vehicle.toml"));
+    if source == Some(&bytes) {
+        Vec::new()
+    } else {
+        vec![(
+            grip_drive::plan::REPLAY_VEHICLE_ATTACHMENT.to_owned(),
+            bytes,
+        )]
+    }
 }
 
 /// tcs-loop as `cfg` makes it, and its loop period, ns.
@@ -724,10 +805,13 @@ pub fn replay(
     } else {
         &[]
     };
+    let logged_tx = tx(&log.can);
+    let mut replayed_tx = tx(&outs.can);
+    let tx_bus_0 = tx_as_logged(&logged_tx, &mut replayed_tx);
     let diffs = vec![
         compare::compare(topics::ROAD, &log.roads, &roads),
         compare::compare_except(topics::CYCLE, &log.cycles, &outs.cycles, ignore),
-        compare::compare("grip/can/log (tx)", &tx(&log.can), &tx(&outs.can)),
+        compare::compare("grip/can/log (tx)", &logged_tx, &replayed_tx),
         compare::compare("grip/can/log (rx)", &rx(&log.can), &rx(&outs.can)),
     ];
     let span_s = stamp_span_s(&log.cycles);
@@ -755,6 +839,12 @@ pub fn replay(
         last - first,
         log.audio_blocks.len()
     );
+    if tx_bus_0 {
+        let _ = writeln!(
+            o,
+            "  sent frames compared on bus 0: the log wrote them so (before 2026-12-07 tcs-loop logged its sent frames on bus 0 whatever can.toml's bus_id)"
+        );
+    }
     if cfg.changes.is_empty() {
         let _ = writeln!(o, "  changes: none (the drive's own configuration)");
     } else {
@@ -1045,7 +1135,19 @@ pub fn replay(
             "arte_blocks_not_classified".into(),
             not_classified.clone().unwrap_or_else(|| "none".into()),
         );
-        write_log(out, &log, &truth, &outs.cycles, &outs.can, &roads, &meta)?;
+        // what the replay's tcs-loop ran with, which `grip.run` and the
+        // attachments (the source's, copied) do not say when a `--set`,
+        // `--vehicle` or `--config-dir` changed it: its confidence gate and
+        // its vehicle file (attached when it is not the source's); `grip
+        // inspect` reports these (`summary::gate_of`, `vehicle_for`)
+        let extra = ran_with(&log, what, &cfg, &mut meta);
+        crate::replay::write_log_with(
+            out,
+            &log,
+            (&truth, &outs.cycles, &outs.can, &roads),
+            &meta,
+            &extra,
+        )?;
         let _ = writeln!(o, "wrote {}", out.display());
     }
     Ok(Replayed {
@@ -1060,6 +1162,30 @@ pub fn replay(
 mod tests {
     use super::*;
     use grip_drive::summary::ArteEval;
+
+    /// A log whose sent frames all say bus 0 (before 2026-12-07, whatever
+    /// `bus_id`) is compared with the replayed frames at 0; a log that
+    /// carries the bus, or replayed frames on 0, are compared as they are.
+    #[test]
+    fn sent_frames_of_an_old_log_are_compared_on_bus_0() {
+        let frame = |bus: u8| CanFrame {
+            direction: can_dir::TX,
+            bus,
+            ..CanFrame::default()
+        };
+        let mut replayed = vec![frame(3), frame(3)];
+        assert!(tx_as_logged(&[frame(0), frame(0)], &mut replayed));
+        assert!(replayed.iter().all(|f| f.bus == 0));
+        let mut replayed = vec![frame(3), frame(3)];
+        assert!(!tx_as_logged(&[frame(3), frame(3)], &mut replayed));
+        assert!(
+            replayed.iter().all(|f| f.bus == 3),
+            "a new log: as they are"
+        );
+        let mut replayed = vec![frame(0)];
+        assert!(!tx_as_logged(&[frame(0)], &mut replayed));
+        assert!(!tx_as_logged(&[], &mut [frame(3)]));
+    }
 
     /// Blocks arte did not classify are in the report, not only on
     /// stderr: the text report, `--json` and the written log's

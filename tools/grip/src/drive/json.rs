@@ -159,8 +159,10 @@ fn measured_json(m: &summary::Measured) -> Value {
         .spins
         .iter()
         .map(|e| {
+            // cut: still spinning at the window's end (it lasted at least
+            // length_s)
             json!({"start_s": num(e.start_s), "length_s": num(e.length_s),
-                   "peak": num(e.peak), "peak_s": num(e.peak_s)})
+                   "peak": num(e.peak), "peak_s": num(e.peak_s), "cut": e.cut})
         })
         .collect();
     let per_belief: Vec<Value> = m
@@ -369,6 +371,9 @@ pub fn summary_json(
         "version": get("version"),
         "vehicle": s.vehicle,
         "vehicle_sha256": s.vehicle_sha256,
+        // the microphone's lead ahead of the driven wheel, m, of the vehicle
+        // the summary used (the preview's; `grip inspect DIR`'s `mic_lead_m`)
+        "mic_lead_m": num(s.vehicle_params.mic_lead_m),
         "scenario_sha256": s.scenario_sha256,
         "roads_from": s.roads_from,
         "model": s.model.as_ref().map(|m| m.name.clone()),
@@ -383,6 +388,12 @@ pub fn summary_json(
             "mode": r.mode,
             "configuration": r.configuration,
             "changes": r.changes,
+            // what its tcs-loop ran with (null: a replay log from before
+            // they were recorded)
+            "min_confidence": r.min_confidence.map(num),
+            "vehicle": r.vehicle,
+            "vehicle_set": r.vehicle_set,
+            "vehicle_sha256": r.vehicle_sha256,
         })),
         "cycles": s.timing.cycles,
         "scenario_window": s.window_status.as_str(),
@@ -423,8 +434,14 @@ pub fn summary_json(
         "speed_bands": bands,
         "road_changes": changes,
         "arte_min_confidence": num(a.min_confidence.0),
-        // whether the log's controllers.toml gave it (else the default)
+        // whether the log gave it (its controllers.toml, or a replay's
+        // record; else the default)
         "arte_min_confidence_from_log": a.min_confidence.1,
+        // where from: log (its controllers.toml), replay (the gate the
+        // replay's tcs-loop ran), replay_changed (the source's, which an
+        // older replay log's changes touched), default, unknown (a
+        // controllers.toml whose [arte] does not read)
+        "arte_min_confidence_from": a.gate_from.as_str(),
         "changes_detected": delays.len(),
         "changes_missed": a.changes.len() - delays.len(),
         "mean_delay_s": mean_delay,
@@ -456,4 +473,105 @@ pub fn summary_json(
         "bad_messages": log.report.bad,
         "warnings": warnings,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::drive::export::test_log;
+
+    fn config_dir() -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config")
+    }
+
+    /// The JSON object of `log` as `grip inspect --json` makes it.
+    fn json_of(log: &DriveLog) -> Value {
+        let (vehicle, from, warnings) = grip_drive::vehicle_for(log, &config_dir());
+        let roads = log.road_catalogue(&config_dir());
+        let s = summary::summarize_with_roads(log, &vehicle, &from, &roads);
+        summary_json(&log.path, log, &s, &warnings)
+    }
+
+    /// [`test_log::drive`] as `grip drive --vehicle .../front-mic.toml`
+    /// records it: the file attached as `drive/vehicle.toml`.
+    fn front_mic_drive() -> DriveLog {
+        let mut log = test_log::drive();
+        log.attachments.insert(
+            grip_drive::plan::VEHICLE_ATTACHMENT.into(),
+            std::fs::read(config_dir().join("vehicles/front-mic.toml")).unwrap(),
+        );
+        log
+    }
+
+    /// `mic_lead_m`: the microphone's lead of the vehicle the summary used
+    /// (the log's attached vehicle file), beside `vehicle` and
+    /// `vehicle_sha256`; `grip inspect DIR`'s CSV had it, `--json` not.
+    #[test]
+    fn the_microphones_lead_is_beside_the_vehicle() {
+        let j = json_of(&front_mic_drive());
+        assert_eq!(j["mic_lead_m"], 2.77, "{}", j["vehicle"]);
+        assert!(
+            j["vehicle"]
+                .as_str()
+                .unwrap()
+                .contains("attached to the log as drive/vehicle.toml"),
+            "{}",
+            j["vehicle"]
+        );
+        // a log that carries no vehicle: the configuration directory's
+        // vehicle.toml, the microphone at the driven wheel
+        let mut bare = test_log::drive();
+        bare.run.remove("vehicle");
+        assert_eq!(json_of(&bare)["mic_lead_m"], 0.0);
+    }
+
+    /// Every field of the object (and of `measured`, its spins and
+    /// `replay`) is named in `tools/grip/README.md`'s list of them, "grip
+    /// inspect --json".
+    #[test]
+    fn the_readme_names_every_field() {
+        let readme =
+            std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md"))
+                .unwrap();
+        let start = readme
+            .find("## `grip inspect --json`, `grip replay --json`")
+            .expect("the README's --json section");
+        let end = start
+            + readme[start..]
+                .find("`grip replay --json LOG|DIR")
+                .expect("its replay paragraph");
+        let list = &readme[start..end];
+        let mut log = front_mic_drive();
+        log.metadata.insert(
+            "grip.replay".into(),
+            [("source", "a.mcap"), ("mode", "open loop")]
+                .into_iter()
+                .map(|(k, v)| (k.into(), v.into()))
+                .collect(),
+        );
+        let j = json_of(&log);
+        let keys = |v: &Value| -> Vec<String> {
+            v.as_object()
+                .unwrap_or_else(|| panic!("{v}"))
+                .keys()
+                .cloned()
+                .collect()
+        };
+        let mut all = keys(&j);
+        all.extend(keys(&j["measured"]));
+        all.extend(keys(&j["replay"]));
+        // a spin's fields, of one made up if the drive has none
+        let mut m = summary::Measured::default();
+        m.spins.push(summary::measured::SpinEvent::default());
+        let spin = &measured_json(&m)["spins"][0];
+        all.extend(keys(spin));
+        let missing: Vec<String> = all
+            .into_iter()
+            .filter(|k| !list.contains(&format!("`{k}`")))
+            .collect();
+        assert!(
+            missing.is_empty(),
+            "tools/grip/README.md, \"grip inspect --json\": not in its list of fields: {missing:?}"
+        );
+    }
 }

@@ -330,6 +330,27 @@ fn count(field: &str) -> String {
     }
 }
 
+/// A file name as one cell of the text table: as it is, unless white
+/// space, a quote or a character that does not print would make it
+/// ambiguous (a space read as two cells by the table's readers, a tab or
+/// a newline breaking the row's columns); then quoted (as `--csv` quotes
+/// such a field), what is inside written with Rust's string escapes:
+/// `"my drive.mcap"`, `"a\tb.mcap"`, `"say \"hi\".mcap"`. A name that is
+/// not quoted never holds a quote, so the two cannot be confused.
+pub fn file_cell(name: &str) -> String {
+    let plain = !name.is_empty()
+        && !name.chars().any(|c| {
+            c.is_whitespace()
+                || c == '"'
+                || (c != '\\' && c != '\'' && c.escape_debug().nth(1).is_some())
+        });
+    if plain {
+        name.to_owned()
+    } else {
+        format!("{name:?}")
+    }
+}
+
 /// An inverter count in the text table: the scenario's, else (no scenario
 /// window) the whole log's, else (no `MotorStatus` frames) `-`.
 fn inverter_count(in_scenario: &str, whole_log: &str) -> String {
@@ -365,7 +386,7 @@ type TextColumn = (&'static str, bool, fn(&[String]) -> String);
 /// The printed table's columns: the run (controller, ARTE, vehicle, seed)
 /// beside the file and its status, then the figures.
 const TEXT_COLUMNS: [TextColumn; 23] = [
-    ("file", true, |r| field(r, "file").to_owned()),
+    ("file", true, |r| file_cell(field(r, "file"))),
     ("status", true, |r| count(field(r, "status"))),
     ("ctrl", true, |r| count(field(r, "controller"))),
     ("arte", true, |r| count(field(r, "arte"))),
@@ -522,8 +543,9 @@ pub fn inspect_dir(ctx: &Ctx, dir: &Path, csv: Option<&Path>, strict: bool) -> a
         let (r, good) = row(p, &ctx.config_dir);
         if !good {
             let f = |c: &str| field(&r, c).to_owned();
-            pb.suspend(|| eprintln!("bad log {}: {}: {}", f("file"), f("status"), f("reason")));
-            bad.push(f("file"));
+            let file = file_cell(field(&r, "file"));
+            pb.suspend(|| eprintln!("bad log {file}: {}: {}", f("status"), f("reason")));
+            bad.push(file);
         }
         rows.push(r);
         pb.inc(1);
@@ -660,6 +682,50 @@ mod tests {
         for l in &lines {
             assert_eq!(l.len(), TEXT_COLUMNS.len(), "{text}");
         }
+    }
+
+    /// A file name with white space, a quote or a control character is
+    /// one quoted cell (it was printed as it is: `my drive.mcap` read as
+    /// two cells, a tab or a newline broke the row), and the columns after
+    /// it keep their places; a plain name is as it was.
+    #[test]
+    fn a_file_name_with_white_space_is_one_cell() {
+        let names = [
+            "my drive.mcap",
+            "tab\there.mcap",
+            "new\nline.mcap",
+            "say \"hi\".mcap",
+            "plain\\drive.mcap",
+        ];
+        let rows: Vec<Vec<String>> = names
+            .iter()
+            .map(|n| row_of((*n).into(), &drive_with_vehicle(), &config_dir()).0)
+            .collect();
+        let text = table(&rows);
+        let lines: Vec<&str> = text.lines().collect();
+        let status = lines[0].find("status").unwrap();
+        let want = [
+            r#""my drive.mcap""#,
+            r#""tab\there.mcap""#,
+            r#""new\nline.mcap""#,
+            r#""say \"hi\".mcap""#,
+            r#"plain\drive.mcap"#,
+        ];
+        for (l, w) in lines[1..=names.len()].iter().zip(want) {
+            assert!(l.starts_with(&format!("{w} ")), "{w}:\n{text}");
+            assert!(l[status..].starts_with("ok     mtte on "), "{l}\n{text}");
+            // one word per column but the file's
+            assert_eq!(
+                l[status..].split_whitespace().count(),
+                TEXT_COLUMNS.len() - 1,
+                "{l}"
+            );
+        }
+        assert_eq!(file_cell("on.mcap"), "on.mcap");
+        assert_eq!(file_cell("é-drive.mcap"), "é-drive.mcap");
+        assert_eq!(file_cell("bell\u{7}.mcap"), r#""bell\u{7}.mcap""#);
+        // the CSV quotes it its own way
+        assert_eq!(csv_field("say \"hi\", ok"), r#""say ""hi"", ok""#);
     }
 
     /// The vehicle's name in the table, from each kind of

@@ -29,7 +29,7 @@ use crate::plot::{
     road_colour, runs,
 };
 use grip_drive::DriveLog;
-use grip_drive::summary::Percentiles;
+use grip_drive::summary::{Gate, GateFrom, Percentiles};
 
 const W: u32 = 1600;
 const TITLE_H: u32 = 80;
@@ -75,48 +75,21 @@ fn on_white(c: RGBColor, share: f64) -> RGBColor {
 }
 
 /// The loop's confidence gate (`controllers.toml` `[arte] min_confidence`:
-/// the controller takes no estimate less confident), as the summary reads
-/// it (the log's `controllers.toml`, else the default), and where it came
-/// from.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Gate {
-    min_confidence: f64,
-    from: GateFrom,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum GateFrom {
-    /// The log's `controllers.toml`.
-    Log,
-    /// The default: the log carries no `controllers.toml` giving it.
-    Default,
-    /// The log's `controllers.toml`, a replay's copy of its source's,
-    /// which the replay changed (`--set ...min_confidence`, or another
-    /// configuration directory): perhaps not the gate the replay ran.
-    ReplayChanged,
-}
-
-/// The loop's confidence gate of `log`: the summary's
-/// ([`grip_drive::summary::min_confidence_of`]), and whether a replay
-/// changed it.
+/// the controller takes no estimate less confident) as the summary takes
+/// it, and where it came from ([`grip_drive::summary::gate_of`]: for a
+/// replay's log the gate the replay ran, or that the replay changed it).
 fn gate_of(log: &DriveLog) -> Gate {
-    let (min_confidence, given) = grip_drive::summary::min_confidence_of(log);
-    let changed = grip_drive::summary::replay_of(log).is_some_and(|r| {
-        r.changes.contains("min_confidence") || r.changes.contains("configuration directory")
-    });
-    Gate {
-        min_confidence,
-        from: match (given, changed) {
-            (false, _) => GateFrom::Default,
-            (true, true) => GateFrom::ReplayChanged,
-            (true, false) => GateFrom::Log,
-        },
-    }
+    grip_drive::summary::gate_of(log)
 }
 
-impl Gate {
+/// The gate's lines in the key.
+trait GateKey {
     /// The key's lines beside the hatched swatch (the key column holds
     /// about 25 characters).
+    fn key(&self) -> [String; 3];
+}
+
+impl GateKey for Gate {
     fn key(&self) -> [String; 3] {
         [
             "ARTE, below the gate:".to_owned(),
@@ -125,6 +98,8 @@ impl Gate {
                 GateFrom::Log => "(log's controllers.toml)",
                 GateFrom::Default => "(default: not in the log)",
                 GateFrom::ReplayChanged => "(source's; replay changed)",
+                GateFrom::Replay => "(the replay's, as it ran)",
+                GateFrom::Unknown => "(unknown: its default)",
             }
             .to_owned(),
         ]
@@ -702,12 +677,30 @@ pub fn title_of(log: &DriveLog) -> (String, String) {
         run.push(format!("scenario {s}"));
     }
     // `grip drive --vehicle FILE` records the file; without it the drive ran
-    // with the configuration's vehicle.toml
-    let vehicle = get("vehicle").map_or("vehicle.toml", |p| {
-        p.rsplit(['/', '\\']).next().unwrap_or(p)
-    });
+    // with the configuration's vehicle.toml. A replay that ran another
+    // vehicle than its source's (its record's `vehicle`, the file it
+    // attached as replay/vehicle.toml) is titled with that one.
+    let replayed = replay
+        .and_then(|m| m.get("vehicle"))
+        .filter(|v| {
+            !v.is_empty()
+                && log
+                    .attachments
+                    .contains_key(grip_drive::plan::REPLAY_VEHICLE_ATTACHMENT)
+        })
+        .map(String::as_str);
+    let vehicle = replayed
+        .or_else(|| get("vehicle"))
+        .map_or("vehicle.toml", |p| {
+            p.rsplit(['/', '\\']).next().unwrap_or(p)
+        });
     if !log.run.is_empty() {
-        run.push(format!("vehicle {vehicle}"));
+        let whose = if replayed.is_some() {
+            " (the replay's)"
+        } else {
+            ""
+        };
+        run.push(format!("vehicle {vehicle}{whose}"));
     }
     if let Some(s) = get("seed") {
         run.push(format!("seed {s}"));
@@ -1272,6 +1265,31 @@ mod tests {
             "{}",
             title_of(&log).0
         );
+        // a replay that ran another vehicle: that one, said so; a replay
+        // record without the attachment (the source's vehicle) changes
+        // nothing
+        let mut replay = grip_io::mcaplog::MetadataMap::new();
+        replay.insert("vehicle".to_owned(), "cars/mine.toml".to_owned());
+        log.metadata.insert("grip.replay".into(), replay);
+        assert!(
+            title_of(&log)
+                .0
+                .contains(", vehicle front-mic.toml, seed 7")
+        );
+        log.attachments.insert(
+            grip_drive::plan::REPLAY_VEHICLE_ATTACHMENT.into(),
+            b"[vehicle]\n".to_vec(),
+        );
+        assert!(
+            title_of(&log)
+                .0
+                .contains(", vehicle mine.toml (the replay's), seed 7"),
+            "{}",
+            title_of(&log).0
+        );
+        log.metadata.remove("grip.replay");
+        log.attachments
+            .remove(grip_drive::plan::REPLAY_VEHICLE_ATTACHMENT);
         log.run.insert("source".into(), "generated".into());
         log.run.insert("clock".into(), "scripted".into());
         let (_, b) = title_of(&log);
@@ -1385,6 +1403,47 @@ mod tests {
             .collect(),
         );
         assert_eq!(gate_of(&log).from, GateFrom::ReplayChanged);
+    }
+
+    /// A replay's log that records the gate its tcs-loop ran: the key
+    /// gives that gate, as the summary does (`grip_drive::summary::gate_of`,
+    /// the one rule), not the source's copied into the log with "(source's;
+    /// replay changed)".
+    #[test]
+    fn the_gate_of_a_replay_is_the_one_it_ran() {
+        let mut log = test_log::drive();
+        let text = String::from_utf8(shipped_controllers()).unwrap();
+        log.attachments.insert(
+            "controllers.toml".into(),
+            text.replace("min_confidence = 0.6", "min_confidence = 0.85")
+                .into_bytes(),
+        );
+        log.metadata.insert(
+            "grip.replay".into(),
+            [
+                ("source", "a.mcap"),
+                (
+                    "changes",
+                    "controllers.toml: [arte] min_confidence 0.85 -> 0.5",
+                ),
+                ("min_confidence", "0.5"),
+            ]
+            .into_iter()
+            .map(|(k, v)| (k.into(), v.into()))
+            .collect(),
+        );
+        assert_eq!(
+            gate_of(&log).key(),
+            [
+                "ARTE, below the gate:",
+                "confidence < 0.5",
+                "(the replay's, as it ran)"
+            ]
+        );
+        assert_eq!(
+            gate_of(&log).min_confidence,
+            grip_drive::summary::min_confidence_of(&log).0
+        );
     }
 
     /// Estimates whose confidence is below the loop's gate are drawn pale

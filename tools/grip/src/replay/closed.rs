@@ -548,7 +548,9 @@ pub fn closed_loop(
     let pclock = ScriptClock::default();
     let tclock = ScriptClock::default();
     let mut bus_p = MemBus::new();
-    let mut bus_t = MemBus::new();
+    // received frames numbered as the loop numbers what it sends (the
+    // log's bus_id)
+    let mut bus_t = MemBus::new().with_bus_id(lp.bus_id());
     // commands sent, with when (the end of the sending cycle's compute)
     let mut commands: VecDeque<(u64, CanFrame)> = VecDeque::new();
     // the plant's frames not yet received, with the cycle that sent them

@@ -624,11 +624,8 @@ pub fn taken_per_cycle(log: &DriveLog) -> Taken {
     out
 }
 
-/// Writes a log with the same topics: the replayed cycles, CAN log and
-/// road estimates, `truth` (the logged or the re-simulated) and the logged
-/// audio; `grip.run` and the
-/// attachments copied, `replay` as the `grip.replay` metadata record (none
-/// when it is empty).
+/// [`write_log_with`] without extra attachments (the tests' writer).
+#[cfg(test)]
 pub fn write_log(
     path: &Path,
     log: &DriveLog,
@@ -637,6 +634,23 @@ pub fn write_log(
     can: &[CanFrame],
     roads: &[RoadEstimate],
     replay: &std::collections::BTreeMap<String, String>,
+) -> anyhow::Result<()> {
+    write_log_with(path, log, (truth, cycles, can, roads), replay, &[])
+}
+
+/// Writes a log with the same topics: the replayed cycles, CAN log and
+/// road estimates, `truth` (the logged or the re-simulated) and the logged
+/// audio; `grip.run` and the
+/// attachments copied, `replay` as the `grip.replay` metadata record (none
+/// when it is empty), and `extra` attached after the log's own
+/// attachments (`grip replay --out`: its vehicle file when it is not the
+/// source's, [`grip_drive::plan::REPLAY_VEHICLE_ATTACHMENT`]).
+pub fn write_log_with(
+    path: &Path,
+    log: &DriveLog,
+    (truth, cycles, can, roads): (&[GroundTruth], &[CycleRecord], &[CanFrame], &[RoadEstimate]),
+    replay: &std::collections::BTreeMap<String, String>,
+    extra: &[(String, Vec<u8>)],
 ) -> anyhow::Result<()> {
     let mut w = McapWriter::create(path, McapWriterOptions::default())
         .with_context(|| format!("creating {}", path.display()))?;
@@ -653,6 +667,11 @@ pub fn write_log(
     }
     for (name, data) in &log.attachments {
         w.attach_bytes(name, "application/octet-stream", data)?;
+    }
+    for (name, data) in extra {
+        if !log.attachments.contains_key(name) {
+            w.attach_bytes(name, "application/octet-stream", data)?;
+        }
     }
     // merge by stamp, keeping each topic's own order
     let mut heads = [0usize; 5];
