@@ -24,7 +24,11 @@
 //!
 //! Also here: what the commands that read recordings share: `--channel`
 //! ([`ChannelArg`]) and the arte service's audio-quality rule applied to
-//! recordings ([`FileJudge`], [`Excluded`]).
+//! recordings ([`FileJudge`], [`Excluded`]); the WAV files at a path
+//! ([`wavs_at`]), a file's rate and length from its header
+//! ([`wav_rate_len`]), and how a model names a training file by content
+//! ([`file_id`], [`first_known_file`]: held-out folders checked against
+//! the training files).
 //!
 //! Errors name the path and the reason: a class folder without WAV files, a
 //! dataset with fewer than two classes, no WAV files at all, an unreadable
@@ -316,6 +320,64 @@ fn wavs_under(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Every `.wav` at `p` (itself, when it is one) or under it, hidden
+/// entries skipped; an error names the folder that cannot be listed.
+pub fn wavs_at(p: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
+    if p.is_file() {
+        if is_wav(p) {
+            out.push(p.to_path_buf());
+        }
+        return Ok(());
+    }
+    wavs_under(p, out)
+}
+
+/// How a model names a training file by content: the first 16 hex digits
+/// (64 bits) of its SHA-256 (`sha256`: the full hex digest).
+pub fn file_id(sha256: &str) -> String {
+    sha256.chars().take(16).collect()
+}
+
+/// The first `.wav` under one of `dirs` (its folder and the file; files
+/// in name order, hidden ones skipped) whose content is one of `known`
+/// (sorted [`file_id`]s of training files); `None` when there is none or
+/// `known` is empty. A folder that cannot be listed or a file that cannot
+/// be read is left to the reader of the recordings. `grip calibrate`'s
+/// `--data` and `grip train`'s `--test` are checked so against the
+/// training files.
+pub fn first_known_file(dirs: &[PathBuf], known: &[String]) -> Option<(PathBuf, PathBuf)> {
+    if known.is_empty() {
+        return None;
+    }
+    for dir in dirs {
+        let mut files = Vec::new();
+        if wavs_at(dir, &mut files).is_err() {
+            continue;
+        }
+        files.sort();
+        for f in files {
+            let Ok(bytes) = std::fs::read(&f) else {
+                continue;
+            };
+            if known.binary_search(&file_id(&sha256_hex(&bytes))).is_ok() {
+                return Some((dir.clone(), f));
+            }
+        }
+    }
+    None
+}
+
+/// Sample rate (Hz) and length (frames) of the WAV file `path`: from its
+/// header (RIFF chunks `fmt ` and `data`) without decoding it, else by
+/// decoding it (whose error names the file).
+pub fn wav_rate_len(path: &Path) -> Result<(u32, u64)> {
+    if let Ok(h) = grip_io::wav::header(path) {
+        return Ok((h.sample_rate, h.frames));
+    }
+    let a = grip_io::wav::read_mono(path)?;
+    Ok((a.sample_rate, a.samples.len() as u64))
 }
 
 impl Dataset {

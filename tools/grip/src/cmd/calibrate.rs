@@ -259,63 +259,12 @@ pub fn require_held_out(flag: &str, calib: &[PathBuf], used: &[(&str, PathBuf)])
 /// before it existed) passes; a folder that cannot be listed is left to
 /// the reader of the recordings.
 pub fn require_not_training_files(flag: &str, calib: &[PathBuf], model: &Model) -> Result<()> {
-    if let Some((dir, f)) = first_known_file(calib, &model.meta.training_files) {
+    if let Some((dir, f)) = crate::dataset::first_known_file(calib, &model.meta.training_files) {
         bail!(
             "{flag} {}: {} is one of the model's training recordings (same content; the model stores its training files' SHA-256); the calibration must be fitted on held-out road-change recordings (other seeds: `grip dataset synth --changes N --seed S`), or the confidence it gives is optimistic",
             dir.display(),
             f.display()
         );
-    }
-    Ok(())
-}
-
-/// The first `.wav` under one of `dirs` (its folder and the file; files
-/// in name order, hidden ones skipped) whose content is one of `known`
-/// (sorted [`file_id`](super::train::file_id)s of training files); `None`
-/// when there is none or `known` is empty. A folder that cannot be listed
-/// or a file that cannot be read is left to the reader of the recordings.
-pub fn first_known_file(dirs: &[PathBuf], known: &[String]) -> Option<(PathBuf, PathBuf)> {
-    if known.is_empty() {
-        return None;
-    }
-    for dir in dirs {
-        let mut files = Vec::new();
-        if wavs_in(dir, &mut files).is_err() {
-            continue;
-        }
-        files.sort();
-        for f in files {
-            let Ok(bytes) = std::fs::read(&f) else {
-                continue;
-            };
-            let id = super::train::file_id(&sha256_hex(&bytes));
-            if known.binary_search(&id).is_ok() {
-                return Some((dir.clone(), f));
-            }
-        }
-    }
-    None
-}
-
-/// Every `.wav` under `p` (itself, when it is one), hidden entries skipped.
-fn wavs_in(p: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
-    if p.is_file() {
-        if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("wav")) {
-            out.push(p.to_path_buf());
-        }
-        return Ok(());
-    }
-    for e in std::fs::read_dir(p)? {
-        let e = e?.path();
-        if e.file_name()
-            .and_then(|n| n.to_str())
-            .is_some_and(|n| n.starts_with('.'))
-        {
-            continue;
-        }
-        if e.is_dir() || e.is_file() {
-            wavs_in(&e, out)?;
-        }
     }
     Ok(())
 }
@@ -688,7 +637,7 @@ mod tests {
         let data = vec![dir.path().join("calib")];
         assert!(require_not_training_files("--data", &data, &m).is_ok());
         let sha = sha256_hex(&std::fs::read(calib.join("x.wav")).unwrap());
-        m.meta.training_files = vec![super::super::train::file_id(&sha)];
+        m.meta.training_files = vec![crate::dataset::file_id(&sha)];
         let e = format!(
             "{:#}",
             require_not_training_files("--data", &data, &m).unwrap_err()

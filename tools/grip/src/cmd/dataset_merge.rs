@@ -23,8 +23,18 @@
 //! same file as `asphalt/a1.wav` ([`manifest_file`]), and a file listed
 //! twice is an error naming it and both lines ([`FirstRows`]): the merged
 //! manifest has one row per file.
+//!
+//! Before anything is written, every file of every source is read once
+//! ([`check_sources`]): all at one sample rate (a model's features are
+//! computed at one rate; `grip train` would refuse the mix only after the
+//! merge), and no audio in two sources (byte-equal files: one source
+//! merged twice under another folder name, or sources sharing files),
+//! which the merged set would hold twice, as two recordings `grip train`
+//! refuses. Each error names both files.
 
-use crate::dataset::{Dataset, FirstRows, column_key, column_keys, manifest_file, record_line};
+use crate::dataset::{
+    Dataset, FirstRows, column_key, column_keys, manifest_file, record_line, wav_rate_len,
+};
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
 
@@ -104,6 +114,51 @@ fn link_or_copy(from: &Path, to: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Reads every file of `sets` (one progress bar): refuses a file whose
+/// sample rate is not the first file's, and a file whose content (SHA-256)
+/// is that of a file of another source, naming both files. Copies within
+/// one source are left to `grip train`, which tells a copy under two roads
+/// (refused), as two recordings (refused) and within one recording (a
+/// warning).
+fn check_sources(sets: &[(Dataset, Option<Manifest>)]) -> Result<()> {
+    let n: usize = sets.iter().map(|(ds, _)| ds.entries.len()).sum();
+    let bar = crate::drive::many::bar(n, "files read");
+    let mut first: Option<(u32, &Path)> = None;
+    let mut seen: std::collections::HashMap<String, (usize, &Path)> =
+        std::collections::HashMap::new();
+    for (k, (ds, _)) in sets.iter().enumerate() {
+        for e in &ds.entries {
+            let (rate, _) = wav_rate_len(&e.path)?;
+            match first {
+                None => first = Some((rate, &e.path)),
+                Some((r0, f0)) if r0 != rate => bail!(
+                    "{}: {rate} Hz, but {} is at {r0} Hz: a merged dataset must have one sample rate (a model's features are computed at one; `grip train` refuses a mix); resample one source first (nothing written)",
+                    e.path.display(),
+                    f0.display()
+                ),
+                Some(_) => {}
+            }
+            let bytes = std::fs::read(&e.path)
+                .with_context(|| format!("cannot read {}", e.path.display()))?;
+            let sha = grip_digest::sha256_hex(&bytes);
+            match seen.get(&sha) {
+                Some(&(j, f)) if j != k => bail!(
+                    "{}: the same audio (equal byte for byte) as {} of another source: the merged set would hold it twice, as two recordings, and cross-validation would test on what it trained on; merge each source once, or remove the copy (nothing written)",
+                    e.path.display(),
+                    f.display()
+                ),
+                Some(_) => {}
+                None => {
+                    seen.insert(sha, (k, &e.path));
+                }
+            }
+            bar.inc(1);
+        }
+    }
+    bar.finish_and_clear();
+    Ok(())
+}
+
 /// Merges `a.src` into `a.out`; returns the number of files.
 pub fn merge(a: &MergeArgs) -> Result<usize> {
     if a.out.exists() {
@@ -138,6 +193,7 @@ pub fn merge(a: &MergeArgs) -> Result<usize> {
         }
         sets.push((ds, man));
     }
+    check_sources(&sets)?;
     // the union of the columns, one per name in any case, as first written
     let mut header: Vec<String> = vec!["file".into()];
     if a.recording_by.is_some() {
@@ -206,13 +262,24 @@ mod tests {
     use super::*;
     use grip_io::wav;
 
+    /// Two WAVs per class under `root`, at 44.1 kHz, every file's audio
+    /// its own (by the root's path, the class and the index).
     fn tiny(root: &Path, classes: &[&str], manifest: Option<&str>) {
-        for c in classes {
+        tiny_at(root, classes, manifest, 44_100);
+    }
+
+    fn tiny_at(root: &Path, classes: &[&str], manifest: Option<&str>, rate: u32) {
+        let salt = root
+            .to_string_lossy()
+            .bytes()
+            .fold(7u32, |h, b| h.wrapping_mul(31).wrapping_add(u32::from(b)));
+        for (ci, c) in classes.iter().enumerate() {
             std::fs::create_dir_all(root.join(c)).unwrap();
             for i in 0..2 {
-                let x = vec![0.01f32 * (i + 1) as f32; 441];
-                wav::write_mono_i16(&root.join(c).join(format!("{c}_{i}.wav")), 44_100, &x)
-                    .unwrap();
+                let mut x = vec![0.01f32 * (i + 1) as f32; 441];
+                x[0] = (salt % 1000) as f32 / 2000.0;
+                x[1] = ci as f32 / 20.0;
+                wav::write_mono_i16(&root.join(c).join(format!("{c}_{i}.wav")), rate, &x).unwrap();
             }
         }
         if let Some(m) = manifest {
@@ -430,5 +497,70 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("no .wav"), "{e}");
+    }
+
+    /// Sources at two sample rates, and one source's audio again under
+    /// another folder name, are refused before anything is written, each
+    /// error naming both files: the mix used to be merged and refused only
+    /// by `grip train`, and the copy trained on as two recordings.
+    #[test]
+    fn mixed_rates_and_audio_in_two_sources_are_refused_before_writing() {
+        let d = tempfile::tempdir().unwrap();
+        let (a, b) = (d.path().join("a44"), d.path().join("b48"));
+        tiny(&a, &["asphalt", "snow"], None);
+        tiny_at(&b, &["asphalt", "snow"], None, 48_000);
+        let out = d.path().join("mix");
+        let refused = |src: Vec<PathBuf>| {
+            merge(&MergeArgs {
+                out: out.clone(),
+                src,
+                recording_by: None,
+            })
+            .unwrap_err()
+            .to_string()
+        };
+        let e = refused(vec![a.clone(), b]);
+        assert!(e.contains("48000 Hz") && e.contains("44100 Hz"), "{e}");
+        assert!(
+            e.contains(&b48_file(d.path())) && e.contains("a44"),
+            "both files named: {e}"
+        );
+        assert!(!out.exists(), "nothing written");
+        // a44 again, copied under another name
+        let copy = d.path().join("again");
+        for c in ["asphalt", "snow"] {
+            std::fs::create_dir_all(copy.join(c)).unwrap();
+            for i in 0..2 {
+                let f = format!("{c}/{c}_{i}.wav");
+                std::fs::copy(a.join(&f), copy.join(&f)).unwrap();
+            }
+        }
+        let e = refused(vec![a.clone(), copy]);
+        assert!(e.contains("the same audio (equal byte for byte) as"), "{e}");
+        assert!(
+            e.contains("again") && e.contains("a44") && e.contains("asphalt_0.wav"),
+            "both files named: {e}"
+        );
+        assert!(!out.exists(), "nothing written");
+        // a source of its own audio merges (the check is not a false alarm)
+        let c = d.path().join("c44");
+        tiny(&c, &["asphalt", "snow"], None);
+        assert_eq!(
+            merge(&MergeArgs {
+                out: out.clone(),
+                src: vec![a, c],
+                recording_by: None,
+            })
+            .unwrap(),
+            8
+        );
+    }
+
+    fn b48_file(root: &Path) -> String {
+        root.join("b48")
+            .join("asphalt")
+            .join("asphalt_0.wav")
+            .display()
+            .to_string()
     }
 }

@@ -286,7 +286,7 @@ pub fn extract_dataset(
             );
         }
         let _ = writeln!(hash_input, "{}\0{}\0{}", ds.classes[e.class], e.rel, sha256);
-        files.push(file_id(&sha256));
+        files.push(dataset::file_id(&sha256));
         if audio.samples.len() < frame_len {
             bail!(
                 "{}: {} samples, shorter than one {:.3} s frame ({} samples)",
@@ -408,19 +408,13 @@ fn training_speed_range(ds: &Dataset, data: &Samples) -> std::result::Result<Spe
 
 /// What identifies a training set in the model: the dataset hash
 /// (`meta.dataset_hash`) and its files by content
-/// (`meta.training_files`, see [`file_id`]).
+/// (`meta.training_files`, see [`dataset::file_id`]).
 #[derive(Clone, Debug)]
 pub struct DatasetIdentity {
     /// SHA-256 over every file's class, path and SHA-256.
     pub hash: String,
-    /// [`file_id`] of every file, sorted, without repeats.
+    /// [`dataset::file_id`] of every file, sorted, without repeats.
     pub files: Vec<String>,
-}
-
-/// How a model names a training file by content: the first 16 hex digits
-/// (64 bits) of its SHA-256 (`sha256`: the full hex digest).
-pub fn file_id(sha256: &str) -> String {
-    sha256.chars().take(16).collect()
 }
 
 /// The frames of `x` (`frame_len` samples every `hop`) that `judge`
@@ -584,25 +578,6 @@ fn held_out_calibration(args: &Args) -> Result<()> {
     super::calibrate::require_held_out("--calib-data", &args.calib_data, &used)
 }
 
-/// Sample rate (Hz) and length (frames) of a WAV file from its header
-/// (RIFF chunks `fmt ` and `data`), without decoding it; `None` when the
-/// header is not one this reads (the full decoder then says why).
-fn wav_header(path: &Path) -> Option<(u32, u64)> {
-    grip_io::wav::header(path)
-        .ok()
-        .map(|h| (h.sample_rate, h.frames))
-}
-
-/// Sample rate and length (frames) of `path`: from the header, else by
-/// decoding it (whose error names the file).
-fn wav_rate_len(path: &Path) -> Result<(u32, u64)> {
-    if let Some(h) = wav_header(path) {
-        return Ok(h);
-    }
-    let a = grip_io::wav::read_mono(path)?;
-    Ok((a.sample_rate, a.samples.len() as u64))
-}
-
 /// Checks the `--test` and `--calib-data` folders against what their
 /// evaluation after the fit will need, BEFORE anything is trained (a bad
 /// held-out folder used to throw away the training): each `--test` folder
@@ -634,7 +609,7 @@ fn check_held_out(
             }
         }
         for e in &ds.entries {
-            let (fs, n) = wav_rate_len(&e.path)
+            let (fs, n) = dataset::wav_rate_len(&e.path)
                 .with_context(|| format!("--test {}: held-out dataset", dir.display()))?;
             args.channel
                 .check(&e.path)
@@ -698,7 +673,7 @@ fn check_held_out(
                     super::dataset::truth_file(dir).display()
                 );
             }
-            let (fs, _) = wav_rate_len(&r.path).with_context(at)?;
+            let (fs, _) = dataset::wav_rate_len(&r.path).with_context(at)?;
             args.channel.check(&r.path).with_context(at)?;
             if fs == 0 || u64::from(rate) > grip_io::wav::MAX_UPSAMPLE * u64::from(fs) {
                 bail!(
@@ -837,7 +812,7 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     )?;
     // a held-out folder holding a training file (the training folder
     // itself, a copy of one of its files) is no held-out set
-    if let Some((dir, f)) = super::calibrate::first_known_file(&args.test, &dataset_id.files) {
+    if let Some((dir, f)) = dataset::first_known_file(&args.test, &dataset_id.files) {
         bail!(
             "--test {}: {} is also in the training set {} (same content): the held-out accuracy would count audio the model was trained on; hold out other recordings",
             dir.display(),
@@ -1533,7 +1508,7 @@ mod tests {
         assert!(
             a.meta
                 .training_files
-                .binary_search(&file_id(&sha256_hex(&r0)))
+                .binary_search(&dataset::file_id(&sha256_hex(&r0)))
                 .is_ok()
         );
         assert!(report.contains("| confidence | decisions |"), "{report}");
