@@ -94,7 +94,7 @@ pub const INSTANCE_ENV: &str = "GRIP_INSTANCE";
 pub fn iox_config() -> Result<&'static Config, IpcError> {
     static CONFIG: std::sync::OnceLock<Result<Config, String>> = std::sync::OnceLock::new();
     let cfg = CONFIG.get_or_init(|| {
-        let mut cfg = Config::global_config().clone();
+        let mut cfg = global_config_quietly();
         match std::env::var(INSTANCE_ENV) {
             Ok(inst) if !inst.is_empty() => {
                 let valid = inst.len() <= 64
@@ -118,6 +118,68 @@ pub fn iox_config() -> Result<&'static Config, IpcError> {
         name: INSTANCE_ENV.into(),
         reason: reason.clone(),
     })
+}
+
+/// Where iceoryx2 looks for its configuration file, in its order: the
+/// working directory's `config/`, the user's `~/.config/iceoryx2/` (home
+/// from the password database, as iceoryx2 reads it, not `HOME`), `/etc`.
+fn iox_config_files() -> Vec<std::path::PathBuf> {
+    let mut v = vec![std::path::PathBuf::from("config/iceoryx2.toml")];
+    if let Some(home) = passwd_home() {
+        v.push(home.join(".config/iceoryx2/iceoryx2.toml"));
+    }
+    v.push("/etc/iceoryx2/iceoryx2.toml".into());
+    v
+}
+
+/// The calling user's home directory from the password database.
+fn passwd_home() -> Option<std::path::PathBuf> {
+    use std::os::unix::ffi::OsStrExt;
+    let mut buf = vec![0 as libc::c_char; 4096];
+    // SAFETY: an all-zero passwd is a valid value to be filled in.
+    let mut pw: libc::passwd = unsafe { core::mem::zeroed() };
+    let mut out: *mut libc::passwd = core::ptr::null_mut();
+    // SAFETY: getpwuid_r writes into `pw` and `buf` (whose length it is
+    // given) and sets `out` to `&pw` or null; nothing is kept past the call
+    // but the copied bytes below.
+    let rc = unsafe {
+        libc::getpwuid_r(
+            libc::getuid(),
+            &mut pw,
+            buf.as_mut_ptr(),
+            buf.len(),
+            &mut out,
+        )
+    };
+    if rc != 0 || out.is_null() || pw.pw_dir.is_null() {
+        return None;
+    }
+    // SAFETY: pw_dir points at a NUL-terminated string inside `buf`.
+    let dir = unsafe { core::ffi::CStr::from_ptr(pw.pw_dir) };
+    Some(std::ffi::OsStr::from_bytes(dir.to_bytes()).into())
+}
+
+/// iceoryx2's global configuration, looked up without its warning "No
+/// config file was loaded, a config with default values will be used":
+/// grip's normal case (it ships no iceoryx2.toml), which printed a
+/// two-line warning into every service's journal at every start. The
+/// lookup runs under iceoryx2's Error level (`IOX2_LOG_LEVEL` still wins),
+/// then the level is Warn again. What the warning would have said is said
+/// only where it matters: a configuration file that exists while the
+/// defaults are in use (it could not be read) is a warning naming it.
+fn global_config_quietly() -> Config {
+    set_log_level_from_env_or(LogLevel::Error);
+    let cfg = Config::global_config().clone();
+    set_log_level_from_env_or(LogLevel::Warn);
+    if cfg == Config::default()
+        && let Some(f) = iox_config_files().into_iter().find(|f| f.is_file())
+    {
+        tracing::warn!(
+            file = %f.display(),
+            "an iceoryx2 configuration file exists, but iceoryx2's defaults are in use: it could not be read (IOX2_LOG_LEVEL=Warn shows iceoryx2's reason)"
+        );
+    }
+    cfg
 }
 
 /// Errors of the iceoryx2 adapters.
