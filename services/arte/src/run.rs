@@ -220,14 +220,12 @@ fn calibration_mismatch(
 
 /// [`prepare`] with the loop on `clock`, for what replays the service's
 /// work offline (`grip replay`, `grip generate`): a calibration fitted for
-/// other `[stream]` settings is a warning here (a what-if may change them),
-/// kept in [`Prepared::calibration_mismatch`].
+/// other `[stream]` settings is not refused here (a what-if may change
+/// them) but kept in [`Prepared::calibration_mismatch`] for the caller to
+/// refuse or say, in the words of its own files (a replay's configuration
+/// is a temporary copy of the log's).
 pub fn prepare_with_clock<K: Clock>(opts: &Options, clock: K) -> Result<Prepared<K>, ArteError> {
-    let p = load(opts, clock)?;
-    if let Some(e) = &p.calibration_mismatch {
-        tracing::warn!("{e} (running anyway; the arte service refuses this)");
-    }
-    Ok(p)
+    load(opts, clock)
 }
 
 /// Config, model, road table and loop, with any calibration mismatch.

@@ -658,6 +658,9 @@ pub fn replay(
     )
     .context("arte's start-up on the replay configuration")
     .map_err(|e| cfg.explain(e))?;
+    if let Some(e) = prepared.calibration_mismatch.take() {
+        eprintln!("{}", cfg.calibration_warning(&e));
+    }
     let mut setup_s = t_setup.elapsed().as_secs_f64();
     let t1 = Instant::now();
     let roads = replay_arte(&mut prepared.lp, &clock, &log, &mut speed);

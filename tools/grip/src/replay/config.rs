@@ -1275,10 +1275,28 @@ impl ReplayConfig {
         )
     }
 
+    /// arte's refusal of a confidence calibration fitted for other
+    /// `[stream]` settings (`--set arte-svc.toml:stream...`), which a
+    /// replay's what-if runs anyway, as a warning in the log's words: the
+    /// replay's temporary copy of the configuration is not named (it was,
+    /// in the file, the model and `grip calibrate --model` hint), and the
+    /// model is said to be the log's or `--model`'s.
+    pub fn calibration_warning(&self, e: &grip_arte_svc::ArteError) -> String {
+        format!(
+            "warning: {} (the replay runs anyway, the arte service refuses this; the model is {})",
+            self.user_paths(&e.to_string()),
+            if self.model.is_some() {
+                "--model's"
+            } else {
+                "the log's, as attached: the file of that name in the drive's configuration directory"
+            }
+        )
+    }
+
     /// `text` with the replay's temporary configuration directory taken
     /// out: its files as named in the log's configuration, a copied
     /// `--vehicle` as given.
-    fn user_paths(&self, text: &str) -> String {
+    pub fn user_paths(&self, text: &str) -> String {
         let mut t = text.to_owned();
         for (p, shown) in &self.shown_paths {
             t = t.replace(&p.display().to_string(), shown);
@@ -1486,6 +1504,27 @@ mod tests {
                 "--set arte-svc.toml:stream.hop_s=-1: arte-svc.toml: field `stream.hop_s`: "
             ),
             "{e}"
+        );
+        // a calibration fitted for other stream settings: a warning in the
+        // log's words (it named the temporary copy's files and model)
+        let cfg = with_sets(&["arte-svc.toml:stream.hop_s=0.05"], false).unwrap();
+        let clock = crate::replay::ScriptClock::default();
+        let mut p = grip_arte_svc::prepare_with_clock(
+            &grip_arte_svc::Options {
+                config: grip_io::service::ConfigArgs::in_dir(&cfg.dir),
+                model: None,
+                run_for: None,
+            },
+            &clock,
+        )
+        .unwrap();
+        let w = cfg.calibration_warning(&p.calibration_mismatch.take().unwrap());
+        assert!(!w.contains(&cfg.dir.display().to_string()), "{w}");
+        assert!(
+            w.starts_with("warning: arte-svc.toml: field `stream.hop_s` = 0.05: ")
+                && w.contains("`grip calibrate --model models/default.model ")
+                && w.ends_with("the model is the log's, as attached: the file of that name in the drive's configuration directory)"),
+            "{w}"
         );
         let cfg = with_sets(&["loop.rate_hz=500"], false).unwrap();
         let e = anyhow::anyhow!(
