@@ -198,15 +198,17 @@ pub struct RunsOn<'a> {
 }
 
 /// Check `scenario` (read from `file`) against where it is to run
-/// ([`Scenario::check_for`]: every demand within the vehicle's
-/// `torque_max`, 1 ..= 1e9 loop cycles, torque asked for before the last
-/// cycle); gives the cycle count, and warns (once per process) of what
-/// lies at or after the scenario's end ([`scenario_warnings`]). The error
-/// names `file`, the field as written there (`demand.torque`, `duration`)
-/// and, for a demand above the motor limit, the vehicle file.
+/// ([`Scenario::check_for`]: no time segments under a microphone ahead of
+/// the driven wheel, every demand within the vehicle's `torque_max`,
+/// 1 ..= 1e9 loop cycles, torque asked for before the last cycle); gives
+/// the cycle count, and warns (once per process) of what lies at or after
+/// the scenario's end ([`scenario_warnings`]). The error names `file`, the
+/// field as written there (`segments_by`, `demand.torque`, `duration`)
+/// and, for a microphone lead or a demand above the motor limit, the
+/// vehicle file ([`Scenario::involves_vehicle`]).
 pub fn check_scenario(file: &Path, scenario: &Scenario, on: RunsOn) -> Result<usize, ConfigError> {
     let cycles = scenario.check_for(on.vehicle, on.dt).map_err(|e| {
-        let limit = e.reason.contains(grip_physics::Demand::ABOVE_MOTOR_LIMIT);
+        let limit = Scenario::involves_vehicle(&e);
         let mut e = ConfigError::invalid(file, "", e);
         if limit {
             e.reason

@@ -3,7 +3,8 @@
 //! the vehicle's `torque_max`, 1 ..= 1e9 cycles) passes at the controller
 //! loop's period (`controllers.toml [loop] rate_hz`, `grip sim`) and at
 //! plant-sim's (`plant-sim.toml` `rate_hz`, `grip drive` and `grip
-//! generate`).
+//! generate`), but for a scenario in time segments on a vehicle whose
+//! microphone is ahead of the driven wheel, which is refused.
 
 use std::path::{Path, PathBuf};
 
@@ -40,6 +41,7 @@ fn every_shipped_scenario_runs_on_every_shipped_vehicle() {
     let dts = [controllers.loop_.dt(), 1.0 / plant_sim_rate(d.path())];
     let names = d.scenario_names();
     assert!(names.len() >= 3, "{names:?}");
+    let mut refused = 0;
     for v in vehicle_files() {
         let (vehicle, _) = grip_config::load_vehicle(&v).unwrap();
         for &dt in &dts {
@@ -49,6 +51,21 @@ fn every_shipped_scenario_runs_on_every_shipped_vehicle() {
                     vehicle_file: &v,
                     dt,
                 };
+                let time = d.scenario_with(n, &roads).unwrap().segments_by
+                    == grip_physics::SegmentMode::Time;
+                if time && vehicle.mic_lead_m > 0.0 {
+                    // a microphone ahead of the wheel needs distance
+                    // segments: refused, naming both files and the field
+                    let e = d.scenario_for(n, &roads, on).unwrap_err().to_string();
+                    assert!(
+                        e.contains(&*d.scenario_path(n).display().to_string())
+                            && e.contains("field `segments_by`")
+                            && e.contains(&*v.display().to_string()),
+                        "{e}"
+                    );
+                    refused += 1;
+                    continue;
+                }
                 let s = d
                     .scenario_for(n, &roads, on)
                     .unwrap_or_else(|e| panic!("{n} on {}: {e}", v.display()));
@@ -59,6 +76,9 @@ fn every_shipped_scenario_runs_on_every_shipped_vehicle() {
             }
         }
     }
+    // the shipped time-segment scenarios (e2e, incline) on the front-mic
+    // car, at both periods
+    assert!(refused >= 2, "{refused}");
 }
 
 /// No shipped scenario has anything at or after its end (a time segment

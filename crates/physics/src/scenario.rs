@@ -455,8 +455,37 @@ impl Scenario {
         })
     }
 
+    /// The scenario for a microphone `mic_lead_m` (m) ahead of the driven
+    /// wheel: with a lead, a scenario in time segments is refused (field
+    /// `segments_by`): it cannot say where a road begins before the wheel
+    /// gets there, which is what the microphone hears. The one home of the
+    /// rule: [`Self::check_for`] (every reader that runs a scenario) and
+    /// plant-sim's plant, which can be built from an unchecked scenario.
+    pub fn check_mic_lead(&self, mic_lead_m: f64) -> Result<(), InvalidField> {
+        if mic_lead_m > 0.0 && self.segments_by == SegmentMode::Time {
+            return Err(InvalidField::new(
+                "segments_by",
+                format!(
+                    "scenario `{}` is in time segments, which cannot say where a road begins before the wheel gets there; the microphone is {} m ahead of the driven wheel (vehicle.mic_lead_m): use a scenario in distance segments (segments_by = \"distance\"), or a vehicle with mic_lead_m = 0",
+                    self.name,
+                    shown(mic_lead_m)
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Whether `e`, an error of [`Self::check_for`], is about the vehicle
+    /// as much as the scenario (a demand above its motor's limit, a
+    /// microphone lead with time segments): its reader names the vehicle
+    /// file too.
+    pub fn involves_vehicle(e: &InvalidField) -> bool {
+        e.reason.contains(Demand::ABOVE_MOTOR_LIMIT) || e.field == "segments_by"
+    }
+
     /// The scenario against the vehicle that drives it and the loop that
-    /// runs it at period `dt` (s): every demand within the vehicle's
+    /// runs it at period `dt` (s): the microphone's lead against the
+    /// segments ([`Self::check_mic_lead`], field `segments_by`), every demand within the vehicle's
     /// `torque_max` ([`Demand::check_limit`], fields `demand.*`), and a run
     /// of `round(duration / dt)` cycles within 1 ..= [`MAX_CYCLES`] (field
     /// `duration`), and torque asked for before the run's last cycle (a
@@ -468,6 +497,7 @@ impl Scenario {
     /// `grip drive` and `grip generate`), through `grip_config`'s
     /// `ConfigDir::scenario_for`.
     pub fn check_for(&self, vehicle: &VehicleParams, dt: f64) -> Result<usize, InvalidField> {
+        self.check_mic_lead(vehicle.mic_lead_m)?;
         self.demand
             .check_limit(vehicle.torque_max)
             .map_err(|e| e.prefixed("demand"))?;
@@ -743,6 +773,33 @@ mod tests {
             grade_pct: 10.0,
         };
         assert!((s.grade_rad() - 0.0996687).abs() < 1e-6);
+    }
+
+    /// A microphone ahead of the driven wheel needs distance segments:
+    /// time segments are refused by `check_mic_lead` and so by `check_for`
+    /// (field `segments_by`, the remedy named, the vehicle involved); at
+    /// lead 0, or in distance segments, both pass.
+    #[test]
+    fn a_microphone_lead_needs_distance_segments() {
+        let ahead = VehicleParams {
+            mic_lead_m: 2.77,
+            ..VehicleParams::default()
+        };
+        let time = scenario(SegmentMode::Time);
+        let e = time.check_mic_lead(ahead.mic_lead_m).unwrap_err();
+        assert_eq!(e.field, "segments_by");
+        assert!(
+            e.reason.contains("scenario `t` is in time segments")
+                && e.reason.contains("2.77 m ahead")
+                && e.reason.contains("segments_by = \"distance\""),
+            "{e}"
+        );
+        assert!(Scenario::involves_vehicle(&e));
+        assert_eq!(time.check_for(&ahead, 1e-3), Err(e));
+        assert_eq!(time.check_mic_lead(0.0), Ok(()));
+        let dist = scenario(SegmentMode::Distance);
+        assert_eq!(dist.check_mic_lead(ahead.mic_lead_m), Ok(()));
+        assert_eq!(dist.check_for(&ahead, 1e-3), Ok(3000));
     }
 
     #[test]

@@ -261,17 +261,9 @@ fn check_scenario(
             ));
         }
     }
-    if vehicle.mic_lead_m > 0.0 && scenario.segments_by == grip_physics::SegmentMode::Time {
-        return Err(SimError::invalid(
-            "scenario.segments_by",
-            format!(
-                "scenario `{}` is in time segments, which cannot say where a road begins before the wheel gets there; the microphone is {} m ahead of the driven wheel (vehicle.mic_lead_m): use a scenario in distance segments (segments_by = \"distance\"), or mic_lead_m = 0",
-                scenario.name, vehicle.mic_lead_m
-            ),
-        ));
-    }
-    // the demand within the motor's limit and the run's cycle count: the
-    // one check every reader of a scenario makes (plant-sim's start-up too)
+    // the microphone's lead against time segments, the demand within the
+    // motor's limit and the run's cycle count: the one check every reader
+    // of a scenario makes (plant-sim's start-up too)
     scenario
         .check_for(vehicle, dt)
         .map_err(|e| SimError::from_field("scenario", e))

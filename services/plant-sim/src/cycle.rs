@@ -269,15 +269,11 @@ impl PlantSim {
                 )));
             }
         }
-        if vehicle.mic_lead_m > 0.0 && scenario.segments_by == grip_physics::SegmentMode::Time {
-            return Err(PlantSimError::Invalid(InvalidField::new(
-                "vehicle.mic_lead_m",
-                format!(
-                    "scenario `{}` is in time segments, which cannot say where a road begins before the wheel gets there; the microphone is {} m ahead of the driven wheel: use a scenario in distance segments (segments_by = \"distance\"), or mic_lead_m = 0",
-                    scenario.name, vehicle.mic_lead_m
-                ),
-            )));
-        }
+        // a scenario read by `grip_config` was checked so already
+        // (`Scenario::check_for`); one built otherwise is checked here
+        scenario
+            .check_mic_lead(vehicle.mic_lead_m)
+            .map_err(|e| PlantSimError::Invalid(e.prefixed("scenario")))?;
         let names = roads.iter().map(|r| name_to_bytes(r.name())).collect();
         Ok(Self {
             mic_lead: vehicle.mic_lead_m,
