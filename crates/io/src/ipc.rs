@@ -164,21 +164,28 @@ fn passwd_home() -> Option<std::path::PathBuf> {
 /// grip's normal case (it ships no iceoryx2.toml), which printed a
 /// two-line warning into every service's journal at every start. The
 /// lookup runs under iceoryx2's Error level (`IOX2_LOG_LEVEL` still wins),
-/// then the level is Warn again. What the warning would have said is said
-/// only where it matters: a configuration file that exists while the
-/// defaults are in use (it could not be read) is a warning naming it.
+/// then the level is Warn again. What iceoryx2 would have warned of that
+/// matters is said through `tracing`: each configuration file that exists
+/// at one of its places but cannot be read (iceoryx2 skips it), in its
+/// order, up to the first that reads (the one in use).
 fn global_config_quietly() -> Config {
+    use std::os::unix::ffi::OsStrExt;
     set_log_level_from_env_or(LogLevel::Error);
     let cfg = Config::global_config().clone();
-    set_log_level_from_env_or(LogLevel::Warn);
-    if cfg == Config::default()
-        && let Some(f) = iox_config_files().into_iter().find(|f| f.is_file())
-    {
-        tracing::warn!(
-            file = %f.display(),
-            "an iceoryx2 configuration file exists, but iceoryx2's defaults are in use: it could not be read (IOX2_LOG_LEVEL=Warn shows iceoryx2's reason)"
-        );
+    for f in iox_config_files().into_iter().filter(|f| f.is_file()) {
+        let read = FilePath::new(f.as_os_str().as_bytes())
+            .map_err(|e| format!("{e:?}"))
+            .and_then(|p| Config::from_file(&p).map_err(|e| format!("{e:?}")));
+        match read {
+            Ok(_) => break,
+            Err(reason) => tracing::warn!(
+                file = %f.display(),
+                reason,
+                "an iceoryx2 configuration file that cannot be read: iceoryx2 skips it"
+            ),
+        }
     }
+    set_log_level_from_env_or(LogLevel::Warn);
     cfg
 }
 

@@ -132,8 +132,9 @@ pub struct Prepared<K: Clock = MonotonicClock> {
     /// `Some` when the model's confidence calibration was fitted for other
     /// `[stream]` settings than the configuration's
     /// ([`ArteError::CalibrationMismatch`]): [`prepare`], the service's
-    /// start-up, refuses with it; [`prepare_with_clock`] (a replay's
-    /// what-if, a generated drive) logs it as a warning and runs.
+    /// start-up, refuses with it; [`prepare_with_clock`] keeps it here for
+    /// its caller: `grip replay` (a what-if) says it as a warning and runs,
+    /// `grip generate` (a drive) refuses it as the service does.
     pub calibration_mismatch: Option<ArteError>,
     /// The vehicle speeds the model was trained at (`meta.speeds`, or its
     /// training note; logged at start-up: estimates at other speeds are

@@ -282,8 +282,9 @@ fn model_and_class_errors_name_the_file_and_class() {
 /// The shipped model's confidence calibration was fitted at hop 0.025 s
 /// with the HMM (0.9, 0.01): an `arte-svc.toml` with other `[stream]`
 /// settings is refused at start-up, naming the file, the field(s), the
-/// model and the remedy; a replay or generated drive
-/// (`prepare_with_clock`) runs with it, the mismatch kept as a warning.
+/// model and the remedy; `prepare_with_clock` (a replay's or a generated
+/// drive's start-up) loads it, the mismatch kept for its caller to refuse
+/// or say.
 #[test]
 fn stream_settings_the_calibration_was_not_fitted_for_are_refused() {
     use grip_arte_svc::{Options, prepare, prepare_with_clock};

@@ -491,8 +491,9 @@ fn replay_says_a_model_s_and_a_log_s_reason_once() {
 /// once (plant-sim's start-up error said its model's error in its message
 /// and returned it as its source too, so the printed chain said it twice).
 /// Since 2026-12-07 the rule is `Scenario::check_mic_lead`'s, checked with
-/// the scenario (`grip sim` says the same words): the scenario file's
-/// `segments_by`, with the vehicle file named.
+/// the scenario: the scenario file's `segments_by`, with the vehicle file
+/// named; `grip sim` gives the same reason and names both files (its
+/// field is `scenario.segments_by`, as it names every scenario field).
 #[test]
 fn generate_says_plant_sim_s_reason_once() {
     let d = tempfile::tempdir().unwrap();
@@ -500,31 +501,36 @@ fn generate_says_plant_sim_s_reason_once() {
     common::copy_dir(&common::config_dir(), &cfg);
     let vehicle = cfg.join("vehicles/front-mic.toml");
     let out = d.path().join("out");
-    let (ok, _, err) = common::output_in(
-        &cfg,
-        &[
-            os("generate"),
-            os("--out"),
-            out.as_os_str(),
-            os("--count"),
-            os("1"),
+    let scenario = cfg.join("scenarios/e2e.toml");
+    let reason = "scenario `e2e` is in time segments";
+    // the command's stderr: refused, the reason and both files named once
+    let refused = |args: &[&OsStr]| {
+        let mut a = args.to_vec();
+        a.extend([
             os("--scenario"),
             os("e2e"),
             os("--vehicle"),
             vehicle.as_os_str(),
-        ],
-    );
-    assert!(!ok, "{err}");
-    let reason = "scenario `e2e` is in time segments";
-    assert_eq!(err.matches(reason).count(), 1, "{err}");
+        ]);
+        let (ok, _, err) = common::output_in(&cfg, &a);
+        assert!(!ok, "{err}");
+        assert_eq!(err.matches(reason).count(), 1, "{err}");
+        for file in [&vehicle, &scenario] {
+            let n = err.matches(&*file.display().to_string()).count();
+            assert_eq!(n, 1, "{err}");
+        }
+        err
+    };
+    let err = refused(&[
+        os("generate"),
+        os("--out"),
+        out.as_os_str(),
+        os("--count"),
+        os("1"),
+    ]);
     assert_eq!(err.matches("field `segments_by`").count(), 1, "{err}");
-    for file in [vehicle, cfg.join("scenarios/e2e.toml")] {
-        assert_eq!(
-            err.matches(&*file.display().to_string()).count(),
-            1,
-            "{err}"
-        );
-    }
+    // grip sim: the same reason, both files named once
+    refused(&[os("sim"), os("--seeds"), os("1")]);
 }
 
 /// A 3 s drive whose cycle 1500 carries seq u64::MAX and whose ground

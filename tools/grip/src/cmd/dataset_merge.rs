@@ -24,7 +24,7 @@
 //! twice is an error naming it and both lines ([`FirstRows`]): the merged
 //! manifest has one row per file.
 //!
-//! Before anything is written, every file of every source is read once
+//! Before anything is written, every file of every source is read
 //! ([`check_sources`]): all at one sample rate (a model's features are
 //! computed at one rate; `grip train` would refuse the mix only after the
 //! merge), and no audio in two sources (byte-equal files: one source
@@ -114,7 +114,8 @@ fn link_or_copy(from: &Path, to: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Reads every file of `sets` (one progress bar): refuses a file whose
+/// Reads every file of `sets` (its header, then its bytes; one progress
+/// bar): refuses a file whose
 /// sample rate is not the first file's, and a file whose content (SHA-256)
 /// is that of a file of another source, naming both files. Copies within
 /// one source are left to `grip train`, which tells a copy under two roads
@@ -263,21 +264,22 @@ mod tests {
     use grip_io::wav;
 
     /// Two WAVs per class under `root`, at 44.1 kHz, every file's audio
-    /// its own (by the root's path, the class and the index).
+    /// its own (by the call, the class and the index).
     fn tiny(root: &Path, classes: &[&str], manifest: Option<&str>) {
         tiny_at(root, classes, manifest, 44_100);
     }
 
     fn tiny_at(root: &Path, classes: &[&str], manifest: Option<&str>, rate: u32) {
-        let salt = root
-            .to_string_lossy()
-            .bytes()
-            .fold(7u32, |h, b| h.wrapping_mul(31).wrapping_add(u32::from(b)));
+        // one value per call in this process: no two calls write the same
+        // audio (tests run as threads of one process)
+        static CALLS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(1);
+        let salt = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        assert!(salt < 1000, "more calls than distinct first samples");
         for (ci, c) in classes.iter().enumerate() {
             std::fs::create_dir_all(root.join(c)).unwrap();
             for i in 0..2 {
                 let mut x = vec![0.01f32 * (i + 1) as f32; 441];
-                x[0] = (salt % 1000) as f32 / 2000.0;
+                x[0] = salt as f32 / 2000.0;
                 x[1] = ci as f32 / 20.0;
                 wav::write_mono_i16(&root.join(c).join(format!("{c}_{i}.wav")), rate, &x).unwrap();
             }

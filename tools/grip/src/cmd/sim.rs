@@ -259,11 +259,14 @@ pub fn load(
     };
     // The road list long enough for the farthest this car can go.
     let spec = &spec.clone().sized_for(&vehicle, &roads);
-    // A demand above the motor's limit is the vehicle file's business too.
+    // A demand above the motor's limit, and time segments under a
+    // microphone ahead of the wheel, are the vehicle file's business too
+    // (`Scenario::involves_vehicle`, as grip_config names it).
     let with_vehicle = |e: &grip_sim::SimError| {
-        if e.field().starts_with("scenario.demand")
-            && e.to_string()
-                .contains(grip_physics::Demand::ABOVE_MOTOR_LIMIT)
+        let msg = e.to_string();
+        if (e.field().starts_with("scenario.demand")
+            && msg.contains(grip_physics::Demand::ABOVE_MOTOR_LIMIT))
+            || e.field() == "scenario.segments_by"
         {
             format!(" (vehicle file {})", vehicle_path.display())
         } else {

@@ -1280,16 +1280,33 @@ impl ReplayConfig {
     /// replay's what-if runs anyway, as a warning in the log's words: the
     /// replay's temporary copy of the configuration is not named (it was,
     /// in the file, the model and `grip calibrate --model` hint), and the
-    /// model is said to be the log's or `--model`'s.
+    /// model's origin is said: `--model`, a file of the replay's
+    /// configuration (the log's attachments, or `--config-dir`'s), or the
+    /// path `arte-svc.toml` names outside it.
     pub fn calibration_warning(&self, e: &grip_arte_svc::ArteError) -> String {
+        let model_path = match e {
+            grip_arte_svc::ArteError::CalibrationMismatch { model_path, .. } => Some(model_path),
+            _ => None,
+        };
+        let origin = match (&self.model, model_path) {
+            (Some(m), _) => format!("--model {}", m.display()),
+            (None, Some(p)) => match p.strip_prefix(&self.dir) {
+                Ok(rel) if self.source.ends_with("(--config-dir)") => format!(
+                    "{} of the replay's configuration, copied from {}",
+                    rel.display(),
+                    self.source
+                ),
+                Ok(rel) => format!(
+                    "{} of the replay's configuration, the log's attachment (the file of that name in the drive's configuration directory)",
+                    rel.display()
+                ),
+                Err(_) => format!("{}, as arte-svc.toml names it", p.display()),
+            },
+            (None, None) => "arte-svc.toml's".to_owned(),
+        };
         format!(
-            "warning: {} (the replay runs anyway, the arte service refuses this; the model is {})",
+            "warning: {} (the replay runs anyway, the arte service refuses this; the model is {origin})",
             self.user_paths(&e.to_string()),
-            if self.model.is_some() {
-                "--model's"
-            } else {
-                "the log's, as attached: the file of that name in the drive's configuration directory"
-            }
         )
     }
 
@@ -1520,10 +1537,49 @@ mod tests {
         .unwrap();
         let w = cfg.calibration_warning(&p.calibration_mismatch.take().unwrap());
         assert!(!w.contains(&cfg.dir.display().to_string()), "{w}");
+        // the model's origin: --config-dir's copy, --model
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
+        let warn_for = |w: WhatIf| {
+            let cfg = prepare(&reference(), &w).unwrap();
+            let mut p = grip_arte_svc::prepare_with_clock(
+                &grip_arte_svc::Options {
+                    config: grip_io::service::ConfigArgs::in_dir(&cfg.dir),
+                    model: cfg.model.clone(),
+                    run_for: None,
+                },
+                &clock,
+            )
+            .unwrap();
+            cfg.calibration_warning(&p.calibration_mismatch.take().unwrap())
+        };
+        let hop = vec!["arte-svc.toml:stream.hop_s=0.05".to_owned()];
+        let c = warn_for(WhatIf {
+            config_dir: Some(shipped.clone()),
+            set: hop.clone(),
+            ..WhatIf::default()
+        });
+        assert!(
+            c.ends_with(&format!(
+                "the model is models/default.model of the replay's configuration, copied from {} (--config-dir))",
+                shipped.display()
+            )),
+            "{c}"
+        );
+        let m = shipped.join("models/default.model");
+        let c = warn_for(WhatIf {
+            model: Some(m.clone()),
+            set: hop,
+            ..WhatIf::default()
+        });
+        assert!(
+            c.contains(&format!("--model {}", m.display()))
+                && c.ends_with(&format!("the model is --model {})", m.display())),
+            "{c}"
+        );
         assert!(
             w.starts_with("warning: arte-svc.toml: field `stream.hop_s` = 0.05: ")
                 && w.contains("`grip calibrate --model models/default.model ")
-                && w.ends_with("the model is the log's, as attached: the file of that name in the drive's configuration directory)"),
+                && w.ends_with("the model is models/default.model of the replay's configuration, the log's attachment (the file of that name in the drive's configuration directory))"),
             "{w}"
         );
         let cfg = with_sets(&["loop.rate_hz=500"], false).unwrap();
