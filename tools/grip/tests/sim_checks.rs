@@ -479,7 +479,7 @@ fn what_lies_after_a_scenario_s_end_is_said() {
     );
     let err = refused(&mtte_on(1, &s3));
     assert!(
-        err.contains(&format!("{}: field `scenario.demand.start`: the driver first asks for torque at 5 s, at or after the end of the run (duration = 1 s", s3.display())),
+        err.contains(&format!("{}: field `demand.start`: the driver first asks for torque at 5 s, at or after the end of the run (duration = 1 s", s3.display())),
         "{err}"
     );
 }

@@ -286,6 +286,16 @@ pub fn load(
     let arte: ArteConfig = parse_toml(&apath, &read_file(&apath)?)?;
     arte.validate(&roads)
         .map_err(|e| ConfigError::new(&apath, e.field(), reason_of(&e)))?;
+    // a scenario's error names the scenario (its file, or the random
+    // seed) and its field as written there (`demand.torque`, as
+    // grip_config's readers name it for grip drive and grip generate);
+    // another part's error is not the scenario's
+    let in_scenario = |at: &str, e: &grip_sim::SimError| match e.field().strip_prefix("scenario.") {
+        Some(field) => {
+            anyhow::anyhow!("{at}: field `{field}`: {}{}", reason_of(e), with_vehicle(e))
+        }
+        None => anyhow::anyhow!("{e}{}", with_vehicle(e)),
+    };
     let setup =
         SimSetup::new(vehicle, sensors, roads, scenario, controllers, &knowledge).map_err(|e| {
             let at = if random {
@@ -296,7 +306,7 @@ pub fn load(
             } else {
                 scenario_path.display().to_string()
             };
-            anyhow::anyhow!("{at}: {e}{}", with_vehicle(&e))
+            in_scenario(&at, &e)
         })?;
     let mut per_seed = Vec::new();
     if random {
@@ -304,9 +314,7 @@ pub fn load(
             let sc = spec
                 .scenario(seed, setup.roads())
                 .and_then(|sc| setup.with_scenario(sc))
-                .map_err(|e| {
-                    anyhow::anyhow!("--scenario random (seed {seed}): {e}{}", with_vehicle(&e))
-                })?;
+                .map_err(|e| in_scenario(&format!("--scenario random (seed {seed})"), &e))?;
             per_seed.push((seed, sc));
         }
     }
