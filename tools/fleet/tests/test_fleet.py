@@ -17,7 +17,7 @@ import pandas as pd
 import pytest
 
 from grip_fleet import cli, tables
-from grip_fleet.grip import expand_logs, repo_root
+from grip_fleet.grip import expand_logs, find_grip, repo_root
 
 from .conftest import GOOD
 
@@ -255,3 +255,19 @@ def test_a_spec_that_matches_nothing_is_named(tmp_path: Path, capsys: pytest.Cap
     assert "nothing-*.mcap" in capsys.readouterr().err
     with pytest.raises(FileNotFoundError):
         expand_logs([str(tmp_path)])
+
+
+def test_paths_a_task_gets_are_absolute(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Relative specs (a directory, a glob, a file) give absolute log paths,
+    and a relative --grip path is made absolute: a Ray worker need not share
+    the driver's working directory (a cluster's never does)."""
+    (tmp_path / "logs").mkdir()
+    for n in ("a.mcap", "b.mcap"):
+        (tmp_path / "logs" / n).write_bytes(b"")
+    monkeypatch.chdir(tmp_path)
+    for spec in ("logs", "logs/*.mcap", "./logs/a.mcap"):
+        got = expand_logs([spec])
+        assert got and all(Path(p).is_absolute() and Path(p).is_file() for p in got), (spec, got)
+    assert expand_logs(["logs", "./logs/a.mcap"]) == [str(tmp_path / "logs" / "a.mcap"), str(tmp_path / "logs" / "b.mcap")]
+    assert find_grip("bin/grip") == str(tmp_path / "bin" / "grip")
+    assert find_grip("grip") == "grip"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -44,7 +45,7 @@ def _events(n: int) -> str:
 
 def summarize(a: argparse.Namespace) -> int:
     paths = expand_logs(a.logs)
-    call = GripCall(find_grip(a.grip), a.config_dir, a.timeout_s)
+    call = GripCall(find_grip(a.grip), a.config_dir and os.path.abspath(a.config_dir), a.timeout_s)
     how = runner.start_ray(a.workers)
     objs, wall = runner.inspect_all(call, paths)
     df = tables.drive_rows(objs)
@@ -86,7 +87,7 @@ def summarize(a: argparse.Namespace) -> int:
 
 def replay(a: argparse.Namespace) -> int:
     paths = expand_logs(a.logs)
-    call = GripCall(find_grip(a.grip), a.config_dir, a.timeout_s)
+    call = GripCall(find_grip(a.grip), a.config_dir and os.path.abspath(a.config_dir), a.timeout_s)
     what_if: list[str] = []
     if a.controller:
         what_if += ["--controller", a.controller]

@@ -20,15 +20,23 @@ def repo_root() -> Path:
     return Path(__file__).resolve().parents[4]
 
 
+def absolute(path: str) -> str:
+    """``path`` made absolute against this process's working directory
+    (symbolic links kept): a Ray worker need not share the driver's working
+    directory (a cluster's never does), so every path a task is given is
+    absolute. A bare command name (no ``/``) is left for ``PATH``."""
+    return os.path.abspath(path) if os.sep in path else path
+
+
 def find_grip(explicit: str | None = None) -> str:
     """The grip binary: ``explicit``, else ``$GRIP_BIN``, else the
     repository's ``target/release/grip`` or ``target/debug/grip`` (the newer),
-    else ``grip`` on ``PATH``."""
+    else ``grip`` on ``PATH``; a path is made absolute ([`absolute`])."""
     if explicit:
-        return explicit
+        return absolute(explicit)
     env = os.environ.get("GRIP_BIN")
     if env:
-        return env
+        return absolute(env)
     built = [
         p
         for p in (
@@ -49,8 +57,9 @@ def find_grip(explicit: str | None = None) -> str:
 
 def expand_logs(specs: list[str]) -> list[str]:
     """Each spec is a directory (its ``*.mcap`` files), a glob, or a file;
-    returns the logs, sorted, without duplicates. A spec that matches
-    nothing is an error naming it."""
+    returns the logs as absolute paths (a Ray worker need not share this
+    process's working directory), sorted, without duplicates. A spec that
+    matches nothing is an error naming it."""
     out: list[str] = []
     for spec in specs:
         p = Path(spec)
@@ -62,7 +71,7 @@ def expand_logs(specs: list[str]) -> list[str]:
             found = sorted(x for x in glob.glob(spec, recursive=True) if Path(x).is_file())
         if not found:
             raise FileNotFoundError(f"{spec}: no .mcap files (not a directory, file or matching glob)")
-        out.extend(found)
+        out.extend(os.path.abspath(x) for x in found)
     seen: set[str] = set()
     unique = []
     for x in out:
