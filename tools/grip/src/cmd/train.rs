@@ -268,14 +268,11 @@ pub fn extract_dataset(
     pb.set_prefix(format!("features {}", ds.root.display()));
     let mut excluded = Excluded::default();
     // every file's content, to find the same audio listed twice
-    let mut seen: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
+    let mut seen = SeenAudio::default();
     for (i, e) in ds.entries.iter().enumerate() {
         let (audio, sha256) = read_wav(&e.path, channel)?;
-        if let Some(&j) = seen.get(&sha256) {
-            let note = same_audio(ds, &ds.entries[j], e, &sha256, role)?;
+        if let Some(note) = seen.check(ds, i, &sha256, role)? {
             pb.suspend(|| eprintln!("warning: {note}"));
-        } else {
-            seen.insert(sha256.clone(), i);
         }
         if audio.sample_rate != cfg.sample_rate {
             bail!(
@@ -341,6 +338,33 @@ pub enum SetRole {
     Training,
     /// `--test`: evaluated only.
     HeldOut,
+}
+
+/// The files of one dataset seen so far, by content: [`Self::check`] gives
+/// [`same_audio`]'s verdict on a file whose SHA-256 an earlier one had.
+/// Training extraction and the `--test` check before the fit share it.
+#[derive(Default)]
+struct SeenAudio(std::collections::HashMap<String, usize>);
+
+impl SeenAudio {
+    /// Entry `i` of `ds`, of content `sha256`: `Ok(None)` when it is the
+    /// first of that content (remembered), else [`same_audio`]'s error or
+    /// warning against the first.
+    fn check(
+        &mut self,
+        ds: &Dataset,
+        i: usize,
+        sha256: &str,
+        role: SetRole,
+    ) -> Result<Option<String>> {
+        match self.0.get(sha256) {
+            Some(&j) => same_audio(ds, &ds.entries[j], &ds.entries[i], sha256, role).map(Some),
+            None => {
+                self.0.insert(sha256.to_owned(), i);
+                Ok(None)
+            }
+        }
+    }
 }
 
 /// `b` holds byte for byte the audio of `a` (an earlier file of `ds`):
@@ -644,21 +668,13 @@ fn check_held_out(
             .with_context(|| format!("--test {}: held-out dataset", dir.display()))?;
         // the same audio under two roads, before the fit (the evaluation
         // after it would refuse it too)
-        let mut seen: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
+        let mut seen = SeenAudio::default();
         for (i, e) in ds.entries.iter().enumerate() {
             let bytes = std::fs::read(&e.path).with_context(|| {
                 format!("--test {}: cannot read {}", dir.display(), e.path.display())
             })?;
-            let sha = sha256_hex(&bytes);
-            match seen.get(&sha) {
-                Some(&j) => {
-                    same_audio(&ds, &ds.entries[j], e, &sha, SetRole::HeldOut)
-                        .with_context(|| format!("--test {}: held-out dataset", dir.display()))?;
-                }
-                None => {
-                    seen.insert(sha, i);
-                }
-            }
+            seen.check(&ds, i, &sha256_hex(&bytes), SetRole::HeldOut)
+                .with_context(|| format!("--test {}: held-out dataset", dir.display()))?;
         }
     }
     for dir in &args.calib_data {
