@@ -423,16 +423,17 @@ fn bus_down(s: &Setup) -> anyhow::Result<Attempt> {
         .filter(|f| f.direction == can_dir::RX && f.id == ws_id)
         .map(|f| f.stamp_ns)
         .collect();
-    // The CAN log stamps a received frame when tcs-loop reads it: a frame
-    // already in its socket when the link went down is read (and stamped)
-    // later, under emulation up to the suite's margin later (2.5 ms seen on
-    // 2026-12-02, where a 1 ms allowance failed the run although the wire
-    // had nothing after the down).
-    let read_by = t_down + ns(VM_MARGIN_MS);
+    // The CAN log stamps a received frame with the kernel's receive time
+    // (since 2026-12-07; before, with the time tcs-loop read it, so that a
+    // frame already in its socket when the link went down was stamped up to
+    // the suite's margin later): the last one before the down arrived
+    // before `t_down`, read after the ioctl returned; 1 ms allowed, as for
+    // the wire above, for the stamp's move from CLOCK_REALTIME.
+    let arrived_by = t_down + 1_000_000;
     let last_rx = rx_ws
         .iter()
         .copied()
-        .filter(|&t| t <= read_by)
+        .filter(|&t| t <= arrived_by)
         .max()
         .context("no WheelSpeeds received before the bus went down")?;
     let back_rx = rx_ws

@@ -149,8 +149,10 @@ pub fn silence_overlapping(
     Ok(None)
 }
 
-/// What tcs-loop itself saw, from its drive log: its CAN log (on SocketCAN
-/// a received frame's `stamp_ns` is the time the loop read it) and its
+/// What tcs-loop itself saw, from its drive log: its CAN log (a received
+/// frame's `stamp_ns` is its arrival, the kernel's receive time; each
+/// cycle's received frames are logged before its command, whose stamp is
+/// the cycle's clock read right after the drain: [`read_times`]) and its
 /// cycle records.
 #[derive(Debug, Clone, Copy)]
 pub struct LoopLog<'a> {
@@ -160,8 +162,29 @@ pub struct LoopLog<'a> {
     pub cycles: &'a [CycleRecord],
 }
 
-/// The first of tcs-loop's [`INPUTS`] that reached the loop (read times in
-/// its CAN log) at least its timeout apart, in a gap overlapping `[t0,
+/// When tcs-loop read each frame of its CAN log that it received, in log
+/// order, with the frame: the stamp of the command its cycle sent next
+/// (the cycle's clock, read right after its drain), or, past the last
+/// command, the frame's own stamp. Since 2026-12-07 a received frame's own
+/// stamp is its arrival (the kernel's receive time), which says nothing of
+/// a kernel that delivered it late.
+pub fn read_times<'a>(can: &'a [CanFrame]) -> impl Iterator<Item = (&'a CanFrame, u64)> + 'a {
+    let mut next_tx = vec![None; can.len()];
+    let mut after: Option<u64> = None;
+    for (i, f) in can.iter().enumerate().rev() {
+        if f.direction == can_dir::TX {
+            after = Some(f.stamp_ns);
+        }
+        next_tx[i] = after;
+    }
+    can.iter()
+        .zip(next_tx)
+        .filter(|(f, _)| f.direction == can_dir::RX)
+        .map(|(f, t)| (f, t.unwrap_or(f.stamp_ns)))
+}
+
+/// The first of tcs-loop's [`INPUTS`] that reached the loop ([`read_times`]
+/// in its CAN log) at least its timeout apart, in a gap overlapping `[t0,
 /// t1]`, while the loop's cycles kept running through the gap (at least
 /// half of its 1 ms cycles have records there): the frames were on the
 /// wire but the kernel delivered them late (its network processing
@@ -171,17 +194,14 @@ pub fn late_delivery(log: &LoopLog, dbc: &Dbc, t0: u64, t1: u64) -> anyhow::Resu
     let pad = ns(DEMAND_TIMEOUT_MS * 2.0);
     for (name, timeout) in INPUTS {
         let id = dbc.by_name(name)?.id;
-        let received = log
-            .can
-            .iter()
-            .filter(|f| {
+        let received = read_times(log.can)
+            .filter(|&(f, read)| {
                 f.id == id
-                    && f.direction == can_dir::RX
                     && f.flags & can_flags::E2E_REJECTED == 0
-                    && f.stamp_ns + pad >= t0
-                    && f.stamp_ns <= t1 + pad
+                    && read + pad >= t0
+                    && read <= t1 + pad
             })
-            .map(|f| f.stamp_ns);
+            .map(|(_, read)| read);
         let ran = |a: u64, b: u64| {
             log.cycles
                 .iter()
@@ -409,8 +429,12 @@ mod tests {
         );
     }
 
-    /// tcs-loop's log of the capture's input frames, read `delay_ms` late
-    /// over `late` (ms), and its cycle records (none over `stalled`).
+    /// tcs-loop's log of the capture's input frames, as it writes it: each
+    /// 1 ms cycle's received frames (stamped with their arrival on the
+    /// wire) before its command (stamped with the cycle's time); frames
+    /// that arrived over `late` (ms) are read at its end (the kernel held
+    /// them), and no cycle runs over `stalled` (its frames are read by the
+    /// first cycle after it).
     fn loop_log(
         cap: &CaptureLog,
         d: &Dbc,
@@ -421,30 +445,45 @@ mod tests {
             .iter()
             .map(|(n, _)| d.by_name(n).unwrap().id)
             .collect();
-        let can = cap
-            .frames
-            .iter()
-            .filter(|f| ids.contains(&f.id()))
-            .map(|f| {
-                let t_ms = f.t_ns / 1_000_000;
-                // frames of the late stretch reach the loop at its end
-                let read = if (late.0..late.1).contains(&t_ms) {
-                    late.1 * 1_000_000
-                } else {
-                    f.t_ns
-                };
-                CanFrame {
-                    stamp_ns: read,
+        let ran: Vec<u64> = (0..1000u64)
+            .filter(|t| !(stalled.0..stalled.1).contains(t))
+            .collect();
+        // each cycle's received frames, by the cycle that read them
+        let mut read_by: Vec<Vec<CanFrame>> = vec![Vec::new(); ran.len()];
+        for f in cap.frames.iter().filter(|f| ids.contains(&f.id())) {
+            let t_ms = f.t_ns / 1_000_000;
+            // frames of the late stretch reach the loop at its end
+            let read_ms = if (late.0..late.1).contains(&t_ms) {
+                late.1
+            } else {
+                t_ms
+            };
+            let k = ran.partition_point(|&c| c < read_ms);
+            if let Some(v) = read_by.get_mut(k) {
+                v.push(CanFrame {
+                    stamp_ns: f.t_ns,
                     id: f.id(),
                     dlc: 8,
                     direction: can_dir::RX,
                     ..CanFrame::default()
-                }
-            })
-            .collect();
-        let cycles = (0..1000u64)
-            .filter(|t| !(stalled.0..stalled.1).contains(t))
-            .map(|t| CycleRecord {
+                });
+            }
+        }
+        let tc = d.by_name("TorqueCommand").unwrap().id;
+        let mut can = Vec::new();
+        for (&t, rx) in ran.iter().zip(read_by) {
+            can.extend(rx);
+            can.push(CanFrame {
+                stamp_ns: t * 1_000_000 + 20_000,
+                id: tc,
+                dlc: 8,
+                direction: can_dir::TX,
+                ..CanFrame::default()
+            });
+        }
+        let cycles = ran
+            .iter()
+            .map(|&t| CycleRecord {
                 stamp_ns: t * 1_000_000,
                 ..CycleRecord::zeroed()
             })

@@ -113,6 +113,47 @@ fn three_participants_each_see_the_others_frames() {
     }
 }
 
+/// A frame is stamped when it is published (the simulated bus has no
+/// delay: that is its arrival), whatever stamp the sender gave it, and a
+/// receiver that reads it 50 ms later (a stalled loop) still sees when it
+/// came, not when it read it; the stamp is on the bus, so every receiver
+/// sees the same. Until 2026-12-07 the receiver stamped it at read.
+#[test]
+fn sim_bus_frames_carry_their_publish_time_not_their_read_time() {
+    let bus = unique("stamps");
+    let node = IpcNode::create("simbus-test-stamps").unwrap();
+    let mut a = SimBus::open(&node, &bus, 0).unwrap();
+    let mut b = SimBus::open(&node, &bus, 4).unwrap();
+    let mut c = SimBus::open(&node, &bus, 5).unwrap();
+    let mut sent = Vec::new();
+    for k in 0..3u8 {
+        let mut f = CanFrame::new(0x210 + u32::from(k), &[k; 8]);
+        f.stamp_ns = 7; // the sender's stamp is not the bus's
+        let before = grip_io::clock::monotonic_now_ns();
+        a.send(&f).unwrap();
+        sent.push((before, grip_io::clock::monotonic_now_ns()));
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    std::thread::sleep(Duration::from_millis(50));
+    let read_from = grip_io::clock::monotonic_now_ns();
+    for (r, bus_id) in [(&mut b, 4), (&mut c, 5)] {
+        for (k, &(before, after)) in sent.iter().enumerate() {
+            let f = r.try_recv().unwrap().expect("frame");
+            assert_eq!(
+                (f.id, f.bus, f.direction),
+                (0x210 + k as u32, bus_id, can_dir::RX)
+            );
+            assert!(
+                (before..=after).contains(&f.stamp_ns),
+                "frame {k} stamped {}, published in {before}..{after}",
+                f.stamp_ns
+            );
+            assert!(f.stamp_ns + 40_000_000 < read_from);
+        }
+        assert!(r.try_recv().unwrap().is_none());
+    }
+}
+
 #[test]
 fn sim_bus_rejects_oversized_dlc() {
     let node = IpcNode::create("simbus-test-dlc").unwrap();

@@ -406,3 +406,85 @@ fn a_monitor_reads_every_frame_kind_with_kernel_stamps_counts_drops_and_allocate
         "{read} read + {dropped} dropped < {flood} written"
     );
 }
+
+/// A bus opened for the loops (`SocketCanBus::open`, what tcs-loop and
+/// plant-sim read through `try_recv`) stamps each frame with the kernel's
+/// receive time too, not the time it was read: frames written, then read
+/// 50 ms later (as by a loop that was stalled), carry stamps between the
+/// writer's clock readings around each write, in order; a remote frame in
+/// between is skipped (not part of the protocol); `recv_timeout` returns a
+/// frame that arrives while it waits, stamped at its arrival. Until
+/// 2026-12-07 these were stamped at read: a CAN log showed a stall's
+/// frames all at its end.
+#[test]
+fn a_loop_bus_stamps_frames_with_their_arrival_not_their_read() {
+    use socketcan::{CanFrame as SockFrame, CanSocket, EmbeddedFrame, Socket, StandardId};
+    let writer = CanSocket::open(&iface()).expect("second raw socket");
+    let mut bus = open();
+    while bus.try_recv().unwrap().is_some() {}
+    let mark = 0x5D;
+    let frames = [
+        SockFrame::new(StandardId::new(0x3EA).unwrap(), &[1, mark]).unwrap(),
+        SockFrame::new_remote(StandardId::new(0x3EA).unwrap(), 2).unwrap(),
+        SockFrame::new(StandardId::new(0x3EB).unwrap(), &[2, mark]).unwrap(),
+        SockFrame::new(StandardId::new(0x3EC).unwrap(), &[3, mark]).unwrap(),
+    ];
+    let mut windows = Vec::new();
+    for f in &frames {
+        let before = grip_io::clock::monotonic_now_ns();
+        writer.write_frame(f).expect("write");
+        windows.push((before, grip_io::clock::monotonic_now_ns()));
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    std::thread::sleep(Duration::from_millis(50));
+    let read_from = grip_io::clock::monotonic_now_ns();
+    let mut got = Vec::new();
+    let t0 = Instant::now();
+    while got.len() < 3 && t0.elapsed() < Duration::from_secs(3) {
+        match bus.try_recv().unwrap() {
+            Some(f) if (0x3EA..=0x3EC).contains(&f.id) => got.push(f),
+            Some(_) => {} // another test's frame
+            None => std::thread::sleep(Duration::from_millis(1)),
+        }
+    }
+    assert_eq!(
+        got.iter().map(|f| (f.id, f.dlc)).collect::<Vec<_>>(),
+        [(0x3EA, 2), (0x3EB, 2), (0x3EC, 2)],
+        "the data frames, the remote frame skipped: {got:?}"
+    );
+    for (f, k) in got.iter().zip([0, 2, 3]) {
+        let (before, after) = windows[k];
+        assert!(
+            f.stamp_ns + 200_000 >= before && f.stamp_ns <= after + 200_000,
+            "frame {:#x} stamped {} ns, written in {before}..{after}, read from {read_from}",
+            f.id,
+            f.stamp_ns
+        );
+        assert!(f.stamp_ns + 40_000_000 < read_from, "{f:?}");
+    }
+    assert!(bus.kernel_stamped() >= 3);
+
+    // a frame that arrives while recv_timeout waits
+    let w = std::thread::spawn(move || {
+        std::thread::sleep(Duration::from_millis(30));
+        let before = grip_io::clock::monotonic_now_ns();
+        let f = SockFrame::new(StandardId::new(0x3ED).unwrap(), &[4, mark]).unwrap();
+        writer.write_frame(&f).expect("write");
+        (before, grip_io::clock::monotonic_now_ns())
+    });
+    let t0 = Instant::now();
+    let f = loop {
+        match bus.recv_timeout(Duration::from_secs(2)).unwrap() {
+            Some(f) if f.id == 0x3ED => break f,
+            Some(_) => {}
+            None => panic!("no frame within 2 s"),
+        }
+    };
+    let (before, after) = w.join().unwrap();
+    assert!(t0.elapsed() < Duration::from_secs(1));
+    assert!(
+        f.stamp_ns + 200_000 >= before && f.stamp_ns <= after + 200_000,
+        "stamped {} ns, written in {before}..{after}",
+        f.stamp_ns
+    );
+}

@@ -415,8 +415,8 @@ impl CanFrame {
 #[repr(C)]
 pub struct BusFrame {
     /// Receive time, CLOCK_MONOTONIC ns: the kernel's on SocketCAN
-    /// (`SO_TIMESTAMPNS`, moved onto CLOCK_MONOTONIC), else the
-    /// recorder's at read (the simulated bus).
+    /// (`SO_TIMESTAMPNS`, moved onto CLOCK_MONOTONIC), else the sender's
+    /// at publish (the simulated bus, which has no delay).
     pub stamp_ns: u64,
     /// Identifier (11 bit, or 29 bit with `can_flags::EXTENDED`; for an
     /// error frame the error class bits, `can_flags::ERROR`).

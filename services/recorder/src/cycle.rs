@@ -307,10 +307,8 @@ impl Summary {
                 Some(grip_io::can::BusKind::SocketCan) => {
                     "kernel receive time (SO_TIMESTAMPNS) on CLOCK_MONOTONIC".to_owned()
                 }
-                _ => format!(
-                    "recorder's CLOCK_MONOTONIC at read (polls every {} ms)",
-                    b.poll_ms
-                ),
+                _ => "sender's CLOCK_MONOTONIC at publish (the simulated bus has no delay)"
+                    .to_owned(),
             };
             for (k, v) in [
                 ("mode", b.mode.to_owned()),

@@ -117,8 +117,7 @@ pub struct RecvStats {
 pub struct BusSummary {
     /// `recorder.toml`'s `bus`.
     pub mode: &'static str,
-    /// The receive thread's idle sleep, ms (the resolution of stamps taken
-    /// at read).
+    /// The receive thread's idle sleep, ms.
     pub poll_ms: u64,
     /// The counters.
     pub stats: crate::bus::BusStats,

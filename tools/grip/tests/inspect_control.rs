@@ -166,7 +166,8 @@ fn write_inverter_drive(path: &Path, faulty: bool, with_truth: bool) {
             },
             ..MotorStatus::default()
         };
-        // read 50 µs after the deadline of the cycle that drained it
+        // stamped with its arrival, 50 µs after cycle k's deadline: cycle
+        // k + 1 reads it
         let mut f = encode_in(
             p.spec(MsgKind::MotorStatus),
             &m,
@@ -178,8 +179,11 @@ fn write_inverter_drive(path: &Path, faulty: bool, with_truth: bool) {
         let mut c = CycleRecord::zeroed();
         c.seq = k;
         c.stamp_ns = k * MS;
-        // safe in the cycle that read the fault, as tcs-loop is
-        c.safe_state = u8::from(k < 20 || during(k, 300..450) || t(k) >= 1050);
+        // safe in the cycle that read the fault, as tcs-loop is (from its
+        // start until its inputs are valid, too)
+        let read = k.checked_sub(1);
+        c.safe_state =
+            u8::from(k < 20 || read.is_some_and(|r| during(r, 300..450) || t(r) >= 1050));
         c.torque_cmd = if c.safe_state != 0 { 0.0 } else { 200.0 };
         w.write(topics::CYCLE, &c).unwrap();
     }
@@ -197,14 +201,17 @@ fn inspect_shows_the_inverters_episodes_and_the_loop_during_its_fault() {
     write_faulting_drive(&log);
     let (ok, out, err) = common::output(&["inspect".as_ref(), log.as_os_str()]);
     assert!(ok, "{out}{err}");
+    // the start-up fault's frames are read by cycles 1-3 (the loop was in
+    // its safe state from cycle 0); the last fault's 41st frame arrived
+    // after the log's last cycle woke: 40 cycles read it
     for want in [
         "\ninverter (its MotorStatus frames tcs-loop received and the E2E check accepted: 1100, -0.009 to 1.090 s; t from the scenario start)\n",
         "  during the scenario (0.000-1.000 s, 1000 frames): fault 1 (0.100 s), derating 1 (0.100 s), command timeout 1 (0.020 s), not ready 0\n",
         "  whole log: fault 3 (0.144 s), derating 1 (0.100 s), command timeout 3 (0.064 s), not ready 0\n",
         "  fault: 3 episodes (1 before the scenario, 1 during the scenario, 1 after the scenario)\n",
-        "    -0.009 to -0.006 s (0.003 s, 3 frames), before the scenario, from the inverter's first frame, FaultCode 0x01: the loop in its safe state throughout (3 cycles)\n",
+        "    -0.009 to -0.006 s (0.003 s, 3 frames), before the scenario, from the inverter's first frame, FaultCode 0x01: the loop in its safe state throughout (3 cycles; in it already before the fault began)\n",
         "    0.300 to 0.400 s (0.100 s, 100 frames), during the scenario, FaultCode 0x2A: the loop in its safe state throughout (100 cycles)\n",
-        "    1.050 s to the end of the MotorStatus frames (0.041 s, 41 frames; still set in the last one), after the scenario, FaultCode 0x01: the loop in its safe state throughout (41 cycles)\n",
+        "    1.050 s to the end of the MotorStatus frames (0.041 s, 41 frames; still set in the last one), after the scenario, FaultCode 0x01: the loop in its safe state throughout (40 cycles)\n",
         "  derating: 1 episode (1 during the scenario)\n    0.600 to 0.700 s (0.100 s, 100 frames), during the scenario\n",
         "    0.800 to 0.820 s (0.020 s, 20 frames), during the scenario\n",
         "  fault codes: 0x01 first at -0.009 s (44 frames), 0x2A first at 0.300 s (100 frames)\n",
@@ -287,9 +294,10 @@ fn inspect_a_b_and_a_directory_show_the_inverters_faults() {
         row("derating episodes", "1 / 1", "0 / 0"),
         row("command timeout episodes", "1 / 3", "0 / 2"),
         row("not ready episodes", "0 / 0", "0 / 0"),
-        // the scenario's fault (100 cycles), start-up's (3), after (41)
-        row("loop cycles in fault episodes", "100 / 144", "0 / 44"),
-        row("  of them in the safe state", "100 / 144", "0 / 44"),
+        // the scenario's fault (100 cycles), start-up's (3), after (40:
+        // the last frame arrived after the last cycle woke)
+        row("loop cycles in fault episodes", "100 / 143", "0 / 43"),
+        row("  of them in the safe state", "100 / 143", "0 / 43"),
         row("fault codes (whole log)", "0x01, 0x2A", "0x01"),
     ] {
         assert!(out.contains(&want), "{want:?} not in\n{out}");

@@ -325,30 +325,39 @@ pub fn inverter(log: &DriveLog, protocol: &Protocol, window_ns: Option<(u64, u64
     };
     let other = can_flags::EXTENDED | can_flags::RTR | can_flags::ERROR;
     let mine = |f: &CanFrame| f.direction == can_dir::RX && f.id == spec.id && f.flags & other == 0;
-    let frames: Vec<(u64, MotorStatus)> = log
+    let drained_by = drained_by(&log.can, &log.cycles);
+    // (stamp, content, the cycle that drained it when the log says)
+    let frames: Vec<(u64, MotorStatus, Option<usize>)> = log
         .can
         .iter()
-        .filter(|f| mine(f))
-        .filter(|f| {
+        .enumerate()
+        .filter(|(_, f)| mine(f))
+        .filter(|(_, f)| {
             let rejected = f.flags & can_flags::E2E_REJECTED != 0;
             inv.rejected += u64::from(rejected);
             !rejected
         })
-        .filter_map(|f| match InverterMsg::decode_as(spec, &f.data) {
-            InverterMsg::MotorStatus(m) => Some((f.stamp_ns, m)),
+        .filter_map(|(i, f)| match InverterMsg::decode_as(spec, &f.data) {
+            InverterMsg::MotorStatus(m) => Some((f.stamp_ns, m, drained_by.as_ref().map(|d| d[i]))),
             _ => None,
         })
         .collect();
+    // the cycle that read frame i: the log's own word, else from its stamp
+    let reader = |i: usize| {
+        frames[i]
+            .2
+            .unwrap_or_else(|| reader_by_stamp(&log.cycles, frames[i].0))
+    };
     let (Some(first), Some(last)) = (frames.first(), frames.last()) else {
         return inv;
     };
     inv.frames = frames.len() as u64;
     inv.span_s = Some((rel(first.0), rel(last.0)));
     if let (Some(n), Some((ws, we))) = (inv.frames_in_scenario.as_mut(), window_ns) {
-        *n = frames.iter().filter(|(t, _)| (ws..we).contains(t)).count() as u64;
+        *n = frames.iter().filter(|(t, ..)| (ws..we).contains(t)).count() as u64;
     }
     // the frames' period: what the last frame stands for
-    let period = super::measured::median_period_ns(frames.iter().map(|(t, _)| *t));
+    let period = super::measured::median_period_ns(frames.iter().map(|(t, ..)| *t));
     let end_of_log = last.0.saturating_add(period);
 
     for flag in Flag::ALL {
@@ -366,59 +375,66 @@ pub fn inverter(log: &DriveLog, protocol: &Protocol, window_ns: Option<(u64, u64
         };
         // the open episode: (index of its first frame, frames, codes)
         let mut open: Option<(usize, u64, Vec<u8>)> = None;
-        let close = |fe: &mut FlagEpisodes, i0: usize, n: u64, codes: Vec<u8>, end: Option<u64>| {
-            let s_ns = frames[i0].0;
-            let e_ns = end.unwrap_or(end_of_log);
-            let duration_s = secs_between(s_ns, e_ns);
-            fe.count += 1;
-            fe.entered += u64::from(i0 > 0);
-            fe.time_s += duration_s;
-            let place = window_ns.map(|(ws, we)| {
-                if e_ns <= ws {
-                    Place::Before
-                } else if s_ns >= we {
-                    Place::After
-                } else {
-                    Place::Scenario
+        // `end`: the index of the first clear frame (None: still set in the
+        // last one)
+        let close =
+            |fe: &mut FlagEpisodes, i0: usize, n: u64, codes: Vec<u8>, end_i: Option<usize>| {
+                let s_ns = frames[i0].0;
+                let end = end_i.map(|j| frames[j].0);
+                let e_ns = end.unwrap_or(end_of_log);
+                let duration_s = secs_between(s_ns, e_ns);
+                fe.count += 1;
+                fe.entered += u64::from(i0 > 0);
+                fe.time_s += duration_s;
+                let place = window_ns.map(|(ws, we)| {
+                    if e_ns <= ws {
+                        Place::Before
+                    } else if s_ns >= we {
+                        Place::After
+                    } else {
+                        Place::Scenario
+                    }
+                });
+                if let Some(p) = place {
+                    fe.places[p as usize] += 1;
                 }
-            });
-            if let Some(p) = place {
-                fe.places[p as usize] += 1;
-            }
-            if let (Some((n_in, t_in)), Some((ws, we))) = (fe.in_scenario.as_mut(), window_ns)
-                && place == Some(Place::Scenario)
-            {
-                *n_in += 1;
-                *t_in += secs_between(s_ns.max(ws), e_ns.min(we)).max(0.0);
-            }
-            let last_ns = frames[(i0 + n as usize).saturating_sub(1).min(frames.len() - 1)].0;
-            let safe = (flag == Flag::Fault).then(|| safe_overlap(&log.cycles, s_ns, end, last_ns));
-            fe.safe_throughout +=
-                u64::from(safe.is_some_and(|s| s.cycles > 0 && s.safe == s.cycles));
-            if let Some(s) = safe {
-                fe.loop_cycles.0 += s.cycles;
-                fe.loop_cycles.1 += s.safe;
-                if let Some(c) = fe.loop_cycles_in_scenario.as_mut()
+                if let (Some((n_in, t_in)), Some((ws, we))) = (fe.in_scenario.as_mut(), window_ns)
                     && place == Some(Place::Scenario)
                 {
-                    c.0 += s.cycles;
-                    c.1 += s.safe;
+                    *n_in += 1;
+                    *t_in += secs_between(s_ns.max(ws), e_ns.min(we)).max(0.0);
                 }
-            }
-            if fe.listed.len() < LISTED {
-                fe.listed.push(Episode {
-                    start_s: rel(s_ns),
-                    end_s: end.map(rel),
-                    duration_s,
-                    frames: n,
-                    at_first_frame: i0 == 0,
-                    place,
-                    codes,
-                    safe,
+                let last_i = (i0 + n as usize).saturating_sub(1).min(frames.len() - 1);
+                let safe = (flag == Flag::Fault).then(|| {
+                    let to = end_i.map_or_else(|| reader(last_i) + 1, reader);
+                    safe_overlap(&log.cycles, reader(i0), to)
                 });
-            }
-        };
-        for (i, (t, m)) in frames.iter().enumerate() {
+                fe.safe_throughout +=
+                    u64::from(safe.is_some_and(|s| s.cycles > 0 && s.safe == s.cycles));
+                if let Some(s) = safe {
+                    fe.loop_cycles.0 += s.cycles;
+                    fe.loop_cycles.1 += s.safe;
+                    if let Some(c) = fe.loop_cycles_in_scenario.as_mut()
+                        && place == Some(Place::Scenario)
+                    {
+                        c.0 += s.cycles;
+                        c.1 += s.safe;
+                    }
+                }
+                if fe.listed.len() < LISTED {
+                    fe.listed.push(Episode {
+                        start_s: rel(s_ns),
+                        end_s: end.map(rel),
+                        duration_s,
+                        frames: n,
+                        at_first_frame: i0 == 0,
+                        place,
+                        codes,
+                        safe,
+                    });
+                }
+            };
+        for (i, (_, m, _)) in frames.iter().enumerate() {
             let set = flag.of(m);
             if set {
                 match open.as_mut() {
@@ -426,7 +442,7 @@ pub fn inverter(log: &DriveLog, protocol: &Protocol, window_ns: Option<(u64, u64
                     None => open = Some((i, 1, Vec::new())),
                 }
             } else if let Some((i0, n, codes)) = open.take() {
-                close(&mut fe, i0, n, codes, Some(*t));
+                close(&mut fe, i0, n, codes, Some(i));
             }
             if flag == Flag::Fault
                 && set
@@ -444,7 +460,7 @@ pub fn inverter(log: &DriveLog, protocol: &Protocol, window_ns: Option<(u64, u64
     }
 
     let mut codes: BTreeMap<u8, (usize, u64)> = BTreeMap::new();
-    for (i, (_, m)) in frames.iter().enumerate() {
+    for (i, (_, m, _)) in frames.iter().enumerate() {
         if m.fault_code != 0 {
             codes.entry(m.fault_code).or_insert((i, 0)).1 += 1;
         }
@@ -467,28 +483,62 @@ pub fn inverter(log: &DriveLog, protocol: &Protocol, window_ns: Option<(u64, u64
     inv
 }
 
-/// The loop's cycles that read the episode's frames: a received frame is
-/// stamped when the loop read it, after the deadline its cycle record is
-/// stamped with, so the cycle that read the first frame at `s_ns` is the
-/// last one stamped at or before it; the episode's cycles run from there up
-/// to (not including) the one that read the first clear frame at `e_ns`, or,
-/// for an episode still open at the end, up to and including the one that
-/// read its last frame at `last_ns`.
-fn safe_overlap(cycles: &[CycleRecord], s_ns: u64, e_ns: Option<u64>, last_ns: u64) -> SafeOverlap {
-    // log order is time order; a log out of order gives an odd count, never
-    // a panic
-    let reader = |t: u64| {
-        cycles
-            .partition_point(|c| c.stamp_ns <= t)
-            .saturating_sub(1)
-    };
-    let i0 = reader(s_ns);
-    let i1 = match e_ns {
-        Some(e) => reader(e),
-        None => reader(last_ns) + 1,
+/// For each frame of the CAN log `can`, the cycle (index into `cycles`)
+/// that drained it, when the log says: tcs-loop logs each cycle's received
+/// frames and then its command (direction TX), so the frames before the
+/// k-th command were drained by the k-th cycle (those after the last
+/// cycle's, before the shutdown frames, by none: `cycles.len()`). Only
+/// when the cycle records are contiguous (no lost record), there is a
+/// command for each and none is stamped before its cycle's deadline, else
+/// `None` (a log with lost messages, or not tcs-loop's: the stamps must
+/// say).
+fn drained_by(can: &[CanFrame], cycles: &[CycleRecord]) -> Option<Vec<usize>> {
+    let first_seq = cycles.first()?.seq;
+    let contiguous = cycles
+        .iter()
+        .enumerate()
+        .all(|(k, c)| c.seq == first_seq.wrapping_add(k as u64));
+    let mut commands = can.iter().filter(|f| f.direction == can_dir::TX);
+    let aligned = cycles
+        .iter()
+        .all(|c| commands.next().is_some_and(|tx| tx.stamp_ns >= c.stamp_ns));
+    if !contiguous || !aligned {
+        return None;
     }
-    .max(i0)
-    .min(cycles.len());
+    let mut k = 0;
+    Some(
+        can.iter()
+            .map(|f| {
+                let this = k.min(cycles.len());
+                k += usize::from(f.direction == can_dir::TX);
+                this
+            })
+            .collect(),
+    )
+}
+
+/// The cycle that read a frame stamped `t` where the log does not say
+/// ([`drained_by`]): a received frame is stamped with its arrival (the
+/// kernel's receive time, the simulated bus's publish time), and a cycle
+/// drains the bus right after it wakes (its record's deadline plus its
+/// wake-up latency), so it is the first cycle woken at or after `t` (one
+/// woken after a stall of the loop read what arrived during it); the
+/// number of cycles if none woke after it. (Logs written before 2026-12-07
+/// stamp a received frame when the loop read it, just after its cycle
+/// woke: there it falls one cycle late.)
+fn reader_by_stamp(cycles: &[CycleRecord], t: u64) -> usize {
+    // log order is time order; a log out of order gives an odd count,
+    // never a panic
+    cycles.partition_point(|c| c.stamp_ns.saturating_add_signed(c.wakeup_latency_ns) < t)
+}
+
+/// The loop's cycles `[from, to)` that read an episode's frames: from the
+/// one that read its first frame up to (not including) the one that read
+/// the first clear frame, or, for an episode still open at the end, up to
+/// and including the one that read its last frame.
+fn safe_overlap(cycles: &[CycleRecord], from: usize, to: usize) -> SafeOverlap {
+    let i0 = from.min(cycles.len());
+    let i1 = to.max(i0).min(cycles.len());
     let inside = &cycles[i0..i1];
     let first_safe = inside.iter().find(|c| c.safe_state != 0);
     SafeOverlap {
@@ -796,8 +846,8 @@ mod tests {
             ..MotorStatus::default()
         };
         each(&mut m);
-        // as tcs-loop logs it: received, read 50 µs after the deadline of
-        // the cycle that drained it
+        // as tcs-loop logs it: received, stamped with its arrival, 50 µs
+        // after a cycle's deadline (the next cycle drains it)
         let mut f = encode_in(
             p.spec(MsgKind::MotorStatus),
             &m,
@@ -815,8 +865,10 @@ mod tests {
     /// the commands from 700 to 720 ms and is not ready from 950 ms to the
     /// end. A fault frame the E2E check rejected (at 400 ms) and a sent
     /// frame with MotorStatus's id are not read. The loop's cycle records
-    /// (every 1 ms) are in the safe state at start-up (0-59 ms) and from
-    /// 301 ms to 359 ms (a fault, then recover_ms).
+    /// (every 1 ms, each reading the frames that arrived since the one
+    /// before) are in the safe state at start-up (0-55 ms) and from 301 to
+    /// 400 ms (the fault read at 301, then recover_ms after its clearing was
+    /// read at 351).
     fn faulty_log() -> DriveLog {
         let p = Protocol::builtin();
         let mut can = Vec::new();
@@ -847,8 +899,9 @@ mod tests {
                 c.seq = k;
                 c.stamp_ns = k * MS;
                 // as tcs-loop does: safe in the cycle that read the fault
-                // (300), and recover_ms after it cleared (at 350)
-                c.safe_state = u8::from(k < 55 || (300..400).contains(&k));
+                // (301: the frame of 300 arrived after it woke), and
+                // recover_ms after it read it cleared (at 351)
+                c.safe_state = u8::from(k < 56 || (301..401).contains(&k));
                 c
             })
             .collect();
@@ -899,7 +952,7 @@ mod tests {
         // a loop that stepped on through a fault is reported so: the same
         // log with the loop out of its safe state from cycle 320
         let mut late = faulty_log();
-        for c in &mut late.cycles[320..400] {
+        for c in &mut late.cycles[321..401] {
             c.safe_state = 0;
         }
         let inv2 = inverter(&late, Protocol::builtin(), Some((100 * MS, 900 * MS)));
@@ -947,7 +1000,7 @@ mod tests {
             "during the scenario (0.000-0.800 s, 800 frames): fault 1 (0.050 s), derating 1 (0.100 s), command timeout 1 (0.020 s), not ready 0",
             "whole log: fault 2 (0.055 s), derating 1 (0.100 s), command timeout 2 (0.025 s), not ready 1 (0.050 s)",
             "fault: 2 episodes (1 before the scenario, 1 during the scenario)",
-            "-0.100 to -0.095 s (0.005 s, 5 frames), before the scenario, from the inverter's first frame, FaultCode 0x01: the loop in its safe state throughout (5 cycles)",
+            "-0.100 to -0.095 s (0.005 s, 5 frames), before the scenario, from the inverter's first frame, FaultCode 0x01: the loop in its safe state throughout (5 cycles; in it already before the fault began)",
             "0.200 to 0.250 s (0.050 s, 50 frames), during the scenario, FaultCode 0x2A: the loop in its safe state throughout (50 cycles)",
             "not ready: 1 episode (1 after the scenario)",
             "0.850 s to the end of the MotorStatus frames (0.050 s, 50 frames; still set in the last one), after the scenario",
@@ -957,6 +1010,116 @@ mod tests {
             assert!(r.contains(want), "{want:?} not in\n{r}");
         }
         assert!(!r.contains("ready throughout"), "{r}");
+    }
+
+    /// A fault that came while the loop was stalled: its frames are
+    /// stamped when they arrived, so the episode lasts what the inverter
+    /// said (180 ms), and the loop's cycles that read it begin with the
+    /// first one after the stall, which read them all, not the last one
+    /// before it (which read none of them).
+    #[test]
+    fn a_fault_during_a_loop_stall_is_read_by_the_cycle_after_it() {
+        let p = Protocol::builtin();
+        let can = (0..1000u64)
+            .map(|k| status(p, k, |m| m.fault = (220..400).contains(&k)))
+            .collect();
+        // no cycle from 200 to 379 ms; the first after the stall woke 300
+        // µs late and entered the safe state on what it read
+        let cycles = (0..1000u64)
+            .filter(|k| !(200..380).contains(k))
+            .map(|k| {
+                let mut c = CycleRecord::zeroed();
+                c.seq = k;
+                c.stamp_ns = k * MS;
+                c.wakeup_latency_ns = if k == 380 { 300_000 } else { 0 };
+                c.safe_state = u8::from((380..451).contains(&k));
+                c
+            })
+            .collect();
+        let log = DriveLog {
+            can,
+            cycles,
+            ..DriveLog::default()
+        };
+        let inv = inverter(&log, p, None);
+        let f = inv.flag(Flag::Fault).unwrap();
+        assert_eq!(f.count, 1, "{f:?}");
+        let e = &f.listed[0];
+        assert!((e.duration_s - 0.180).abs() < 1e-6, "{e:?}");
+        let s = e.safe.unwrap();
+        // cycles 380..=400 (the one woken at 400 ms read the frame of 399,
+        // the one of 401 the first clear frame)
+        assert_eq!((s.cycles, s.safe, s.safe_before), (21, 21, false), "{s:?}");
+        assert_eq!(s.first_safe_after_s, Some(0.0), "{s:?}");
+    }
+
+    /// Where the CAN log has one command per cycle record, as tcs-loop
+    /// writes it (each cycle's received frames, then its command), the
+    /// cycle that drained a frame is the one whose command follows it,
+    /// whatever the stamps: the same answer for a log that stamps a frame
+    /// with its arrival and for one written before 2026-12-07 that stamps
+    /// it when the loop read it (from the stamps alone, the second would
+    /// fall one cycle late and report the loop already safe before).
+    #[test]
+    fn the_cycle_that_drained_a_frame_is_the_one_whose_command_follows_it() {
+        let p = Protocol::builtin();
+        // the inverter sends at k ms + 0.5; cycle k + 1 drains it and
+        // enters the safe state on the first fault frame (300) until 100
+        // ms after it
+        let log = |read_stamps: bool, commands: bool| {
+            let mut can = Vec::new();
+            for k in 0..1000u64 {
+                if k > 0 {
+                    let j = k - 1;
+                    let mut f = status(p, j, |m| m.fault = (300..350).contains(&j));
+                    f.stamp_ns = if read_stamps {
+                        k * MS + 50_000
+                    } else {
+                        j * MS + 500_000
+                    };
+                    can.push(f);
+                }
+                if commands {
+                    let mut c = CanFrame::new(0x100, &[0; 8]);
+                    c.direction = can_dir::TX;
+                    c.stamp_ns = k * MS + 60_000;
+                    can.push(c);
+                }
+            }
+            let cycles = (0..1000u64)
+                .map(|k| {
+                    let mut c = CycleRecord::zeroed();
+                    c.seq = k;
+                    c.stamp_ns = k * MS;
+                    c.wakeup_latency_ns = 40_000;
+                    c.safe_state = u8::from((301..401).contains(&k));
+                    c
+                })
+                .collect();
+            DriveLog {
+                can,
+                cycles,
+                ..DriveLog::default()
+            }
+        };
+        let overlap = |l: &DriveLog| {
+            let inv = inverter(l, p, None);
+            let f = inv.flag(Flag::Fault).unwrap();
+            assert_eq!(f.count, 1, "{f:?}");
+            let s = f.listed[0].safe.unwrap();
+            (s.cycles, s.safe, s.safe_before)
+        };
+        for read_stamps in [false, true] {
+            assert_eq!(
+                overlap(&log(read_stamps, true)),
+                (50, 50, false),
+                "{read_stamps}"
+            );
+        }
+        // without the commands, the stamps say: right for arrival stamps,
+        // one cycle late for read stamps
+        assert_eq!(overlap(&log(false, false)), (50, 50, false));
+        assert_eq!(overlap(&log(true, false)), (50, 50, true));
     }
 
     /// Without a scenario window the times are from the log's first
@@ -1111,10 +1274,10 @@ mod tests {
             assert!(c.contains(&want), "{want:?} not in\n{c}");
         }
         assert!(!c.contains("no MotorStatus frames"), "{c}");
-        // the loop out of its safe state from cycle 320: 20 of the
+        // the loop out of its safe state from cycle 321: 20 of the
         // scenario fault's 50 cycles safe
         let mut late = faulty_log();
-        for c in &mut late.cycles[320..400] {
+        for c in &mut late.cycles[321..401] {
             c.safe_state = 0;
         }
         let c = compare_rows(&clean, &inverter(&late, p, window));

@@ -208,8 +208,9 @@ pub enum CanError {
 
 /// A CAN transport. Implementations allocate nothing in `send`, `try_recv`
 /// and `recv_timeout`. Received frames are stamped with CLOCK_MONOTONIC at
-/// reception and marked `direction = RX`; a participant never receives its
-/// own frames.
+/// arrival (SocketCAN: the kernel's receive time; the simulated bus: the
+/// publish time; [`MemBus`]: as fed), not when they are read, and marked
+/// `direction = RX`; a participant never receives its own frames.
 pub trait CanBus {
     /// Sends one frame (non-blocking where the transport allows).
     fn send(&mut self, frame: &CanFrame) -> Result<(), CanError>;
@@ -358,7 +359,8 @@ impl AnyBus {
     /// A bus monitor's read ([`open_monitor`]): on SocketCAN
     /// [`SocketCanBus::try_recv_monitor`] (every frame kind, the kernel's
     /// receive time), on the simulated bus [`CanBus::try_recv`] (every
-    /// frame another participant sent, stamped at read). Allocation-free.
+    /// frame another participant sent, stamped when it was published).
+    /// Allocation-free.
     pub fn try_recv_monitor(&mut self) -> Result<Option<CanFrame>, CanError> {
         match self {
             Self::SocketCan(b) => b.try_recv_monitor(),

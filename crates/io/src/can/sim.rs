@@ -6,6 +6,10 @@
 //! a slow reader loses its oldest frames when its 1024-frame buffer overflows.
 //! A participant's [`RxFilter`] is applied on receipt, as the kernel applies
 //! it to a SocketCAN bus: a frame it does not pass is dropped unseen.
+//! A frame is stamped (CLOCK_MONOTONIC) when it is published, the time it
+//! reaches every receiver on a bus without delay, as SocketCAN's kernel
+//! stamps a frame when it arrives: a receiver that reads it later (a stall)
+//! still sees when it came.
 
 use core::time::Duration;
 
@@ -107,8 +111,8 @@ impl SimBus {
         self.subscriber.peers()
     }
 
-    fn stamp(&self, mut f: CanFrame) -> CanFrame {
-        f.stamp_ns = monotonic_now_ns();
+    /// A received frame as its receiver sees it: its publish stamp kept.
+    fn received(&self, mut f: CanFrame) -> CanFrame {
         f.direction = can_dir::RX;
         f.bus = self.bus_id;
         f
@@ -123,7 +127,10 @@ impl CanBus for SimBus {
                 dlc: frame.dlc,
             });
         }
-        self.publisher.publish(frame)?;
+        // stamped as it goes on the bus: every receiver's arrival time
+        let mut f = *frame;
+        f.stamp_ns = monotonic_now_ns();
+        self.publisher.publish(&f)?;
         // wake-up is best effort: a receiver also finds the frame by polling
         let _ = self.notifier.notify();
         Ok(())
@@ -135,7 +142,7 @@ impl CanBus for SimBus {
     fn try_recv(&mut self) -> Result<Option<CanFrame>, CanError> {
         while let Some(f) = self.subscriber.recv_not_from(self.publisher.id())? {
             if self.rx.accepts(&f) {
-                return Ok(Some(self.stamp(f)));
+                return Ok(Some(self.received(f)));
             }
         }
         Ok(None)

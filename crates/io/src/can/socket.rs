@@ -3,7 +3,7 @@
 use core::time::Duration;
 use std::io::ErrorKind;
 
-use socketcan::{CanDataFrame, CanFilter, CanFrame as SockFrame, CanSocket, Socket, SocketOptions};
+use socketcan::{CanDataFrame, CanFilter, CanSocket, Socket, SocketOptions};
 use socketcan::{EmbeddedFrame as _, ExtendedId, Id, StandardId};
 
 use super::{BusKind, CanBus, CanError, CanFrame, RxFilter};
@@ -53,6 +53,12 @@ pub fn physical_interface_in(
 
 /// A raw CAN socket on one interface, non-blocking; receive waits use poll(2).
 ///
+/// Every frame it reads is stamped with the kernel's receive time
+/// (`SO_TIMESTAMPNS`, moved onto CLOCK_MONOTONIC): when the frame arrived,
+/// not when its reader got to it, so that a CAN log written by a loop that
+/// was stalled shows the frames spread over the stall as they came (until
+/// 2026-12-07 only a monitor's were; the others carried the read time).
+///
 /// When the interface is deleted (a USB-CAN adapter unplugged, `ip link
 /// del`), the kernel unbinds the socket for good: one receive reports
 /// `ENODEV`, every send `ENXIO`, and nothing arrives again, even once an
@@ -91,7 +97,20 @@ pub struct SocketCanBus {
     kernel_stamped: u64,
     /// 11-bit ids a monitor's kernel filter drops ([`Self::open_monitor`]).
     exclude: heapless::Vec<u32, MONITOR_MAX_EXCLUDED>,
+    /// CLOCK_REALTIME and CLOCK_MONOTONIC read together, at most
+    /// [`CLOCK_PAIR_MAX_AGE_NS`] ago (0, 0: not yet), to move the kernel's
+    /// stamps onto CLOCK_MONOTONIC.
+    clock_pair: (u64, u64),
 }
+
+/// How long a reading of the two clocks serves to move kernel stamps from
+/// CLOCK_REALTIME onto CLOCK_MONOTONIC: reading both for every frame
+/// doubled the cost of a read where a clock read is slow (an emulated
+/// machine: the HIL VM's 20 000 frames/s flood made its loop miss a
+/// quarter of its deadlines). An NTP slew (at most 500 ppm) moves a stamp
+/// by at most 50 µs over it; a wall-clock step shifts the stamps of the
+/// frames read until the next reading by the step (clamped to their read).
+pub const CLOCK_PAIR_MAX_AGE_NS: u64 = 100_000_000;
 
 /// How often a bus whose interface vanished looks whether it is back.
 pub const REOPEN_CHECK_NS: u64 = 100_000_000;
@@ -166,6 +185,7 @@ impl SocketCanBus {
             dropped_now: 0,
             kernel_stamped: 0,
             exclude: heapless::Vec::new(),
+            clock_pair: (0, 0),
         })
     }
 
@@ -212,25 +232,35 @@ impl SocketCanBus {
         self.dropped_before + u64::from(now)
     }
 
-    /// Frames [`Self::try_recv_monitor`] stamped with the kernel's receive
-    /// time (the others with CLOCK_MONOTONIC at read).
+    /// Frames read stamped with the kernel's receive time (the others,
+    /// none on a kernel that stamps, with CLOCK_MONOTONIC at read).
     pub fn kernel_stamped(&self) -> u64 {
         self.kernel_stamped
     }
 
     /// A monitor's read: the next frame waiting, any kind (data, remote:
     /// `can_flags::RTR`, error: `can_flags::ERROR` with the error class
-    /// bits as its id), without blocking, stamped with the kernel's receive
-    /// time moved onto CLOCK_MONOTONIC (`SO_TIMESTAMPNS` gives
-    /// CLOCK_REALTIME: the difference of the two clocks read right after
-    /// the read is subtracted, so a wall-clock step between the frame's
-    /// arrival and its read shifts that frame by the step), or with
-    /// CLOCK_MONOTONIC at read where the kernel gave none. `recvmsg(2)`
-    /// into buffers on the stack: allocation-free. The interface's loss
-    /// and return are handled as in [`CanBus::try_recv`].
+    /// bits as its id), without blocking, stamped as [`Self::recv_stamped`]
+    /// says. The interface's loss and return are handled as in
+    /// [`CanBus::try_recv`].
     pub fn try_recv_monitor(&mut self) -> Result<Option<CanFrame>, CanError> {
-        use std::os::fd::AsRawFd as _;
         self.reopen_if_back();
+        self.recv_stamped()
+    }
+
+    /// The next frame waiting on the socket, any kind, without blocking,
+    /// stamped with the kernel's receive time (every socket asks for it,
+    /// `SO_TIMESTAMPNS`) moved onto CLOCK_MONOTONIC: `SO_TIMESTAMPNS` gives
+    /// CLOCK_REALTIME, and the difference of the two clocks, read together
+    /// at most [`CLOCK_PAIR_MAX_AGE_NS`] before, is subtracted (never later
+    /// than the read), so a wall-clock step shifts the frames read until
+    /// the next reading by the step; where the kernel gave no stamp,
+    /// CLOCK_MONOTONIC at read. So a frame that
+    /// waited in the socket while its reader was stalled carries the time
+    /// it arrived, not the time it was read. `recvmsg(2)` into buffers on
+    /// the stack: allocation-free.
+    fn recv_stamped(&mut self) -> Result<Option<CanFrame>, CanError> {
+        use std::os::fd::AsRawFd as _;
         // SAFETY: can_frame is plain data; all-zero is a valid frame.
         let mut raw: libc::can_frame = unsafe { core::mem::zeroed() };
         // 8-byte aligned room for a timespec and a u32 control message
@@ -289,11 +319,46 @@ impl SocketCanBus {
         let stamp = match kernel_real {
             Some(k) => {
                 self.kernel_stamped += 1;
-                real_to_monotonic(k, realtime_now_ns(), monotonic_now_ns())
+                if self.clock_pair.1 == 0
+                    || read_mono.saturating_sub(self.clock_pair.1) > CLOCK_PAIR_MAX_AGE_NS
+                {
+                    self.clock_pair = (realtime_now_ns(), monotonic_now_ns());
+                }
+                let (real_at, mono_at) = self.clock_pair;
+                real_to_monotonic(k, real_at, mono_at, read_mono)
             }
             None => read_mono,
         };
         Ok(Some(frame_from_raw(&raw, stamp, self.bus_id)))
+    }
+
+    /// Waits at most `timeout_ns` for the socket to have something to
+    /// read (`ppoll(2)`): true when it has (or has an error to report),
+    /// false on the timeout or a signal. Allocation-free.
+    fn wait_readable(&self, timeout_ns: u64) -> Result<bool, CanError> {
+        use std::os::fd::AsRawFd as _;
+        let mut pfd = libc::pollfd {
+            fd: self.sock.as_raw_fd(),
+            events: libc::POLLIN,
+            revents: 0,
+        };
+        let ts = libc::timespec {
+            tv_sec: (timeout_ns / 1_000_000_000) as libc::time_t,
+            tv_nsec: (timeout_ns % 1_000_000_000) as libc::c_long,
+        };
+        // SAFETY: one live pollfd, a valid timespec, no signal mask.
+        let r = unsafe { libc::ppoll(&raw mut pfd, 1, &raw const ts, core::ptr::null()) };
+        if r < 0 {
+            let e = std::io::Error::last_os_error();
+            if e.kind() == ErrorKind::Interrupted {
+                return Ok(false);
+            }
+            return Err(CanError::Transfer {
+                op: "receive",
+                kind: e.kind(),
+            });
+        }
+        Ok(r > 0)
     }
 
     /// Times the socket was reopened on a re-created interface.
@@ -358,26 +423,6 @@ impl SocketCanBus {
     pub fn iface(&self) -> &str {
         &self.iface
     }
-
-    fn convert(&self, f: SockFrame) -> Option<CanFrame> {
-        match f {
-            SockFrame::Data(d) => {
-                let mut out = CanFrame::new(0, d.data());
-                let (id, ext) = match d.id() {
-                    Id::Standard(s) => (u32::from(s.as_raw()), 0),
-                    Id::Extended(e) => (e.as_raw(), can_flags::EXTENDED),
-                };
-                out.id = id;
-                out.flags = ext;
-                out.stamp_ns = monotonic_now_ns();
-                out.direction = can_dir::RX;
-                out.bus = self.bus_id;
-                Some(out)
-            }
-            // remote and error frames are not part of the protocol
-            _ => None,
-        }
-    }
 }
 
 /// Receive buffer a monitor asks for (`SO_RCVBUF`), bytes: the kernel
@@ -411,8 +456,9 @@ fn setsockopt_int(
     }
 }
 
-/// A monitor socket's options: kernel receive stamps, drop counts, every
-/// error class, a larger receive buffer (best effort).
+/// A monitor socket's options (beyond the kernel receive stamps every
+/// socket has): drop counts, every error class, a larger receive buffer
+/// (best effort).
 fn monitor_options(sock: &CanSocket, exclude: &[u32]) -> std::io::Result<()> {
     use std::os::fd::AsRawFd as _;
     if !exclude.is_empty() {
@@ -440,7 +486,6 @@ fn monitor_options(sock: &CanSocket, exclude: &[u32]) -> std::io::Result<()> {
         }
         setsockopt_int(sock, libc::SOL_CAN_RAW, libc::CAN_RAW_JOIN_FILTERS, 1)?;
     }
-    setsockopt_int(sock, libc::SOL_SOCKET, libc::SO_TIMESTAMPNS, 1)?;
     setsockopt_int(sock, libc::SOL_SOCKET, libc::SO_RXQ_OVFL, 1)?;
     setsockopt_int(
         sock,
@@ -492,12 +537,14 @@ fn realtime_now_ns() -> u64 {
         .saturating_add(ts.tv_nsec as u64)
 }
 
-/// A CLOCK_REALTIME stamp `real` moved onto CLOCK_MONOTONIC, with both
-/// clocks read (`real_now`, `mono_now`) after it: `mono_now - (real_now -
-/// real)`; never later than `mono_now` (a stamp "from the future" after a
-/// wall-clock step back is clamped to the read).
-pub fn real_to_monotonic(real: u64, real_now: u64, mono_now: u64) -> u64 {
-    mono_now.saturating_sub(real_now.saturating_sub(real))
+/// A CLOCK_REALTIME stamp `real` moved onto CLOCK_MONOTONIC by the two
+/// clocks read together (`real_at`, `mono_at`; before or after the stamp):
+/// `mono_at + (real - real_at)`, never later than `read_mono` (the
+/// monotonic time the frame was read: a stamp "from the future" after a
+/// wall-clock step back is clamped to it) and never below 0.
+pub fn real_to_monotonic(real: u64, real_at: u64, mono_at: u64, read_mono: u64) -> u64 {
+    let m = i128::from(mono_at) + i128::from(real) - i128::from(real_at);
+    m.clamp(0, i128::from(read_mono)) as u64
 }
 
 /// A grip frame of a raw SocketCAN frame: 11- or 29-bit id and the
@@ -535,6 +582,9 @@ pub fn frame_from_raw(raw: &libc::can_frame, stamp_ns: u64, bus_id: u8) -> CanFr
 /// what arrived before they were set.
 fn configure(sock: &CanSocket, filters: Option<&[CanFilter]>) -> std::io::Result<()> {
     sock.set_nonblocking(true)?;
+    // every read carries the kernel's receive time ([`SocketCanBus`]'s
+    // `recv_stamped`)
+    setsockopt_int(sock, libc::SOL_SOCKET, libc::SO_TIMESTAMPNS, 1)?;
     if let Some(filters) = filters {
         sock.set_filters(filters)?;
         for _ in 0..FLUSH_MAX {
@@ -579,23 +629,16 @@ impl CanBus for SocketCanBus {
         })
     }
 
+    /// The next data frame waiting (remote and error frames are not part
+    /// of the protocol and are skipped), stamped with the kernel's receive
+    /// time ([`SocketCanBus`]'s `recv_stamped`): the time it arrived, not
+    /// the time it was read.
     fn try_recv(&mut self) -> Result<Option<CanFrame>, CanError> {
         self.reopen_if_back();
         loop {
-            match self.sock.read_frame() {
-                Ok(f) => {
-                    if let Some(c) = self.convert(f) {
-                        return Ok(Some(c));
-                    }
-                }
-                Err(e) if e.kind() == ErrorKind::WouldBlock => return Ok(None),
-                Err(e) => {
-                    self.note(&e);
-                    return Err(CanError::Transfer {
-                        op: "receive",
-                        kind: e.kind(),
-                    });
-                }
+            match self.recv_stamped()? {
+                Some(f) if f.flags & (can_flags::RTR | can_flags::ERROR) != 0 => {}
+                other => return Ok(other),
             }
         }
     }
@@ -610,24 +653,7 @@ impl CanBus for SocketCanBus {
             if now >= deadline {
                 return Ok(None);
             }
-            match self
-                .sock
-                .read_frame_timeout(Duration::from_nanos(deadline - now))
-            {
-                Ok(f) => {
-                    if let Some(c) = self.convert(f) {
-                        return Ok(Some(c));
-                    }
-                }
-                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
-                Err(e) => {
-                    self.note(&e);
-                    return Err(CanError::Transfer {
-                        op: "receive",
-                        kind: e.kind(),
-                    });
-                }
-            }
+            self.wait_readable(deadline - now)?;
         }
     }
 
@@ -714,18 +740,24 @@ mod tests {
     /// the clocks' difference, never later than the read.
     #[test]
     fn realtime_stamps_move_onto_the_monotonic_clock() {
-        // received 1.5 ms before the read
+        // received 1.5 ms before the clocks were read, at the read
         assert_eq!(
-            real_to_monotonic(1_000_000_000, 1_001_500_000, 7_000_000),
+            real_to_monotonic(1_000_000_000, 1_001_500_000, 7_000_000, 7_000_000),
             5_500_000
+        );
+        // received 2 ms after the clocks were read (an older reading of
+        // them), read 1 ms later
+        assert_eq!(
+            real_to_monotonic(1_002_000_000, 1_000_000_000, 5_000_000, 8_000_000),
+            7_000_000
         );
         // a wall clock stepped back since: clamped to the read
         assert_eq!(
-            real_to_monotonic(2_000_000_000, 1_000_000_000, 7_000_000),
+            real_to_monotonic(2_000_000_000, 1_000_000_000, 7_000_000, 7_000_000),
             7_000_000
         );
         // earlier than boot: 0, never a wrap
-        assert_eq!(real_to_monotonic(0, 1_000_000_000, 5), 0);
+        assert_eq!(real_to_monotonic(0, 1_000_000_000, 5, 5), 0);
     }
 
     /// A fake `/sys/class/net`: `can0` with a `device` link (a controller on

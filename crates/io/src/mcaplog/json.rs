@@ -718,7 +718,7 @@ impl McapRecord for CanFrame {
                 (
                     "stamp_ns",
                     t_int(
-                        "CLOCK_MONOTONIC ns: receive time of a received frame (the kernel's on SocketCAN), the cycle's time of a sent one",
+                        "CLOCK_MONOTONIC ns: arrival time of a received frame (the kernel's receive time on SocketCAN, the publish time on the simulated bus; logs written before 2026-12-07 carry the time tcs-loop read it), the cycle's time of a sent one",
                     ),
                 ),
                 ("id", t_int("identifier (11 bit, or 29 bit with flag 1)")),
