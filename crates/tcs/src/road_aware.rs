@@ -205,10 +205,10 @@ pub struct PreviewParams {
     pub mtte: PreviewTrade,
 }
 
-/// One controller's own `cap_share` and `slip_share` (`[preview.mfc]`,
-/// `[preview.src]`, `[preview.mtte]`): the two values that decide how much
-/// traction its ARTE variant gives up for less slip. A value left out is
-/// `[preview]`'s. [`PreviewParams::for_controller`] applies it.
+/// One controller's own `cap_share`, `slip_share` and `recover_share`
+/// (`[preview.mfc]`, `[preview.src]`, `[preview.mtte]`): the values that
+/// decide how much traction (and command smoothness) its ARTE variant gives
+/// up for less slip. A value left out is `[preview]`'s. [`PreviewParams::for_controller`] applies it.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PreviewTrade {
@@ -216,6 +216,8 @@ pub struct PreviewTrade {
     pub cap_share: Option<f64>,
     /// In place of [`PreviewParams::slip_share`], (0, 1].
     pub slip_share: Option<f64>,
+    /// In place of [`PreviewParams::recover_share`], (0, 1.5].
+    pub recover_share: Option<f64>,
 }
 
 impl PreviewTrade {
@@ -225,6 +227,7 @@ impl PreviewTrade {
         match key {
             "cap_share" => self.cap_share,
             "slip_share" => self.slip_share,
+            "recover_share" => self.recover_share,
             _ => None,
         }
     }
@@ -235,6 +238,9 @@ impl PreviewTrade {
         }
         if let Some(v) = self.slip_share {
             in_range("slip_share", v, 1e-3, 1.0)?;
+        }
+        if let Some(v) = self.recover_share {
+            in_range("recover_share", v, 1e-3, 1.5)?;
         }
         Ok(())
     }
@@ -272,7 +278,7 @@ impl Default for PreviewParams {
             mfc: PreviewTrade::default(),
             src: PreviewTrade {
                 cap_share: Some(0.9),
-                slip_share: None,
+                ..PreviewTrade::default()
             },
             mtte: PreviewTrade::default(),
         }
@@ -332,6 +338,7 @@ impl PreviewParams {
         PreviewParams {
             cap_share: t.cap_share.unwrap_or(self.cap_share),
             slip_share: t.slip_share.unwrap_or(self.slip_share),
+            recover_share: t.recover_share.unwrap_or(self.recover_share),
             mfc: PreviewTrade::default(),
             src: PreviewTrade::default(),
             mtte: PreviewTrade::default(),
@@ -1608,10 +1615,12 @@ mod tests {
             mfc: PreviewTrade {
                 cap_share: Some(0.8),
                 slip_share: Some(0.9),
+                recover_share: None,
             },
             src: PreviewTrade {
                 cap_share: None,
                 slip_share: Some(0.85),
+                recover_share: Some(0.6),
             },
             mtte: PreviewTrade::default(),
             ..PreviewParams::default()
@@ -1621,6 +1630,10 @@ mod tests {
         assert_eq!(mfc.mfc, PreviewTrade::default(), "applied, not left");
         let src = p.for_controller(ControllerKind::Src);
         assert_eq!((src.cap_share, src.slip_share), (1.0, 0.85));
+        assert_eq!(
+            (src.recover_share, mfc.recover_share),
+            (0.6, p.recover_share)
+        );
         let mtte = p.for_controller(ControllerKind::Mtte);
         assert_eq!((mtte.cap_share, mtte.slip_share), (1.0, 0.95));
         assert_eq!(mtte.recover_share, p.recover_share);
