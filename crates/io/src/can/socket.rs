@@ -104,10 +104,10 @@ pub struct SocketCanBus {
 }
 
 /// How long a reading of the two clocks serves to move kernel stamps from
-/// CLOCK_REALTIME onto CLOCK_MONOTONIC: reading both for every frame
-/// doubled the cost of a read where a clock read is slow (an emulated
-/// machine: the HIL VM's 20 000 frames/s flood made its loop miss a
-/// quarter of its deadlines). An NTP slew (at most 500 ppm) moves a stamp
+/// CLOCK_REALTIME onto CLOCK_MONOTONIC: reading both for every frame would
+/// triple the clock reads of each read, which the real-time loops do up to
+/// [`super::MAX_RX_PER_CYCLE`] times a cycle (a clock read is slow under
+/// emulation, where the HIL suite floods the bus). An NTP slew (at most 500 ppm) moves a stamp
 /// by at most 50 µs over it; a wall-clock step shifts the stamps of the
 /// frames read until the next reading by the step (clamped to their read).
 pub const CLOCK_PAIR_MAX_AGE_NS: u64 = 100_000_000;
@@ -240,8 +240,8 @@ impl SocketCanBus {
 
     /// A monitor's read: the next frame waiting, any kind (data, remote:
     /// `can_flags::RTR`, error: `can_flags::ERROR` with the error class
-    /// bits as its id), without blocking, stamped as [`Self::recv_stamped`]
-    /// says. The interface's loss and return are handled as in
+    /// bits as its id), without blocking, stamped with the kernel's receive
+    /// time as every read of this bus is ([`SocketCanBus`]). The interface's loss and return are handled as in
     /// [`CanBus::try_recv`].
     pub fn try_recv_monitor(&mut self) -> Result<Option<CanFrame>, CanError> {
         self.reopen_if_back();
