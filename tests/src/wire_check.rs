@@ -453,12 +453,14 @@ mod tests {
         for f in cap.frames.iter().filter(|f| ids.contains(&f.id())) {
             let t_ms = f.t_ns / 1_000_000;
             // frames of the late stretch reach the loop at its end
-            let read_ms = if (late.0..late.1).contains(&t_ms) {
-                late.1
+            let reach_ns = if (late.0..late.1).contains(&t_ms) {
+                late.1 * 1_000_000
             } else {
-                t_ms
+                f.t_ns
             };
-            let k = ran.partition_point(|&c| c < read_ms);
+            // drained by the first cycle whose drain (just before its
+            // command) comes at or after that
+            let k = ran.partition_point(|&c| c * 1_000_000 + 20_000 < reach_ns);
             if let Some(v) = read_by.get_mut(k) {
                 v.push(CanFrame {
                     stamp_ns: f.t_ns,

@@ -221,8 +221,9 @@ pub struct PreviewTrade {
 }
 
 impl PreviewTrade {
-    /// The value set for `key` (`cap_share` or `slip_share`, as in the
-    /// file); `None` when not set or not one of the two.
+    /// The value set for `key` (`cap_share`, `slip_share` or
+    /// `recover_share`, as in the file); `None` when not set or not one of
+    /// them.
     pub fn get(&self, key: &str) -> Option<f64> {
         match key {
             "cap_share" => self.cap_share,

@@ -27,8 +27,9 @@ pub use grip_msgs::CanFrame;
 pub use mem::{FrameQueue, MEM_BUS_CAPACITY, MemBus, frame_queue};
 pub use sim::SimBus;
 pub use socket::{
-    MONITOR_MAX_EXCLUDED, MONITOR_RCVBUF, REOPEN_CHECK_NS, SocketCanBus, af_can_available,
-    frame_from_raw, interface_exists, physical_interface, physical_interface_in, real_to_monotonic,
+    CLOCK_PAIR_CHECK_NS, CLOCK_PAIR_MAX_AGE_NS, MONITOR_MAX_EXCLUDED, MONITOR_RCVBUF,
+    REOPEN_CHECK_NS, SocketCanBus, StampClock, af_can_available, frame_from_raw, interface_exists,
+    physical_interface, physical_interface_in,
 };
 
 use crate::ipc::{IpcError, IpcNode};

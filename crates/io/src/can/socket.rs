@@ -51,7 +51,7 @@ pub fn physical_interface_in(
     dev.exists().then_some(dev)
 }
 
-/// A raw CAN socket on one interface, non-blocking; receive waits use poll(2).
+/// A raw CAN socket on one interface, non-blocking; receive waits use ppoll(2).
 ///
 /// Every frame it reads is stamped with the kernel's receive time
 /// (`SO_TIMESTAMPNS`, moved onto CLOCK_MONOTONIC): when the frame arrived,
@@ -85,22 +85,20 @@ pub struct SocketCanBus {
     next_check_ns: u64,
     /// Sockets reopened on a re-created interface.
     reopens: u64,
-    /// Opened as a bus monitor ([`Self::open_monitor`]): kernel receive
-    /// stamps, receive-queue overflow counts, error frames (re-applied on
-    /// a reopen).
+    /// Opened as a bus monitor ([`Self::open_monitor`]): receive-queue
+    /// overflow counts, error frames (re-applied on a reopen; every socket
+    /// has kernel receive stamps).
     monitor: bool,
     /// Frames the kernel dropped on earlier sockets (before a reopen).
     dropped_before: u64,
     /// The current socket's drop counter (`SO_RXQ_OVFL`), as last seen.
     dropped_now: u32,
-    /// Frames a monitor read stamped with the kernel's receive time.
+    /// Frames read stamped with the kernel's receive time.
     kernel_stamped: u64,
     /// 11-bit ids a monitor's kernel filter drops ([`Self::open_monitor`]).
     exclude: heapless::Vec<u32, MONITOR_MAX_EXCLUDED>,
-    /// CLOCK_REALTIME and CLOCK_MONOTONIC read together, at most
-    /// [`CLOCK_PAIR_MAX_AGE_NS`] ago (0, 0: not yet), to move the kernel's
-    /// stamps onto CLOCK_MONOTONIC.
-    clock_pair: (u64, u64),
+    /// Moves the kernel's stamps onto CLOCK_MONOTONIC.
+    stamps: StampClock,
 }
 
 /// How long a reading of the two clocks serves to move kernel stamps from
@@ -108,9 +106,16 @@ pub struct SocketCanBus {
 /// triple the clock reads of each read, which the real-time loops do up to
 /// [`super::MAX_RX_PER_CYCLE`] times a cycle (a clock read is slow under
 /// emulation, where the HIL suite floods the bus). An NTP slew (at most 500 ppm) moves a stamp
-/// by at most 50 µs over it; a wall-clock step shifts the stamps of the
-/// frames read until the next reading by the step (clamped to their read).
+/// by at most 50 µs over it. A wall-clock step makes a stamp fall after its
+/// read, before the stamp handed out before it, or more than
+/// [`CLOCK_PAIR_CHECK_NS`] before its read: then the pair is read again at
+/// once (and the stamp kept within the last one and its read).
 pub const CLOCK_PAIR_MAX_AGE_NS: u64 = 100_000_000;
+
+/// A kernel stamp this long before its read has the clock pair read again
+/// before it is believed (a wall-clock step back; or a frame that really
+/// waited this long, which the new pair then confirms).
+pub const CLOCK_PAIR_CHECK_NS: u64 = 1_000_000_000;
 
 /// How often a bus whose interface vanished looks whether it is back.
 pub const REOPEN_CHECK_NS: u64 = 100_000_000;
@@ -185,7 +190,7 @@ impl SocketCanBus {
             dropped_now: 0,
             kernel_stamped: 0,
             exclude: heapless::Vec::new(),
-            clock_pair: (0, 0),
+            stamps: StampClock::default(),
         })
     }
 
@@ -319,13 +324,8 @@ impl SocketCanBus {
         let stamp = match kernel_real {
             Some(k) => {
                 self.kernel_stamped += 1;
-                if self.clock_pair.1 == 0
-                    || read_mono.saturating_sub(self.clock_pair.1) > CLOCK_PAIR_MAX_AGE_NS
-                {
-                    self.clock_pair = (realtime_now_ns(), monotonic_now_ns());
-                }
-                let (real_at, mono_at) = self.clock_pair;
-                real_to_monotonic(k, real_at, mono_at, read_mono)
+                self.stamps
+                    .to_monotonic(k, read_mono, || (realtime_now_ns(), monotonic_now_ns()))
             }
             None => read_mono,
         };
@@ -537,14 +537,48 @@ fn realtime_now_ns() -> u64 {
         .saturating_add(ts.tv_nsec as u64)
 }
 
-/// A CLOCK_REALTIME stamp `real` moved onto CLOCK_MONOTONIC by the two
-/// clocks read together (`real_at`, `mono_at`; before or after the stamp):
-/// `mono_at + (real - real_at)`, never later than `read_mono` (the
-/// monotonic time the frame was read: a stamp "from the future" after a
-/// wall-clock step back is clamped to it) and never below 0.
-pub fn real_to_monotonic(real: u64, real_at: u64, mono_at: u64, read_mono: u64) -> u64 {
-    let m = i128::from(mono_at) + i128::from(real) - i128::from(real_at);
-    m.clamp(0, i128::from(read_mono)) as u64
+/// Moves a socket's kernel receive stamps (CLOCK_REALTIME) onto
+/// CLOCK_MONOTONIC: `mono_at + (real - real_at)` with a pair of the two
+/// clocks read together at most [`CLOCK_PAIR_MAX_AGE_NS`] before. The pair
+/// is read again at once when a stamp comes out odd: after its read, before
+/// the stamp handed out before it (a socket's queue is in arrival order),
+/// or more than [`CLOCK_PAIR_CHECK_NS`] before its read (each a sign of a
+/// wall-clock step since the pair was read); and a stamp is always kept
+/// within the one before it and its read. Allocation-free.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct StampClock {
+    /// (CLOCK_REALTIME, CLOCK_MONOTONIC) read together; (0, 0): not yet.
+    pair: (u64, u64),
+    /// The last stamp handed out.
+    last: u64,
+}
+
+impl StampClock {
+    /// The kernel stamp `real` of a frame read at `read_mono`, on
+    /// CLOCK_MONOTONIC; `read_pair` reads the two clocks together when the
+    /// pair is due or the stamp odd.
+    pub fn to_monotonic(
+        &mut self,
+        real: u64,
+        read_mono: u64,
+        read_pair: impl FnOnce() -> (u64, u64),
+    ) -> u64 {
+        let convert = |(real_at, mono_at): (u64, u64)| {
+            i128::from(mono_at) + i128::from(real) - i128::from(real_at)
+        };
+        let read = i128::from(read_mono);
+        let mut m = convert(self.pair);
+        let odd =
+            m > read || m < i128::from(self.last) || m < read - i128::from(CLOCK_PAIR_CHECK_NS);
+        if self.pair.1 == 0 || read_mono.saturating_sub(self.pair.1) > CLOCK_PAIR_MAX_AGE_NS || odd
+        {
+            self.pair = read_pair();
+            m = convert(self.pair);
+        }
+        let s = m.max(i128::from(self.last)).min(read).max(0) as u64;
+        self.last = s;
+        s
+    }
 }
 
 /// A grip frame of a raw SocketCAN frame: 11- or 29-bit id and the
@@ -736,28 +770,76 @@ mod tests {
         assert_eq!((f.id, f.flags), (0x04, can_flags::ERROR));
     }
 
-    /// The kernel's CLOCK_REALTIME stamp onto CLOCK_MONOTONIC: shifted by
-    /// the clocks' difference, never later than the read.
+    /// The kernel's CLOCK_REALTIME stamps onto CLOCK_MONOTONIC: shifted by
+    /// the clocks' difference, the pair read once per
+    /// [`CLOCK_PAIR_MAX_AGE_NS`]; a wall-clock step either way since the
+    /// pair was read has it read again at once, and no stamp is later than
+    /// its read or earlier than the one before it.
     #[test]
     fn realtime_stamps_move_onto_the_monotonic_clock() {
-        // received 1.5 ms before the clocks were read, at the read
+        const S: u64 = 1_000_000_000;
+        const MS: u64 = 1_000_000;
+        let mut c = StampClock::default();
+        let reads = std::cell::Cell::new(0);
+        // the wall clock 1000 s ahead of the monotonic one
+        let pair = |real: u64, mono: u64| {
+            let r = &reads;
+            move || {
+                r.set(r.get() + 1);
+                (real, mono)
+            }
+        };
+        // received 1.5 ms before the read (the first read reads the pair)
         assert_eq!(
-            real_to_monotonic(1_000_000_000, 1_001_500_000, 7_000_000, 7_000_000),
-            5_500_000
+            c.to_monotonic(1000 * S + 5 * S - 1_500_000, 5 * S, pair(1005 * S, 5 * S)),
+            5 * S - 1_500_000
         );
-        // received 2 ms after the clocks were read (an older reading of
-        // them), read 1 ms later
+        assert_eq!(reads.get(), 1);
+        // 50 ms later: the same pair serves, a frame received after it
         assert_eq!(
-            real_to_monotonic(1_002_000_000, 1_000_000_000, 5_000_000, 8_000_000),
-            7_000_000
+            c.to_monotonic(1005 * S + 40 * MS, 5 * S + 50 * MS, pair(0, 0)),
+            5 * S + 40 * MS
         );
-        // a wall clock stepped back since: clamped to the read
+        assert_eq!(reads.get(), 1);
+        // 150 ms after the pair: read again
         assert_eq!(
-            real_to_monotonic(2_000_000_000, 1_000_000_000, 7_000_000, 7_000_000),
-            7_000_000
+            c.to_monotonic(
+                1005 * S + 140 * MS,
+                5 * S + 150 * MS,
+                pair(1005 * S + 150 * MS, 5 * S + 150 * MS)
+            ),
+            5 * S + 140 * MS
         );
-        // earlier than boot: 0, never a wrap
-        assert_eq!(real_to_monotonic(0, 1_000_000_000, 5, 5), 0);
+        assert_eq!(reads.get(), 2);
+        // the wall clock stepped back 10 s: with the old pair the stamp
+        // would be 10 s before its read; the pair is read again
+        let t = 5 * S + 160 * MS;
+        assert_eq!(
+            c.to_monotonic(995 * S + 158 * MS, t, pair(995 * S + 160 * MS, t)),
+            t - 2 * MS
+        );
+        assert_eq!(reads.get(), 3);
+        // stepped forward 10 s: a stamp after its read; read again
+        let t = 5 * S + 170 * MS;
+        assert_eq!(
+            c.to_monotonic(1005 * S + 169 * MS, t, pair(1005 * S + 170 * MS, t)),
+            t - MS
+        );
+        assert_eq!(reads.get(), 4);
+        // a stamp before the last one even with a fresh pair (a step
+        // within the frame's wait): kept at the last one
+        assert_eq!(
+            c.to_monotonic(
+                1005 * S + 150 * MS,
+                t + MS,
+                pair(1005 * S + 171 * MS, t + MS)
+            ),
+            t - MS
+        );
+        assert_eq!(reads.get(), 5);
+        // a pair that cannot explain it (earlier than boot): never below 0
+        let mut c = StampClock::default();
+        assert_eq!(c.to_monotonic(0, 5, pair(1000 * S, 5)), 0);
     }
 
     /// A fake `/sys/class/net`: `can0` with a `device` link (a controller on
