@@ -678,7 +678,8 @@ impl CanBus for SocketCanBus {
     }
 
     fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<CanFrame>, CanError> {
-        let deadline = monotonic_now_ns().saturating_add(timeout.as_nanos() as u64);
+        let deadline = monotonic_now_ns()
+            .saturating_add(u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX));
         loop {
             if let Some(f) = self.try_recv()? {
                 return Ok(Some(f));
