@@ -169,18 +169,15 @@ pub struct LoopLog<'a> {
 /// stamp is its arrival (the kernel's receive time), which says nothing of
 /// a kernel that delivered it late.
 pub fn read_times<'a>(can: &'a [CanFrame]) -> impl Iterator<Item = (&'a CanFrame, u64)> + 'a {
-    let mut next_tx = vec![None; can.len()];
-    let mut after: Option<u64> = None;
-    for (i, f) in can.iter().enumerate().rev() {
-        if f.direction == can_dir::TX {
-            after = Some(f.stamp_ns);
-        }
-        next_tx[i] = after;
-    }
+    let commands: Vec<u64> = can
+        .iter()
+        .filter(|f| f.direction == can_dir::TX)
+        .map(|f| f.stamp_ns)
+        .collect();
     can.iter()
-        .zip(next_tx)
+        .zip(grip_drive::log::commands_before(can))
         .filter(|(f, _)| f.direction == can_dir::RX)
-        .map(|(f, t)| (f, t.unwrap_or(f.stamp_ns)))
+        .map(move |(f, k)| (f, commands.get(k).copied().unwrap_or(f.stamp_ns)))
 }
 
 /// The first of tcs-loop's [`INPUTS`] that reached the loop ([`read_times`]

@@ -229,6 +229,21 @@ impl DriveLog {
     }
 }
 
+/// For each frame of tcs-loop's CAN log `can`, in order, the number of
+/// commands (direction TX) logged before it: tcs-loop logs each cycle's
+/// received frames and then its command, so a received frame with `k`
+/// commands before it was drained by the loop's `k`-th cycle (counting
+/// from the log's first). The one statement of that rule, for the inverter
+/// summary and the HIL checks; whether a log can be trusted to follow it
+/// (no lost message) is the caller's to judge.
+pub fn commands_before(can: &[CanFrame]) -> impl Iterator<Item = usize> + '_ {
+    can.iter().scan(0usize, |k, f| {
+        let this = *k;
+        *k += usize::from(f.direction == grip_msgs::can_dir::TX);
+        Some(this)
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

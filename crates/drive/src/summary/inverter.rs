@@ -509,14 +509,9 @@ fn drained_by(can: &[CanFrame], cycles: &[CycleRecord]) -> Option<Vec<usize>> {
     if !contiguous || !aligned {
         return None;
     }
-    let mut k = 0;
     Some(
-        can.iter()
-            .map(|f| {
-                let this = k.min(cycles.len());
-                k += usize::from(f.direction == can_dir::TX);
-                this
-            })
+        crate::log::commands_before(can)
+            .map(|k| k.min(cycles.len()))
             .collect(),
     )
 }

@@ -105,8 +105,8 @@ pub struct SocketCanBus {
 /// CLOCK_REALTIME onto CLOCK_MONOTONIC: reading both for every frame would
 /// triple the clock reads of each read, which the real-time loops do up to
 /// [`super::MAX_RX_PER_CYCLE`] times a cycle (a clock read is slow under
-/// emulation, where the HIL suite floods the bus). An NTP slew (at most 500 ppm) moves a stamp
-/// by at most 50 µs over it. A wall-clock step makes a stamp fall after its
+/// emulation, where the HIL suite floods the bus). An NTP slew (at most
+/// 500 ppm) moves a stamp by at most 50 µs over it. A wall-clock step makes a stamp fall after its
 /// read, before the stamp handed out before it, or more than
 /// [`CLOCK_PAIR_CHECK_NS`] before its read: then the pair is read again at
 /// once (and the stamp kept within the last one and its read).
@@ -246,8 +246,8 @@ impl SocketCanBus {
     /// A monitor's read: the next frame waiting, any kind (data, remote:
     /// `can_flags::RTR`, error: `can_flags::ERROR` with the error class
     /// bits as its id), without blocking, stamped with the kernel's receive
-    /// time as every read of this bus is ([`SocketCanBus`]). The interface's loss and return are handled as in
-    /// [`CanBus::try_recv`].
+    /// time as every read of this bus is ([`SocketCanBus`]). The
+    /// interface's loss and return are handled as in [`CanBus::try_recv`].
     pub fn try_recv_monitor(&mut self) -> Result<Option<CanFrame>, CanError> {
         self.reopen_if_back();
         self.recv_stamped()
@@ -255,14 +255,11 @@ impl SocketCanBus {
 
     /// The next frame waiting on the socket, any kind, without blocking,
     /// stamped with the kernel's receive time (every socket asks for it,
-    /// `SO_TIMESTAMPNS`) moved onto CLOCK_MONOTONIC: `SO_TIMESTAMPNS` gives
-    /// CLOCK_REALTIME, and the difference of the two clocks, read together
-    /// at most [`CLOCK_PAIR_MAX_AGE_NS`] before, is subtracted (never later
-    /// than the read), so a wall-clock step shifts the frames read until
-    /// the next reading by the step; where the kernel gave no stamp,
-    /// CLOCK_MONOTONIC at read. So a frame that
-    /// waited in the socket while its reader was stalled carries the time
-    /// it arrived, not the time it was read. `recvmsg(2)` into buffers on
+    /// `SO_TIMESTAMPNS`, which is CLOCK_REALTIME) moved onto
+    /// CLOCK_MONOTONIC by [`StampClock`]; where the kernel gave no stamp,
+    /// CLOCK_MONOTONIC at read. So a frame that waited in the socket while
+    /// its reader was stalled carries the time it arrived, not the time it
+    /// was read. `recvmsg(2)` into buffers on
     /// the stack: allocation-free.
     fn recv_stamped(&mut self) -> Result<Option<CanFrame>, CanError> {
         use std::os::fd::AsRawFd as _;
