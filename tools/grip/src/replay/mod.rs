@@ -469,22 +469,30 @@ pub struct CanPerCycle {
 }
 
 /// Splits `log.can` at the TX frames: cycle k drained the RX frames logged
-/// between its predecessor's TorqueCommand and its own.
+/// between its predecessor's TorqueCommand and its own (the rule of
+/// [`grip_drive::log::commands_before`]). RX frames after the last cycle's
+/// command were drained by no cycle of the log and are left out.
 pub fn split_can(log: &DriveLog) -> anyhow::Result<CanPerCycle> {
+    let n = log.cycles.len();
+    let drained_by = grip_drive::log::commands_before(&log.can);
     let mut s = CanPerCycle::default();
-    let mut pending = Vec::new();
-    for f in &log.can {
+    for (f, k) in log.can.iter().zip(drained_by) {
         if f.direction == can_dir::TX {
-            if s.tx.len() < log.cycles.len() {
-                s.rx.push(std::mem::take(&mut pending));
+            if k < n {
                 s.tx.push(*f);
             } else {
                 s.tail_tx.push(*f);
             }
-        } else {
-            pending.push(*f);
+        } else if k < n {
+            if s.rx.len() <= k {
+                s.rx.resize_with(k + 1, Vec::new);
+            }
+            s.rx[k].push(*f);
         }
     }
+    // one list per command: cycles that drained nothing get an empty one,
+    // and frames after the last command of an incomplete log none
+    s.rx.resize_with(s.tx.len(), Vec::new);
     if s.tx.len() != log.cycles.len() {
         bail!(
             "{}: {} cycle records but {} transmitted frames: the CAN log is incomplete, the cycles cannot be aligned",
