@@ -95,6 +95,14 @@ impl core::fmt::Display for RxFilter {
 /// cannot drift apart.
 pub const MAX_RX_PER_CYCLE: usize = 256;
 
+/// CLOCK_MONOTONIC `timeout` from now, ns, for a bus's
+/// [`CanBus::recv_timeout`]: a timeout beyond u64 nanoseconds (centuries)
+/// is for ever, not wrapped to a short one.
+pub(crate) fn deadline_after(timeout: Duration) -> u64 {
+    crate::clock::monotonic_now_ns()
+        .saturating_add(u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX))
+}
+
 /// What [`drain`] took from a bus.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Drained {

@@ -149,8 +149,7 @@ impl CanBus for SimBus {
     }
 
     fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<CanFrame>, CanError> {
-        let deadline = monotonic_now_ns()
-            .saturating_add(u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX));
+        let deadline = super::deadline_after(timeout);
         loop {
             if let Some(f) = self.try_recv()? {
                 return Ok(Some(f));

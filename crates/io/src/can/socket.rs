@@ -106,8 +106,9 @@ pub struct SocketCanBus {
 /// triple the clock reads of each read, which the real-time loops do up to
 /// [`super::MAX_RX_PER_CYCLE`] times a cycle (a clock read is slow under
 /// emulation, where the HIL suite floods the bus). An NTP slew (at most
-/// 500 ppm) moves a stamp by at most 50 µs over it. A wall-clock step makes a stamp fall after its
-/// read, before the stamp handed out before it, or more than
+/// 500 ppm) moves a stamp by at most 50 µs over it. A wall-clock step
+/// makes a stamp fall after its read, before the stamp handed out before
+/// it, or more than
 /// [`CLOCK_PAIR_CHECK_NS`] before its read: then the pair is read again at
 /// once (and the stamp kept within the last one and its read).
 pub const CLOCK_PAIR_MAX_AGE_NS: u64 = 100_000_000;
@@ -675,8 +676,7 @@ impl CanBus for SocketCanBus {
     }
 
     fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<CanFrame>, CanError> {
-        let deadline = monotonic_now_ns()
-            .saturating_add(u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX));
+        let deadline = super::deadline_after(timeout);
         loop {
             if let Some(f) = self.try_recv()? {
                 return Ok(Some(f));

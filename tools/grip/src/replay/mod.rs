@@ -475,7 +475,10 @@ pub struct CanPerCycle {
 pub fn split_can(log: &DriveLog) -> anyhow::Result<CanPerCycle> {
     let n = log.cycles.len();
     let drained_by = grip_drive::log::commands_before(&log.can);
-    let mut s = CanPerCycle::default();
+    let mut s = CanPerCycle {
+        rx: vec![Vec::new(); n],
+        ..CanPerCycle::default()
+    };
     for (f, k) in log.can.iter().zip(drained_by) {
         if f.direction == can_dir::TX {
             if k < n {
@@ -484,15 +487,11 @@ pub fn split_can(log: &DriveLog) -> anyhow::Result<CanPerCycle> {
                 s.tail_tx.push(*f);
             }
         } else if k < n {
-            if s.rx.len() <= k {
-                s.rx.resize_with(k + 1, Vec::new);
-            }
             s.rx[k].push(*f);
         }
     }
-    // one list per command: cycles that drained nothing get an empty one,
-    // and frames after the last command of an incomplete log none
-    s.rx.resize_with(s.tx.len(), Vec::new);
+    // one list per command (an incomplete log is refused below)
+    s.rx.truncate(s.tx.len());
     if s.tx.len() != log.cycles.len() {
         bail!(
             "{}: {} cycle records but {} transmitted frames: the CAN log is incomplete, the cycles cannot be aligned",
