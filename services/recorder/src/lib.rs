@@ -24,6 +24,8 @@ pub mod cycle;
 pub mod monitor;
 pub mod parts;
 pub mod retention;
+#[cfg(test)]
+mod revision;
 pub mod run;
 pub mod stats;
 
