@@ -222,6 +222,44 @@ fn measured_json(m: &summary::Measured) -> Value {
 
 /// A `preview` entry: the driven wheel reaching a road that carries less
 /// ([`summary::PreviewEvent`]; times s from the scenario start, N m, m).
+/// `training_speeds`: the drive's speeds against the speeds arte's model
+/// was trained at ([`summary::speeds::DriveSpeeds`]); `null` when the log
+/// names no model. `known` false: the model's speeds are unknown (why in
+/// `unknown_because`); `below`/`above` `null`: none of the drive there.
+fn training_speeds_json(d: &summary::speeds::DriveSpeeds) -> Value {
+    use grip_arte::speeds::TrainingSpeeds;
+    use summary::speeds::ModelSpeeds;
+    let (range, from, unknown) = match &d.model {
+        ModelSpeeds::NotAttached(n) => {
+            (None, None, Some(format!("{n} is not attached to the log")))
+        }
+        ModelSpeeds::Unreadable(n, why) => (None, None, Some(format!("{n} does not load: {why}"))),
+        ModelSpeeds::Model(TrainingSpeeds::Recorded(r)) => (Some(*r), Some("model"), None),
+        ModelSpeeds::Model(TrainingSpeeds::FromNote(r)) => (Some(*r), Some("note"), None),
+        ModelSpeeds::Model(TrainingSpeeds::NotRecorded) => {
+            (None, None, Some(grip_arte::speeds::NOT_RECORDED.to_owned()))
+        }
+    };
+    let outside = |o: Option<grip_arte::speeds::Outside>| {
+        o.map_or(Value::Null, |o| {
+            json!({"time_s": num(o.time_s), "min_kmh": num(o.min_kmh), "max_kmh": num(o.max_kmh)})
+        })
+    };
+    json!({
+        "known": range.is_some(),
+        "unknown_because": unknown,
+        "min_kmh": range.map(|r| num(r.min_kmh)),
+        "max_kmh": range.map(|r| num(r.max_kmh)),
+        "range_from": from,
+        "window": d.what.0,
+        "speed": d.what.1,
+        "checked_s": d.check.map(|c| num(c.total_s)),
+        "below": d.check.map_or(Value::Null, |c| outside(c.below)),
+        "above": d.check.map_or(Value::Null, |c| outside(c.above)),
+        "notes": d.lines(),
+    })
+}
+
 fn preview_json(e: &summary::PreviewEvent) -> Value {
     json!({
         "t_s": num(e.t),
@@ -442,6 +480,7 @@ pub fn summary_json(
         // older replay log's changes touched), default, unknown (a
         // controllers.toml whose [arte] does not read)
         "arte_min_confidence_from": a.gate_from.as_str(),
+        "training_speeds": s.training_speeds.as_ref().map_or(Value::Null, training_speeds_json),
         "changes_detected": delays.len(),
         "changes_missed": a.changes.len() - delays.len(),
         "mean_delay_s": mean_delay,
@@ -525,6 +564,67 @@ mod tests {
         assert_eq!(json_of(&bare)["mic_lead_m"], 0.0);
     }
 
+    /// `training_speeds`: the model's training speeds and the drive's time
+    /// outside them, as the report's ARTE section notes them; why not,
+    /// when the log does not carry the model.
+    #[test]
+    fn the_training_speeds_are_in_the_object() {
+        let mut log = front_mic_drive();
+        log.attachments.insert(
+            "arte-svc.toml".into(),
+            b"model = \"models/m.model\"\n".to_vec(),
+        );
+        let j = json_of(&log);
+        let t = &j["training_speeds"];
+        assert_eq!(t["known"], false, "{t}");
+        assert!(
+            t["unknown_because"]
+                .as_str()
+                .unwrap()
+                .contains("models/m.model is not attached"),
+            "{t}"
+        );
+        assert_eq!(t["notes"].as_array().unwrap().len(), 1, "{t}");
+        assert!(t["below"].is_null() && t["above"].is_null(), "{t}");
+        // the paper model (its training speeds, 4.0-29.8 km/h, in its notes)
+        log.attachments.insert(
+            "models/m.model".into(),
+            std::fs::read(config_dir().join("models/paper.model")).unwrap(),
+        );
+        let j = json_of(&log);
+        let t = &j["training_speeds"];
+        assert_eq!(t["known"], true, "{t}");
+        assert!(t["unknown_because"].is_null(), "{t}");
+        assert_eq!(t["range_from"], "note", "{t}");
+        assert_eq!(
+            (t["min_kmh"].as_f64(), t["max_kmh"].as_f64()),
+            (Some(4.0), Some(29.8))
+        );
+        let checked = t["checked_s"].as_f64().unwrap();
+        assert!(checked > 0.0, "{t}");
+        // the summary's own figures, field by field
+        let (vehicle, from, _) = grip_drive::vehicle_for(&log, &config_dir());
+        let roads = log.road_catalogue(&config_dir());
+        let s = summary::summarize_with_roads(&log, &vehicle, &from, &roads);
+        let sp = s.training_speeds.unwrap();
+        let c = sp.check.unwrap();
+        assert_eq!(checked, c.total_s);
+        for (k, o) in [("below", c.below), ("above", c.above)] {
+            match o {
+                None => assert!(t[k].is_null(), "{t}"),
+                Some(o) => assert_eq!(t[k]["time_s"].as_f64(), Some(o.time_s), "{t}"),
+            }
+        }
+        let notes: Vec<String> = serde_json::from_value(t["notes"].clone()).unwrap();
+        assert_eq!(notes, sp.lines());
+        assert_eq!(t["window"], sp.what.0.as_str());
+        // a log that names no model: null
+        log.attachments.remove("arte-svc.toml");
+        log.attachments.remove("models/m.model");
+        let j = json_of(&log);
+        assert!(j["training_speeds"].is_null(), "{}", j["training_speeds"]);
+    }
+
     /// Every field of the object (and of `measured`, its spins and
     /// `replay`) is named in `tools/grip/README.md`'s list of them, "grip
     /// inspect --json".
@@ -560,6 +660,13 @@ mod tests {
         let mut all = keys(&j);
         all.extend(keys(&j["measured"]));
         all.extend(keys(&j["replay"]));
+        // the training speeds' fields, of one made up (the drive names no
+        // model)
+        all.extend(keys(&training_speeds_json(&summary::speeds::DriveSpeeds {
+            model: summary::speeds::ModelSpeeds::NotAttached("m.model".into()),
+            what: ("the scenario window".into(), "ground-truth speed".into()),
+            check: None,
+        })));
         // a spin's fields, of one made up if the drive has none
         let mut m = summary::Measured::default();
         m.spins.push(summary::measured::SpinEvent::default());
