@@ -55,10 +55,13 @@ pub fn bar(n: usize, what: &str) -> indicatif::ProgressBar {
 /// the `inverter_` ones count the inverter's fault and derating episodes
 /// from its `MotorStatus` frames, [`grip_drive::summary::Inverter`], those
 /// overlapping the scenario window and over the whole log, empty without
-/// `MotorStatus` frames). The vehicle and the seed come after the whole
-/// log's figures, not beside the controller: the first nine columns and
-/// the last fourteen keep their places for readers that count them.
-pub const COLUMNS: [&str; 45] = [
+/// `MotorStatus` frames; the `replay_` ones are a `grip replay --out`
+/// log's source, mode and what-if changes, [`grip_drive::summary::ReplayInfo`],
+/// empty for a drive's log). The vehicle, the seed and the replay come
+/// after the whole log's figures, not beside the controller: the first
+/// nine columns and the last fourteen keep their places for readers that
+/// count them.
+pub const COLUMNS: [&str; 48] = [
     "file",
     "status",
     "reason",
@@ -90,6 +93,9 @@ pub const COLUMNS: [&str; 45] = [
     "vehicle_sha256",
     "mic_lead_m",
     "seed",
+    "replay_source",
+    "replay_mode",
+    "replay_changes",
     "measured_window",
     "measured_mean_abs_slip",
     "measured_p95_abs_slip",
@@ -202,6 +208,11 @@ fn row_of(file: String, log: &DriveLog, config_dir: &Path) -> (Vec<String>, bool
         s.vehicle_sha256.clone().unwrap_or_default(),
     );
     set("mic_lead_m", num(s.vehicle_params.mic_lead_m));
+    if let Some(rp) = &s.replay {
+        set("replay_source", rp.source.clone());
+        set("replay_mode", rp.mode.clone());
+        set("replay_changes", rp.changes.clone());
+    }
     set("cycles", s.timing.cycles.to_string());
     if let (Some(m), Some((a, b))) = (&s.metrics, s.window) {
         set("scenario_s", num(b - a));
@@ -635,6 +646,7 @@ mod tests {
                 ("mode", "open loop"),
                 ("controller", "src"),
                 ("arte", "off"),
+                ("changes", "controller src; ARTE off"),
             ]
             .into_iter()
             .map(|(k, v)| (k.into(), v.into()))
@@ -644,6 +656,21 @@ mod tests {
         assert_eq!(
             (field(&r_off, "controller"), field(&r_off, "arte")),
             ("src", "off")
+        );
+        // which log it replays and what it changed, as `--json`'s `replay`
+        assert_eq!(
+            [
+                field(&r_off, "replay_source"),
+                field(&r_off, "replay_mode"),
+                field(&r_off, "replay_changes")
+            ],
+            ["on.mcap", "open loop", "controller src; ARTE off"]
+        );
+        // a drive's own log: empty
+        assert!(
+            ["replay_source", "replay_mode", "replay_changes"]
+                .iter()
+                .all(|c| field(&r, c).is_empty())
         );
         // a log that carries no vehicle: the configuration directory's
         let mut bare = test_log::drive();
