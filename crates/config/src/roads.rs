@@ -410,6 +410,11 @@ mu = [0.0, 0.5, 0.4]
         let two = "[[road]]\nname = \"a\"\nmodel = \"pacejka\"\nb = 10.0\nc = 1.9\nd = 1.0\n";
         let e = parse(&format!("{two}{two}")).unwrap_err();
         assert_eq!(e.field, "road[1].name", "{e}");
+        // a name longer than the services' messages carry
+        let long = two.replace("\"a\"", "\"gravel_after_rain\"");
+        let e = parse(&long).unwrap_err();
+        assert_eq!(e.field, "road[0].name", "{e}");
+        assert!(e.to_string().contains("17 bytes long; at most 16"), "{e}");
     }
 
     #[test]

@@ -22,6 +22,9 @@
 //! See `crates/io/README.md` for the protocol tables and measured figures.
 #![warn(missing_docs)]
 
+// a road's name, as roads.toml may give it, fits the messages' name field
+const _: () = assert!(grip_physics::road::NAME_MAX_BYTES == grip_msgs::NAME_LEN);
+
 pub mod binaries;
 pub mod can;
 pub mod clock;

@@ -497,7 +497,8 @@ fn read_left_aligned<R: Read>(
 ) -> Result<(), WavErrorKind> {
     let width = usize::from(bytes);
     let shift = u32::from(bytes * 8 - valid);
-    let pad_mask = (1i32 << shift) - 1;
+    // in u32: 1 valid bit in 32 shifts by 31, whose i32 mask overflowed
+    let pad_mask = ((1u32 << shift) - 1) as i32;
     let scale = 1.0 / (1u64 << (valid - 1)) as f64;
     let mut buf = vec![0u8; width * 8192];
     while out.len() < expected {

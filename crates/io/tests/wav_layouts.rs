@@ -176,6 +176,23 @@ fn extensible_samples_not_left_aligned_are_refused() {
     assert_eq!(decode("zero.wav", &zero), vec![0.0; 100]);
 }
 
+/// The fewest valid bits, 1 in a 32-bit container (the widest padding,
+/// 31 bits): read as the sign bit, -1 or 0 (a debug build's padding mask
+/// overflowed on it, before a sample was read); non-zero padding refused
+/// as for any width.
+#[test]
+fn one_valid_bit_in_32_is_read() {
+    let x = [1i32, 0, 1, 1];
+    // the valid bit at the top of the container: -1 for a set bit
+    let f = riff(&[fmt(4, 32, Some(1)), data(&x, 4, 31)]);
+    assert_eq!(decode("one_bit.wav", &f), [-1.0, 0.0, -1.0, -1.0]);
+    let empty = riff(&[fmt(4, 32, Some(1)), data(&[], 4, 0)]);
+    assert_eq!(decode("empty.wav", &empty), Vec::<f32>::new());
+    let padded = riff(&[fmt(4, 32, Some(1)), data(&[1], 4, 0)]);
+    let e = decode_mono(&padded, Path::new("padded.wav")).unwrap_err();
+    assert!(matches!(e.kind, WavErrorKind::Layout(_)), "{e}");
+}
+
 #[test]
 fn layouts_that_cannot_be_read_are_refused_by_name() {
     let x: Vec<i32> = vec![0; 16];

@@ -361,6 +361,12 @@ impl FrictionModel {
     }
 }
 
+/// The longest road name, bytes: a road's name travels in the services'
+/// messages (ground truth, road estimates) in a field of this many bytes
+/// (`grip_msgs::NAME_LEN`); a longer one would be cut there, and two roads
+/// alike in their first 16 bytes would be one road to the services.
+pub const NAME_MAX_BYTES: usize = 16;
+
 /// One road: a named friction curve with its optimum cached.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Road {
@@ -378,6 +384,15 @@ impl Road {
         let name = name.into();
         if name.trim().is_empty() {
             return Err(InvalidField::new("name", "must not be empty"));
+        }
+        if name.len() > NAME_MAX_BYTES {
+            return Err(InvalidField::new(
+                "name",
+                format!(
+                    "`{name}` is {} bytes long; at most {NAME_MAX_BYTES} (a road's name travels in a {NAME_MAX_BYTES}-byte field of the services' messages)",
+                    name.len()
+                ),
+            ));
         }
         model.validate()?;
         let (lambda_opt, mu_peak) = model
@@ -775,6 +790,22 @@ mod tests {
         assert_eq!(c[1].name(), "snow");
         assert!(c.get("gravel").is_none());
         assert_eq!(RoadCatalogue::new(vec![]).unwrap_err().field, "road");
+        // a name the services' 16-byte field holds, and one it does not
+        let m = || FrictionModel::Burckhardt {
+            c1: 1.2801,
+            c2: 23.99,
+            c3: 0.52,
+        };
+        assert!(Road::new("a".repeat(NAME_MAX_BYTES), m()).is_ok());
+        let e = Road::new("wet_asphalt_night", m()).unwrap_err();
+        assert_eq!(e.field, "name");
+        assert!(
+            e.reason
+                .contains("`wet_asphalt_night` is 17 bytes long; at most 16"),
+            "{e}"
+        );
+        // bytes, not characters: 9 two-byte characters are 18 bytes
+        assert!(Road::new("é".repeat(9), m()).is_err());
         assert_eq!(
             RoadCatalogue::new(vec![asphalt(), asphalt()])
                 .unwrap_err()

@@ -28,7 +28,11 @@ impl SeqTracker {
             if seq > last {
                 let missing = seq - last - 1;
                 if missing > 0 {
-                    self.gaps += missing;
+                    // a publisher's sequence numbers are another
+                    // process's data: a jump near u64::MAX must not
+                    // overflow the count (it saturates: plainly not a
+                    // real loss)
+                    self.gaps = self.gaps.saturating_add(missing);
                     self.gap_events += 1;
                 }
             } else {
@@ -247,6 +251,46 @@ mod tests {
         assert_eq!(t.gaps, 2 + 1);
         assert_eq!(t.gap_events, 2);
         assert_eq!(t.resets, 1);
+    }
+
+    /// Sequence numbers are another process's data: wild jumps (to
+    /// u64::MAX and back, then on) are counted without overflowing (a
+    /// debug build's receive thread panicked on them).
+    #[test]
+    fn wild_sequence_numbers_do_not_overflow_the_counts() {
+        let mut t = SeqTracker::default();
+        for s in [0, u64::MAX, 0, 3, u64::MAX, 0, u64::MAX - 1] {
+            t.push(s);
+        }
+        assert_eq!(t.gaps, u64::MAX);
+        assert_eq!(t.gap_events, 4);
+        assert_eq!(t.resets, 2);
+    }
+
+    proptest! {
+        /// Any sequence of numbers: no panic, and the counts are those of
+        /// a wide (u128) count, saturated.
+        #[test]
+        fn any_sequence_is_counted(seqs in proptest::collection::vec(any::<u64>(), 0..50)) {
+            let mut t = SeqTracker::default();
+            let (mut gaps, mut events, mut resets) = (0u128, 0u64, 0u64);
+            for w in seqs.windows(2) {
+                if w[1] > w[0] {
+                    let m = u128::from(w[1] - w[0] - 1);
+                    if m > 0 {
+                        gaps += m;
+                        events += 1;
+                    }
+                } else {
+                    resets += 1;
+                }
+            }
+            for &s in &seqs {
+                t.push(s);
+            }
+            prop_assert_eq!(u128::from(t.gaps), gaps.min(u128::from(u64::MAX)));
+            prop_assert_eq!((t.gap_events, t.resets), (events, resets));
+        }
     }
 
     fn frame(id: u32, counter: u8) -> CanFrame {

@@ -343,7 +343,10 @@ impl McapRecord for AudioBlock {
         o.u("seq", self.seq)
             .u("stamp_ns", self.stamp_ns)
             .u("sample_rate", self.sample_rate.into())
-            .u("n_samples", self.n_samples.into())
+            // the samples written: a publisher's n_samples above the
+            // block's capacity (another process's data) would otherwise
+            // give a record its own reader refuses
+            .u("n_samples", self.samples().len() as u64)
             .u("channel", self.channel.into())
             .u("xruns", self.xruns.into())
             .arr("samples", self.samples(), |b, x| {
@@ -937,6 +940,35 @@ impl McapRecord for GroundTruth {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An audio block whose `n_samples` claims more than the block holds
+    /// (a faulty publisher) is written as the samples it holds and reads
+    /// back (it was recorded, then refused on reading as "N samples but
+    /// n_samples = M").
+    #[test]
+    fn an_audio_block_claiming_too_many_samples_reads_back() {
+        let mut a = AudioBlock::zeroed();
+        a.seq = 3;
+        a.sample_rate = 48_000;
+        for (i, x) in a.samples.iter_mut().enumerate() {
+            *x = (i % 1000) as i16;
+        }
+        for claimed in [AUDIO_MAX_SAMPLES as u32 + 1, u32::MAX] {
+            a.n_samples = claimed;
+            let mut out = Vec::new();
+            a.write_json(&mut out);
+            let v: Value = serde_json::from_slice(&out).unwrap();
+            let b = AudioBlock::from_json(&v).unwrap_or_else(|e| panic!("{claimed}: {e}"));
+            assert_eq!(b.n_samples as usize, AUDIO_MAX_SAMPLES);
+            assert_eq!(b.samples(), a.samples());
+        }
+        // an honest count is kept as it is
+        a.n_samples = 7;
+        let mut out = Vec::new();
+        a.write_json(&mut out);
+        let b = AudioBlock::from_json(&serde_json::from_slice(&out).unwrap()).unwrap();
+        assert_eq!((b.n_samples, b.samples()), (7, &a.samples[..7]));
+    }
 
     /// What the README must hold of schema `s`, as (where, text): the
     /// record's title and description, and a `| `field` | description |`
