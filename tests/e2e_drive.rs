@@ -517,3 +517,62 @@ fn drive_names_the_service_that_did_not_come_up() {
     let log = DriveLog::load(&out).unwrap();
     assert!(log.recorder.is_some(), "recorder did not finish the log");
 }
+
+/// A DBC whose `OmegaDriven` carries only ±1.27 rad/s (8 bits; the e2e
+/// scenario's wheel turns faster): tcs-loop warns at start, the loop reads
+/// every faster wheel as 1.27 rad/s and stays "in control", so until
+/// 2026-12-07 the drive passed with several times the slip. Now the
+/// summary counts the frames that held the signal at its limit and the
+/// drive fails, naming it; the log is kept.
+#[test]
+fn a_wheel_speed_the_bus_cannot_carry_fails_the_drive() {
+    let bin = built_bin_dir();
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = tmp.path().join("config");
+    copy_dir(&config_dir(), &cfg);
+    let dbc = cfg.join("inverter.dbc");
+    let text = std::fs::read_to_string(&dbc).unwrap();
+    let short = text.replacen(
+        "OmegaDriven : 16|16@1- (0.01,0) [-327.68|327.67]",
+        "OmegaDriven : 16|8@1- (0.01,0) [-1.28|1.27]",
+        1,
+    );
+    assert_ne!(short, text, "the shipped DBC's OmegaDriven changed");
+    std::fs::write(&dbc, short).unwrap();
+    let out = tmp.path().join("drive.mcap");
+    let res = Command::new(bin.join("grip"))
+        .arg("--config-dir")
+        .arg(&cfg)
+        .args([
+            "drive",
+            "--scenario",
+            "e2e",
+            "--ready-timeout",
+            "60",
+            "--out",
+        ])
+        .arg(&out)
+        .env("GRIP_BIN_DIR", &bin)
+        .env("NO_COLOR", "1")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    let stdout = String::from_utf8_lossy(&res.stdout);
+    assert!(
+        !res.status.success(),
+        "the drive should fail:\n{stderr}\n{stdout}"
+    );
+    assert!(
+        stderr.contains(
+            "drive failed: WheelSpeeds.OmegaDriven sat at the limit of what the bus carries in "
+        ),
+        "{stderr}"
+    );
+    assert!(
+        stdout.contains("WARNING: the bus cannot carry what grip needs: inverter.dbc: WheelSpeeds.OmegaDriven carries at most 1.27 rad/s"),
+        "{stdout}"
+    );
+    // the log is kept and says the same to `grip inspect`
+    let log = DriveLog::load(&out).unwrap();
+    assert!(log.recorder.is_some(), "recorder did not finish the log");
+}

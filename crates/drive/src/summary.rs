@@ -370,6 +370,102 @@ pub struct CanSummary {
     pub faults: E2eFaults,
     /// Faults counted during the scenario window (last minus first record in it).
     pub faults_in_window: Option<E2eFaults>,
+    /// The signals grip controls with that the log's protocol cannot carry
+    /// for the drive's vehicle, and how often each sat at its limit
+    /// ([`short_signals`]; empty for a protocol that carries them all).
+    pub short: Vec<ShortSignal>,
+}
+
+/// A signal grip controls with whose largest value is under what grip
+/// needs for the vehicle (`grip_io::can::protocol::ControlSignal`, as
+/// tcs-loop warns of it at start), with the received frames that held it
+/// at that limit: grip read any larger value as the limit, so the slip
+/// and control figures of such a drive mean little.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ShortSignal {
+    /// tcs-loop's start-up warning, word for word (naming the DBC, the
+    /// message and signal, what it carries and what grip needs).
+    pub warning: String,
+    /// `Message.Signal`.
+    pub name: String,
+    /// Frames of its message received (not refused by the E2E check) in
+    /// the scenario window, else over the whole log.
+    pub frames: u64,
+    /// Of those, frames holding the signal at its limit.
+    pub at_limit: u64,
+    /// Whether the counts are the scenario window's.
+    pub in_window: bool,
+}
+
+impl ShortSignal {
+    /// The report's line.
+    pub fn line(&self) -> String {
+        let when = if self.in_window {
+            "during the scenario"
+        } else {
+            "in the log"
+        };
+        let seen = if self.at_limit > 0 {
+            format!(
+                "it sat at that limit in {} of the {} frames received {when}: grip read a larger value as the limit there, so the slip and control figures of this drive mean little",
+                self.at_limit, self.frames
+            )
+        } else {
+            format!(
+                "it never reached that limit in the {} frames received {when}",
+                self.frames
+            )
+        };
+        format!(
+            "the bus cannot carry what grip needs: {}; {seen}",
+            self.warning
+        )
+    }
+}
+
+/// The signals grip controls with that `protocol` (named `dbc`) cannot
+/// carry for `vehicle`, with the frames of `log` received in `window`
+/// (else the whole log) that held each at its limit.
+pub fn short_signals(
+    log: &DriveLog,
+    protocol: &grip_io::can::protocol::Protocol,
+    dbc: &str,
+    vehicle: &VehicleParams,
+    window: Option<(u64, u64)>,
+) -> Vec<ShortSignal> {
+    let warnings = protocol.envelope_warnings(dbc, vehicle);
+    protocol
+        .control_signals(vehicle)
+        .iter()
+        .filter(|c| c.is_short())
+        .map(|c| {
+            let name = format!("{}.{}", c.message.name, c.signal.name);
+            let mut out = ShortSignal {
+                // the warning that names it as short (its first)
+                warning: warnings
+                    .iter()
+                    .find(|w| w.contains(&format!("{name} carries at most")))
+                    .cloned()
+                    .unwrap_or_else(|| format!("{dbc}: {name} cannot carry what grip needs")),
+                name,
+                frames: 0,
+                at_limit: 0,
+                in_window: window.is_some(),
+            };
+            for f in log.can.iter().filter(|f| {
+                f.direction != can_dir::TX
+                    && f.id == c.message.id
+                    && f.flags & can_flags::E2E_REJECTED == 0
+                    && window.is_none_or(|(a, b)| (a..=b).contains(&f.stamp_ns))
+            }) {
+                out.frames += 1;
+                if c.at_limit(&f.data) {
+                    out.at_limit += 1;
+                }
+            }
+            out
+        })
+        .collect()
 }
 
 /// Loop timing of the cycles stamped in the scenario window.
@@ -1965,6 +2061,11 @@ pub fn summarize(
         s.can.faults = c.faults;
     }
     s.inverter = inverter(log, &protocol, s.window_ns);
+    let dbc = s.can.bus.trim_end_matches(", attached").to_owned();
+    s.can.short = short_signals(log, &protocol, &dbc, vehicle, s.window_ns);
+    for sh in &s.can.short {
+        s.warnings.push(sh.line());
+    }
     if let Some((ws, we)) = s.window_ns {
         let period = u64::try_from(s.timing.period_ns)
             .ok()
@@ -3144,6 +3245,89 @@ vehicle B: {} (sha256 {})",
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A log whose DBC gives `OmegaDriven` 8 bits (±1.27 rad/s, found in a
+    /// newcomer's trial: the drive passed "in control" at 4.4 times the
+    /// slip): the summary warns, names the DBC and counts the received
+    /// frames that held the signal at its limit; the shipped DBC gives no
+    /// such line.
+    #[test]
+    fn a_signal_the_bus_cannot_carry_is_counted_at_its_limit() {
+        use grip_io::can::protocol::{MsgKind, WheelSpeeds, encode_in};
+        let shipped = include_str!("../../../config/inverter.dbc");
+        let log_with = |dbc: String, omegas: &[f64]| {
+            let mut log = DriveLog::default();
+            log.attachments.insert(
+                "can.toml".into(),
+                b"transport = \"sim\"\ninterface = \"vcan0\"\ndbc = \"car.dbc\"\n".to_vec(),
+            );
+            log.attachments.insert("car.dbc".into(), dbc.into_bytes());
+            let p = log.protocol().unwrap();
+            for (k, &w) in omegas.iter().enumerate() {
+                let m = WheelSpeeds {
+                    driven_valid: true,
+                    ref_valid: true,
+                    omega_driven: w,
+                    omega_ref: 1.0,
+                };
+                let mut f = encode_in(
+                    p.spec(MsgKind::WheelSpeeds),
+                    &m,
+                    (k & 15) as u8,
+                    k as u64 * 1_000_000,
+                );
+                f.direction = can_dir::RX;
+                log.can.push(f);
+            }
+            log
+        };
+        let short = shipped.replacen(
+            "OmegaDriven : 16|16@1- (0.01,0) [-327.68|327.67]",
+            "OmegaDriven : 16|8@1- (0.01,0) [-1.28|1.27]",
+            1,
+        );
+        assert_ne!(short, shipped);
+        // 1.0 rad/s fits; 5 and 40 rad/s are read as 1.27
+        let log = log_with(short.clone(), &[1.0, 5.0, 40.0, 1.27, 0.5]);
+        let v = VehicleParams::default();
+        let s = summarize(&log, &v, "test", None);
+        assert_eq!(s.can.short.len(), 1, "{:?}", s.can.short);
+        let sh = &s.can.short[0];
+        assert_eq!(sh.name, "WheelSpeeds.OmegaDriven");
+        assert_eq!((sh.frames, sh.at_limit, sh.in_window), (5, 3, false));
+        assert!(
+            sh.warning
+                .starts_with("car.dbc: WheelSpeeds.OmegaDriven carries at most 1.27 rad/s"),
+            "{}",
+            sh.warning
+        );
+        let line = s
+            .warnings
+            .iter()
+            .find(|w| w.contains("bus cannot carry"))
+            .expect("a warning");
+        assert!(
+            line.contains("it sat at that limit in 3 of the 5 frames received in the log"),
+            "{line}"
+        );
+        assert!(s.render().contains(line.as_str()));
+        // never at the limit: said, not counted as saturated
+        let calm = summarize(&log_with(short, &[1.0, 0.5]), &v, "test", None);
+        assert_eq!(calm.can.short[0].at_limit, 0);
+        assert!(
+            calm.can.short[0]
+                .line()
+                .contains("it never reached that limit in the 2 frames")
+        );
+        // the shipped DBC: nothing to say, whatever the wheel does
+        let fine = summarize(
+            &log_with(shipped.to_owned(), &[1.0, 40.0]),
+            &v,
+            "test",
+            None,
+        );
+        assert!(fine.can.short.is_empty(), "{:?}", fine.can.short);
+    }
 
     #[test]
     fn percentiles_nearest_rank() {

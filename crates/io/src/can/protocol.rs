@@ -882,73 +882,156 @@ impl Protocol {
         vehicle: &grip_physics::VehicleParams,
     ) -> Vec<String> {
         let mut w = Vec::new();
-        let speed = |kind: MsgKind, i: usize, r: f64, what: &str, w: &mut Vec<String>| {
-            let m = self.spec(kind);
-            let sg = sig(m, i);
+        for c in self.control_signals(vehicle) {
+            let (m, sg) = (c.message, c.signal);
             let (_, hi) = sg.phys_limits();
-            let step = sg.factor.abs() * r;
-            if hi * r < ENVELOPE_SPEED_MPS * (1.0 - 1e-9) {
-                w.push(format!(
-                    "{dbc}: {}.{} carries at most {} ({:.1} km/h of {what}): a faster one saturates there and grip reads it as that speed; grip needs up to {:.0} km/h",
-                    m.name,
-                    sg.name,
-                    fmt_phys(hi, sg.unit),
-                    hi * r * 3.6,
-                    ENVELOPE_SPEED_MPS * 3.6
-                ));
-            }
-            if step > 0.01 * ENVELOPE_STEP_AT_MPS {
-                w.push(format!(
-                    "{dbc}: {}.{} moves in steps of {} ({:.3} m/s of {what}, {:.1} % of 10 km/h): the slip grip measures from it moves in steps of {:.3} at 10 km/h, over the 0.01 its slip tests and road belief are tuned for",
-                    m.name,
-                    sg.name,
-                    fmt_phys(sg.factor.abs(), sg.unit),
-                    step,
-                    100.0 * step / ENVELOPE_STEP_AT_MPS,
-                    step / ENVELOPE_STEP_AT_MPS
-                ));
-            }
-        };
-        speed(
-            MsgKind::WheelSpeeds,
-            4,
-            vehicle.r,
-            "the driven wheel's rim at r",
-            &mut w,
-        );
-        speed(
-            MsgKind::WheelSpeeds,
-            5,
-            vehicle.ref_radius(),
-            "the reference wheel's rim at r_ref",
-            &mut w,
-        );
-        speed(MsgKind::VehicleSpeed, 3, 1.0, "the car", &mut w);
-        let t_max = vehicle.torque_max;
-        // (TorqueCommand.TorqueRequest under torque_max is refused by
-        // tcs-loop's start-up: it would cut grip's own commands)
-        for (kind, i) in [(MsgKind::MotorStatus, 6), (MsgKind::DriverDemand, 4)] {
-            let m = self.spec(kind);
-            let sg = sig(m, i);
-            let (_, hi) = sg.phys_limits();
-            if hi < t_max * (1.0 - 1e-9) {
-                w.push(format!(
-                    "{dbc}: {}.{} carries at most {}, under the vehicle's torque_max = {t_max} N m: a torque above it saturates there",
-                    m.name,
-                    sg.name,
-                    fmt_phys(hi, sg.unit)
-                ));
-            }
-            if sg.factor.abs() > 0.01 * t_max {
-                w.push(format!(
-                    "{dbc}: {}.{} moves in steps of {}, over 1 % of the vehicle's torque_max = {t_max} N m",
-                    m.name,
-                    sg.name,
-                    fmt_phys(sg.factor.abs(), sg.unit)
-                ));
+            match c.need {
+                Need::Speed { r, what } => {
+                    let step = sg.factor.abs() * r;
+                    if c.is_short() {
+                        w.push(format!(
+                            "{dbc}: {}.{} carries at most {} ({:.1} km/h of {what}): a faster one saturates there and grip reads it as that speed; grip needs up to {:.0} km/h",
+                            m.name,
+                            sg.name,
+                            fmt_phys(hi, sg.unit),
+                            hi * r * 3.6,
+                            ENVELOPE_SPEED_MPS * 3.6
+                        ));
+                    }
+                    if step > 0.01 * ENVELOPE_STEP_AT_MPS {
+                        w.push(format!(
+                            "{dbc}: {}.{} moves in steps of {} ({:.3} m/s of {what}, {:.1} % of 10 km/h): the slip grip measures from it moves in steps of {:.3} at 10 km/h, over the 0.01 its slip tests and road belief are tuned for",
+                            m.name,
+                            sg.name,
+                            fmt_phys(sg.factor.abs(), sg.unit),
+                            step,
+                            100.0 * step / ENVELOPE_STEP_AT_MPS,
+                            step / ENVELOPE_STEP_AT_MPS
+                        ));
+                    }
+                }
+                Need::Torque { t_max } => {
+                    if c.is_short() {
+                        w.push(format!(
+                            "{dbc}: {}.{} carries at most {}, under the vehicle's torque_max = {t_max} N m: a torque above it saturates there",
+                            m.name,
+                            sg.name,
+                            fmt_phys(hi, sg.unit)
+                        ));
+                    }
+                    if sg.factor.abs() > 0.01 * t_max {
+                        w.push(format!(
+                            "{dbc}: {}.{} moves in steps of {}, over 1 % of the vehicle's torque_max = {t_max} N m",
+                            m.name,
+                            sg.name,
+                            fmt_phys(sg.factor.abs(), sg.unit)
+                        ));
+                    }
+                }
             }
         }
         w
+    }
+
+    /// The signals grip controls with and what each must carry for
+    /// `vehicle` ([`Protocol::envelope_warnings`] judges them; the drive
+    /// summary counts the frames a short one sat at its limit in): the
+    /// wheel speeds (`WheelSpeeds.OmegaDriven` at `r`, `OmegaRef` at
+    /// `r_ref`) and `VehicleSpeed.Speed` up to [`ENVELOPE_SPEED_MPS`], the
+    /// torques read (`MotorStatus.TorqueActual`, `DriverDemand.TorqueDemand`)
+    /// up to `torque_max`. (`TorqueCommand.TorqueRequest` under
+    /// `torque_max` is refused by tcs-loop's start-up: it would cut grip's
+    /// own commands.)
+    pub fn control_signals(&self, vehicle: &grip_physics::VehicleParams) -> [ControlSignal<'_>; 5] {
+        let speed = |kind: MsgKind, i: usize, r: f64, what: &'static str| {
+            let m = self.spec(kind);
+            ControlSignal {
+                message: m,
+                signal: sig(m, i),
+                need: Need::Speed { r, what },
+            }
+        };
+        let torque = |kind: MsgKind, i: usize| {
+            let m = self.spec(kind);
+            ControlSignal {
+                message: m,
+                signal: sig(m, i),
+                need: Need::Torque {
+                    t_max: vehicle.torque_max,
+                },
+            }
+        };
+        [
+            speed(
+                MsgKind::WheelSpeeds,
+                4,
+                vehicle.r,
+                "the driven wheel's rim at r",
+            ),
+            speed(
+                MsgKind::WheelSpeeds,
+                5,
+                vehicle.ref_radius(),
+                "the reference wheel's rim at r_ref",
+            ),
+            speed(MsgKind::VehicleSpeed, 3, 1.0, "the car"),
+            torque(MsgKind::MotorStatus, 6),
+            torque(MsgKind::DriverDemand, 4),
+        ]
+    }
+}
+
+/// What a signal grip controls with must carry ([`ControlSignal`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Need {
+    /// A speed up to [`ENVELOPE_SPEED_MPS`] at radius `r` (m; 1 for the
+    /// car's own speed), `what` saying whose.
+    Speed {
+        /// Radius the signal's unit is turned into m/s with.
+        r: f64,
+        /// Whose speed, for the warning.
+        what: &'static str,
+    },
+    /// A torque up to the vehicle's `torque_max`, N m.
+    Torque {
+        /// The vehicle's `torque_max`, N m.
+        t_max: f64,
+    },
+}
+
+/// One signal grip controls with ([`Protocol::control_signals`]).
+#[derive(Debug, Clone, Copy)]
+pub struct ControlSignal<'a> {
+    /// Its message.
+    pub message: &'a MessageSpec,
+    /// The signal.
+    pub signal: &'a SignalSpec,
+    /// What it must carry.
+    pub need: Need,
+}
+
+impl ControlSignal<'_> {
+    /// The largest physical value it must carry (rad/s or m/s for a speed,
+    /// in the signal's own terms: [`ENVELOPE_SPEED_MPS`] / r; N m for a
+    /// torque).
+    pub fn needed(&self) -> f64 {
+        match self.need {
+            Need::Speed { r, .. } => ENVELOPE_SPEED_MPS / r,
+            Need::Torque { t_max } => t_max,
+        }
+    }
+
+    /// Whether its largest value is under what it must carry: a larger
+    /// one saturates there.
+    pub fn is_short(&self) -> bool {
+        self.signal.phys_limits().1 < self.needed() * (1.0 - 1e-9)
+    }
+
+    /// Whether the frame's payload `data` holds the signal at its largest
+    /// value (within a thousandth of a step).
+    pub fn at_limit(&self, data: &[u8; 8]) -> bool {
+        let (_, hi) = self.signal.phys_limits();
+        self.signal.get(data) >= hi - 1e-3 * self.signal.factor.abs()
     }
 }
 

@@ -314,6 +314,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     }
     // the summary, from the log (also after a failure: what was recorded)
     let mut control_lost = None;
+    let mut saturated: Vec<summary::ShortSignal> = Vec::new();
     match crate::drive::load_log(&log_path, Default::default()) {
         Ok(log) => {
             let (vehicle, from, warnings) = drive::vehicle_for(&log, &config_dir);
@@ -327,6 +328,12 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             let s = summary::summarize_with_roads(&log, &vehicle, &from, &log_roads);
             print!("{}", super::inspect::report(&log, &s));
             control_lost = s.control.filter(summary::ControlHealth::lost);
+            saturated = s
+                .can
+                .short
+                .into_iter()
+                .filter(|sh| sh.in_window && sh.at_limit > 0)
+                .collect();
         }
         Err(e) if outcome.failure.is_some() => eprintln!("drive: no readable log: {e:#}"),
         Err(e) => return Err(e.into()),
@@ -341,6 +348,20 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         bail!(
             "drive failed: tcs-loop's control during the scenario: {} (log kept: {})",
             c.line(),
+            log_path.display()
+        );
+    }
+    // a signal grip controls with sat at the limit of what the bus carries
+    // during the scenario: the loop read a larger value as the limit, so
+    // the drive's figures are not the controller's (tools/grip/README.md,
+    // "When a drive fails")
+    if let Some(sh) = saturated.first() {
+        bail!(
+            "drive failed: {} sat at the limit of what the bus carries in {} of the {} frames received during the scenario ({} signal(s) in all; see the summary's WARNING lines) (log kept: {})",
+            sh.name,
+            sh.at_limit,
+            sh.frames,
+            saturated.len(),
             log_path.display()
         );
     }
