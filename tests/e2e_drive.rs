@@ -466,18 +466,32 @@ fn copy_dir(from: &Path, to: &Path) {
 
 /// A service that cannot start fails the drive with its name, exit code and
 /// stderr (the offending field); the others are stopped, the recorder last,
-/// so the log is still finished.
+/// so the log is still finished. The last to start, tcs-loop, fails as a
+/// refused configuration does (exit 78, its error on stderr): `grip drive`
+/// runs tcs-loop's own configuration checks before starting any service
+/// (since 2026-12-07; `tools/grip/tests/drive_model.rs`), so a real
+/// tcs-loop fails here only on what those cannot see (its ports, its bus),
+/// and this stand-in beside the real others takes its place.
 #[test]
 fn drive_names_the_service_that_did_not_come_up() {
-    let bin = built_bin_dir();
+    use std::os::unix::fs::{PermissionsExt, symlink};
+    let real = built_bin_dir();
     let tmp = tempfile::tempdir().unwrap();
-    let cfg = tmp.path().join("config");
-    copy_dir(&config_dir(), &cfg);
-    let own = cfg.join("tcs-loop.toml");
-    let text = std::fs::read_to_string(&own).unwrap();
-    std::fs::write(&own, format!("bogus_field = 1\n{text}")).unwrap();
+    let bin = tmp.path().join("bin");
+    std::fs::create_dir(&bin).unwrap();
+    for s in ["recorder", "plant-sim", "audio-acq", "arte"] {
+        symlink(real.join(s), bin.join(s)).unwrap();
+    }
+    let stand_in = bin.join("tcs-loop");
+    std::fs::write(
+        &stand_in,
+        "#!/bin/sh\necho 'error: tcs-loop.toml: field `bogus_field`: unknown field' >&2\nexit 78\n",
+    )
+    .unwrap();
+    std::fs::set_permissions(&stand_in, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let cfg = config_dir();
     let out = tmp.path().join("drive.mcap");
-    let res = Command::new(bin.join("grip"))
+    let res = Command::new(real.join("grip"))
         .arg("--config-dir")
         .arg(&cfg)
         .args([

@@ -131,6 +131,25 @@ fn load_as(
     opts: &Options,
     vehicle_use: grip_config::VehicleUse,
 ) -> Result<LoadedConfig, ConfigError> {
+    load_with(opts, vehicle_use, Protocol::Install).map(|(cfg, _)| cfg)
+}
+
+/// What [`load_with`] does with the bus's protocol.
+enum Protocol {
+    /// Installs it as the process's ([`grip_io::service::install_protocol_with`]),
+    /// saying its start-up lines and what it cannot carry for the vehicle
+    /// once per process: the service, and a replay's loop.
+    Install,
+    /// Only reads it, says nothing, and returns it: [`check`].
+    Read,
+}
+
+/// [`load_as`], the protocol installed or only read (then returned).
+fn load_with(
+    opts: &Options,
+    vehicle_use: grip_config::VehicleUse,
+    protocol: Protocol,
+) -> Result<(LoadedConfig, Option<grip_io::can::protocol::Protocol>), ConfigError> {
     let dir = ConfigDir::new(&opts.config.config_dir);
     let own_path = opts.config.own_file::<TcsLoopConfig>();
     let mut own = TcsLoopConfig::load(&own_path)?;
@@ -147,34 +166,58 @@ fn load_as(
     let can = load_can(&dir)?;
     // the wheels' radii convert a wheel speed the DBC gives in km/h or m/s
     let radii = grip_io::can::protocol::WheelRadii::of(&vehicle);
-    let first = grip_io::can::protocol::installed().is_none();
-    let protocol = grip_io::service::install_protocol_with(&dir, &can, Some(radii))?;
-    // the speeds and torques the loop controls with, against this vehicle
-    // (said once per process, as the protocol's own line: a replay loads
-    // the configuration once per candidate start)
-    let dbc = can.dbc.as_deref().map_or_else(
-        || "the built-in protocol".to_owned(),
-        |f| dir.file(f).display().to_string(),
-    );
-    if first {
-        for w in protocol.envelope_warnings(&dbc, &vehicle) {
-            tracing::warn!("{w}");
+    let read = match protocol {
+        Protocol::Install => {
+            let first = grip_io::can::protocol::installed().is_none();
+            let protocol = grip_io::service::install_protocol_with(&dir, &can, Some(radii))?;
+            // the speeds and torques the loop controls with, against this
+            // vehicle (said once per process, as the protocol's own line: a
+            // replay loads the configuration once per candidate start)
+            let dbc = can.dbc.as_deref().map_or_else(
+                || "the built-in protocol".to_owned(),
+                |f| dir.file(f).display().to_string(),
+            );
+            if first {
+                for w in protocol.envelope_warnings(&dbc, &vehicle) {
+                    tracing::warn!("{w}");
+                }
+            }
+            None
         }
-    }
+        Protocol::Read => Some(grip_io::service::resolve_protocol(&dir, &can, Some(radii))?.0),
+    };
     let roads = dir.roads()?;
     let road_table = dir.road_table(&roads)?;
-    Ok(LoadedConfig {
-        own,
-        controllers,
-        vehicle,
-        sensors,
-        can,
-        roads,
-        road_table,
-        vehicle_path,
-        controllers_path,
-        own_path,
-    })
+    Ok((
+        LoadedConfig {
+            own,
+            controllers,
+            vehicle,
+            sensors,
+            can,
+            roads,
+            road_table,
+            vehicle_path,
+            controllers_path,
+            own_path,
+        },
+        read,
+    ))
+}
+
+/// Every check of the service's start-up short of opening its ports and
+/// its bus, with nothing installed or said: its files as the service
+/// reads them (the vehicle file complete), the bus against its settings
+/// ([`check_bus_timing_in`]: `TorqueRequest` carrying `torque_max`, the
+/// periods, the timeouts) and the loop built from them. `grip drive` runs
+/// it before starting any service, so that a configuration tcs-loop
+/// refuses fails there, once, and not after four services started.
+pub fn check(opts: &Options) -> Result<(), RunError> {
+    let (cfg, protocol) = load_with(opts, grip_config::VehicleUse::Drive, Protocol::Read)?;
+    if let Some(p) = &protocol {
+        check_bus_timing_in(&cfg, p)?;
+    }
+    build_checked(&cfg).map(|_| ())
 }
 
 /// The bus against tcs-loop's settings: `TorqueRequest` must carry the
@@ -311,6 +354,11 @@ pub fn check_bus_timing_in(
 /// build it here, so a replay runs the very loop the service ran.
 pub fn build(cfg: &LoadedConfig) -> Result<TcsLoop, RunError> {
     check_bus_timing(cfg)?;
+    build_checked(cfg)
+}
+
+/// [`build`] after the bus's check.
+fn build_checked(cfg: &LoadedConfig) -> Result<TcsLoop, RunError> {
     let kind = cfg
         .own
         .controller_kind()

@@ -163,6 +163,51 @@ fn a_vehicle_file_without_a_field_is_refused_once_naming_the_user_s_file_with_mo
     assert!(!out.exists());
 }
 
+/// A DBC whose `TorqueRequest` cannot carry the vehicle's `torque_max`
+/// (found in a newcomer's trial: `[-250|250]` against 1400 N m passed
+/// `--dry-run`, started four services, failed at tcs-loop with its error
+/// said twice, and left an empty log): tcs-loop's start-up checks run in
+/// `grip` first, so the drive and its dry run fail before any service
+/// starts, naming the vehicle file and the field once.
+#[test]
+fn a_dbc_tcs_loop_refuses_fails_before_any_service_starts() {
+    let d = tempfile::tempdir().unwrap();
+    let cfg = d.path().join("cfg");
+    common::copy_dir(&common::config_dir(), &cfg);
+    let dbc = cfg.join("inverter.dbc");
+    let text = std::fs::read_to_string(&dbc).unwrap();
+    let narrow = text.replacen(
+        "TorqueRequest : 16|16@1- (0.1,0) [-3276.8|3276.7]",
+        "TorqueRequest : 16|16@1- (0.1,0) [-250|250]",
+        1,
+    );
+    assert_ne!(narrow, text);
+    std::fs::write(&dbc, narrow).unwrap();
+    let out = d.path().join("drive.mcap");
+    for dry in [false, true] {
+        let f = Fakes::new();
+        let mut args = vec![os("--out"), out.as_os_str()];
+        if dry {
+            args.push(os("--dry-run"));
+        }
+        let (ok, so, err) = f.drive(&cfg, &args);
+        assert!(!ok, "dry run {dry}: {so}{err}");
+        assert!(f.started().is_empty(), "{:?}\n{err}", f.started());
+        let said: Vec<&str> = err
+            .lines()
+            .filter(|l| l.contains("field `vehicle.torque_max`: 1000 N m is beyond what TorqueCommand's TorqueRequest carries in inverter.dbc (-250 to 250 N m)"))
+            .collect();
+        assert_eq!(said.len(), 1, "dry run {dry}: {err}");
+        assert!(
+            said[0].starts_with(
+                "error: tcs-loop's configuration (checked before any service starts): "
+            ),
+            "{err}"
+        );
+        assert!(!out.exists() && !d.path().join("drive.mcap.partial").exists());
+    }
+}
+
 #[test]
 fn drive_help_gives_model() {
     let (ok, so, err) = common::output(&[os("drive"), os("--help")]);

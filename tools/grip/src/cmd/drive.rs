@@ -56,7 +56,10 @@ pub struct Args {
     /// Seconds each service may take to report READY=1.
     #[arg(long, default_value_t = drive::plan::DEFAULT_READY_TIMEOUT_S)]
     ready_timeout: f64,
-    /// Print each service's command line (and its systemd ExecStart=) and exit.
+    /// Check the configuration as the drive does before any service starts
+    /// (vehicle, scenario, model and audio rate, the bus's DBC, tcs-loop's
+    /// start-up checks), print each service's command line (and its
+    /// systemd ExecStart=) and exit.
     #[arg(long)]
     dry_run: bool,
     /// Forward every line the services write to stderr (default: warnings and errors).
@@ -176,6 +179,24 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
             }
         })?;
     }
+    // tcs-loop's own start-up checks (its files, the bus against its
+    // settings: TorqueRequest carrying torque_max, the periods and
+    // timeouts; the loop built from them), before any service starts: a
+    // configuration it refuses would otherwise fail the drive after four
+    // services started, said twice, and leave an empty log
+    let controller_kind = match args.controller {
+        Controller::Mfc => grip_tcs::ControllerKind::Mfc,
+        Controller::Src => grip_tcs::ControllerKind::Src,
+        Controller::Mtte => grip_tcs::ControllerKind::Mtte,
+    };
+    grip_tcs_loop::check(&grip_tcs_loop::Options {
+        config: grip_io::service::ConfigArgs::in_dir(&config_dir),
+        controller: Some(controller_kind),
+        arte: Some(args.arte == OnOff::On),
+        run_for_s: None,
+        vehicle: vehicle.clone(),
+    })
+    .context("tcs-loop's configuration (checked before any service starts)")?;
     // `--model`: the services get a view of the configuration whose
     // arte-svc.toml names the model (the log then carries it)
     let view = match &model {
