@@ -57,10 +57,14 @@ enum Command {
 }
 
 fn main() -> std::process::ExitCode {
+    // warnings and errors of the services' code that grip runs in-process
+    // (a replay's tcs-loop and arte, generate): their start-up info lines
+    // (the CAN protocol, ...) are for a service's journal, not for a
+    // command's output; RUST_LOG=info shows them
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
         )
         .with_writer(std::io::stderr)
         // no colour codes in a file or a pipe (or with NO_COLOR set)

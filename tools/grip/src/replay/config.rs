@@ -81,6 +81,54 @@ fn copy_dir(from: &Path, to: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A `--set can.toml:dbc=FILE` (closed loop) naming a DBC the replay's
+/// configuration does not have: the user's file, FILE as a path from the
+/// current directory, is copied into the replay's configuration under its
+/// file name (can.toml then names that); a FILE found in neither is an
+/// error naming both places. (Until 2026-12-07 only a DBC the log carried
+/// could be named, and any other failed at tcs-loop's start-up, "cannot be
+/// read", without saying where it was looked for.)
+fn bring_the_dbc(dir: &Path, applied: &mut [Applied]) -> anyhow::Result<()> {
+    let Some(a) = applied
+        .iter_mut()
+        .find(|a| a.rel == "can.toml" && a.path == "dbc")
+    else {
+        return Ok(());
+    };
+    let Some(name) = a.value.as_str().map(str::to_owned) else {
+        return Ok(());
+    };
+    if safe_name(&name) && dir.join(&name).is_file() {
+        return Ok(());
+    }
+    let src = Path::new(&name);
+    let Some(file_name) = src.file_name().filter(|_| src.is_file()) else {
+        bail!(
+            "--set {}: can.toml's dbc names {name:?}, which is neither a file of the replay's configuration nor a file from the current directory ({})",
+            a.spec,
+            std::env::current_dir().map_or_else(|_| "?".into(), |d| d.display().to_string())
+        );
+    };
+    let file_name = file_name.to_string_lossy().into_owned();
+    std::fs::copy(src, dir.join(&file_name)).with_context(|| {
+        format!(
+            "--set {}: copying {name} into the replay's configuration",
+            a.spec
+        )
+    })?;
+    if file_name != name {
+        let p = dir.join("can.toml");
+        let mut doc: toml::Table = toml::from_str(&std::fs::read_to_string(&p)?)?;
+        doc.insert("dbc".into(), toml::Value::String(file_name.clone()));
+        std::fs::write(&p, toml::to_string(&doc)?)?;
+        a.value = toml::Value::String(file_name.clone());
+    }
+    a.line.push_str(&format!(
+        " (the DBC {name}, copied into the replay's configuration as {file_name})"
+    ));
+    Ok(())
+}
+
 /// The recorded frames are the drive's bus: whatever `--config-dir` says,
 /// its `can.toml` and the DBC that names the frames are the log's (a log
 /// from before the services read a DBC carries a `can.toml` without `dbc`:
@@ -162,7 +210,11 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
         Some(d) => {
             copy_dir(d, &dir)?;
             changes.push(format!("configuration directory {}", d.display()));
-            keep_the_logs_bus(log, &dir, &mut changes)?;
+            // open loop: the recorded frames are read as they were sent;
+            // closed loop: plant-sim sends them, with --config-dir's bus
+            if !w.closed_loop {
+                keep_the_logs_bus(log, &dir, &mut changes)?;
+            }
             format!("{} (--config-dir)", d.display())
         }
         None => {
@@ -318,6 +370,7 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
         }
         applied.push(a);
     }
+    bring_the_dbc(&dir, &mut applied)?;
     // tcs-loop.toml's `controller` and `arte` are what --controller and
     // --arte set: the drive's (grip.run) would otherwise win over the file
     let own_set = |key: &str| {
@@ -1461,6 +1514,55 @@ mod tests {
             ..WhatIf::default()
         };
         prepare(&reference(), &w)
+    }
+
+    /// `--set can.toml:dbc=FILE` in closed loop with a DBC the log does not
+    /// carry (a newcomer's trial: "cannot be read", and where it was looked
+    /// for not said): the user's file is copied in under its name and
+    /// can.toml names that; a FILE found nowhere is refused naming it.
+    #[test]
+    fn a_dbc_of_the_user_s_is_brought_into_a_closed_loop_replay() {
+        let d = tempfile::tempdir().unwrap();
+        let mine = d.path().join("car.dbc");
+        let shipped = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/inverter.dbc"),
+        )
+        .unwrap();
+        let own = shipped.replacen("BO_ 256 ", "BO_ 385 ", 1);
+        assert_ne!(own, shipped);
+        std::fs::write(&mine, &own).unwrap();
+        let spec = format!("can.toml:dbc={}", mine.display());
+        let rc = with_sets(&[&spec], true).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(rc.dir.join("car.dbc")).unwrap(),
+            own
+        );
+        let can: toml::Table =
+            toml::from_str(&std::fs::read_to_string(rc.dir.join("can.toml")).unwrap()).unwrap();
+        assert_eq!(can["dbc"].as_str(), Some("car.dbc"));
+        let line = &rc.applied[0].line;
+        assert!(
+            line.contains(&format!(
+                "(the DBC {}, copied into the replay's configuration as car.dbc)",
+                mine.display()
+            )),
+            "{line}"
+        );
+        // a name found nowhere
+        let e = with_sets(&["can.toml:dbc=no_such.dbc"], true)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("can.toml's dbc names \"no_such.dbc\", which is neither a file of the replay's configuration nor a file from the current directory"),
+            "{e}"
+        );
+        // the log's own DBC by its name: as before, nothing copied
+        let rc = with_sets(&["can.toml:dbc=inverter.dbc"], true).unwrap();
+        assert!(
+            !rc.applied[0].line.contains("copied"),
+            "{}",
+            rc.applied[0].line
+        );
     }
 
     /// Item 1: a value the service refuses is told as the `--set` typed,
