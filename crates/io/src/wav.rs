@@ -36,7 +36,10 @@
 //!   and channel count so callers can report them.
 //! - Every refusal is a [`WavError`] naming the file and the reason
 //!   ([`WavErrorKind`]): cannot open, not a WAV file, 0 channels, sample
-//!   rate 0, unsupported sample width, truncated or corrupt data.
+//!   rate 0, unsupported sample width, corrupt data. A data chunk whose
+//!   declared length the file does not hold (0: not finalised; 0xFFFFFFFF
+//!   or beyond the end: a streaming length, a cut file) is read as far as
+//!   the file goes, with a warning ([`Audio::data_declared`]).
 //!
 //! Writing: [`write_mono_i16`] writes 16-bit mono PCM, clamping to [−1, 1].
 //!
@@ -69,6 +72,12 @@ pub struct Audio<S = f32> {
     pub clamped: usize,
     /// Non-finite float samples (NaN, ±∞), read as 0.
     pub non_finite: usize,
+    /// The data chunk's length as the header declared it, bytes, when the
+    /// file did not hold that (0: a recording not finalised; 0xFFFFFFFF
+    /// or more than is there: a streaming length, or a cut file): the
+    /// whole sample frames the file holds were read instead, with a
+    /// warning. `None`: the header's length was the file's.
+    pub data_declared: Option<u64>,
 }
 
 impl<S> Audio<S> {
@@ -86,6 +95,7 @@ impl<S> Audio<S> {
             file_channels: self.file_channels,
             clamped: self.clamped,
             non_finite: self.non_finite,
+            data_declared: self.data_declared,
         }
     }
 }
@@ -220,12 +230,23 @@ pub fn read_channel(path: &Path, channel: Channel) -> Result<Audio, WavError> {
     // no reservation)
     let size = file.metadata().map_or(0, |m| m.len());
     let fmt = find_fmt(&mut file);
-    file.seek(SeekFrom::Start(0))
-        .map_err(|e| WavErrorKind::Open(e).at(path))?;
-    hound::WavReader::new(std::io::BufReader::new(file))
+    let rewind = |f: &mut std::fs::File| {
+        f.seek(SeekFrom::Start(0))
+            .map_err(|e| WavErrorKind::Open(e).at(path))
+    };
+    rewind(&mut file)?;
+    let short = short_data(&mut file, size);
+    rewind(&mut file)?;
+    let reader = Patched {
+        inner: std::io::BufReader::new(file),
+        pos: 0,
+        at: short.map_or(u64::MAX - 4, |d| d.length_at),
+        bytes: short.map_or([0; 4], |d| (d.present as u32).to_le_bytes()),
+    };
+    hound::WavReader::new(reader)
         .map_err(WavErrorKind::open)
         .and_then(|r| decode(r, fmt, size, channel))
-        .map(|a| warn_clamped(a, path))
+        .map(|a| note_short(warn_clamped(a, path), short, path))
         .map_err(|k| k.at(path))
 }
 
@@ -269,9 +290,22 @@ pub fn decode_mono(bytes: &[u8], path: &Path) -> Result<Audio, WavError> {
 /// [`decode_mono`], taking `channel` (or the average).
 pub fn decode_channel(bytes: &[u8], path: &Path, channel: Channel) -> Result<Audio, WavError> {
     let fmt = find_fmt(&mut std::io::Cursor::new(bytes));
+    let short = short_data(&mut std::io::Cursor::new(bytes), bytes.len() as u64);
+    let patched;
+    let bytes = match short {
+        Some(d) => {
+            let mut b = bytes.to_vec();
+            let at = d.length_at as usize;
+            b[at..at + 4].copy_from_slice(&(d.present as u32).to_le_bytes());
+            patched = b;
+            &patched[..]
+        }
+        None => bytes,
+    };
     hound::WavReader::new(std::io::Cursor::new(bytes))
         .map_err(WavErrorKind::open)
         .and_then(|r| decode(r, fmt, bytes.len() as u64, channel))
+        .map(|a| note_short(a, short, path))
         .map(|a| warn_clamped(a, path))
         .map_err(|k| k.at(path))
 }
@@ -376,7 +410,37 @@ pub fn header(path: &Path) -> Result<WavHeader, WavError> {
         .metadata()
         .map_err(|e| WavErrorKind::Open(e).at(path))?
         .len();
-    let bad = |why: &'static str| WavErrorKind::NotWav(why).at(path);
+    let d = walk_to_data(&mut f, file_len).map_err(|k| k.at(path))?;
+    Ok(WavHeader {
+        sample_rate: d.rate,
+        channels: d.channels,
+        frames: d.present / u64::from(d.block),
+    })
+}
+
+/// The data chunk of a RIFF/WAVE stream, as [`walk_to_data`] finds it.
+#[derive(Clone, Copy, Debug)]
+struct DataChunk {
+    rate: u32,
+    channels: u16,
+    block: u16,
+    /// Where the chunk's length field is in the stream.
+    length_at: u64,
+    /// The length it declares, bytes.
+    declared: u64,
+    /// The bytes of the stream after the length field.
+    rest: u64,
+    /// The bytes of whole sample frames the stream holds for it: the
+    /// declared length, or for a length of 0 (not finalised) or beyond the
+    /// end (a streaming length, a cut file) what is there.
+    present: u64,
+}
+
+/// Walks the RIFF chunks of `f` (`file_len` bytes; the pad byte after an
+/// odd-length chunk honoured) to the data chunk, reading only the fmt
+/// chunk's rate, channels and block size.
+fn walk_to_data<R: Read + Seek>(f: &mut R, file_len: u64) -> Result<DataChunk, WavErrorKind> {
+    let bad = WavErrorKind::NotWav;
     let mut head = [0u8; 12];
     f.read_exact(&mut head)
         .map_err(|_| bad("shorter than a RIFF header"))?;
@@ -399,10 +463,10 @@ pub fn header(path: &Path) -> Result<WavHeader, WavError> {
                 let channels = u16::from_le_bytes([b[2], b[3]]);
                 let block = u16::from_le_bytes([b[12], b[13]]);
                 if channels == 0 {
-                    return Err(WavErrorKind::NoChannels.at(path));
+                    return Err(WavErrorKind::NoChannels);
                 }
                 if rate == 0 {
-                    return Err(WavErrorKind::NoSampleRate.at(path));
+                    return Err(WavErrorKind::NoSampleRate);
                 }
                 if block == 0 {
                     return Err(bad("block size 0"));
@@ -410,22 +474,84 @@ pub fn header(path: &Path) -> Result<WavHeader, WavError> {
                 fmt = Some((rate, channels, block));
             }
             b"data" => {
-                let (sample_rate, channels, block) =
+                let (rate, channels, block) =
                     fmt.ok_or_else(|| bad("`data` chunk before the `fmt ` chunk"))?;
                 let rest = file_len.saturating_sub(body);
                 let bytes = if size == 0 || size > rest { rest } else { size };
-                return Ok(WavHeader {
-                    sample_rate,
+                return Ok(DataChunk {
+                    rate,
                     channels,
-                    frames: bytes / u64::from(block),
+                    block,
+                    length_at: pos + 4,
+                    declared: size,
+                    rest,
+                    present: bytes - bytes % u64::from(block),
                 });
             }
             _ => {}
         }
         pos = body + size + (size & 1);
-        f.seek(SeekFrom::Start(pos))
-            .map_err(|e| WavErrorKind::Open(e).at(path))?;
+        f.seek(SeekFrom::Start(pos)).map_err(WavErrorKind::Open)?;
     }
+}
+
+/// The data chunk's length to read with instead of the header's, when the
+/// stream (`file_len` bytes) does not hold what the header declares (0: a
+/// recording not finalised; 0xFFFFFFFF or beyond the end: a streaming
+/// length, or a cut file): `Some(chunk)`, whose `present` is the length.
+/// `None` when the length is right, or the chunks cannot be walked (the
+/// reader then says why).
+fn short_data<R: Read + Seek>(f: &mut R, file_len: u64) -> Option<DataChunk> {
+    let d = walk_to_data(f, file_len).ok()?;
+    (d.declared == 0 || d.declared > d.rest)
+        .then_some(d)
+        .filter(|d| u32::try_from(d.present).is_ok())
+}
+
+/// A reader that gives 4 bytes of the stream (at `at`) as `bytes`: the
+/// data chunk's length, set to what the file holds ([`short_data`]).
+struct Patched<R> {
+    inner: R,
+    pos: u64,
+    at: u64,
+    bytes: [u8; 4],
+}
+
+impl<R: Read> Read for Patched<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        for (i, b) in self.bytes.iter().enumerate() {
+            let p = self.at + i as u64;
+            if p >= self.pos && p < self.pos + n as u64 {
+                buf[(p - self.pos) as usize] = *b;
+            }
+        }
+        self.pos += n as u64;
+        Ok(n)
+    }
+}
+
+/// The warning for a file read with its data chunk's length set to what it
+/// holds, and the audio marked so.
+fn note_short(mut a: Audio, d: Option<DataChunk>, path: &Path) -> Audio {
+    if let Some(d) = d {
+        let why = if d.declared == 0 {
+            "0 (a recording not finalised)".to_owned()
+        } else {
+            format!(
+                "{} bytes, more than the {} the file holds after it (a streaming length, or a cut file)",
+                d.declared, d.present
+            )
+        };
+        tracing::warn!(
+            "WAV file {}: its header gives the data chunk a length of {why}: read the {} whole sample frames ({:.3} s) the file holds",
+            path.display(),
+            d.present / u64::from(d.block),
+            (d.present / u64::from(d.block)) as f64 / f64::from(d.rate)
+        );
+        a.data_declared = Some(d.declared);
+    }
+    a
 }
 
 /// How the integer samples of a file are read.
@@ -648,6 +774,7 @@ fn decode<R: std::io::Read>(
         file_channels: ch,
         clamped,
         non_finite,
+        data_declared: None,
     })
 }
 
@@ -967,6 +1094,7 @@ mod tests {
             file_channels: 2,
             clamped: 0,
             non_finite: 0,
+            data_declared: None,
         };
         let b = a.map(|s| (s * 2.0) as i32);
         assert_eq!(b.samples, [1, -2]);
@@ -982,26 +1110,36 @@ mod tests {
         let p = dir.path().join("cut.wav");
         write_mono_i16(&p, 44_100, &tone(44_100, 440.0, 0.1)).unwrap();
         let bytes = std::fs::read(&p).unwrap();
+        let whole = read_mono(&p).unwrap();
+        assert_eq!(whole.data_declared, None);
+        // a cut file: the whole sample frames it holds, read with a
+        // warning (it was refused, "truncated", and a dataset with one
+        // such file could not be trained on; found in a newcomer's trial)
         std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
-        let e = read_mono(&p).unwrap_err();
-        assert!(
-            matches!(
-                e.kind,
-                WavErrorKind::Corrupt {
-                    got: 2194,
-                    expected: 4410,
-                    ..
-                }
-            ),
-            "{e}"
-        );
-        let e = e.to_string();
-        assert!(e.contains("cut.wav") && e.contains("truncated"), "{e}");
+        let cut = read_mono(&p).unwrap();
+        assert_eq!(cut.samples.len(), 2194);
+        assert_eq!(cut.samples[..], whole.samples[..2194]);
+        assert_eq!(cut.data_declared, Some(8820));
         // the same in memory
-        let e = decode_mono(&bytes[..bytes.len() / 2], &p)
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("cut.wav") && e.contains("truncated"), "{e}");
+        let cut = decode_mono(&bytes[..bytes.len() / 2], &p).unwrap();
+        assert_eq!((cut.samples.len(), cut.data_declared), (2194, Some(8820)));
+        // a recording not finalised (lengths 0) and a streaming length
+        // (0xFFFFFFFF): the samples that are there
+        for (riff, data) in [(0u32, 0u32), (u32::MAX, u32::MAX)] {
+            let mut b = bytes.clone();
+            b[4..8].copy_from_slice(&riff.to_le_bytes());
+            b[40..44].copy_from_slice(&data.to_le_bytes());
+            std::fs::write(&p, &b).unwrap();
+            let a = read_mono(&p).unwrap_or_else(|e| panic!("{data:#x}: {e}"));
+            assert_eq!(a.samples, whole.samples, "{data:#x}");
+            assert_eq!(a.data_declared, Some(u64::from(data)));
+            let m = decode_mono(&b, &p).unwrap();
+            assert_eq!(
+                (m.samples, m.data_declared),
+                (whole.samples.clone(), Some(u64::from(data)))
+            );
+            assert_eq!(header(&p).unwrap().frames, 4410);
+        }
 
         let q = dir.path().join("notes.wav");
         std::fs::write(&q, b"this is not audio at all, just text").unwrap();

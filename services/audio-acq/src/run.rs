@@ -158,6 +158,9 @@ pub fn run(opts: &Options, stop: Arc<AtomicBool>) -> Result<RunSummary, AcqError
             })?;
             let path = resolve(&opts.config.config_dir, &w.path);
             let audio = read_mono_i16(&path, rate, w.channel)?;
+            if let Some(w) = crate::wav::upsampled_note(&path, audio.file_rate, rate) {
+                tracing::warn!("{w}");
+            }
             let what = format!(
                 "WAV {} ({} Hz, {} ch{}, {:.1} s, {})",
                 path.display(),

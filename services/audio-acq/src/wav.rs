@@ -25,6 +25,21 @@ pub fn read_mono_i16(path: &Path, rate: u32, channel: Option<u16>) -> Result<Aud
     Ok(audio.map(f32_to_i16))
 }
 
+/// The warning for a file recorded at `file_rate` Hz played at `rate` Hz:
+/// upsampled, it has nothing above `file_rate / 2`, where a model trained
+/// at `rate` listens too (an 11 025 Hz recording played at 48 kHz was
+/// classified as snow throughout, and nothing said why). `None` when the
+/// file's rate is the rate or above it.
+pub fn upsampled_note(path: &Path, file_rate: u32, rate: u32) -> Option<String> {
+    (file_rate < rate).then(|| {
+        format!(
+            "WAV {}: recorded at {file_rate} Hz, played at audio-acq's {rate} Hz (upsampled): nothing above {} Hz is in it, where arte's model, trained at {rate} Hz, listens too; its estimates on this file mean little. Record at {rate} Hz or more",
+            path.display(),
+            file_rate / 2
+        )
+    })
+}
+
 /// Plays samples in memory, once or looped, paced in real time.
 #[derive(Debug)]
 pub struct WavSource<C: Clock> {
@@ -80,5 +95,25 @@ impl<C: Clock> Source for WavSource<C> {
             xruns: self.pacer.resyncs(),
             ..SourceStats::default()
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A file below the service's rate is said to be upsampled, with the
+    /// band it lacks; at or above the rate (downsampled: the band is
+    /// there) nothing is said.
+    #[test]
+    fn an_upsampled_file_is_said() {
+        let p = Path::new("gravel.wav");
+        let w = upsampled_note(p, 11_025, 48_000).unwrap();
+        assert!(
+            w.starts_with("WAV gravel.wav: recorded at 11025 Hz, played at audio-acq's 48000 Hz (upsampled): nothing above 5512 Hz is in it"),
+            "{w}"
+        );
+        assert_eq!(upsampled_note(p, 48_000, 48_000), None);
+        assert_eq!(upsampled_note(p, 96_000, 48_000), None);
     }
 }

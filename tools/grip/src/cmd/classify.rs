@@ -277,6 +277,7 @@ mod tests {
             file_channels: 1,
             clamped: 0,
             non_finite: 0,
+            data_declared: None,
         };
         judge.finish(
             "f.wav",
