@@ -24,6 +24,10 @@ pub struct AcqStatus {
     pub truth_received: AtomicU64,
     /// Synth: truth samples naming an unknown road.
     pub unknown_road: AtomicU64,
+    /// Synth: the last of those roads' name, its 16 bytes as two words
+    /// (written only with the count; the monitor reads it after the count
+    /// grew).
+    pub unknown_name: [AtomicU64; 2],
     /// Synth: failed reads of the ground truth.
     pub truth_errors: AtomicU64,
     /// Source waits that timed out (ALSA).
@@ -99,6 +103,16 @@ impl<S: Source> AcqLoop<S> {
         self.status
             .unknown_road
             .store(st.unknown_road, Ordering::Relaxed);
+        for (word, bytes) in self
+            .status
+            .unknown_name
+            .iter()
+            .zip(st.unknown_name.chunks_exact(8))
+        {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(bytes);
+            word.store(u64::from_le_bytes(b), Ordering::Relaxed);
+        }
         self.status
             .truth_errors
             .store(st.truth_errors, Ordering::Relaxed);

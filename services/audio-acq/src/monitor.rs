@@ -35,6 +35,7 @@ pub fn spawn_helper(
         pub_err: Count::default(),
         truth_err: Count::default(),
         unknown: Count::default(),
+        unknown_said: None,
         s: status,
         synth,
     };
@@ -50,6 +51,8 @@ struct AcqMonitor {
     pub_err: Count,
     truth_err: Count,
     unknown: Count,
+    /// The unknown road last said (each new one is said once).
+    unknown_said: Option<[u8; grip_msgs::NAME_LEN]>,
 }
 
 impl Monitor for AcqMonitor {
@@ -112,16 +115,22 @@ impl Monitor for AcqMonitor {
             s.truth_errors.load(Ordering::Relaxed),
             "reading the ground truth failed (the synthesiser keeps its last road until the truth timeout)"
         );
-        let first_unknown = self.unknown.last() == 0;
         if self
             .unknown
             .grew(s.unknown_road.load(Ordering::Relaxed))
             .is_some()
-            && first_unknown
         {
-            tracing::warn!(
-                "ground truth names a road the synthesiser does not know (add it to [synth] aliases): generating vehicle noise only"
-            );
+            let mut name = [0u8; grip_msgs::NAME_LEN];
+            for (bytes, word) in name.chunks_exact_mut(8).zip(&s.unknown_name) {
+                bytes.copy_from_slice(&word.load(Ordering::Relaxed).to_le_bytes());
+            }
+            if self.unknown_said != Some(name) {
+                self.unknown_said = Some(name);
+                tracing::warn!(
+                    "ground truth names road `{}`, which the synthesiser has no sound for: generating vehicle noise only while the microphone is on it (a road without a sound of its own, as ice, is meant to be; for another, add it to [synth] aliases)",
+                    grip_msgs::name_from_bytes(&name).unwrap_or("(not UTF-8)")
+                );
+            }
         }
     }
 }

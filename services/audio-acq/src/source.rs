@@ -36,6 +36,8 @@ pub struct SourceStats {
     /// Synth: truth samples naming a road the synthesiser does not know
     /// (generated as vehicle noise only).
     pub unknown_road: u64,
+    /// Synth: the last road name of those (NUL-padded, as the truth's).
+    pub unknown_name: [u8; grip_msgs::NAME_LEN],
     /// Synth: errors reading the truth topic.
     pub truth_errors: u64,
 }

@@ -169,6 +169,7 @@ impl<C: Clock, T: TruthInput> SynthSource<C, T> {
         }
         if self.road == NO_ROAD {
             self.stats.unknown_road += 1;
+            self.stats.unknown_name = t.mic_road_name;
         }
         self.speed = if t.v.is_finite() { t.v.abs() } else { 0.0 };
         self.have_truth = true;
