@@ -563,10 +563,10 @@ fn print_eval(report: &mut String, title: &str, e: &EvalSummary) {
         .iter()
         .enumerate()
         .map(|(i, c)| {
-            format!(
-                "{c} {:.1}/{:.1}",
-                100.0 * e.metrics.recall[i],
-                100.0 * e.metrics.precision[i]
+            recall_precision(
+                c,
+                (e.metrics.recall[i], e.confusion.actual_total(i)),
+                (e.metrics.precision[i], e.confusion.predicted_total(i)),
             )
         })
         .collect();
@@ -575,6 +575,22 @@ fn print_eval(report: &mut String, title: &str, e: &EvalSummary) {
     let _ = writeln!(report, "\n**{title}**: {}\n", e.metrics);
     let _ = writeln!(report, "recall/precision (%): {}\n", per.join(", "));
     report.push_str(&e.confusion.to_markdown());
+}
+
+/// One class's "recall/precision" cell: `-` for a figure with nothing to
+/// count (recall of a class with no frames in the set, precision of one
+/// never decided), which the metrics give as 0 (a held-out set without
+/// stone read "stone 0.0/0.0" beside a macro recall of 100 %).
+fn recall_precision(class: &str, recall: (f64, u64), precision: (f64, u64)) -> String {
+    let pct = |(x, n): (f64, u64)| {
+        if n == 0 {
+            "-".to_owned()
+        } else {
+            format!("{:.1}", 100.0 * x)
+        }
+    };
+    let none = if recall.1 == 0 { " (no frames)" } else { "" };
+    format!("{class} {}/{}{none}", pct(recall), pct(precision))
 }
 
 /// Trains and returns the model and the Markdown report (no file written).
@@ -1648,6 +1664,25 @@ mod tests {
             got.contains("asphalt/r0.wav")
                 && got.contains(&format!("manifest {m} line 2, field `speed_kmh`: blank")),
             "{got}"
+        );
+    }
+
+    /// A held-out set without a class: its recall is `-`, not 0.0.
+    #[test]
+    fn a_class_without_frames_is_no_zero() {
+        assert_eq!(
+            recall_precision("stone", (0.0, 0), (0.0, 0)),
+            "stone -/- (no frames)"
+        );
+        assert_eq!(recall_precision("snow", (0.0, 12), (0.0, 0)), "snow 0.0/-");
+        assert_eq!(
+            recall_precision("snow", (0.5, 12), (0.25, 4)),
+            "snow 50.0/25.0"
+        );
+        // a class with no frames that was decided (wrongly): its precision
+        assert_eq!(
+            recall_precision("ice", (0.0, 0), (0.0, 3)),
+            "ice -/0.0 (no frames)"
         );
     }
 
