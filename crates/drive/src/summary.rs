@@ -660,6 +660,10 @@ pub struct Summary {
     /// The drive's speeds against the speeds arte's model was trained at
     /// ([`speeds::drive_speeds`]; None: the log names no model).
     pub training_speeds: Option<speeds::DriveSpeeds>,
+    /// The classes of arte's model, as the log carries it (None: the log
+    /// names no model, or does not carry it readable): a road it has no
+    /// class for is never estimated right, and the ARTE section says so.
+    pub model_classes: Option<Vec<String>>,
 }
 
 /// The model arte ran, as the log says it ([`model_of`]).
@@ -1827,6 +1831,12 @@ pub fn summarize(
     }
     s.replay = replay_of(log);
     s.model = model_of(log);
+    s.model_classes = s
+        .model
+        .as_ref()
+        .and_then(|m| m.bytes(log))
+        .and_then(|b| grip_arte::model::Model::from_bytes(b).ok())
+        .map(|m| m.classes().to_vec());
     s.audio = audio_of(log);
     // a replay's controller and ARTE switch are its own (`grip.run` is
     // the source's, copied)
@@ -2781,11 +2791,22 @@ impl Summary {
                 a.judged
             );
             for (road, (n, c)) in &a.per_road {
-                let note = self
-                    .audio
+                let no_class = self
+                    .model_classes
                     .as_ref()
-                    .and_then(|au| au.road_note(road))
-                    .map_or_else(String::new, |n| format!(": {n}"));
+                    .filter(|cl| !cl.iter().any(|x| x == road))
+                    .map(|cl| {
+                        format!(
+                            "arte's model has no class for it (its classes: {}), so it is never estimated right",
+                            cl.join(", ")
+                        )
+                    });
+                let sound = self.audio.as_ref().and_then(|au| au.road_note(road));
+                let note = match (no_class, sound) {
+                    (Some(a), Some(b)) => format!(": {a}; {b}"),
+                    (Some(x), None) | (None, Some(x)) => format!(": {x}"),
+                    (None, None) => String::new(),
+                };
                 let _ = writeln!(
                     o,
                     "    {road:<12} recall {:.1} % ({c}/{n}){note}",
@@ -4257,5 +4278,29 @@ mod tests {
         let l = r.find("  audio: from the WAV file audio/drive.wav (audio-acq.toml [audio] source = \"wav\"), not synthesised from the plant's roads").unwrap_or_else(|| panic!("{r}"));
         assert!(l < r.find("accuracy during the scenario").unwrap(), "{r}");
         assert!(r.contains("    wet_gravel   recall 0.0 % (0/1)\n"), "{r}");
+        // arte's model (attached, named by arte-svc.toml) has no class for
+        // wet_gravel: said, whatever the audio (a newcomer's own model
+        // without wet_asphalt read "recall 0.0 %" and nothing more)
+        log.attachments.insert(
+            "arte-svc.toml".into(),
+            b"model = \"models/paper.model\"\n".to_vec(),
+        );
+        log.attachments.insert(
+            "models/paper.model".into(),
+            include_bytes!("../../../config/models/paper.model").to_vec(),
+        );
+        let r = render(&log);
+        assert!(
+            r.contains("    wet_gravel   recall 0.0 % (0/1): arte's model has no class for it (its classes: asphalt, gravel, snow, stone, wet_asphalt, wet_stone), so it is never estimated right\n"),
+            "{r}"
+        );
+        assert!(r.contains("    asphalt      recall 100.0 % (1/1)\n"), "{r}");
+        log.attachments
+            .insert("audio-acq.toml".into(), acq("synth", ""));
+        let r = render(&log);
+        assert!(
+            r.contains("so it is never estimated right; no sound of its own: vehicle and microphone noise only"),
+            "{r}"
+        );
     }
 }
