@@ -430,6 +430,14 @@ pub struct StreamCalibration {
     pub stream: crate::stream::StreamConfig,
     /// Where it was fitted (set, decisions, ECE before and after, command).
     pub notes: Vec<String>,
+    /// The recordings it was fitted on, by content: the first 16 hex
+    /// digits of each file's SHA-256, sorted, without repeats (as the
+    /// model's `meta.training_files`). `grip dataset delay` says when it
+    /// measures on them (its calibration figures are then in-sample).
+    /// Calibrations written before this field existed have it empty (and
+    /// it is then not written, so their bytes are unchanged).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub files: Vec<String>,
 }
 
 /// Accuracy against confidence in equal-width bins over [0, 1].

@@ -507,6 +507,7 @@ fn calibrations() -> Vec<StreamCalibration> {
         map,
         stream: StreamConfig::default(),
         notes: vec!["test".into()],
+        files: vec![],
     })
     .collect()
 }

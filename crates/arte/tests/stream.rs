@@ -323,6 +323,7 @@ fn calibration_maps_the_decided_roads_posterior_and_leaves_the_decision() {
         map: map.clone(),
         stream: StreamConfig::default(),
         notes: vec![],
+        files: vec![],
     };
     let x = tone(500.0, 44_100, 0);
     let collect = |cal: Option<StreamCalibration>| {

@@ -74,6 +74,7 @@ fn hot_paths_allocate_nothing() {
             },
             stream: StreamConfig::default(),
             notes: vec![],
+            files: vec![],
         };
         for cal in [None, Some(isotonic)] {
             let calibrated = cal.is_some();

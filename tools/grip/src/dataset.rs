@@ -340,6 +340,24 @@ pub fn file_id(sha256: &str) -> String {
     sha256.chars().take(16).collect()
 }
 
+/// The [`file_id`]s of every `.wav` under `dirs` (hidden ones skipped),
+/// sorted, without repeats; a folder or file that cannot be read is left
+/// out (its reader says why).
+pub fn file_ids(dirs: &[PathBuf]) -> Vec<String> {
+    let mut files = Vec::new();
+    for d in dirs {
+        let _ = wavs_at(d, &mut files);
+    }
+    let mut ids: Vec<String> = files
+        .iter()
+        .filter_map(|f| std::fs::read(f).ok())
+        .map(|b| file_id(&sha256_hex(&b)))
+        .collect();
+    ids.sort();
+    ids.dedup();
+    ids
+}
+
 /// The first `.wav` under one of `dirs` (its folder and the file; files
 /// in name order, hidden ones skipped) whose content is one of `known`
 /// (sorted [`file_id`]s of training files); `None` when there is none or

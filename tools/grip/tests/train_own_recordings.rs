@@ -219,3 +219,63 @@ fn calibrating_on_the_training_data_from_another_folder_is_refused() {
         assert!(!cwd.join("c.model").exists());
     }
 }
+
+/// `grip dataset delay` on the recordings the model's calibration was
+/// fitted on says its figures are in-sample there (a newcomer read the
+/// calibration set's ECE as held out); on other change recordings it
+/// says nothing of the kind. The calibration stores its recordings by
+/// content (`files`), as the model its training files.
+#[test]
+fn delay_on_the_calibration_recordings_is_said_to_be_in_sample() {
+    let d = tempfile::tempdir().unwrap();
+    synth_data(d.path(), "data");
+    let changes = |out: &str, seed: &str| {
+        let (ok, o, e) = grip_at(
+            d.path(),
+            &[
+                "dataset",
+                "synth",
+                "--out",
+                out,
+                "--recordings-per-class",
+                "0",
+                "--changes",
+                "2",
+                "--roads",
+                "asphalt,gravel",
+                "--duration",
+                "1",
+                "--segment",
+                "0.4-0.6",
+                "--sample-rate",
+                "16000",
+                "--seed",
+                seed,
+            ],
+        );
+        assert!(ok, "synth: {o}{e}");
+    };
+    changes("cal", "11");
+    changes("other", "12");
+    let (ok, out, err) = train(
+        d.path(),
+        "data",
+        "m.model",
+        &["--calib-data", "cal-changes"],
+    );
+    assert!(ok, "train: {out}{err}");
+    let delay = |dir: &str| {
+        let (ok, out, err) = grip_at(d.path(), &["dataset", "delay", "--model", "m.model", dir]);
+        assert!(ok, "delay {dir}: {out}{err}");
+        out
+    };
+    let on_cal = delay("cal-changes");
+    assert!(
+        on_cal.contains("warning: cal-changes holds ")
+            && on_cal.contains("one of the recordings its confidence calibration was fitted on")
+            && on_cal.contains("in-sample"),
+        "{on_cal}"
+    );
+    let on_other = delay("other-changes");
+    assert!(!on_other.contains("in-sample"), "{on_other}");
+}

@@ -407,6 +407,7 @@ pub fn fit_calibration(
             map,
             stream: scfg,
             notes,
+            files: crate::dataset::file_ids(dirs),
         },
         report,
     ))

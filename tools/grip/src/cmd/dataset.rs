@@ -896,6 +896,28 @@ fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
         smoothing,
     };
     let calibration = model.calibration().map(|c| c.map.describe());
+    // measured on the recordings the model was fitted on: said, since its
+    // figures are then in-sample (a newcomer measured on the calibration
+    // set and read its ECE as held out)
+    for (known, what) in [
+        (
+            model.calibration().map_or(&[][..], |c| &c.files[..]),
+            "its confidence calibration was fitted on (grip calibrate / grip train --calib-data)",
+        ),
+        (
+            &model.meta.training_files[..],
+            "its classifier was trained on (grip train --data)",
+        ),
+    ] {
+        if let Some((_, f)) = crate::dataset::first_known_file(std::slice::from_ref(&a.dir), known)
+        {
+            println!(
+                "warning: {} holds {}, one of the recordings {what} (same content): the figures below are in-sample there, not held out; measure on recordings the model has not seen",
+                a.dir.display(),
+                f.display()
+            );
+        }
+    }
     let mut est = StreamEstimator::new(Predictor::new(model), &fcfg, &scfg)?;
     match &calibration {
         None => println!(
