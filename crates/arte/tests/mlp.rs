@@ -201,3 +201,46 @@ proptest! {
         check_jacobian(&net, &x)?;
     }
 }
+
+/// A network too large for Levenberg-Marquardt (its step solves a
+/// weights x weights system) is refused, naming its sizes, weights and
+/// memory, before anything is allocated: `grip train --hidden 256,256`
+/// aborted the process (a 37 GB allocation). The largest allowed trains.
+#[test]
+fn a_network_too_large_for_lm_is_refused() {
+    let centres = [[0.0, 0.0], [2.0, 0.0]];
+    let (x, y) = blobs(&centres, 10, 0.5, 5);
+    let cfg = LmConfig {
+        hidden: vec![256, 256],
+        epochs: 1,
+        ..Default::default()
+    };
+    let e = train_lm(&cfg, 2, 2, &x, &y, None).unwrap_err().to_string();
+    assert!(
+        e.contains("the network [2, 256, 256, 2] (input, hidden layers, output) has 67074 weights")
+            && e.contains("at most 5000 weights"),
+        "{e}"
+    );
+    // counts beyond a usize: said, not overflowed
+    let cfg = LmConfig {
+        hidden: vec![usize::MAX, usize::MAX],
+        ..cfg
+    };
+    let e = train_lm(&cfg, 2, 2, &x, &y, None).unwrap_err().to_string();
+    assert!(e.contains("needs more weights than can be counted"), "{e}");
+    // the bound: 2 -> 1000 -> 2 has (3 * 1000) + (1001 * 2) = 5002
+    // weights, refused; a small network trains
+    let cfg = LmConfig {
+        hidden: vec![1000],
+        epochs: 1,
+        ..Default::default()
+    };
+    let e = train_lm(&cfg, 2, 2, &x, &y, None).unwrap_err().to_string();
+    assert!(e.contains("has 5002 weights"), "{e}");
+    let cfg = LmConfig {
+        hidden: vec![10],
+        epochs: 1,
+        ..Default::default()
+    };
+    assert!(train_lm(&cfg, 2, 2, &x, &y, None).is_ok());
+}

@@ -606,8 +606,20 @@ fn synth(a: SynthArgs) -> Result<()> {
         }
     };
     let (s0, s1) = parse_range(&a.segment, "segment")?;
-    if s0 <= 0.0 {
-        bail!("--segment: segments must be longer than 0 s");
+    // a segment shorter than an acoustic frame is no road segment, and
+    // 1e-9 s made a change recording of 10^9 segments
+    if s0 < MIN_SEGMENT_S {
+        bail!("--segment: segments must be at least {MIN_SEGMENT_S} s long (got {s0} s)");
+    }
+    // counts a machine can write: 10^11 recordings asked for 2.4 TB of
+    // file names before the first was written
+    for (flag, n) in [
+        ("--recordings-per-class", a.recordings_per_class),
+        ("--changes", a.changes),
+    ] {
+        if n > MAX_RECORDINGS {
+            bail!("{flag} {n}: at most {MAX_RECORDINGS}");
+        }
     }
     if !(a.duration > 0.0 && a.duration <= 3600.0) {
         bail!("--duration: {} s is outside (0, 3600]", a.duration);
@@ -871,6 +883,13 @@ pub fn changes_sibling_hint(dir: &Path) -> String {
         String::new()
     }
 }
+
+/// `grip dataset synth`: the shortest change-recording segment, s (an
+/// acoustic frame is 0.1 s).
+const MIN_SEGMENT_S: f64 = 0.01;
+/// `grip dataset synth`: the most recordings per class, and change
+/// recordings (a million 10 s recordings are about a terabyte).
+const MAX_RECORDINGS: usize = 1_000_000;
 
 fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
     use grip_arte::model::{Model, Predictor};

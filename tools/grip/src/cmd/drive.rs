@@ -92,8 +92,14 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     // which the recorder attaches with the directory): its file, attached
     // to the log as drive/scenario.toml and read by plant-sim by this path
     let scenario_file = scenario_file(&args.scenario, &cwd);
-    if !(args.ready_timeout.is_finite() && args.ready_timeout > 0.0) {
-        bail!("--ready-timeout must be a positive number of seconds");
+    // at most an hour: a service that takes longer to come up is not
+    // coming (and 1e300 s is no Duration)
+    if !(args.ready_timeout.is_finite() && args.ready_timeout > 0.0 && args.ready_timeout <= 3600.0)
+    {
+        bail!(
+            "--ready-timeout {:?}: must be a positive number of seconds, at most 3600",
+            args.ready_timeout
+        );
     }
     let (vehicle, vehicle_params) = match &args.vehicle {
         Some(v) => {

@@ -284,8 +284,10 @@ fn specs(args: &Args, random: &RandomSpec) -> anyhow::Result<Vec<LogSpec>> {
 }
 
 pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
-    if args.count == 0 {
-        bail!("--count must be at least 1");
+    // each log is about 2.4 MB: a million is 2.4 TB (10^11 asked for
+    // the specs of all before the first was written)
+    if !(1..=1_000_000).contains(&args.count) {
+        bail!("--count {}: must be 1 to 1000000", args.count);
     }
     if !(args.hold_s.is_finite() && (0.0..=60.0).contains(&args.hold_s)) {
         bail!("--hold-s must be within 0..=60 s (got {})", args.hold_s);

@@ -294,7 +294,23 @@ pub fn road_timeline(log: &DriveLog) -> String {
     }
     let mut next_est = 0usize;
     let mut latest: Option<&grip_msgs::RoadEstimate> = None;
+    // a row per 0.1 s cannot outnumber the samples of a log the plant
+    // wrote (it samples far more often; twice, to spare any rate): more
+    // means a stamp far from the others (a damaged log printed 10 million
+    // rows, or ran out of memory)
+    let mut rows_left = 2 * log.truth.len() + 10;
     while origin + k * STEP <= i128::from(last.stamp_ns) {
+        if rows_left == 0 {
+            out.push_str(&format!(
+                "  ... the timeline stops here: the ground truth's {} samples span {:.1} s ({} to {} ns), more than two rows per sample: a stamp lies far from the others\n",
+                log.truth.len(),
+                (i128::from(last.stamp_ns) - i128::from(first.stamp_ns)) as f64 * 1e-9,
+                first.stamp_ns,
+                last.stamp_ns
+            ));
+            break;
+        }
+        rows_left -= 1;
         let t = u64::try_from(origin + k * STEP).unwrap_or(0);
         while let Some(e) = log.roads.get(next_est)
             && e.stamp_ns <= t
@@ -355,6 +371,30 @@ mod tests {
         );
         log.bus.push(grip_msgs::BusFrame::default());
         assert_eq!(super::empty_bus_note(&log), None);
+    }
+
+    /// A ground-truth stamp far from the others (a damaged log): the
+    /// timeline stops after twice as many rows as samples, and says why (it
+    /// printed a row per 0.1 s up to the stamp: 10 million rows).
+    #[test]
+    fn a_far_stamp_stops_the_timeline() {
+        let mut log = test_log::drive();
+        let n = log.truth.len();
+        log.truth.last_mut().unwrap().stamp_ns += 1_000_000_000_000_000;
+        let t = super::road_timeline(&log);
+        assert!(
+            t.lines().count() < 2 * n + 20,
+            "{} lines",
+            t.lines().count()
+        );
+        assert!(
+            t.trim_end()
+                .ends_with("more than two rows per sample: a stamp lies far from the others"),
+            "{}",
+            &t[t.len().saturating_sub(300)..]
+        );
+        // an undamaged log: no such line
+        assert!(!super::road_timeline(&test_log::drive()).contains("stops here"));
     }
 
     /// The row of time `t` ("0.3 s") of a road timeline.

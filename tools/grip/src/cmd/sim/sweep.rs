@@ -318,13 +318,25 @@ pub fn run(
         );
     }
     check_axes(req.axes)?;
-    let points = grid(req.axes);
-    if points.len() > MAX_POINTS {
+    // counted before the grid is built: six axes of 30 values are 7.3e8
+    // points, whose grid did not fit in memory
+    let count = req
+        .axes
+        .iter()
+        .try_fold(1usize, |n, a| n.checked_mul(a.values.len()))
+        .filter(|&n| n <= MAX_POINTS);
+    if count.is_none() {
+        let shown = req
+            .axes
+            .iter()
+            .map(|a| a.values.len().to_string())
+            .collect::<Vec<_>>()
+            .join(" x ");
         anyhow::bail!(
-            "--sweep: {} grid points (the product of the axes' value counts); at most {MAX_POINTS}",
-            points.len()
+            "--sweep: {shown} grid points (the product of the axes' value counts) are more than {MAX_POINTS}"
         );
     }
+    let points = grid(req.axes);
     let path = ConfigDir::new(config_dir).file("controllers.toml");
     let text = read_file(&path)?;
     // The files as loaded (errors name their line and field) ...
