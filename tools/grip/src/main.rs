@@ -56,6 +56,26 @@ enum Command {
     Replay(cmd::replay::Args),
 }
 
+/// Where the Debian package puts the configuration (`tools/package`).
+const INSTALLED_CONFIG_DIR: &str = "/etc/grip";
+
+/// The configuration directory of an installed `grip` left to its default:
+/// `installed` (`/etc/grip`) when `grip` is the package's (`exe` in
+/// `PREFIX/bin`, its services in `PREFIX/lib/grip/bin`), `default`
+/// (`config`) does not exist from here, and `installed` does; `None`
+/// otherwise (the default stands: a checkout's `config/`). On the ECU
+/// every command needed `--config-dir /etc/grip`, and without it failed
+/// on `config/roads.toml`.
+fn installed_config_dir(
+    exe: &std::path::Path,
+    installed: &std::path::Path,
+    default: &std::path::Path,
+) -> Option<std::path::PathBuf> {
+    let prefix = exe.parent().filter(|b| b.ends_with("bin"))?.parent()?;
+    (prefix.join("lib/grip/bin").is_dir() && !default.is_dir() && installed.is_dir())
+        .then(|| installed.to_path_buf())
+}
+
 fn main() -> std::process::ExitCode {
     // warnings and errors of the services' code that grip runs in-process
     // (a replay's tcs-loop and arte, generate): their start-up info lines
@@ -75,12 +95,23 @@ fn main() -> std::process::ExitCode {
         .init();
     let matches = Cli::command().get_matches();
     let given = matches.value_source("config_dir") == Some(clap::parser::ValueSource::CommandLine);
+    let defaulted =
+        matches.value_source("config_dir") == Some(clap::parser::ValueSource::DefaultValue);
     let cli = match Cli::from_arg_matches(&matches) {
         Ok(c) => c,
         Err(e) => e.exit(),
     };
+    let config_dir = match (defaulted, std::env::current_exe()) {
+        (true, Ok(exe)) => installed_config_dir(
+            &exe,
+            std::path::Path::new(INSTALLED_CONFIG_DIR),
+            &cli.config_dir,
+        )
+        .unwrap_or(cli.config_dir),
+        _ => cli.config_dir,
+    };
     let ctx = cmd::Ctx {
-        config_dir: cli.config_dir,
+        config_dir,
         config_dir_given: given,
     };
     let result = match cli.command {
@@ -103,5 +134,38 @@ fn main() -> std::process::ExitCode {
             eprintln!("error: {e:#}");
             std::process::ExitCode::FAILURE
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::installed_config_dir;
+
+    /// The package's `grip` (PREFIX/bin, services in PREFIX/lib/grip/bin)
+    /// takes the installed configuration when `config` is not there; a
+    /// checkout's grip, or a directory with `config/`, keeps the default.
+    #[test]
+    fn the_installed_grip_finds_its_configuration() {
+        let d = tempfile::tempdir().unwrap();
+        let prefix = d.path().join("usr");
+        std::fs::create_dir_all(prefix.join("bin")).unwrap();
+        std::fs::create_dir_all(prefix.join("lib/grip/bin")).unwrap();
+        let etc = d.path().join("etc/grip");
+        std::fs::create_dir_all(&etc).unwrap();
+        let exe = prefix.join("bin/grip");
+        let none = d.path().join("nowhere/config");
+        assert_eq!(installed_config_dir(&exe, &etc, &none), Some(etc.clone()));
+        // a config/ where grip runs: the default stands
+        let here = d.path().join("work/config");
+        std::fs::create_dir_all(&here).unwrap();
+        assert_eq!(installed_config_dir(&exe, &etc, &here), None);
+        // a checkout's grip (target/release/grip): the default stands
+        let built = d.path().join("repo/target/release/grip");
+        assert_eq!(installed_config_dir(&built, &etc, &none), None);
+        // no /etc/grip: the default stands, and its error names it
+        assert_eq!(
+            installed_config_dir(&exe, &d.path().join("etc/none"), &none),
+            None
+        );
     }
 }
