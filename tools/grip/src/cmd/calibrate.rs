@@ -251,6 +251,23 @@ pub fn require_held_out(flag: &str, calib: &[PathBuf], used: &[(&str, PathBuf)])
     Ok(())
 }
 
+/// Why a calibration set cannot calibrate: all of its decisions right, or
+/// all wrong (none to tell a trusted confidence from an untrusted one).
+fn degenerate_set(right: &[bool]) -> Option<String> {
+    let n_right = right.iter().filter(|&&r| r).count();
+    let why = if n_right == right.len() {
+        "every one of its decisions is right"
+    } else if n_right == 0 {
+        "every one of its decisions is wrong"
+    } else {
+        return None;
+    };
+    Some(format!(
+        "the calibration set cannot calibrate: {why} ({} decisions), so nothing tells a confidence to trust from one not to, and the fitted map is a bound of its search, not a calibration. Fit on recordings with road changes, where the estimator is wrong for a while after each (`grip dataset synth --changes N`, or your own with a segments.csv)",
+        right.len()
+    ))
+}
+
 /// The calibration folders `calib` (each with every `.wav` under it,
 /// hidden ones skipped) against the model's training files by content
 /// (`meta.training_files`, from `grip train`): a file among them is
@@ -361,6 +378,13 @@ pub fn fit_calibration(
     }
     if let Some(n) = excluded.summary("block") {
         let _ = writeln!(report, "{n}; their blocks give no decision.\n");
+    }
+    // a set whose decisions are all right (or all wrong) says nothing of
+    // how far to trust a confidence: the fit runs to a bound (one-road
+    // recordings gave "temperature T = 0.0100, isotonic 1 knot")
+    if let Some(w) = degenerate_set(&right) {
+        eprintln!("warning: {w}");
+        let _ = writeln!(report, "**Warning**: {w}\n");
     }
     let _ = writeln!(report, "- uncalibrated: {}", summary_line(&p, &right));
     let mut chosen = None;
@@ -610,6 +634,21 @@ mod tests {
             e.contains(&silent.display().to_string()) && e.contains("every block"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_set_without_wrong_decisions_cannot_calibrate() {
+        let w = degenerate_set(&[true; 40]).unwrap();
+        assert!(
+            w.contains("every one of its decisions is right (40 decisions)"),
+            "{w}"
+        );
+        assert!(
+            degenerate_set(&[false; 3])
+                .unwrap()
+                .contains("is wrong (3 decisions)")
+        );
+        assert_eq!(degenerate_set(&[true, false, true]), None);
     }
 
     #[test]
