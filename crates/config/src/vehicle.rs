@@ -173,13 +173,14 @@ pub fn load_vehicle_complete(
             path,
             format!("vehicle.{}", first.0),
             format!(
-                "not set, nor {}: a drive (tcs-loop, plant-sim, grip drive) takes every [vehicle] field from the file, not the paper's quarter-car defaults ({}), which may not be your car's; set each (crates/physics/README.md, \"The vehicle file\")",
+                "{}: a drive (tcs-loop, plant-sim, grip drive) takes every [vehicle] field from the file, not the paper's quarter-car defaults ({}), which may not be your car's; set {} (crates/physics/README.md, \"The vehicle file\")",
                 if names.len() == 1 {
-                    "any other".to_owned()
+                    "not set (the only [vehicle] field the file leaves out)".to_owned()
                 } else {
-                    names[1..].join(", ")
+                    format!("not set; also left out: {}", names[1..].join(", "))
                 },
-                values.join(", ")
+                values.join(", "),
+                if names.len() == 1 { "it" } else { "each" }
             ),
         ));
     }
@@ -199,7 +200,7 @@ mod tests {
         std::fs::write(&empty, "").unwrap();
         let e = load_vehicle_complete(&empty).unwrap_err().to_string();
         assert!(
-            e.contains("empty.toml: field `vehicle.mass`: not set, nor n_driven, j_w"),
+            e.contains("empty.toml: field `vehicle.mass`: not set; also left out: n_driven, j_w"),
             "{e}"
         );
         assert!(e.contains("mic_lead_m = 0"), "{e}");
@@ -212,7 +213,9 @@ mod tests {
         std::fs::write(&one_out, full.replace("tau_m = 0.05\n", "")).unwrap();
         let e = load_vehicle_complete(&one_out).unwrap_err().to_string();
         assert!(
-            e.contains("field `vehicle.tau_m`: not set, nor any other"),
+            e.contains(
+                "field `vehicle.tau_m`: not set (the only [vehicle] field the file leaves out)"
+            ),
             "{e}"
         );
         let ok = d.path().join("full.toml");
