@@ -704,7 +704,10 @@ impl TcsLoop {
         let done = clock.now_ns();
         rec.seq = self.seq;
         rec.stamp_ns = tick.deadline_ns;
-        rec.wakeup_latency_ns = tick.woke_ns as i64 - tick.deadline_ns as i64;
+        // the difference, saturated (a replayed tick is a log's; the
+        // timer's differ by a wake-up latency)
+        rec.wakeup_latency_ns = (i128::from(tick.woke_ns) - i128::from(tick.deadline_ns))
+            .clamp(i64::MIN.into(), i64::MAX.into()) as i64;
         rec.compute_ns = done.saturating_sub(tick.woke_ns);
         rec.deadline_misses = tick.deadline_misses;
         rec.omega = omega;

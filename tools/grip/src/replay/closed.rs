@@ -77,7 +77,7 @@ fn same_truth(a: &GroundTruth, b: &GroundTruth) -> bool {
 
 /// The logged ground truth while its sequence numbers rise (a restarted
 /// plant ends it): the live plant's cycles the replay re-runs.
-fn rising(truth: &[GroundTruth]) -> &[GroundTruth] {
+pub(super) fn rising(truth: &[GroundTruth]) -> &[GroundTruth] {
     let n = truth
         .windows(2)
         .position(|w| w[1].seq <= w[0].seq)
@@ -233,7 +233,7 @@ pub fn plant_start(
         (None, Some(m)) => (m, m),
         (None, None) => return PlantStart::Moved(None),
     };
-    let lo = lo.saturating_sub(demand_after + START_WINDOW);
+    let lo = lo.saturating_sub(demand_after.saturating_add(START_WINDOW));
     let hi = hi.saturating_sub(demand_after).max(lo);
     if hi - lo > MAX_CANDIDATES {
         return PlantStart::NotProbed {
@@ -284,7 +284,10 @@ pub fn racing_commands(log: &DriveLog) -> Vec<(usize, u64)> {
     let mut out = Vec::new();
     for (k, c) in log.cycles.iter().enumerate() {
         let now = can.tx[k].stamp_ns;
-        let done = c.stamp_ns.wrapping_add_signed(c.wakeup_latency_ns) + c.compute_ns;
+        let done = c
+            .stamp_ns
+            .saturating_add_signed(c.wakeup_latency_ns)
+            .saturating_add(c.compute_ns);
         let i = truth.partition_point(|g| g.stamp_ns <= now);
         if let Some(g) = truth.get(i)
             && g.stamp_ns <= done
@@ -401,6 +404,11 @@ pub fn command_races(
     out
 }
 
+/// The most periods a plant cycle is told its timer skipped
+/// ([`PlantTimes::at`]): more (2^32 periods, 50 days at 1 kHz) is no
+/// drive's, and plant-sim counts them in `u64`.
+const MAX_SKIPPED: u64 = u32::MAX as u64;
+
 /// plant-sim's cycles as the log's ground truth shows them.
 struct PlantTimes {
     /// `(seq, stamp, periods skipped before it in all)` of every logged
@@ -412,18 +420,19 @@ struct PlantTimes {
 impl PlantTimes {
     fn new(truth: &[GroundTruth], period_ns: u64) -> Self {
         let seqs = rising(truth);
+        let period_ns = period_ns.max(1);
         let p = i128::from(period_ns);
         let dt = period_ns as f64 * 1e-9;
         // Each stamp less its seq's periods: the timer's phase plus the
         // wake-up latency plus a period per deadline skipped so far; above
-        // the smallest, in whole periods, how late a cycle woke.
-        let base = seqs
-            .iter()
-            .map(|g| i128::from(g.stamp_ns) - i128::from(g.seq) * p)
-            .min()
-            .unwrap_or(0);
+        // the smallest, in whole periods, how late a cycle woke (saturating:
+        // `check::truth` refuses sequence numbers that do not fit)
+        let phase = |g: &GroundTruth| {
+            i128::from(g.stamp_ns).saturating_sub(i128::from(g.seq).saturating_mul(p))
+        };
+        let base = seqs.iter().map(phase).min().unwrap_or(0);
         let late = |g: &GroundTruth| -> u64 {
-            let x = i128::from(g.stamp_ns) - i128::from(g.seq) * p - base;
+            let x = phase(g).saturating_sub(base);
             u64::try_from(x / p).unwrap_or(0)
         };
         let mut cycles = Vec::with_capacity(seqs.len());
@@ -438,7 +447,7 @@ impl PlantTimes {
                 let n = steps.round();
                 skipped =
                     if g.seq == prev.seq + 1 && v > 0.1 && n >= 1.0 && (steps - n).abs() < 0.25 {
-                        skipped + n as u64 - 1
+                        skipped.saturating_add(n as u64 - 1)
                     } else {
                         // A cycle that wakes after the next deadline, or ends
                         // after it, makes the timer skip it: the *next* cycle
@@ -452,21 +461,24 @@ impl PlantTimes {
     }
 
     /// Cycle `s`'s live "now" and the periods its timer skipped before it
-    /// (past the logged cycles: a period apiece, none skipped).
+    /// (past the logged cycles: a period apiece, none skipped). Saturating,
+    /// and at most [`MAX_SKIPPED`] skipped: a damaged log's times stay
+    /// times.
     fn at(&self, s: u64) -> (u64, u64) {
+        let periods = |n: u64| n.saturating_mul(self.period_ns);
         let i = self.cycles.partition_point(|&(q, _, _)| q <= s);
         if i == 0 {
             let Some(&(q, t, _)) = self.cycles.first() else {
-                return (s * self.period_ns, 0);
+                return (periods(s), 0);
             };
-            return (t.saturating_sub((q - s) * self.period_ns), 0);
+            return (t.saturating_sub(periods(q - s)), 0);
         }
         let (q, t, k) = self.cycles[i - 1];
         if q == s {
             let before = if i >= 2 { self.cycles[i - 2].2 } else { k };
-            return (t, k - before);
+            return (t, (k - before).min(MAX_SKIPPED));
         }
-        (t + (s - q) * self.period_ns, 0)
+        (t.saturating_add(periods(s - q)), 0)
     }
 }
 
@@ -512,7 +524,7 @@ pub fn closed_loop(
     let last = log.cycles.last().copied().unwrap_or_default();
     let loop_at = |k: usize| -> LoopCycle {
         if let Some(c) = log.cycles.get(k) {
-            let woke = c.stamp_ns.wrapping_add_signed(c.wakeup_latency_ns);
+            let woke = c.stamp_ns.saturating_add_signed(c.wakeup_latency_ns);
             let now = can.as_ref().map_or(woke, |can| can.tx[k].stamp_ns);
             LoopCycle {
                 tick: CycleTick {
@@ -521,11 +533,13 @@ pub fn closed_loop(
                     deadline_misses: c.deadline_misses,
                 },
                 now,
-                done: woke + c.compute_ns,
+                done: woke.saturating_add(c.compute_ns),
                 rx: can.as_ref().map(|can| can.rx[k].as_slice()),
             }
         } else {
-            let d = last.stamp_ns + (k + 1 - nk) as u64 * period_ns;
+            let d = last
+                .stamp_ns
+                .saturating_add(((k + 1 - nk) as u64).saturating_mul(period_ns));
             LoopCycle {
                 tick: CycleTick {
                     deadline_ns: d,
@@ -624,8 +638,11 @@ pub fn closed_loop(
             // past the log, a plant cycle at this very instant goes first
             // (as in `grip generate`'s lock step, which ends the drive
             // without the loop cycle of the plant's last), and a plant
-            // that has ended the scenario ends the replay
-            while !finished && plant_t.at(s).0 <= c.now {
+            // that has ended the scenario ends the replay. One: the plant
+            // cycle after it is a period later (a damaged log's times,
+            // saturated at the clock's end, would stay at this instant
+            // for ever)
+            if !finished && plant_t.at(s).0 <= c.now {
                 finished = plant_cycle(&mut s, &mut commands, &mut frames);
             }
             if finished {
@@ -869,5 +886,38 @@ mod tests {
         let t = PlantTimes::new(&held, ms);
         let skipped: Vec<_> = (0..5).map(|s| t.at(s).1).collect();
         assert_eq!(skipped, [0, 0, 0, 1, 0]);
+    }
+
+    /// Sequence numbers and stamps at the ends of their range (a damaged
+    /// log's, which `check::truth` refuses before a replay; this is what a
+    /// caller that did not check gets) map to times without overflow, and
+    /// to no more skipped periods than plant-sim counts: every seq + 2^50
+    /// overflowed `(q - s) * period` (the audit's panic), stamps at
+    /// u64::MAX the time past the log, a stamp far ahead of its seq the
+    /// skip.
+    #[test]
+    fn wild_seq_numbers_and_stamps_map_to_times_without_overflow() {
+        let ms = 1_000_000u64;
+        let q0 = 1u64 << 50;
+        let far = [
+            sample(q0, 1_000 * ms, 0.0),
+            sample(q0 + 1, 1_001 * ms, 0.002),
+        ];
+        let t = PlantTimes::new(&far, ms);
+        assert_eq!(t.at(0), (0, 0));
+        assert_eq!(t.at(q0 + 1), (1_001 * ms, 0));
+        assert_eq!(t.at(u64::MAX), (u64::MAX, 0));
+        let end = [sample(0, u64::MAX - 5, 0.0), sample(1, u64::MAX, 0.002)];
+        let t = PlantTimes::new(&end, ms);
+        assert_eq!(t.at(7), (u64::MAX, 0));
+        let ahead = [
+            sample(0, 0, 0.0),
+            sample(1, u64::MAX, 0.0),
+            sample(2, u64::MAX, 0.0),
+        ];
+        let t = PlantTimes::new(&ahead, ms);
+        assert_eq!(t.at(2), (u64::MAX, MAX_SKIPPED));
+        // no period (a caller's): times, no division by zero
+        assert_eq!(PlantTimes::new(&ahead, 0).at(0), (0, 0));
     }
 }

@@ -201,8 +201,11 @@ fn old_rules_note(dir: &Path, file: &str) -> Option<String> {
 
 /// Writes the log's configuration (or `--config-dir`'s) to a temporary
 /// directory, checks it against the hashes in `grip.run`, and applies the
-/// what-if options.
+/// what-if options. A log whose timing the replay cannot run
+/// ([`super::check::log`]: no drive logs it) is refused first, before
+/// anything is written or replayed.
 pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
+    super::check::log(log, w.closed_loop)?;
     let tmp = tempfile::tempdir().context("creating a temporary configuration directory")?;
     let dir = tmp.path().to_path_buf();
     let mut changes = Vec::new();

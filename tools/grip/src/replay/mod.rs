@@ -19,6 +19,7 @@
 //! Open loop: the logged wheel speeds, vehicle speed and motor torque are
 //! replayed as recorded; they do not react to a replayed torque command.
 
+pub mod check;
 mod closed;
 pub mod compare;
 pub mod config;
@@ -471,8 +472,12 @@ pub struct CanPerCycle {
 /// Splits `log.can` at the TX frames: cycle k drained the RX frames logged
 /// between its predecessor's TorqueCommand and its own (the rule of
 /// [`grip_drive::log::commands_before`]). RX frames after the last cycle's
-/// command were drained by no cycle of the log and are left out.
+/// command were drained by no cycle of the log and are left out. A log
+/// whose cycles cannot be aligned with its commands, or whose cycle
+/// records or commands carry a time no drive logs ([`check::cycles`],
+/// [`check::commands`]), is refused.
 pub fn split_can(log: &DriveLog) -> anyhow::Result<CanPerCycle> {
+    check::cycles(log)?;
     let n = log.cycles.len();
     let drained_by = grip_drive::log::commands_before(&log.can);
     let mut s = CanPerCycle {
@@ -500,6 +505,7 @@ pub fn split_can(log: &DriveLog) -> anyhow::Result<CanPerCycle> {
             s.tx.len()
         );
     }
+    check::commands(log, &s)?;
     Ok(s)
 }
 
@@ -523,10 +529,11 @@ pub fn replay_tcs(
     *matched = taken.matched;
     for (k, c) in log.cycles.iter().enumerate() {
         let now = can.tx[k].stamp_ns;
-        let woke = c.stamp_ns.wrapping_add_signed(c.wakeup_latency_ns);
+        // saturating (`split_can` refuses a log whose times overflow here)
+        let woke = c.stamp_ns.saturating_add_signed(c.wakeup_latency_ns);
         clock.reset(now);
         clock.push(now);
-        clock.push(woke + c.compute_ns);
+        clock.push(woke.saturating_add(c.compute_ns));
         for f in &can.rx[k] {
             let mut f = *f;
             f.flags &= !can_flags::E2E_REJECTED;
