@@ -418,10 +418,12 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
             c
         }
         (Some(c), None) => {
-            changes.push(format!(
-                "controller {} -> {c}",
-                logged_controller.as_deref().unwrap_or("?")
-            ));
+            if logged_controller.as_deref() != Some(c.as_str()) {
+                changes.push(format!(
+                    "controller {} -> {c}",
+                    logged_controller.as_deref().unwrap_or("?")
+                ));
+            }
             c.clone()
         }
         (None, None) => logged_controller
@@ -445,11 +447,15 @@ pub fn prepare(log: &DriveLog, w: &WhatIf) -> anyhow::Result<ReplayConfig> {
             a
         }
         (Some(a), None) => {
-            changes.push(format!(
-                "ARTE in the controller {} -> {}",
-                logged_arte.map_or("?", on_off),
-                on_off(a)
-            ));
+            // the drive's own switch given again is no change (`--model`
+            // asks for ARTE on: "on -> on" was listed as one)
+            if logged_arte != Some(a) {
+                changes.push(format!(
+                    "ARTE in the controller {} -> {}",
+                    logged_arte.map_or("?", on_off),
+                    on_off(a)
+                ));
+            }
             a
         }
         (None, None) => match logged_arte {
@@ -1517,6 +1523,31 @@ mod tests {
             ..WhatIf::default()
         };
         prepare(&reference(), &w)
+    }
+
+    /// The drive's own controller and ARTE switch given again are no
+    /// change (a replay with `--model`, which asks for ARTE on, listed
+    /// "ARTE in the controller on -> on"); another one is.
+    #[test]
+    fn the_drive_s_own_switches_are_no_change() {
+        let log = reference();
+        let logged_c = log.run["controller"].clone();
+        let logged_a = log.run["arte"] == "on";
+        let w = WhatIf {
+            controller: Some(logged_c.clone()),
+            arte: Some(logged_a),
+            ..WhatIf::default()
+        };
+        let rc = prepare(&log, &w).unwrap();
+        assert!(rc.changes.is_empty(), "{:?}", rc.changes);
+        let other = if logged_c == "src" { "mfc" } else { "src" };
+        let w = WhatIf {
+            controller: Some(other.into()),
+            arte: Some(!logged_a),
+            ..WhatIf::default()
+        };
+        let rc = prepare(&log, &w).unwrap();
+        assert_eq!(rc.changes.len(), 2, "{:?}", rc.changes);
     }
 
     /// `--set can.toml:dbc=FILE` in closed loop with a DBC the log does not
