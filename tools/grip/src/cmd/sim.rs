@@ -785,7 +785,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     out.push_str(&format_inloop(&source_text, setup, &results, &inloop));
     let simulated = setup.sim_time() * results.len() as f64;
     out.push_str(&format!(
-        "\n{} runs, {:.1} simulated s in {:.2} s wall ({:.0}x real time on {} threads).\n",
+        "\n{} runs, {:.1} simulated s in {:.2} s wall of simulation ({:.0}x real time on {} threads; loading, plots and files not counted).\n",
         results.len(),
         simulated,
         wall,
