@@ -182,6 +182,27 @@ impl ConfigDir {
         roads: &RoadCatalogue,
     ) -> Result<Scenario, ConfigError> {
         crate::load_scenario(self.scenario_path(name_or_path), roads)
+            .map_err(|e| self.hint_file_here(name_or_path, e))
+    }
+
+    /// A scenario given by name that `<dir>/scenarios` does not have, while
+    /// `./<name>.toml` exists where grip runs: the error says how to give
+    /// that file (`--scenario myscen` read only `config/scenarios/myscen.toml`,
+    /// and said so without a hint).
+    fn hint_file_here(&self, name_or_path: &str, mut e: ConfigError) -> ConfigError {
+        if let ScenarioArg::Name(n) = ScenarioArg::given(name_or_path) {
+            let here = format!("{n}.toml");
+            if e.file == self.scenario_path(name_or_path)
+                && !e.file.is_file()
+                && Path::new(&here).is_file()
+            {
+                e.reason.push_str(&format!(
+                    " (a name is looked for in {}; the file {here} where grip runs is given as a path: --scenario {here})",
+                    self.scenarios_path().display()
+                ));
+            }
+        }
+        e
     }
 
     /// Load scenario `name_or_path` against an already loaded catalogue and
@@ -195,6 +216,7 @@ impl ConfigDir {
         on: crate::RunsOn,
     ) -> Result<Scenario, ConfigError> {
         crate::load_scenario_for(self.scenario_path(name_or_path), roads, on)
+            .map_err(|e| self.hint_file_here(name_or_path, e))
     }
 }
 

@@ -2,7 +2,8 @@
 //! any work (found by an audit of the command line, 2026-12-07: each of
 //! these aborted, panicked or ran out of memory): a sweep's grid counted
 //! before it is built, `grip dataset synth`'s counts and shortest segment,
-//! `grip generate --count`, `grip drive --ready-timeout`.
+//! `grip generate --count`, `grip drive --ready-timeout`; and a scenario
+//! name that points to a file where grip runs.
 
 mod common;
 
@@ -95,4 +96,38 @@ fn generate_count_and_drive_ready_timeout_have_bounds() {
         &["drive", "--dry-run", "--ready-timeout", "1e300"],
         "--ready-timeout 1e300: must be a positive number of seconds, at most 3600",
     );
+}
+
+/// `--scenario NAME` reads `<config-dir>/scenarios/NAME.toml`; when that
+/// does not exist but `./NAME.toml` does, the error says how to give it
+/// (a newcomer's `--scenario myscen` said only "cannot read").
+#[test]
+fn a_scenario_name_points_to_the_file_here() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        common::config_dir().join("scenarios/e2e.toml"),
+        d.path().join("myscen.toml"),
+    )
+    .unwrap();
+    let o = common::grip()
+        .current_dir(d.path())
+        .args(["sim", "--scenario", "myscen", "--seeds", "1"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("scenarios/myscen.toml")
+            && err.contains(
+                "the file myscen.toml where grip runs is given as a path: --scenario myscen.toml"
+            ),
+        "{err}"
+    );
+    // given so, it runs
+    let o = common::grip()
+        .current_dir(d.path())
+        .args(["sim", "--scenario", "myscen.toml", "--seeds", "1"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
