@@ -1015,7 +1015,7 @@ fn left_out(
     // layout gone), not of the file the user knows: left out
     parse(&changed).map_err(|e| {
         anyhow::anyhow!(
-            "--set {spec}: {shown} leaves it out, and as set: {}",
+            "--set {spec}: {} (the key as set; {shown} leaves it out)",
             without_line(&e.to_string())
         )
     })?;
@@ -1833,11 +1833,11 @@ mod tests {
         for (spec, says) in [
             (
                 "controllers.toml:preview.mfc.cap_shar=0.9",
-                "--set controllers.toml:preview.mfc.cap_shar=0.9: controllers.toml leaves it out, and as set: controllers.toml: field `preview.mfc.cap_shar`",
+                "--set controllers.toml:preview.mfc.cap_shar=0.9: controllers.toml: field `preview.mfc.cap_shar`",
             ),
             (
                 "vehicle.toml:vehicle.r_ref=5",
-                "--set vehicle.toml:vehicle.r_ref=5: vehicle.toml leaves it out, and as set: vehicle.toml: field `vehicle.r_ref`",
+                "--set vehicle.toml:vehicle.r_ref=5: vehicle.toml: field `vehicle.r_ref`",
             ),
             (
                 "preview.mfc.cap_share=0.9",
