@@ -123,6 +123,12 @@ pub fn run(ctx: &Ctx, args: Args) -> Result<()> {
     let model = load_model(&path)?;
     let channel = args.channel.get();
     let audio = grip_io::wav::read_channel(&args.file, channel)?;
+    // several channels averaged: said, since two microphones on two roads
+    // average to a sound of neither (a newcomer's gravel + snow file read
+    // "snow 95 %" without a word)
+    if let Some(n) = averaged_note(audio.file_channels, channel) {
+        eprintln!("note: {}: {n}", args.file.display());
+    }
     let mut judge = FileJudge::new();
     let rows = classify(
         &model,
@@ -207,8 +213,32 @@ fn speed_note(model: &Model, speed_kmh: Option<f64>, duration_s: f64) -> Option<
     (!notes.is_empty()).then(|| notes.join("; "))
 }
 
+/// The note for a file of `channels` channels read as `channel`: their
+/// average is classified (`None` for one channel, or one chosen).
+fn averaged_note(channels: u16, channel: grip_io::wav::Channel) -> Option<String> {
+    (channels > 1 && channel == grip_io::wav::Channel::Average).then(|| {
+        format!(
+            "its {channels} channels are averaged and the average classified; --channel N classifies one (0-based)"
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
+    /// A multi-channel file read as the average is said to be; a mono one
+    /// or one channel chosen is not.
+    #[test]
+    fn averaged_channels_are_said() {
+        use grip_io::wav::Channel;
+        assert!(
+            super::averaged_note(2, Channel::Average)
+                .unwrap()
+                .starts_with("its 2 channels are averaged")
+        );
+        assert_eq!(super::averaged_note(1, Channel::Average), None);
+        assert_eq!(super::averaged_note(2, Channel::One(1)), None);
+    }
+
     use super::*;
     use grip_arte::synth::{Segment, SynthConfig, render};
 
