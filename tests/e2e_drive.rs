@@ -115,23 +115,7 @@ fn drive_records_every_cycle_frame_and_estimate() {
     let bin = built_bin_dir();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("drive.mcap");
-    let res = Command::new(bin.join("grip"))
-        .arg("--config-dir")
-        .arg(config_dir())
-        .args([
-            "drive",
-            "--scenario",
-            "e2e",
-            "--ready-timeout",
-            "60",
-            "-v",
-            "--out",
-        ])
-        .arg(&out)
-        .env("GRIP_BIN_DIR", &bin)
-        .env("NO_COLOR", "1")
-        .output()
-        .unwrap();
+    let res = e2e_drive(&bin.join("grip"), &config_dir(), &bin, &out, &["-v"]);
     let stderr = String::from_utf8_lossy(&res.stderr).into_owned();
     let stdout = String::from_utf8_lossy(&res.stdout).into_owned();
     assert!(
@@ -451,6 +435,28 @@ fn killed_service_is_reported_and_a_restart_reconnects() {
     );
 }
 
+/// `grip --config-dir CFG drive --scenario e2e --ready-timeout 60 EXTRA
+/// --out OUT` with the services of `bin`, no colour: its output.
+fn e2e_drive(
+    grip: &Path,
+    cfg: &Path,
+    bin: &Path,
+    out: &Path,
+    extra: &[&str],
+) -> std::process::Output {
+    Command::new(grip)
+        .arg("--config-dir")
+        .arg(cfg)
+        .args(["drive", "--scenario", "e2e", "--ready-timeout", "60"])
+        .args(extra)
+        .arg("--out")
+        .arg(out)
+        .env("GRIP_BIN_DIR", bin)
+        .env("NO_COLOR", "1")
+        .output()
+        .unwrap()
+}
+
 fn copy_dir(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
     for e in std::fs::read_dir(from).unwrap() {
@@ -491,22 +497,7 @@ fn drive_names_the_service_that_did_not_come_up() {
     std::fs::set_permissions(&stand_in, std::fs::Permissions::from_mode(0o755)).unwrap();
     let cfg = config_dir();
     let out = tmp.path().join("drive.mcap");
-    let res = Command::new(real.join("grip"))
-        .arg("--config-dir")
-        .arg(&cfg)
-        .args([
-            "drive",
-            "--scenario",
-            "e2e",
-            "--ready-timeout",
-            "60",
-            "--out",
-        ])
-        .arg(&out)
-        .env("GRIP_BIN_DIR", &bin)
-        .env("NO_COLOR", "1")
-        .output()
-        .unwrap();
+    let res = e2e_drive(&real.join("grip"), &cfg, &bin, &out, &[]);
     let stderr = String::from_utf8_lossy(&res.stderr);
     assert!(!res.status.success(), "the drive should fail:\n{stderr}");
     assert!(
@@ -554,22 +545,7 @@ fn a_wheel_speed_the_bus_cannot_carry_fails_the_drive() {
     assert_ne!(short, text, "the shipped DBC's OmegaDriven changed");
     std::fs::write(&dbc, short).unwrap();
     let out = tmp.path().join("drive.mcap");
-    let res = Command::new(bin.join("grip"))
-        .arg("--config-dir")
-        .arg(&cfg)
-        .args([
-            "drive",
-            "--scenario",
-            "e2e",
-            "--ready-timeout",
-            "60",
-            "--out",
-        ])
-        .arg(&out)
-        .env("GRIP_BIN_DIR", &bin)
-        .env("NO_COLOR", "1")
-        .output()
-        .unwrap();
+    let res = e2e_drive(&bin.join("grip"), &cfg, &bin, &out, &[]);
     let stderr = String::from_utf8_lossy(&res.stderr);
     let stdout = String::from_utf8_lossy(&res.stdout);
     assert!(

@@ -2040,14 +2040,15 @@ pub fn summarize(
     s.arte = a;
 
     // CAN, named by the drive's own protocol
-    s.can.bus = log
+    let dbc = log
         .attachment_text("can.toml")
         .and_then(|t| grip_io::service::parse_can(std::path::Path::new("can.toml"), t).ok())
-        .and_then(|c| c.dbc)
-        .map_or_else(
-            || "the built-in protocol".to_owned(),
-            |d| format!("{d}, attached"),
-        );
+        .and_then(|c| c.dbc);
+    s.can.bus = dbc.as_ref().map_or_else(
+        || "the built-in protocol".to_owned(),
+        |d| format!("{d}, attached"),
+    );
+    let dbc = dbc.unwrap_or_else(|| "the built-in protocol".to_owned());
     let protocol = log.protocol().unwrap_or_else(|e| {
         s.warnings
             .push(format!("CAN frames named by the built-in protocol: {e}"));
@@ -2071,7 +2072,6 @@ pub fn summarize(
         s.can.faults = c.faults;
     }
     s.inverter = inverter(log, &protocol, s.window_ns);
-    let dbc = s.can.bus.trim_end_matches(", attached").to_owned();
     s.can.short = short_signals(log, &protocol, &dbc, vehicle, s.window_ns);
     for sh in &s.can.short {
         s.warnings.push(sh.line());

@@ -34,6 +34,26 @@ pub struct AcqStatus {
     pub timeouts: AtomicU64,
 }
 
+impl AcqStatus {
+    /// Stores the last unknown road's name (relaxed, allocation-free).
+    pub fn set_unknown_name(&self, name: &[u8; grip_msgs::NAME_LEN]) {
+        for (word, bytes) in self.unknown_name.iter().zip(name.chunks_exact(8)) {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(bytes);
+            word.store(u64::from_le_bytes(b), Ordering::Relaxed);
+        }
+    }
+
+    /// The last unknown road's name as stored.
+    pub fn unknown_name(&self) -> [u8; grip_msgs::NAME_LEN] {
+        let mut name = [0u8; grip_msgs::NAME_LEN];
+        for (bytes, word) in name.chunks_exact_mut(8).zip(&self.unknown_name) {
+            bytes.copy_from_slice(&word.load(Ordering::Relaxed).to_le_bytes());
+        }
+        name
+    }
+}
+
 /// Where blocks go: the iceoryx2 publisher, or a test sink.
 pub trait BlockSink {
     /// Sends one block. Allocation-free.
@@ -103,16 +123,7 @@ impl<S: Source> AcqLoop<S> {
         self.status
             .unknown_road
             .store(st.unknown_road, Ordering::Relaxed);
-        for (word, bytes) in self
-            .status
-            .unknown_name
-            .iter()
-            .zip(st.unknown_name.chunks_exact(8))
-        {
-            let mut b = [0u8; 8];
-            b.copy_from_slice(bytes);
-            word.store(u64::from_le_bytes(b), Ordering::Relaxed);
-        }
+        self.status.set_unknown_name(&st.unknown_name);
         self.status
             .truth_errors
             .store(st.truth_errors, Ordering::Relaxed);

@@ -120,10 +120,7 @@ impl Monitor for AcqMonitor {
             .grew(s.unknown_road.load(Ordering::Relaxed))
             .is_some()
         {
-            let mut name = [0u8; grip_msgs::NAME_LEN];
-            for (bytes, word) in name.chunks_exact_mut(8).zip(&s.unknown_name) {
-                bytes.copy_from_slice(&word.load(Ordering::Relaxed).to_le_bytes());
-            }
+            let name = s.unknown_name();
             if self.unknown_said != Some(name) {
                 self.unknown_said = Some(name);
                 tracing::warn!(

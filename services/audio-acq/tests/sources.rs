@@ -295,11 +295,10 @@ fn synth_unknown_road_is_vehicle_noise_and_counted() {
     assert_eq!(lp.source().stats().unknown_road, 20);
     // the road's name reaches the status the helper thread warns from
     // (its warning said "a road" without naming it)
-    let mut name = [0u8; grip_msgs::NAME_LEN];
-    for (b, w) in name.chunks_exact_mut(8).zip(&status.unknown_name) {
-        b.copy_from_slice(&w.load(std::sync::atomic::Ordering::Relaxed).to_le_bytes());
-    }
-    assert_eq!(grip_msgs::name_from_bytes(&name), Some("ice"));
+    assert_eq!(
+        grip_msgs::name_from_bytes(&status.unknown_name()),
+        Some("ice")
+    );
 }
 
 /// Ground truth that cannot be read: every failed read is counted in the
