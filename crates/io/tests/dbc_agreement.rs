@@ -503,6 +503,33 @@ fn a_dbc_grip_cannot_speak_is_refused_naming_what_and_why() {
             && !e.reason.contains('\n'),
         "{e}"
     );
+    // a signal line's mistake: the parser's position is where its last
+    // choice failed (the byte order, before the factor's missing comma),
+    // so the error quotes the line and the form a signal takes
+    let text = shipped.replacen(
+        "TorqueRequest : 16|16@1- (0.1,0)",
+        "TorqueRequest : 16|16@1- (0.1 0)",
+        1,
+    );
+    let e = Protocol::from_dbc(&text, "bus.dbc", &none).unwrap_err();
+    assert!(
+        e.reason.starts_with("not a DBC that can be parsed: line ")
+            && e.reason
+                .contains("; the line reads `SG_ TorqueRequest : 16|16@1- (0.1 0) [")
+            && e.reason
+                .contains("; a signal is `SG_ Name : start|length@order sign (factor,offset)")
+            && !e.reason.contains('\n'),
+        "{e}"
+    );
+    let line = text.lines().position(|l| l.contains("(0.1 0)")).unwrap() + 1;
+    assert!(e.reason.contains(&format!("line {line}, ")), "{e}");
+    // a line that is not a signal is quoted without the signal's form
+    let text = shipped.replacen("BU_:", "BU_;", 1);
+    let e = Protocol::from_dbc(&text, "bus.dbc", &none).unwrap_err();
+    assert!(
+        e.reason.contains("; the line reads `BU_;") && !e.reason.contains("a signal is"),
+        "{e}"
+    );
     // a byte-order mark and Windows-1252 bytes in a comment (as DBC
     // editors write them) read as the same protocol
     let mut bytes = b"\xEF\xBB\xBF".to_vec();

@@ -267,21 +267,48 @@ fn attr_num(v: &AttributeValue) -> Option<f64> {
 }
 
 /// A parse error on one line: the parser's position and what it expected
-/// (its message spans several lines, with the source line and a caret).
-fn parse_error(e: &can_dbc::DbcError) -> String {
-    let text = e.to_string();
-    let at = text
+/// (its message spans several lines, with the source line and a caret),
+/// then the line itself as the file has it (the parser's position can
+/// lie before the real mistake: it names the last choice it could not
+/// make, e.g. the byte order of a signal whose factor lacks its comma),
+/// and for a signal line the form `SG_` takes.
+fn parse_error(e: &can_dbc::DbcError, text: &str) -> String {
+    let msg = e.to_string();
+    let at = msg
         .lines()
         .find_map(|l| l.trim_start().strip_prefix("--> "))
         .and_then(|p| p.split_once(':'));
-    let what = text
+    let what = msg
         .lines()
         .find_map(|l| l.trim_start().strip_prefix("= "))
-        .unwrap_or(text.as_str());
-    match at {
-        Some((line, col)) => format!("line {line}, column {}: {what}", col.trim()),
-        None => what.to_owned(),
+        .unwrap_or(msg.as_str());
+    let Some((line, col)) = at else {
+        return what.to_owned();
+    };
+    let mut out = format!("line {line}, column {}: {what}", col.trim());
+    let source = line
+        .trim()
+        .parse::<usize>()
+        .ok()
+        .and_then(|n| text.lines().nth(n.checked_sub(1)?))
+        .map(str::trim);
+    if let Some(source) = source.filter(|s| !s.is_empty()) {
+        const SHOWN: usize = 120;
+        let shown: String = source.chars().take(SHOWN).collect();
+        let cut = if source.chars().count() > SHOWN {
+            "..."
+        } else {
+            ""
+        };
+        out.push_str(&format!("; the line reads `{shown}{cut}`"));
+        if source.starts_with("SG_ ") {
+            out.push_str(
+                "; a signal is `SG_ Name : start|length@order sign (factor,offset) [min|max] \"unit\" Receivers` \
+                 (order 1 Intel or 0 Motorola, sign + or -; e.g. `SG_ Speed : 0|16@1+ (0.01,0) [0|655.35] \"rad/s\" TCS`)",
+            );
+        }
     }
+    out
 }
 
 /// A DBC's network attribute (`BA_ "Name" value;`), else its
@@ -460,7 +487,7 @@ pub fn message_names(bytes: &[u8], file: &str) -> Result<BTreeMap<(u32, bool), S
     let dbc = Dbc::try_from(text).map_err(|e| DbcError {
         file: file.to_owned(),
         what: "file".into(),
-        reason: format!("not a DBC: {}", parse_error(&e)),
+        reason: format!("not a DBC: {}", parse_error(&e, text)),
     })?;
     Ok(dbc
         .messages
@@ -579,7 +606,7 @@ impl Protocol {
         let dbc = Dbc::try_from(text).map_err(|e| {
             err(
                 "file".into(),
-                format!("not a DBC that can be parsed: {}", parse_error(&e)),
+                format!("not a DBC that can be parsed: {}", parse_error(&e, text)),
             )
         })?;
         let bus = bus_timing(&dbc, &err)?;
