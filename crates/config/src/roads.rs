@@ -258,7 +258,19 @@ pub fn parse_roads(file: &Path, text: &str) -> Result<RoadCatalogue, ConfigError
         .road
         .into_iter()
         .enumerate()
-        .map(|(i, spec)| build_road(file, base, i, spec))
+        .map(|(i, spec)| {
+            // the entry's index is what the field gives; its name is what
+            // the reader looks for in the file (road[5] is the sixth
+            // [[road]], counted from 0): said beside it
+            let name = spec.name.clone();
+            build_road(file, base, i, spec).map_err(|mut e| {
+                let own_field = e.file == file && !e.field.ends_with(".name");
+                if own_field && !name.trim().is_empty() {
+                    e.reason = format!("road `{name}`: {}", e.reason);
+                }
+                e
+            })
+        })
         .collect::<Result<Vec<_>, _>>()?;
     RoadCatalogue::new(roads).map_err(|e| ConfigError::invalid(file, "", e))
 }
@@ -407,6 +419,14 @@ mu = [0.0, 0.5, 0.4]
         )
         .unwrap_err();
         assert_eq!(e.field, "road[0].c1", "{e}");
+        // the entry is named beside its index (which counts from 0)
+        let e = parse(
+            "[[road]]\nname = \"a\"\nmodel = \"pacejka\"\nb = 10.0\nc = 1.9\nd = 1.0\n\
+             [[road]]\nname = \"snow\"\nmodel = \"burckhardt\"\nc1 = 0.2\nc2 = -94.1\nc3 = 0.06\n",
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "road[1].c2", "{e}");
+        assert!(e.reason.starts_with("road `snow`: must be > 0"), "{e}");
         let two = "[[road]]\nname = \"a\"\nmodel = \"pacejka\"\nb = 10.0\nc = 1.9\nd = 1.0\n";
         let e = parse(&format!("{two}{two}")).unwrap_err();
         assert_eq!(e.field, "road[1].name", "{e}");
@@ -459,7 +479,10 @@ mu = [0.0, 0.5, 0.4]
         let e = load_roads(&roads).unwrap_err();
         assert_eq!(e.file, roads);
         assert_eq!(e.field, "road[0].csv", "{e}");
-        assert!(e.reason.starts_with("cannot read the table"), "{e}");
+        assert!(
+            e.reason.starts_with("road `t`: cannot read the table"),
+            "{e}"
+        );
         assert!(e.reason.contains(&csv.display().to_string()), "{e}");
     }
 }

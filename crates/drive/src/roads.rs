@@ -222,7 +222,7 @@ mod tests {
             with_roads("[[road]]\nname = \"x\"\nmodel = \"burckhardt\"\nc1 = 1.0\nc2 = 2.0\n");
         let w = log.road_catalogue(&cfg()).warnings.join("\n");
         assert!(
-            w.contains("drive.mcap: attachment roads.toml: field `road[0].c3`: missing"),
+            w.contains("drive.mcap: attachment roads.toml: field `road[0].c3`: road `x`: missing"),
             "{w}"
         );
 
