@@ -7,7 +7,9 @@
 //!   `bus`) onto the MCAP channel `grip/can/bus`.
 //! - [`cycle`]: the receive thread, the bounded queue and the writing loop.
 //! - [`run()`]: the service: config, the log file and its run metadata,
-//!   `READY=1`, the loop until stopped, the summary.
+//!   `READY=1`, the loop until stopped, the summary; [`check()`]: its
+//!   start-up refusals alone (the `--attach` files, `recorder.toml`), which
+//!   `grip drive` runs before any service starts.
 //! - [`parts`]: the run's log files: rotation (`max_file_mib`,
 //!   `max_file_s`), and a new file after a write error (a full disk).
 //! - [`retention`]: which old logs of `out_dir` to delete (the budget
@@ -32,5 +34,5 @@ pub mod stats;
 pub use config::RecorderConfig;
 pub use cycle::{Msg, RECORDED, Subscribers, Summary};
 pub use retention::{Limits, Retention, parse_log_name, plan};
-pub use run::{ConfigFile, GIT_REV, Options, RunError, config_files, run, write_run_info};
+pub use run::{ConfigFile, GIT_REV, Options, RunError, check, config_files, run, write_run_info};
 pub use stats::{CanCounterTracker, RecvStats, SeqTracker, TopicStats};

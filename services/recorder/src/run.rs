@@ -250,16 +250,38 @@ pub fn new_file(dir: &Path, stem: &str) -> std::io::Result<PathBuf> {
     Err(std::io::Error::other("no free log file name"))
 }
 
+/// The start-up's refusals, in its order: the `--attach` files (the
+/// files the caller asked the log to carry, before anything is created,
+/// deleted by retention or recorded), then `recorder.toml` (`--config`, else
+/// in `--config-dir`) read, parsed and range-checked. Returns its path and
+/// the configuration.
+fn load(opts: &Options) -> Result<(PathBuf, RecorderConfig), RunError> {
+    check_attachments(&opts.attach)?;
+    let own = opts.config.own_file::<RecorderConfig>();
+    let cfg = RecorderConfig::load(&own)?;
+    Ok((own, cfg))
+}
+
+/// Every check of the service's start-up that can refuse it, short of
+/// creating its log and opening iceoryx2: the `--attach` files readable
+/// and `recorder.toml` as [`run`] loads it (unknown keys, types, ranges;
+/// the error names the file, the field and the reason). Nothing is
+/// created, written or said; `out_dir` is not made (without `--out` the
+/// run creates it, and a directory not there yet is left to the unit's
+/// `Restart=`), and the bus configuration, which the recorder only warns
+/// about, is not read. `grip drive` runs it before starting any service,
+/// beside `grip_tcs_loop::check`, so that a `recorder.toml` the recorder
+/// refuses fails there, once, and not as a drive with no readable log.
+pub fn check(opts: &Options) -> Result<(), RunError> {
+    load(opts).map(drop)
+}
+
 /// Runs the recorder until `stop` (SIGTERM/SIGINT): opens the subscribers
 /// and the file, writes `grip.run` and the attachments, sends `READY=1`,
 /// records; on stop drains what is queued, writes the `grip.recorder`
 /// summary metadata and finishes the file.
 pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<Summary, RunError> {
-    // the files the caller asked the log to carry, before anything is
-    // created, deleted (retention) or recorded
-    check_attachments(&opts.attach)?;
-    let own = opts.config.own_file::<RecorderConfig>();
-    let cfg = RecorderConfig::load(&own)?;
+    let (own, cfg) = load(opts)?;
     // the bus's protocol, so that the CAN log's alive counters are read
     // where its DBC puts them; a configuration that gives none leaves the
     // built-in one (the services themselves refuse it, naming why)
@@ -528,6 +550,44 @@ mod tests {
             "{name}"
         );
         assert_eq!(name.split('-').count(), 4, "grip-<s>-<boot>-<pid>: {name}");
+    }
+
+    /// [`check`] refuses what [`run`] refuses at its start (a bad
+    /// `recorder.toml`, an unreadable `--attach` file), naming the file and
+    /// field, creates nothing, and passes the shipped configuration.
+    #[test]
+    fn check_refuses_what_the_start_refuses_and_creates_nothing() {
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("never.mcap");
+        let opts = |config_dir: &Path, attach: Vec<(String, PathBuf)>| Options {
+            config: ConfigArgs::in_dir(config_dir),
+            out: Some(out.clone()),
+            meta: Vec::new(),
+            attach,
+        };
+        check(&opts(&shipped, Vec::new())).unwrap();
+        let text = std::fs::read_to_string(shipped.join("recorder.toml")).unwrap();
+        let bad = text.replacen("poll_interval_ms = 2", "poll_interval_ms = -2", 1);
+        assert_ne!(bad, text);
+        std::fs::write(dir.path().join("recorder.toml"), bad).unwrap();
+        let e = check(&opts(dir.path(), Vec::new())).unwrap_err();
+        assert!(matches!(e, RunError::Config(_)), "{e:?}");
+        let s = e.to_string();
+        assert!(
+            s.contains("recorder.toml: field `poll_interval_ms`") && s.contains("-2"),
+            "{s}"
+        );
+        let e = check(&opts(
+            &shipped,
+            vec![("drive/vehicle.toml".into(), dir.path().join("gone.toml"))],
+        ))
+        .unwrap_err();
+        assert!(
+            e.to_string().starts_with("--attach drive/vehicle.toml="),
+            "{e}"
+        );
+        assert!(!out.exists());
     }
 
     /// A panicked receive thread is an error naming the panic, not "0

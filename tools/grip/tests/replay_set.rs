@@ -7,27 +7,11 @@
 //! `grip inspect` of a `--out` log whose `--set` changed the gate and the
 //! vehicle reports the gate and the vehicle the replay ran.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use common::replay_reference as replay;
+use std::path::Path;
 use std::process::Command;
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// `grip replay` of the reference drive with `extra`: success, stdout, stderr.
-fn replay(extra: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_grip"))
-        .arg("replay")
-        .arg(root().join("tests/data/reference-drive.mcap"))
-        .args(extra)
-        .output()
-        .expect("running grip replay");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
 
 #[test]
 fn a_refused_set_is_named_as_typed_with_the_logs_file() {

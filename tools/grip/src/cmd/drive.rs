@@ -58,8 +58,8 @@ pub struct Args {
     ready_timeout: f64,
     /// Check the configuration as the drive does before any service starts
     /// (vehicle, scenario, model and audio rate, the bus's DBC, tcs-loop's
-    /// start-up checks), print each service's command line (and its
-    /// systemd ExecStart=) and exit.
+    /// and the recorder's start-up checks), print each service's command
+    /// line (and its systemd ExecStart=) and exit.
     #[arg(long)]
     dry_run: bool,
     /// Forward every line the services write to stderr (default: warnings and errors).
@@ -203,6 +203,16 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         vehicle: vehicle.clone(),
     })
     .context("tcs-loop's configuration (checked before any service starts)")?;
+    // the recorder's start-up checks (recorder.toml, the files it is asked
+    // to attach), on the command line the drive gives it: it starts first,
+    // and a file it refuses stopped the drive before anything else ran,
+    // which then said only "no readable log"
+    grip_recorder::check(&recorder_options(
+        &config_dir,
+        scenario_file.as_deref(),
+        vehicle.as_deref(),
+    ))
+    .context("the recorder's configuration (checked before any service starts)")?;
     // `--model`: the services get a view of the configuration whose
     // arte-svc.toml names the model (the log then carries it)
     let view = match &model {
@@ -393,6 +403,31 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// The recorder's options as the drive starts it (`DrivePlan::args`): the
+/// configuration directory, and the files it attaches (a `--scenario`
+/// given as a path, the `--vehicle` file), for [`grip_recorder::check`].
+/// Its `--out` and `--meta` are left out: the check creates no file, and
+/// the metadata is not checked.
+fn recorder_options(
+    config_dir: &std::path::Path,
+    scenario_file: Option<&std::path::Path>,
+    vehicle: Option<&std::path::Path>,
+) -> grip_recorder::Options {
+    let attach = [
+        (drive::plan::SCENARIO_ATTACHMENT, scenario_file),
+        (drive::plan::VEHICLE_ATTACHMENT, vehicle),
+    ]
+    .into_iter()
+    .filter_map(|(name, file)| Some((name.to_owned(), file?.to_path_buf())))
+    .collect();
+    grip_recorder::Options {
+        config: grip_io::service::ConfigArgs::in_dir(config_dir),
+        out: None,
+        meta: Vec::new(),
+        attach,
+    }
 }
 
 /// Where the recorder writes a drive's log until the drive has run:

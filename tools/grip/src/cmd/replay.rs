@@ -546,11 +546,70 @@ fn ran_with(
 
 /// tcs-loop as `cfg` makes it, and its loop period, ns.
 fn tcs_loop_of(cfg: &ReplayConfig) -> anyhow::Result<(grip_tcs_loop::TcsLoop, u64)> {
+    tcs_loop_with(cfg).map(|(lp, period, _)| (lp, period))
+}
+
+/// [`tcs_loop_of`], and the configuration it was built from.
+fn tcs_loop_with(
+    cfg: &ReplayConfig,
+) -> anyhow::Result<(grip_tcs_loop::TcsLoop, u64, grip_tcs_loop::LoadedConfig)> {
     let loaded = tcs_config_of(cfg)?;
     let lp = grip_tcs_loop::build(&loaded)
         .context("tcs-loop's start-up")
         .map_err(|e| cfg.explain(e))?;
-    Ok((lp, (1e9 / loaded.controllers.loop_.rate_hz).round() as u64))
+    let period_ns = (1e9 / loaded.controllers.loop_.rate_hz).round() as u64;
+    Ok((lp, period_ns, loaded))
+}
+
+/// The warning tcs-loop logs at its start when the gains of its controller
+/// `kind` do not suit the vehicle ([`grip_tcs::analysis::vehicle_tf::gain_warning`]:
+/// MFC's k_mfc against bound (4) per road, SRC's kp, ti and kp_recover
+/// against their derivation from J_w and tau_m; nothing for MTTE), with
+/// `grip sim`'s `warning: ` before it, for the loop the replay runs:
+/// the files as the log's configuration names them (or `--vehicle` as
+/// given), never the replay's temporary copy, and the `--set`s on them
+/// after it. A check that cannot run is said, as tcs-loop says it.
+fn gain_warning(
+    cfg: &ReplayConfig,
+    loaded: &grip_tcs_loop::LoadedConfig,
+    kind: grip_tcs::ControllerKind,
+) -> Option<String> {
+    let w = match grip_tcs::analysis::vehicle_tf::gain_warning(
+        kind,
+        &loaded.vehicle,
+        &loaded.vehicle_path,
+        &loaded.roads,
+        &loaded.controllers,
+        &loaded.controllers_path,
+    ) {
+        Ok(Some(w)) => w,
+        Ok(None) => return None,
+        Err(e) => format!(
+            "the {} gain check could not run: {e}",
+            kind.as_str().to_uppercase()
+        ),
+    };
+    // the --sets on the files it reads (MFC's bound also the roads'): the
+    // files as the log names them are not what the replay ran
+    let on = |p: &Path| p.strip_prefix(&cfg.dir).ok().map(Path::to_path_buf);
+    let roads = (kind == grip_tcs::ControllerKind::Mfc).then(|| PathBuf::from("roads.toml"));
+    let files = [
+        on(&loaded.vehicle_path),
+        on(&loaded.controllers_path),
+        roads,
+    ];
+    let sets: Vec<String> = cfg
+        .applied
+        .iter()
+        .filter(|a| files.iter().flatten().any(|f| f == Path::new(&a.rel)))
+        .map(|a| format!("--set {}", a.spec))
+        .collect();
+    let with = if sets.is_empty() {
+        String::new()
+    } else {
+        format!(" (the replay's, with {})", sets.join(", "))
+    };
+    Some(format!("warning: {}{with}", cfg.user_paths(&w)))
 }
 
 /// The configuration the search for a drive's start runs
@@ -672,7 +731,13 @@ pub fn replay(
 
     // tcs-loop
     let t_setup = Instant::now();
-    let (mut lp, period_ns) = tcs_loop_of(&cfg)?;
+    let (mut lp, period_ns, loaded) = tcs_loop_with(&cfg)?;
+    // the loop's controller against the vehicle, as tcs-loop says it at
+    // its start (the drive's forwards it; the candidates of the plant's
+    // start below run the drive's own configuration and say nothing)
+    if let Some(w) = gain_warning(&cfg, &loaded, lp.controller_kind()) {
+        eprintln!("{w}");
+    }
     let mut start_line = None;
     let mut races_line = None;
     let mut races_json = serde_json::Value::Null;

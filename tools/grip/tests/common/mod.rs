@@ -77,3 +77,24 @@ pub fn run_ok(c: &mut Command) -> String {
     );
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
+
+/// The repository's reference drive (`tests/data/reference-drive.mcap`).
+pub fn reference_drive() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/reference-drive.mcap")
+}
+
+/// `grip replay <reference drive> EXTRA`, with no `--config-dir` (the
+/// replay's configuration is the log's): success, stdout, stderr.
+pub fn replay_reference<S: AsRef<std::ffi::OsStr>>(extra: &[S]) -> (bool, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_grip"))
+        .arg("replay")
+        .arg(reference_drive())
+        .args(extra)
+        .output()
+        .expect("running grip replay");
+    (
+        o.status.success(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
