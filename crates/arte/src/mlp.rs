@@ -166,6 +166,27 @@ fn n_weights_for(sizes: &[usize]) -> Option<usize> {
     })
 }
 
+/// The layer sizes `[dim, hidden..., n_classes]` of the network
+/// [`train_lm`] would fit, or its refusal: more than [`LM_MAX_WEIGHTS`]
+/// weights ([`MlpError::TooManyForLm`]), or a count that does not fit a
+/// `usize`. For a caller that checks before the features are extracted
+/// (`grip train --hidden`), with the fit's own words.
+pub fn check_lm_size(
+    dim: usize,
+    hidden: &[usize],
+    n_classes: usize,
+) -> Result<Vec<usize>, MlpError> {
+    let sizes: Vec<usize> = std::iter::once(dim)
+        .chain(hidden.iter().copied())
+        .chain(std::iter::once(n_classes))
+        .collect();
+    match n_weights_for(&sizes) {
+        Some(w) if w <= LM_MAX_WEIGHTS => Ok(sizes),
+        Some(weights) => Err(MlpError::TooManyForLm { sizes, weights }),
+        None => Err(MlpError::TooManyWeights { sizes }),
+    }
+}
+
 impl Mlp {
     /// Build from layer sizes `[n_in, h1, ..., n_out]` and a weight vector.
     pub fn from_weights(
@@ -648,15 +669,7 @@ pub fn train_lm(
     if let Some((vx, vy)) = val {
         check_samples(vx, dim, vy, n_classes)?;
     }
-    let sizes: Vec<usize> = std::iter::once(dim)
-        .chain(cfg.hidden.iter().copied())
-        .chain(std::iter::once(n_classes))
-        .collect();
-    match n_weights_for(&sizes) {
-        Some(w) if w <= LM_MAX_WEIGHTS => {}
-        Some(weights) => return Err(MlpError::TooManyForLm { sizes, weights }),
-        None => return Err(MlpError::TooManyWeights { sizes }),
-    }
+    check_lm_size(dim, &cfg.hidden, n_classes)?;
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x9E37_79B9_7F4A_7C15);
     let rows = stratified_subsample(y, n_classes, cfg.max_rows, &mut rng);
     let mut tx = Vec::with_capacity(rows.len() * dim);

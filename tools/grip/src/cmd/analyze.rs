@@ -32,10 +32,12 @@ const PAPER_TAU_HPF: f64 = 1000.0;
 pub struct Args {
     #[command(subcommand)]
     cmd: Option<Sub>,
-    /// Motor torque constant K, N m/A (the paper's undefined "motor gain").
+    /// Motor torque constant K, N m/A (the paper's undefined "motor gain"),
+    /// 1e-6 to 1e6.
     #[arg(long, default_value_t = 1.0)]
     k_motor: f64,
-    /// Chassis speed at the operating point, km/h (SRC slip plant).
+    /// Chassis speed at the operating point, km/h (SRC slip plant), 0.001
+    /// to 1000.
     #[arg(long, default_value_t = 20.0)]
     speed_kmh: f64,
     /// Road the SRC's model assumes without ARTE.
@@ -297,16 +299,62 @@ fn coeffs(c: &[f64]) -> String {
     c.iter().map(|&x| fmt_num(x)).collect::<Vec<_>>().join(", ")
 }
 
+/// The range of `--k-motor`, N m/A: a motor's torque constant is of the
+/// order of 1; far outside it the model's coefficients overflow (1e308
+/// made a transfer function's numerator infinite) or vanish (5e-324 made
+/// every K_MFC bound infinite).
+const K_MOTOR_RANGE: std::ops::RangeInclusive<f64> = 1e-6..=1e6;
+
+/// The range of `--speed-kmh`, km/h: an operating point of a road vehicle;
+/// far below it the SRC slip plant degenerates (1e-200 km/h: a zero
+/// polynomial), far above it its coefficients overflow.
+const SPEED_KMH_RANGE: std::ops::RangeInclusive<f64> = 1e-3..=1e3;
+
+/// A flag's value as the user would have typed it: `1e308`, not the 309
+/// digits `{}` writes for it.
+fn shown(x: f64) -> String {
+    let a = x.abs();
+    if x != 0.0 && a.is_finite() && !(1e-4..1e6).contains(&a) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
+/// `--k-motor` and `--speed-kmh` within [`K_MOTOR_RANGE`] and
+/// [`SPEED_KMH_RANGE`], before anything is read or printed; the error
+/// names the flag, its value and the range.
+fn check_operating_point(args: &Args) -> anyhow::Result<()> {
+    for (flag, value, range, unit, why) in [
+        (
+            "--k-motor",
+            args.k_motor,
+            K_MOTOR_RANGE,
+            "N m/A",
+            "a motor's torque constant is of the order of 1 N m/A; far outside the range the model's coefficients overflow or vanish",
+        ),
+        (
+            "--speed-kmh",
+            args.speed_kmh,
+            SPEED_KMH_RANGE,
+            "km/h",
+            "the chassis speed of the SRC slip plant's operating point; far outside the range its coefficients overflow or vanish",
+        ),
+    ] {
+        if !(value.is_finite() && range.contains(&value)) {
+            bail!(
+                "{flag} {}: must be a finite number from {} to {} {unit} ({why})",
+                shown(value),
+                shown(*range.start()),
+                shown(*range.end())
+            );
+        }
+    }
+    Ok(())
+}
+
 fn run_report(ctx: &Ctx, args: &Args) -> anyhow::Result<()> {
-    if !(args.k_motor.is_finite() && args.k_motor > 0.0) {
-        bail!("--k-motor {}: must be a finite number > 0", args.k_motor);
-    }
-    if !(args.speed_kmh.is_finite() && args.speed_kmh > 0.0) {
-        bail!(
-            "--speed-kmh {}: must be a finite number > 0",
-            args.speed_kmh
-        );
-    }
+    check_operating_point(args)?;
     let dir = grip_config::ConfigDir::new(&ctx.config_dir);
     let vehicle_path = args.vehicle.clone().unwrap_or_else(|| dir.vehicle_path());
     let (v, sensors) = grip_config::load_vehicle(&vehicle_path)?;

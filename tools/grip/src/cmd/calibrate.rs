@@ -78,7 +78,8 @@ pub struct FitArgs {
     /// Stream hop (s) the calibration is fitted for (the arte service's).
     #[arg(long, default_value_t = 0.025)]
     pub calib_hop: f64,
-    /// Stream HMM stay probability the calibration is fitted for.
+    /// Stream HMM stay probability the calibration is fitted for, within
+    /// (0, 1); 0 disables smoothing.
     #[arg(long, default_value_t = 0.9)]
     pub calib_stay: f64,
     /// Stream HMM floor the calibration is fitted for.
@@ -99,6 +100,24 @@ impl FitArgs {
                 }
             },
         }
+    }
+
+    /// The stream settings as the fit's stream takes them, each refusal
+    /// naming its flag, before anything is read or trained (`grip train`
+    /// fits the calibration after its model: a `--calib-stay 1` was
+    /// refused only then, in the stream's words).
+    pub fn check(&self) -> Result<()> {
+        if !(self.calib_hop > 0.0 && self.calib_hop <= 10.0) {
+            bail!("--calib-hop {}: must be within (0, 10] s", self.calib_hop);
+        }
+        super::dataset::check_stay("--calib-stay", self.calib_stay)?;
+        if self.calib_stay != 0.0 && !(self.calib_floor > 0.0 && self.calib_floor <= 1.0) {
+            bail!(
+                "--calib-floor {}: must be within (0, 1] (the least probability the HMM gives a class in a frame)",
+                self.calib_floor
+            );
+        }
+        Ok(())
     }
 
     /// The options as they appear on a command line.
@@ -336,6 +355,7 @@ pub fn fit_calibration(
 ) -> Result<(StreamCalibration, String)> {
     let method = Method::from_name(&fit.calib_method)
         .with_context(|| format!("--calib-method: `{}` is unknown", fit.calib_method))?;
+    fit.check()?;
     let scfg = fit.stream_config();
     let uncalibrated = model.clone().with_calibration(None)?;
     let fcfg = uncalibrated.feature_config().clone();
@@ -438,6 +458,7 @@ pub fn fit_calibration(
 }
 
 pub fn run(_ctx: &Ctx, a: Args) -> Result<()> {
+    a.fit.check()?;
     // said before the fit, naming the input when it is the output
     if !a.force && same_file(&a.model, &a.out) {
         bail!(

@@ -59,7 +59,8 @@ struct DelayArgs {
     /// Time between decisions (s).
     #[arg(long, default_value_t = 0.025)]
     hop: f64,
-    /// HMM: probability of staying on the same road per hop; 0 disables smoothing.
+    /// HMM: probability of staying on the same road per hop, within
+    /// (0, 1); 0 disables smoothing.
     #[arg(long, default_value_t = 0.9)]
     stay: f64,
     /// HMM: floor on a frame's class probability.
@@ -891,10 +892,26 @@ const MIN_SEGMENT_S: f64 = 0.01;
 /// recordings (a million 10 s recordings are about a terabyte).
 const MAX_RECORDINGS: usize = 1_000_000;
 
+/// An HMM stay flag (`grip dataset delay --stay`, `grip calibrate
+/// --calib-stay`): 0 (no smoothing, as their help says), or the HMM's
+/// probability of staying on the same road per hop, within (0, 1) as the
+/// stream estimator takes it. Checked before the model and the recordings
+/// are read; the stream's own error named neither the flag nor 0
+/// (`smoothing.stay: 1 is not in (0, 1)`, while 0 ran).
+pub(crate) fn check_stay(flag: &str, stay: f64) -> Result<()> {
+    if stay == 0.0 || (stay > 0.0 && stay < 1.0) {
+        return Ok(());
+    }
+    bail!(
+        "{flag} {stay}: must be 0 (no smoothing) or within (0, 1) (the probability that the stream's HMM stays on the same road from one hop to the next)"
+    )
+}
+
 fn delay(a: DelayArgs, config_dir: &Path) -> Result<()> {
     use grip_arte::model::{Model, Predictor};
     use grip_arte::stream::{Smoothing, StreamConfig, StreamEstimator};
     use grip_arte::stream_eval::ChangeEval;
+    check_stay("--stay", a.stay)?;
     let bytes = std::fs::read(&a.model)
         .with_context(|| format!("reading model file {}", a.model.display()))?;
     let model =

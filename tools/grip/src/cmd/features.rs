@@ -172,9 +172,19 @@ fn dataset_report(a: &Args, dir: &std::path::Path) -> Result<()> {
     let mut ex20 = FeatureExtractor::new(&p20)?;
     let mut exr = FeatureExtractor::new(&rich)?;
     let (mut x20, mut xr, mut y) = (Vec::new(), Vec::new(), Vec::new());
+    let frame_len = ex20.frame_len();
+    // recordings without a whole frame give none: named, with their
+    // lengths (a dataset of only such files once said "0 values for 0
+    // rows of 20 columns")
+    let mut short: Vec<(&crate::dataset::Entry, usize)> = Vec::new();
     let pb = indicatif::ProgressBar::new(ds.entries.len() as u64);
     for r in &ds.entries {
         let audio = wav::read_mono_at(&r.path, rate)?;
+        if audio.samples.len() < frame_len {
+            short.push((r, audio.samples.len()));
+            pb.inc(1);
+            continue;
+        }
         let m20 = ex20.extract_all(&audio.samples, hop)?;
         let mr = exr.extract_all(&audio.samples, hop)?;
         y.extend(std::iter::repeat_n(r.class, m20.len() / N_PAPER20));
@@ -183,6 +193,35 @@ fn dataset_report(a: &Args, dir: &std::path::Path) -> Result<()> {
         pb.inc(1);
     }
     pb.finish_and_clear();
+    if !short.is_empty() {
+        let what = short_recordings(&short, ds.entries.len(), a.frame, frame_len, rate);
+        // a class left without a frame has no statistics: refused, as a
+        // dataset left without any
+        let empty: Vec<&str> = (0..k)
+            .filter(|c| !y.contains(c))
+            .map(|c| ds.classes[c].as_str())
+            .collect();
+        if !empty.is_empty() {
+            bail!(
+                "dataset folder {}: {what}; {} no frame to analyse: give longer recordings, or a shorter --frame",
+                dir.display(),
+                match empty.len() {
+                    n if n == k => "the dataset has".to_owned(),
+                    1 => format!("class folder {} has", empty[0]),
+                    _ => format!("class folders {} have", empty.join(", ")),
+                }
+            );
+        }
+        eprintln!(
+            "warning: dataset folder {}: {what}; {} left out",
+            dir.display(),
+            if short.len() == 1 {
+                "it is"
+            } else {
+                "they are"
+            }
+        );
+    }
     println!(
         "dataset {}: {} recordings, {} frames, classes: {}",
         dir.display(),
@@ -226,6 +265,45 @@ fn dataset_report(a: &Args, dir: &std::path::Path) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// How many of `total` recordings are shorter than one frame of `frame_s`
+/// s (`frame_len` samples at `rate` Hz), the first few named with their
+/// lengths.
+fn short_recordings(
+    short: &[(&crate::dataset::Entry, usize)],
+    total: usize,
+    frame_s: f64,
+    frame_len: usize,
+    rate: u32,
+) -> String {
+    const SHOWN: usize = 5;
+    let named: Vec<String> = short
+        .iter()
+        .take(SHOWN)
+        .map(|(e, n)| {
+            format!(
+                "{} ({:.3} s, {n} samples)",
+                e.path.display(),
+                *n as f64 / f64::from(rate)
+            )
+        })
+        .collect();
+    format!(
+        "{} shorter than one {frame_s} s frame ({frame_len} samples at {rate} Hz): {}{}",
+        match (short.len(), total) {
+            (1, 1) => "the one recording is".to_owned(),
+            (n, t) if n == t => format!("all {t} recordings are"),
+            (1, t) => format!("1 of the {t} recordings is"),
+            (n, t) => format!("{n} of the {t} recordings are"),
+        },
+        named.join(", "),
+        if short.len() > SHOWN {
+            format!(", and {} more", short.len() - SHOWN)
+        } else {
+            String::new()
+        }
+    )
 }
 
 pub fn run(_ctx: &Ctx, args: Args) -> Result<()> {

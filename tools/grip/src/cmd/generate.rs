@@ -96,11 +96,11 @@ pub struct Args {
     /// (default: the scenario's; 10 km/h for random).
     #[arg(long, value_parser = parse_range)]
     v0_kmh: Option<(f64, f64)>,
-    /// Constant driver demand, N m: one value or LO:HI per log (default:
-    /// the scenario's; 300 N m for random). The scenario's demand must be
-    /// constant.
-    #[arg(long, value_parser = parse_range)]
-    torque: Option<(f64, f64)>,
+    /// Constant driver demand, N m: one value or LO:HI per log, within
+    /// 0..=10000 and the vehicle's torque_max (default: the scenario's;
+    /// 300 N m for random). The scenario's demand must be constant.
+    #[arg(long, value_parser = parse_torque)]
+    torque: Option<TorqueArg>,
     /// The recipe of `--scenario random`, as `grip sim --random`:
     /// KEY=VALUE,... with KEY one of v0_kmh, torque, min_len_m, max_len_m,
     /// cover_m, duration (e.g. min_len_m=3,max_len_m=12). --v0-kmh and
@@ -139,6 +139,32 @@ fn parse_range(s: &str) -> Result<(f64, f64), String> {
         return Err(format!("{s}: LO must not exceed HI"));
     }
     Ok((a, b))
+}
+
+/// The largest `--torque`, N m: the demand on one driven wheel, the bound
+/// `--random torque=` has (`grip_sim::random`), far above any car's (the
+/// shipped vehicles' `torque_max` is 1000 N m; the bus's `TorqueDemand`
+/// carries 3276.7). The vehicle's own `torque_max` limits it further,
+/// checked with each log's scenario. Without a bound a range such as
+/// `0:1.79e308` drew infinite demands (`got inf`).
+const TORQUE_MAX_NM: f64 = 10_000.0;
+
+/// `--torque`: [`parse_range`]'s range, with the text as the user typed it
+/// for the errors that name it.
+#[derive(Debug, Clone)]
+struct TorqueArg {
+    lo: f64,
+    hi: f64,
+    given: String,
+}
+
+fn parse_torque(s: &str) -> Result<TorqueArg, String> {
+    let (lo, hi) = parse_range(s)?;
+    Ok(TorqueArg {
+        lo,
+        hi,
+        given: s.to_owned(),
+    })
 }
 
 /// The logs `specs` would write that are already there, refused without
@@ -264,7 +290,7 @@ fn specs(args: &Args, random: &RandomSpec) -> anyhow::Result<Vec<LogSpec>> {
                 })
             };
             let v0_kmh = draw(args.v0_kmh);
-            let torque = draw(args.torque);
+            let torque = draw(args.torque.as_ref().map(|t| (t.lo, t.hi)));
             let snr_db = draw(args.snr_db);
             Ok(LogSpec {
                 file: args.out.join(format!("gen-{i:05}-s{seed}.mcap")),
@@ -304,10 +330,16 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
         };
         bail!("--v0-kmh {given}: a start speed must lie within 0..=360 km/h");
     }
-    if let Some((lo, _)) = args.torque
-        && lo < 0.0
-    {
-        bail!("--torque {lo}: a driver demand must be >= 0 N m");
+    if let Some(t) = &args.torque {
+        if t.lo < 0.0 {
+            bail!("--torque {}: a driver demand must be >= 0 N m", t.given);
+        }
+        if t.hi > TORQUE_MAX_NM {
+            bail!(
+                "--torque {}: a driver demand must lie within 0..={TORQUE_MAX_NM} N m (the demand on one driven wheel; the vehicle's torque_max limits it further)",
+                t.given
+            );
+        }
     }
     let random = super::sim::random_spec(args.random.as_deref(), &args.scenario)?;
     let specs = specs(&args, &random)?;

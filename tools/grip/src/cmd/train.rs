@@ -758,10 +758,25 @@ fn arte_would_take(config_dir: &Path, out: &Path, ds: &Dataset) -> Result<()> {
     Ok(())
 }
 
+/// `--hidden` against Levenberg-Marquardt's limit as the fit refuses it
+/// ([`grip_arte::mlp::check_lm_size`], the fit's own check and words), but
+/// before any feature is extracted (`--hidden 256,256` was refused only
+/// after the extraction, minutes on a large set): `dim` is the model's
+/// feature count (`FeatureConfig::dim`: paper7's 7 after the pruning,
+/// paper20's 20, rich's with its options).
+fn check_lm_size(hidden: &[usize], dim: usize, n_classes: usize) -> Result<()> {
+    if let Err(e) = grip_arte::mlp::check_lm_size(dim, hidden, n_classes) {
+        let h: Vec<String> = hidden.iter().map(usize::to_string).collect();
+        bail!("--hidden {}: {e}", h.join(","));
+    }
+    Ok(())
+}
+
 pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     if !(args.hop > 0.0 && args.hop <= 10.0) {
         bail!("--hop: {} s is outside (0, 10]", args.hop);
     }
+    args.calib.check()?;
     held_out_calibration(args)?;
     let only = (!args.classes.is_empty()).then_some(args.classes.as_slice());
     let ds = Dataset::scan_classes(&args.data, only)?;
@@ -811,6 +826,9 @@ pub fn train(ctx_config: &Path, args: &Args) -> Result<(Model, String)> {
     model_cfg
         .validate()
         .context("--features / --speed-norm / --speed-ref / --fixed-bands")?;
+    if args.classifier == "mlp" {
+        check_lm_size(&args.hidden, model_cfg.dim(), ds.classes.len())?;
+    }
     // Paper7: extract Paper20; the pruning runs in `fit` on each training set.
     let extract_cfg = if set == FeatureSet::Paper7 {
         FeatureConfig {
