@@ -24,4 +24,6 @@ pub mod run;
 pub use config::{SafetyConfig, TcsLoopConfig};
 pub use cycle::{CycleTick, MAX_ROADS_PER_CYCLE, MAX_RX_PER_CYCLE, ROLE, SharedStatus, TcsLoop};
 pub use ports::{NoRoad, NullSink, ROAD_BUFFER, RecordSink, RoadSource};
-pub use run::{LoadedConfig, Options, RunError, RunSummary, build, check, load, run};
+pub use run::{
+    LoadedConfig, Options, RunError, RunSummary, build, check, load, run, start_warnings,
+};

@@ -390,17 +390,18 @@ fn build_checked(cfg: &LoadedConfig) -> Result<TcsLoop, RunError> {
     Ok(lp)
 }
 
-/// Runs the service until `stop` is set (SIGTERM/SIGINT in `main`) or
-/// `run_for_s` has passed. Sends `READY=1` once the ports are open and the
-/// real-time set-up is done. Only start-up errors are returned; nothing
-/// after start is fatal.
-pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunError> {
-    let cfg = load_as(opts, grip_config::VehicleUse::Drive)?;
-    let mut lp = build(&cfg)?;
+/// What the loop says at its start about settings it runs but that do not
+/// suit the vehicle, one line each: MFC's and SRC's gains are the paper's
+/// car's ([`grip_tcs::analysis::vehicle_tf::gain_warning`]: MFC's k_mfc
+/// against bound (4) per road, SRC's gains against their derivation from
+/// the wheel and the motor lag; a check that cannot run is said), and the
+/// road belief's slip noise is the shipped sensors'
+/// ([`grip_tcs::analysis::sensors::sensor_warning`], only for the ARTE
+/// variants, which have a belief). [`run`] logs them; `grip replay` prints
+/// them for the loop it runs.
+pub fn start_warnings(cfg: &LoadedConfig, lp: &TcsLoop) -> Vec<String> {
     let kind = lp.controller_kind();
-    // MFC's and SRC's gains are the paper's car's: say where they do not
-    // suit this one (MFC: bound (4) per road; SRC: the gains derived from
-    // the wheel and the motor lag)
+    let mut out = Vec::new();
     match grip_tcs::analysis::vehicle_tf::gain_warning(
         kind,
         &cfg.vehicle,
@@ -409,16 +410,13 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
         &cfg.controllers,
         &cfg.controllers_path,
     ) {
-        Ok(Some(w)) => tracing::warn!("{w}"),
+        Ok(Some(w)) => out.push(w),
         Ok(None) => {}
-        Err(e) => tracing::warn!(
-            error = %e,
-            "tcs-loop: the {} gain check could not run",
+        Err(e) => out.push(format!(
+            "the {} gain check could not run: {e}",
             kind.as_str().to_uppercase()
-        ),
+        )),
     }
-    // the road belief's slip noise is the shipped sensors': say where the
-    // vehicle file's sensors are noisier (only the ARTE variants have one)
     if lp.road_aware()
         && let Some(w) = grip_tcs::analysis::sensors::sensor_warning(
             &cfg.vehicle,
@@ -429,6 +427,20 @@ pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunErro
             1.0 / cfg.controllers.loop_.rate_hz,
         )
     {
+        out.push(w);
+    }
+    out
+}
+
+/// Runs the service until `stop` is set (SIGTERM/SIGINT in `main`) or
+/// `run_for_s` has passed. Sends `READY=1` once the ports are open and the
+/// real-time set-up is done. Only start-up errors are returned; nothing
+/// after start is fatal.
+pub fn run(opts: &Options, stop: &Arc<AtomicBool>) -> Result<RunSummary, RunError> {
+    let cfg = load_as(opts, grip_config::VehicleUse::Drive)?;
+    let mut lp = build(&cfg)?;
+    let kind = lp.controller_kind();
+    for w in start_warnings(&cfg, &lp) {
         tracing::warn!("{w}");
     }
     let rate = cfg.controllers.loop_.rate_hz;

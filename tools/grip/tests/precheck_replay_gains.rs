@@ -119,3 +119,30 @@ fn replay_says_when_the_mfc_gain_is_above_bound_4() {
     );
     no_temporary_copy(&err);
 }
+
+/// The road belief's slip noise, as tcs-loop warns at its start for the
+/// ARTE variants: a coarser encoder (4096 counts over one 1 ms sample, a
+/// closed-loop what-if: open loop replays the logged readings) is said
+/// once, naming the vehicle file, the fields and the --set; nothing with
+/// ARTE off (no belief).
+#[test]
+fn replay_says_when_the_sensors_are_noisier_than_the_road_belief_assumes() {
+    let coarse = ["--closed-loop", "--set", "sensors.encoder_ppr=4096"];
+    let (ok, out, err) = replay(&coarse);
+    assert!(ok, "{out}{err}");
+    let warned: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("warning: ") && l.contains("[sensors] give a measured slip"))
+        .collect();
+    assert_eq!(warned.len(), 1, "{err}");
+    assert!(
+        warned[0].starts_with("warning: vehicle.toml: [sensors] give a measured slip")
+            && warned[0].contains("encoder_ppr 4096 over omega_window 1")
+            && warned[0].ends_with("(the replay's, with --set sensors.encoder_ppr=4096)"),
+        "{err}"
+    );
+    no_temporary_copy(&err);
+    let (ok, out, err) = replay(&[&coarse[..], &["--arte", "off"]].concat());
+    assert!(ok, "{out}{err}");
+    assert!(!err.contains("[sensors] give a measured slip"), "{err}");
+}

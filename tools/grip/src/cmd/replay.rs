@@ -561,42 +561,28 @@ fn tcs_loop_with(
     Ok((lp, period_ns, loaded))
 }
 
-/// The warning tcs-loop logs at its start when the gains of its controller
-/// `kind` do not suit the vehicle ([`grip_tcs::analysis::vehicle_tf::gain_warning`]:
-/// MFC's k_mfc against bound (4) per road, SRC's kp, ti and kp_recover
-/// against their derivation from J_w and tau_m; nothing for MTTE), with
-/// `grip sim`'s `warning: ` before it, for the loop the replay runs:
-/// the files as the log's configuration names them (or `--vehicle` as
-/// given), never the replay's temporary copy, and the `--set`s on them
-/// after it. A check that cannot run is said, as tcs-loop says it.
-fn gain_warning(
+/// The warnings tcs-loop logs at its start about settings that do not
+/// suit the vehicle ([`grip_tcs_loop::start_warnings`]: the controller's
+/// gains, the ARTE variants' slip noise), with `grip sim`'s `warning: `
+/// before each, for the loop the replay runs: the files as the log's
+/// configuration names them (or `--vehicle` as given), never the replay's
+/// temporary copy, and the `--set`s on the files they read after it.
+fn start_warnings(
     cfg: &ReplayConfig,
     loaded: &grip_tcs_loop::LoadedConfig,
-    kind: grip_tcs::ControllerKind,
-) -> Option<String> {
-    let w = match grip_tcs::analysis::vehicle_tf::gain_warning(
-        kind,
-        &loaded.vehicle,
-        &loaded.vehicle_path,
-        &loaded.roads,
-        &loaded.controllers,
-        &loaded.controllers_path,
-    ) {
-        Ok(Some(w)) => w,
-        Ok(None) => return None,
-        Err(e) => format!(
-            "the {} gain check could not run: {e}",
-            kind.as_str().to_uppercase()
-        ),
-    };
-    // the --sets on the files it reads (MFC's bound also the roads'): the
+    lp: &grip_tcs_loop::TcsLoop,
+) -> Vec<String> {
+    let warnings = grip_tcs_loop::start_warnings(loaded, lp);
+    if warnings.is_empty() {
+        return warnings;
+    }
+    // the --sets on the files they read (MFC's bound also the roads'): the
     // files as the log names them are not what the replay ran
     let on = |p: &Path| p.strip_prefix(&cfg.dir).ok().map(Path::to_path_buf);
-    let roads = (kind == grip_tcs::ControllerKind::Mfc).then(|| PathBuf::from("roads.toml"));
     let files = [
         on(&loaded.vehicle_path),
         on(&loaded.controllers_path),
-        roads,
+        Some(PathBuf::from("roads.toml")),
     ];
     let sets: Vec<String> = cfg
         .applied
@@ -609,7 +595,10 @@ fn gain_warning(
     } else {
         format!(" (the replay's, with {})", sets.join(", "))
     };
-    Some(format!("warning: {}{with}", cfg.user_paths(&w)))
+    warnings
+        .iter()
+        .map(|w| format!("warning: {}{with}", cfg.user_paths(w)))
+        .collect()
 }
 
 /// The configuration the search for a drive's start runs
@@ -732,10 +721,10 @@ pub fn replay(
     // tcs-loop
     let t_setup = Instant::now();
     let (mut lp, period_ns, loaded) = tcs_loop_with(&cfg)?;
-    // the loop's controller against the vehicle, as tcs-loop says it at
+    // the loop's settings against the vehicle, as tcs-loop says them at
     // its start (the drive's forwards it; the candidates of the plant's
     // start below run the drive's own configuration and say nothing)
-    if let Some(w) = gain_warning(&cfg, &loaded, lp.controller_kind()) {
+    for w in start_warnings(&cfg, &loaded, &lp) {
         eprintln!("{w}");
     }
     let mut start_line = None;
