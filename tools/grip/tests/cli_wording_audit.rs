@@ -300,34 +300,29 @@ fn calibration_stream_flags_are_refused_before_any_work() {
         ),
     ] {
         let set = format!("{flag}={value}");
-        // calibrate: the data folder does not exist, the flag is said first
-        let (_, err) = refused(
-            &os(&[
+        let (model, gone, out) = (
+            model.to_str().unwrap(),
+            gone.to_str().unwrap(),
+            out.to_str().unwrap(),
+        );
+        // calibrate and train: their data folder does not exist, the flag
+        // is said first (nothing is read)
+        for args in [
+            vec![
                 "calibrate",
                 "--model",
-                model.to_str().unwrap(),
+                model,
                 "--data",
-                gone.to_str().unwrap(),
+                gone,
                 "--out",
-                out.to_str().unwrap(),
+                out,
                 &set,
-            ]),
-            said,
-        );
-        assert!(!err.contains("no-such-folder"), "{err}");
-        // train: nothing is read (the data folder does not exist either)
-        let (_, err) = refused(
-            &os(&[
-                "train",
-                "--data",
-                gone.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-                &set,
-            ]),
-            said,
-        );
-        assert!(!err.contains("no-such-folder"), "{err}");
-        assert!(!out.exists());
+            ],
+            vec!["train", "--data", gone, "--out", out, &set],
+        ] {
+            let (_, err) = refused(&os(&args), said);
+            assert!(!err.contains("no-such-folder"), "{err}");
+        }
+        assert!(!Path::new(out).exists());
     }
 }
