@@ -301,25 +301,10 @@ const ABS_TOL: f64 = 1e-12;
 /// cycle's speed change.
 const FINAL_SPEED_SHARE: f64 = 0.1;
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// The venv `tools/setup` makes (`tools/test` puts it first on `PATH`),
-/// else `python3`.
-fn python() -> PathBuf {
-    let venv = repo().join("tools/.venv-mcap/bin/python3");
-    if venv.is_file() {
-        venv
-    } else {
-        PathBuf::from("python3")
-    }
-}
-
 /// [`RECOMPUTE`] on `out` and `vehicle`: its result. Fails (never skips)
 /// without a usable Python.
 fn recompute(out: &Path, vehicle: &Path) -> Value {
-    let py = python();
+    let py = common::python();
     let o = Command::new(&py)
         .arg("-c")
         .arg(RECOMPUTE)
@@ -647,50 +632,42 @@ fn check(label: &str, out: &Path, vehicle: &Path) {
     assert!(any(&|p| p["cmd_hf_share"].as_f64() > Some(0.01)), "{label}");
 }
 
+/// `grip sim` of the six variants on `vehicle` (under the configuration
+/// directory) with `args`, checked.
+fn case(vehicle: &str, args: &[&str], label: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let vehicle = common::config_dir().join(vehicle);
+    let out = sim(dir.path(), &vehicle, args);
+    check(label, &out, &vehicle);
+}
+
+const PAPER: [&str; 4] = ["--scenario", "paper", "--seeds", "2"];
+const RANDOM: [&str; 6] = ["--scenario", "random", "--seed0", "1000", "--seeds", "1"];
+
 #[test]
 fn paper_on_the_papers_car() {
-    let dir = tempfile::tempdir().unwrap();
-    let vehicle = common::config_dir().join("vehicle.toml");
-    let out = sim(
-        dir.path(),
-        &vehicle,
-        &["--scenario", "paper", "--seeds", "2"],
-    );
-    check("paper, seeds 1-2, vehicle.toml", &out, &vehicle);
+    case("vehicle.toml", &PAPER, "paper, seeds 1-2, vehicle.toml");
 }
 
 #[test]
 fn paper_on_the_front_mic_car() {
-    let dir = tempfile::tempdir().unwrap();
-    let vehicle = common::config_dir().join("vehicles/front-mic.toml");
-    let out = sim(
-        dir.path(),
-        &vehicle,
-        &["--scenario", "paper", "--seeds", "2"],
+    case(
+        "vehicles/front-mic.toml",
+        &PAPER,
+        "paper, seeds 1-2, front-mic.toml",
     );
-    check("paper, seeds 1-2, front-mic.toml", &out, &vehicle);
 }
 
 #[test]
 fn random_roads_on_the_papers_car() {
-    let dir = tempfile::tempdir().unwrap();
-    let vehicle = common::config_dir().join("vehicle.toml");
-    let out = sim(
-        dir.path(),
-        &vehicle,
-        &["--scenario", "random", "--seed0", "1000", "--seeds", "1"],
-    );
-    check("random, seed 1000, vehicle.toml", &out, &vehicle);
+    case("vehicle.toml", &RANDOM, "random, seed 1000, vehicle.toml");
 }
 
 #[test]
 fn random_roads_on_the_front_mic_car() {
-    let dir = tempfile::tempdir().unwrap();
-    let vehicle = common::config_dir().join("vehicles/front-mic.toml");
-    let out = sim(
-        dir.path(),
-        &vehicle,
-        &["--scenario", "random", "--seed0", "1000", "--seeds", "1"],
+    case(
+        "vehicles/front-mic.toml",
+        &RANDOM,
+        "random, seed 1000, front-mic.toml",
     );
-    check("random, seed 1000, front-mic.toml", &out, &vehicle);
 }

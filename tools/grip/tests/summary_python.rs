@@ -419,25 +419,10 @@ const FIGURES: &[&str] = &[
 const REL_TOL: f64 = 1e-9;
 const ABS_TOL: f64 = 1e-12;
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// The venv `tools/setup` makes when the system's `python3` lacks the
-/// packages (`tools/test` puts it first on `PATH`), else `python3`.
-fn python() -> PathBuf {
-    let venv = repo().join("tools/.venv-mcap/bin/python3");
-    if venv.is_file() {
-        venv
-    } else {
-        PathBuf::from("python3")
-    }
-}
-
 /// Runs `script` with `args`; its stdout. Fails (never skips) without the
 /// Python packages.
 fn run_python(script: &str, args: &[&Path]) -> String {
-    let py = python();
+    let py = common::python();
     let out = Command::new(&py)
         .arg("-c")
         .arg(script)
@@ -593,7 +578,7 @@ fn src_with_arte_on_the_papers_car() {
 /// the ground-truth block's pairing of commands with truth samples matter.
 #[test]
 fn the_stored_live_reference_drive() {
-    let log = repo().join("tests/data/reference-drive.mcap");
+    let log = common::reference_drive();
     check("tests/data/reference-drive.mcap (e2e, MTTE, ARTE on)", &log);
 }
 

@@ -98,3 +98,15 @@ pub fn replay_reference<S: AsRef<std::ffi::OsStr>>(extra: &[S]) -> (bool, String
         String::from_utf8_lossy(&o.stderr).into_owned(),
     )
 }
+
+/// The Python of the tests that read logs with Python's `mcap` reader:
+/// the virtual environment `tools/setup` makes (`tools/test` puts it first
+/// on `PATH`), else `python3`.
+pub fn python() -> PathBuf {
+    let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools/.venv-mcap/bin/python3");
+    if venv.is_file() {
+        venv
+    } else {
+        PathBuf::from("python3")
+    }
+}
