@@ -168,6 +168,24 @@ fn load_as(
         )
         .into());
     }
+    // nor longer than the bus declares it (the DBC's GripTimeoutMs for
+    // TorqueCommand is the inverter's): a simulated inverter that waits
+    // longer goes on applying a command the bus declares timed out, and a
+    // drive against it hides what the car's inverter would do
+    if cfg.cmd_timeout_ms > f64::from(tc.timeout_ms) {
+        return Err(ConfigError::new(
+            &own_path,
+            "cmd_timeout_ms",
+            format!(
+                "{} ms is longer than TorqueCommand's timeout on the bus (GripTimeoutMs {} ms in {}): the simulated inverter would go on applying a command the bus declares timed out; set at most {}, or raise GripTimeoutMs in the DBC if the inverter really waits that long",
+                cfg.cmd_timeout_ms,
+                tc.timeout_ms,
+                can.dbc.as_deref().unwrap_or("the built-in protocol"),
+                tc.timeout_ms
+            ),
+        )
+        .into());
+    }
     check_bus(
         &can,
         cfg.allow_physical_bus,

@@ -41,6 +41,19 @@ fn bad_config_names_file_field_reason() {
     );
     assert!(line.contains("got 0"), "{line}");
     assert!(!err.contains("panicked"), "{err}");
+    // longer than the bus's GripTimeoutMs for TorqueCommand (20 ms in the
+    // shipped DBC): the simulated inverter would apply a timed-out command
+    std::fs::write(
+        &p,
+        text.replace("cmd_timeout_ms = 20.0", "cmd_timeout_ms = 21.0"),
+    )
+    .unwrap();
+    let (code, err) = run(&["--config-dir", dir]);
+    assert_eq!(code, i32::from(EXIT_CONFIG), "{err}");
+    assert!(
+        err.contains("plant-sim.toml: field `cmd_timeout_ms`: 21 ms is longer than TorqueCommand's timeout on the bus (GripTimeoutMs 20 ms in inverter.dbc)"),
+        "{err}"
+    );
     std::fs::write(&p, &text).unwrap();
 
     let (code, err) = run(&["--config-dir", dir, "--scenario", "nowhere"]);
