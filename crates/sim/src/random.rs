@@ -78,6 +78,11 @@ pub fn sounding_roads(roads: &RoadCatalogue) -> Vec<usize> {
         .collect()
 }
 
+/// The largest constant driver demand a random scenario takes, N m (the
+/// demand on one driven wheel; far above any car's, whose `torque_max`
+/// limits it further). `grip generate --torque` has the same bound.
+pub const TORQUE_MAX_NM: f64 = 10_000.0;
+
 /// One field `RandomSpec::parse` sets: its name, the range it accepts, and
 /// the field.
 type SpecField = (&'static str, f64, f64, fn(&mut RandomSpec) -> &mut f64);
@@ -87,7 +92,7 @@ impl RandomSpec {
     /// range it accepts, and the field itself.
     const FIELDS: [SpecField; 6] = [
         ("v0_kmh", 0.0, 200.0, |s| &mut s.v0_kmh),
-        ("torque", 0.0, 10_000.0, |s| &mut s.torque),
+        ("torque", 0.0, TORQUE_MAX_NM, |s| &mut s.torque),
         ("min_len_m", 0.01, 10_000.0, |s| &mut s.min_len_m),
         ("max_len_m", 0.01, 10_000.0, |s| &mut s.max_len_m),
         ("cover_m", 0.01, 10_000.0, |s| &mut s.cover_m),

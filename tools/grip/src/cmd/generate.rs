@@ -141,13 +141,11 @@ fn parse_range(s: &str) -> Result<(f64, f64), String> {
     Ok((a, b))
 }
 
-/// The largest `--torque`, N m: the demand on one driven wheel, the bound
-/// `--random torque=` has (`grip_sim::random`), far above any car's (the
-/// shipped vehicles' `torque_max` is 1000 N m; the bus's `TorqueDemand`
-/// carries 3276.7). The vehicle's own `torque_max` limits it further,
-/// checked with each log's scenario. Without a bound a range such as
-/// `0:1.79e308` drew infinite demands (`got inf`).
-const TORQUE_MAX_NM: f64 = 10_000.0;
+// The largest `--torque`, N m: `--random torque=`'s bound (the vehicle's
+// own `torque_max` limits it further, checked with each log's scenario).
+// Without a bound a range such as `0:1.79e308` drew infinite demands
+// (`got inf`).
+use grip_sim::random::TORQUE_MAX_NM;
 
 /// `--torque`: [`parse_range`]'s range, with the text as the user typed it
 /// for the errors that name it.
