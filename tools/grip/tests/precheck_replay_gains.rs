@@ -146,3 +146,34 @@ fn replay_says_when_the_sensors_are_noisier_than_the_road_belief_assumes() {
     assert!(ok, "{out}{err}");
     assert!(!err.contains("[sensors] give a measured slip"), "{err}");
 }
+
+/// The `--set`s named after a warning are those on the files its checks
+/// read: roads.toml for MFC's bound (per road), not for SRC's gains.
+#[test]
+fn the_sets_named_are_those_the_check_reads() {
+    let snow = ["--set", "roads.toml:road[snow].c1=0.2"];
+    let (ok, out, err) = replay(&[&["--controller", "src"][..], &QUICK_MOTOR, &snow].concat());
+    assert!(ok, "{out}{err}");
+    let warned = gain_warnings(&err, "[src]");
+    assert_eq!(warned.len(), 1, "{err}");
+    assert!(
+        warned[0].ends_with("(the replay's, with --set vehicle.j_w=1.2, --set vehicle.tau_m=0.02)"),
+        "{err}"
+    );
+    let (ok, out, err) = replay(
+        &[
+            &["--controller", "mfc", "--set", "mfc.k_mfc=400"][..],
+            &snow,
+        ]
+        .concat(),
+    );
+    assert!(ok, "{out}{err}");
+    let warned = gain_warnings(&err, "[mfc]");
+    assert_eq!(warned.len(), 1, "{err}");
+    assert!(
+        warned[0].ends_with(
+            "(the replay's, with --set mfc.k_mfc=400, --set roads.toml:road[snow].c1=0.2)"
+        ),
+        "{err}"
+    );
+}

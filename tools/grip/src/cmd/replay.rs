@@ -582,7 +582,8 @@ fn start_warnings(
     let files = [
         on(&loaded.vehicle_path),
         on(&loaded.controllers_path),
-        Some(PathBuf::from("roads.toml")),
+        (lp.controller_kind() == grip_tcs::ControllerKind::Mfc)
+            .then(|| PathBuf::from("roads.toml")),
     ];
     let sets: Vec<String> = cfg
         .applied
