@@ -229,6 +229,23 @@ pub const REPLAY_VEHICLE_ATTACHMENT: &str = "replay/vehicle.toml";
 /// when it was given as a path ([`DrivePlan::scenario_file`]).
 pub const SCENARIO_ATTACHMENT: &str = "drive/scenario.toml";
 
+/// The files a drive's recorder attaches (its `--attach NAME=FILE`): a
+/// scenario given as a path ([`SCENARIO_ATTACHMENT`]) and a `--vehicle`
+/// file ([`VEHICLE_ATTACHMENT`]). [`DrivePlan::args`] passes them, and
+/// `grip drive` checks them with the recorder's start-up checks first.
+pub fn recorder_attachments<'a>(
+    scenario_file: Option<&'a Path>,
+    vehicle: Option<&'a Path>,
+) -> Vec<(&'static str, &'a Path)> {
+    [
+        (SCENARIO_ATTACHMENT, scenario_file),
+        (VEHICLE_ATTACHMENT, vehicle),
+    ]
+    .into_iter()
+    .filter_map(|(name, file)| Some((name, file?)))
+    .collect()
+}
+
 /// `grip drive`'s default controller.
 pub const DEFAULT_CONTROLLER: &str = "mtte";
 /// `grip drive`'s default plant sensor-noise seed.
@@ -286,17 +303,14 @@ impl DrivePlan {
                 }
                 if let Some(f) = &self.scenario_file {
                     a.extend([s("--meta"), format!("scenario_file={}", f.display())]);
-                    a.extend([
-                        s("--attach"),
-                        format!("{SCENARIO_ATTACHMENT}={}", f.display()),
-                    ]);
                 }
                 if let Some(v) = &self.vehicle {
                     a.extend([s("--meta"), format!("vehicle={}", v.display())]);
-                    a.extend([
-                        s("--attach"),
-                        format!("{VEHICLE_ATTACHMENT}={}", v.display()),
-                    ]);
+                }
+                for (name, file) in
+                    recorder_attachments(self.scenario_file.as_deref(), self.vehicle.as_deref())
+                {
+                    a.extend([s("--attach"), format!("{name}={}", file.display())]);
                 }
             }
             Service::PlantSim => {

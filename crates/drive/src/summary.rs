@@ -1643,6 +1643,9 @@ fn fault_delta(a: &E2eFaults, b: &E2eFaults) -> E2eFaults {
     }
 }
 
+/// How the summary names a drive's bus when its log attaches no DBC.
+const BUILTIN_PROTOCOL: &str = "the built-in protocol";
+
 /// Truth in effect at `t_ns` (the last sample at or before it).
 pub fn truth_at(truth: &[GroundTruth], t_ns: u64) -> Option<&GroundTruth> {
     let i = truth.partition_point(|g| g.stamp_ns <= t_ns);
@@ -2044,11 +2047,10 @@ pub fn summarize(
         .attachment_text("can.toml")
         .and_then(|t| grip_io::service::parse_can(std::path::Path::new("can.toml"), t).ok())
         .and_then(|c| c.dbc);
-    s.can.bus = dbc.as_ref().map_or_else(
-        || "the built-in protocol".to_owned(),
-        |d| format!("{d}, attached"),
-    );
-    let dbc = dbc.unwrap_or_else(|| "the built-in protocol".to_owned());
+    s.can.bus = dbc
+        .as_ref()
+        .map_or_else(|| BUILTIN_PROTOCOL.to_owned(), |d| format!("{d}, attached"));
+    let dbc = dbc.unwrap_or_else(|| BUILTIN_PROTOCOL.to_owned());
     let protocol = log.protocol().unwrap_or_else(|e| {
         s.warnings
             .push(format!("CAN frames named by the built-in protocol: {e}"));

@@ -355,7 +355,6 @@ pub fn fit_calibration(
 ) -> Result<(StreamCalibration, String)> {
     let method = Method::from_name(&fit.calib_method)
         .with_context(|| format!("--calib-method: `{}` is unknown", fit.calib_method))?;
-    fit.check()?;
     let scfg = fit.stream_config();
     let uncalibrated = model.clone().with_calibration(None)?;
     let fcfg = uncalibrated.feature_config().clone();

@@ -415,13 +415,10 @@ fn recorder_options(
     scenario_file: Option<&std::path::Path>,
     vehicle: Option<&std::path::Path>,
 ) -> grip_recorder::Options {
-    let attach = [
-        (drive::plan::SCENARIO_ATTACHMENT, scenario_file),
-        (drive::plan::VEHICLE_ATTACHMENT, vehicle),
-    ]
-    .into_iter()
-    .filter_map(|(name, file)| Some((name.to_owned(), file?.to_path_buf())))
-    .collect();
+    let attach = drive::plan::recorder_attachments(scenario_file, vehicle)
+        .into_iter()
+        .map(|(name, file)| (name.to_owned(), file.to_path_buf()))
+        .collect();
     grip_recorder::Options {
         config: grip_io::service::ConfigArgs::in_dir(config_dir),
         out: None,
