@@ -5,7 +5,9 @@
 //! and by the CSV's `controller` and `arte`, not only by their file names;
 //! the CSV's run and vehicle columns hold what `grip inspect --json` gives.
 //! A log copied to a name with a space is one quoted cell of the printed
-//! table, whose other columns keep their places.
+//! table, whose other columns keep their places. Drives of one scenario,
+//! controller, vehicle and seed with ARTE on and off are paired, their
+//! ratios those of the CSV's figures.
 
 mod common;
 
@@ -21,6 +23,18 @@ fn json_of(path: &Path) -> Value {
     let (ok, out, err) = common::output(&["inspect".as_ref(), "--json".as_ref(), path.as_os_str()]);
     assert!(ok, "{out}{err}");
     serde_json::from_str(out.lines().next().unwrap()).unwrap()
+}
+
+/// `grip inspect DIR --csv`'s header and rows.
+fn csv_table(csv: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(csv).unwrap();
+    let mut rd = csv::Reader::from_reader(text.as_bytes());
+    let header: Vec<String> = rd.headers().unwrap().iter().map(str::to_owned).collect();
+    let rows: Vec<Vec<String>> = rd
+        .records()
+        .map(|r| r.unwrap().iter().map(str::to_owned).collect())
+        .collect();
+    (header, rows)
 }
 
 #[test]
@@ -75,13 +89,7 @@ fn inspect_dir_tells_the_runs_apart() {
     );
 
     // the CSV: as --json gives them
-    let text = std::fs::read_to_string(&csv).unwrap();
-    let mut rd = csv::Reader::from_reader(text.as_bytes());
-    let header: Vec<String> = rd.headers().unwrap().iter().map(str::to_owned).collect();
-    let rows: Vec<Vec<String>> = rd
-        .records()
-        .map(|r| r.unwrap().iter().map(str::to_owned).collect())
-        .collect();
+    let (header, rows) = csv_table(&csv);
     for (file, path) in [("on.mcap", &on), ("off.mcap", &off)] {
         let j = json_of(path);
         let r = rows.iter().find(|r| r[0] == file).unwrap();
@@ -97,7 +105,22 @@ fn inspect_dir_tells_the_runs_apart() {
             "{file}: mic_lead_m"
         );
         assert_eq!(col("vehicle"), "vehicle.toml (attached to the log)");
+        // the ground truth's figures, as --json's metrics, to the last bit
+        for c in [
+            "slip_deviation",
+            "mean_accel_ms2",
+            "kinetic_energy_gain_j",
+            "cmd_tv_per_s",
+        ] {
+            assert_eq!(
+                col(c).parse::<f64>().ok(),
+                j["metrics"][c].as_f64(),
+                "{file} {c}"
+            );
+        }
     }
+    // a replay does not pair with the drive it replays
+    assert!(!out.contains("ARTE on against off"), "{out}");
     let col = |file: &str, c: &str| {
         let r = rows.iter().find(|r| r[0] == file).unwrap();
         r[header.iter().position(|h| h == c).unwrap()].clone()
@@ -149,4 +172,85 @@ fn inspect_dir_quotes_a_file_name_with_a_space() {
     let mut rd = csv::Reader::from_reader(text.as_bytes());
     let files: Vec<String> = rd.records().map(|r| r.unwrap()[0].to_owned()).collect();
     assert_eq!(files, ["my drive.mcap", "on.mcap"]);
+}
+
+/// Two seeds of `grip generate`, each with ARTE on and off, in one
+/// directory: the "ARTE on against off" block pairs them by seed and gives
+/// the mean, least and greatest of the ratios the CSV's figures make.
+#[test]
+fn inspect_dir_pairs_arte_on_with_off() {
+    let d = tempfile::tempdir().unwrap();
+    let all = d.path().join("all");
+    std::fs::create_dir(&all).unwrap();
+    for arte in ["on", "off"] {
+        let gen_dir = d.path().join(arte);
+        let (ok, out, err) = common::output(&[
+            "generate".as_ref(),
+            "--out".as_ref(),
+            gen_dir.as_os_str(),
+            "--count".as_ref(),
+            "2".as_ref(),
+            "--scenario".as_ref(),
+            "paper".as_ref(),
+            "--arte".as_ref(),
+            arte.as_ref(),
+        ]);
+        assert!(ok, "{out}{err}");
+        for seed in [1, 2] {
+            let from = gen_dir.join(format!("gen-0000{}-s{seed}.mcap", seed - 1));
+            std::fs::rename(from, all.join(format!("{arte}-{seed}.mcap"))).unwrap();
+        }
+    }
+    let (ok, out, err, csv) = common::inspect_dir(&all);
+    assert!(ok, "{out}{err}");
+    let (header, rows) = csv_table(&csv);
+    let value = |file: &str, c: &str| -> f64 {
+        let r = rows.iter().find(|r| r[0] == file).unwrap();
+        r[header.iter().position(|h| h == c).unwrap()]
+            .parse()
+            .unwrap()
+    };
+    // the ratios on/off of seeds 1 and 2: mean [least, greatest]
+    let cell = |c: &str, decimals: usize| -> Vec<String> {
+        let q: Vec<f64> = [1, 2]
+            .iter()
+            .map(|s| value(&format!("on-{s}.mcap"), c) / value(&format!("off-{s}.mcap"), c))
+            .collect();
+        let (lo, hi) = (q[0].min(q[1]), q[0].max(q[1]));
+        vec![
+            format!("{:.decimals$}x", (q[0] + q[1]) / 2.0),
+            format!("[{lo:.decimals$},"),
+            format!("{hi:.decimals$}]"),
+        ]
+    };
+    let at_least = [1, 2]
+        .iter()
+        .filter(|s| {
+            value(&format!("on-{s}.mcap"), "mean_accel_ms2")
+                >= value(&format!("off-{s}.mcap"), "mean_accel_ms2")
+        })
+        .count();
+    let mut want: Vec<String> = ["paper", "mtte", "vehicle.toml", "2"]
+        .iter()
+        .map(|s| (*s).to_owned())
+        .collect();
+    want.extend(cell("slip_deviation", 3));
+    want.extend(cell("mean_accel_ms2", 4));
+    want.push(format!("{at_least}/2"));
+    want.extend(cell("cmd_tv_per_s", 2));
+    let block = &out[out
+        .find("ARTE on against off")
+        .unwrap_or_else(|| panic!("no pairs in\n{out}"))..];
+    let line = block
+        .lines()
+        .find(|l| l.starts_with("paper "))
+        .unwrap_or_else(|| panic!("{block}"));
+    assert_eq!(line.split_whitespace().collect::<Vec<_>>(), want, "{block}");
+    // the road estimate cuts the generated drives' slip
+    assert!(value("on-1.mcap", "slip_deviation") < value("off-1.mcap", "slip_deviation"));
+    let words = block.split_whitespace().collect::<Vec<_>>().join(" ");
+    assert!(
+        words.contains("4 of 4 complete drives (not replays) paired"),
+        "{block}"
+    );
 }

@@ -16,7 +16,9 @@ use grip_drive::{self as drive, DriveLog, summary};
 pub struct Args {
     /// The MCAP log (from `grip drive` or the recorder service); with a
     /// second log, the two side by side (e.g. `grip inspect on.mcap
-    /// off.mcap`); or a directory of logs (one row per drive).
+    /// off.mcap`); or a directory of logs (one row per drive, then the
+    /// drives with ARTE on and off of one scenario, controller, vehicle and
+    /// seed paired: the ratios on/off).
     #[arg(required = true, num_args = 1..=2)]
     logs: Vec<PathBuf>,
     /// One log: write cycles.csv, estimates.csv, truth.csv and can.csv into

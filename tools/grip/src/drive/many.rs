@@ -58,10 +58,11 @@ pub fn bar(n: usize, what: &str) -> indicatif::ProgressBar {
 /// `MotorStatus` frames; the `replay_` ones are a `grip replay --out`
 /// log's source, mode and what-if changes, [`grip_drive::summary::ReplayInfo`],
 /// empty for a drive's log). The vehicle, the seed and the replay come
-/// after the whole log's figures, not beside the controller: the first
-/// nine columns and the last fourteen keep their places for readers that
-/// count them.
-pub const COLUMNS: [&str; 48] = [
+/// after the whole log's figures, not beside the controller, and the
+/// ground truth's mean acceleration, kinetic energy gain and command
+/// variation (2026-12-08) after its energy: the first nine columns and the
+/// last fourteen keep their places for readers that count them.
+pub const COLUMNS: [&str; 51] = [
     "file",
     "status",
     "reason",
@@ -75,6 +76,9 @@ pub const COLUMNS: [&str; 48] = [
     "torque_effort_nm",
     "distance_m",
     "energy_j",
+    "mean_accel_ms2",
+    "kinetic_energy_gain_j",
+    "cmd_tv_per_s",
     "arte_estimates",
     "arte_accuracy",
     "road_changes",
@@ -221,6 +225,9 @@ fn row_of(file: String, log: &DriveLog, config_dir: &Path) -> (Vec<String>, bool
         set("torque_effort_nm", num(m.torque_effort));
         set("distance_m", num(m.distance));
         set("energy_j", num(m.energy));
+        set("mean_accel_ms2", num(m.mean_accel));
+        set("kinetic_energy_gain_j", num(m.kinetic_energy_gain));
+        set("cmd_tv_per_s", num(m.cmd_tv_per_s));
     }
     set("arte_estimates", s.arte.estimates.to_string());
     set("arte_accuracy", num(s.arte.accuracy()));
@@ -396,7 +403,7 @@ type TextColumn = (&'static str, bool, fn(&[String]) -> String);
 
 /// The printed table's columns: the run (controller, ARTE, vehicle, seed)
 /// beside the file and its status, then the figures.
-const TEXT_COLUMNS: [TextColumn; 23] = [
+const TEXT_COLUMNS: [TextColumn; 25] = [
     ("file", true, |r| file_cell(field(r, "file"))),
     ("status", true, |r| count(field(r, "status"))),
     ("ctrl", true, |r| count(field(r, "controller"))),
@@ -409,8 +416,14 @@ const TEXT_COLUMNS: [TextColumn; 23] = [
     ("slip_dev", false, |r| {
         rounded(field(r, "slip_deviation"), 1.0, 4)
     }),
+    ("accel", false, |r| {
+        rounded(field(r, "mean_accel_ms2"), 1.0, 3)
+    }),
     ("effort", false, |r| {
         rounded(field(r, "torque_effort_nm"), 1.0, 1)
+    }),
+    ("cmd_tv", false, |r| {
+        rounded(field(r, "cmd_tv_per_s"), 1.0, 0)
     }),
     ("dist_m", false, |r| rounded(field(r, "distance_m"), 1.0, 2)),
     ("arte_acc_%", false, |r| {
@@ -460,7 +473,7 @@ const TEXT_COLUMNS: [TextColumn; 23] = [
 /// The printed table's key, one entry each ([`wrap`]ped).
 const KEY: [&str; 5] = [
     "ctrl, arte, seed: the controller, ARTE switch and seed the drive ran with, as grip inspect LOG and A B give them (grip.run; a replay's own controller and ARTE switch); vehicle: the vehicle file the summary used, * when the log does not carry it (the configuration directory's, read from disk, or the defaults); --csv adds where it came from, its SHA-256 and the microphone's lead",
-    "during the scenario window: the metrics (slip_dev, effort N m, dist_m), arte_acc_% (ARTE accuracy, %), delay_s (mean detection delay of the road changes detected), missed (road changes at the microphone not detected, of all), deadline_misses (the control loop's missed deadlines) and faults (E2E faults)",
+    "during the scenario window: the metrics of the ground truth (slip_dev; accel, the mean acceleration, m/s^2; effort, N m; cmd_tv, the command's total variation, N m/s; dist_m), arte_acc_% (ARTE accuracy, %), delay_s (mean detection delay of the road changes detected), missed (road changes at the microphone not detected, of all), deadline_misses (the control loop's missed deadlines) and faults (E2E faults)",
     "inv_faults and inv_derate: the inverter's fault and derating episodes from its MotorStatus frames, during the scenario window (over the whole log when the log has none; - without MotorStatus frames)",
     "measured by the loop, NOT ground truth (over the scenario window, else the time the driver demanded torque): m_slip (mean |slip|), m_max (max |slip|), spins (spin events), m_accel (mean acceleration from V, m/s^2)",
     "control: LOST when control was lost and not regained in the scenario window; window: how much of the scenario the log covers; a missing figure is -; --csv FILE: every column at full precision",
@@ -500,10 +513,24 @@ pub fn table(rows: &[Vec<String>]) -> String {
         .iter()
         .map(|r| TEXT_COLUMNS.iter().map(|(_, _, f)| f(r)).collect())
         .collect();
-    let widths: Vec<usize> = TEXT_COLUMNS
+    let heads: Vec<(&str, bool)> = TEXT_COLUMNS.iter().map(|(h, l, _)| (*h, *l)).collect();
+    let mut text = aligned(&heads, &cells);
+    for entry in KEY {
+        for l in wrap(entry, KEY_WIDTH) {
+            let _ = writeln!(text, "{l}");
+        }
+    }
+    text
+}
+
+/// A text table: the heads (each with whether it is aligned left) and
+/// the rows of cells, each column as wide as its widest cell, one space
+/// between columns, no trailing space.
+fn aligned(heads: &[(&str, bool)], cells: &[Vec<String>]) -> String {
+    let widths: Vec<usize> = heads
         .iter()
         .enumerate()
-        .map(|(i, (head, _, _))| {
+        .map(|(i, (head, _))| {
             cells
                 .iter()
                 .map(|c| c[i].chars().count())
@@ -515,7 +542,7 @@ pub fn table(rows: &[Vec<String>]) -> String {
     let line = |cells: &mut dyn Iterator<Item = &str>| -> String {
         let mut l = String::new();
         for (i, c) in cells.enumerate() {
-            let (w, left) = (widths[i], TEXT_COLUMNS[i].1);
+            let (w, left) = (widths[i], heads[i].1);
             if i > 0 {
                 l.push(' ');
             }
@@ -528,20 +555,137 @@ pub fn table(rows: &[Vec<String>]) -> String {
         l.trim_end().to_owned()
     };
     let mut text = String::new();
-    let _ = writeln!(
-        text,
-        "{}",
-        line(&mut TEXT_COLUMNS.iter().map(|(h, _, _)| *h))
-    );
-    for c in &cells {
+    let _ = writeln!(text, "{}", line(&mut heads.iter().map(|(h, _)| *h)));
+    for c in cells {
         let _ = writeln!(text, "{}", line(&mut c.iter().map(String::as_str)));
     }
-    for entry in KEY {
-        for l in wrap(entry, KEY_WIDTH) {
-            let _ = writeln!(text, "{l}");
+    text
+}
+
+/// What pairs an `--arte on` drive with an `--arte off` one: the same
+/// scenario, controller, vehicle (its SHA-256, else the name the summary
+/// gives it) and seed.
+type PairKey = (String, String, String, String);
+
+/// `grip inspect DIR`'s "ARTE on against off" block, when DIR holds drives
+/// that pair: per scenario, controller and vehicle, the pairs' ratios
+/// on/off (slip deviation, mean acceleration, the command's total
+/// variation per second: the ground truth's, over the scenario window),
+/// their mean, least and greatest, and in how many pairs the drive with
+/// ARTE had at least its partner's acceleration. Only logs read whole
+/// (`ok`) that cover the scenario (`complete`) and are not `grip replay`
+/// logs pair; with more than one drive on a side of a key they pair in
+/// file order. `None` when nothing pairs.
+pub fn pairs(rows: &[Vec<String>]) -> Option<String> {
+    let mut sides: std::collections::BTreeMap<PairKey, [Vec<&Vec<String>>; 2]> =
+        std::collections::BTreeMap::new();
+    let mut considered = 0;
+    for r in rows {
+        let side = match field(r, "arte") {
+            "on" => 0,
+            "off" => 1,
+            _ => continue,
+        };
+        if field(r, "status") != "ok"
+            || field(r, "scenario_window") != "complete"
+            || !field(r, "replay_source").is_empty()
+        {
+            continue;
+        }
+        considered += 1;
+        let vehicle = match field(r, "vehicle_sha256") {
+            "" => vehicle_name(field(r, "vehicle"), ""),
+            sha => sha.to_owned(),
+        };
+        let key = (
+            field(r, "scenario").to_owned(),
+            field(r, "controller").to_owned(),
+            vehicle,
+            field(r, "seed").to_owned(),
+        );
+        sides.entry(key).or_default()[side].push(r);
+    }
+    let ratio = |on: &[String], off: &[String], col: &str| -> Option<f64> {
+        let (a, b) = (
+            field(on, col).parse::<f64>().ok()?,
+            field(off, col).parse::<f64>().ok()?,
+        );
+        (a.is_finite() && b.is_finite() && b != 0.0).then_some(a / b)
+    };
+    // (scenario, controller, vehicle shown) -> per pair [slip, accel, tv]
+    let mut groups: std::collections::BTreeMap<(String, String, String), Vec<[f64; 3]>> =
+        std::collections::BTreeMap::new();
+    let mut paired = 0;
+    for ((scenario, controller, _, _), [on, off]) in &sides {
+        for (a, b) in on.iter().zip(off) {
+            let (Some(s), Some(acc), Some(tv)) = (
+                ratio(a, b, "slip_deviation"),
+                ratio(a, b, "mean_accel_ms2"),
+                ratio(a, b, "cmd_tv_per_s"),
+            ) else {
+                continue;
+            };
+            paired += 2;
+            let shown = vehicle_name(field(a, "vehicle"), field(a, "vehicle_sha256"));
+            groups
+                .entry((scenario.clone(), controller.clone(), shown))
+                .or_default()
+                .push([s, acc, tv]);
         }
     }
-    text
+    if groups.is_empty() {
+        return None;
+    }
+    let spread = |v: &[[f64; 3]], k: usize, decimals: usize| -> String {
+        let xs: Vec<f64> = v.iter().map(|p| p[k]).collect();
+        let mean = xs.iter().sum::<f64>() / xs.len() as f64;
+        let (lo, hi) = xs
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &x| {
+                (l.min(x), h.max(x))
+            });
+        format!("{mean:.decimals$}x [{lo:.decimals$}, {hi:.decimals$}]")
+    };
+    let cells: Vec<Vec<String>> = groups
+        .iter()
+        .map(|((scenario, controller, vehicle), v)| {
+            let at_least = v.iter().filter(|p| p[1] >= 1.0).count();
+            vec![
+                count(scenario),
+                count(controller),
+                vehicle.clone(),
+                v.len().to_string(),
+                spread(v, 0, 3),
+                spread(v, 1, 4),
+                format!("{at_least}/{}", v.len()),
+                spread(v, 2, 2),
+            ]
+        })
+        .collect();
+    let heads = [
+        ("scenario", true),
+        ("ctrl", true),
+        ("vehicle", true),
+        ("pairs", false),
+        ("slip_dev", true),
+        ("accel", true),
+        ("accel>=1", false),
+        ("cmd_tv", true),
+    ];
+    let mut text = String::from(
+        "\nARTE on against off (drives of one scenario, controller, vehicle and seed, one with ARTE on and one off):\n",
+    );
+    text.push_str(&aligned(&heads, &cells));
+    for l in wrap(
+        &format!(
+            "ratios on/off per pair of the ground truth's figures over the scenario window, their mean [least, greatest]; accel>=1: pairs whose drive with ARTE had at least its partner's mean acceleration; {} of {considered} complete drives (not replays) paired",
+            paired
+        ),
+        KEY_WIDTH,
+    ) {
+        let _ = writeln!(text, "{l}");
+    }
+    Some(text)
 }
 
 /// `grip inspect DIR [--csv FILE] [--strict]`.
@@ -564,6 +708,9 @@ pub fn inspect_dir(ctx: &Ctx, dir: &Path, csv: Option<&Path>, strict: bool) -> a
     pb.finish_and_clear();
     let text = table(&rows);
     print!("{text}");
+    if let Some(p) = pairs(&rows) {
+        print!("{p}");
+    }
     println!(
         "{} logs, {} bad{}",
         rows.len(),
@@ -619,6 +766,96 @@ mod tests {
     /// file the summary used, with its SHA-256 and the microphone's lead;
     /// the table had no such column, so an ARTE-on and an ARTE-off drive
     /// differed only by file name.
+    /// A row of [`COLUMNS`] with `fields` set and the rest empty.
+    fn row_with(fields: &[(&str, &str)]) -> Vec<String> {
+        let mut r = vec![String::new(); COLUMNS.len()];
+        for (k, v) in fields {
+            r[at(k)] = (*v).to_owned();
+        }
+        r
+    }
+
+    /// A complete drive's row: `arte` on or off, `seed`, the vehicle's
+    /// SHA-256 `sha`, and its slip, acceleration and command variation.
+    fn drive_row(arte: &str, seed: &str, sha: &str, figures: [&str; 3]) -> Vec<String> {
+        row_with(&[
+            ("file", "x.mcap"),
+            ("status", "ok"),
+            ("scenario", "paper"),
+            ("controller", "mtte"),
+            ("arte", arte),
+            ("seed", seed),
+            (
+                "vehicle",
+                "/cfg/vehicles/front-mic.toml (attached to the log)",
+            ),
+            ("vehicle_sha256", sha),
+            ("scenario_window", "complete"),
+            ("slip_deviation", figures[0]),
+            ("mean_accel_ms2", figures[1]),
+            ("cmd_tv_per_s", figures[2]),
+        ])
+    }
+
+    /// `grip inspect DIR`'s pairs: one scenario, controller, vehicle and
+    /// seed with ARTE on and off; the ratios' mean, least and greatest,
+    /// and how many pairs kept their partner's acceleration; a replay, a
+    /// partial log, another seed or another vehicle does not pair.
+    #[test]
+    fn on_and_off_drives_pair_by_run() {
+        let mut rows = vec![
+            drive_row("on", "1", "aa", ["0.02", "1.05", "300"]),
+            drive_row("off", "1", "aa", ["0.2", "1.0", "250"]),
+            drive_row("off", "2", "aa", ["0.1", "1.0", "200"]),
+            drive_row("on", "2", "aa", ["0.03", "0.98", "100"]),
+            // no partner: seed 3 only on, seed 4 on another vehicle's off
+            drive_row("on", "3", "aa", ["0.02", "1.0", "1"]),
+            drive_row("on", "4", "aa", ["0.02", "1.0", "1"]),
+            drive_row("off", "4", "bb", ["0.2", "1.0", "1"]),
+        ];
+        // a replay and a partial drive of seed 5 never pair
+        let mut replay = drive_row("on", "5", "aa", ["0.02", "1.0", "1"]);
+        replay[at("replay_source")] = "drive.mcap".into();
+        let mut partial = drive_row("off", "5", "aa", ["0.2", "1.0", "1"]);
+        partial[at("scenario_window")] = "partial".into();
+        rows.extend([replay, partial]);
+        let text = pairs(&rows).expect("two pairs");
+        let line = text
+            .lines()
+            .find(|l| l.starts_with("paper "))
+            .unwrap_or_else(|| panic!("{text}"));
+        let cells: Vec<&str> = line.split_whitespace().collect();
+        // slip 0.1x and 0.3x, accel 1.05x and 0.98x, command 1.2x and 0.5x
+        assert_eq!(
+            cells,
+            [
+                "paper",
+                "mtte",
+                "front-mic.toml",
+                "2",
+                "0.200x",
+                "[0.100,",
+                "0.300]",
+                "1.0150x",
+                "[0.9800,",
+                "1.0500]",
+                "1/2",
+                "0.85x",
+                "[0.50,",
+                "1.20]"
+            ],
+            "{text}"
+        );
+        assert_eq!(text.lines().filter(|l| l.starts_with("paper ")).count(), 1);
+        let words = text.split_whitespace().collect::<Vec<_>>().join(" ");
+        assert!(
+            words.contains("4 of 7 complete drives (not replays) paired"),
+            "{text}"
+        );
+        // nothing pairs: no block
+        assert_eq!(pairs(&rows[4..]), None);
+    }
+
     #[test]
     fn each_row_names_its_run() {
         let on = drive_with_vehicle();
