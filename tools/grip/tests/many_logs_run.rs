@@ -55,6 +55,18 @@ fn inspect_dir_tells_the_runs_apart() {
         off.as_os_str(),
     ]);
     assert!(ok, "{out}{err}");
+    // a replay with ARTE off alone: the drive's scenario, controller,
+    // vehicle and seed, which would pair with it were it a drive
+    let mtte_off = d.path().join("replay-off.mcap");
+    let (ok, out, err) = common::output(&[
+        "replay".as_ref(),
+        r.as_os_str(),
+        "--arte".as_ref(),
+        "off".as_ref(),
+        "--out".as_ref(),
+        mtte_off.as_os_str(),
+    ]);
+    assert!(ok, "{out}{err}");
     let (ok, out, err, csv) = common::inspect_dir(d.path());
     assert!(ok, "{out}{err}");
 
@@ -119,12 +131,19 @@ fn inspect_dir_tells_the_runs_apart() {
             );
         }
     }
-    // a replay does not pair with the drive it replays
-    assert!(!out.contains("ARTE on against off"), "{out}");
     let col = |file: &str, c: &str| {
         let r = rows.iter().find(|r| r[0] == file).unwrap();
         r[header.iter().position(|h| h == c).unwrap()].clone()
     };
+    // a replay does not pair with the drive it replays
+    assert_eq!(
+        (
+            col("replay-off.mcap", "controller"),
+            col("replay-off.mcap", "arte")
+        ),
+        ("mtte".to_owned(), "off".to_owned())
+    );
+    assert!(!out.contains("ARTE on against off"), "{out}");
     assert_eq!(
         (col("on.mcap", "arte"), col("off.mcap", "arte")),
         ("on".to_owned(), "off".to_owned())

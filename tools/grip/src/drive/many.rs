@@ -562,6 +562,18 @@ fn aligned(heads: &[(&str, bool)], cells: &[Vec<String>]) -> String {
     text
 }
 
+/// The key under `grip inspect DIR`'s pairs.
+const PAIRS_KEY: &str = "ratios on/off per pair of the ground truth's figures over the scenario window, their mean [least, greatest]; accel>=1: pairs whose drive with ARTE had at least its partner's mean acceleration; vehicle@HEX: two vehicle files of one name told apart by their SHA-256; a pair whose drive without ARTE has a figure that is not positive is left out";
+
+/// A row's vehicle as pairs compare it: the file's SHA-256, else (a log
+/// that does not carry it) the name the table shows.
+fn vehicle_key(r: &[String]) -> String {
+    match field(r, "vehicle_sha256") {
+        "" => vehicle_name(field(r, "vehicle"), ""),
+        sha => sha.to_owned(),
+    }
+}
+
 /// What pairs an `--arte on` drive with an `--arte off` one: the same
 /// scenario, controller, vehicle (its SHA-256, else the name the summary
 /// gives it) and seed.
@@ -573,9 +585,12 @@ type PairKey = (String, String, String, String);
 /// variation per second: the ground truth's, over the scenario window),
 /// their mean, least and greatest, and in how many pairs the drive with
 /// ARTE had at least its partner's acceleration. Only logs read whole
-/// (`ok`) that cover the scenario (`complete`) and are not `grip replay`
-/// logs pair; with more than one drive on a side of a key they pair in
-/// file order. `None` when nothing pairs.
+/// (`ok`) that cover the scenario (`complete`), name their scenario,
+/// controller and seed and are not `grip replay` logs pair; with more than
+/// one drive on a side of a key they pair in file order; a pair whose
+/// drive without ARTE has a figure that is not positive (no ratio to take:
+/// a car that rolled back has a negative acceleration) is left out.
+/// `None` when nothing pairs.
 pub fn pairs(rows: &[Vec<String>]) -> Option<String> {
     let mut sides: std::collections::BTreeMap<PairKey, [Vec<&Vec<String>>; 2]> =
         std::collections::BTreeMap::new();
@@ -593,30 +608,37 @@ pub fn pairs(rows: &[Vec<String>]) -> Option<String> {
             continue;
         }
         considered += 1;
-        let vehicle = match field(r, "vehicle_sha256") {
-            "" => vehicle_name(field(r, "vehicle"), ""),
-            sha => sha.to_owned(),
-        };
+        let (scenario, controller, seed) = (
+            field(r, "scenario"),
+            field(r, "controller"),
+            field(r, "seed"),
+        );
+        if scenario.is_empty() || controller.is_empty() || seed.is_empty() {
+            continue;
+        }
         let key = (
-            field(r, "scenario").to_owned(),
-            field(r, "controller").to_owned(),
-            vehicle,
-            field(r, "seed").to_owned(),
+            scenario.to_owned(),
+            controller.to_owned(),
+            vehicle_key(r),
+            seed.to_owned(),
         );
         sides.entry(key).or_default()[side].push(r);
     }
+    // a ratio on/off of figures whose baseline is positive
     let ratio = |on: &[String], off: &[String], col: &str| -> Option<f64> {
         let (a, b) = (
             field(on, col).parse::<f64>().ok()?,
             field(off, col).parse::<f64>().ok()?,
         );
-        (a.is_finite() && b.is_finite() && b != 0.0).then_some(a / b)
+        (a.is_finite() && b.is_finite() && b > 0.0).then_some(a / b)
     };
-    // (scenario, controller, vehicle shown) -> per pair [slip, accel, tv]
-    let mut groups: std::collections::BTreeMap<(String, String, String), Vec<[f64; 3]>> =
+    // (scenario, controller, vehicle key) -> (vehicle shown, per pair
+    // [slip, accel, tv, 1 if the accel kept its partner's])
+    type Group = (String, Vec<[f64; 4]>);
+    let mut groups: std::collections::BTreeMap<(String, String, String), Group> =
         std::collections::BTreeMap::new();
     let mut paired = 0;
-    for ((scenario, controller, _, _), [on, off]) in &sides {
+    for ((scenario, controller, vehicle, _), [on, off]) in &sides {
         for (a, b) in on.iter().zip(off) {
             let (Some(s), Some(acc), Some(tv)) = (
                 ratio(a, b, "slip_deviation"),
@@ -626,17 +648,23 @@ pub fn pairs(rows: &[Vec<String>]) -> Option<String> {
                 continue;
             };
             paired += 2;
-            let shown = vehicle_name(field(a, "vehicle"), field(a, "vehicle_sha256"));
+            let kept = if acc >= 1.0 { 1.0 } else { 0.0 };
             groups
-                .entry((scenario.clone(), controller.clone(), shown))
-                .or_default()
-                .push([s, acc, tv]);
+                .entry((scenario.clone(), controller.clone(), vehicle.clone()))
+                .or_insert_with(|| {
+                    (
+                        vehicle_name(field(a, "vehicle"), field(a, "vehicle_sha256")),
+                        Vec::new(),
+                    )
+                })
+                .1
+                .push([s, acc, tv, kept]);
         }
     }
     if groups.is_empty() {
         return None;
     }
-    let spread = |v: &[[f64; 3]], k: usize, decimals: usize| -> String {
+    let spread = |v: &[[f64; 4]], k: usize, decimals: usize| -> String {
         let xs: Vec<f64> = v.iter().map(|p| p[k]).collect();
         let mean = xs.iter().sum::<f64>() / xs.len() as f64;
         let (lo, hi) = xs
@@ -646,14 +674,27 @@ pub fn pairs(rows: &[Vec<String>]) -> Option<String> {
             });
         format!("{mean:.decimals$}x [{lo:.decimals$}, {hi:.decimals$}]")
     };
+    // two vehicle files of one name: each with the start of its SHA-256
+    let shown = |(scenario, controller, key): &(String, String, String), name: &str| {
+        let same_name = groups
+            .iter()
+            .filter(|((s, c, _), (n, _))| s == scenario && c == controller && n == name)
+            .count();
+        if same_name > 1 {
+            format!("{name}@{}", key.chars().take(8).collect::<String>())
+        } else {
+            name.to_owned()
+        }
+    };
     let cells: Vec<Vec<String>> = groups
         .iter()
-        .map(|((scenario, controller, vehicle), v)| {
-            let at_least = v.iter().filter(|p| p[1] >= 1.0).count();
+        .map(|(k, (vehicle, v))| {
+            let (scenario, controller, _) = k;
+            let at_least = v.iter().filter(|p| p[3] > 0.0).count();
             vec![
                 count(scenario),
                 count(controller),
-                vehicle.clone(),
+                shown(k, vehicle),
                 v.len().to_string(),
                 spread(v, 0, 3),
                 spread(v, 1, 4),
@@ -676,15 +717,13 @@ pub fn pairs(rows: &[Vec<String>]) -> Option<String> {
         "\nARTE on against off (drives of one scenario, controller, vehicle and seed, one with ARTE on and one off):\n",
     );
     text.push_str(&aligned(&heads, &cells));
-    for l in wrap(
-        &format!(
-            "ratios on/off per pair of the ground truth's figures over the scenario window, their mean [least, greatest]; accel>=1: pairs whose drive with ARTE had at least its partner's mean acceleration; {} of {considered} complete drives (not replays) paired",
-            paired
-        ),
-        KEY_WIDTH,
-    ) {
+    for l in wrap(PAIRS_KEY, KEY_WIDTH) {
         let _ = writeln!(text, "{l}");
     }
+    let _ = writeln!(
+        text,
+        "{paired} of {considered} complete drives (not replays) paired"
+    );
     Some(text)
 }
 
@@ -760,12 +799,6 @@ mod tests {
         log
     }
 
-    /// A row's and the printed table's run: the controller, the ARTE
-    /// switch and the seed the summary gives (a replay's own controller and
-    /// ARTE switch, not its source's copied `grip.run`), and the vehicle
-    /// file the summary used, with its SHA-256 and the microphone's lead;
-    /// the table had no such column, so an ARTE-on and an ARTE-off drive
-    /// differed only by file name.
     /// A row of [`COLUMNS`] with `fields` set and the rest empty.
     fn row_with(fields: &[(&str, &str)]) -> Vec<String> {
         let mut r = vec![String::new(); COLUMNS.len()];
@@ -800,7 +833,10 @@ mod tests {
     /// `grip inspect DIR`'s pairs: one scenario, controller, vehicle and
     /// seed with ARTE on and off; the ratios' mean, least and greatest,
     /// and how many pairs kept their partner's acceleration; a replay, a
-    /// partial log, another seed or another vehicle does not pair.
+    /// partial log, another seed, another controller, another vehicle or a
+    /// log without a seed does not pair, nor a pair whose drive without ARTE
+    /// rolled back (a negative acceleration: no ratio); two vehicle files
+    /// of one name are two rows, told apart by their SHA-256.
     #[test]
     fn on_and_off_drives_pair_by_run() {
         let mut rows = vec![
@@ -812,22 +848,36 @@ mod tests {
             drive_row("on", "3", "aa", ["0.02", "1.0", "1"]),
             drive_row("on", "4", "aa", ["0.02", "1.0", "1"]),
             drive_row("off", "4", "bb", ["0.2", "1.0", "1"]),
+            // no seed: no pair
+            drive_row("on", "", "aa", ["0.02", "1.0", "1"]),
+            drive_row("off", "", "aa", ["0.2", "1.0", "1"]),
+            // rolled back without ARTE: no ratio
+            drive_row("on", "6", "aa", ["0.02", "0.1", "1"]),
+            drive_row("off", "6", "aa", ["0.2", "-0.1", "1"]),
         ];
         // a replay and a partial drive of seed 5 never pair
         let mut replay = drive_row("on", "5", "aa", ["0.02", "1.0", "1"]);
         replay[at("replay_source")] = "drive.mcap".into();
         let mut partial = drive_row("off", "5", "aa", ["0.2", "1.0", "1"]);
         partial[at("scenario_window")] = "partial".into();
-        rows.extend([replay, partial]);
-        let text = pairs(&rows).expect("two pairs");
-        let line = text
-            .lines()
-            .find(|l| l.starts_with("paper "))
-            .unwrap_or_else(|| panic!("{text}"));
-        let cells: Vec<&str> = line.split_whitespace().collect();
+        // SRC, seed 1: its own row, not MTTE's
+        let src = |arte: &str, slip: &str| {
+            let mut r = drive_row(arte, "1", "aa", [slip, "1.0", "100"]);
+            r[at("controller")] = "src".into();
+            r
+        };
+        rows.extend([replay, partial, src("off", "0.08"), src("on", "0.04")]);
+        let text = pairs(&rows).expect("pairs");
+        let line = |ctrl: &str| -> Vec<&str> {
+            text.lines()
+                .find(|l| l.starts_with(&format!("paper    {ctrl} ")))
+                .unwrap_or_else(|| panic!("{ctrl} in {text}"))
+                .split_whitespace()
+                .collect()
+        };
         // slip 0.1x and 0.3x, accel 1.05x and 0.98x, command 1.2x and 0.5x
         assert_eq!(
-            cells,
+            line("mtte"),
             [
                 "paper",
                 "mtte",
@@ -846,16 +896,40 @@ mod tests {
             ],
             "{text}"
         );
-        assert_eq!(text.lines().filter(|l| l.starts_with("paper ")).count(), 1);
-        let words = text.split_whitespace().collect::<Vec<_>>().join(" ");
+        assert_eq!(line("src")[3..7], ["1", "0.500x", "[0.500,", "0.500]"]);
+        assert_eq!(text.lines().filter(|l| l.starts_with("paper ")).count(), 2);
+        // 13 complete drives (not replays) of which 6 paired
         assert!(
-            words.contains("4 of 7 complete drives (not replays) paired"),
+            text.lines()
+                .any(|l| l == "6 of 13 complete drives (not replays) paired"),
             "{text}"
         );
         // nothing pairs: no block
-        assert_eq!(pairs(&rows[4..]), None);
+        assert_eq!(pairs(&rows[4..9]), None);
+
+        // two vehicle files named front-mic.toml: two rows
+        let two = [
+            drive_row("on", "1", "aa11aa11ff", ["0.02", "1.0", "1"]),
+            drive_row("off", "1", "aa11aa11ff", ["0.2", "1.0", "1"]),
+            drive_row("on", "1", "bb22bb22ff", ["0.02", "1.0", "1"]),
+            drive_row("off", "1", "bb22bb22ff", ["0.2", "1.0", "1"]),
+        ];
+        let text = pairs(&two).unwrap();
+        for name in ["front-mic.toml@aa11aa11", "front-mic.toml@bb22bb22"] {
+            assert!(
+                text.lines()
+                    .any(|l| l.split_whitespace().nth(2) == Some(name)),
+                "{name} in {text}"
+            );
+        }
     }
 
+    /// A row's and the printed table's run: the controller, the ARTE
+    /// switch and the seed the summary gives (a replay's own controller and
+    /// ARTE switch, not its source's copied `grip.run`), and the vehicle
+    /// file the summary used, with its SHA-256 and the microphone's lead;
+    /// the table had no such column, so an ARTE-on and an ARTE-off drive
+    /// differed only by file name.
     #[test]
     fn each_row_names_its_run() {
         let on = drive_with_vehicle();
