@@ -134,7 +134,11 @@ pub fn parse_scenario(
         if e.field == "v0" {
             e = grip_physics::InvalidField::new(
                 "v0_kmh",
-                format!("must be in [0, 360] km/h (got {})", f.v0_kmh),
+                format!(
+                    "must be in [0, {}] km/h (got {})",
+                    grip_physics::scenario::V0_MAX_MPS * 3.6,
+                    f.v0_kmh
+                ),
             );
         }
         ConfigError::invalid(file, "", e)

@@ -18,6 +18,11 @@ use crate::vehicle::VehicleParams;
 /// at the period of the loop that runs it ([`Scenario::check_for`]).
 pub const MAX_CYCLES: f64 = 1e9;
 
+/// The fastest start a scenario may have, m/s (360 km/h): every start
+/// speed grip takes (a scenario file's `v0_kmh`, `grip sim --random
+/// v0_kmh`, `grip generate --v0-kmh`) is checked against it.
+pub const V0_MAX_MPS: f64 = 100.0;
+
 /// `x` as a reason shows it: plainly, or in exponent form when plain would
 /// be long (`1e300`, not three hundred digits).
 fn shown(x: f64) -> String {
@@ -441,7 +446,7 @@ impl Scenario {
             ends.push(acc);
         }
         validate::positive("duration", duration)?;
-        validate::in_range("v0", v0, 0.0, 100.0)?;
+        validate::in_range("v0", v0, 0.0, V0_MAX_MPS)?;
         demand.validate().map_err(|e| e.prefixed("demand"))?;
         Ok(Self {
             name,

@@ -83,6 +83,10 @@ pub fn sounding_roads(roads: &RoadCatalogue) -> Vec<usize> {
 /// limits it further). `grip generate --torque` has the same bound.
 pub const TORQUE_MAX_NM: f64 = 10_000.0;
 
+/// The fastest start of the recipe, km/h: a scenario's
+/// ([`grip_physics::scenario::V0_MAX_MPS`], 360 km/h).
+const V0_MAX_KMH: f64 = grip_physics::scenario::V0_MAX_MPS * 3.6;
+
 /// One field `RandomSpec::parse` sets: its name, the range it accepts, and
 /// the field.
 type SpecField = (&'static str, f64, f64, fn(&mut RandomSpec) -> &mut f64);
@@ -91,7 +95,7 @@ impl RandomSpec {
     /// The fields [`RandomSpec::parse`] sets: name as in the struct, the
     /// range it accepts, and the field itself.
     const FIELDS: [SpecField; 6] = [
-        ("v0_kmh", 0.0, 200.0, |s| &mut s.v0_kmh),
+        ("v0_kmh", 0.0, V0_MAX_KMH, |s| &mut s.v0_kmh),
         ("torque", 0.0, TORQUE_MAX_NM, |s| &mut s.torque),
         ("min_len_m", 0.01, 10_000.0, |s| &mut s.min_len_m),
         ("max_len_m", 0.01, 10_000.0, |s| &mut s.max_len_m),
@@ -375,5 +379,20 @@ mod tests {
         assert!(field("torque=NaN").contains("`random.torque`"));
         assert!(field("torque=1,torque=2").contains("given twice"));
         assert!(field("min_len_m=5,max_len_m=2").contains("`random.max_len_m`"));
+    }
+
+    /// The recipe's start speed has a scenario's limit (it had 200 km/h
+    /// while a scenario file and `grip generate --v0-kmh` took 360): the
+    /// fastest start draws a scenario that validates, one faster is
+    /// refused with the limit.
+    #[test]
+    fn the_fastest_start_is_a_scenarios() {
+        let roads = grip_physics::RoadCatalogue::burckhardt(&["asphalt", "snow"]).unwrap();
+        let s = RandomSpec::parse("v0_kmh=360").unwrap();
+        assert_eq!(s.v0_kmh, 360.0);
+        let sc = s.scenario(1, &roads).unwrap();
+        assert_eq!(sc.v0, grip_physics::scenario::V0_MAX_MPS);
+        let e = RandomSpec::parse("v0_kmh=360.5").unwrap_err().to_string();
+        assert!(e.contains("0..=360"), "{e}");
     }
 }

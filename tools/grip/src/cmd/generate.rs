@@ -318,15 +318,16 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     }
     // the ranges a scenario allows (0-360 km/h, a torque >= 0), in the
     // flag's own unit, before any road sequence is drawn
+    let v0_max = grip_physics::scenario::V0_MAX_MPS * 3.6;
     if let Some((lo, hi)) = args.v0_kmh
-        && !(lo >= 0.0 && hi <= 360.0)
+        && !(lo >= 0.0 && hi <= v0_max)
     {
         let given = if lo == hi {
             format!("{lo}")
         } else {
             format!("{lo}:{hi}")
         };
-        bail!("--v0-kmh {given}: a start speed must lie within 0..=360 km/h");
+        bail!("--v0-kmh {given}: a start speed must lie within 0..={v0_max} km/h");
     }
     if let Some(t) = &args.torque {
         if t.lo < 0.0 {
