@@ -136,7 +136,7 @@ pub fn parse_scenario(
                 "v0_kmh",
                 format!(
                     "must be in [0, {}] km/h (got {})",
-                    grip_physics::scenario::V0_MAX_MPS * 3.6,
+                    grip_physics::scenario::V0_MAX_KMH,
                     f.v0_kmh
                 ),
             );

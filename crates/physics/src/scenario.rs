@@ -23,6 +23,9 @@ pub const MAX_CYCLES: f64 = 1e9;
 /// v0_kmh`, `grip generate --v0-kmh`) is checked against it.
 pub const V0_MAX_MPS: f64 = 100.0;
 
+/// [`V0_MAX_MPS`] in km/h, the unit the files and flags give a start in.
+pub const V0_MAX_KMH: f64 = V0_MAX_MPS * 3.6;
+
 /// `x` as a reason shows it: plainly, or in exponent form when plain would
 /// be long (`1e300`, not three hundred digits).
 fn shown(x: f64) -> String {

@@ -83,10 +83,6 @@ pub fn sounding_roads(roads: &RoadCatalogue) -> Vec<usize> {
 /// limits it further). `grip generate --torque` has the same bound.
 pub const TORQUE_MAX_NM: f64 = 10_000.0;
 
-/// The fastest start of the recipe, km/h: a scenario's
-/// ([`grip_physics::scenario::V0_MAX_MPS`], 360 km/h).
-const V0_MAX_KMH: f64 = grip_physics::scenario::V0_MAX_MPS * 3.6;
-
 /// One field `RandomSpec::parse` sets: its name, the range it accepts, and
 /// the field.
 type SpecField = (&'static str, f64, f64, fn(&mut RandomSpec) -> &mut f64);
@@ -95,7 +91,9 @@ impl RandomSpec {
     /// The fields [`RandomSpec::parse`] sets: name as in the struct, the
     /// range it accepts, and the field itself.
     const FIELDS: [SpecField; 6] = [
-        ("v0_kmh", 0.0, V0_MAX_KMH, |s| &mut s.v0_kmh),
+        ("v0_kmh", 0.0, grip_physics::scenario::V0_MAX_KMH, |s| {
+            &mut s.v0_kmh
+        }),
         ("torque", 0.0, TORQUE_MAX_NM, |s| &mut s.torque),
         ("min_len_m", 0.01, 10_000.0, |s| &mut s.min_len_m),
         ("max_len_m", 0.01, 10_000.0, |s| &mut s.max_len_m),

@@ -27,13 +27,16 @@ fn bad_config_names_file_field_reason() {
     let dir = t.path().to_str().unwrap();
     let p = t.path().join("plant-sim.toml");
     let text = std::fs::read_to_string(&p).unwrap();
-    std::fs::write(
-        &p,
-        text.replace("cmd_timeout_ms = 20.0", "cmd_timeout_ms = 0.0"),
-    )
-    .unwrap();
-    let (code, err) = run(&["--config-dir", dir]);
-    assert_eq!(code, i32::from(EXIT_CONFIG), "{err}");
+    // plant-sim on its configuration with `cmd_timeout_ms = ms`: the exit
+    // code must be EX_CONFIG; the error output
+    let refused = |ms: &str| -> String {
+        let timeout = format!("cmd_timeout_ms = {ms}");
+        std::fs::write(&p, text.replace("cmd_timeout_ms = 20.0", &timeout)).unwrap();
+        let (code, err) = run(&["--config-dir", dir]);
+        assert_eq!(code, i32::from(EXIT_CONFIG), "{err}");
+        err
+    };
+    let err = refused("0.0");
     let line = err.lines().find(|l| l.starts_with("error: ")).expect(&err);
     assert!(
         line.contains("plant-sim.toml: field `cmd_timeout_ms`"),
@@ -43,13 +46,7 @@ fn bad_config_names_file_field_reason() {
     assert!(!err.contains("panicked"), "{err}");
     // longer than the bus's GripTimeoutMs for TorqueCommand (20 ms in the
     // shipped DBC): the simulated inverter would apply a timed-out command
-    std::fs::write(
-        &p,
-        text.replace("cmd_timeout_ms = 20.0", "cmd_timeout_ms = 21.0"),
-    )
-    .unwrap();
-    let (code, err) = run(&["--config-dir", dir]);
-    assert_eq!(code, i32::from(EXIT_CONFIG), "{err}");
+    let err = refused("21.0");
     assert!(
         err.contains("plant-sim.toml: field `cmd_timeout_ms`: 21 ms is longer than TorqueCommand's timeout on the bus (GripTimeoutMs 20 ms in inverter.dbc)"),
         "{err}"

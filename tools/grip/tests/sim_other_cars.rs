@@ -46,27 +46,27 @@ fn sim(vehicle: &Path, torque: u32, extra: &[&str], out: &Path) {
     );
 }
 
+/// The rows of a CSV of `grip sim` (no comma inside a field), each by
+/// column name.
+fn rows(csv: &str) -> Vec<BTreeMap<&str, &str>> {
+    let mut lines = csv.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    lines
+        .map(|l| head.iter().copied().zip(l.split(',')).collect())
+        .collect()
+}
+
 /// Per controller: (slip ratio, acceleration ratio) of its ARTE variant to
 /// its baseline, from summary.csv's per-seed rows (means over the seeds),
 /// and the ARTE variant's mean usage of the estimate.
 fn ratios_of_summary(csv: &str) -> BTreeMap<String, (f64, f64, f64)> {
-    let mut lines = csv.lines();
-    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
-    let (v, slip, accel, usage) = (
-        col("variant"),
-        col("slip_deviation"),
-        col("mean_accel"),
-        col("arte_usage"),
-    );
     // variant -> (sum slip, sum accel, sum usage, n)
     let mut sums: BTreeMap<String, (f64, f64, f64, f64)> = BTreeMap::new();
-    for l in lines {
-        let f: Vec<&str> = l.split(',').collect();
-        let e = sums.entry(f[v].to_owned()).or_default();
-        e.0 += f[slip].parse::<f64>().unwrap();
-        e.1 += f[accel].parse::<f64>().unwrap();
-        e.2 += f[usage].parse::<f64>().unwrap_or(0.0);
+    for r in rows(csv) {
+        let e = sums.entry(r["variant"].to_owned()).or_default();
+        e.0 += r["slip_deviation"].parse::<f64>().unwrap();
+        e.1 += r["mean_accel"].parse::<f64>().unwrap();
+        e.2 += r["arte_usage"].parse::<f64>().unwrap_or(0.0);
         e.3 += 1.0;
     }
     let mut out = BTreeMap::new();
@@ -118,27 +118,17 @@ fn the_road_estimate_helps_on_cars_nobody_tuned_to() {
         &out,
     );
     let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
-    let mut lines = csv.lines();
-    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
-    let (point, ctl, slip, accel) = (
-        col("point"),
-        col("controller"),
-        col("slip_ratio"),
-        col("accel_ratio"),
-    );
     let mut seen = 0;
-    for l in lines {
-        let f: Vec<&str> = l.split(',').collect();
-        if f[point] == "0" {
+    for r in rows(&csv) {
+        if r["point"] == "0" {
             continue; // as configured: the tuned car itself
         }
-        let car = format!("front-mic, point {}", f[point]);
+        let car = format!("front-mic, point {}", r["point"]);
         check(
             &car,
-            f[ctl],
-            f[slip].parse().unwrap(),
-            f[accel].parse().unwrap(),
+            r["controller"],
+            r["slip_ratio"].parse().unwrap(),
+            r["accel_ratio"].parse().unwrap(),
         );
         seen += 1;
     }

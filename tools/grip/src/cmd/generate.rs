@@ -318,7 +318,7 @@ pub fn run(ctx: &Ctx, args: Args) -> anyhow::Result<()> {
     }
     // the ranges a scenario allows (0-360 km/h, a torque >= 0), in the
     // flag's own unit, before any road sequence is drawn
-    let v0_max = grip_physics::scenario::V0_MAX_MPS * 3.6;
+    let v0_max = grip_physics::scenario::V0_MAX_KMH;
     if let Some((lo, hi)) = args.v0_kmh
         && !(lo >= 0.0 && hi <= v0_max)
     {

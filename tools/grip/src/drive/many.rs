@@ -633,8 +633,8 @@ pub fn pairs(rows: &[Vec<String>]) -> Option<String> {
         (a.is_finite() && b.is_finite() && b > 0.0).then_some(a / b)
     };
     // (scenario, controller, vehicle key) -> (vehicle shown, per pair
-    // [slip, accel, tv, 1 if the accel kept its partner's])
-    type Group = (String, Vec<[f64; 4]>);
+    // [slip, accel, tv] ratios)
+    type Group = (String, Vec<[f64; 3]>);
     let mut groups: std::collections::BTreeMap<(String, String, String), Group> =
         std::collections::BTreeMap::new();
     let mut paired = 0;
@@ -648,7 +648,6 @@ pub fn pairs(rows: &[Vec<String>]) -> Option<String> {
                 continue;
             };
             paired += 2;
-            let kept = if acc >= 1.0 { 1.0 } else { 0.0 };
             groups
                 .entry((scenario.clone(), controller.clone(), vehicle.clone()))
                 .or_insert_with(|| {
@@ -658,13 +657,13 @@ pub fn pairs(rows: &[Vec<String>]) -> Option<String> {
                     )
                 })
                 .1
-                .push([s, acc, tv, kept]);
+                .push([s, acc, tv]);
         }
     }
     if groups.is_empty() {
         return None;
     }
-    let spread = |v: &[[f64; 4]], k: usize, decimals: usize| -> String {
+    let spread = |v: &[[f64; 3]], k: usize, decimals: usize| -> String {
         let xs: Vec<f64> = v.iter().map(|p| p[k]).collect();
         let mean = xs.iter().sum::<f64>() / xs.len() as f64;
         let (lo, hi) = xs
@@ -690,7 +689,9 @@ pub fn pairs(rows: &[Vec<String>]) -> Option<String> {
         .iter()
         .map(|(k, (vehicle, v))| {
             let (scenario, controller, _) = k;
-            let at_least = v.iter().filter(|p| p[3] > 0.0).count();
+            // the baseline's acceleration is positive: a ratio of at least
+            // 1 is at least the partner's acceleration
+            let at_least = v.iter().filter(|p| p[1] >= 1.0).count();
             vec![
                 count(scenario),
                 count(controller),
