@@ -31,8 +31,7 @@ fn gain_warnings<'a>(err: &'a str, section: &str) -> Vec<&'a str> {
 
 /// No line of `err` names the replay's temporary copy of the configuration.
 fn no_temporary_copy(err: &str) {
-    let tmp = std::env::temp_dir().display().to_string();
-    assert!(!err.contains(&tmp) && !err.contains(".tmp"), "{err}");
+    assert!(!common::names_a_temporary_copy(err), "{err}");
 }
 
 /// twice the paper's wheel, a motor 2.5 times quicker (as

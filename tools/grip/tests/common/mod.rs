@@ -110,3 +110,11 @@ pub fn python() -> PathBuf {
         PathBuf::from("python3")
     }
 }
+
+/// Whether `text` names a temporary directory as `tempfile` makes them
+/// (`<temp dir>/.tmpXXXXXX`, as `grip replay`'s copy of a drive's
+/// configuration): not merely the temporary directory, which a checkout
+/// under it (`git clone . /tmp/fresh`) puts in every path of the repository.
+pub fn names_a_temporary_copy(text: &str) -> bool {
+    text.contains(".tmp")
+}
